@@ -1,0 +1,408 @@
+"""Chapter 5 — vAGN, the visual automaton generative network, as a soft automaton.
+
+The planner of the paper (section III-B) is a probabilistic automaton with ``N``
+hidden states ("q-states").  Its state is a distribution ``q_t`` over the
+q-states and its transitions are *generated* from the visual predicates
+``p ∈ R^M`` produced by the predicate extractor of chapter 6 (eq. 7):
+
+* eq. 8:  ``W^p = Σ_i p_i W_i``            (``W`` has shape ``(M, N, N)``)
+* eq. 9:  ``q_t = colsoftmax(ReLU(W^p)) · q_{t-1}``
+
+Conventions used throughout this module
+---------------------------------------
+* ``T[i, j] = P(q_t = i | q_{t-1} = j)``: column ``j`` holds the transitions
+  *out of* state ``j`` and sums to one ("softmax along column"), and one step
+  is the matrix–vector product ``q_t = T q_{t-1}``.
+* Leading axes are batch axes: ``p`` of shape ``(..., M)`` gives ``T`` of
+  shape ``(..., N, N)`` and ``q`` of shape ``(..., N)``.
+* Sequences are time-major: ``ps`` of shape ``(T, ..., M)``.
+
+Every differentiable function takes the array namespace ``xp`` (plain NumPy by
+default, ``engine("numpy").xp`` or ``engine("jax").xp`` for gradients) and uses
+only the operations listed in CONTRIBUTING.md.  Input checks run only on
+concrete NumPy inputs (never on traced values).
+
+A property worth knowing (the tutorial shows it): ReLU sets negative entries
+of ``W^p`` to zero, but a zero still becomes ``e^0 = 1`` inside the softmax, so
+**no transition ever has probability exactly zero**.  The smallest possible
+entry of a column is ``1 / (1 + Σ_{r≠i} e^{R_rj})`` with ``R = ReLU(W^p)``;
+the automaton graph is always complete and "impossible" transitions can only
+be read off by thresholding (see :func:`plot_automaton`'s ``min_prob``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "init_vagn",
+    "transition_matrix",
+    "step",
+    "rollout",
+    "uniform_state",
+    "random_state",
+    "stationary_distribution",
+    "most_likely_states",
+    "most_likely_path",
+    "min_transition_probability",
+    "plot_automaton",
+    "plot_q_heatmap",
+]
+
+#: Tolerance on ``sum(q) == 1`` and ``q >= 0`` for concrete inputs.
+DIST_TOL = 1e-6
+
+
+# ---------------------------------------------------------------------------
+# input checks (concrete NumPy values only)
+# ---------------------------------------------------------------------------
+def _is_concrete(x: Any) -> bool:
+    """True for plain NumPy / Python values, False for traced values (our
+    autodiff boxes, JAX tracers) and device arrays, which are never inspected."""
+    return isinstance(x, (np.ndarray, np.generic, list, tuple, float, int))
+
+
+def _check_W(W: Any) -> tuple[int, int]:
+    shape = tuple(np.shape(W)) if _is_concrete(W) else tuple(W.shape)
+    if len(shape) != 3 or shape[1] != shape[2]:
+        raise ValueError(f"W must have shape (M, N, N); got W with shape {shape}")
+    if _is_concrete(W) and not np.all(np.isfinite(np.asarray(W, dtype=float))):
+        raise ValueError("W must be finite; got W with non-finite entries")
+    return shape[0], shape[1]
+
+
+def _check_p(p: Any, M: int) -> None:
+    shape = tuple(np.shape(p)) if _is_concrete(p) else tuple(p.shape)
+    if len(shape) == 0 or shape[-1] != M:
+        raise ValueError(
+            f"p must have shape (..., M) with M = {M} predicates (W.shape[0]); "
+            f"got p with shape {shape}"
+        )
+    if _is_concrete(p) and not np.all(np.isfinite(np.asarray(p, dtype=float))):
+        raise ValueError(f"p must be finite; got p = {np.asarray(p)!r}")
+
+
+def _check_q(q: Any, N: int, name: str = "q", tol: float = DIST_TOL) -> None:
+    shape = tuple(np.shape(q)) if _is_concrete(q) else tuple(q.shape)
+    if len(shape) == 0 or shape[-1] != N:
+        raise ValueError(
+            f"{name} must have shape (..., N) with N = {N} q-states; got {name} with shape {shape}"
+        )
+    if not _is_concrete(q):
+        return
+    qa = np.asarray(q, dtype=float)
+    if not np.all(np.isfinite(qa)):
+        raise ValueError(f"{name} must be finite; got {name} = {qa!r}")
+    if np.any(qa < -tol):
+        raise ValueError(
+            f"{name} must be a probability distribution: it has a negative entry "
+            f"(min {qa.min():.3g}); got {name} = {qa!r}"
+        )
+    sums = qa.sum(axis=-1)
+    if np.any(np.abs(sums - 1.0) > tol):
+        worst = float(sums.reshape(-1)[np.argmax(np.abs(sums - 1.0).reshape(-1))])
+        raise ValueError(
+            f"{name} must be a probability distribution: entries sum to {worst:.6g}, "
+            f"not 1 (tolerance {tol:g}); got {name} = {qa!r}"
+        )
+
+
+def _check_T(T: np.ndarray, tol: float = 1e-8) -> np.ndarray:
+    T = np.asarray(T, dtype=float)
+    if T.ndim < 2 or T.shape[-1] != T.shape[-2]:
+        raise ValueError(f"T must have shape (..., N, N); got T with shape {T.shape}")
+    if np.any(T < -tol) or np.any(np.abs(T.sum(axis=-2) - 1.0) > 1e-6):
+        raise ValueError(
+            "T must be column-stochastic (non-negative, every column summing to 1); "
+            f"got column sums {np.round(T.sum(axis=-2), 6)}"
+        )
+    return T
+
+
+# ---------------------------------------------------------------------------
+# parameters and initial states
+# ---------------------------------------------------------------------------
+def init_vagn(
+    rng: np.random.Generator, n_predicates: int, n_states: int, scale: float = 0.5
+) -> np.ndarray:
+    """Transition weights ``W`` of shape ``(M, N, N)`` (eq. 8), entries ``N(0, scale²)``.
+
+    A zero-mean start leaves about half of every ``W^p`` in ReLU's dead zone;
+    that is deliberate (it is the paper's model) and is what lets predicates
+    *switch off* transitions.  ``scale`` is the standard deviation.
+    """
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"rng must be a numpy.random.Generator; got rng = {rng!r}")
+    if int(n_predicates) != n_predicates or n_predicates < 1:
+        raise ValueError(f"n_predicates must be a positive integer; got {n_predicates!r}")
+    if int(n_states) != n_states or n_states < 1:
+        raise ValueError(f"n_states must be a positive integer; got {n_states!r}")
+    if not np.isfinite(scale) or scale < 0:
+        raise ValueError(f"scale must be finite and >= 0; got scale = {scale!r}")
+    M, N = int(n_predicates), int(n_states)
+    return scale * rng.standard_normal((M, N, N))
+
+
+def uniform_state(n_states: int) -> np.ndarray:
+    """Algorithm 1's ``UniformInit()``: ``q' = (1/N, …, 1/N)``."""
+    if int(n_states) != n_states or n_states < 1:
+        raise ValueError(f"n_states must be a positive integer; got {n_states!r}")
+    return np.full(int(n_states), 1.0 / int(n_states))
+
+
+def random_state(
+    rng: np.random.Generator, n_states: int, size: int | tuple[int, ...] | None = None
+) -> np.ndarray:
+    """Algorithm 1's ``RandomInit()``: ``q'`` drawn uniformly from the simplex
+    (a flat Dirichlet), shape ``(*size, N)``."""
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"rng must be a numpy.random.Generator; got rng = {rng!r}")
+    if int(n_states) != n_states or n_states < 1:
+        raise ValueError(f"n_states must be a positive integer; got {n_states!r}")
+    return rng.dirichlet(np.ones(int(n_states)), size=size)
+
+
+# ---------------------------------------------------------------------------
+# the model (eqs. 8-9)
+# ---------------------------------------------------------------------------
+def combined_weights(p: Any, W: Any, xp: Any = np) -> Any:
+    """Eq. 8: ``W^p = Σ_i p_i W_i`` — ``p`` (..., M), ``W`` (M, N, N) → (..., N, N)."""
+    M, N = _check_W(W)
+    _check_p(p, M)
+    p = xp.asarray(p)
+    W = xp.asarray(W)
+    flat = xp.matmul(p, xp.reshape(W, (M, N * N)))  # (..., N*N)
+    return xp.reshape(flat, tuple(p.shape[:-1]) + (N, N))
+
+
+def transition_matrix(p: Any, W: Any, xp: Any = np) -> Any:
+    """Eqs. 8–9: ``T = colsoftmax(ReLU(Σ_i p_i W_i))``.
+
+    ``p`` of shape ``(..., M)`` and ``W`` of shape ``(M, N, N)`` give ``T`` of
+    shape ``(..., N, N)`` with ``T[..., i, j] = P(next = i | current = j)``;
+    every column sums to one.  The softmax subtracts the column maximum first,
+    so it never overflows (the shift cancels, also in the gradient).
+    """
+    A = combined_weights(p, W, xp=xp)  # eq. 8
+    R = xp.maximum(A, 0.0)  # ReLU
+    shifted = R - xp.expand_dims(xp.max(R, axis=-2), -2)
+    E = xp.exp(shifted)
+    return E / xp.expand_dims(xp.sum(E, axis=-2), -2)  # softmax along each column
+
+
+def step(q: Any, p: Any, W: Any, xp: Any = np) -> Any:
+    """Eq. 9: one vAGN update ``q_t = T(p) q_{t-1}``; ``q`` (..., N), ``p`` (..., M)."""
+    M, N = _check_W(W)
+    _check_q(q, N)
+    T = transition_matrix(p, W, xp=xp)
+    q = xp.asarray(q)
+    return xp.sum(T * xp.expand_dims(q, -2), axis=-1)
+
+
+def rollout(q0: Any, ps: Any, W: Any, xp: Any = np) -> Any:
+    """Run eq. 9 over a predicate sequence ``ps`` of shape ``(T, ..., M)``.
+
+    Returns the stacked distributions ``(T + 1, ..., N)``: index 0 is ``q0``,
+    index ``t`` is the state after consuming ``ps[t - 1]``.
+    """
+    M, N = _check_W(W)
+    _check_q(q0, N, name="q0")
+    shape = tuple(np.shape(ps)) if _is_concrete(ps) else tuple(ps.shape)
+    if len(shape) < 2 or shape[-1] != M:
+        raise ValueError(
+            f"ps must have shape (T, ..., M) with M = {M}; got ps with shape {shape}"
+        )
+    _check_p(ps, M)
+    ps = xp.asarray(ps)
+    q = xp.asarray(q0)
+    qs = [q]
+    for t in range(shape[0]):
+        T = transition_matrix(ps[t], W, xp=xp)
+        q = xp.sum(T * xp.expand_dims(q, -2), axis=-1)
+        qs.append(q)
+    if len(qs) > 1:  # broadcast q0 against the batch shape of the sequence
+        qs[0] = qs[0] + xp.zeros_like(qs[1])
+    return xp.stack(qs, axis=0)
+
+
+# ---------------------------------------------------------------------------
+# analysis (plain NumPy, no gradients)
+# ---------------------------------------------------------------------------
+def min_transition_probability(p: Any, W: Any) -> float:
+    """The smallest entry of ``T(p)``; always > 0 (a ReLU zero is ``e^0 = 1``)."""
+    return float(np.min(transition_matrix(np.asarray(p, float), np.asarray(W, float))))
+
+
+def stationary_distribution(T: Any) -> np.ndarray:
+    """The distribution ``π`` with ``T π = π`` for a column-stochastic ``T`` (N, N).
+
+    vAGN matrices have strictly positive entries, so by Perron–Frobenius ``π``
+    is unique, strictly positive, and ``T^k q → π`` for every start ``q``.  It
+    is what the automaton settles to while the predicates stay constant.
+    Solved as the least-squares system ``[T − I; 1ᵀ] π = [0; 1]``.
+    """
+    T = _check_T(T)
+    if T.ndim != 2:
+        raise ValueError(f"T must have shape (N, N); got T with shape {T.shape}")
+    N = T.shape[0]
+    A = np.vstack([T - np.eye(N), np.ones((1, N))])
+    b = np.zeros(N + 1)
+    b[-1] = 1.0
+    pi, *_ = np.linalg.lstsq(A, b, rcond=None)
+    pi = np.clip(pi, 0.0, None)
+    return pi / pi.sum()
+
+
+def most_likely_states(qs: Any) -> np.ndarray:
+    """Per-step most probable q-state: ``argmax_i q_t[i]`` for ``qs`` (..., N)."""
+    qs = np.asarray(qs, dtype=float)
+    if qs.ndim < 1:
+        raise ValueError(f"qs must have shape (..., N); got qs with shape {qs.shape}")
+    return np.argmax(qs, axis=-1)
+
+
+def most_likely_path(q0: Any, Ts: Any) -> tuple[np.ndarray, float]:
+    """Viterbi: the single most probable state *sequence* ``s_0 … s_T``.
+
+    Maximises ``log q0[s_0] + Σ_t log Ts[t-1][s_t, s_{t-1}]`` over paths, for
+    transition matrices ``Ts`` of shape ``(T, N, N)`` (e.g. from
+    ``transition_matrix(ps, W)``).  Returns ``(path of length T + 1, log
+    probability)``.  The per-step argmax of the marginals
+    (:func:`most_likely_states`) need not be a likely path — compare both.
+    """
+    Ts = _check_T(Ts)
+    if Ts.ndim != 3:
+        raise ValueError(f"Ts must have shape (T, N, N); got Ts with shape {Ts.shape}")
+    N = Ts.shape[-1]
+    _check_q(q0, N, name="q0")
+    q0 = np.asarray(q0, dtype=float)
+    if q0.ndim != 1:
+        raise ValueError(f"q0 must have shape (N,); got q0 with shape {q0.shape}")
+    with np.errstate(divide="ignore"):
+        delta = np.log(q0)
+        logT = np.log(Ts)
+    back = np.zeros((Ts.shape[0], N), dtype=int)
+    for t in range(Ts.shape[0]):
+        scores = logT[t] + delta[None, :]  # scores[i, j]: arrive in i from j
+        back[t] = np.argmax(scores, axis=1)
+        delta = scores[np.arange(N), back[t]]
+    path = [int(np.argmax(delta))]
+    logp = float(delta[path[0]])
+    for t in range(Ts.shape[0] - 1, -1, -1):
+        path.append(int(back[t, path[-1]]))
+    return np.array(path[::-1]), logp
+
+
+# ---------------------------------------------------------------------------
+# figures
+# ---------------------------------------------------------------------------
+def plot_automaton(
+    T: Any,
+    ax: Any = None,
+    labels: list[str] | None = None,
+    q: Any = None,
+    min_prob: float = 0.0,
+    show_probs: bool = True,
+    max_width: float = 8.0,
+) -> Any:
+    """Draw the automaton of a transition matrix ``T`` (N, N).
+
+    Nodes are the q-states on a circle (shaded by ``q`` if given: darker =
+    more probable, as in the paper's q-distribution plots); the arrow ``j → i``
+    has width ``max_width · T[i, j]``; self-loops are drawn as small rings.
+    Edges with ``T[i, j] < min_prob`` are hidden — the only way to get a sparse
+    picture, since vAGN never produces exact zeros.  Returns the axes.
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Circle, FancyArrowPatch
+
+    T = _check_T(T)
+    if T.ndim != 2:
+        raise ValueError(f"T must have shape (N, N); got T with shape {T.shape}")
+    N = T.shape[0]
+    if labels is None:
+        labels = [f"$q_{{{i}}}$" for i in range(N)]
+    if len(labels) != N:
+        raise ValueError(f"labels must have N = {N} entries; got {len(labels)}")
+    if q is not None:
+        _check_q(q, N)
+        q = np.asarray(q, dtype=float)
+    if ax is None:
+        _, ax = plt.subplots(figsize=(4, 4))
+    angles = np.pi / 2 - 2 * np.pi * np.arange(N) / N
+    pos = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    r_node = 0.22 if N <= 6 else 0.14
+    cmap = plt.get_cmap("Blues")
+    for j in range(N):
+        for i in range(N):
+            w = T[i, j]
+            if w < min_prob:
+                continue
+            if i == j:
+                out = pos[i] / np.linalg.norm(pos[i])
+                centre = pos[i] + out * (r_node + 0.12)
+                ax.add_patch(
+                    Circle(centre, 0.12, fill=False, lw=max(max_width * w, 0.3), color="0.3")
+                )
+                if show_probs:
+                    ax.text(*(centre + out * 0.2), f"{w:.2f}", ha="center", va="center",
+                            fontsize=8)
+                continue
+            d = pos[i] - pos[j]
+            u = d / np.linalg.norm(d)
+            start, end = pos[j] + u * r_node, pos[i] - u * r_node
+            ax.add_patch(
+                FancyArrowPatch(start, end, arrowstyle="-|>", mutation_scale=12,
+                                connectionstyle="arc3,rad=0.18",
+                                lw=max(max_width * w, 0.3), color="0.3")
+            )
+            if show_probs:
+                normal = np.array([u[1], -u[0]])  # right of j→i: arc3 bends that way
+                mid = (start + end) / 2 + normal * 0.17
+                ax.text(*mid, f"{w:.2f}", ha="center", va="center", fontsize=8)
+    for i in range(N):
+        face = cmap(0.15 + 0.8 * q[i]) if q is not None else "white"
+        ax.add_patch(Circle(pos[i], r_node, facecolor=face, edgecolor="black", zorder=3))
+        dark = q is not None and q[i] > 0.55
+        ax.text(*pos[i], labels[i], ha="center", va="center", zorder=4,
+                color="white" if dark else "black")
+    ax.set_xlim(-1.6, 1.6)
+    ax.set_ylim(-1.6, 1.6)
+    ax.set_aspect("equal")
+    ax.axis("off")
+    return ax
+
+
+def plot_q_heatmap(
+    qs: Any,
+    ax: Any = None,
+    labels: list[str] | None = None,
+    cmap: str = "Blues",
+    colorbar: bool = True,
+) -> Any:
+    """Heat map of the q-distribution over time: ``qs`` (T, N) → rows = q-states,
+    columns = time steps, colour = probability in [0, 1] (darker = more probable,
+    as in the paper's execution traces).  Returns the axes."""
+    import matplotlib.pyplot as plt
+
+    qs = np.asarray(qs, dtype=float)
+    if qs.ndim != 2:
+        raise ValueError(f"qs must have shape (T, N); got qs with shape {qs.shape}")
+    _check_q(qs, qs.shape[1], name="qs")
+    N = qs.shape[1]
+    if labels is None:
+        labels = [f"$q_{{{i}}}$" for i in range(N)]
+    if len(labels) != N:
+        raise ValueError(f"labels must have N = {N} entries; got {len(labels)}")
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 0.4 * N + 1))
+    im = ax.imshow(qs.T, aspect="auto", cmap=cmap, vmin=0.0, vmax=1.0,
+                   interpolation="nearest")
+    ax.set_yticks(range(N))
+    ax.set_yticklabels(labels)
+    ax.set_xlabel("time step")
+    if colorbar:
+        ax.figure.colorbar(im, ax=ax, label="P(q-state)")
+    return ax
