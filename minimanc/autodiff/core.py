@@ -1,0 +1,429 @@
+"""Chapter 1 — the core of a from-scratch reverse-mode autodiff engine.
+
+Everything the engine needs fits in this file:
+
+* :class:`Box` — a traced value. While :func:`grad` runs your function, every
+  array that depends on the inputs is a ``Box`` that remembers *which primitive*
+  produced it and *from which parents* (a tuple, never a set: the order of the
+  backward sums is fixed, so gradients are bit-identical run after run).
+* :func:`primitive` — turns a plain-NumPy function into a traced one: when any
+  positional argument is a ``Box`` the result is a ``Box`` linked to its parents.
+* :func:`defvjp` / :func:`defvjp_fwd` — register the vector-Jacobian product
+  (VJP) of a primitive. Given the cotangent ``g = ∂L/∂ans`` a VJP returns
+  ``∂L/∂arg = gᵀ ∂ans/∂arg`` for one argument.
+* :func:`backward` — sorts the graph topologically (iteratively, so a chain of
+  10,000 operations does not hit Python's recursion limit) and runs the VJPs
+  from the output back to the inputs, summing the cotangents of values used
+  more than once.
+* :func:`grad` / :func:`value_and_grad` — JAX's API on pytrees (nested dicts,
+  lists and tuples of arrays).
+
+The primitives themselves (``add``, ``matmul``, ``sum``, …), each with its VJP
+beside it, live in :mod:`minimanc.autodiff.numpy`. The engine computes
+first-order derivatives only: VJPs are plain NumPy, so ``grad(grad(f))`` is not
+supported (it raises a clear error). The paper (``manc.tex``) trains every
+model of section III (eqs. 7–11) with gradients of a behaviour-cloning loss
+(Algorithm 1); this file is what computes them.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "Box",
+    "primitive",
+    "defvjp",
+    "defvjp_fwd",
+    "unbroadcast",
+    "backward",
+    "grad",
+    "value_and_grad",
+    "tree_flatten",
+    "tree_unflatten",
+]
+
+
+# ---------------------------------------------------------------------------
+# Boxes: traced values and the graph they form
+# ---------------------------------------------------------------------------
+class Box:
+    """A traced array: its value plus how it was computed.
+
+    ``parents`` is a tuple of ``(argnum, parent_box)``: the positional argument
+    ``argnum`` of ``prim`` was the traced value ``parent_box``. Leaves (the
+    inputs of :func:`grad`) have no parents. Operators (``+``, ``@``, ``x[i]``,
+    ``.T`` …) are attached by :mod:`minimanc.autodiff.numpy`.
+    """
+
+    __slots__ = ("_value", "_parents", "_prim", "_args", "_kwargs", "_res")
+    __array_ufunc__ = None  # make ``ndarray <op> Box`` defer to Box's reflected operator
+    __array_priority__ = 1000
+
+    def __init__(self, value, parents=(), prim=None, args=(), kwargs=None, res=None):
+        self._value = value
+        self._parents = parents
+        self._prim = prim
+        self._args = args
+        self._kwargs = kwargs or {}
+        self._res = res
+
+    @property
+    def value(self) -> np.ndarray:
+        """The plain NumPy value inside the box."""
+        return self._value
+
+    def __repr__(self) -> str:
+        return f"Box({self._value!r})"
+
+    def __array__(self, dtype=None, copy=None):
+        raise TypeError(
+            "a traced array (Box) cannot be converted to a plain NumPy array: use the "
+            "functions of minimanc.autodiff.numpy (the `xp` namespace) instead of numpy"
+        )
+
+
+def _unbox(x):
+    return x._value if isinstance(x, Box) else x
+
+
+def _name(prim) -> str:
+    return getattr(prim, "__name__", repr(prim))
+
+
+# ---------------------------------------------------------------------------
+# Primitives and their VJPs
+# ---------------------------------------------------------------------------
+def primitive(fun: Callable) -> Callable:
+    """Return a traced version of the plain-NumPy function ``fun``.
+
+    With no :class:`Box` among the positional arguments the result is simply
+    ``fun(*args, **kwargs)``. Otherwise ``fun`` runs on the unboxed values and
+    the result is boxed, remembering the primitive, its raw arguments and the
+    boxed parents. Keyword arguments are never differentiated.
+    A ``ValueError`` raised by ``fun`` is re-raised prefixed with its name, so
+    shape errors say which operation failed.
+    """
+    name = fun.__name__
+
+    @functools.wraps(fun)
+    def traced(*args, **kwargs):
+        parents = tuple((i, a) for i, a in enumerate(args) if isinstance(a, Box))
+        try:
+            if not parents:
+                return fun(*args, **kwargs)
+            for key, val in kwargs.items():
+                if isinstance(val, Box):
+                    raise TypeError(
+                        f"{name}: keyword argument {key!r} is traced; pass differentiable "
+                        "values positionally"
+                    )
+            raw = tuple(_unbox(a) for a in args)
+            if traced.fwd is not None:  # custom (fwd, bwd) pair, see defvjp_fwd
+                ans, res = traced.fwd(*raw, **kwargs)
+                return Box(ans, parents, traced, (), None, res)
+            if traced.vjps is None:
+                raise NotImplementedError(
+                    f"VJP of primitive '{name}' is not defined: register one with "
+                    f"defvjp({name}, ...) or defvjp_fwd({name}, fwd, bwd)"
+                )
+            return Box(fun(*raw, **kwargs), parents, traced, raw, kwargs)
+        except ValueError as err:
+            msg = str(err)
+            if msg.startswith(f"{name}:"):
+                raise
+            raise ValueError(f"{name}: {msg}") from err
+
+    traced.fun = fun
+    traced.vjps = None
+    traced.fwd = None
+    traced.bwd = None
+    return traced
+
+
+def defvjp(prim: Callable, *vjps: Callable | None) -> None:
+    """Register one VJP per positional argument of ``prim``.
+
+    Each ``vjp(g, ans, *args, **kwargs)`` receives the output cotangent ``g``,
+    the forward result ``ans`` and the raw (unboxed) arguments, and returns the
+    cotangent of *its* argument (same shape as that argument). ``None`` marks
+    a non-differentiable argument (an index, an axis …).
+
+    Example (HIPS-autograd style)::
+
+        defvjp(multiply, lambda g, ans, x, y: unbroadcast(x, g * y),
+                         lambda g, ans, x, y: unbroadcast(y, g * x))
+    """
+    if not hasattr(prim, "fun"):
+        raise TypeError(f"defvjp: {_name(prim)} is not a primitive (wrap it with @primitive)")
+    prim.vjps = tuple(vjps)
+
+
+def defvjp_fwd(prim: Callable, fwd: Callable, bwd: Callable) -> None:
+    """Register a JAX ``custom_vjp``-style pair for an expensive primitive.
+
+    When traced, ``fwd(*args, **kwargs) -> (ans, residuals)`` replaces the
+    forward pass and ``bwd(g, residuals)`` returns a tuple with one cotangent
+    per positional argument (``None`` = not differentiable). When nothing is
+    traced, the plain function runs and no residuals are kept.
+    """
+    if not hasattr(prim, "fun"):
+        raise TypeError(f"defvjp_fwd: {_name(prim)} is not a primitive (wrap it with @primitive)")
+    prim.fwd = fwd
+    prim.bwd = bwd
+
+
+def unbroadcast(target, g: np.ndarray) -> np.ndarray:
+    """Sum the cotangent ``g`` back to the shape of ``target`` (an array or a shape).
+
+    Broadcasting copies a value along new leading axes and along axes of size
+    one; the VJP of a copy is a sum, so we sum over exactly those axes. When
+    ``target`` is a floating-point array the result keeps its dtype.
+    """
+    if isinstance(target, tuple):
+        shape, dtype = target, None
+    else:
+        shape, dtype = np.shape(target), np.result_type(target)
+    g = np.asarray(g)
+    if g.shape != shape:
+        extra = g.ndim - len(shape)
+        if extra > 0:
+            g = g.sum(axis=tuple(range(extra)))
+        axes = tuple(i for i, n in enumerate(shape) if n == 1 and g.shape[i] != 1)
+        if axes:
+            g = g.sum(axis=axes, keepdims=True)
+        if g.shape != shape:  # target was larger than g: broadcast the cotangent
+            g = np.broadcast_to(g, shape)
+    if dtype is not None and np.issubdtype(dtype, np.floating) and g.dtype != dtype:
+        g = g.astype(dtype)
+    return g
+
+
+# ---------------------------------------------------------------------------
+# The backward pass
+# ---------------------------------------------------------------------------
+def toposort(end: Box) -> list[Box]:
+    """Boxes reachable from ``end``, each before its parents (iterative DFS)."""
+    order: list[Box] = []
+    seen: dict[int, bool] = {}
+    stack: list[tuple[Box, bool]] = [(end, False)]
+    while stack:
+        box, children_done = stack.pop()
+        if children_done:
+            order.append(box)
+            continue
+        if id(box) in seen:
+            continue
+        seen[id(box)] = True
+        stack.append((box, True))
+        for _, parent in reversed(box._parents):
+            if id(parent) not in seen:
+                stack.append((parent, False))
+    order.reverse()  # post-order reversed: every box comes before its parents
+    return order
+
+
+def _parent_cotangents(box: Box, g: np.ndarray):
+    """Yield ``(parent, cotangent)`` for each traced parent of ``box``."""
+    prim, name = box._prim, _name(box._prim)
+    if prim.bwd is not None:
+        cts = prim.bwd(g, box._res)
+        if not isinstance(cts, tuple | list):
+            cts = (cts,)
+        for argnum, parent in box._parents:
+            ct = cts[argnum] if argnum < len(cts) else None
+            if ct is None:
+                raise NotImplementedError(f"{name}: argument {argnum} is not differentiable")
+            yield parent, ct
+        return
+    for argnum, parent in box._parents:
+        vjp = prim.vjps[argnum] if argnum < len(prim.vjps) else None
+        if vjp is None:
+            raise NotImplementedError(
+                f"VJP of primitive '{name}' with respect to argument {argnum} is not defined"
+            )
+        yield parent, vjp(g, box._value, *box._args, **box._kwargs)
+
+
+def backward(end: Box, g: np.ndarray) -> dict[int, np.ndarray]:
+    """Run every VJP from ``end`` (with cotangent ``g``) back to the leaves.
+
+    Returns ``{id(leaf): cotangent}`` for the leaves (boxes without parents).
+    A value used several times receives the *sum* of its cotangents.
+    """
+    cotangents: dict[int, Any] = {id(end): g}
+    leaves: dict[int, np.ndarray] = {}
+    for box in toposort(end):
+        g = cotangents.pop(id(box))
+        if not box._parents:
+            leaves[id(box)] = g
+            continue
+        for parent, ct in _parent_cotangents(box, g):
+            ct = np.asarray(ct)
+            pval = parent._value
+            if ct.shape != np.shape(pval):
+                raise ValueError(
+                    f"VJP of '{_name(box._prim)}' returned a cotangent of shape {ct.shape} "
+                    f"for an argument of shape {np.shape(pval)}"
+                )
+            pdtype = np.result_type(pval)
+            if ct.dtype != pdtype and np.issubdtype(pdtype, np.floating):
+                ct = ct.astype(pdtype)  # float32 stays float32
+            key = id(parent)
+            cotangents[key] = ct if key not in cotangents else cotangents[key] + ct
+    return leaves
+
+
+# ---------------------------------------------------------------------------
+# Pytrees: nested dicts, lists and tuples (None is an empty subtree)
+# ---------------------------------------------------------------------------
+def _dict_keys(d: dict) -> list:
+    try:
+        return sorted(d)
+    except TypeError:
+        return list(d)
+
+
+def tree_flatten(tree) -> tuple[list, list[str], Callable[[Sequence], Any]]:
+    """Return ``(leaves, paths, rebuild)`` where ``rebuild(new_leaves)`` rebuilds the tree.
+
+    ``paths`` are readable locations such as ``"['layers'][1]['w']"``.
+    """
+    leaves: list = []
+    paths: list[str] = []
+
+    def build(node, path):
+        if node is None:
+            return lambda it: None
+        if isinstance(node, dict):
+            keys = _dict_keys(node)
+            subs = [build(node[k], f"{path}[{k!r}]") for k in keys]
+            return lambda it: type(node)(zip(keys, [s(it) for s in subs]))
+        if isinstance(node, list | tuple):
+            subs = [build(c, f"{path}[{i}]") for i, c in enumerate(node)]
+            if hasattr(node, "_fields"):  # namedtuple
+                return lambda it: type(node)(*[s(it) for s in subs])
+            return lambda it: type(node)([s(it) for s in subs])
+        leaves.append(node)
+        paths.append(path)
+        return lambda it: next(it)
+
+    rebuilder = build(tree, "")
+    return leaves, paths, lambda new: rebuilder(iter(new))
+
+
+def tree_unflatten(rebuild: Callable[[Sequence], Any], leaves: Sequence):
+    """Inverse of :func:`tree_flatten`: ``tree_unflatten(rebuild, leaves)``."""
+    return rebuild(leaves)
+
+
+# ---------------------------------------------------------------------------
+# grad and value_and_grad
+# ---------------------------------------------------------------------------
+def _check_leaf(leaf, argnum: int, path: str) -> np.ndarray:
+    if isinstance(leaf, Box):
+        raise NotImplementedError(
+            "grad of a function that is itself being differentiated: higher-order "
+            "derivatives are not supported by minimanc.autodiff (use the jax engine)"
+        )
+    if isinstance(leaf, bool | int):
+        dtype_name = type(leaf).__name__
+    else:
+        arr = np.asarray(leaf)
+        if np.issubdtype(arr.dtype, np.floating):
+            return arr
+        dtype_name = str(arr.dtype)
+    where = f"argument {argnum}" + (f" at {path}" if path else "")
+    raise TypeError(f"grad requires real floating-point inputs, got {dtype_name} for {where}")
+
+
+def value_and_grad(
+    fun: Callable, argnums: int | Sequence[int] = 0, has_aux: bool = False
+) -> Callable:
+    """Return ``f(*args) -> (value, gradient)`` like ``jax.value_and_grad``.
+
+    ``fun`` must return a scalar (shape ``()``); with ``has_aux=True`` it returns
+    ``(scalar, aux)`` and the value is ``(scalar, aux)``. The gradient has the
+    pytree structure of ``args[argnums]`` (a tuple of those when ``argnums`` is
+    a tuple) and the dtype of each input leaf.
+    """
+    multi = not isinstance(argnums, int)
+    nums = tuple(argnums) if multi else (argnums,)
+    if not all(isinstance(n, int) for n in nums) or not nums:
+        raise ValueError(f"argnums must be an int or a non-empty tuple of ints, got {argnums!r}")
+
+    @functools.wraps(fun)
+    def wrapped(*args, **kwargs):
+        for n in nums:
+            if not -len(args) <= n < len(args):
+                raise ValueError(
+                    f"argnums={argnums!r} but the function was called with {len(args)} "
+                    "positional arguments"
+                )
+        args = list(args)
+        per_arg = []  # (argnum, leaf boxes, rebuild, original leaves)
+        for n in nums:
+            leaves, paths, rebuild = tree_flatten(args[n])
+            arrays = [_check_leaf(leaf, n, p) for leaf, p in zip(leaves, paths)]
+            boxes = [Box(a) for a in arrays]
+            per_arg.append((boxes, rebuild, leaves))
+            args[n] = rebuild(boxes)
+        out = fun(*args, **kwargs)
+        if has_aux:
+            if not (isinstance(out, tuple | list) and len(out) == 2):
+                raise ValueError("has_aux=True requires the function to return (value, aux)")
+            out, aux = out
+            aux = _strip_boxes(aux)
+        shape, dtype = np.shape(_unbox(out)), np.result_type(_unbox(out))
+        if shape != ():
+            raise TypeError(
+                f"grad requires a scalar output (shape ()), got shape {shape}; reduce it "
+                "first, e.g. with .sum() or .mean()"
+            )
+        if not np.issubdtype(dtype, np.floating):
+            raise TypeError(f"grad requires a real floating-point output, got {dtype}")
+        cts = backward(out, np.ones((), dtype=dtype)) if isinstance(out, Box) else {}
+        grads = []
+        for boxes, rebuild, leaves in per_arg:
+            gl = []
+            for box, leaf in zip(boxes, leaves):
+                g = cts.get(id(box))
+                val = box._value
+                if g is None:
+                    g = np.zeros_like(val)
+                g = np.asarray(g, dtype=val.dtype)
+                if not g.flags.writeable:
+                    g = g.copy()
+                gl.append(float(g) if isinstance(leaf, float) else g)
+            grads.append(rebuild(gl))
+        grads = tuple(grads) if multi else grads[0]
+        value = _unbox(out)
+        return ((value, aux) if has_aux else value), grads
+
+    return wrapped
+
+
+def grad(fun: Callable, argnums: int | Sequence[int] = 0, has_aux: bool = False) -> Callable:
+    """Return the gradient function of the scalar function ``fun`` (like ``jax.grad``).
+
+    >>> import minimanc.autodiff.numpy as anp
+    >>> float(grad(lambda x: anp.sum(x ** 2))(anp.asarray([1.0, 2.0]))[1])
+    4.0
+    """
+    vg = value_and_grad(fun, argnums, has_aux)
+
+    @functools.wraps(fun)
+    def wrapped(*args, **kwargs):
+        value, g = vg(*args, **kwargs)
+        return (g, value[1]) if has_aux else g
+
+    return wrapped
+
+
+def _strip_boxes(tree):
+    leaves, _, rebuild = tree_flatten(tree)
+    return rebuild([_unbox(leaf) for leaf in leaves])

@@ -1,0 +1,192 @@
+"""Chapter 1 — one model code, two engines: our NumPy autodiff or JAX.
+
+``get_engine("numpy")`` and ``get_engine("jax")`` return objects with the same
+attributes, so every model of the paper (eqs. 7–11) is written once against
+``eng.xp`` and trained with ``eng.grad``:
+
+==================  ==================================  ===========================
+attribute           "numpy"                             "jax"
+==================  ==================================  ===========================
+``name``            ``"numpy"``                         ``"jax"``
+``xp``              :mod:`minimanc.autodiff.numpy`      ``jax.numpy``
+``grad``            :func:`minimanc.autodiff.grad`      ``jax.grad``
+``value_and_grad``  :func:`minimanc.autodiff.value_and_grad`  ``jax.value_and_grad``
+``jit``             identity                            ``jax.jit``
+``nn``              :mod:`minimanc.autodiff.nn`         the functions below
+==================  ==================================  ===========================
+
+``nn`` holds ``relu, sigmoid, silu, softmax(x, axis=-1), log_softmax(x, axis=-1),
+conv2d(x, w, b=None, stride=1, padding=0), global_avg_pool(x)`` with NHWC images
+and HWIO kernels; ``conv2d`` zero-pads ``padding`` pixels on each side and its
+output has spatial size ``(H + 2p - k) // s + 1``. ``get_engine("jax")`` turns on
+``jax_enable_x64`` so that float64 runs agree with the NumPy engine to 1e-6.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import sys
+import types
+from collections.abc import Callable
+from numbers import Integral
+from typing import Any
+
+__all__ = ["ENGINES", "Engine", "get_engine"]
+
+ENGINES = ("numpy", "jax")
+
+
+class Engine:
+    """An autodiff engine: ``name``, ``xp``, ``grad``, ``value_and_grad``, ``jit``, ``nn``."""
+
+    def __init__(
+        self,
+        name: str,
+        xp: Any,
+        grad: Callable,
+        value_and_grad: Callable,
+        jit: Callable,
+        nn_loader: Callable[[], Any],
+    ) -> None:
+        self.name = name
+        self.xp = xp
+        self.grad = grad
+        self.value_and_grad = value_and_grad
+        self.jit = jit
+        self._nn_loader = nn_loader
+        self._nn = None
+
+    @property
+    def nn(self) -> Any:
+        """Neural-net primitives (loaded on first use)."""
+        if self._nn is None:
+            self._nn = self._nn_loader()
+        return self._nn
+
+    def __repr__(self) -> str:
+        return f"Engine({self.name!r})"
+
+
+def _identity_jit(fun: Callable | None = None, **kwargs) -> Callable:
+    """The NumPy engine's ``jit``: returns ``fun`` unchanged (usable as a decorator)."""
+    if fun is None:
+        return lambda f: f
+    return fun
+
+
+def _numpy_engine() -> Engine:
+    from minimanc import autodiff
+
+    return Engine(
+        name="numpy",
+        xp=autodiff.numpy,
+        grad=autodiff.grad,
+        value_and_grad=autodiff.value_and_grad,
+        jit=_identity_jit,
+        nn_loader=lambda: importlib.import_module("minimanc.autodiff.nn"),
+    )
+
+
+def _check_conv_args(stride, padding) -> None:
+    if not isinstance(stride, Integral) or isinstance(stride, bool) or stride < 1:
+        raise ValueError(f"stride must be a positive integer, got stride={stride!r}")
+    if not isinstance(padding, Integral) or isinstance(padding, bool) or padding < 0:
+        raise ValueError(f"padding must be a non-negative integer, got padding={padding!r}")
+
+
+def _jax_nn(jax: Any) -> types.SimpleNamespace:
+    jnp = jax.numpy
+
+    def softmax(x, axis=-1):
+        """Softmax along ``axis`` (eq. 9 uses ``axis=0``, the column softmax)."""
+        return jax.nn.softmax(x, axis=axis)
+
+    def log_softmax(x, axis=-1):
+        """Log-softmax along ``axis``."""
+        return jax.nn.log_softmax(x, axis=axis)
+
+    def conv2d(x, w, b=None, stride: int = 1, padding: int = 0):
+        """2-D convolution (cross-correlation), NHWC images and HWIO kernels (eq. 7)."""
+        _check_conv_args(stride, padding)
+        if x.ndim != 4 or w.ndim != 4:
+            raise ValueError(
+                f"conv2d: x must be NHWC and w HWIO (4-D), got shapes {x.shape} and {w.shape}"
+            )
+        if x.shape[3] != w.shape[2]:
+            raise ValueError(
+                f"conv2d: input channels {x.shape[3]} (x {x.shape}) != kernel input "
+                f"channels {w.shape[2]} (w {w.shape})"
+            )
+        y = jax.lax.conv_general_dilated(
+            x,
+            w,
+            window_strides=(stride, stride),
+            padding=[(padding, padding), (padding, padding)],
+            dimension_numbers=("NHWC", "HWIO", "NHWC"),
+        )
+        return y if b is None else y + b
+
+    def global_avg_pool(x):
+        """Mean over the spatial axes: ``(N, H, W, C) -> (N, C)`` (eq. 7's GAP)."""
+        return jnp.mean(x, axis=(1, 2))
+
+    return types.SimpleNamespace(
+        relu=jax.nn.relu,
+        sigmoid=jax.nn.sigmoid,
+        silu=jax.nn.silu,
+        softmax=softmax,
+        log_softmax=log_softmax,
+        conv2d=conv2d,
+        global_avg_pool=global_avg_pool,
+    )
+
+
+def _jax_jit(jax: Any) -> Callable:
+    def jit(fun: Callable | None = None, **kwargs) -> Callable:
+        """``jax.jit``, also usable as ``@eng.jit(static_argnums=...)``."""
+        if fun is None:
+            return lambda f: jax.jit(f, **kwargs)
+        return jax.jit(fun, **kwargs)
+
+    return jit
+
+
+def _jax_engine() -> Engine:
+    try:
+        import jax
+    except ImportError as err:  # pragma: no cover - jax is a dependency
+        raise ImportError(
+            "the 'jax' engine needs JAX: install it with  pip install 'jax[cpu]'"
+        ) from err
+    jax.config.update("jax_enable_x64", True)
+    return Engine(
+        name="jax",
+        xp=jax.numpy,
+        grad=jax.grad,
+        value_and_grad=jax.value_and_grad,
+        jit=_jax_jit(jax),
+        nn_loader=lambda: _jax_nn(jax),
+    )
+
+
+@functools.cache
+def get_engine(name: str = "numpy") -> Engine:
+    """Return the engine called ``name`` ("numpy" or "jax"); the same object each time."""
+    if name == "numpy":
+        return _numpy_engine()
+    if name == "jax":
+        return _jax_engine()
+    raise ValueError(f"unknown engine name={name!r}; choose one of {', '.join(ENGINES)}")
+
+
+class _CallableModule(types.ModuleType):
+    """Importing ``minimanc.engine`` rebinds the package attribute ``minimanc.engine``
+    (the function) to this module; making the module callable keeps
+    ``minimanc.engine("jax")`` working either way."""
+
+    def __call__(self, name: str = "numpy") -> Engine:
+        return get_engine(name)
+
+
+sys.modules[__name__].__class__ = _CallableModule
