@@ -1,0 +1,216 @@
+"""Tests for minimanc.metrics: hand-made trajectories with known answers."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from minimanc import metrics
+from minimanc.world.geometry import EGO_LENGTH, EGO_WIDTH, box_corners, unicycle_step
+
+DT = 0.5
+
+
+def drive(start, controls, dt=DT):
+    """Poses (S, T, 3) from a start (S, 3) and controls (S, T-1, 2) by the unicycle."""
+    poses = [np.asarray(start, dtype=float)]
+    for t in range(controls.shape[1]):
+        poses.append(unicycle_step(poses[-1], controls[:, t], dt))
+    return np.stack(poses, axis=1)
+
+
+def straight(speed=10.0, T=10, y=0.0):
+    u = np.tile([[speed, 0.0]], (1, T - 1, 1))
+    return drive(np.array([[0.0, y, 0.0]]), u)
+
+
+# --------------------------------------------------------------------------- box gap
+
+
+def test_box_gap_known_values():
+    a = np.array([0.0, 0.0, 0.0, 4.0, 2.0])
+    assert metrics.box_gap(a, [0.0, 5.0, 0.0, 4.0, 2.0]) == pytest.approx(3.0)
+    assert metrics.box_gap(a, [10.0, 0.0, np.pi / 2, 4.0, 2.0]) == pytest.approx(7.0)
+    assert metrics.box_gap(a, [1.0, 0.5, 0.3, 4.0, 2.0]) == 0.0  # overlap
+    sq = np.array([0.0, 0.0, 0.0, 2.0, 2.0])
+    assert metrics.box_gap(sq, [4.0, 4.0, 0.0, 2.0, 2.0]) == pytest.approx(np.sqrt(8.0))
+    # a box rotated 45 degrees whose corner points at the other's edge
+    d = 1.0 + np.sqrt(2.0) + 0.5  # half-size + half-diagonal + gap 0.5
+    assert metrics.box_gap(sq, [d, 0.0, np.pi / 4, 2.0, 2.0]) == pytest.approx(0.5)
+
+
+def _boundary(box, n=150):
+    c = box_corners(np.asarray(box))
+    t = np.linspace(0, 1, n, endpoint=False)[:, None]
+    return np.concatenate([c[k] + t * (c[(k + 1) % 4] - c[k]) for k in range(4)])
+
+
+coord = st.floats(-8, 8, allow_nan=False)
+size = st.floats(0.5, 5, allow_nan=False)
+yaw = st.floats(-np.pi, np.pi, allow_nan=False)
+
+
+@settings(max_examples=40, deadline=None)
+@given(coord, coord, yaw, size, size, coord, coord, yaw, size, size)
+def test_box_gap_matches_dense_boundary_sampling(x1, y1, h1, l1, w1, x2, y2, h2, l2, w2):
+    a = np.array([x1, y1, h1, l1, w1])
+    b = np.array([x2, y2, h2, l2, w2])
+    gap = float(metrics.box_gap(a, b))
+    assert gap == pytest.approx(float(metrics.box_gap(b, a)), abs=1e-9)
+    if gap == 0.0:
+        return
+    pa, pb = _boundary(a), _boundary(b)
+    brute = np.sqrt(((pa[:, None] - pb[None]) ** 2).sum(-1)).min()
+    # sampling can only overestimate, by at most one sampling step
+    assert gap <= brute + 1e-9
+    assert brute - gap <= (max(l1, w1, l2, w2) / 150) * 2 + 1e-9
+
+
+# --------------------------------------------------------------------------- close encounters
+
+
+def test_close_encounters_parked_car_next_lane():
+    ego = straight(speed=4.0, T=11)  # x = 0, 2, ..., 20
+    T = ego.shape[1]
+    # one ado parked at x = 10, y = 2.5 (width 1.8): lateral gap 2.5 - 0.9535 - 0.9 = 0.6465
+    ado = np.tile(np.array([10.0, 2.5, 0.0, 4.0, 1.8]), (1, T, 1, 1))
+    valid = np.ones((1, T, 1), bool)
+    share = metrics.close_encounters(ego, ado, valid, gap=1.0)
+    # close while the boxes overlap in x (lateral gap < 1) or the corner gap is < 1
+    xs = ego[0, :, 0]
+    dx = np.maximum(np.abs(xs - 10.0) - (EGO_LENGTH / 2 + 2.0), 0.0)
+    lat = 2.5 - EGO_WIDTH / 2 - 0.9
+    expected = np.mean(np.hypot(dx, lat) < 1.0)
+    assert share[0] == pytest.approx(expected)
+    assert 0 < share[0] < 1
+    # threshold below the lateral gap: never close; invalid ado: never close
+    assert metrics.close_encounters(ego, ado, valid, gap=0.5)[0] == 0.0
+    assert metrics.close_encounters(ego, ado, ~valid, gap=1.0)[0] == 0.0
+
+
+def test_collisions_only_when_boxes_overlap():
+    ego = straight(speed=4.0, T=11)
+    T = ego.shape[1]
+    ado = np.tile(np.array([10.0, 1.0, 0.0, 4.0, 1.8]), (1, T, 1, 1))
+    valid = np.ones((1, T, 1), bool)
+    assert metrics.collisions(ego, ado, valid)[0] == 1.0
+    assert metrics.collisions(ego, ado + [0, 3.0, 0, 0, 0], valid)[0] == 0.0
+    assert metrics.collisions(ego, ado, ~valid)[0] == 0.0
+
+
+# --------------------------------------------------------------------------- acceleration
+
+
+def test_max_acceleration_constant_speed_is_zero():
+    assert metrics.max_acceleration(straight(8.0))[0] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_max_acceleration_circle_is_centripetal():
+    v, w = 6.0, 0.3
+    ego = drive(np.zeros((1, 3)), np.tile([[v, w]], (1, 12, 1)))
+    assert metrics.max_acceleration(ego)[0] == pytest.approx(v * w, rel=1e-9)
+    assert metrics.max_acceleration(ego, kind="longitudinal")[0] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_max_acceleration_speed_ramp_and_peak():
+    speeds = np.array([0.0, 1.0, 2.0, 3.0, 5.0, 5.0, 5.0])  # +2, +2, +2, +4 m/s^2, then 0
+    u = np.stack([speeds, np.zeros_like(speeds)], -1)[None]
+    ego = drive(np.zeros((1, 3)), u)
+    assert metrics.max_acceleration(ego)[0] == pytest.approx(4.0)
+    assert metrics.max_acceleration(ego, kind="longitudinal")[0] == pytest.approx(4.0)
+    # braking counts by magnitude
+    ego_b = drive(np.zeros((1, 3)), u[:, ::-1])
+    assert metrics.max_acceleration(ego_b)[0] == pytest.approx(4.0)
+
+
+def test_max_acceleration_combines_components():
+    # speed 4 -> 6 while turning at 0.5 rad/s: a_lon = 4, a_lat = 4 * 0.5 = 2 at that step
+    u = np.array([[[4.0, 0.5], [6.0, 0.0], [6.0, 0.0]]])
+    ego = drive(np.zeros((1, 3)), u)
+    assert metrics.max_acceleration(ego)[0] == pytest.approx(np.hypot(4.0, 2.0))
+
+
+# --------------------------------------------------------------------------- ade / goal
+
+
+def test_ade_and_goal_distance():
+    human = straight(10.0, T=9)
+    shifted = human + np.array([0.0, 3.0, 0.0])
+    assert metrics.ade(human, human)[0] == 0.0
+    assert metrics.ade(shifted, human)[0] == pytest.approx(3.0)
+    slow = straight(5.0, T=9)  # error grows 0, 2.5, ..., 20 -> mean 10
+    assert metrics.ade(slow, human)[0] == pytest.approx(10.0)
+    goal = human[:, -1]
+    assert metrics.goal_distance(human, goal)[0] == 0.0
+    assert metrics.goal_distance(slow, goal)[0] == pytest.approx(20.0)
+    assert metrics.goal_distance(slow, goal[:, :2])[0] == pytest.approx(20.0)
+
+
+def test_off_road_uses_the_map():
+    class Strip:  # drivable where |y| < 2
+        def is_drivable(self, p):
+            return np.abs(np.asarray(p)[..., 1]) < 2.0
+
+    on = straight(5.0, T=6)
+    off = drive(np.zeros((1, 3)), np.tile([[5.0, 0.4]], (1, 5, 1)))
+    assert metrics.off_road(on, [Strip()])[0] == 0.0
+    assert metrics.off_road(off, [Strip()])[0] == 1.0
+
+
+def test_evaluate_on_fake_dataset():
+    class Everywhere:
+        def is_drivable(self, p):
+            return np.ones(np.asarray(p).shape[:-1], bool)
+
+    human = np.concatenate([straight(10.0, T=9), straight(10.0, T=9, y=20.0)])
+    T = human.shape[1]
+    ado = np.zeros((2, T, 1, 5)) + [500.0, 0, 0, 4, 2]
+    ds = SimpleNamespace(ego=human, ado=ado, ado_valid=np.ones((2, T, 1), bool),
+                         maps=[Everywhere(), Everywhere()])
+    res = metrics.evaluate(SimpleNamespace(ego=human), ds)
+    assert set(res) == set(metrics.METRICS)
+    assert res["ade"] == 0.0 and res["goal_distance"] == 0.0
+    assert res["close_encounters"] == 0.0 and res["collision_rate"] == 0.0
+    other = human.copy()
+    other[0] += [0.0, 4.0, 0.0]
+    res2 = metrics.evaluate(SimpleNamespace(ego=other), ds)
+    assert res2["ade"] == pytest.approx(2.0)  # mean over scenes of 4 and 0
+    assert res2["goal_distance"] == pytest.approx(2.0)
+
+
+def test_aggregate_mean_std():
+    agg = metrics.aggregate([{"ade": 1.0, "x": 0.0}, {"ade": 3.0, "x": 0.0}, {"ade": 2.0}])
+    assert set(agg) == {"ade"}
+    assert agg["ade"]["mean"] == pytest.approx(2.0)
+    assert agg["ade"]["std"] == pytest.approx(np.std([1.0, 3.0, 2.0]))
+    assert agg["ade"]["n"] == 3
+    assert metrics.aggregate([{"ade": 5.0}])["ade"]["std"] == 0.0
+
+
+# --------------------------------------------------------------------------- bad input
+
+
+def test_bad_input_raises_value_error_naming_parameter():
+    ego = straight()
+    with pytest.raises(ValueError, match="ego"):
+        metrics.ade(ego[0], ego[0])
+    with pytest.raises(ValueError, match="human"):
+        metrics.ade(ego, ego[:, :-1])
+    with pytest.raises(ValueError, match="kind"):
+        metrics.max_acceleration(ego, kind="lateral")
+    with pytest.raises(ValueError, match="dt"):
+        metrics.max_acceleration(ego, dt=0.0)
+    with pytest.raises(ValueError, match="gap"):
+        metrics.close_encounters(ego, np.zeros((1, 10, 1, 5)), np.ones((1, 10, 1), bool), gap=-1)
+    with pytest.raises(ValueError, match="ado"):
+        metrics.close_encounters(ego, np.zeros((1, 9, 1, 5)), np.ones((1, 9, 1), bool))
+    with pytest.raises(ValueError, match="goal"):
+        metrics.goal_distance(ego, np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="ego"):
+        metrics.ade(ego * np.nan, ego)
+    with pytest.raises(ValueError, match="per_seed"):
+        metrics.aggregate([])
