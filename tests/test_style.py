@@ -26,3 +26,41 @@ def test_readme_has_exactly_two_commands_and_ci_runs_the_second():
     assert main.startswith("pip install") and "minimanc" in main
     assert test.startswith("pip install") and "pytest" in test
     assert "readme_command.py test" in (ROOT / ".ci" / "run").read_text()
+
+
+def test_every_module_docstring_names_its_chapter():
+    import ast
+
+    missing = []
+    for path in sorted((ROOT / "minimanc").rglob("*.py")):
+        doc = ast.get_docstring(ast.parse(path.read_text())) or ""
+        if path.name != "__main__.py" and "chapter" not in doc.lower():
+            missing.append(str(path.relative_to(ROOT)))
+    assert not missing, f"module docstrings without their chapter: {missing}"
+
+
+def test_every_notebook_names_the_module_it_builds():
+    import nbformat
+
+    missing = []
+    for folder in ("tutorials", "solutions"):
+        for path in sorted((ROOT / folder).glob("*.ipynb")):
+            nb = nbformat.read(path, as_version=4)
+            first = next((c.source for c in nb.cells if c.cell_type == "markdown"), "")
+            if "minimanc." not in first:
+                missing.append(f"{folder}/{path.name}")
+    assert not missing, f"first markdown cell does not name a minimanc module: {missing}"
+
+
+def test_no_warnings_leak_into_notebook_outputs():
+    import nbformat
+
+    leaks = []
+    for folder in ("tutorials", "solutions"):
+        for path in sorted((ROOT / folder).glob("*.ipynb")):
+            nb = nbformat.read(path, as_version=4)
+            for index, cell in enumerate(nb.cells):
+                for out in cell.get("outputs", []):
+                    if out.get("name") == "stderr" and "Warning" in out.get("text", ""):
+                        leaks.append(f"{folder}/{path.name}: cell {index}")
+    assert not leaks, leaks
