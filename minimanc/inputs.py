@@ -1,0 +1,391 @@
+"""Chapter 8 — what each controller sees: observations built from the dataset or the closed loop.
+
+An *observation* is a dict of arrays for one time step, batched over ``B``
+samples (rows may come from different scenes and times):
+
+=============== ================= ========================================================
+key             dtype, shape      meaning (ego frame: +x forward, +y left, metres/radians)
+=============== ================= ========================================================
+``bev``         float32 (B,H,W,3) the BEV raster seen from the ego, ``uint8 / 255`` in [0, 1]
+``goal``        float32 (B,3)     the goal: the human's final pose ``[x, y, yaw]`` in the
+                                  *current* ego frame (re-expressed every step)
+``lane_target`` float32 (B,K,2)   the moving lane target: route centre points every
+                                  :data:`~minimanc.world.maps.TARGET_SPACING` = 4 m of arc
+                                  length ahead of the ego's *own* projection on the route
+                                  (never indexed by the human's time: that would leak the
+                                  human's future speed)
+``motion``      float32 (B,2)     the ego's current motion ``[speed m/s, yaw rate rad/s]``:
+                                  the controls it applied over the previous step (what a
+                                  speedometer and a gyro measure)
+``goal_bev``    float32 (B,H,W,3) RvS-G only: the static map rendered at the goal pose
+                                  (:func:`minimanc.world.raster.rasterize_goal`)
+=============== ================= ========================================================
+
+Values are kept in **physical units**; models scale numbers before any dense
+layer with the fixed constants :data:`GOAL_SCALE`, :data:`LANE_SCALE` and
+:data:`MOTION_SCALE` (see :func:`numeric_features`), and the DMP heads use the
+metres directly.
+
+``motion`` in the dataset is ``controls[t − 1]`` (the human's own previous
+controls: no look into the future). At ``t = 0`` there is no previous step
+in the log; :func:`initial_motion` then uses the human's speed over the first
+step with yaw rate 0 — the one place where the log's first control is used,
+exactly as the closed loop starts every policy from the human's initial state
+(a car enters the scene already moving). In closed loop ``motion`` is the
+policy's *own* previous control.
+
+Information parity
+------------------
+The paper gives the comparison models the BEV and the goal pose, while MANC's
+DMP tracks the moving lane target (section III-C, Algorithm 1). The lesson of
+the closed-loop prototype (``REFERENCE.md``) is that such a comparison turns
+on the goal information each model gets, so ``setting`` selects one of two
+honest protocols. What each model sees (✓ = input, — = not given):
+
+============ ============== ===== ======== ============ ========= ==========
+model        setting        bev   goal     lane_target  motion    goal_bev
+============ ============== ===== ======== ============ ========= ==========
+cnn          paper          ✓     ✓        —            —         —
+cnn          parity         ✓     ✓        ✓            ✓         —
+cnn_lstm     paper          ✓     ✓        —            —         —
+cnn_lstm     parity         ✓     ✓        ✓            ✓         —
+rvs_g        paper          ✓     ✓        —            —         ✓
+rvs_g        parity         ✓     ✓        ✓            ✓         ✓
+manc         paper, parity  ✓     —        ✓ (DMP g,    ✓ (DMP    —
+                                           g_q)         state)
+vagn_only    paper          ✓     ✓        —            —         —
+vagn_only    parity         ✓     ✓        ✓            ✓         —
+dmp_only     paper, parity  ✓     —        ✓            ✓         —
+============ ============== ===== ======== ============ ========= ==========
+
+Notes: MANC and DMP-only see the same things in both settings — the BEV
+drives the gains (eq. 11), the lane target and the current motion are the
+DMP's goal and initial state. In "paper" the LSTM models see history only
+through their recurrent state; in "parity" every model also gets the lane
+target and the current motion as numbers, so any remaining gap is due to
+the architecture, not to information. The table is also data:
+:data:`VISIBLE` and :func:`visible`.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "GOAL_SCALE",
+    "KEYS",
+    "LANE_SCALE",
+    "MODEL_NAMES",
+    "MOTION_SCALE",
+    "SETTINGS",
+    "VISIBLE",
+    "from_dataset",
+    "from_state",
+    "initial_motion",
+    "motion_at",
+    "numeric_features",
+    "numeric_size",
+    "select",
+    "visible",
+]
+
+MODEL_NAMES: tuple[str, ...] = ("cnn", "cnn_lstm", "rvs_g", "manc", "vagn_only", "dmp_only")
+"""The six controllers of chapter 8 (paper section V: comparison cases and self-ablation)."""
+
+SETTINGS: tuple[str, ...] = ("paper", "parity")
+"""Information settings; see the table in the module docstring."""
+
+KEYS: tuple[str, ...] = ("bev", "goal", "lane_target", "motion", "goal_bev")
+"""All observation keys."""
+
+GOAL_SCALE: tuple[float, float, float] = (50.0, 50.0, float(np.pi))
+"""Divisors for the goal ``[x (m), y (m), yaw (rad)]`` before dense layers."""
+
+LANE_SCALE: float = 40.0
+"""Divisor for lane-target coordinates (m) before dense layers (40 m = the raster's reach)."""
+
+MOTION_SCALE: tuple[float, float] = (10.0, 0.5)
+"""Divisors for ``[speed (m/s), yaw rate (rad/s)]`` before dense layers."""
+
+_STRUCTURED = ("bev", "lane_target", "motion")
+_PAPER_BASE = ("bev", "goal")
+_PARITY_EXTRA = ("lane_target", "motion")
+
+VISIBLE: dict[tuple[str, str], tuple[str, ...]] = {}
+"""``VISIBLE[(model, setting)]``: the observation keys that model receives."""
+for _name in MODEL_NAMES:
+    for _setting in SETTINGS:
+        if _name in ("manc", "dmp_only"):
+            keys: tuple[str, ...] = _STRUCTURED
+        else:
+            keys = _PAPER_BASE + (_PARITY_EXTRA if _setting == "parity" else ())
+            if _name == "rvs_g":
+                keys = keys + ("goal_bev",)
+        VISIBLE[(_name, _setting)] = keys
+del _name, _setting
+
+
+# --------------------------------------------------------------------------- checks
+
+
+def _check_model(name: Any) -> str:
+    if name not in MODEL_NAMES:
+        raise ValueError(f"model must be one of {MODEL_NAMES}, got model={name!r}")
+    return name
+
+
+def _check_setting(setting: Any) -> str:
+    if setting not in SETTINGS:
+        raise ValueError(f"setting must be one of {SETTINGS}, got setting={setting!r}")
+    return setting
+
+
+def visible(model: str, setting: str = "paper") -> tuple[str, ...]:
+    """Observation keys ``model`` receives in ``setting`` (the table of the module docstring)."""
+    return VISIBLE[(_check_model(model), _check_setting(setting))]
+
+
+def select(obs: dict, model: str, setting: str = "paper") -> dict:
+    """The sub-dict of ``obs`` that ``model`` may see; a missing key raises ValueError."""
+    keys = visible(model, setting)
+    missing = [k for k in keys if k not in obs]
+    if missing:
+        raise ValueError(
+            f"observation lacks {missing} needed by model={model!r} in setting={setting!r}; "
+            f"got keys {sorted(obs)}"
+        )
+    return {k: obs[k] for k in keys}
+
+
+def numeric_size(model: str, setting: str = "paper", k_targets: int = 10) -> int:
+    """Length of :func:`numeric_features` for ``model`` in ``setting``."""
+    keys = visible(model, setting)
+    return (3 * ("goal" in keys) + 2 * int(k_targets) * ("lane_target" in keys)
+            + 2 * ("motion" in keys))
+
+
+def numeric_features(obs: dict, model: str, setting: str = "paper", xp: Any = np) -> Any:
+    """The numbers a model's dense layers receive, scaled to about unit size: ``(B, F)``.
+
+    Concatenates, in this order and only where ``model`` sees them in
+    ``setting``: ``goal / GOAL_SCALE`` (3), ``lane_target / LANE_SCALE``
+    flattened (2K), ``motion / MOTION_SCALE`` (2). Returns ``None`` when the
+    model sees no numbers.
+    """
+    keys = visible(model, setting)
+    parts = []
+    if "goal" in keys:
+        parts.append(xp.asarray(obs["goal"]) / xp.asarray(np.asarray(GOAL_SCALE, np.float32)))
+    if "lane_target" in keys:
+        lt = xp.asarray(obs["lane_target"])
+        parts.append(xp.reshape(lt, (lt.shape[0], -1)) / LANE_SCALE)
+    if "motion" in keys:
+        parts.append(xp.asarray(obs["motion"])
+                     / xp.asarray(np.asarray(MOTION_SCALE, np.float32)))
+    if not parts:
+        return None
+    out = xp.concatenate(parts, axis=-1)
+    return out
+
+
+# --------------------------------------------------------------------------- the dataset
+
+
+def initial_motion(ds: Any) -> np.ndarray:
+    """The ego's motion at ``t = 0``, ``(S, 2)`` float32: ``[speed over the first step, 0]``.
+
+    The log starts with the car already moving; its speed is the only thing
+    the first control reveals (the yaw rate is set to 0). The closed loop
+    starts every policy from this same state.
+    """
+    c = np.asarray(ds.controls)
+    return np.stack([c[:, 0, 0], np.zeros_like(c[:, 0, 0])], axis=-1).astype(np.float32)
+
+
+def motion_at(ds: Any, scene_idx: Any, t_idx: Any) -> np.ndarray:
+    """``motion`` of the module docstring for index arrays: ``controls[s, t − 1]``, or the
+    :func:`initial_motion` at ``t = 0``. Returns ``(B, 2)`` float32."""
+    s = np.asarray(scene_idx)
+    t = np.asarray(t_idx)
+    c = np.asarray(ds.controls)
+    prev = c[s, np.maximum(t - 1, 0)].astype(np.float32)
+    first = initial_motion(ds)[s]
+    return np.where((t == 0)[..., None], first, prev).astype(np.float32)
+
+
+_GOAL_BEV_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _dataset_goal_bevs(ds: Any) -> np.ndarray:
+    """Goal rasters ``(S, H, W, 3)`` uint8 of a dataset, rendered once and cached."""
+    try:
+        cached = _GOAL_BEV_CACHE.get(ds)
+    except TypeError:  # not weak-referenceable
+        cached = None
+    if cached is not None:
+        return cached
+    from minimanc import world
+
+    S, T = np.asarray(ds.ego).shape[:2]
+    H, W = np.asarray(ds.bev).shape[2:4]
+    cfg = _raster_config(ds, H)
+    goal_world = _goal_world(ds)
+    out = np.stack([world.rasterize_goal(ds.maps[s], goal_world[s], cfg) for s in range(S)])
+    try:
+        _GOAL_BEV_CACHE[ds] = out
+    except TypeError:
+        pass
+    return out
+
+
+def _raster_config(ds: Any, size: int) -> Any:
+    from minimanc import world
+
+    cfg = getattr(ds, "raster", None) or getattr(ds, "raster_config", None)
+    if cfg is None:
+        cfg = world.RasterConfig(size=int(size))
+    return cfg
+
+
+def _goal_world(ds: Any) -> np.ndarray:
+    """The goal pose in the world frame per scene, ``(S, 3)``: the human's final pose."""
+    return np.asarray(ds.ego, dtype=np.float64)[:, -1]
+
+
+def _as_index(name: str, value: Any, upper: int) -> np.ndarray:
+    arr = np.asarray(value)
+    if arr.ndim == 0:
+        arr = arr[None]
+    if arr.ndim != 1 or not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"{name} must be an integer or a 1-D integer array, got {name}={value!r}")
+    if arr.size and (arr.min() < 0 or arr.max() >= upper):
+        raise ValueError(f"{name} must lie in [0, {upper}), got {name}={value!r}")
+    return arr
+
+
+def from_dataset(
+    ds: Any,
+    scene_idx: Any,
+    t_idx: Any,
+    setting: str = "paper",
+    model: str | None = None,
+) -> dict:
+    """Observations of samples ``(scene_idx[b], t_idx[b])`` of a :mod:`minimanc.world` dataset.
+
+    ``scene_idx`` and ``t_idx`` are integers or equal-length 1-D integer
+    arrays. With ``model`` given, only the keys that model sees in
+    ``setting`` are returned (``goal_bev`` is rendered only for RvS-G, once
+    per dataset); without it, every key except ``goal_bev``.
+    """
+    _check_setting(setting)
+    S, T = np.asarray(ds.ego).shape[:2]
+    s = _as_index("scene_idx", scene_idx, S)
+    t = _as_index("t_idx", t_idx, T)
+    if s.shape != t.shape:
+        raise ValueError(
+            f"scene_idx and t_idx must have the same length, got {s.shape} and {t.shape}"
+        )
+    keys = visible(model, setting) if model is not None else KEYS[:4]
+    obs: dict = {}
+    if "bev" in keys:
+        obs["bev"] = np.asarray(ds.bev[s, t], dtype=np.float32) / np.float32(255.0)
+    if "goal" in keys:
+        obs["goal"] = np.asarray(ds.goal[s, t], dtype=np.float32)
+    if "lane_target" in keys:
+        obs["lane_target"] = np.asarray(ds.lane_target[s, t], dtype=np.float32)
+    if "motion" in keys:
+        obs["motion"] = motion_at(ds, s, t)
+    if "goal_bev" in keys:
+        obs["goal_bev"] = _dataset_goal_bevs(ds)[s].astype(np.float32) / np.float32(255.0)
+    return obs
+
+
+# --------------------------------------------------------------------------- the closed loop
+
+_STATE_GOAL_BEV: dict = {}
+
+
+def _goal_bev_from_state(m: Any, goal: np.ndarray, cfg: Any) -> np.ndarray:
+    from minimanc import world
+
+    key = (id(m), tuple(np.round(goal, 6)), cfg)
+    hit = _STATE_GOAL_BEV.get(key)
+    if hit is not None and hit[0] is m:
+        return hit[1]
+    img = world.rasterize_goal(m, goal, cfg)
+    if len(_STATE_GOAL_BEV) > 4096:
+        _STATE_GOAL_BEV.clear()
+    _STATE_GOAL_BEV[key] = (m, img)
+    return img
+
+
+def from_state(
+    maps: Sequence[Any] | Any,
+    ego_poses: Any,
+    ado: Any,
+    ado_valid: Any,
+    goal_world: Any,
+    cfg: Any = None,
+    setting: str = "paper",
+    *,
+    motion: Any,
+    model: str | None = None,
+    k_targets: int | None = None,
+) -> dict:
+    """Observations for the closed loop, from the policy's *own* poses.
+
+    ``maps`` (one per row, or one for all), ``ego_poses (B, 3)`` world,
+    ``ado (B, A, 5)``, ``ado_valid (B, A)`` (the ados at this time step),
+    ``goal_world (B, 3)`` the goal poses in the world, ``cfg`` a
+    :class:`minimanc.world.RasterConfig`, and ``motion (B, 2)`` — the policy's
+    own previous controls (keyword-only and required: the DMP models start
+    from it; at the first step use :func:`initial_motion`). The BEV is
+    re-rasterised, the goal and the lane targets (``k_targets`` points,
+    default :data:`minimanc.world.maps.K_TARGETS`) re-expressed from each
+    ego pose. ``model`` restricts the keys as in :func:`from_dataset`.
+    """
+    from minimanc import world
+    from minimanc.world import maps as world_maps
+
+    _check_setting(setting)
+    poses = np.asarray(ego_poses, dtype=np.float64)
+    if poses.ndim != 2 or poses.shape[1] != 3:
+        raise ValueError(f"ego_poses must have shape (B, 3), got ego_poses with shape "
+                         f"{poses.shape}")
+    B = poses.shape[0]
+    goals = np.asarray(goal_world, dtype=np.float64)
+    if goals.shape != (B, 3):
+        raise ValueError(f"goal_world must have shape ({B}, 3), got {goals.shape}")
+    mot = np.asarray(motion, dtype=np.float32)
+    if mot.shape != (B, 2):
+        raise ValueError(f"motion must have shape ({B}, 2), got motion with shape {mot.shape}")
+    if isinstance(maps, (list, tuple)):
+        if len(maps) != B:
+            raise ValueError(f"maps must have {B} entries, got {len(maps)}")
+        map_list = list(maps)
+    else:
+        map_list = [maps] * B
+    cfg = cfg if cfg is not None else world.RasterConfig()
+    k = world_maps.K_TARGETS if k_targets is None else int(k_targets)
+    keys = visible(model, setting) if model is not None else KEYS[:4]
+    obs: dict = {}
+    if "bev" in keys:
+        bev = world.rasterize_batch(map_list, poses, ado, ado_valid, cfg)
+        obs["bev"] = bev.astype(np.float32) / np.float32(255.0)
+    if "goal" in keys:
+        obs["goal"] = world.goal_in_ego_frame(goals, poses).astype(np.float32)
+    if "lane_target" in keys:
+        obs["lane_target"] = np.stack(
+            [world.lane_targets(map_list[b], poses[b], k) for b in range(B)]
+        ).astype(np.float32)
+    if "motion" in keys:
+        obs["motion"] = mot
+    if "goal_bev" in keys:
+        obs["goal_bev"] = np.stack(
+            [_goal_bev_from_state(map_list[b], goals[b], cfg) for b in range(B)]
+        ).astype(np.float32) / np.float32(255.0)
+    return obs
