@@ -126,7 +126,7 @@ def _is_concrete(x: Any) -> bool:
 
 def _first_bad(values: np.ndarray, bad: np.ndarray) -> Any:
     """The first offending entry, for error messages."""
-    return values[bad].flat[0] if values.ndim else values.item()
+    return float(values[bad].flat[0] if values.ndim else values.item())
 
 
 def _check_real(name: str, value: Any) -> np.ndarray:
@@ -212,7 +212,7 @@ def damping_ratio(alpha: Any, beta: Any, xp: Any = np) -> Any:
             i = np.argmax(bad) if bad.ndim else 0
             raise ValueError(
                 "damping_ratio needs alpha*beta > 0 (zeta is undefined otherwise), got "
-                f"alpha={ab.flat[i]!r}, beta={bb.flat[i]!r}"
+                f"alpha={float(ab.flat[i])!r}, beta={float(bb.flat[i])!r}"
             )
     return alpha / (2.0 * xp.sqrt(alpha * beta))
 
