@@ -1,0 +1,277 @@
+"""Chapter 7 — the "human" ego driver and the scene simulation that logs it.
+
+The human drives a unicycle (controls ``[speed, yaw rate]``, explicit Euler
+at ``DT``) along the map's route with a per-scene :class:`HumanStyle`:
+
+* **longitudinal** — the Intelligent Driver Model of
+  :mod:`minimanc.world.traffic` with the style's desired speed ``v0``, time
+  headway ``T``, comfortable acceleration ``a_max`` and deceleration ``b``,
+  jam distance ``s0``; the desired speed slowly wanders (``speed_sigma``) and
+  anticipates curves (``a_lat``). It follows leaders, yields at junction and
+  roundabout entries (gap acceptance with the style's critical gap), brakes
+  for vehicles cutting in. Its commands reach the pedals after a
+  **reaction delay** (``reaction`` s), except hard braking, and change with
+  bounded jerk;
+* **lateral** — pure pursuit of a point ``lookahead`` metres ahead on the
+  route's centreline, shifted by a slowly wandering **lateral offset**
+  (Ornstein–Uhlenbeck, std ``lat_sigma``, time constant ``lat_tau``).
+
+:func:`simulate_scene` runs one scene: it places the ego and the ados, steps
+everything ``T`` times and returns the log (ego poses and controls, ado boxes)
+with tags. Scenes where the ego leaves the drivable area or touches an ado
+are rejected by the dataset generator (:mod:`minimanc.world.dataset`), which
+then draws the scene again from the next sub-seed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from minimanc.world.geometry import (
+    DT,
+    EGO_LENGTH,
+    EGO_WIDTH,
+    box_corners,
+    boxes_overlap,
+    project_to_polyline,
+    to_ego_frame,
+    unicycle_step,
+    wrap_angle,
+)
+from minimanc.world.maps import Map
+from minimanc.world.traffic import B_MAX, Path, Traffic, Vehicle, idm_acceleration
+
+T_STEPS = 40
+"""Steps per scene: 20 s at 2 Hz, as nuScenes."""
+MAX_ADOS = 40
+"""Ado slots per scene (the ``A`` axis of the dataset)."""
+
+
+@dataclass(frozen=True)
+class HumanStyle:
+    """Per-scene driving style of the human (all SI units)."""
+
+    v0: float  # desired speed (m/s)
+    T: float  # time headway (s)
+    a_max: float  # comfortable acceleration (m/s^2)
+    b: float  # comfortable deceleration (m/s^2)
+    s0: float  # jam distance (m)
+    a_lat: float  # accepted lateral acceleration in curves (m/s^2)
+    lat_sigma: float  # std of the lateral offset from the lane centre (m)
+    lat_tau: float  # its time constant (s)
+    speed_sigma: float  # relative std of the wandering desired speed
+    reaction: float  # reaction delay (s)
+    gap_crit: float  # critical gap accepted at junctions (s)
+    lookahead: float  # pure-pursuit lookahead gain
+    jerk: float  # comfortable jerk bound (m/s^3)
+
+
+def random_style(rng: np.random.Generator) -> HumanStyle:
+    """Draw a human style; calm and sporty drivers both occur."""
+    sport = float(rng.beta(2.0, 2.0))  # 0 calm ... 1 sporty, styles are correlated
+    j = lambda lo, hi, spread=0.25: float(  # noqa: E731
+        np.clip(lo + (hi - lo) * (sport + rng.uniform(-spread, spread)), lo, hi))
+    return HumanStyle(
+        v0=j(7.5, 15.0), T=float(np.clip(2.2 - 1.3 * sport + rng.normal(0, 0.15), 0.8, 2.4)),
+        a_max=j(0.9, 2.6), b=j(1.6, 3.4), s0=float(rng.uniform(1.5, 3.5)),
+        a_lat=j(1.4, 3.2), lat_sigma=float(rng.uniform(0.03, 0.35)),
+        lat_tau=float(rng.uniform(2.0, 6.0)), speed_sigma=float(rng.uniform(0.0, 0.08)),
+        reaction=float(rng.uniform(0.0, 1.0)),
+        gap_crit=float(np.clip(3.4 - 1.8 * sport + rng.normal(0, 0.2), 1.5, 3.8)),
+        lookahead=float(rng.uniform(0.85, 1.3)), jerk=j(2.0, 6.0),
+    )
+
+
+@dataclass
+class SceneLog:
+    """Raw log of one simulated scene (world frame)."""
+
+    ego: np.ndarray  # (T, 3)
+    controls: np.ndarray  # (T, 2)
+    final_pose: np.ndarray  # (3,) pose after the last control (not part of the log)
+    ado: np.ndarray  # (T, A, 5)
+    ado_valid: np.ndarray  # (T, A)
+    tags: dict
+
+
+class HumanDriver:
+    """The ego's controller: IDM + reaction delay + pure pursuit with lateral wander."""
+
+    def __init__(self, m: Map, style: HumanStyle, rng: np.random.Generator, dt: float) -> None:
+        self.m = m
+        self.style = style
+        self.rng = rng
+        self.dt = dt
+        self.lat = float(rng.normal(0.0, style.lat_sigma))
+        self.speed_factor = 1.0
+        self.a_hist: list[float] = []
+        self.a_prev = 0.0
+
+    def act(self, veh: Vehicle, path: Path, pose: np.ndarray, gap: float, v_lead: float,
+            v_curve: float) -> tuple[float, float, float]:
+        """Controls ``(speed, yaw_rate)`` for this step and the applied acceleration.
+
+        ``gap``/``v_lead`` is the binding constraint (leader or junction stop
+        point) and ``v_curve`` the curve-limited speed ahead, from
+        :meth:`Traffic.perceive`.
+        """
+        st, dt, rng = self.style, self.dt, self.rng
+        # wandering desired speed and lateral offset (Ornstein-Uhlenbeck)
+        self.speed_factor += (-(self.speed_factor - 1.0) / 8.0) * dt + st.speed_sigma * np.sqrt(
+            2 * dt / 8.0) * rng.normal()
+        self.lat += -self.lat / st.lat_tau * dt + st.lat_sigma * np.sqrt(
+            2 * dt / st.lat_tau) * rng.normal()
+        self.lat = float(np.clip(self.lat, -0.55, 0.55))
+        v = veh.v
+        v0 = min(st.v0 * self.speed_factor, v_curve)
+        a_cmd = float(idm_acceleration(v, v0, gap, v - v_lead, st.a_max, st.b, st.s0, st.T))
+        a_cmd = float(np.clip(a_cmd, -B_MAX, st.a_max))
+        self.a_hist.append(a_cmd)
+        # reaction delay: the command issued `reaction` seconds ago (linear interpolation)
+        k = len(self.a_hist) - 1 - st.reaction / dt
+        k0 = int(np.floor(k))
+        f = k - k0
+        h = self.a_hist
+        a_del = h[max(k0, 0)] * (1 - f) + h[max(min(k0 + 1, len(h) - 1), 0)] * f
+        a = a_del if a_cmd >= -1.5 else min(a_cmd, a_del)  # reflex for hard braking
+        if a_cmd > -3.0:  # bounded jerk unless braking hard
+            a = float(np.clip(a, self.a_prev - st.jerk * dt, self.a_prev + st.jerk * dt))
+        v_new = float(np.clip(v + a * dt, 0.0, 22.0))
+        if v_new < 0.05:
+            v_new = 0.0
+        self.a_prev = (v_new - v) / dt
+        # pure pursuit towards the route, offset by the lateral wander
+        ld = float(np.clip(st.lookahead * (0.9 * max(v_new, v) + 5.0), 5.0, 22.0))
+        target, h_t = path.pose(veh.s + ld)
+        target = target + self.lat * np.array([-np.sin(h_t), np.cos(h_t)])
+        tx, ty = to_ego_frame(target, pose)
+        kappa = float(np.clip(2.0 * ty / max(tx * tx + ty * ty, 1e-6), -0.25, 0.25))
+        omega = float(np.clip(v_new * kappa, -1.2, 1.2))
+        return v_new, omega, self.a_prev
+
+
+def project_on_path(path: Path, s_prev: float, pose: np.ndarray) -> float:
+    """Arc length of ``pose`` on ``path``, searched near the previous value ``s_prev``."""
+    w = path.window(s_prev - 8.0, s_prev + 25.0)
+    s, _ = project_to_polyline(path.points[w], path.s[w], pose[None, :2])
+    return float(s[0])
+
+
+def simulate_scene(m: Map, rng: np.random.Generator, T: int = T_STEPS, dt: float = DT,
+                   max_ados: int = MAX_ADOS) -> SceneLog:
+    """Simulate one scene on map ``m``: the human ego among IDM ados. See the module doc."""
+    style = random_style(rng)
+    density = float(rng.uniform(1 / 90.0, 1 / 22.0))  # ados per metre of lane
+    spawn_rate = float(rng.uniform(0.02, 0.12))  # arrivals per second per entry lane
+    traffic = Traffic(m, rng, dt, density, max_ados, spawn_rate)
+    path = Path.from_lanes(m, m.route)
+    ego = Vehicle(pid=traffic.bank.add(path), s=m.start_s, v=0.0, length=EGO_LENGTH,
+                  width=EGO_WIDTH, v0=style.v0, T=style.T, a_max=style.a_max, b=style.b,
+                  s0=style.s0, a_lat=style.a_lat, gap_crit=style.gap_crit, is_ego=True)
+    xy, h = path.pose(ego.s)
+    lat0 = float(rng.normal(0.0, 0.5 * style.lat_sigma))
+    xy = xy + lat0 * np.array([-np.sin(h), np.cos(h)])
+    pose = np.array([xy[0], xy[1], float(wrap_angle(h + rng.normal(0.0, 0.01)))])
+    ego.xy, ego.yaw = pose[:2].copy(), float(pose[2])
+    traffic.vehicles.append(ego)
+    traffic.populate(pose[:2], ego_keepout=14.0)
+    # initial speed: sometimes from rest, else near the (curve-limited) desired speed
+    per = traffic.perceive()
+    v_des = min(style.v0, float(per["v_curve"][0]))
+    ego.v = 0.0 if rng.random() < 0.12 else float(v_des * rng.uniform(0.55, 1.0))
+    if rng.random() < 0.55:
+        traffic.add_cut_in(ego, style.v0)
+    # do not start closer to a leader than the style tolerates
+    per = traffic.perceive()
+    if np.isfinite(per["gap"][0]):
+        ego.v = float(min(ego.v, max((per["gap"][0] - style.s0) / style.T, 0.0),
+                          per["v_lead"][0] + 2.0))
+    driver = HumanDriver(m, style, rng, dt)
+
+    ego_log = np.zeros((T, 3))
+    ctl_log = np.zeros((T, 2))
+    ado_log = np.zeros((T, max_ados, 5))
+    val_log = np.zeros((T, max_ados), dtype=bool)
+    kinds = []
+    for t in range(T):
+        traffic.update_stamps(t)
+        per = traffic.perceive()
+        ego_log[t] = pose
+        n_ado = len(traffic.vehicles) - 1
+        for j, veh in enumerate(traffic.vehicles[1:]):
+            ado_log[t, j] = veh.box
+            val_log[t, j] = veh.active
+        v_cmd, omega, a = driver.act(ego, path, pose, float(per["gap"][0]),
+                                     float(per["v_lead"][0]), float(per["v_curve"][0]))
+        k = int(per["kind"][0])
+        kinds.append(("", "leader", "yield")[k] if (a < -0.3 or (k == 2 and v_cmd < 0.5))
+                     else "")
+        acc = traffic.ado_accelerations(per)
+        ctl_log[t] = (v_cmd, omega)
+        pose = unicycle_step(pose, np.array([v_cmd, omega]), dt)
+        ego.xy, ego.yaw, ego.v = pose[:2].copy(), float(pose[2]), v_cmd
+        ego.s = project_on_path(path, ego.s, pose)
+        traffic.step_ados(acc, ego)
+        traffic.spawn()
+    del n_ado
+    tags = {
+        "kind": m.kind,
+        "has_junction": bool(m.has_junction),
+        "has_roundabout": bool(m.has_roundabout),
+        "has_cut_in": bool(traffic.cut_in_done),
+        "turn": _route_turn(m),
+        "yield_steps": int(sum(k == "yield" for k in kinds)),
+        "follow_steps": int(sum(k == "leader" for k in kinds)),
+        "stopped_steps": int(np.sum(ctl_log[:, 0] < 0.3)),
+        "n_ados": int(len(traffic.vehicles) - 1),
+        "density": density,
+        "style": asdict(style),
+    }
+    return SceneLog(ego_log, ctl_log, pose, ado_log, val_log, tags)
+
+
+def _route_turn(m: Map) -> str:
+    for lid in m.route:
+        if m.lanes[lid].turn in ("straight", "left", "right"):
+            return m.lanes[lid].turn
+    if m.kind == "roundabout":
+        return f"exit{int(m.recipe['ego']['exits'])}"
+    return "road"
+
+
+def check_scene(m: Map, log: SceneLog, substeps: int = 4) -> tuple[bool, bool]:
+    """(off_road, collision) for a scene log: ego footprint vs drivable area and ado boxes.
+
+    Checks the logged steps and ``substeps`` linear interpolations between
+    consecutive steps (ados are valid at both ends).
+    """
+    T = log.ego.shape[0]
+    poses = np.concatenate([log.ego, log.final_pose[None]], axis=0)
+    ego_box = np.concatenate([poses, np.tile([EGO_LENGTH, EGO_WIDTH], (T + 1, 1))], axis=1)
+    corners = box_corners(ego_box[:T])
+    off_road = not bool(np.all(m.is_drivable(corners)))
+    collision = False
+    for t in range(T):
+        for f in np.linspace(0.0, 1.0, substeps, endpoint=False):
+            if t == T - 1 and f > 0:
+                break
+            e = ego_box[t].copy()
+            if f > 0:
+                e[:2] = (1 - f) * ego_box[t, :2] + f * ego_box[t + 1, :2]
+                e[2] = ego_box[t, 2] + f * wrap_angle(ego_box[t + 1, 2] - ego_box[t, 2])
+                ok = log.ado_valid[t] & log.ado_valid[t + 1]
+                a = log.ado[t].copy()
+                a[:, :2] = (1 - f) * log.ado[t, :, :2] + f * log.ado[t + 1, :, :2]
+                a[:, 2] = log.ado[t, :, 2] + f * wrap_angle(log.ado[t + 1, :, 2]
+                                                            - log.ado[t, :, 2])
+            else:
+                ok = log.ado_valid[t]
+                a = log.ado[t]
+            if ok.any() and boxes_overlap(e[None], a[ok]).any():
+                collision = True
+                break
+        if collision:
+            break
+    return off_road, collision

@@ -1,0 +1,647 @@
+"""Chapter 7 — traffic: ado vehicles that follow lanes with the Intelligent Driver Model.
+
+Every vehicle (the ados here, and the human ego of :mod:`minimanc.world.driver`)
+drives along a *path* — a sequence of lanes concatenated into one polyline —
+and chooses its acceleration with the **Intelligent Driver Model** (Treiber,
+Hennecke & Helbing 2000)::
+
+    a = a_max [ 1 - (v / v0)^4 - (s* / gap)^2 ],
+    s* = s0 + max(0, v T + v (v - v_lead) / (2 sqrt(a_max b)))
+
+against the most constraining of
+
+* the **leader**: any vehicle whose box overlaps the vehicle's corridor
+  ahead (its path, widened by the two half widths) — this covers car
+  following, vehicles merging or cutting in, and vehicles standing across
+  the path;
+* **junction conflicts**: where its path crosses or merges with another
+  vehicle's path inside an intersection or roundabout (the map's conflict
+  table), the vehicle without priority treats the conflict entry as a
+  stopped obstacle. Priority: a vehicle that can no longer stop
+  (*committed*) goes first; the roundabout ring has priority over entries;
+  at intersections the first to arrive goes first. A yielding vehicle may
+  still go when the other one is far enough (gap acceptance: the other's
+  earliest arrival is later than its own clearing time plus a critical gap);
+* the **speed profile** of the path: curvature limits the speed to
+  ``sqrt(a_lat / |kappa|)`` and the desired speed anticipates curves with a
+  comfortable deceleration.
+
+Ados are placed along the lanes at the start (density varies per scene),
+spawn at the map's entry lanes over time, leave at its exits, and some of
+them *cut in* in front of the ego: they drive faster in the adjacent lane and
+change lanes when a few metres ahead of it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from minimanc.world.geometry import wrap_angle
+from minimanc.world.maps import LANE_WIDTH, Map, concat_lanes
+
+LANE_OFFSET = LANE_WIDTH
+"""Lateral distance between adjacent same-direction lanes (m)."""
+
+B_COMMIT = 4.0
+"""Deceleration (m/s^2) above which a vehicle can no longer stop before a conflict: committed."""
+B_MAX = 8.0
+"""Physical braking limit (m/s^2)."""
+CONFLICT_MARGIN = 0.5
+"""Yielding vehicles treat ``conflict entry - CONFLICT_MARGIN`` as the stop point (m)."""
+
+
+def idm_acceleration(
+    v: np.ndarray | float,
+    v0: np.ndarray | float,
+    gap: np.ndarray | float,
+    dv: np.ndarray | float,
+    a_max: np.ndarray | float = 1.5,
+    b: np.ndarray | float = 2.0,
+    s0: np.ndarray | float = 2.0,
+    T: np.ndarray | float = 1.5,
+    delta: float = 4.0,
+) -> np.ndarray:
+    """Intelligent Driver Model acceleration (vectorised).
+
+    ``v`` own speed, ``v0`` desired speed, ``gap`` bumper-to-bumper distance
+    to the leader (``inf`` for a free road), ``dv = v - v_lead`` the closing
+    speed; ``a_max`` maximum acceleration, ``b`` comfortable deceleration,
+    ``s0`` jam distance, ``T`` time headway, ``delta`` the free-road exponent.
+    Returns ``a_max [1 - (v/v0)^delta - (s*/gap)^2]`` with
+    ``s* = s0 + max(0, v T + v dv / (2 sqrt(a_max b)))`` (no clipping).
+    """
+    v = np.asarray(v, dtype=np.float64)
+    v0 = np.maximum(np.asarray(v0, dtype=np.float64), 1e-3)
+    gap = np.maximum(np.asarray(gap, dtype=np.float64), 1e-2)
+    s_star = s0 + np.maximum(0.0, v * T + v * dv / (2.0 * np.sqrt(a_max * b)))
+    return a_max * (1.0 - (v / v0) ** delta - (s_star / gap) ** 2)
+
+
+def earliest_arrival(d: float, v: float, v0: float, a: float) -> float:
+    """Earliest time to cover ``d`` metres from speed ``v``, accelerating at ``a`` up to ``v0``."""
+    if d <= 0:
+        return 0.0
+    v0 = max(v0, v, 0.5)
+    t_acc = (v0 - v) / a
+    d_acc = v * t_acc + 0.5 * a * t_acc**2
+    if d <= d_acc:
+        return float((-v + np.sqrt(v * v + 2 * a * d)) / a)
+    return float(t_acc + (d - d_acc) / v0)
+
+
+@dataclass
+class Path:
+    """Lanes ``lanes`` concatenated; ``starts`` are their start arc lengths on the path."""
+
+    lanes: list[int]
+    points: np.ndarray
+    heads: np.ndarray
+    s: np.ndarray
+    starts: np.ndarray
+    kappa: np.ndarray
+    junction_lanes: list[tuple[int, float]]  # (lane id, start arc length) of junction lanes
+
+    @classmethod
+    def from_lanes(cls, m: Map, ids: list[int]) -> Path:
+        p, h, s, starts = concat_lanes(m.lanes, ids)
+        hu = np.unwrap(h)
+        ds = np.maximum(np.gradient(s), 1e-6)
+        k = np.gradient(hu) / ds
+        k = np.convolve(np.pad(k, 2, mode="edge"), np.ones(5) / 5, mode="valid")
+        jl = [(lid, float(st)) for lid, st in zip(ids, starts) if m.lanes[lid].junction >= 0]
+        return cls(list(ids), p, h, s, starts, k, jl)
+
+    @property
+    def length(self) -> float:
+        return float(self.s[-1])
+
+    def pose(self, s: float) -> tuple[np.ndarray, float]:
+        """Position and heading at arc length ``s`` (clamped to the path)."""
+        s = min(max(s, 0.0), self.length)
+        i = int(np.clip(np.searchsorted(self.s, s) - 1, 0, len(self.s) - 2))
+        f = (s - self.s[i]) / max(self.s[i + 1] - self.s[i], 1e-9)
+        xy = self.points[i] + f * (self.points[i + 1] - self.points[i])
+        dh = wrap_angle(self.heads[i + 1] - self.heads[i])
+        return xy, float(wrap_angle(self.heads[i] + f * dh))
+
+    def window(self, s0: float, s1: float) -> slice:
+        i0 = max(int(np.searchsorted(self.s, s0)) - 1, 0)
+        i1 = min(int(np.searchsorted(self.s, s1)) + 1, len(self.s))
+        return slice(i0, i1)
+
+
+
+class PathBank:
+    """All paths of a scene concatenated, so that every vehicle is queried in one call.
+
+    Path ``k`` occupies global arc lengths ``[base[k], base[k] + length_k]``;
+    consecutive paths are separated by a jump of 1 km, so ``np.interp`` on the
+    global arc length never mixes two paths.
+    """
+
+    def __init__(self) -> None:
+        self.paths: list[Path] = []
+        self._dirty = True
+
+    def add(self, path: Path) -> int:
+        self.paths.append(path)
+        self._dirty = True
+        return len(self.paths) - 1
+
+    def _build(self) -> None:
+        base, acc = [], 0.0
+        for p in self.paths:
+            base.append(acc)
+            acc += p.length + 1000.0
+        self.base = np.array(base)
+        self.lengths = np.array([p.length for p in self.paths])
+        self.gs = np.concatenate([b + p.s for b, p in zip(base, self.paths)])
+        pts = np.concatenate([p.points for p in self.paths])
+        hd = np.concatenate([p.heads for p in self.paths])
+        self.x, self.y = pts[:, 0], pts[:, 1]
+        self.c, self.sn = np.cos(hd), np.sin(hd)
+        self.k = np.abs(np.concatenate([p.kappa for p in self.paths]))
+        self._dirty = False
+
+    def query(self, pid: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Position ``(..., 2)``, heading, |curvature| at arc lengths ``s`` of paths ``pid``.
+
+        Beyond a path's ends the position is extended straight.
+        """
+        if self._dirty:
+            self._build()
+        pid = np.asarray(pid)
+        L = self.lengths[pid]
+        sc = np.clip(s, 0.0, L)
+        g = self.base[pid] + sc
+        c = np.interp(g, self.gs, self.c)
+        sn = np.interp(g, self.gs, self.sn)
+        h = np.arctan2(sn, c)
+        extra = s - sc
+        x = np.interp(g, self.gs, self.x) + extra * np.cos(h)
+        y = np.interp(g, self.gs, self.y) + extra * np.sin(h)
+        return np.stack([x, y], axis=-1), h, np.interp(g, self.gs, self.k)
+
+
+def corridor_leaders(
+    win: np.ndarray,
+    win_h: np.ndarray,
+    win_s: np.ndarray,
+    win_ok: np.ndarray,
+    s: np.ndarray,
+    length: np.ndarray,
+    width: np.ndarray,
+    boxes: np.ndarray,
+    speeds: np.ndarray,
+    active: np.ndarray,
+    spacing: float,
+    margin: float = 0.45,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For every vehicle, the nearest vehicle whose box overlaps its corridor ahead.
+
+    ``win (N, P, 2)`` are points sampled every ``spacing`` m along each
+    vehicle's path (``win_h`` headings, ``win_s`` arc lengths, ``win_ok``
+    which samples are inside its look-ahead). A box ``j`` overlaps vehicle
+    ``i``'s corridor when its centre lies within ``w_i/2 + (extent of j
+    across the path) + margin`` of the path and ahead of ``i``'s centre.
+    Returns ``gap (N,)`` (front of ``i`` to the near extent of the leader,
+    ``inf`` if free), the leader's speed along the path ``(N,)`` and its index
+    ``(N,)`` (-1 if free).
+    """
+    N, P = win_ok.shape
+    gap_out = np.full(N, np.inf)
+    vl_out = np.zeros(N)
+    who_out = np.full(N, -1)
+    # candidate pairs: j near i's corridor at all (cheap pre-filter on centres)
+    reach = spacing * win_ok.sum(axis=1) + 12.0
+    d = np.hypot(boxes[None, :, 0] - boxes[:, None, 0], boxes[None, :, 1] - boxes[:, None, 1])
+    cand = (d < reach[:, None]) & active[None, :] & active[:, None]
+    np.fill_diagonal(cand, False)
+    ii, jj = np.nonzero(cand)
+    if len(ii) == 0:
+        return gap_out, vl_out, who_out
+    rx = boxes[jj, 0, None] - win[ii, :, 0]  # (K, P)
+    ry = boxes[jj, 1, None] - win[ii, :, 1]
+    d2 = np.where(win_ok[ii], rx * rx + ry * ry, np.inf)
+    k = np.argmin(d2, axis=1)
+    kk = np.arange(len(ii))
+    hk = win_h[ii, k]
+    ch, sh = np.cos(hk), np.sin(hk)
+    tx, ty = rx[kk, k], ry[kk, k]
+    tt = tx * ch + ty * sh  # along the path from the nearest sample
+    lat = np.abs(-tx * sh + ty * ch)  # across the path
+    dpsi = boxes[jj, 2] - hk
+    cs, sn = np.abs(np.cos(dpsi)), np.abs(np.sin(dpsi))
+    perp = sn * boxes[jj, 3] / 2 + cs * boxes[jj, 4] / 2
+    along = cs * boxes[jj, 3] / 2 + sn * boxes[jj, 4] / 2
+    ds = win_s[ii, k] + tt - s[ii]
+    inside = (lat < width[ii] / 2 + perp + margin) & (np.abs(tt) <= 0.75 * spacing + 0.5)
+    inside &= ds > 0.0
+    gap = np.where(inside, ds - length[ii] / 2 - along, np.inf)
+    order = np.lexsort((gap, ii))  # per i, the smallest gap first
+    first = np.ones(len(order), bool)
+    first[1:] = ii[order][1:] != ii[order][:-1]
+    sel = order[first]
+    g = gap[sel]
+    hit = np.isfinite(g)
+    sel, g = sel[hit], g[hit]
+    gap_out[ii[sel]] = g
+    vl_out[ii[sel]] = np.maximum(speeds[jj[sel]] * np.cos(dpsi[sel]), 0.0)
+    who_out[ii[sel]] = jj[sel]
+    return gap_out, vl_out, who_out
+
+
+@dataclass
+class Vehicle:
+    """A vehicle on a path. Ados move along it; the ego's pose is set by its driver."""
+
+    pid: int  # path index in the scene's PathBank
+    s: float
+    v: float
+    length: float
+    width: float
+    v0: float
+    T: float
+    a_max: float
+    b: float
+    s0: float
+    a_lat: float
+    gap_crit: float
+    is_ego: bool = False
+    active: bool = True
+    offset: float = 0.0  # lateral offset from the path (cut-in: adjacent lane)
+    offset_rate: float = 0.0
+    cut_in: dict | None = None
+    stamp: float = np.inf  # arrival time at the junction (first come, first served)
+    xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    yaw: float = 0.0
+
+    @property
+    def box(self) -> np.ndarray:
+        return np.array([self.xy[0], self.xy[1], self.yaw, self.length, self.width])
+
+
+def random_vehicle_size(rng: np.random.Generator) -> tuple[float, float]:
+    """Length and width of an ado: mostly cars, some vans, a few trucks and buses."""
+    u = rng.random()
+    if u < 0.82:
+        return float(rng.uniform(3.9, 4.9)), float(rng.uniform(1.7, 1.95))
+    if u < 0.95:
+        return float(rng.uniform(5.0, 6.2)), float(rng.uniform(1.95, 2.2))
+    return float(rng.uniform(8.0, 11.5)), float(rng.uniform(2.4, 2.55))
+
+
+def random_lane_walk(m: Map, rng: np.random.Generator, first: int, min_length: float) -> list[int]:
+    """A lane sequence from ``first`` following random successors (stops at the map's exits)."""
+    ids = [first]
+    total = m.lanes[first].length
+    while total < min_length:
+        succ = m.lanes[ids[-1]].successors
+        if not succ:
+            break
+        nxt = int(succ[int(rng.integers(len(succ)))])
+        ids.append(nxt)
+        total += m.lanes[nxt].length
+        if len(ids) > 40:
+            break
+    return ids
+
+
+WIN_SPACING = 2.0
+"""Spacing of the corridor samples (m)."""
+WIN_POINTS = 44
+"""Corridor samples per vehicle: from 1 m behind to ~85 m ahead."""
+
+
+class Traffic:
+    """All vehicles of a scene and the rules that move them (the ego included).
+
+    ``vehicles[0]`` is the ego (its pose is written by the driver); the ados
+    follow. Each step: :meth:`perceive` (every vehicle's binding constraint
+    and curve-limited desired speed, vectorised), then
+    :meth:`ado_accelerations` and :meth:`step_ados`.
+    """
+
+    def __init__(self, m: Map, rng: np.random.Generator, dt: float, density: float,
+                 max_ados: int, spawn_rate: float) -> None:
+        self.m = m
+        self.rng = rng
+        self.dt = dt
+        self.density = density
+        self.max_ados = max_ados
+        self.spawn_rate = spawn_rate
+        self.bank = PathBank()
+        self.vehicles: list[Vehicle] = []
+        self.sources = [ln.id for ln in m.lanes if ln.kind == "road" and not ln.predecessors]
+        self.cut_in_done = False
+        self.grid = -1.0 + WIN_SPACING * np.arange(WIN_POINTS)
+
+    def path(self, veh: Vehicle) -> Path:
+        return self.bank.paths[veh.pid]
+
+    # ------------------------------------------------------------------ population
+    def ado_params(self, length: float, width: float) -> dict:
+        r = self.rng
+        big = length > 7.0
+        return dict(
+            length=length, width=width,
+            v0=float(r.uniform(7.0, 12.0) if big else r.uniform(8.0, 14.5)),
+            T=float(r.uniform(1.0, 2.0)),
+            a_max=float(r.uniform(0.8, 1.2) if big else r.uniform(1.0, 2.2)),
+            b=float(r.uniform(1.8, 2.8)), s0=float(r.uniform(1.8, 3.0)),
+            a_lat=float(r.uniform(1.8, 2.8)), gap_crit=float(r.uniform(1.6, 3.2)),
+        )
+
+    def add_ado(self, lanes: list[int], s: float, v: float, **extra) -> Vehicle | None:
+        if len(self.vehicles) - 1 >= self.max_ados:
+            return None
+        L, W = random_vehicle_size(self.rng)
+        p = self.ado_params(L, W)
+        p.update(extra)
+        path = Path.from_lanes(self.m, lanes)
+        veh = Vehicle(pid=self.bank.add(path), s=s, v=v, **p)
+        xy, h = path.pose(s)
+        veh.xy, veh.yaw = xy, h
+        self.vehicles.append(veh)
+        return veh
+
+    def place(self, vehicles: list[Vehicle]) -> None:
+        """Set ``xy`` and ``yaw`` of path-following vehicles from their ``s`` and offset."""
+        if not vehicles:
+            return
+        pid = np.array([v.pid for v in vehicles])
+        s = np.array([v.s for v in vehicles])
+        xy, h, _ = self.bank.query(pid, s)
+        for veh, p, hh in zip(vehicles, xy, h):
+            if veh.offset != 0.0:
+                p = p + veh.offset * np.array([-np.sin(hh), np.cos(hh)])
+            veh.xy = p
+            veh.yaw = float(wrap_angle(hh + np.arctan2(veh.offset_rate, max(veh.v, 1.0))))
+
+    def clear_of(self, xy: np.ndarray, radius: float) -> bool:
+        for veh in self.vehicles:
+            if veh.active and np.hypot(*(veh.xy - xy)) < radius:
+                return False
+        return True
+
+    def populate(self, ego_xy: np.ndarray, ego_keepout: float) -> None:
+        """Place ados along the road lanes at the scene's density (not on junction lanes).
+
+        Each lane is filled from its end backwards so that every new ado knows
+        the one ahead and starts no faster than a safe following speed.
+        """
+        for lane in self.m.lanes:
+            if lane.kind != "road":
+                continue
+            s = lane.length - 6.0 - float(self.rng.exponential(1.0 / self.density))
+            ahead_s, ahead_v = np.inf, 0.0
+            while s > 4.0:
+                i = min(int(np.searchsorted(lane.s, s)), len(lane.s) - 1)
+                xy = lane.points[i]
+                if np.hypot(*(xy - ego_xy)) > ego_keepout and self.clear_of(xy, 9.0):
+                    ids = random_lane_walk(self.m, self.rng, lane.id, 450.0 + s)
+                    v = float(self.rng.uniform(5.0, 12.5))
+                    if np.isfinite(ahead_s):
+                        gap = ahead_s - s - 6.0
+                        v = min(v, max((gap - 2.0) / 1.5, 0.0), ahead_v + 1.0)
+                    veh = self.add_ado(ids, s, v)
+                    if veh is None:
+                        return
+                    ahead_s, ahead_v = s, v
+                s -= 9.0 + float(self.rng.exponential(1.0 / self.density))
+
+    def spawn(self) -> None:
+        """Poisson arrivals at the map's entry lanes."""
+        for lid in self.sources:
+            if self.rng.random() < self.spawn_rate * self.dt:
+                lane = self.m.lanes[lid]
+                if self.clear_of(lane.points[0], 16.0):
+                    ids = random_lane_walk(self.m, self.rng, lid, 450.0)
+                    self.add_ado(ids, 0.0, float(self.rng.uniform(6.0, 11.0)))
+
+    # ------------------------------------------------------------------ perception
+    def snapshot(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Boxes ``(N, 5)``, speeds ``(N,)`` and active flags of all vehicles (ego first)."""
+        boxes = np.array([v.box for v in self.vehicles])
+        speeds = np.array([v.v for v in self.vehicles])
+        active = np.array([v.active for v in self.vehicles])
+        return boxes, speeds, active
+
+    def perceive(self) -> dict[str, np.ndarray]:
+        """Every vehicle's binding constraint (vectorised corridors + junction conflicts).
+
+        Returns arrays over vehicles: ``gap``, ``v_lead``, ``who`` (index of the
+        vehicle that constrains, -1 none), ``kind`` (0 free, 1 leader, 2
+        yield) and ``v0`` (desired speed limited by the curves ahead).
+        """
+        vs = self.vehicles
+        boxes, speeds, active = self.snapshot()
+        pid = np.array([v.pid for v in vs])
+        s = np.array([v.s for v in vs])
+        L = np.array([v.length for v in vs])
+        W = np.array([v.width for v in vs])
+        off = np.array([v.offset for v in vs])
+        sq = s[:, None] + self.grid[None, :]
+        win, wh, wk = self.bank.query(pid[:, None], sq)
+        if np.any(off != 0.0):
+            win = win + off[:, None, None] * np.stack([-np.sin(wh), np.cos(wh)], axis=-1)
+        look = 25.0 + 3.5 * speeds
+        ok = self.grid[None, :] <= look[:, None]
+        gap, vl, who = corridor_leaders(win, wh, sq, ok, s, L, W, boxes, speeds, active,
+                                        WIN_SPACING)
+        kind = np.where(who >= 0, 1, 0)
+        # junction conflicts (only for vehicles near a junction)
+        windows = [self.junction_window(v) if v.active else [] for v in vs]
+        for i in range(len(vs)):
+            if windows[i] and vs[i].active:
+                cg, cj = self.conflict_stop(i, windows)
+                if cg < gap[i]:
+                    gap[i], vl[i], who[i], kind[i] = cg, 0.0, cj, 2
+        # desired speed limited by the curvature ahead (braking-feasible)
+        a_lat = np.array([v.a_lat for v in vs])[:, None]
+        b = np.array([v.b for v in vs])[:, None]
+        v0 = np.array([v.v0 for v in vs])
+        vlim = np.sqrt(a_lat / np.maximum(wk, 1e-4))
+        dist = np.maximum(self.grid[None, :] - 2.0, 0.0)
+        env = np.where(self.grid[None, :] >= 0.0, np.sqrt(vlim**2 + 2.0 * b * dist), np.inf)
+        v_curve = env.min(axis=1)
+        return {"gap": gap, "v_lead": vl, "who": who, "kind": kind,
+                "v0": np.minimum(v0, v_curve), "v_curve": v_curve}
+
+    def committed(self, veh: Vehicle, s_in: float) -> bool:
+        """Whether ``veh`` can no longer stop before the conflict entry ``s_in``."""
+        d = s_in - CONFLICT_MARGIN - (veh.s + veh.length / 2)
+        return d <= 0.0 or veh.v * veh.v > 2.0 * B_COMMIT * d
+
+    def junction_window(self, veh: Vehicle) -> list[tuple[int, float]]:
+        """Junction lanes of ``veh``'s path it has not cleared, within its horizon."""
+        horizon = 20.0 + 4.0 * veh.v
+        rear = veh.s - veh.length / 2
+        out = []
+        for lid, st in self.path(veh).junction_lanes:
+            if st + self.m.lanes[lid].length > rear and st < veh.s + horizon:
+                out.append((lid, st))
+        return out
+
+    def conflict_stop(self, i: int, windows: list) -> tuple[float, int]:
+        """Distance from vehicle ``i``'s front to the nearest conflict where it must yield."""
+        me = self.vehicles[i]
+        best, who = np.inf, -1
+        for j, other in enumerate(self.vehicles):
+            if j == i or not other.active or not windows[j]:
+                continue
+            for la, sa in windows[i]:
+                for lb, sb in windows[j]:
+                    c = self.m.conflicts.get((la, lb))
+                    if c is None:
+                        continue
+                    cb = self.m.conflicts[(lb, la)]
+                    i_in, i_out = sa + c[0], sa + c[1]
+                    j_in, j_out = sb + cb[0], sb + cb[1]
+                    if me.s - me.length / 2 > i_out or other.s - other.length / 2 > j_out:
+                        continue  # one of them has cleared the conflict
+                    if not self.must_yield(me, other, la, lb, i_in, i_out, j_in):
+                        continue
+                    d = i_in - CONFLICT_MARGIN - (me.s + me.length / 2)
+                    if d < best:
+                        best, who = d, j
+        return best, who
+
+    def must_yield(self, me: Vehicle, other: Vehicle, la: int, lb: int,
+                   i_in: float, i_out: float, j_in: float) -> bool:
+        """Priority rules at a conflict between ``me`` (lane ``la``) and ``other`` (``lb``)."""
+        if self.committed(me, i_in):
+            return False
+        if not self.committed(other, j_in):
+            ka, kb = self.m.lanes[la].kind, self.m.lanes[lb].kind
+            if ka == "ring" and kb != "ring":
+                return False
+            if not (kb == "ring" and ka != "ring"):
+                # first come, first served; ties: the one closer to the conflict
+                if (me.stamp, i_in - me.s) < (other.stamp, j_in - other.s):
+                    return False
+        # gap acceptance: go anyway if the other arrives well after I have cleared
+        t_other = earliest_arrival(j_in - (other.s + other.length / 2), other.v,
+                                   other.v0, other.a_max)
+        t_clear = earliest_arrival(i_out + me.length / 2 + 1.0 - me.s, me.v, me.v0, me.a_max)
+        return t_other < t_clear + me.gap_crit
+
+    def update_stamps(self, t: int) -> None:
+        """Record when each vehicle reaches the approach zone of its junction."""
+        for veh in self.vehicles:
+            if not veh.active or np.isfinite(veh.stamp):
+                continue
+            for _lid, st in self.path(veh).junction_lanes:
+                d = st - (veh.s + veh.length / 2)
+                if -1.0 < d < 12.0 + veh.v * veh.v / 4.0:
+                    veh.stamp = float(t)
+                    break
+
+    # ------------------------------------------------------------------ dynamics
+    def ado_accelerations(self, per: dict[str, np.ndarray]) -> np.ndarray:
+        """IDM accelerations ``(N,)`` of all vehicles from :meth:`perceive` (ego's unused)."""
+        vs = self.vehicles
+        v = np.array([x.v for x in vs])
+        a = idm_acceleration(
+            v, per["v0"], per["gap"], v - per["v_lead"],
+            np.array([x.a_max for x in vs]), np.array([x.b for x in vs]),
+            np.array([x.s0 for x in vs]), np.array([x.T for x in vs]))
+        return np.clip(a, -B_MAX, np.array([x.a_max for x in vs]))
+
+    def step_ados(self, acc: np.ndarray, ego: Vehicle) -> None:
+        """Move every active ado by one step (ballistic update, speeds never negative)."""
+        dt = self.dt
+        moved = []
+        for i, veh in enumerate(self.vehicles):
+            if veh.is_ego or not veh.active:
+                continue
+            a = float(acc[i])
+            v_new = max(veh.v + a * dt, 0.0)
+            if v_new == 0.0 and a < 0:  # stops within the step
+                ds = veh.v * veh.v / (2 * -a) if veh.v > 0 else 0.0
+            else:
+                ds = 0.5 * (veh.v + v_new) * dt
+            veh.s += ds
+            veh.v = v_new
+            if veh.cut_in is not None:
+                self._cut_in_lateral(veh, ego)
+            if veh.s >= self.path(veh).length - 0.5:
+                veh.active = False
+            moved.append(veh)
+        self.place(moved)
+
+    # ------------------------------------------------------------------ cut-ins
+    def _cut_in_lateral(self, veh: Vehicle, ego: Vehicle) -> None:
+        ci = veh.cut_in
+        dt = self.dt
+        if not ci["started"]:
+            # rear of the ado ahead of the ego's front by the chosen gap, on the same path
+            ahead = (veh.s - veh.length / 2) - (ego.s + ego.length / 2)
+            if ci["gap"] <= ahead <= ci["gap"] + 6.0 and veh.v >= ego.v:
+                if veh.s + veh.v * ci["duration"] + 10.0 < ci["s_max"]:
+                    ci["started"] = True
+                    ci["t"] = 0.0
+            elif ahead > ci["gap"] + 6.0 or veh.s > ci["s_max"]:
+                self._to_own_lane(veh)  # the chance has passed: stays in its lane
+                return
+        if ci["started"]:
+            ci["t"] += dt
+            f = min(ci["t"] / ci["duration"], 1.0)
+            new = ci["d0"] * 0.5 * (1 + np.cos(np.pi * f))  # d0 -> 0 smoothly
+            veh.offset_rate = (new - veh.offset) / dt
+            veh.offset = float(new)
+            if f >= 1.0:
+                veh.offset, veh.offset_rate = 0.0, 0.0
+                veh.cut_in = None
+                self.cut_in_done = True
+
+    def _to_own_lane(self, veh: Vehicle) -> None:
+        """Give up a cut-in: continue on the adjacent lane's own path."""
+        lid = veh.cut_in["lane"]
+        lane = self.m.lanes[lid]
+        i = int(np.argmin(np.sum((lane.points - veh.xy) ** 2, axis=1)))
+        ids = random_lane_walk(self.m, self.rng, lid, 450.0)
+        veh.pid = self.bank.add(Path.from_lanes(self.m, ids))
+        veh.s = float(lane.s[i])
+        veh.offset = veh.offset_rate = 0.0
+        veh.stamp = np.inf
+        veh.cut_in = None
+
+    def add_cut_in(self, ego: Vehicle, ego_v0: float) -> bool:
+        """Set up an ado that will cut in front of the ego from an adjacent lane.
+
+        Looks for a route lane with a same-direction neighbour and at least
+        80 m of it left ahead of the ego; the ado starts a little behind the
+        ego in that neighbour lane, faster, and changes into the ego's lane
+        once its rear is ``gap`` metres ahead of the ego's front.
+        """
+        path = self.path(ego)
+        for lid, st in zip(path.lanes, path.starts):
+            lane = self.m.lanes[lid]
+            if lane.kind != "road":
+                continue
+            nb = [(n, sgn) for n, sgn in ((lane.left, 1.0), (lane.right, -1.0)) if n >= 0]
+            end = st + lane.length - 15.0
+            if not nb or end - ego.s < 80.0 or st > ego.s + 60.0:
+                continue
+            n, sgn = nb[int(self.rng.integers(len(nb)))]
+            s = max(ego.s + float(self.rng.uniform(-25.0, 0.0)), st + 5.0)
+            xy, h = path.pose(s)
+            xy = xy + sgn * LANE_OFFSET * np.array([-np.sin(h), np.cos(h)])
+            # make room in the neighbour lane
+            self.vehicles = [v for v in self.vehicles
+                             if v.is_ego or np.hypot(*(v.xy - xy)) >= 25.0]
+            v = max(ego.v + float(self.rng.uniform(1.5, 4.5)), 6.0)
+            veh = self.add_ado(list(path.lanes), s, v,
+                               v0=ego_v0 + float(self.rng.uniform(2.0, 5.0)))
+            if veh is None:
+                return False
+            veh.offset = sgn * LANE_OFFSET
+            veh.xy = xy
+            veh.cut_in = {"gap": float(self.rng.uniform(3.0, 10.0)),
+                          "duration": float(self.rng.uniform(2.0, 3.5)),
+                          "started": False, "s_max": end, "d0": sgn * LANE_OFFSET, "lane": n}
+            return True
+        return False
