@@ -148,7 +148,7 @@ def predicate_extractor(
     xp: Any = np,
     return_features: bool = False,
     strides: Sequence[int] | None = None,
-    padding: Any = "SAME",
+    padding: int | None = None,
     activation: str = "relu",
 ) -> Any:
     """Eq. 7: ``p^v = Linear(GAP(ConvEncoder(X)))`` as a pure function.
@@ -157,8 +157,9 @@ def predicate_extractor(
     engine's ``nn`` namespace (``engine("numpy").nn`` / ``engine("jax").nn``)
     and ``xp`` the matching array namespace.  Every convolution is followed by
     ``activation`` ("relu" or "silu"); ``strides`` defaults to 1 for the
-    first layer and 2 for the others.  Returns ``p`` of shape ``(B, M)``, or
-    ``(p, features)`` with ``features`` of shape ``(B, H', W', K)`` when
+    first layer and 2 for the others; ``padding`` (pixels of zeros on each
+    side) defaults to ``kernel_size // 2``, which keeps the size at stride 1.
+    Returns ``p`` of shape ``(B, M)``, or ``(p, features)`` with ``features`` of shape ``(B, H', W', K)`` when
     ``return_features`` (the input of :func:`class_activation_maps`).
     """
     convs = params["convs"]
@@ -180,7 +181,8 @@ def predicate_extractor(
     act = nn.relu if activation == "relu" else nn.silu
     h = xp.asarray(images)
     for layer, s in zip(convs, strides):
-        h = act(nn.conv2d(h, layer["w"], layer["b"], s, padding))
+        pad = layer["w"].shape[0] // 2 if padding is None else int(padding)
+        h = act(nn.conv2d(h, layer["w"], layer["b"], s, pad))
     p = xp.matmul(global_average_pool(h, xp=xp), params["head"]["w"]) + params["head"]["b"]
     return (p, h) if return_features else p
 
@@ -361,15 +363,16 @@ def explain(
 ) -> dict:
     """Everything behind one frame of the paper's execution traces, as NumPy arrays.
 
-    Runs eq. 7 and one vAGN step (eq. 9) on ``images`` (B, H, W, C) and
+    Runs eq. 7 and one vAGN step (eq. 9) on ``images`` (B, H, W, C) with
+    plain (not traced) ``params``, ``q_prev`` (N,) or (B, N) and ``W``, and
     returns a dict with ``p`` (B, M), ``q`` (B, N), ``cams`` (B, M, H, W),
     ``jacobian`` (B, N, M) and ``saliency`` (B, N, H, W); maps are upsampled
     to the input size unless ``upsample_to_input`` is False.
     """
     p, f = predicate_extractor(params, images, nn, xp=xp, return_features=True,
                                strides=strides, activation=activation)
-    p, f = np.asarray(_value(p)), np.asarray(_value(f))
-    cams = class_activation_maps(f, np.asarray(_value(params["head"]["w"])))
+    p, f = np.asarray(p), np.asarray(f)
+    cams = class_activation_maps(f, np.asarray(params["head"]["w"]))
     q = vagn.step(q_prev, p, W)
     J = vagn_jacobian(q_prev, p, W)
     S = q_state_saliency(cams, J)
@@ -377,11 +380,6 @@ def explain(
         size = tuple(images.shape[1:3])
         cams, S = upsample(cams, size), upsample(S, size)
     return {"p": p, "q": q, "cams": cams, "jacobian": J, "saliency": S}
-
-
-def _value(x: Any) -> Any:
-    # our autodiff's boxes keep the raw array in ``.value``; JAX arrays convert directly
-    return getattr(x, "value", x)
 
 
 def peak_location(maps: Any) -> np.ndarray:

@@ -27,7 +27,9 @@ of ``W^p`` to zero, but a zero still becomes ``e^0 = 1`` inside the softmax, so
 **no transition ever has probability exactly zero**.  The smallest possible
 entry of a column is ``1 / (1 + Σ_{r≠i} e^{R_rj})`` with ``R = ReLU(W^p)``;
 the automaton graph is always complete and "impossible" transitions can only
-be read off by thresholding (see :func:`plot_automaton`'s ``min_prob``).
+be read off by thresholding (see :func:`plot_automaton`'s ``min_prob``).  (In
+float64 an entry underflows to 0.0 only when its column's logits differ by
+more than about 745.)
 """
 
 from __future__ import annotations
@@ -125,13 +127,19 @@ def _check_T(T: np.ndarray, tol: float = 1e-8) -> np.ndarray:
 # parameters and initial states
 # ---------------------------------------------------------------------------
 def init_vagn(
-    rng: np.random.Generator, n_predicates: int, n_states: int, scale: float = 0.5
+    rng: np.random.Generator,
+    n_predicates: int,
+    n_states: int,
+    scale: float = 0.5,
+    mean: float = 0.0,
 ) -> np.ndarray:
-    """Transition weights ``W`` of shape ``(M, N, N)`` (eq. 8), entries ``N(0, scale²)``.
+    """Transition weights ``W`` of shape ``(M, N, N)`` (eq. 8), entries ``N(mean, scale²)``.
 
-    A zero-mean start leaves about half of every ``W^p`` in ReLU's dead zone;
-    that is deliberate (it is the paper's model) and is what lets predicates
-    *switch off* transitions.  ``scale`` is the standard deviation.
+    With ``mean = 0`` about half of every ``W^p`` starts in ReLU's dead zone,
+    where it receives no gradient.  When the predicates are non-negative a
+    small positive ``mean`` (e.g. 0.5 with ``scale`` 0.1) starts every entry
+    active and lets training decide which transitions to switch off; chapter
+    5's tutorial shows the difference.
     """
     if not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng must be a numpy.random.Generator; got rng = {rng!r}")
@@ -141,8 +149,10 @@ def init_vagn(
         raise ValueError(f"n_states must be a positive integer; got {n_states!r}")
     if not np.isfinite(scale) or scale < 0:
         raise ValueError(f"scale must be finite and >= 0; got scale = {scale!r}")
+    if not np.isfinite(mean):
+        raise ValueError(f"mean must be finite; got mean = {mean!r}")
     M, N = int(n_predicates), int(n_states)
-    return scale * rng.standard_normal((M, N, N))
+    return mean + scale * rng.standard_normal((M, N, N))
 
 
 def uniform_state(n_states: int) -> np.ndarray:

@@ -1,0 +1,346 @@
+"""Tests for minimanc.vagn (chapter 5): eqs. 8-9, rollouts, analysis, figures."""
+
+from __future__ import annotations
+
+import itertools
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from minimanc import engine, vagn  # noqa: E402
+
+ENGINES = ["numpy", "jax"]
+
+
+@pytest.fixture(params=ENGINES)
+def eng(request):
+    return engine(request.param)
+
+
+def _oracle_T(p, W):
+    """Eqs. 8-9 written out with loops, no max shift (values kept moderate)."""
+    M, N, _ = W.shape
+    A = sum(p[i] * W[i] for i in range(M))
+    R = np.where(A > 0, A, 0.0)
+    T = np.empty((N, N))
+    for j in range(N):
+        e = np.exp(R[:, j])
+        T[:, j] = e / e.sum()
+    return T
+
+
+@st.composite
+def problems(draw, max_m=5, max_n=5, scale=50.0):
+    M = draw(st.integers(1, max_m))
+    N = draw(st.integers(1, max_n))
+    seed = draw(st.integers(0, 2**31 - 1))
+    rng = np.random.default_rng(seed)
+    s = draw(st.floats(1e-3, scale))
+    return rng.standard_normal(M) * s, rng.standard_normal((M, N, N)) * s, rng
+
+
+# --------------------------------------------------------------------- eqs 8-9
+@settings(max_examples=50, deadline=None)
+@given(problems())
+def test_columns_sum_to_one_and_entries_positive(prob):
+    p, W, _ = prob
+    T = vagn.transition_matrix(p, W)
+    assert T.shape == W.shape[1:]
+    np.testing.assert_allclose(T.sum(axis=0), 1.0, atol=1e-12)
+    assert np.all(T >= 0) and np.all(np.isfinite(T))
+    # strictly positive unless exp underflows (a column's ReLU logits spanning > ~700)
+    R = np.maximum(vagn.combined_weights(p, W), 0)
+    assert np.all(T[:, np.ptp(R, axis=0) < 700] > 0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(problems(scale=3.0))
+def test_transition_matrix_matches_loop_oracle(prob):
+    p, W, _ = prob
+    np.testing.assert_allclose(vagn.transition_matrix(p, W), _oracle_T(p, W), rtol=1e-12)
+
+
+def test_batched_p_gives_batched_T():
+    rng = np.random.default_rng(1)
+    W = vagn.init_vagn(rng, 3, 4)
+    ps = rng.standard_normal((2, 5, 3))
+    T = vagn.transition_matrix(ps, W)
+    assert T.shape == (2, 5, 4, 4)
+    for a, b in itertools.product(range(2), range(5)):
+        np.testing.assert_allclose(T[a, b], _oracle_T(ps[a, b], W), rtol=1e-12)
+
+
+def test_relu_zero_still_gets_probability():
+    # every entry of W^p negative → ReLU gives all zeros → e^0 = 1 everywhere → uniform
+    W = -np.ones((2, 3, 3))
+    T = vagn.transition_matrix(np.array([1.0, 0.5]), W)
+    np.testing.assert_allclose(T, np.full((3, 3), 1 / 3), rtol=1e-14)
+    # one big positive entry per column: the others keep exactly 1 / (e^a + N - 1)
+    a = 5.0
+    W = -np.ones((1, 3, 3))
+    W[0, 0, :] = a
+    T = vagn.transition_matrix(np.array([1.0]), W)
+    np.testing.assert_allclose(T[1:], 1.0 / (np.exp(a) + 2), rtol=1e-13)
+    assert vagn.min_transition_probability([1.0], W) == pytest.approx(1.0 / (np.exp(a) + 2))
+
+
+def test_step_is_matrix_vector_product():
+    rng = np.random.default_rng(2)
+    W = vagn.init_vagn(rng, 4, 5)
+    p = rng.standard_normal(4)
+    q = vagn.random_state(rng, 5)
+    np.testing.assert_allclose(vagn.step(q, p, W), vagn.transition_matrix(p, W) @ q, rtol=1e-13)
+    qb = vagn.random_state(rng, 5, size=3)
+    pb = rng.standard_normal((3, 4))
+    out = vagn.step(qb, pb, W)
+    for b in range(3):
+        np.testing.assert_allclose(out[b], vagn.transition_matrix(pb[b], W) @ qb[b], rtol=1e-13)
+
+
+@settings(max_examples=25, deadline=None)
+@given(problems(max_n=6, scale=20.0))
+def test_q_stays_a_distribution_over_long_rollouts(prob):
+    _, W, rng = prob
+    M, N = W.shape[0], W.shape[1]
+    ps = rng.standard_normal((500, M)) * 10
+    qs = vagn.rollout(vagn.random_state(rng, N), ps, W)
+    assert qs.shape == (501, N)
+    assert np.all(qs >= 0)
+    np.testing.assert_allclose(qs.sum(axis=-1), 1.0, atol=1e-10)
+
+
+def test_rollout_matches_repeated_steps_and_batches():
+    rng = np.random.default_rng(3)
+    W = vagn.init_vagn(rng, 3, 4)
+    ps = rng.standard_normal((7, 2, 3))
+    q0 = vagn.uniform_state(4)
+    qs = vagn.rollout(q0, ps, W)
+    assert qs.shape == (8, 2, 4)
+    for b in range(2):
+        q = q0
+        np.testing.assert_allclose(qs[0, b], q0)
+        for t in range(7):
+            q = vagn.step(q, ps[t, b], W)
+            np.testing.assert_allclose(qs[t + 1, b], q, rtol=1e-13)
+
+
+def test_initial_states():
+    np.testing.assert_allclose(vagn.uniform_state(4), [0.25] * 4)
+    rng = np.random.default_rng(4)
+    q = vagn.random_state(rng, 5, size=(100,))
+    assert q.shape == (100, 5) and np.all(q > 0)
+    np.testing.assert_allclose(q.sum(-1), 1.0, atol=1e-12)
+    # flat Dirichlet: each coordinate has mean 1/N
+    assert abs(q.mean() - 0.2) < 0.02
+    W = vagn.init_vagn(np.random.default_rng(0), 2, 3, scale=0.1)
+    assert W.shape == (2, 3, 3) and 0.03 < W.std() < 0.2
+
+
+# --------------------------------------------------------------------- gradients
+def _loss(W, p, q0, target, xp):
+    qs = vagn.rollout(q0, p, W, xp=xp)
+    return xp.sum((qs[1:] - target) ** 2)
+
+
+def _central_diff(f, x, eps=1e-6):
+    g = np.zeros_like(x)
+    for idx in np.ndindex(x.shape):
+        d = np.zeros_like(x)
+        d[idx] = eps
+        g[idx] = (f(x + d) - f(x - d)) / (2 * eps)
+    return g
+
+
+def _away_from_kinks(ps, W, tol=1e-3):
+    """True when no entry of W^p sits at ReLU's kink (where finite differences fail)."""
+    return all(np.min(np.abs(vagn.combined_weights(p, W))) > tol for p in ps)
+
+
+@settings(max_examples=40, deadline=None)
+@given(problems(max_m=3, max_n=4, scale=2.0))
+def test_gradients_match_finite_differences(prob):
+    _, W, rng = prob
+    M, N = W.shape[0], W.shape[1]
+    ps = rng.standard_normal((4, M))
+    q0 = vagn.random_state(rng, N)
+    target = vagn.random_state(rng, N, size=4)
+    if not _away_from_kinks(ps, W):
+        return
+    fd = _central_diff(lambda w: _loss(w, ps, q0, target, np), W)
+    e = engine("numpy")
+    np.testing.assert_allclose(e.grad(_loss)(W, ps, q0, target, e.xp), fd, atol=1e-6)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_gradients_numpy_engine_equal_jax(seed):
+    rng = np.random.default_rng(seed)
+    W = vagn.init_vagn(rng, 3, 4, scale=1.5)
+    ps = rng.standard_normal((5, 2, 3))
+    q0 = vagn.random_state(rng, 4, size=2)
+    target = vagn.random_state(rng, 4, size=(5, 2))
+    gw, gp = {}, {}
+    for name in ENGINES:
+        e = engine(name)
+        gw[name], gp[name] = (np.asarray(g) for g in e.grad(
+            lambda w, p, xp=e.xp: _loss(w, p, q0, target, xp), argnums=(0, 1))(W, ps))
+    np.testing.assert_allclose(gw["numpy"], gw["jax"], atol=1e-10)
+    np.testing.assert_allclose(gp["numpy"], gp["jax"], atol=1e-10)
+    assert np.abs(gw["numpy"]).max() > 1e-3  # not a vacuous comparison
+
+
+def test_gradient_wrt_predicates(eng):
+    rng = np.random.default_rng(5)
+    W = vagn.init_vagn(rng, 3, 3, scale=1.0)
+    p = rng.standard_normal(3)
+    q0 = vagn.uniform_state(3)
+
+    def f(pp, xp=np):
+        return vagn.step(q0, pp, W, xp=xp)[0]
+
+    g = np.asarray(eng.grad(lambda pp: f(pp, eng.xp))(p))
+    np.testing.assert_allclose(g, _central_diff(f, p), atol=1e-7)
+
+
+def test_learning_W_from_teacher_sequences(eng):
+    """Plain gradient descent recovers a teacher automaton's q trajectories."""
+    rng = np.random.default_rng(6)
+    W_true = vagn.init_vagn(rng, 2, 3, scale=2.0)
+    ps = rng.random((12, 8, 2))
+    q0 = vagn.random_state(rng, 3, size=8)
+    target = vagn.rollout(q0, ps, W_true)[1:]
+    W = vagn.init_vagn(np.random.default_rng(7), 2, 3, scale=0.1, mean=0.5)
+    vg = eng.jit(eng.value_and_grad(lambda w: _loss(w, ps, q0, target, eng.xp) / 8))
+    first = None
+    for _ in range(150):
+        loss, g = vg(W)
+        first = float(loss) if first is None else first
+        W = W - 2.0 * np.asarray(g)
+    assert float(loss) < 0.002 * first
+
+
+# --------------------------------------------------------------------- analysis
+def test_stationary_distribution_two_state_closed_form():
+    a, b = 0.3, 0.1
+    T = np.array([[1 - a, b], [a, 1 - b]])
+    np.testing.assert_allclose(vagn.stationary_distribution(T), [b / (a + b), a / (a + b)])
+
+
+@settings(max_examples=30, deadline=None)
+@given(problems(max_n=6, scale=3.0))
+def test_stationary_distribution_is_fixed_point_and_limit(prob):
+    p, W, rng = prob
+    T = vagn.transition_matrix(p, W)
+    pi = vagn.stationary_distribution(T)
+    assert np.all(pi >= 0)
+    np.testing.assert_allclose(pi.sum(), 1.0, atol=1e-12)
+    np.testing.assert_allclose(T @ pi, pi, atol=1e-10)
+    # T^k q -> pi for any start, at the rate of the second eigenvalue modulus;
+    # large weights can make nearly periodic / absorbing chains that mix in > 1e9 steps
+    lam2 = np.sort(np.abs(np.linalg.eigvals(T)))[-2] if T.shape[0] > 1 else 0.0
+    if lam2 < 0.999:
+        Tk = T
+        for _ in range(20):  # T^(2^20) by repeated squaring
+            Tk = Tk @ Tk
+        np.testing.assert_allclose(Tk @ vagn.random_state(rng, W.shape[1]), pi, atol=1e-6)
+
+
+def test_most_likely_states_is_argmax():
+    qs = np.array([[0.2, 0.5, 0.3], [0.6, 0.3, 0.1]])
+    np.testing.assert_array_equal(vagn.most_likely_states(qs), [1, 0])
+
+
+@settings(max_examples=25, deadline=None)
+@given(problems(max_m=2, max_n=3, scale=3.0))
+def test_most_likely_path_matches_brute_force(prob):
+    _, W, rng = prob
+    M, N = W.shape[0], W.shape[1]
+    Ts = vagn.transition_matrix(rng.standard_normal((4, M)), W)
+    q0 = vagn.random_state(rng, N)
+    path, logp = vagn.most_likely_path(q0, Ts)
+    best = max(
+        np.log(q0[s[0]]) + sum(np.log(Ts[t, s[t + 1], s[t]]) for t in range(4))
+        for s in itertools.product(range(N), repeat=5)
+    )
+    assert logp == pytest.approx(best, abs=1e-10)
+    recomputed = np.log(q0[path[0]]) + sum(np.log(Ts[t, path[t + 1], path[t]]) for t in range(4))
+    assert recomputed == pytest.approx(best, abs=1e-10)
+
+
+# --------------------------------------------------------------------- bad input
+def test_bad_inputs_raise_value_errors_naming_the_problem():
+    rng = np.random.default_rng(8)
+    W = vagn.init_vagn(rng, 3, 4)
+    q = vagn.uniform_state(4)
+    with pytest.raises(ValueError, match=r"p must have shape \(\.\.\., M\) with M = 3"):
+        vagn.transition_matrix(np.ones(2), W)
+    with pytest.raises(ValueError, match="W must have shape"):
+        vagn.transition_matrix(np.ones(3), np.ones((3, 4, 5)))
+    with pytest.raises(ValueError, match="negative entry"):
+        vagn.step(np.array([0.5, 0.7, -0.2, 0.0]), np.ones(3), W)
+    with pytest.raises(ValueError, match="sum to 1.2"):
+        vagn.step(np.array([0.5, 0.7, 0.0, 0.0]), np.ones(3), W)
+    with pytest.raises(ValueError, match="q must have shape"):
+        vagn.step(np.ones(3) / 3, np.ones(3), W)
+    with pytest.raises(ValueError, match="q0 must be a probability distribution"):
+        vagn.rollout(2 * q, np.ones((5, 3)), W)
+    with pytest.raises(ValueError, match="ps must have shape"):
+        vagn.rollout(q, np.ones((5, 2)), W)
+    with pytest.raises(ValueError, match="p must be finite"):
+        vagn.transition_matrix(np.array([1.0, np.nan, 0.0]), W)
+    with pytest.raises(ValueError, match="T must be column-stochastic"):
+        vagn.stationary_distribution(np.ones((3, 3)))
+    with pytest.raises(ValueError, match="n_states"):
+        vagn.init_vagn(rng, 2, 0)
+    with pytest.raises(ValueError, match="rng"):
+        vagn.init_vagn(0, 2, 2)
+    # small rounding is tolerated
+    vagn.step(q + 1e-9, np.ones(3), W)
+
+
+def test_traced_inputs_skip_value_checks_but_keep_shape_checks():
+    import jax.numpy as jnp
+
+    W = vagn.init_vagn(np.random.default_rng(9), 2, 3)
+    # a JAX array is not inspected for values (it may be a tracer) ...
+    vagn.step(jnp.array([2.0, 0.0, 0.0]), np.ones(2), W, xp=jnp)
+    # ... but its shape still is
+    with pytest.raises(ValueError, match="p must have shape"):
+        vagn.step(jnp.ones(3) / 3, jnp.ones(4), W, xp=jnp)
+
+
+# --------------------------------------------------------------------- figures
+def test_plot_automaton_edge_widths_follow_probabilities():
+    from matplotlib.patches import Circle, FancyArrowPatch
+
+    T = np.array([[0.7, 0.2, 0.1], [0.2, 0.6, 0.05], [0.1, 0.2, 0.85]])
+    fig, ax = plt.subplots()
+    vagn.plot_automaton(T, ax=ax, max_width=10.0, q=np.array([0.2, 0.3, 0.5]))
+    arrows = [p for p in ax.patches if isinstance(p, FancyArrowPatch)]
+    rings = [p for p in ax.patches if isinstance(p, Circle) and not p.get_fill()]
+    assert len(arrows) == 6 and len(rings) == 3
+    widths = sorted(a.get_linewidth() for a in arrows)
+    expected = sorted(10.0 * T[i, j] for i in range(3) for j in range(3) if i != j)
+    np.testing.assert_allclose(widths, expected)
+    plt.close(fig)
+    fig, ax = plt.subplots()
+    vagn.plot_automaton(T, ax=ax, min_prob=0.15)
+    arrows = [p for p in ax.patches if isinstance(p, FancyArrowPatch)]
+    assert len(arrows) == 3  # 0.2, 0.2, 0.2 survive; 0.1, 0.1, 0.05 are hidden
+    plt.close(fig)
+
+
+def test_plot_q_heatmap_shows_the_distribution():
+    qs = vagn.rollout(vagn.uniform_state(3), np.random.default_rng(0).random((10, 2)),
+                      vagn.init_vagn(np.random.default_rng(1), 2, 3))
+    fig, ax = plt.subplots()
+    vagn.plot_q_heatmap(qs, ax=ax)
+    np.testing.assert_allclose(ax.images[0].get_array(), qs.T)
+    plt.close(fig)
+    with pytest.raises(ValueError, match="qs must be a probability distribution"):
+        vagn.plot_q_heatmap(qs * 2)
