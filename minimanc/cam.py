@@ -159,8 +159,9 @@ def predicate_extractor(
     ``activation`` ("relu" or "silu"); ``strides`` defaults to 1 for the
     first layer and 2 for the others; ``padding`` (pixels of zeros on each
     side) defaults to ``kernel_size // 2``, which keeps the size at stride 1.
-    Returns ``p`` of shape ``(B, M)``, or ``(p, features)`` with ``features`` of shape ``(B, H', W', K)`` when
-    ``return_features`` (the input of :func:`class_activation_maps`).
+    Returns ``p`` of shape ``(B, M)``, or ``(p, features)`` with ``features``
+    of shape ``(B, H', W', K)`` when ``return_features`` (the input of
+    :func:`class_activation_maps`).
     """
     convs = params["convs"]
     n = len(convs)
