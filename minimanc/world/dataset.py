@@ -139,19 +139,23 @@ def generate_scene(seed: int, index: int, cfg: RasterConfig, k_targets: int = K_
     else:
         raise RuntimeError(f"scene {index} of seed {seed}: no valid scene in {MAX_ATTEMPTS} "
                            "attempts")
-    ego = log.ego
+    # everything derived from the float32 values that are stored, so that re-rendering
+    # from the stored poses (as the closed loop does) reproduces the stored rasters exactly
+    ego32 = log.ego.astype(np.float32)
+    ado32 = np.where(log.ado_valid[..., None], log.ado, 0.0).astype(np.float32)
+    ego = ego32.astype(np.float64)
     T = ego.shape[0]
-    bev = rasterize_batch(m, ego, log.ado, log.ado_valid, cfg)
+    bev = rasterize_batch(m, ego, ado32.astype(np.float64), log.ado_valid, cfg)
     goal = goal_in_ego_frame(np.broadcast_to(ego[-1], ego.shape), ego)
     lt = np.stack([lane_targets(m, ego[t], k_targets) for t in range(T)])
     return {
         "bev": bev,
-        "ego": ego.astype(np.float32),
+        "ego": ego32,
         "controls": log.controls.astype(np.float32),
         "goal": goal.astype(np.float32),
         "lane_target": lt.astype(np.float32),
-        "ado": log.ado.astype(np.float32),
-        "ado_valid": log.ado_valid,
+        "ado": ado32,
+        "ado_valid": log.ado_valid.copy(),
         "goal_bev": rasterize_goal(m, ego[-1], cfg),
         "recipe": recipe,
         "tags": log.tags,

@@ -143,7 +143,7 @@ class HumanDriver:
             v_new = 0.0
         self.a_prev = (v_new - v) / dt
         # pure pursuit towards the route, offset by the lateral wander
-        ld = float(np.clip(st.lookahead * (0.9 * max(v_new, v) + 5.0), 5.0, 22.0))
+        ld = float(np.clip(st.lookahead * (0.75 * max(v_new, v) + 4.0), 4.5, 20.0))
         target, h_t = path.pose(veh.s + ld)
         target = target + self.lat * np.array([-np.sin(h_t), np.cos(h_t)])
         tx, ty = to_ego_frame(target, pose)
@@ -244,34 +244,27 @@ def _route_turn(m: Map) -> str:
 def check_scene(m: Map, log: SceneLog, substeps: int = 4) -> tuple[bool, bool]:
     """(off_road, collision) for a scene log: ego footprint vs drivable area and ado boxes.
 
-    Checks the logged steps and ``substeps`` linear interpolations between
-    consecutive steps (ados are valid at both ends).
+    Checks the logged steps and ``substeps - 1`` linear interpolations between
+    consecutive steps (for ados valid at both ends).
     """
-    T = log.ego.shape[0]
+    T, A = log.ado_valid.shape
     poses = np.concatenate([log.ego, log.final_pose[None]], axis=0)
     ego_box = np.concatenate([poses, np.tile([EGO_LENGTH, EGO_WIDTH], (T + 1, 1))], axis=1)
-    corners = box_corners(ego_box[:T])
-    off_road = not bool(np.all(m.is_drivable(corners)))
-    collision = False
-    for t in range(T):
-        for f in np.linspace(0.0, 1.0, substeps, endpoint=False):
-            if t == T - 1 and f > 0:
-                break
-            e = ego_box[t].copy()
-            if f > 0:
-                e[:2] = (1 - f) * ego_box[t, :2] + f * ego_box[t + 1, :2]
-                e[2] = ego_box[t, 2] + f * wrap_angle(ego_box[t + 1, 2] - ego_box[t, 2])
-                ok = log.ado_valid[t] & log.ado_valid[t + 1]
-                a = log.ado[t].copy()
-                a[:, :2] = (1 - f) * log.ado[t, :, :2] + f * log.ado[t + 1, :, :2]
-                a[:, 2] = log.ado[t, :, 2] + f * wrap_angle(log.ado[t + 1, :, 2]
-                                                            - log.ado[t, :, 2])
-            else:
-                ok = log.ado_valid[t]
-                a = log.ado[t]
-            if ok.any() and boxes_overlap(e[None], a[ok]).any():
-                collision = True
-                break
-        if collision:
-            break
+    off_road = not bool(np.all(m.is_drivable(box_corners(ego_box[:T]))))
+    f = np.arange(substeps) / substeps  # (F,)
+    e0, e1 = ego_box[:-2], ego_box[1:-1]  # (T-1, 5): interpolate between logged steps
+    e = e0[:, None, :] + f[None, :, None] * (e1 - e0)[:, None, :]
+    e[..., 2] = e0[:, None, 2] + f[None, :] * wrap_angle(e1[:, 2] - e0[:, 2])[:, None]
+    a0, a1 = log.ado[:-1], log.ado[1:]  # (T-1, A, 5)
+    a = a0[:, None] + f[None, :, None, None] * (a1 - a0)[:, None]
+    a[..., 2] = a0[:, None, :, 2] + f[None, :, None] * wrap_angle(a1[..., 2] - a0[..., 2])[:, None]
+    ok = (log.ado_valid[:-1] & log.ado_valid[1:])[:, None, :].repeat(substeps, axis=1)
+    ok[:, 0] = log.ado_valid[:-1]
+    e = np.concatenate([e.reshape(-1, 5), ego_box[T - 1:T]], axis=0)  # + the last step
+    a = np.concatenate([a.reshape(-1, A, 5), log.ado[T - 1:T]], axis=0)
+    ok = np.concatenate([ok.reshape(-1, A), log.ado_valid[T - 1:T]], axis=0)
+    near = ok & (np.hypot(a[..., 0] - e[:, None, 0], a[..., 1] - e[:, None, 1])
+                 < (np.hypot(a[..., 3], a[..., 4]) + np.hypot(EGO_LENGTH, EGO_WIDTH)) / 2)
+    ti, ai = np.nonzero(near)
+    collision = bool(len(ti)) and bool(boxes_overlap(e[ti], a[ti, ai]).any())
     return off_road, collision

@@ -82,6 +82,45 @@ class Lane:
 
 
 @dataclass
+class LaneSamples:
+    """Lane centreline samples sorted by square tile, for fast look-up around a point."""
+
+    points: np.ndarray  # (P, 2) float64, sorted by tile
+    heads: np.ndarray  # (P,)
+    origin: np.ndarray  # (2,) corner of tile (0, 0)
+    tile: float  # tile size (m)
+    shape: tuple[int, int]  # (ny, nx) tiles
+    starts: np.ndarray  # (ny * nx + 1,) CSR offsets into the sorted samples
+
+    @classmethod
+    def build(cls, points: np.ndarray, heads: np.ndarray, bounds, tile: float = 16.0):
+        origin = np.array(bounds[:2], dtype=np.float64)
+        nx = int(np.ceil((bounds[2] - bounds[0]) / tile)) + 1
+        ny = int(np.ceil((bounds[3] - bounds[1]) / tile)) + 1
+        ix = np.clip(((points[:, 0] - origin[0]) // tile).astype(np.int64), 0, nx - 1)
+        iy = np.clip(((points[:, 1] - origin[1]) // tile).astype(np.int64), 0, ny - 1)
+        cell = iy * nx + ix
+        order = np.argsort(cell, kind="stable")
+        starts = np.searchsorted(cell[order], np.arange(ny * nx + 1))
+        return cls(points[order], heads[order], origin, tile, (ny, nx), starts)
+
+    def near(self, xy: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """Samples in the tiles that overlap the square of half side ``radius`` around ``xy``."""
+        ny, nx = self.shape
+        x0 = int(max((xy[0] - radius - self.origin[0]) // self.tile, 0))
+        x1 = int(min((xy[0] + radius - self.origin[0]) // self.tile, nx - 1))
+        y0 = int(max((xy[1] - radius - self.origin[1]) // self.tile, 0))
+        y1 = int(min((xy[1] + radius - self.origin[1]) // self.tile, ny - 1))
+        if x1 < x0 or y1 < y0:
+            return self.points[:0], self.heads[:0]
+        rows = np.arange(y0, y1 + 1) * nx
+        lo = self.starts[rows + x0]
+        hi = self.starts[rows + x1 + 1]  # tiles of a row are contiguous
+        idx = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi)])
+        return self.points[idx], self.heads[idx]
+
+
+@dataclass
 class Map:
     """A built map; see the module docstring. ``recipe`` rebuilds it exactly."""
 
@@ -110,8 +149,8 @@ class Map:
     def has_roundabout(self) -> bool:
         return self.kind == "roundabout"
 
-    def lane_samples(self, spacing: float) -> tuple[np.ndarray, np.ndarray]:
-        """Dense samples of all lane centrelines: ``(points (P, 2), headings (P,))``."""
+    def lane_samples(self, spacing: float) -> LaneSamples:
+        """Dense samples of all lane centrelines, bucketed in square tiles (cached)."""
         c = _SAMPLE_CACHE.get((self.key, spacing))
         if c is None:
             pts, hds = [], []
@@ -121,7 +160,7 @@ class Map:
                 p, h = interp_polyline(lane.points, lane.s, lane.heads, sq)
                 pts.append(p)
                 hds.append(h)
-            c = (np.concatenate(pts).astype(np.float32), np.concatenate(hds).astype(np.float32))
+            c = LaneSamples.build(np.concatenate(pts), np.concatenate(hds), self.bounds)
             _lru_put(_SAMPLE_CACHE, (self.key, spacing), c, 16)
         return c
 
@@ -444,7 +483,7 @@ def _build_intersection(recipe: dict, b: _Builder) -> tuple[list[int], float]:
                 b.link(lane_in.id, cid)
                 b.link(cid, lane_out.id)
                 conn.setdefault((ai, ao), []).append((li, lo, cid))
-                b.strips.append((pts, LANE_WIDTH / 2 + 0.4))
+                b.strips.append((pts, LANE_WIDTH / 2 + 1.0))
     ego = recipe["ego"]
     ai, ao = int(ego["arm_in"]), int(ego["arm_out"])
     options = conn[(ai, ao)]
@@ -511,7 +550,7 @@ def _build_roundabout(recipe: dict, b: _Builder) -> tuple[list[int], float]:
             b.link(ring_ids[j - 1], cid)
             b.link(cid, lane_out.id)
             exit_conn[k] = cid
-        b.strips.append((pts, LANE_WIDTH / 2 + 0.5))
+        b.strips.append((pts, LANE_WIDTH / 2 + 1.0))
     ego = recipe["ego"]
     ai = int(ego["arm_in"])
     ao = (ai + int(ego["exits"])) % len(arms)

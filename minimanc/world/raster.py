@@ -184,6 +184,11 @@ def hue_colours(relative_yaw: np.ndarray) -> np.ndarray:
     return np.round(np.stack([r, g, b], axis=-1) * 255).astype(np.uint8)
 
 
+_N_HUE = 2048
+_HUE_LUT = hue_colours((np.arange(_N_HUE) + 0.5) * (2 * np.pi / _N_HUE))
+
+
+@functools.lru_cache(maxsize=16)
 def _class_lut(cfg: RasterConfig) -> np.ndarray:
     lut = np.zeros((256, 3), dtype=np.uint8)
     lut[CLASS_NONE] = BACKGROUND
@@ -218,36 +223,35 @@ def rasterize(
     pose = _check_pose(ego_pose)
     X, Y = _pixel_centres(cfg)
     c, s = np.cos(pose[2]), np.sin(pose[2])
-    # static map: pixel centres -> world -> class grid
+    # static map: pixel centres -> world -> class grid (edge cells of the grid are empty,
+    # so clipping out-of-map pixels onto the edge gives the background)
     grid, origin, gres = class_grid(m, cfg.grid_res())
-    wx = pose[0] + c * X - s * Y
-    wy = pose[1] + s * X + c * Y
-    ix = np.floor((wx - origin[0]) / gres).astype(np.int64)
-    iy = np.floor((wy - origin[1]) / gres).astype(np.int64)
-    inside = (ix >= 0) & (iy >= 0) & (ix < grid.shape[1]) & (iy < grid.shape[0])
-    cls = np.where(inside, grid[np.clip(iy, 0, grid.shape[0] - 1),
-                                np.clip(ix, 0, grid.shape[1] - 1)], CLASS_NONE)
-    img = _class_lut(cfg)[cls]
+    gh, gw = grid.shape
+    gx = (c / gres) * X - (s / gres) * Y + (pose[0] - origin[0]) / gres
+    gy = (s / gres) * X + (c / gres) * Y + (pose[1] - origin[1]) / gres
+    ix = np.clip(np.floor(gx), 0, gw - 1).astype(np.intp)
+    iy = np.clip(np.floor(gy), 0, gh - 1).astype(np.intp)
+    cls = np.take(grid, iy * gw + ix)
+    img = np.take(_class_lut(cfg), cls, axis=0)
     # lanes: dense centreline samples scattered into the image, coloured by relative yaw
     if cfg.draw_lanes:
         spacing = float(min(0.25, cfg.resolution / 2.0))
-        lp, lh = m.lane_samples(spacing)
         reach = np.hypot(max(cfg.metres_ahead, cfg.metres_behind), cfg.metres_side) + 1.0
-        near = (np.abs(lp[:, 0] - pose[0]) < reach) & (np.abs(lp[:, 1] - pose[1]) < reach)
-        lp, lh = lp[near], lh[near]
+        lp, lh = m.lane_samples(spacing).near(pose[:2], reach)
         dx, dy = lp[:, 0] - pose[0], lp[:, 1] - pose[1]
-        ex, ey = c * dx + s * dy, -s * dx + c * dy
-        row = np.floor((cfg.metres_ahead - ex) / cfg.res_row).astype(np.int64)
-        col = np.floor((cfg.metres_side - ey) / cfg.res_col).astype(np.int64)
+        row = np.floor((cfg.metres_ahead - (c * dx + s * dy)) / cfg.res_row).astype(np.int64)
+        col = np.floor((cfg.metres_side - (-s * dx + c * dy)) / cfg.res_col).astype(np.int64)
         thick = max(int(round(cfg.lane_width_m / cfg.resolution)), 1)
-        colours = hue_colours(pose[2] - lh)
         lo = -(thick // 2)
+        # colour look-up by relative yaw (0.18 degree bins, within 1 unit of hue_colours)
+        q = np.floor(np.mod(pose[2] - lh, 2 * np.pi) * (_N_HUE / (2 * np.pi))).astype(np.int64)
+        colours = _HUE_LUT[np.minimum(q, _N_HUE - 1)]
         for dr in range(lo, lo + thick):
             for dc in range(lo, lo + thick):
                 r, cc = row + dr, col + dc
                 ok = (r >= 0) & (r < cfg.size) & (cc >= 0) & (cc < cfg.size)
                 img[r[ok], cc[ok]] = colours[ok]
-    # ado boxes
+    # ado boxes: each tested only on the pixels of its bounding square
     if ado is not None:
         a = np.asarray(ado, dtype=np.float64).reshape(-1, 5)
         valid = (np.ones(len(a), bool) if ado_valid is None
@@ -260,11 +264,15 @@ def rasterize(
             rel = np.stack([c * dx + s * dy, -s * dx + c * dy, a[:, 2] - pose[2],
                             a[:, 3], a[:, 4]], axis=1)
             half = np.hypot(a[:, 3], a[:, 4]) / 2
-            vis = ((rel[:, 0] - half < cfg.metres_ahead) & (rel[:, 0] + half > -cfg.metres_behind)
-                   & (np.abs(rel[:, 1]) - half < cfg.metres_side))
-            rel = rel[vis]
-            if len(rel):
-                img[box_mask(X, Y, rel).any(axis=0)] = VEHICLE
+            r0 = np.floor((cfg.metres_ahead - rel[:, 0] - half) / cfg.res_row).astype(int)
+            r1 = np.ceil((cfg.metres_ahead - rel[:, 0] + half) / cfg.res_row).astype(int)
+            c0 = np.floor((cfg.metres_side - rel[:, 1] - half) / cfg.res_col).astype(int)
+            c1 = np.ceil((cfg.metres_side - rel[:, 1] + half) / cfg.res_col).astype(int)
+            r0, c0 = np.maximum(r0, 0), np.maximum(c0, 0)
+            r1, c1 = np.minimum(r1, cfg.size), np.minimum(c1, cfg.size)
+            for k in np.nonzero((r1 > r0) & (c1 > c0))[0]:
+                sl = (slice(r0[k], r1[k]), slice(c0[k], c1[k]))
+                img[sl][box_mask(X[sl], Y[sl], rel[k])] = VEHICLE
     if draw_ego:
         img[_ego_mask(cfg)] = EGO
     return img
