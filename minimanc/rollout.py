@@ -1,0 +1,374 @@
+"""Chapter 9 — the closed loop: the policy drives the ego, the ados replay the log.
+
+The paper's evaluation (section V-A): "we control the ego vehicle with our
+learned planner, the ado vehicles move according to the trajectories
+recorded in the dataset with synchronized time".  For every validation scene,
+all scenes batched:
+
+1. the ego starts at the logged pose ``ego[:, 0]``, moving at the logged
+   initial speed (:func:`minimanc.inputs.initial_motion`);
+2. at each step ``t = 0 … T−2`` the observation is rebuilt from the ego's
+   *own* pose (:func:`minimanc.inputs.from_state`): the BEV is re-rasterised
+   (:func:`minimanc.world.rasterize_batch`) with the ados at their logged
+   boxes of time ``t``, the goal (the human's final pose) is re-expressed in
+   the current ego frame, the lane targets are recomputed from the map at the
+   ego's projection on its route, and ``motion`` is the policy's own previous
+   control;
+3. the policy returns ``[speed, yaw rate]`` and its new state (the vAGN
+   distribution ``q`` of eq. 9, or an LSTM carry), which is carried over;
+4. the ego moves by one explicit-Euler unicycle step of ``DT = 0.5`` s
+   (:func:`minimanc.world.unicycle_step`).
+
+The result is a :class:`Rollout`: poses ``(S, T, 3)`` on the log's clock,
+the applied controls ``(S, T−1, 2)`` and, per step, the model's explanation
+outputs (``q``, DMP ``alpha`` and ``beta``, ``predicates``) for the paper's
+explainability figures.  :func:`human` is the replay of the logged ego — the
+"Human" row of Table I.
+
+Any object with ``model``, ``setting``, ``initial_state(scenes)`` and
+``__call__(obs, state, t, scenes) -> (controls, state, aux)`` can drive
+(:class:`Policy`); :class:`ModelPolicy` wraps :func:`minimanc.models.step`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from minimanc import inputs
+from minimanc.world.geometry import DT, unicycle_step
+
+__all__ = [
+    "AUX_KEYS",
+    "BATCH_SIZE",
+    "Policy",
+    "ModelPolicy",
+    "Rollout",
+    "human",
+    "simulate",
+    "closed_loop",
+]
+
+AUX_KEYS: tuple[str, ...] = ("q", "alpha", "beta", "predicates")
+"""The per-step model outputs a rollout records (when the model returns them)."""
+
+BATCH_SIZE: int = 8
+"""Default number of scenes driven together (see :func:`simulate`)."""
+
+
+class Policy(Protocol):
+    """What :func:`simulate` needs from a driver.
+
+    ``model`` (a name of :data:`minimanc.inputs.MODEL_NAMES`, or ``None`` for
+    every key but ``goal_bev``) and ``setting`` choose which observation keys
+    are built (:func:`minimanc.inputs.visible`).  ``scenes`` are the dataset
+    indices of the batch rows.
+    """
+
+    model: str | None
+    setting: str
+
+    def initial_state(self, scenes: np.ndarray) -> Any: ...
+
+    def __call__(
+        self, obs: dict, state: Any, t: int, scenes: np.ndarray
+    ) -> tuple[np.ndarray, Any, dict]: ...
+
+
+@dataclass
+class Rollout:
+    """A batch of closed-loop (or replayed) trajectories.
+
+    ``ego (S, T, 3)`` world poses with ``ego[:, 0]`` the logged start;
+    ``controls (S, T−1, 2)`` the ``[speed, yaw rate]`` applied from ``t`` to
+    ``t + 1``; ``aux[key] (S, T−1, ...)`` the model outputs at each decision
+    (keys of :data:`AUX_KEYS` the model returned); ``scenes (S,)`` the
+    dataset indices of the rows.
+    """
+
+    name: str
+    setting: str
+    ego: np.ndarray
+    controls: np.ndarray
+    aux: dict[str, np.ndarray] = field(default_factory=dict)
+    scenes: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.ego = np.asarray(self.ego, dtype=np.float64)
+        self.controls = np.asarray(self.controls, dtype=np.float64)
+        if self.ego.ndim != 3 or self.ego.shape[-1] != 3:
+            raise ValueError(f"ego must have shape (S, T, 3); got shape {self.ego.shape}")
+        S, T = self.ego.shape[:2]
+        if self.controls.shape != (S, T - 1, 2):
+            raise ValueError(
+                f"controls must have shape ({S}, {T - 1}, 2); got shape {self.controls.shape}"
+            )
+        if self.scenes is None:
+            self.scenes = np.arange(S)
+        self.scenes = np.asarray(self.scenes, dtype=np.int64)
+        if self.scenes.shape != (S,):
+            raise ValueError(f"scenes must have shape ({S},); got shape {self.scenes.shape}")
+
+    def __len__(self) -> int:
+        return self.ego.shape[0]
+
+    def save(self, path: str | Path) -> Path:
+        """Write to ``path`` (``.npz``), atomically (temporary file, then rename)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".tmp.npz")
+        arrays = {f"aux_{k}": v for k, v in self.aux.items()}
+        np.savez_compressed(tmp, name=np.array(self.name), setting=np.array(self.setting),
+                            ego=self.ego, controls=self.controls, scenes=self.scenes, **arrays)
+        tmp.replace(path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Rollout:
+        """Read a rollout written by :meth:`save`."""
+        with np.load(Path(path), allow_pickle=False) as z:
+            aux = {k[4:]: z[k] for k in z.files if k.startswith("aux_")}
+            return cls(str(z["name"]), str(z["setting"]), z["ego"], z["controls"], aux,
+                       z["scenes"])
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _check_dataset(ds: Any) -> tuple[int, int]:
+    for key in ("ego", "controls", "ado", "ado_valid", "maps"):
+        if not hasattr(ds, key):
+            raise ValueError(f"ds must be a minimanc.world dataset with .{key}; got {type(ds)!r}")
+    ego = np.asarray(ds.ego)
+    if ego.ndim != 3 or ego.shape[-1] != 3 or ego.shape[1] < 2:
+        raise ValueError(f"ds.ego must have shape (S, T >= 2, 3); got shape {ego.shape}")
+    return ego.shape[0], ego.shape[1]
+
+
+def _scene_index(scenes: Any, S: int) -> np.ndarray:
+    if scenes is None:
+        return np.arange(S)
+    idx = np.asarray(scenes)
+    if idx.ndim == 0:
+        idx = idx[None]
+    if idx.ndim != 1 or idx.size == 0 or not np.issubdtype(idx.dtype, np.integer):
+        raise ValueError(f"scenes must be a non-empty 1-D array of integers; got scenes={scenes!r}")
+    if idx.min() < 0 or idx.max() >= S:
+        raise ValueError(f"scenes must lie in [0, {S}); got scenes={scenes!r}")
+    return idx.astype(np.int64)
+
+
+def _raster_config(ds: Any) -> Any:
+    cfg = getattr(ds, "raster", None)
+    if cfg is None:
+        from minimanc import world
+
+        cfg = world.RasterConfig(size=int(np.asarray(ds.bev).shape[2]))
+    return cfg
+
+
+def _k_targets(ds: Any) -> int | None:
+    lt = getattr(ds, "lane_target", None)
+    return None if lt is None else int(np.asarray(lt).shape[2])
+
+
+def human(ds: Any, scenes: Any = None) -> Rollout:
+    """The logged human ego as a :class:`Rollout` (Table I's "Human" row).
+
+    Its controls are the logged ones from ``t`` to ``t + 1``; replaying them
+    with the unicycle reproduces ``ds.ego`` (the world's logging rule).
+    """
+    S, T = _check_dataset(ds)
+    idx = _scene_index(scenes, S)
+    ego = np.asarray(ds.ego, dtype=np.float64)[idx]
+    controls = np.asarray(ds.controls, dtype=np.float64)[idx, : T - 1]
+    return Rollout("human", "log", ego, controls, {}, idx)
+
+
+# --------------------------------------------------------------------------- the loop
+
+
+def simulate(
+    policy: Policy,
+    ds: Any,
+    scenes: Any = None,
+    batch_size: int | None = None,
+    steps: int | None = None,
+    progress: bool = True,
+    desc: str | None = None,
+) -> Rollout:
+    """Run ``policy`` in closed loop on the scenes ``scenes`` of ``ds`` (default: all).
+
+    Scenes are processed ``batch_size`` at a time (default
+    :data:`BATCH_SIZE` = 8: the world keeps the class grids of 8 maps cached,
+    and a larger batch would rebuild every grid at every step); a row's
+    result does not depend on the batch it is in.  ``steps`` limits the
+    number of decisions (default ``T − 1``, the whole log).  See the module
+    docstring for what one step does.
+    """
+    S_all, T = _check_dataset(ds)
+    idx = _scene_index(scenes, S_all)
+    n_steps = T - 1 if steps is None else int(steps)
+    if not 1 <= n_steps <= T - 1:
+        raise ValueError(f"steps must lie in [1, {T - 1}]; got steps={steps!r}")
+    bs = BATCH_SIZE if batch_size is None else int(batch_size)
+    if bs < 1:
+        raise ValueError(f"batch_size must be a positive integer; got batch_size={batch_size!r}")
+    cfg = _raster_config(ds)
+    k = _k_targets(ds)
+    ego_log = np.asarray(ds.ego, dtype=np.float64)
+    ado = np.asarray(ds.ado)
+    ado_valid = np.asarray(ds.ado_valid)
+    motion0 = inputs.initial_motion(ds)
+    goal_world = ego_log[:, -1]
+
+    chunks = [idx[i: i + bs] for i in range(0, len(idx), bs)]
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(chunks) * n_steps, desc=desc or f"closed loop {policy.model}",
+                   unit="step", leave=False)
+    egos, ctrls, auxs = [], [], []
+    for chunk in chunks:
+        maps = [ds.maps[s] for s in chunk]
+        pose = ego_log[chunk, 0]
+        motion = motion0[chunk]
+        state = policy.initial_state(chunk)
+        poses, controls = [pose], []
+        aux_steps: dict[str, list] = {}
+        for t in range(n_steps):
+            obs = inputs.from_state(
+                maps, pose, ado[chunk, t], ado_valid[chunk, t], goal_world[chunk], cfg,
+                policy.setting, motion=motion, model=policy.model, k_targets=k,
+            )
+            u, state, aux = policy(obs, state, t, chunk)
+            u = np.asarray(u, dtype=np.float64)
+            if u.shape != (len(chunk), 2) or not np.all(np.isfinite(u)):
+                raise ValueError(
+                    f"policy {policy.model!r} returned controls of shape {u.shape} "
+                    f"(finite: {bool(np.all(np.isfinite(u)))}) at step {t}; "
+                    f"expected finite ({len(chunk)}, 2)"
+                )
+            for key in AUX_KEYS:
+                if key in aux and aux[key] is not None:
+                    aux_steps.setdefault(key, []).append(np.asarray(aux[key], dtype=np.float64))
+            pose = unicycle_step(pose, u, DT)
+            motion = u.astype(np.float32)
+            poses.append(pose)
+            controls.append(u)
+            if bar is not None:
+                bar.update(1)
+        egos.append(np.stack(poses, axis=1))
+        ctrls.append(np.stack(controls, axis=1))
+        auxs.append({k_: np.stack(v, axis=1) for k_, v in aux_steps.items()})
+    if bar is not None:
+        bar.close()
+    aux_all = {k_: np.concatenate([a[k_] for a in auxs]) for k_ in auxs[0]
+               if all(k_ in a for a in auxs)}
+    name = policy.model or "policy"
+    return Rollout(name, policy.setting, np.concatenate(egos), np.concatenate(ctrls),
+                   aux_all, idx)
+
+
+class ModelPolicy:
+    """A :mod:`minimanc.models` controller as a :class:`Policy`.
+
+    ``params`` from :func:`minimanc.train.fit`; ``cfg`` its
+    :class:`~minimanc.models.ModelConfig` (its ``setting`` decides what the
+    model sees); ``eng`` an engine (``"jax"`` jits the step once per batch
+    size).  The recurrent state starts as :func:`minimanc.models.initial_state`
+    with ``q_init`` ("uniform", Algorithm 1's ``UniformInit``, or "random"
+    with ``seed``) and is carried over between steps.
+    """
+
+    def __init__(self, name: str, params: dict, cfg: Any, eng: Any,
+                 q_init: str = "uniform", seed: int = 0, dtype: Any = np.float32) -> None:
+        from minimanc import models
+
+        if name not in models.MODEL_NAMES:
+            raise ValueError(f"name must be one of {models.MODEL_NAMES}; got name={name!r}")
+        if q_init not in ("uniform", "random"):
+            raise ValueError(f"q_init must be 'uniform' or 'random'; got q_init={q_init!r}")
+        if isinstance(eng, str):
+            from minimanc import engine
+
+            eng = engine(eng)
+        self.model = name
+        self.setting = cfg.setting
+        self.cfg = cfg
+        self.eng = eng
+        self.q_init = q_init
+        self.seed = int(seed)
+        self.dtype = dtype
+        self.params = _cast_tree(params, dtype)
+
+        def _fn(p: dict, obs: dict, state: dict) -> tuple[Any, dict, dict]:
+            u, new_state, aux = models.step(name, p, obs, state, cfg, eng)
+            aux = {k: v for k, v in aux.items() if k in AUX_KEYS}
+            return u, new_state, aux
+
+        self._step = eng.jit(_fn) if eng.name == "jax" else _fn
+
+    def initial_state(self, scenes: np.ndarray) -> dict:
+        from minimanc import models
+
+        if self.q_init == "uniform" or self.model not in models.VAGN_MODELS:
+            return models.initial_state(self.model, len(scenes), self.cfg, xp=self.eng.xp,
+                                        dtype=self.dtype)
+        # one generator per scene, so that a row does not depend on its batch
+        rows = [np.asarray(models.initial_state(
+            self.model, 1, self.cfg, rng=np.random.default_rng([self.seed, int(s)]),
+            mode="random", dtype=self.dtype)["q"]) for s in scenes]
+        return {"q": self.eng.xp.asarray(np.concatenate(rows))}
+
+    def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
+                 ) -> tuple[np.ndarray, Any, dict]:
+        obs = {k: np.asarray(v, dtype=self.dtype) for k, v in obs.items()}
+        u, state, aux = self._step(self.params, obs, state)
+        return (np.asarray(_value(u), dtype=np.float64), state,
+                {k: np.asarray(_value(v), dtype=np.float64) for k, v in aux.items()})
+
+
+def _value(x: Any) -> Any:
+    return getattr(x, "_value", getattr(x, "value", x))
+
+
+def _cast_tree(tree: Any, dtype: Any) -> Any:
+    if isinstance(tree, dict):
+        return {k: _cast_tree(v, dtype) for k, v in tree.items()}
+    if isinstance(tree, (list, tuple)):
+        return type(tree)(_cast_tree(v, dtype) for v in tree)
+    return np.asarray(_value(tree), dtype=dtype)
+
+
+def closed_loop(
+    name: str,
+    params: dict,
+    ds: Any,
+    cfg: Any,
+    eng: Any = "jax",
+    setting: str | None = None,
+    scenes: Any = None,
+    batch_size: int | None = None,
+    q_init: str = "uniform",
+    seed: int = 0,
+    progress: bool = True,
+) -> Rollout:
+    """Closed-loop rollout of model ``name`` on the scenes of ``ds`` (see the module docstring).
+
+    ``setting`` overrides ``cfg.setting`` only if they agree (a model trained
+    in one information setting cannot be run in the other: its inputs
+    differ); the rest as in :class:`ModelPolicy` and :func:`simulate`.
+    """
+    if setting is not None and setting != cfg.setting:
+        raise ValueError(
+            f"setting={setting!r} differs from cfg.setting={cfg.setting!r}: a model is run in "
+            "the information setting it was trained in"
+        )
+    policy = ModelPolicy(name, params, cfg, eng, q_init=q_init, seed=seed)
+    return simulate(policy, ds, scenes=scenes, batch_size=batch_size, progress=progress,
+                    desc=f"closed loop {name} ({cfg.setting})")
