@@ -1,0 +1,199 @@
+"""Chapter 10 — the ``minimanc highway`` command: collect, train, eval, render.
+
+::
+
+    minimanc highway collect --scenarios roundabout intersection highway-fast \\
+        --episodes 20 --out highway.npz
+    minimanc highway train --data highway.npz --models manc cnn --epochs 8 --out runs/
+    minimanc highway eval --checkpoints runs/manc/checkpoint.npz runs/cnn/checkpoint.npz \\
+        --episodes 10 --out eval.json
+    minimanc highway render --scenario roundabout --seed 100000 --out frames/ \\
+        [--checkpoint runs/manc/checkpoint.npz]
+
+``eval`` also runs the transfer experiment: give it a checkpoint trained on
+the nuScenes-style world (``minimanc.train`` on ``minimanc.world`` data).
+This module imports without highway-env; each command imports
+:mod:`minimanc.highway` when it runs and, if highway-env is missing, prints
+the install command and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+SCENARIO_NAMES = ("roundabout", "intersection", "highway-fast")
+"""The sandbox scenarios (``minimanc.highway.SCENARIOS``), listed here so that the
+parser does not need highway-env."""
+
+
+def _highway() -> Any:
+    """``minimanc.highway``, or None after printing why it cannot be imported."""
+    try:
+        return importlib.import_module("minimanc.highway")
+    except ImportError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return None
+
+
+def cmd_collect(args: argparse.Namespace) -> int:
+    """Expert demonstrations (IDM/MOBIL) in the chapter-7 dataset format."""
+    hw = _highway()
+    if hw is None:
+        return 2
+    from minimanc import world
+
+    cfg = world.RasterConfig(size=args.size)
+    ds = hw.collect(args.scenarios, n_episodes=args.episodes, seed=args.seed, steps=args.steps,
+                    cfg=cfg, progress=not args.quiet)
+    path = world.save(ds, args.out)
+    skipped = sum(ds.meta["attempts"]) - len(ds)
+    print(f"wrote {len(ds)} expert episodes of {ds.n_steps} steps to {path} "
+          f"({skipped} seeds skipped: the expert collided)")
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    """Behaviour cloning (``minimanc.train.fit``) on collected demonstrations."""
+    if _highway() is None:
+        return 2
+    from minimanc import models, train, world
+
+    ds = world.load(args.data)
+    size = int(ds.bev.shape[2])
+    out = Path(args.out)
+    for name in args.models:
+        cfg = models.ModelConfig(image_size=size, setting=args.setting,
+                                 k_targets=int(ds.lane_target.shape[2]))
+        tc = train.TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
+                               seed=args.seed)
+        res = train.fit(name, ds, cfg, tc, engine=args.engine, checkpoint_dir=out / name,
+                        resume=args.resume, progress=not args.quiet)
+        print(f"{name}: {len(res.history)} epochs, final loss {res.history[-1]:.4f}, "
+              f"checkpoint {out / name / train.CHECKPOINT_NAME}")
+    return 0
+
+
+def _policy(path: str, engine: str) -> Any:
+    from minimanc import rollout, train
+
+    fit = train.load(path)
+    return rollout.ModelPolicy(fit.name, fit.params, fit.cfg, engine)
+
+
+def cmd_eval(args: argparse.Namespace) -> int:
+    """Closed-loop evaluation of checkpoints against the expert, per scenario."""
+    hw = _highway()
+    if hw is None:
+        return 2
+    from minimanc import world
+
+    policies = [(Path(p).parent.name or Path(p).stem, _policy(p, args.engine))
+                for p in args.checkpoints]
+    report: dict[str, dict] = {}
+    header = (f"{'scenario':<13} {'driver':<16} {'collision %':>11} {'off-road %':>10} "
+              f"{'ADE m':>7} {'speed m/s':>9} {'episodes/s':>10}")
+    print(header)
+    for sc in args.scenarios:
+        experts, tries = hw.expert_episodes(sc, args.episodes, seed=args.seed, steps=args.steps,
+                                            record_bev=False)
+        rows = {"expert": hw.expert_result(sc, experts).metrics}
+        for label, pol in policies:
+            cfg = world.RasterConfig(size=pol.cfg.image_size)
+            rows[label] = hw.closed_loop(pol, sc, experts, cfg=cfg).metrics
+        report[sc] = {"expert_seeds_tried": tries, **rows}
+        for label, m in rows.items():
+            print(f"{sc:<13} {label:<16} {m['collision_rate']:>11.1f} {m['off_road_rate']:>10.1f} "
+                  f"{m['ade']:>7.2f} {m['mean_speed']:>9.2f} {m['episodes_per_second']:>10.2f}")
+    if args.out:
+        Path(args.out).write_text(json.dumps(report, indent=2, sort_keys=True))
+        print(f"wrote {args.out}")
+    return 0
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    """One episode headless: highway-env frames as PNG, the episode and the BEV as GIF."""
+    hw = _highway()
+    if hw is None:
+        return 2
+    if args.checkpoint:
+        import numpy as np
+
+        from minimanc import inputs, world
+
+        pol = _policy(args.checkpoint, args.engine)
+        experts, _ = hw.expert_episodes(args.scenario, 1, seed=args.seed, steps=args.steps,
+                                        record_bev=False)
+        goal = experts[0].poses[args.steps - 1]
+        cfg = world.RasterConfig(size=pol.cfg.image_size)
+        state = {"s": pol.initial_state(np.arange(1))}
+
+        def drive(obs: dict) -> Any:
+            o = inputs.from_state([obs["map"]], obs["pose"][None], obs["ado"][None],
+                                  obs["ado_valid"][None], goal[None], cfg, pol.setting,
+                                  motion=obs["motion"][None], model=pol.model,
+                                  k_targets=pol.cfg.k_targets)
+            u, state["s"], _ = pol(o, state["s"], obs["t"], np.arange(1))
+            return u[0]
+
+        paths = hw.render_episode(args.scenario, experts[0].seed, args.out, drive,
+                                  steps=args.steps, goal=goal, cfg=cfg)
+    else:
+        paths = hw.render_episode(args.scenario, args.seed, args.out, "expert", steps=args.steps)
+    n = sum(1 for k in paths if k.startswith("frame_"))
+    print(f"wrote {n} frames, {paths['episode'].name} and {paths['bev'].name} to {args.out}")
+    return 0
+
+
+def register(subparsers: Any) -> None:
+    """Add ``minimanc highway collect|train|eval|render`` to the ``minimanc`` parser."""
+    hp = subparsers.add_parser("highway", help="chapter 10: the controller in highway-env")
+    sub = hp.add_subparsers(dest="highway_command", required=True)
+
+    c = sub.add_parser("collect", help="expert (IDM/MOBIL) demonstrations -> dataset file")
+    c.add_argument("--scenarios", nargs="+", choices=SCENARIO_NAMES, default=list(SCENARIO_NAMES))
+    c.add_argument("--episodes", type=int, default=20, help="episodes per scenario")
+    c.add_argument("--seed", type=int, default=0, help="first env seed")
+    c.add_argument("--steps", type=int, default=24, help="actions of 0.5 s per episode")
+    c.add_argument("--size", type=int, default=64, help="BEV raster size (pixels)")
+    c.add_argument("--out", default="highway.npz")
+    c.add_argument("--quiet", action="store_true", help="no progress bar")
+    c.set_defaults(func=cmd_collect)
+
+    t = sub.add_parser("train", help="behaviour cloning on collected demonstrations")
+    t.add_argument("--data", required=True, help="file written by `minimanc highway collect`")
+    t.add_argument("--models", nargs="+", default=["manc", "cnn"])
+    t.add_argument("--setting", default="paper", choices=["paper", "parity"])
+    t.add_argument("--epochs", type=int, default=8)
+    t.add_argument("--batch-size", type=int, default=64)
+    t.add_argument("--lr", type=float, default=1e-3)
+    t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--engine", default="jax", choices=["jax", "numpy"])
+    t.add_argument("--out", default="highway_runs")
+    t.add_argument("--resume", action="store_true")
+    t.add_argument("--quiet", action="store_true")
+    t.set_defaults(func=cmd_train)
+
+    e = sub.add_parser("eval", help="closed loop in highway-env vs the expert")
+    e.add_argument("--checkpoints", nargs="*", default=[],
+                   help="train checkpoints (highway- or world-trained: the transfer experiment)")
+    e.add_argument("--scenarios", nargs="+", choices=SCENARIO_NAMES, default=list(SCENARIO_NAMES))
+    e.add_argument("--episodes", type=int, default=10)
+    e.add_argument("--seed", type=int, default=100_000, help="first env seed (evaluation)")
+    e.add_argument("--steps", type=int, default=24)
+    e.add_argument("--engine", default="jax", choices=["jax", "numpy"])
+    e.add_argument("--out", default=None, help="write the metrics as JSON")
+    e.set_defaults(func=cmd_eval)
+
+    r = sub.add_parser("render", help="an episode headless: PNG frames and GIFs")
+    r.add_argument("--scenario", default="roundabout", choices=SCENARIO_NAMES)
+    r.add_argument("--seed", type=int, default=100_000)
+    r.add_argument("--steps", type=int, default=24)
+    r.add_argument("--checkpoint", default=None, help="drive with this model (default: expert)")
+    r.add_argument("--engine", default="jax", choices=["jax", "numpy"])
+    r.add_argument("--out", default="highway_frames")
+    r.set_defaults(func=cmd_render)
