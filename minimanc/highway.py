@@ -88,7 +88,14 @@ from minimanc.world.geometry import (
     resample,
     wrap_angle,
 )
-from minimanc.world.maps import K_TARGETS, Lane, Map, lane_targets, project_to_route
+from minimanc.world.maps import (
+    K_TARGETS,
+    Lane,
+    Map,
+    concat_lanes,
+    lane_targets,
+    project_to_route,
+)
 from minimanc.world.raster import RasterConfig, rasterize
 
 __all__ = [
@@ -397,15 +404,9 @@ def _chain(network, first: tuple, edges: Sequence[tuple]) -> list[tuple]:
 
 def _route_fields(lanes: list[Lane], route: list[int]) -> dict:
     """``route, route_points, route_heads, route_s`` of a lane sequence (as ``build_map``)."""
-    pts = [lanes[route[0]].points]
-    for lid in route[1:]:
-        p = lanes[lid].points
-        pts.append(p[1:] if np.linalg.norm(p[0] - pts[-1][-1]) < 1e-6 else p)
-    rp = np.concatenate(pts)
-    keep = np.concatenate([[True], np.linalg.norm(np.diff(rp, axis=0), axis=1) > 1e-6])
-    rp = rp[keep]
-    return {"route": [int(r) for r in route], "route_points": rp, "route_heads": headings(rp),
-            "route_s": arclength(rp)}
+    rp, rh, rs, _ = concat_lanes(lanes, route)
+    return {"route": [int(r) for r in route], "route_points": rp, "route_heads": rh,
+            "route_s": rs}
 
 
 EXPLICIT_KIND = "explicit"
