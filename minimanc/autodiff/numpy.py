@@ -243,6 +243,8 @@ matmul = primitive(_matmul_fn)
 def _matmul_promoted(g, x, y):
     """Treat 1-D operands as matrices (a row for ``x``, a column for ``y``)."""
     x, y, g = np.asarray(x), np.asarray(y), np.asarray(g)
+    if x.ndim == 1 and y.ndim == 1:
+        return g.reshape(1, 1), x[None, :], y[:, None]
     if x.ndim == 1:
         x, g = x[None, :], np.expand_dims(g, -2)
     if y.ndim == 1:
