@@ -228,13 +228,16 @@ def _dataset_goal_bevs(ds: Any) -> np.ndarray:
         cached = None
     if cached is not None:
         return cached
-    from minimanc import world
+    given = getattr(ds, "goal_bev", None)
+    if given is not None:  # a dataset may carry its goal rasters
+        return np.asarray(given)
+    from minimanc.world.raster import rasterize_goal
 
     S, T = np.asarray(ds.ego).shape[:2]
     H, W = np.asarray(ds.bev).shape[2:4]
     cfg = _raster_config(ds, H)
     goal_world = _goal_world(ds)
-    out = np.stack([world.rasterize_goal(ds.maps[s], goal_world[s], cfg) for s in range(S)])
+    out = np.stack([rasterize_goal(ds.maps[s], goal_world[s], cfg) for s in range(S)])
     try:
         _GOAL_BEV_CACHE[ds] = out
     except TypeError:
@@ -243,11 +246,11 @@ def _dataset_goal_bevs(ds: Any) -> np.ndarray:
 
 
 def _raster_config(ds: Any, size: int) -> Any:
-    from minimanc import world
+    from minimanc.world.raster import RasterConfig
 
     cfg = getattr(ds, "raster", None) or getattr(ds, "raster_config", None)
     if cfg is None:
-        cfg = world.RasterConfig(size=int(size))
+        cfg = RasterConfig(size=int(size))
     return cfg
 
 
@@ -310,13 +313,13 @@ _STATE_GOAL_BEV: dict = {}
 
 
 def _goal_bev_from_state(m: Any, goal: np.ndarray, cfg: Any) -> np.ndarray:
-    from minimanc import world
+    from minimanc.world.raster import rasterize_goal
 
     key = (id(m), tuple(np.round(goal, 6)), cfg)
     hit = _STATE_GOAL_BEV.get(key)
     if hit is not None and hit[0] is m:
         return hit[1]
-    img = world.rasterize_goal(m, goal, cfg)
+    img = rasterize_goal(m, goal, cfg)
     if len(_STATE_GOAL_BEV) > 4096:
         _STATE_GOAL_BEV.clear()
     _STATE_GOAL_BEV[key] = (m, img)
@@ -348,8 +351,9 @@ def from_state(
     default :data:`minimanc.world.maps.K_TARGETS`) re-expressed from each
     ego pose. ``model`` restricts the keys as in :func:`from_dataset`.
     """
-    from minimanc import world
     from minimanc.world import maps as world_maps
+    from minimanc.world.geometry import goal_in_ego_frame
+    from minimanc.world.raster import RasterConfig, rasterize_batch
 
     _check_setting(setting)
     poses = np.asarray(ego_poses, dtype=np.float64)
@@ -369,18 +373,18 @@ def from_state(
         map_list = list(maps)
     else:
         map_list = [maps] * B
-    cfg = cfg if cfg is not None else world.RasterConfig()
+    cfg = cfg if cfg is not None else RasterConfig()
     k = world_maps.K_TARGETS if k_targets is None else int(k_targets)
     keys = visible(model, setting) if model is not None else KEYS[:4]
     obs: dict = {}
     if "bev" in keys:
-        bev = world.rasterize_batch(map_list, poses, ado, ado_valid, cfg)
+        bev = rasterize_batch(map_list, poses, ado, ado_valid, cfg)
         obs["bev"] = bev.astype(np.float32) / np.float32(255.0)
     if "goal" in keys:
-        obs["goal"] = world.goal_in_ego_frame(goals, poses).astype(np.float32)
+        obs["goal"] = goal_in_ego_frame(goals, poses).astype(np.float32)
     if "lane_target" in keys:
         obs["lane_target"] = np.stack(
-            [world.lane_targets(map_list[b], poses[b], k) for b in range(B)]
+            [world_maps.lane_targets(map_list[b], poses[b], k) for b in range(B)]
         ).astype(np.float32)
     if "motion" in keys:
         obs["motion"] = mot

@@ -1,0 +1,605 @@
+"""Chapter 8 — MANC and the comparison controllers as pure functions ``(params, inputs)``.
+
+Six controllers share **one CNN backbone** (:func:`backbone`: 3×3 convolutions,
+stride 2, zero padding 1, SiLU; 64×64 → 8×8 with the default channels
+``(16, 32, 32)``) and differ in their heads (paper section V, "Comparison cases"
+and the self-ablation):
+
+============= =================================================================
+name          forward pass (``f`` = backbone features, ``n`` = numbers it sees)
+============= =================================================================
+``cnn``       flatten(f) ⊕ n → FC(64) → FC(2)                     (Farag 2018)
+``cnn_lstm``  flatten(f) ⊕ n → FC(64) → LSTM(64) → FC(2)
+``rvs_g``     flatten(f(bev)) ⊕ flatten(f(goal_bev)) ⊕ n → LSTM(64) → FC(2)
+``manc``      p = Linear(GAP(f)) (eq. 7) → q = vAGN(p, q') (eqs. 8–9) →
+              gains = FC(q) → one DMP step (eqs. 10–11) → [speed, yaw rate]
+``vagn_only`` p (eq. 7) → q = vAGN(p, q') → FC(64) on q ⊕ n → FC(2)
+``dmp_only``  p (eq. 7) → gains = FC(p) → one DMP step → [speed, yaw rate]
+============= =================================================================
+
+What ``n`` contains per model and per information setting is the table of
+:mod:`minimanc.inputs`. Direct heads output ``o`` and return
+``o · CONTROL_SCALE`` (:data:`CONTROL_SCALE` = 10 m/s, 0.5 rad/s), so the last
+layer works with numbers of order one. (Authors' RvS has a Gaussian action
+head; ours predicts the mean only and is trained with the same MSE as all
+others.)
+
+The DMP head (MANC and DMP-only)
+--------------------------------
+``FC`` outputs four logits which :func:`minimanc.dmp.gains_from_logits` maps
+into :data:`minimanc.dmp.ALPHA_RANGE` × :data:`minimanc.dmp.BETA_RANGE`: the
+position gains ``(α_y, β_y)`` and the orientation gains ``(α_q, β_q)`` of
+eq. 10. In that box the default integrator (semi-implicit Euler, 10 sub-steps)
+is stable at ``dt = 0.5`` s (proved in ``tests/test_dmp.py``). Then, all in
+the current **ego frame** (+x forward, +y left):
+
+* **Position DMP** (eq. 10, first row; :func:`minimanc.dmp.step`): state
+  ``y₀ = (0, 0)``, ``ẏ₀ = (v₀, 0)`` with ``v₀`` the current speed
+  (``obs["motion"][:, 0]``); goal ``g`` = the lane-target point at
+  :attr:`ModelConfig.position_lookahead` metres of route ahead (12 m by
+  default; linear interpolation between the 4-m targets). One step of
+  ``dt`` gives ``y₁``; the **speed** is the forward displacement over the
+  step, ``y₁ₓ / dt`` — exactly what the unicycle of
+  :func:`minimanc.world.unicycle_step` does with a speed control. Far from the
+  goal ``ẏ → β_y (g − y)``: ``β_y · 12 m`` is the speed the controller asks
+  for, ``α_y`` how fast it gets there; a bend ahead shortens ``gₓ`` and so
+  slows the car down by itself.
+* **Orientation DMP** (eq. 10, second row, the quaternion DMP of eq. 2;
+  :func:`minimanc.quaternion.quaternion_step`): ``q₀`` = identity (the ego
+  frame), ``η₀ = (0, 0, ω₀)`` with ``ω₀`` the current yaw rate; goal
+  ``g_q`` = the yaw ``ψ_g = 2 atan2(p_y, pₓ)`` with ``p`` the lane-target
+  point at ``L = clip(v₀ · τ, 4 m, 4K m)`` ahead (``τ`` =
+  :attr:`ModelConfig.heading_lookahead_time`). ``ψ_g`` is the heading of the
+  circular arc that leaves the ego tangentially and passes through ``p``
+  (pure pursuit). Unlike the lane's own heading, it contains the lateral
+  offset — a car left of the lane sees ``p`` to its right and turns back:
+  an attractor towards the lane heading alone has no term that corrects a
+  lateral offset. Because ``L`` grows with the speed, the arc is covered in
+  about ``τ`` seconds at any speed, so the far-field yaw rate ``β_q ψ_g``
+  needs no knowledge of the speed (``β_q ≈ 1/τ``). The **yaw rate** is the
+  mean over the step, ``yaw(q₁) / dt``, as in the logs' ``Δψ / dt``.
+
+The goal pose itself is not used by the DMP models (the paper's ``g, g_q``
+track the moving lane target). During training ``q'`` is uniform or random
+per minibatch (Algorithm 1); in closed loop the state returned by
+:func:`step` is fed back, so ``q`` carries over from step to step.
+
+Every function takes an engine ``eng`` (``minimanc.engine("numpy"|"jax")``)
+and uses only ``eng.xp``/``eng.nn``: the same code runs on both, and
+gradients agree to 1e-6 in float64 (``tests/test_models.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from minimanc import cam, dmp, inputs, layers, quaternion, vagn
+
+__all__ = [
+    "CONTROL_SCALE",
+    "DMP_MODELS",
+    "LSTM_MODELS",
+    "MODEL_NAMES",
+    "VAGN_MODELS",
+    "ModelConfig",
+    "backbone",
+    "dmp_head",
+    "explain",
+    "init",
+    "initial_state",
+    "param_count",
+    "param_counts",
+    "replay",
+    "sequence",
+    "step",
+]
+
+MODEL_NAMES: tuple[str, ...] = inputs.MODEL_NAMES
+"""``("cnn", "cnn_lstm", "rvs_g", "manc", "vagn_only", "dmp_only")``."""
+
+VAGN_MODELS: tuple[str, ...] = ("manc", "vagn_only")
+"""Models whose recurrent state is the q-distribution of vAGN."""
+
+LSTM_MODELS: tuple[str, ...] = ("cnn_lstm", "rvs_g")
+"""Models whose recurrent state is an LSTM's ``(h, c)``."""
+
+DMP_MODELS: tuple[str, ...] = ("manc", "dmp_only")
+"""Models with the DMP head of eqs. 10–11."""
+
+CONTROL_SCALE: tuple[float, float] = (10.0, 0.5)
+"""Output scale of the direct heads: ``controls = o · (10 m/s, 0.5 rad/s)``."""
+
+DEFAULT_GAINS: tuple[float, float, float, float] = (1.0, 0.6, 6.0, 0.6)
+"""Initial ``(α_y, β_y, α_q, β_q)`` of the DMP heads (bias of the gains FC).
+β_y · 12 m ≈ 7 m/s asked-for speed, α_y = 1/s a gentle approach; β_q ≈ 1/τ
+with τ = 1.5 s the pure-pursuit yaw rate, α_q = 6/s a quick turn-in."""
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Hyper-parameters shared by all six controllers.
+
+    ``n_states`` q-states of vAGN (the paper studies 3–12), ``n_predicates``
+    visual predicates of eq. 7, ``image_size`` of the square BEV, ``setting``
+    ("paper"/"parity", see :mod:`minimanc.inputs`), ``channels`` of the 3×3
+    stride-2 convolutions, ``activation`` ("silu"/"relu"), ``hidden`` units of
+    the FC and LSTM layers (64 as in the paper), ``k_targets`` lane-target
+    points, ``position_lookahead`` (m) and ``heading_lookahead_time`` (s) of
+    the DMP head, ``critically_damped`` (β = α/4, the paper's safe option),
+    ``orientation`` ("yaw": the orientation DMP on the yaw angle, or
+    "quaternion": literally eq. 2 with unit quaternions — equal results for
+    yaw-only driving, but XLA compiles the quaternion form ~40× slower),
+    ``vagn_scale`` the std of vAGN's initial weights.
+    """
+
+    n_states: int = 6
+    n_predicates: int = 8
+    image_size: int = 64
+    setting: str = "paper"
+    channels: tuple[int, ...] = (16, 32, 32)
+    activation: str = "silu"
+    hidden: int = 64
+    k_targets: int = 10
+    position_lookahead: float = 12.0
+    heading_lookahead_time: float = 1.5
+    critically_damped: bool = False
+    orientation: str = "yaw"
+    vagn_scale: float = 0.5
+    dt: float = dmp.DT
+
+    def __post_init__(self) -> None:
+        for name in ("n_states", "n_predicates", "image_size", "hidden", "k_targets"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise ValueError(f"{name} must be a positive integer, got {name}={v!r}")
+        inputs._check_setting(self.setting)
+        ch = tuple(self.channels)
+        if not ch or any(isinstance(c, bool) or not isinstance(c, (int, np.integer)) or c < 1
+                         for c in ch):
+            raise ValueError(f"channels must be a non-empty tuple of positive integers, "
+                             f"got channels={self.channels!r}")
+        object.__setattr__(self, "channels", tuple(int(c) for c in ch))
+        if self.activation not in ("silu", "relu"):
+            raise ValueError(f"activation must be 'silu' or 'relu', got "
+                             f"activation={self.activation!r}")
+        reach = 4.0 * self.k_targets
+        if not 0.0 < self.position_lookahead <= reach:
+            raise ValueError(f"position_lookahead must be in (0, {reach}] m (k_targets · 4 m), "
+                             f"got position_lookahead={self.position_lookahead!r}")
+        if not self.heading_lookahead_time > 0.0:
+            raise ValueError(f"heading_lookahead_time must be > 0 s, got "
+                             f"heading_lookahead_time={self.heading_lookahead_time!r}")
+        if self.orientation not in ("yaw", "quaternion"):
+            raise ValueError(f"orientation must be 'yaw' or 'quaternion', got "
+                             f"orientation={self.orientation!r}")
+        if not self.vagn_scale > 0.0:
+            raise ValueError(f"vagn_scale must be > 0, got vagn_scale={self.vagn_scale!r}")
+        if not self.dt > 0.0:
+            raise ValueError(f"dt must be > 0, got dt={self.dt!r}")
+
+    @property
+    def feature_size(self) -> int:
+        """Spatial size of the backbone's output (64 → 8 with three stride-2 layers)."""
+        s = self.image_size
+        for _ in self.channels:
+            s = (s + 2 - 3) // 2 + 1
+        return s
+
+    def to_dict(self) -> dict:
+        """A JSON-able dict (for checkpoints)."""
+        d = asdict(self)
+        d["channels"] = list(d["channels"])
+        return d
+
+
+def _check_name(name: Any) -> str:
+    if name not in MODEL_NAMES:
+        raise ValueError(f"name must be one of {MODEL_NAMES}, got name={name!r}")
+    return name
+
+
+# --------------------------------------------------------------------------- parameters
+
+
+def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
+         dtype: Any = np.float64) -> dict:
+    """Initial parameters of model ``name``: a pytree (nested dicts/lists) of NumPy arrays."""
+    name = _check_name(name)
+    cfg = cfg or ModelConfig()
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"rng must be a numpy.random.Generator, got rng={rng!r}")
+    convs, c_in = [], 3
+    for c in cfg.channels:
+        convs.append(layers.init_conv(rng, 3, c_in, c))
+        c_in = c
+    params: dict = {"backbone": {"convs": convs}}
+    K, M, N, H = cfg.channels[-1], cfg.n_predicates, cfg.n_states, cfg.hidden
+    flat = cfg.feature_size ** 2 * K
+    n_num = inputs.numeric_size(name, cfg.setting, cfg.k_targets)
+    if name in ("manc", "vagn_only", "dmp_only"):
+        params["predicates"] = layers.init_dense(rng, K, M)
+    if name in VAGN_MODELS:
+        params["vagn"] = {"W": vagn.init_vagn(rng, M, N, scale=cfg.vagn_scale)}
+    if name in DMP_MODELS:
+        n_in = N if name == "manc" else M
+        za_y, zb_y = dmp.logits_from_gains(DEFAULT_GAINS[0], DEFAULT_GAINS[1])
+        za_q, zb_q = dmp.logits_from_gains(DEFAULT_GAINS[2], DEFAULT_GAINS[3])
+        gains = layers.init_dense(rng, n_in, 4)
+        gains["w"] = 0.5 * np.asarray(gains["w"])
+        gains["b"] = np.array([za_y, zb_y, za_q, zb_q], dtype=np.float64)
+        params["gains"] = gains
+    if name == "cnn":
+        params["fc1"] = layers.init_dense(rng, flat + n_num, H)
+        params["out"] = layers.init_dense(rng, H, 2)
+    elif name == "cnn_lstm":
+        params["fc1"] = layers.init_dense(rng, flat + n_num, H)
+        params["lstm"] = layers.init_lstm(rng, H, H)
+        params["out"] = layers.init_dense(rng, H, 2)
+    elif name == "rvs_g":
+        params["lstm"] = layers.init_lstm(rng, 2 * flat + n_num, H)
+        params["out"] = layers.init_dense(rng, H, 2)
+    elif name == "vagn_only":
+        params["fc1"] = layers.init_dense(rng, N + n_num, H)
+        params["out"] = layers.init_dense(rng, H, 2)
+    return _cast(params, dtype)
+
+
+def _cast(tree: Any, dtype: Any) -> Any:
+    if isinstance(tree, dict):
+        return {k: _cast(v, dtype) for k, v in tree.items()}
+    if isinstance(tree, (list, tuple)):
+        return type(tree)(_cast(v, dtype) for v in tree)
+    return np.asarray(tree, dtype=dtype)
+
+
+def _leaves(tree: Any) -> list:
+    if isinstance(tree, dict):
+        return [x for k in sorted(tree) for x in _leaves(tree[k])]
+    if isinstance(tree, (list, tuple)):
+        return [x for v in tree for x in _leaves(v)]
+    return [tree]
+
+
+def param_count(params: dict) -> int:
+    """Number of scalar parameters in a pytree."""
+    return int(sum(int(np.prod(np.shape(x))) for x in _leaves(params)))
+
+
+def param_counts(cfg: ModelConfig | None = None, names: tuple[str, ...] = MODEL_NAMES) -> dict:
+    """``{name: param_count(init(name, ...))}`` for every model under ``cfg``."""
+    cfg = cfg or ModelConfig()
+    return {n: param_count(init(n, np.random.default_rng(0), cfg)) for n in names}
+
+
+def initial_state(name: str, batch: int, cfg: ModelConfig | None = None, xp: Any = np,
+                  rng: np.random.Generator | None = None, mode: str = "uniform",
+                  dtype: Any = np.float32) -> dict:
+    """The recurrent state at the start of a sequence, for ``batch`` rows.
+
+    vAGN models: ``{"q": (B, N)}``, uniform (Algorithm 1's ``UniformInit``) or
+    ``mode="random"`` (``RandomInit``: flat Dirichlet draws, needs ``rng``).
+    LSTM models: ``{"h": 0, "c": 0}`` of shape ``(B, hidden)``. Others: ``{}``.
+    """
+    name = _check_name(name)
+    cfg = cfg or ModelConfig()
+    if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
+        raise ValueError(f"batch must be a positive integer, got batch={batch!r}")
+    if mode not in ("uniform", "random"):
+        raise ValueError(f"mode must be 'uniform' or 'random', got mode={mode!r}")
+    if name in VAGN_MODELS:
+        if mode == "random":
+            if not isinstance(rng, np.random.Generator):
+                raise ValueError(f"mode='random' needs rng=numpy.random.Generator, got rng={rng!r}")
+            q = vagn.random_state(rng, cfg.n_states, size=int(batch))
+        else:
+            q = np.broadcast_to(vagn.uniform_state(cfg.n_states), (int(batch), cfg.n_states))
+        return {"q": xp.asarray(np.asarray(q, dtype=dtype))}
+    if name in LSTM_MODELS:
+        z = np.zeros((int(batch), cfg.hidden), dtype=dtype)
+        return {"h": xp.asarray(z), "c": xp.asarray(z)}
+    return {}
+
+
+# --------------------------------------------------------------------------- forward pieces
+
+
+def backbone(params: dict, images: Any, cfg: ModelConfig, eng: Any) -> Any:
+    """The shared CNN: 3×3 conv, stride 2, padding 1, activation, per layer. NHWC → NHWC."""
+    act = eng.nn.silu if cfg.activation == "silu" else eng.nn.relu
+    h = images
+    for layer in params["convs"]:
+        h = act(layers.conv2d(layer, h, eng.nn, stride=2, padding=1))
+    return h
+
+
+def _dense(p: dict, x: Any, eng: Any) -> Any:
+    return layers.dense(p, x, xp=eng.xp)
+
+
+def _act(x: Any, cfg: ModelConfig, eng: Any) -> Any:
+    return eng.nn.silu(x) if cfg.activation == "silu" else eng.nn.relu(x)
+
+
+def _flatten(f: Any, xp: Any) -> Any:
+    return xp.reshape(f, (f.shape[0], -1))
+
+
+def _hat_weights(dist: Any, k_targets: int, xp: Any) -> Any:
+    """Interpolation weights ``(B, K)`` of the lane-target points (at 4, 8, … m) at ``dist``."""
+    spacing = 4.0
+    idx = xp.asarray(np.arange(1, k_targets + 1, dtype=np.float32))
+    u = xp.expand_dims(dist, -1) / spacing
+    return xp.maximum(1.0 - xp.abs(u - idx), 0.0)
+
+
+def dmp_head(logits: Any, lane_target: Any, motion: Any, cfg: ModelConfig,
+             xp: Any = np) -> tuple[Any, dict]:
+    """Eqs. 10–11: four gain logits ``(B, 4)`` → one DMP step → controls ``(B, 2)``.
+
+    See the module docstring for how ``g`` and ``g_q`` are built from the
+    lane target ``(B, K, 2)`` and how the step becomes ``[speed, yaw rate]``;
+    ``motion (B, 2)`` is the current ``[speed, yaw rate]`` (the DMP's initial
+    velocities). Returns ``(controls, aux)`` with ``aux["alpha"]``,
+    ``aux["beta"]`` of shape ``(B, 2)`` = (position, orientation) gains and
+    ``aux["g"]`` (B, 2), ``aux["psi_g"]`` (B,) the goals.
+    """
+    K = cfg.k_targets
+    lt = xp.asarray(lane_target)
+    mot = xp.asarray(motion)
+    v0, w0 = mot[:, 0], mot[:, 1]
+    crit = cfg.critically_damped
+    a_y, b_y = dmp.gains_from_logits(logits[:, 0:1], None if crit else logits[:, 1:2], xp=xp,
+                                     critically_damped=crit)
+    a_q, b_q = dmp.gains_from_logits(logits[:, 2:3], None if crit else logits[:, 3:4], xp=xp,
+                                     critically_damped=crit)
+    # position goal: the lane point position_lookahead metres ahead
+    w_pos = _hat_weights(xp.zeros_like(v0) + cfg.position_lookahead, K, xp)
+    g = xp.sum(lt * xp.expand_dims(w_pos, -1), axis=1)  # (B, 2)
+    zero = xp.zeros_like(v0)
+    y0 = xp.stack([zero, zero], axis=-1)
+    dy0 = xp.stack([v0, zero], axis=-1)
+    y1, _, _ = dmp.step(y0, dy0, g, a_y, b_y, dt=cfg.dt, xp=xp)
+    speed = y1[:, 0] / cfg.dt
+    # orientation goal: pure-pursuit heading through the point ~tau seconds ahead
+    dist = xp.clip(v0 * cfg.heading_lookahead_time, 4.0, 4.0 * K)
+    w_head = _hat_weights(dist, K, xp)
+    p = xp.sum(lt * xp.expand_dims(w_head, -1), axis=1)
+    bearing = xp.arctan2(p[:, 1], xp.maximum(p[:, 0], 1e-3))
+    psi_g = 2.0 * bearing  # in (-pi, pi): x is kept positive
+    if cfg.orientation == "quaternion":
+        q0 = xp.stack([zero + 1.0, zero, zero, zero], axis=-1)  # identity, in v0's dtype
+        eta0 = xp.stack([zero, zero, w0], axis=-1)
+        g_q = quaternion.from_yaw(psi_g, xp=xp)
+        q1, _, _ = quaternion.quaternion_step(q0, eta0, g_q, a_q, b_q, dt=cfg.dt, xp=xp)
+        yaw_rate = quaternion.to_yaw(q1, xp=xp) / cfg.dt
+    else:  # the same quaternion DMP written on the yaw angle (exact for yaw-only motion)
+        psi1, _, _ = dmp.step(xp.expand_dims(zero, -1), xp.expand_dims(w0, -1),
+                              xp.expand_dims(psi_g, -1), a_q, b_q, dt=cfg.dt, xp=xp)
+        yaw_rate = psi1[:, 0] / cfg.dt
+    controls = xp.stack([speed, yaw_rate], axis=-1)
+    aux = {
+        "alpha": xp.concatenate([a_y, a_q], axis=-1),
+        "beta": xp.concatenate([b_y, b_q], axis=-1),
+        "g": g,
+        "psi_g": psi_g,
+    }
+    return controls, aux
+
+
+def _encode(name: str, params: dict, obs: dict, cfg: ModelConfig, eng: Any) -> dict:
+    """Per-frame computations (no recurrence): features, predicates, numbers."""
+    xp = eng.xp
+    dtype = params["backbone"]["convs"][0]["w"].dtype
+    obs = {k: xp.asarray(v, dtype=dtype) for k, v in obs.items()}
+    f = backbone(params["backbone"], obs["bev"], cfg, eng)
+    enc: dict = {"features": f}
+    if "predicates" in params:
+        gap = xp.mean(xp.mean(f, axis=1), axis=1)  # GAP of eq. 7
+        enc["predicates"] = _dense(params["predicates"], gap, eng)
+    num = inputs.numeric_features(obs, name, cfg.setting, xp=xp)
+    if name == "cnn":
+        x = _flatten(f, xp) if num is None else xp.concatenate([_flatten(f, xp), num], axis=-1)
+        enc["pre"] = x
+    elif name == "cnn_lstm":
+        x = _flatten(f, xp) if num is None else xp.concatenate([_flatten(f, xp), num], axis=-1)
+        enc["pre"] = _act(_dense(params["fc1"], x, eng), cfg, eng)
+    elif name == "rvs_g":
+        fg = backbone(params["backbone"], obs["goal_bev"], cfg, eng)
+        parts = [_flatten(f, xp), _flatten(fg, xp)] + ([] if num is None else [num])
+        enc["pre"] = xp.concatenate(parts, axis=-1)
+    elif name == "vagn_only":
+        enc["num"] = num
+    elif name in DMP_MODELS:
+        enc["lane_target"] = xp.asarray(obs["lane_target"])
+        enc["motion"] = xp.asarray(obs["motion"])
+    return enc
+
+
+def _take(enc: dict, i: int, length: int) -> dict:
+    """Rows of time step ``i`` from an encoding of ``length × B`` flattened frames."""
+    out = {}
+    for k, v in enc.items():
+        if v is None:
+            out[k] = None
+            continue
+        B = v.shape[0] // length
+        out[k] = v[i * B:(i + 1) * B]
+    return out
+
+
+def _head(name: str, params: dict, enc: dict, state: dict, cfg: ModelConfig,
+          eng: Any) -> tuple[Any, dict, dict]:
+    """One time step of the recurrent part and the head."""
+    xp = eng.xp
+    scale = xp.asarray(np.asarray(CONTROL_SCALE, dtype=np.float32))
+    aux: dict = {}
+    if "predicates" in enc:
+        aux["predicates"] = enc["predicates"]
+    new_state = dict(state)
+    if name == "cnn":
+        h = _act(_dense(params["fc1"], enc["pre"], eng), cfg, eng)
+        return _dense(params["out"], h, eng) * scale, new_state, aux
+    if name in LSTM_MODELS:
+        h, c = layers.lstm_cell(params["lstm"], enc["pre"], state["h"], state["c"], xp=xp)
+        new_state = {"h": h, "c": c}
+        return _dense(params["out"], h, eng) * scale, new_state, aux
+    if name in VAGN_MODELS:
+        q = vagn.step(state["q"], enc["predicates"], params["vagn"]["W"], xp=xp)
+        new_state = {"q": q}
+        aux["q"] = q
+        if name == "vagn_only":
+            x = q if enc["num"] is None else xp.concatenate([q, enc["num"]], axis=-1)
+            h = _act(_dense(params["fc1"], x, eng), cfg, eng)
+            return _dense(params["out"], h, eng) * scale, new_state, aux
+        logits = _dense(params["gains"], q, eng)  # FC(q) of eq. 11
+    else:  # dmp_only
+        logits = _dense(params["gains"], enc["predicates"], eng)
+    controls, daux = dmp_head(logits, enc["lane_target"], enc["motion"], cfg, xp=xp)
+    aux.update(daux)
+    return controls, new_state, aux
+
+
+def _check_obs(name: str, obs: dict, cfg: ModelConfig, lead: int) -> None:
+    """Keys and shapes of an observation (``lead`` leading axes before the image axes)."""
+    keys = inputs.visible(name, cfg.setting)
+    missing = [k for k in keys if k not in obs]
+    if missing:
+        raise ValueError(f"obs lacks {missing} needed by model {name!r} in setting "
+                         f"{cfg.setting!r}; got keys {sorted(obs)}")
+    shape = tuple(obs["bev"].shape)
+    want = (cfg.image_size, cfg.image_size, 3)
+    if len(shape) != lead + 3 or shape[lead:] != want:
+        raise ValueError(f"obs['bev'] must have shape {('B',) * lead + want} for "
+                         f"image_size={cfg.image_size}, got {shape}")
+    if "lane_target" in keys:
+        lt = tuple(obs["lane_target"].shape)
+        if lt[lead:] != (cfg.k_targets, 2):
+            raise ValueError(f"obs['lane_target'] must end in ({cfg.k_targets}, 2) "
+                             f"(k_targets={cfg.k_targets}), got {lt}")
+
+
+def step(name: str, params: dict, obs: dict, state: dict, cfg: ModelConfig | None,
+         eng: Any) -> tuple[Any, dict, dict]:
+    """One control step: ``(controls (B, 2), new_state, aux)``.
+
+    ``obs`` from :mod:`minimanc.inputs` (batched over B), ``state`` from
+    :func:`initial_state` or the previous call. ``aux`` holds what the
+    explainability figures need: ``predicates`` (B, M) for the vAGN/DMP
+    models, ``q`` (B, N) for vAGN models, ``alpha`` and ``beta`` (B, 2) =
+    (position, orientation) gains for DMP models, and ``features`` (the
+    backbone's output, B × h × w × C).
+    """
+    name = _check_name(name)
+    cfg = cfg or ModelConfig()
+    _check_obs(name, obs, cfg, 1)
+    enc = _encode(name, params, obs, cfg, eng)
+    controls, new_state, aux = _head(name, params, enc, state, cfg, eng)
+    aux["features"] = enc["features"]
+    return controls, new_state, aux
+
+
+def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConfig | None,
+             eng: Any) -> tuple[Any, dict]:
+    """Run ``L`` steps on time-major observations ``(L, B, ...)``: ``(controls (L, B, 2), state)``.
+
+    Equal to ``L`` calls of :func:`step` (tested), but the backbone runs once
+    on all ``L·B`` frames. Used to train the recurrent models on truncated
+    back-propagation-through-time windows.
+    """
+    name = _check_name(name)
+    cfg = cfg or ModelConfig()
+    _check_obs(name, obs_seq, cfg, 2)
+    xp = eng.xp
+    L, B = obs_seq["bev"].shape[:2]
+    flat = {k: xp.reshape(xp.asarray(v), (L * B,) + tuple(v.shape[2:]))
+            for k, v in obs_seq.items() if k in inputs.visible(name, cfg.setting)}
+    enc = _encode(name, params, flat, cfg, eng)
+    enc.pop("features")
+    outs = []
+    for i in range(L):
+        controls, state, _ = _head(name, params, _take(enc, i, L), state, cfg, eng)
+        outs.append(controls)
+    return xp.stack(outs, axis=0), state
+
+
+# --------------------------------------------------------------------------- explainability
+
+
+def explain(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = None,
+            eng: Any = None, upsample_to_input: bool = True) -> dict:
+    """Per-q-state saliency of a vAGN model (paper Figs. 3–4), NumPy arrays.
+
+    Runs eq. 7 on ``obs["bev"]`` and one vAGN step from ``q_prev`` (B, N), and
+    returns ``predicates`` (B, M), ``q`` (B, N), ``cams`` (B, M, H, W) (class
+    activation maps of the predicates, :func:`minimanc.cam.class_activation_maps`),
+    ``jacobian`` (B, N, M) = ∂q/∂p and ``saliency`` (B, N, H, W) =
+    :func:`minimanc.cam.q_state_saliency`; maps are upsampled to the image.
+    """
+    from minimanc import engine as _engine
+
+    cfg = cfg or ModelConfig()
+    eng = eng or _engine("numpy")
+    if "vagn" not in params or "predicates" not in params:
+        raise ValueError("explain needs the parameters of a vAGN model (manc or vagn_only); "
+                         f"got params with keys {sorted(params)}")
+    bev = np.asarray(obs["bev"], dtype=np.float64)
+    f = np.asarray(_value(backbone(_value_tree(params["backbone"]), bev, cfg, eng)))
+    w = np.asarray(_value(params["predicates"]["w"]), dtype=np.float64)
+    b = np.asarray(_value(params["predicates"]["b"]), dtype=np.float64)
+    p = f.mean(axis=(1, 2)) @ w + b
+    W = np.asarray(_value(params["vagn"]["W"]), dtype=np.float64)
+    q_prev = np.asarray(q_prev, dtype=np.float64)
+    q = vagn.step(q_prev, p, W)
+    cams = cam.class_activation_maps(f, w)
+    J = cam.vagn_jacobian(q_prev, p, W)
+    S = cam.q_state_saliency(cams, J)
+    if upsample_to_input:
+        size = tuple(bev.shape[1:3])
+        cams, S = cam.upsample(cams, size), cam.upsample(S, size)
+    return {"predicates": p, "q": q, "cams": cams, "jacobian": J, "saliency": S}
+
+
+def _value(x: Any) -> Any:
+    return getattr(x, "_value", getattr(x, "value", x))
+
+
+def _value_tree(tree: Any) -> Any:
+    if isinstance(tree, dict):
+        return {k: _value_tree(v) for k, v in tree.items()}
+    if isinstance(tree, (list, tuple)):
+        return type(tree)(_value_tree(v) for v in tree)
+    return np.asarray(_value(tree), dtype=np.float64)
+
+
+def replay(name: str, params: dict, ds: Any, scene: int, cfg: ModelConfig | None = None,
+           eng: Any = None, q_mode: str = "uniform") -> dict:
+    """Open-loop trace of one logged scene: the model sees the human's observations
+    step by step and its recurrent state carries over (q for vAGN models).
+
+    Returns NumPy arrays over the ``T`` steps: ``controls`` (T, 2), ``human``
+    (T, 2) and, where the model has them, ``q`` (T, N), ``alpha``/``beta``
+    (T, 2), ``predicates`` (T, M). (The closed loop, where the model also
+    drives, is :mod:`minimanc.rollout`.)
+    """
+    from minimanc import engine as _engine
+
+    name = _check_name(name)
+    cfg = cfg or ModelConfig()
+    eng = eng or _engine("numpy")
+    T = np.asarray(ds.ego).shape[1]
+    state = initial_state(name, 1, cfg, xp=eng.xp, mode="uniform") if q_mode == "uniform" \
+        else initial_state(name, 1, cfg, xp=eng.xp, rng=np.random.default_rng(0), mode=q_mode)
+    keep: dict = {"controls": []}
+    for t in range(T):
+        obs = inputs.from_dataset(ds, scene, t, cfg.setting, model=name)
+        controls, state, aux = step(name, params, obs, state, cfg, eng)
+        keep["controls"].append(np.asarray(_value(controls))[0])
+        for k in ("q", "alpha", "beta", "predicates"):
+            if k in aux:
+                keep.setdefault(k, []).append(np.asarray(_value(aux[k]))[0])
+    out = {k: np.stack(v) for k, v in keep.items()}
+    out["human"] = np.asarray(ds.controls[scene], dtype=np.float64)
+    return out

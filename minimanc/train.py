@@ -1,0 +1,724 @@
+"""Chapter 8 — behaviour cloning (the paper's Algorithm 1), checkpoints and a learning-rate sweep.
+
+Algorithm 1 of the paper, for every controller of :mod:`minimanc.models`::
+
+    for each minibatch (X, g, g_q, a) of logged samples:
+        q' = UniformInit() or RandomInit()            # vAGN models only
+        â  = model(params, X, g, g_q, q')              # eqs. 7–11
+        L  = MSE(â, a)                                 # on [speed, yaw rate]
+        params ← Adam(params, ∇L)
+
+* **Loss.** Mean squared error on the human controls; with
+  ``TrainConfig.normalize`` (default) each control's error is divided by its
+  standard deviation on the training subset, so that the yaw rate (≈ 0.1
+  rad/s) weighs as much as the speed (≈ 5 m/s).
+* **Engines.** ``engine="jax"`` (default) jits the whole step (forward,
+  backward, Adam) and trains in ``TrainConfig.dtype`` (float32); ``"numpy"``
+  runs the same code on our autodiff engine. In float64 both give the same
+  losses to 1e-5 (``tests/test_train.py``).
+* **Samples.** Every (scene, time) pair of the training subset is one
+  sample; an epoch visits each once in a seeded random order. LSTM models
+  train on windows of ``seq_len`` consecutive steps (truncated
+  back-propagation through time, zero initial state at the window start) so
+  that they learn to use history; vAGN models may likewise carry ``q`` over
+  ``q_seq_len`` steps (1 = Algorithm 1 exactly).
+* **Subsets.** ``subset`` ∈ (0, 1] keeps the first ``⌈subset·S⌉`` scenes of
+  a seeded permutation: the 25 % subset is inside the 50 % one, etc.
+* **Determinism.** Initial parameters come from ``default_rng(seed)``; epoch
+  ``e`` shuffles with ``default_rng([seed, e])``. A resumed run therefore
+  repeats an uninterrupted one exactly.
+* **Checkpoints.** With ``checkpoint_dir``, ``checkpoint.npz`` is written
+  after every epoch through a temporary file and :func:`os.replace` (atomic:
+  a crash never leaves half a file). ``resume=True`` continues from it.
+* **Divergence.** A NaN or infinite loss stops training with
+  :class:`TrainingDiverged`; the checkpoint of the last good epoch is left
+  untouched.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from minimanc import inputs, models, optim
+
+__all__ = [
+    "CHECKPOINT_NAME",
+    "FitResult",
+    "SweepResult",
+    "TrainConfig",
+    "TrainingDiverged",
+    "batches",
+    "control_std",
+    "evaluate",
+    "fit",
+    "load",
+    "load_checkpoint",
+    "loss_fn",
+    "save",
+    "subset_scenes",
+    "sweep_lr",
+]
+
+CHECKPOINT_NAME = "checkpoint.npz"
+"""File name of the checkpoint inside ``checkpoint_dir``."""
+
+_DTYPES = {"float32": np.float32, "float64": np.float64}
+
+
+class TrainingDiverged(RuntimeError):
+    """Raised when the training loss becomes NaN or infinite."""
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Training hyper-parameters (Algorithm 1).
+
+    ``epochs``, ``batch_size`` (samples per step; LSTM windows count
+    ``seq_len`` samples each), ``lr`` (Adam), ``seed``, ``subset`` of the
+    training scenes, ``seq_len`` (LSTM window length), ``q_init``
+    ("uniform"/"random", Algorithm 1's q'), ``q_seq_len`` (vAGN window length,
+    1 = Algorithm 1), ``normalize`` the MSE per control, ``dtype``
+    ("float32"/"float64"), ``zeta_weight`` of the auxiliary
+    :func:`minimanc.dmp.zeta_penalty` (DMP models), ``max_steps_per_epoch``
+    (``None`` = all; for quick runs), ``grad_clip`` (global gradient-norm
+    clip, ``None`` = off).
+    """
+
+    epochs: int = 8
+    batch_size: int = 64
+    lr: float = 1e-3
+    seed: int = 0
+    subset: float = 1.0
+    seq_len: int = 8
+    q_init: str = "uniform"
+    q_seq_len: int = 1
+    normalize: bool = True
+    dtype: str = "float32"
+    zeta_weight: float = 0.0
+    max_steps_per_epoch: int | None = None
+    grad_clip: float | None = 5.0
+
+    def __post_init__(self) -> None:
+        for name in ("epochs", "batch_size", "seq_len", "q_seq_len"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise ValueError(f"{name} must be a positive integer, got {name}={v!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) \
+                or self.seed < 0:
+            raise ValueError(f"seed must be a non-negative integer, got seed={self.seed!r}")
+        if not (isinstance(self.lr, (int, float)) and math.isfinite(self.lr) and self.lr > 0):
+            raise ValueError(f"lr must be a positive finite number, got lr={self.lr!r}")
+        if not (isinstance(self.subset, (int, float)) and 0.0 < self.subset <= 1.0):
+            raise ValueError(f"subset must be in (0, 1], got subset={self.subset!r}")
+        if self.q_init not in ("uniform", "random"):
+            raise ValueError(f"q_init must be 'uniform' or 'random', got q_init={self.q_init!r}")
+        if self.dtype not in _DTYPES:
+            raise ValueError(f"dtype must be one of {tuple(_DTYPES)}, got dtype={self.dtype!r}")
+        if not (math.isfinite(self.zeta_weight) and self.zeta_weight >= 0):
+            raise ValueError(f"zeta_weight must be >= 0, got zeta_weight={self.zeta_weight!r}")
+        m = self.max_steps_per_epoch
+        if m is not None and (isinstance(m, bool) or not isinstance(m, (int, np.integer))
+                              or m < 1):
+            raise ValueError(f"max_steps_per_epoch must be None or a positive integer, "
+                             f"got max_steps_per_epoch={m!r}")
+        c = self.grad_clip
+        if c is not None and not (isinstance(c, (int, float)) and math.isfinite(c) and c > 0):
+            raise ValueError(f"grad_clip must be None or > 0, got grad_clip={c!r}")
+
+
+@dataclass
+class FitResult:
+    """What :func:`fit` returns.
+
+    ``params`` (NumPy pytree), ``history`` (mean training loss per epoch),
+    ``val_history`` (open-loop validation loss per epoch, if ``val_ds``),
+    ``name``, ``cfg``, ``train_cfg``, ``steps`` (optimiser steps),
+    ``seconds`` (wall time of this call), ``control_std`` (the
+    normalisation used).
+    """
+
+    name: str
+    params: dict
+    history: list[float]
+    cfg: models.ModelConfig
+    train_cfg: TrainConfig
+    val_history: list[float] = field(default_factory=list)
+    steps: int = 0
+    seconds: float = 0.0
+    control_std: np.ndarray = field(default_factory=lambda: np.ones(2))
+
+
+# --------------------------------------------------------------------------- data
+
+
+def _shape(ds: Any) -> tuple[int, int]:
+    ego = np.asarray(ds.ego) if not hasattr(ds.ego, "shape") else ds.ego
+    if len(ego.shape) != 3:
+        raise ValueError(f"dataset ego poses must have shape (S, T, 3), got {ego.shape}")
+    return int(ego.shape[0]), int(ego.shape[1])
+
+
+def subset_scenes(n_scenes: int, subset: float, seed: int) -> np.ndarray:
+    """Scene indices of a training subset: the first ``⌈subset·S⌉`` of a seeded permutation.
+
+    Nested: for one seed, the 25 % subset is contained in the 50 % one.
+    """
+    if not 0.0 < subset <= 1.0:
+        raise ValueError(f"subset must be in (0, 1], got subset={subset!r}")
+    n = max(1, int(math.ceil(subset * n_scenes - 1e-9)))
+    perm = np.random.default_rng([int(seed), 7]).permutation(n_scenes)
+    return np.sort(perm[:n])
+
+
+def control_std(ds: Any, scenes: Any = None) -> np.ndarray:
+    """Standard deviation of ``[speed, yaw rate]`` over the given scenes (all by default)."""
+    c = np.asarray(ds.controls, dtype=np.float64)
+    if scenes is not None:
+        c = c[np.asarray(scenes)]
+    sd = c.reshape(-1, 2).std(axis=0)
+    return np.where(sd > 1e-6, sd, 1.0)
+
+
+def _window_len(name: str, tc: TrainConfig) -> int:
+    if name in models.LSTM_MODELS:
+        return tc.seq_len
+    if name in models.VAGN_MODELS:
+        return tc.q_seq_len
+    return 1
+
+
+def batches(name: str, ds: Any, scenes: np.ndarray, tc: TrainConfig, epoch: int
+            ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The minibatches of one epoch: a list of ``(scene_idx, t_idx)`` arrays of shape ``(L, b)``.
+
+    ``L`` is the window length (1 for feed-forward models); windows tile each
+    scene from a random offset, and ``b = max(1, batch_size // L)`` windows
+    form a batch. Only full batches are kept (a constant shape for ``jit``)
+    unless there are fewer samples than one batch.
+    """
+    S, T = _shape(ds)
+    L = min(_window_len(name, tc), T)
+    rng = np.random.default_rng([int(tc.seed), int(epoch)])
+    starts_s, starts_t = [], []
+    for s in scenes:
+        off = int(rng.integers(0, L)) if L > 1 else 0
+        ts = np.arange(off, T - L + 1, L)
+        if ts.size == 0:
+            ts = np.array([0])
+        starts_s.append(np.full(ts.size, s))
+        starts_t.append(ts)
+    ss = np.concatenate(starts_s)
+    tt = np.concatenate(starts_t)
+    order = rng.permutation(ss.size)
+    ss, tt = ss[order], tt[order]
+    b = max(1, tc.batch_size // L)
+    b = min(b, ss.size)
+    n_batches = ss.size // b
+    out = []
+    for i in range(n_batches):
+        s_b = ss[i * b:(i + 1) * b]
+        t_b = tt[i * b:(i + 1) * b]
+        out.append((np.broadcast_to(s_b, (L, b)).copy(), t_b[None, :] + np.arange(L)[:, None]))
+    return out
+
+
+def _make_batch(name: str, ds: Any, s_idx: np.ndarray, t_idx: np.ndarray,
+                cfg: models.ModelConfig, dtype: Any) -> dict:
+    """Observations ``(L, b, ...)`` and controls ``(L, b, 2)`` for index arrays ``(L, b)``."""
+    L, b = s_idx.shape
+    obs = inputs.from_dataset(ds, s_idx.reshape(-1), t_idx.reshape(-1), cfg.setting, model=name)
+    batch = {k: v.reshape((L, b) + v.shape[1:]).astype(dtype) for k, v in obs.items()}
+    y = np.asarray(ds.controls)[s_idx, t_idx]
+    batch["controls"] = y.astype(dtype)
+    return batch
+
+
+def _q0(name: str, b: int, cfg: models.ModelConfig, tc: TrainConfig,
+        rng: np.random.Generator, dtype: Any) -> np.ndarray | None:
+    if name not in models.VAGN_MODELS:
+        return None
+    st = models.initial_state(name, b, cfg, xp=np, rng=rng, mode=tc.q_init, dtype=dtype)
+    return np.asarray(st["q"])
+
+
+# --------------------------------------------------------------------------- loss and step
+
+
+def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: Any,
+            inv_std: Any, zeta_weight: float = 0.0) -> Any:
+    """Algorithm 1's loss on a batch of windows: ``mean(((â − a) / σ)²)`` (+ ζ penalty).
+
+    ``batch`` holds observations ``(L, b, ...)``, ``controls (L, b, 2)`` and,
+    for vAGN models, ``q0 (b, N)`` (q'). ``inv_std`` is ``1/σ`` per control.
+    """
+    xp = eng.xp
+    obs = {k: v for k, v in batch.items() if k not in ("controls", "q0")}
+    L, b = batch["controls"].shape[:2]
+    if name in models.VAGN_MODELS:
+        state = {"q": batch["q0"]}
+    else:
+        dtype = params["backbone"]["convs"][0]["w"].dtype
+        state = models.initial_state(name, b, cfg, xp=xp, dtype=dtype)
+    if zeta_weight > 0.0 and name in models.DMP_MODELS and L == 1:
+        one = {k: v[0] for k, v in obs.items()}
+        pred, _, aux = models.step(name, params, one, state, cfg, eng)
+        pred = xp.expand_dims(pred, 0)
+        from minimanc import dmp
+
+        extra = zeta_weight * dmp.zeta_penalty(aux["alpha"], aux["beta"], xp=xp)
+    else:
+        pred, _ = models.sequence(name, params, obs, state, cfg, eng)
+        extra = 0.0
+    err = (pred - batch["controls"]) * inv_std
+    return xp.mean(err * err) + extra
+
+
+def _global_norm(tree: Any, xp: Any) -> Any:
+    leaves = models._leaves(tree)
+    return xp.sqrt(sum(xp.sum(g * g) for g in leaves))
+
+
+def _scale_tree(tree: Any, s: Any) -> Any:
+    if isinstance(tree, dict):
+        return {k: _scale_tree(v, s) for k, v in tree.items()}
+    if isinstance(tree, (list, tuple)):
+        return type(tree)(_scale_tree(v, s) for v in tree)
+    return tree * s
+
+
+def _like(tree: Any, template: Any, xp: Any) -> Any:
+    """``tree`` with every array leaf cast to the dtype of the matching ``template`` leaf."""
+    if isinstance(tree, dict):
+        return {k: _like(v, template[k], xp) for k, v in tree.items()}
+    if isinstance(tree, (list, tuple)):
+        items = [_like(v, template[i], xp) for i, v in enumerate(tree)]
+        return type(tree)(*items) if hasattr(tree, "_fields") else type(tree)(items)
+    dt = getattr(template, "dtype", None)
+    if dt is None or getattr(tree, "dtype", None) == dt:
+        return tree
+    return xp.asarray(tree, dtype=dt)
+
+
+def _make_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any,
+               inv_std: np.ndarray) -> Callable:
+    """The (jitted) training step ``(params, opt_state, batch) → (params, opt_state, loss)``."""
+    xp = eng.xp
+    inv = np.asarray(inv_std, dtype=_DTYPES[tc.dtype])
+
+    def objective(params, batch):
+        return loss_fn(name, params, batch, cfg, eng, inv, tc.zeta_weight)
+
+    vg = eng.value_and_grad(objective)
+
+    def train_step(params, opt_state, batch):
+        loss, grads = vg(params, batch)
+        if tc.grad_clip is not None:
+            norm = _global_norm(grads, xp)
+            factor = xp.minimum(1.0, tc.grad_clip / (norm + 1e-12))
+            grads = _scale_tree(grads, factor)
+        new_params, new_state = optim.adam_update(params, grads, opt_state, lr=tc.lr, xp=xp)
+        # keep every leaf's dtype: a float64 scalar must not promote float32 parameters
+        # (under jit that would trigger a new compilation at the next step)
+        return _like(new_params, params, xp), _like(new_state, opt_state, xp), loss
+
+    return eng.jit(train_step)
+
+
+# --------------------------------------------------------------------------- checkpoints
+
+
+def _flatten(tree: Any, prefix: str = "") -> dict[str, np.ndarray]:
+    out: dict[str, np.ndarray] = {}
+    if isinstance(tree, dict):
+        for k in sorted(tree):
+            out.update(_flatten(tree[k], f"{prefix}{k}/"))
+    elif isinstance(tree, (list, tuple)):
+        for i, v in enumerate(tree):
+            out.update(_flatten(v, f"{prefix}#{i}/"))
+    elif tree is None:
+        pass
+    else:
+        out[prefix[:-1]] = np.asarray(tree)
+    return out
+
+
+def _unflatten(flat: dict[str, np.ndarray]) -> Any:
+    root: dict = {}
+    for key, value in flat.items():
+        parts = key.split("/")
+        node = root
+        for p in parts[:-1]:
+            node = node.setdefault(p, {})
+        node[parts[-1]] = value
+    return _lists(root)
+
+
+def _lists(node: Any) -> Any:
+    if not isinstance(node, dict):
+        return node
+    if node and all(k.startswith("#") for k in node):
+        return [_lists(node[f"#{i}"]) for i in range(len(node))]
+    return {k: _lists(v) for k, v in node.items()}
+
+
+def _to_numpy(tree: Any) -> Any:
+    if isinstance(tree, dict):
+        return {k: _to_numpy(v) for k, v in tree.items()}
+    if isinstance(tree, (list, tuple)):
+        return type(tree)(_to_numpy(v) for v in tree)
+    if tree is None:
+        return None
+    return np.array(tree)
+
+
+def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **arrays)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _meta(name: str, cfg: models.ModelConfig, tc: TrainConfig, epoch: int,
+          history: list[float], val_history: list[float], steps: int,
+          std: np.ndarray) -> np.ndarray:
+    meta = {
+        "format": 1,
+        "name": name,
+        "cfg": cfg.to_dict(),
+        "train_cfg": asdict(tc),
+        "epoch": epoch,
+        "history": history,
+        "val_history": val_history,
+        "steps": steps,
+        "control_std": [float(x) for x in std],
+    }
+    return np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
+
+
+def save(path: str | Path, name: str, params: dict, cfg: models.ModelConfig,
+         train_cfg: TrainConfig | None = None, opt_state: Any = None, epoch: int = 0,
+         history: Sequence[float] = (), val_history: Sequence[float] = (), steps: int = 0,
+         std: Any = None) -> Path:
+    """Write parameters (and optionally the optimiser state) atomically to ``path`` (.npz)."""
+    path = Path(path)
+    arrays = {f"params/{k}": v for k, v in _flatten(_to_numpy(params)).items()}
+    if opt_state is not None:
+        arrays.update({f"opt/{k}": v for k, v in _flatten(_to_numpy(opt_state)).items()})
+    std = np.ones(2) if std is None else np.asarray(std, dtype=np.float64)
+    arrays["meta"] = _meta(name, cfg, train_cfg or TrainConfig(), int(epoch), list(history),
+                           list(val_history), int(steps), std)
+    _atomic_savez(path, arrays)
+    return path
+
+
+def load_checkpoint(path: str | Path) -> dict:
+    """Read a file written by :func:`save`: ``name, params, cfg, train_cfg, opt_state,
+    epoch, history, val_history, steps, control_std``."""
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"no checkpoint at path={str(path)!r}")
+    with np.load(path) as z:
+        meta = json.loads(bytes(z["meta"]).decode())
+        p = {k[len("params/"):]: z[k] for k in z.files if k.startswith("params/")}
+        o = {k[len("opt/"):]: z[k] for k in z.files if k.startswith("opt/")}
+    cfg_d = dict(meta["cfg"])
+    cfg_d["channels"] = tuple(cfg_d["channels"])
+    return {
+        "name": meta["name"],
+        "params": _unflatten(p),
+        "opt_state": _unflatten(o) if o else None,
+        "cfg": models.ModelConfig(**cfg_d),
+        "train_cfg": TrainConfig(**meta["train_cfg"]),
+        "epoch": meta["epoch"],
+        "history": list(meta["history"]),
+        "val_history": list(meta["val_history"]),
+        "steps": meta["steps"],
+        "control_std": np.asarray(meta["control_std"]),
+    }
+
+
+def load(path: str | Path) -> FitResult:
+    """A :class:`FitResult` from a file written by :func:`save` or by :func:`fit`."""
+    ck = load_checkpoint(path)
+    return FitResult(name=ck["name"], params=ck["params"], history=ck["history"],
+                     cfg=ck["cfg"], train_cfg=ck["train_cfg"], val_history=ck["val_history"],
+                     steps=ck["steps"], control_std=ck["control_std"])
+
+
+def _restore_opt(template: Any, loaded: Any) -> Any:
+    """Put loaded optimiser arrays into the structure of ``template`` (tuples, scalars)."""
+    if isinstance(template, dict):
+        return {k: _restore_opt(v, loaded[k]) for k, v in template.items()}
+    if isinstance(template, (list, tuple)):
+        items = [_restore_opt(v, loaded[i]) for i, v in enumerate(template)]
+        if hasattr(template, "_fields"):  # NamedTuple
+            return type(template)(*items)
+        return type(template)(items)
+    if template is None:
+        return None
+    if isinstance(template, (int, np.integer)) and not isinstance(template, bool):
+        return int(np.asarray(loaded))
+    arr = np.asarray(loaded)
+    return arr.astype(np.asarray(template).dtype)
+
+
+# --------------------------------------------------------------------------- fit
+
+
+def _cast_tree(tree: Any, dtype: Any) -> Any:
+    if isinstance(tree, dict):
+        return {k: _cast_tree(v, dtype) for k, v in tree.items()}
+    if isinstance(tree, (list, tuple)):
+        return type(tree)(_cast_tree(v, dtype) for v in tree)
+    arr = np.asarray(tree)
+    return arr.astype(dtype) if np.issubdtype(arr.dtype, np.floating) else arr
+
+
+def _get_engine(engine: Any) -> Any:
+    from minimanc import engine as _engine
+
+    if isinstance(engine, str):
+        return _engine(engine)
+    if hasattr(engine, "xp") and hasattr(engine, "value_and_grad"):
+        return engine
+    raise ValueError(f"engine must be 'numpy', 'jax' or an engine object, got engine={engine!r}")
+
+
+def fit(
+    name: str,
+    train_ds: Any,
+    cfg: models.ModelConfig | None = None,
+    train_cfg: TrainConfig | None = None,
+    engine: Any = "jax",
+    checkpoint_dir: str | Path | None = None,
+    resume: bool = False,
+    progress: bool = True,
+    val_ds: Any = None,
+    params: dict | None = None,
+) -> FitResult:
+    """Train model ``name`` by behaviour cloning (Algorithm 1) on ``train_ds``.
+
+    ``cfg``: the model's :class:`~minimanc.models.ModelConfig`;
+    ``train_cfg``: :class:`TrainConfig`; ``engine``: "jax" (jitted) or
+    "numpy"; ``checkpoint_dir``: write ``checkpoint.npz`` every epoch;
+    ``resume``: continue from it (its model and configs must match, except
+    ``epochs`` and ``lr`` which may be changed to extend a run); ``progress``:
+    a tqdm bar with the running loss; ``val_ds``: also record the open-loop
+    validation loss each epoch; ``params``: start from these instead of a
+    fresh initialisation. Returns a :class:`FitResult`.
+    """
+    name = models._check_name(name)
+    cfg = cfg or models.ModelConfig()
+    tc = train_cfg or TrainConfig()
+    if not isinstance(cfg, models.ModelConfig):
+        raise ValueError(f"cfg must be a models.ModelConfig, got cfg={cfg!r}")
+    if not isinstance(tc, TrainConfig):
+        raise ValueError(f"train_cfg must be a train.TrainConfig, got train_cfg={tc!r}")
+    eng = _get_engine(engine)
+    dtype = _DTYPES[tc.dtype]
+    S, T = _shape(train_ds)
+    H = np.asarray(train_ds.bev[:1, :1]).shape[2]
+    if H != cfg.image_size:
+        raise ValueError(f"cfg.image_size={cfg.image_size} does not match the dataset's "
+                         f"BEV size {H}")
+    scenes = subset_scenes(S, tc.subset, tc.seed)
+    std = control_std(train_ds, scenes) if tc.normalize else np.ones(2)
+    t_start = time.perf_counter()
+
+    ck_path = Path(checkpoint_dir) / CHECKPOINT_NAME if checkpoint_dir is not None else None
+    start_epoch, history, val_history, steps = 0, [], [], 0
+    if params is None:
+        params = models.init(name, np.random.default_rng(tc.seed), cfg)
+    params = _cast_tree(params, dtype)
+    opt_state = optim.adam_init(params)
+    if resume:
+        if ck_path is None:
+            raise ValueError("resume=True needs a checkpoint_dir")
+        if ck_path.exists():
+            ck = load_checkpoint(ck_path)
+            if ck["name"] != name or ck["cfg"] != cfg:
+                raise ValueError(f"checkpoint at {ck_path.name} is for model {ck['name']!r} "
+                                 f"with {ck['cfg']}, not {name!r} with {cfg}")
+            same = replace(ck["train_cfg"], epochs=tc.epochs, lr=tc.lr)
+            if same != tc:
+                raise ValueError(f"checkpoint was trained with {ck['train_cfg']}; only epochs "
+                                 f"and lr may change on resume, got {tc}")
+            params = _cast_tree(ck["params"], dtype)
+            if ck["opt_state"] is not None:
+                opt_state = _restore_opt(optim.adam_init(params), ck["opt_state"])
+            start_epoch = ck["epoch"]
+            history, val_history, steps = ck["history"], ck["val_history"], ck["steps"]
+            std = ck["control_std"]
+
+    step_fn = _make_step(name, cfg, tc, eng, 1.0 / std)
+    if eng.name == "jax":
+        import jax
+
+        params = jax.tree_util.tree_map(lambda a: jax.numpy.asarray(a), params)
+        opt_state = jax.tree_util.tree_map(lambda a: jax.numpy.asarray(a), opt_state)
+
+    bar = None
+    for epoch in range(start_epoch, tc.epochs):
+        plan = batches(name, train_ds, scenes, tc, epoch)
+        if tc.max_steps_per_epoch is not None:
+            plan = plan[:tc.max_steps_per_epoch]
+        q_rng = np.random.default_rng([int(tc.seed), int(epoch), 1])
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=len(plan), desc=f"{name} epoch {epoch + 1}/{tc.epochs}",
+                       leave=False)
+        total, count = 0.0, 0
+        for s_idx, t_idx in plan:
+            batch = _make_batch(name, train_ds, s_idx, t_idx, cfg, dtype)
+            q0 = _q0(name, s_idx.shape[1], cfg, tc, q_rng, dtype)
+            if q0 is not None:
+                batch["q0"] = q0
+            params, opt_state, loss = step_fn(params, opt_state, batch)
+            loss = float(getattr(loss, "_value", loss))
+            steps += 1
+            if not math.isfinite(loss):
+                if bar is not None:
+                    bar.close()
+                kept = (f"the checkpoint of epoch {start_epoch if not history else len(history)}"
+                        f" is kept in {ck_path}" if ck_path is not None and ck_path.exists()
+                        else "no checkpoint was written")
+                raise TrainingDiverged(
+                    f"training {name!r} diverged: loss = {loss} at epoch {epoch + 1}, "
+                    f"step {count + 1} of {len(plan)} (lr={tc.lr}); {kept}. "
+                    "Lower the learning rate or check the data for NaNs."
+                )
+            total += loss
+            count += 1
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(loss=f"{total / count:.4f}")
+        if bar is not None:
+            bar.close()
+        history.append(total / max(count, 1))
+        if val_ds is not None:
+            val_history.append(evaluate(name, _to_numpy(params), val_ds, cfg, eng,
+                                        std=std, q_init=tc.q_init, dtype=dtype))
+        if ck_path is not None:
+            save(ck_path, name, params, cfg, tc, opt_state, epoch + 1, history, val_history,
+                 steps, std)
+    return FitResult(name=name, params=_to_numpy(params), history=list(history), cfg=cfg,
+                     train_cfg=tc, val_history=list(val_history), steps=steps,
+                     seconds=time.perf_counter() - t_start, control_std=np.asarray(std))
+
+
+def evaluate(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = None,
+             engine: Any = "jax", std: Any = None, q_init: str = "uniform",
+             batch_size: int = 256, dtype: Any = np.float32, scenes: Any = None) -> float:
+    """Open-loop loss of Algorithm 1 on a dataset (every sample once, no gradient).
+
+    Feed-forward and vAGN models see each step with ``q'`` as in training;
+    LSTM models run each scene from ``t = 0`` with their state carried.
+    ``std`` normalises as in training (``None``: the dataset's own).
+    Open-loop error ranks closed-loop quality poorly (``REFERENCE.md``); it is
+    a cheap check, not the paper's metric.
+    """
+    name = models._check_name(name)
+    cfg = cfg or models.ModelConfig()
+    eng = _get_engine(engine)
+    S, T = _shape(ds)
+    scenes = np.arange(S) if scenes is None else np.asarray(scenes)
+    std = control_std(ds, scenes) if std is None else np.asarray(std)
+    inv = (1.0 / std).astype(dtype)
+    params = _cast_tree(params, dtype)
+    rng = np.random.default_rng(0)
+    total, n = 0.0, 0
+    if name in models.LSTM_MODELS:
+        for i in range(0, len(scenes), max(1, batch_size // T)):
+            sc = scenes[i:i + max(1, batch_size // T)]
+            s_idx = np.broadcast_to(sc, (T, len(sc)))
+            t_idx = np.broadcast_to(np.arange(T)[:, None], (T, len(sc)))
+            batch = _make_batch(name, ds, s_idx, t_idx, cfg, dtype)
+            loss = loss_fn(name, params, batch, cfg, eng, inv)
+            total += float(np.asarray(loss)) * s_idx.size
+            n += s_idx.size
+        return total / n
+    ss = np.repeat(scenes, T)
+    tt = np.tile(np.arange(T), len(scenes))
+    for i in range(0, ss.size, batch_size):
+        s_idx, t_idx = ss[None, i:i + batch_size], tt[None, i:i + batch_size]
+        batch = _make_batch(name, ds, s_idx, t_idx, cfg, dtype)
+        q0 = _q0(name, s_idx.shape[1], cfg, TrainConfig(q_init=q_init), rng, dtype)
+        if q0 is not None:
+            batch["q0"] = q0
+        loss = loss_fn(name, params, batch, cfg, eng, inv)
+        total += float(np.asarray(loss)) * s_idx.size
+        n += s_idx.size
+    return total / n
+
+
+# --------------------------------------------------------------------------- learning-rate sweep
+
+
+@dataclass
+class SweepResult:
+    """What :func:`sweep_lr` returns: ``scores[lr]`` (lower is better), ``best_lr``,
+    and the :class:`FitResult` of every run in ``results[lr]``."""
+
+    scores: dict[float, float]
+    best_lr: float
+    results: dict[float, FitResult]
+
+
+def sweep_lr(
+    name: str,
+    train_ds: Any,
+    val_ds: Any,
+    cfg: models.ModelConfig | None = None,
+    lrs: Sequence[float] = (3e-4, 1e-3, 3e-3),
+    train_cfg: TrainConfig | None = None,
+    engine: Any = "jax",
+    score: Callable[[FitResult], float] | None = None,
+    progress: bool = False,
+) -> SweepResult:
+    """Train ``name`` once per learning rate and pick the best, so every model is tuned alike.
+
+    ``score(result)`` rates a run (lower is better); by default the open-loop
+    validation loss of :func:`evaluate` on ``val_ds``. Pass a closed-loop
+    score (e.g. ADE from :mod:`minimanc.rollout`) for a choice that reflects
+    driving. A diverged run scores ``inf``.
+    """
+    lrs = tuple(float(x) for x in lrs)
+    if not lrs or any(not (math.isfinite(x) and x > 0) for x in lrs):
+        raise ValueError(f"lrs must be positive finite learning rates, got lrs={lrs!r}")
+    cfg = cfg or models.ModelConfig()
+    tc = train_cfg or TrainConfig()
+    scores: dict[float, float] = {}
+    results: dict[float, FitResult] = {}
+    for lr in lrs:
+        try:
+            res = fit(name, train_ds, cfg, replace(tc, lr=lr), engine=engine, progress=progress)
+        except TrainingDiverged:
+            scores[lr] = float("inf")
+            continue
+        results[lr] = res
+        if score is None:
+            scores[lr] = evaluate(name, res.params, val_ds, cfg, engine, std=res.control_std,
+                                  q_init=tc.q_init, dtype=_DTYPES[tc.dtype])
+        else:
+            scores[lr] = float(score(res))
+    best = min(scores, key=lambda k: scores[k])
+    return SweepResult(scores=scores, best_lr=best, results=results)
