@@ -1,0 +1,500 @@
+"""Chapter 9 — every figure of the closed-loop study (the paper's Figures 3–8 and Table I).
+
+Two families:
+
+* **study plots** drawn from the ``results`` dict that :mod:`minimanc.studies`
+  writes to ``results.json`` — :func:`plot_table1` (Table I as bars, both
+  information settings), :func:`plot_sample_efficiency` (Fig. 5a),
+  :func:`plot_param_counts` (Fig. 5b), :func:`plot_q_states` (Fig. 7),
+  :func:`plot_ablation` (Fig. 8);
+* **explainability** drawn from a :class:`minimanc.rollout.Rollout` —
+  :func:`plot_explain_trace` (Fig. 4: DMP α/β over time, the q-distribution,
+  controls against the human's, BEV frames), :func:`plot_saliency_steps`
+  (Fig. 3: per-q-state saliency overlays via :mod:`minimanc.cam`),
+  :func:`plot_trajectories` (policy against human in the world frame) and
+  :func:`save_gif` (a closed-loop rollout as an animated GIF, via Pillow).
+
+Every function returns the matplotlib ``Figure`` (or the GIF's path) and
+never calls ``plt.show()``; :func:`save` writes a figure to PNG and closes it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "MODEL_LABELS",
+    "METRIC_LABELS",
+    "MODEL_COLOURS",
+    "save",
+    "plot_table1",
+    "plot_sample_efficiency",
+    "plot_param_counts",
+    "plot_q_states",
+    "plot_ablation",
+    "plot_trajectories",
+    "plot_explain_trace",
+    "plot_saliency_steps",
+    "saliency_maps",
+    "gif_frames",
+    "save_gif",
+]
+
+MODEL_LABELS: dict[str, str] = {
+    "human": "Human",
+    "cnn": "CNN",
+    "cnn_lstm": "CNN-LSTM",
+    "rvs_g": "RvS-G",
+    "manc": "MANC",
+    "vagn_only": "vAGN-only",
+    "dmp_only": "DMP-only",
+}
+"""Display names of the comparison cases (the paper's Table I and Fig. 8)."""
+
+METRIC_LABELS: dict[str, str] = {
+    "close_encounters": "% close encounters",
+    "max_acceleration": "max |acceleration| (m/s²)",
+    "ade": "ADE to human (m)",
+    "goal_distance": "goal distance (m)",
+    "collision_rate": "% scenes with a collision",
+    "off_road_rate": "% scenes off road",
+}
+"""Axis labels of the metrics of :mod:`minimanc.metrics`."""
+
+MODEL_COLOURS: dict[str, str] = {
+    "human": "#444444",
+    "cnn": "#1f77b4",
+    "cnn_lstm": "#ff7f0e",
+    "rvs_g": "#9467bd",
+    "manc": "#d62728",
+    "vagn_only": "#2ca02c",
+    "dmp_only": "#8c564b",
+}
+
+_TABLE = ("close_encounters", "max_acceleration", "ade", "goal_distance")
+
+
+def _plt():
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save(fig: Any, path: str | Path, dpi: int = 110) -> Path:
+    """Write ``fig`` to ``path`` (PNG, parents created) and close it. Returns the path."""
+    plt = _plt()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def _label(name: str) -> str:
+    return MODEL_LABELS.get(name, name)
+
+
+def _ms(agg: Mapping[str, Any], metric: str) -> tuple[float, float]:
+    entry = agg.get(metric)
+    if entry is None:
+        return float("nan"), 0.0
+    return float(entry["mean"]), float(entry["std"])
+
+
+def _check_metrics(metrics: Sequence[str]) -> None:
+    for m in metrics:
+        if m not in METRIC_LABELS:
+            raise ValueError(f"metrics must be names from {sorted(METRIC_LABELS)}; got {m!r}")
+
+
+# --------------------------------------------------------------------------- study plots
+
+
+def plot_table1(
+    table: Mapping[str, Mapping[str, Mapping[str, Any]]],
+    metrics: Sequence[str] = _TABLE,
+) -> Any:
+    """Table I as bar charts: one panel per metric, one bar group per model, one bar per setting.
+
+    ``table[setting][model]`` is an aggregate from :func:`minimanc.metrics.aggregate`
+    (``{metric: {"mean", "std"}}``); error bars are the std over seeds.
+    """
+    _check_metrics(metrics)
+    if not table:
+        raise ValueError("table must hold at least one setting; got an empty mapping")
+    plt = _plt()
+    settings = list(table)
+    models = list(dict.fromkeys(m for s in settings for m in table[s]))
+    fig, axes = plt.subplots(1, len(metrics), figsize=(3.6 * len(metrics), 3.4))
+    axes = np.atleast_1d(axes)
+    width = 0.8 / len(settings)
+    x = np.arange(len(models))
+    hatches = ["", "//", "..", "xx"]
+    for ax, metric in zip(axes, metrics):
+        for k, setting in enumerate(settings):
+            means, stds = zip(*[_ms(table[setting].get(m, {}), metric) for m in models])
+            ax.bar(x + (k - (len(settings) - 1) / 2) * width, means, width, yerr=stds,
+                   color=[MODEL_COLOURS.get(m, "grey") for m in models],
+                   hatch=hatches[k % len(hatches)], edgecolor="black", linewidth=0.5,
+                   capsize=2, label=setting)
+        ax.set_xticks(x)
+        ax.set_xticklabels([_label(m) for m in models], rotation=40, ha="right")
+        ax.set_title(METRIC_LABELS[metric], fontsize=10)
+    if len(settings) > 1:
+        axes[0].legend(title="setting", fontsize=8)
+    fig.suptitle("Closed-loop performance (Table I); lower is better")
+    fig.tight_layout()
+    return fig
+
+
+def plot_sample_efficiency(study: Mapping[str, Any], metric: str = "ade") -> Any:
+    """ADE (or ``metric``) against the share of training data, one line per model (Fig. 5a).
+
+    ``study = {"fractions": [...], "models": {name: [aggregate per fraction]}}``.
+    """
+    _check_metrics([metric])
+    plt = _plt()
+    fr = np.asarray(study["fractions"], dtype=float)
+    fig, ax = plt.subplots(figsize=(4.6, 3.4))
+    for name, aggs in study["models"].items():
+        m, s = np.array([_ms(a, metric) for a in aggs]).T
+        ax.errorbar(100 * fr, m, yerr=s, marker="o", capsize=3, label=_label(name),
+                    color=MODEL_COLOURS.get(name))
+    ax.set_xlabel("training data used (%)")
+    ax.set_ylabel(METRIC_LABELS[metric])
+    ax.set_xticks(100 * fr)
+    ax.set_title("Sample efficiency")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_param_counts(counts: Mapping[str, int]) -> Any:
+    """Number of trainable parameters per model (Fig. 5b)."""
+    if not counts:
+        raise ValueError("counts must hold at least one model; got an empty mapping")
+    plt = _plt()
+    names = list(counts)
+    fig, ax = plt.subplots(figsize=(4.6, 3.0))
+    vals = [int(counts[n]) for n in names]
+    bars = ax.bar(range(len(names)), vals, color=[MODEL_COLOURS.get(n, "grey") for n in names])
+    for b, v in zip(bars, vals):
+        ax.text(b.get_x() + b.get_width() / 2, v, f"{v:,}", ha="center", va="bottom", fontsize=8)
+    ax.set_xticks(range(len(names)))
+    ax.set_xticklabels([_label(n) for n in names], rotation=30, ha="right")
+    ax.set_ylabel("parameters")
+    ax.set_title("Model size")
+    fig.tight_layout()
+    return fig
+
+
+def plot_q_states(study: Mapping[str, Any], metrics: Sequence[str] = _TABLE) -> Any:
+    """Every metric against the number of q-states (Fig. 7).
+
+    ``study = {"n_states": [3, 6, ...], "results": [aggregate per n]}``.
+    """
+    _check_metrics(metrics)
+    plt = _plt()
+    n = np.asarray(study["n_states"])
+    fig, axes = plt.subplots(1, len(metrics), figsize=(3.3 * len(metrics), 3.0))
+    axes = np.atleast_1d(axes)
+    for ax, metric in zip(axes, metrics):
+        m, s = np.array([_ms(a, metric) for a in study["results"]]).T
+        ax.errorbar(n, m, yerr=s, marker="o", capsize=3, color=MODEL_COLOURS["manc"])
+        ax.set_xticks(n)
+        ax.set_xlabel("number of q-states")
+        ax.set_title(METRIC_LABELS[metric], fontsize=10)
+    fig.suptitle("MANC: varying the number of q-states")
+    fig.tight_layout()
+    return fig
+
+
+def plot_ablation(study: Mapping[str, Any], metrics: Sequence[str] = _TABLE) -> Any:
+    """MANC against its ablations, one panel per metric (Fig. 8).
+
+    ``study = {"models": {name: aggregate}}``.
+    """
+    _check_metrics(metrics)
+    plt = _plt()
+    names = list(study["models"])
+    fig, axes = plt.subplots(1, len(metrics), figsize=(3.0 * len(metrics), 3.0))
+    axes = np.atleast_1d(axes)
+    for ax, metric in zip(axes, metrics):
+        m, s = np.array([_ms(study["models"][k], metric) for k in names]).T
+        ax.bar(range(len(names)), m, yerr=s, capsize=3,
+               color=[MODEL_COLOURS.get(k, "grey") for k in names])
+        ax.set_xticks(range(len(names)))
+        ax.set_xticklabels([_label(k) for k in names], rotation=30, ha="right")
+        ax.set_title(METRIC_LABELS[metric], fontsize=10)
+    fig.suptitle("Self-ablation")
+    fig.tight_layout()
+    return fig
+
+
+# --------------------------------------------------------------------------- explainability
+
+
+def _check_scene(traj: Any, scene: int) -> int:
+    s = int(scene)
+    if not 0 <= s < len(traj):
+        raise ValueError(f"scene must index the rollout's {len(traj)} rows; got scene={scene!r}")
+    return s
+
+
+def _draw_map(ax: Any, m: Any) -> None:
+    """The map under a world-frame plot (:func:`minimanc.world.viz.plot_map`)."""
+    from minimanc.world import viz
+
+    viz.plot_map(m, ax=ax)
+
+
+def _frame_limits(ax: Any, xy: np.ndarray, margin: float = 15.0) -> None:
+    lo, hi = xy.min(axis=0) - margin, xy.max(axis=0) + margin
+    c, r = (lo + hi) / 2, (hi - lo).max() / 2
+    ax.set_xlim(c[0] - r, c[0] + r)
+    ax.set_ylim(c[1] - r, c[1] + r)
+    ax.set_aspect("equal")
+
+
+def plot_trajectories(
+    rollouts: Mapping[str, Any], human: Any, ds: Any, scenes: Sequence[int]
+) -> Any:
+    """Closed-loop paths against the human's, in the world frame, one panel per scene.
+
+    ``rollouts`` maps a label to a :class:`minimanc.rollout.Rollout` on ``ds``
+    (rows = dataset scenes); ``human`` is :func:`minimanc.rollout.human`.
+    """
+    plt = _plt()
+    scenes = [_check_scene(human, s) for s in scenes]
+    if not scenes:
+        raise ValueError("scenes must name at least one scene; got an empty sequence")
+    fig, axes = plt.subplots(1, len(scenes), figsize=(4.0 * len(scenes), 4.0), squeeze=False)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for ax, s in zip(axes[0], scenes):
+        _draw_map(ax, ds.maps[s])
+        ax.plot(*human.ego[s, :, :2].T, "k--", lw=1.6, label="Human")
+        pts = [human.ego[s, :, :2]]
+        for i, (label, traj) in enumerate(rollouts.items()):
+            key = label.lower().replace("-", "_")
+            col = MODEL_COLOURS.get(key, colours[i % len(colours)])
+            ax.plot(*traj.ego[s, :, :2].T, "-", color=col, lw=1.6, label=label)
+            pts.append(traj.ego[s, :, :2])
+        ax.plot(*human.ego[s, 0, :2], "ko", ms=4)
+        ax.plot(*human.ego[s, -1, :2], "k*", ms=9)
+        _frame_limits(ax, np.concatenate(pts))
+        ax.set_title(f"scene {s} ({ds.maps[s].kind})", fontsize=10)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    axes[0, 0].legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    return fig
+
+
+def _bev_at(traj: Any, ds: Any, scene: int, t: int) -> np.ndarray:
+    """The BEV the policy saw at step ``t`` (re-rasterised from its own pose)."""
+    from minimanc import world
+
+    return world.rasterize(ds.maps[scene], traj.ego[scene, t], ds.ado[scene, t],
+                           ds.ado_valid[scene, t], ds.raster)
+
+
+def plot_explain_trace(traj: Any, human: Any, ds: Any, scene: int,
+                       bev_steps: Sequence[int] | None = None) -> Any:
+    """The paper's Fig. 4 for one scene of a closed-loop rollout.
+
+    (a) the DMP gains α, β over time (position and orientation), (b) the
+    vAGN q-distribution over time, (c) speed and yaw rate of the policy
+    against the human's, (d) the BEV the policy saw at three steps. Panels
+    the model has no data for (a direct head has no α, β or q) are left out.
+    """
+    plt = _plt()
+    from minimanc import vagn
+
+    s = _check_scene(traj, scene)
+    aux = traj.aux
+    T1 = traj.controls.shape[1]
+    rows = []
+    if "alpha" in aux and "beta" in aux:
+        rows.append("gains")
+    if "q" in aux:
+        rows.append("q")
+    rows += ["speed", "yaw"]
+    steps = list(bev_steps) if bev_steps is not None else [0, T1 // 2, T1 - 1]
+    fig = plt.figure(figsize=(9.0, 1.9 * len(rows) + 2.8))
+    gs = fig.add_gridspec(len(rows) + 1, len(steps), height_ratios=[1.0] * len(rows) + [1.6])
+    t = np.arange(T1)
+    ax0 = None
+    for i, row in enumerate(rows):
+        ax = fig.add_subplot(gs[i, :], sharex=ax0 if row != "q" else None)
+        ax0 = ax0 or ax
+        if row == "gains":
+            a, b = aux["alpha"][s], aux["beta"][s]
+            for k, (name, ls) in enumerate((("position", "-"), ("orientation", "--"))):
+                ax.plot(t, a[:, k], ls, color="C0", label=f"α {name}")
+                ax.plot(t, b[:, k], ls, color="C3", label=f"β {name}")
+            ax.set_ylabel("DMP gains")
+            ax.legend(fontsize=7, ncol=4, loc="upper right")
+            ax.set_title(f"(a) DMP parameters — scene {s}", fontsize=9, loc="left")
+        elif row == "q":
+            vagn.plot_q_heatmap(aux["q"][s], ax=ax, colorbar=False)
+            ax.set_xlabel("")
+            ax.set_title("(b) vAGN state distribution", fontsize=9, loc="left")
+        else:
+            k = 0 if row == "speed" else 1
+            ax.plot(t, traj.controls[s, :, k], color="C0", label=traj.name)
+            ax.plot(t, human.controls[s, :T1, k], color="C3", label="human")
+            ax.set_ylabel("speed (m/s)" if k == 0 else "yaw rate (rad/s)")
+            if k == 0:
+                ax.legend(fontsize=7, loc="upper right")
+                ax.set_title("(c) controls", fontsize=9, loc="left")
+            else:
+                ax.set_xlabel("time step")
+    for j, st in enumerate(steps):
+        ax = fig.add_subplot(gs[len(rows), j])
+        ax.imshow(_bev_at(traj, ds, s, int(st)), interpolation="nearest")
+        ax.set_title(f"(d) BEV, step {int(st)}", fontsize=9)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.tight_layout()
+    return fig
+
+
+def saliency_maps(params: dict, cfg: Any, traj: Any, ds: Any, scene: int,
+                  steps: Sequence[int]) -> list[dict]:
+    """Per-q-state saliency (:func:`minimanc.models.explain`) at ``steps`` of a rollout.
+
+    The observation of each step is rebuilt from the rollout's own pose and
+    the q-distribution of the previous step (uniform before the first), so
+    the returned ``q`` equals the rollout's recorded ``q`` at that step.
+    Returns one dict per step: ``bev`` (H, W, 3) in [0, 1], ``q`` (N,),
+    ``saliency`` (N, H, W), ``step``.
+    """
+    from minimanc import inputs, models, vagn
+
+    s = _check_scene(traj, scene)
+    if "q" not in traj.aux:
+        raise ValueError("saliency needs a vAGN model's rollout (aux 'q'); "
+                         f"got aux keys {sorted(traj.aux)}")
+    out = []
+    n_states = traj.aux["q"].shape[-1]
+    for st in steps:
+        t = int(st)
+        if not 0 <= t < traj.controls.shape[1]:
+            raise ValueError(f"steps must lie in [0, {traj.controls.shape[1]}); got {st!r}")
+        motion = (inputs.initial_motion(ds)[s:s + 1] if t == 0
+                  else traj.controls[s:s + 1, t - 1].astype(np.float32))
+        obs = inputs.from_state([ds.maps[s]], traj.ego[s:s + 1, t], ds.ado[s:s + 1, t],
+                                ds.ado_valid[s:s + 1, t], ds.ego[s:s + 1, -1], ds.raster,
+                                cfg.setting, motion=motion, model="manc")
+        q_prev = (vagn.uniform_state(n_states)[None] if t == 0
+                  else traj.aux["q"][s:s + 1, t - 1])
+        ex = models.explain(params, obs, q_prev, cfg)
+        out.append({"step": t, "bev": obs["bev"][0], "q": ex["q"][0],
+                    "saliency": ex["saliency"][0]})
+    return out
+
+
+def plot_saliency_steps(params: dict, cfg: Any, traj: Any, ds: Any, scene: int,
+                        steps: Sequence[int]) -> Any:
+    """The paper's Fig. 3: per-q-state saliency overlays at a few steps of one scene.
+
+    One row per step: the BEV the policy saw, then one overlay per q-state
+    titled with its probability (:func:`minimanc.cam.plot_q_saliency`;
+    colours high → low: yellow, red, cyan, magenta).
+    """
+    plt = _plt()
+    from minimanc import cam
+
+    maps_ = saliency_maps(params, cfg, traj, ds, scene, steps)
+    N = maps_[0]["q"].shape[0]
+    fig, axes = plt.subplots(len(maps_), N + 1, figsize=(1.9 * (N + 1), 2.1 * len(maps_)),
+                             squeeze=False)
+    for row, m in zip(axes, maps_):
+        cam.plot_q_saliency(m["bev"], m["saliency"], m["q"], axes=row)
+        row[0].set_title(f"BEV, step {m['step']}", fontsize=9)
+        for ax in row[1:]:
+            ax.title.set_fontsize(8)
+    fig.suptitle(f"Per-q-state saliency, scene {int(scene)}", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _to_pixels(points_world: np.ndarray, pose: np.ndarray, cfg: Any) -> list[tuple[float, float]]:
+    from minimanc.world.geometry import to_ego_frame
+
+    p = to_ego_frame(np.asarray(points_world, dtype=np.float64), pose)
+    row = (cfg.metres_ahead - p[:, 0]) / cfg.res_row
+    col = (cfg.metres_side - p[:, 1]) / cfg.res_col
+    return list(zip(col.tolist(), row.tolist()))
+
+
+def gif_frames(traj: Any, human: Any, ds: Any, scene: int, size: int = 192) -> list[Any]:
+    """The frames of :func:`save_gif` as Pillow images (one per pose of the rollout)."""
+    from PIL import Image, ImageDraw
+
+    from minimanc import world
+    from minimanc.world.geometry import EGO_LENGTH, EGO_WIDTH, box_corners
+
+    s = _check_scene(traj, scene)
+    T = traj.ego.shape[1]
+    chase = world.RasterConfig(size=size, metres_ahead=50.0, metres_behind=30.0,
+                               metres_side=40.0)
+    has_q = "q" in traj.aux
+    qw = 24 * traj.aux["q"].shape[-1] + 16 if has_q else 0
+    pad = 18
+    frames = []
+    for t in range(T):
+        pose = traj.ego[s, t]
+        bev = _bev_at(traj, ds, s, t)
+        k = max(size // bev.shape[0], 1)
+        bev = np.repeat(np.repeat(bev, k, axis=0), k, axis=1)
+        view = world.rasterize(ds.maps[s], pose, ds.ado[s, t], ds.ado_valid[s, t], chase)
+        canvas = Image.new("RGB", (bev.shape[1] + size + qw + 12, size + pad), "white")
+        canvas.paste(Image.fromarray(bev), (0, pad))
+        right = Image.fromarray(view)
+        d = ImageDraw.Draw(right)
+        d.line(_to_pixels(human.ego[s, :, :2], pose, chase), fill=(255, 0, 255), width=1)
+        if t > 0:
+            d.line(_to_pixels(traj.ego[s, : t + 1, :2], pose, chase), fill=(255, 80, 0),
+                   width=2)
+        hb = box_corners(np.array([*human.ego[s, t], EGO_LENGTH, EGO_WIDTH]))
+        d.polygon(_to_pixels(hb, pose, chase), outline=(255, 0, 255))
+        canvas.paste(right, (bev.shape[1] + 6, pad))
+        d = ImageDraw.Draw(canvas)
+        d.text((2, 2), f"{_label(traj.name)}: BEV input", fill="black")
+        d.text((bev.shape[1] + 8, 2), f"scene {s}  t = {t * 0.5:4.1f} s  (human: magenta)",
+               fill="black")
+        if has_q:
+            q = traj.aux["q"][s, min(t, T - 2)]
+            x0 = bev.shape[1] + size + 14
+            d.text((x0, 2), "vAGN q", fill="black")
+            for i, v in enumerate(q):
+                h = int(round(float(v) * (size - 16)))
+                d.rectangle([x0 + 24 * i, pad + size - 14 - h, x0 + 24 * i + 18, pad + size - 14],
+                            fill=(31, 119, 180))
+                d.text((x0 + 24 * i + 3, pad + size - 12), f"q{i}", fill="black")
+        frames.append(canvas)
+    return frames
+
+
+def save_gif(traj: Any, human: Any, ds: Any, scene: int, path: str | Path,
+             fps: float = 4.0) -> Path:
+    """A closed-loop rollout of one scene as an animated GIF (Pillow, no matplotlib).
+
+    Left: the BEV the policy sees at each step (re-rasterised from its own
+    pose). Middle: a wider chase view around the policy's ego (the same
+    rasteriser, 80 × 80 m) with the human's path and box in magenta and the
+    policy's path so far in orange. Right (vAGN models): the q-distribution.
+    """
+    if not fps > 0:
+        raise ValueError(f"fps must be positive; got fps={fps!r}")
+    frames = gif_frames(traj, human, ds, scene)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    frames[0].save(path, save_all=True, append_images=frames[1:],
+                   duration=int(1000 / fps), loop=0)
+    return path
