@@ -144,10 +144,9 @@ def generate_scene(seed: int, index: int, cfg: RasterConfig, k_targets: int = K_
     ego32 = log.ego.astype(np.float32)
     ado32 = np.where(log.ado_valid[..., None], log.ado, 0.0).astype(np.float32)
     ego = ego32.astype(np.float64)
-    T = ego.shape[0]
     bev = rasterize_batch(m, ego, ado32.astype(np.float64), log.ado_valid, cfg)
     goal = goal_in_ego_frame(np.broadcast_to(ego[-1], ego.shape), ego)
-    lt = np.stack([lane_targets(m, ego[t], k_targets) for t in range(T)])
+    lt = lane_targets(m, ego, k_targets)
     return {
         "bev": bev,
         "ego": ego32,

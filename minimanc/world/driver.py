@@ -25,6 +25,7 @@ then draws the scene again from the next sub-seed.
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -36,12 +37,11 @@ from minimanc.world.geometry import (
     box_corners,
     boxes_overlap,
     project_to_polyline,
-    to_ego_frame,
     unicycle_step,
     wrap_angle,
 )
 from minimanc.world.maps import Map
-from minimanc.world.traffic import B_MAX, Path, Traffic, Vehicle, idm_acceleration
+from minimanc.world.traffic import B_MAX, Path, Traffic, Vehicle
 
 T_STEPS = 40
 """Steps per scene: 20 s at 2 Hz, as nuScenes."""
@@ -119,37 +119,46 @@ class HumanDriver:
         """
         st, dt, rng = self.style, self.dt, self.rng
         # wandering desired speed and lateral offset (Ornstein-Uhlenbeck)
-        self.speed_factor += (-(self.speed_factor - 1.0) / 8.0) * dt + st.speed_sigma * np.sqrt(
-            2 * dt / 8.0) * rng.normal()
-        self.lat += -self.lat / st.lat_tau * dt + st.lat_sigma * np.sqrt(
-            2 * dt / st.lat_tau) * rng.normal()
-        self.lat = float(np.clip(self.lat, -0.55, 0.55))
+        n1, n2 = rng.normal(size=2)
+        self.speed_factor += (-(self.speed_factor - 1.0) / 8.0) * dt + st.speed_sigma * math.sqrt(
+            2 * dt / 8.0) * n1
+        self.lat += -self.lat / st.lat_tau * dt + st.lat_sigma * math.sqrt(
+            2 * dt / st.lat_tau) * n2
+        self.lat = _clip(self.lat, -0.55, 0.55)
         v = veh.v
-        v0 = min(st.v0 * self.speed_factor, v_curve)
-        a_cmd = float(idm_acceleration(v, v0, gap, v - v_lead, st.a_max, st.b, st.s0, st.T))
-        a_cmd = float(np.clip(a_cmd, -B_MAX, st.a_max))
+        v0 = max(min(st.v0 * self.speed_factor, v_curve), 1e-3)
+        # IDM (same formula as idm_acceleration, scalar)
+        s_star = st.s0 + max(0.0, v * st.T + v * (v - v_lead) / (2.0 * math.sqrt(st.a_max * st.b)))
+        a_cmd = st.a_max * (1.0 - (v / v0) ** 4 - (s_star / max(gap, 1e-2)) ** 2)
+        a_cmd = _clip(a_cmd, -B_MAX, st.a_max)
         self.a_hist.append(a_cmd)
         # reaction delay: the command issued `reaction` seconds ago (linear interpolation)
         k = len(self.a_hist) - 1 - st.reaction / dt
-        k0 = int(np.floor(k))
+        k0 = math.floor(k)
         f = k - k0
         h = self.a_hist
         a_del = h[max(k0, 0)] * (1 - f) + h[max(min(k0 + 1, len(h) - 1), 0)] * f
         a = a_del if a_cmd >= -1.5 else min(a_cmd, a_del)  # reflex for hard braking
         if a_cmd > -3.0:  # bounded jerk unless braking hard
-            a = float(np.clip(a, self.a_prev - st.jerk * dt, self.a_prev + st.jerk * dt))
-        v_new = float(np.clip(v + a * dt, 0.0, 22.0))
+            a = _clip(a, self.a_prev - st.jerk * dt, self.a_prev + st.jerk * dt)
+        v_new = _clip(v + a * dt, 0.0, 22.0)
         if v_new < 0.05:
             v_new = 0.0
         self.a_prev = (v_new - v) / dt
         # pure pursuit towards the route, offset by the lateral wander
-        ld = float(np.clip(st.lookahead * (0.75 * max(v_new, v) + 4.0), 4.5, 20.0))
-        target, h_t = path.pose(veh.s + ld)
-        target = target + self.lat * np.array([-np.sin(h_t), np.cos(h_t)])
-        tx, ty = to_ego_frame(target, pose)
-        kappa = float(np.clip(2.0 * ty / max(tx * tx + ty * ty, 1e-6), -0.25, 0.25))
-        omega = float(np.clip(v_new * kappa, -1.2, 1.2))
+        ld = _clip(st.lookahead * (0.75 * max(v_new, v) + 4.0), 4.5, 20.0)
+        (px, py), h_t = path.pose(veh.s + ld)
+        px, py = px - self.lat * math.sin(h_t), py + self.lat * math.cos(h_t)
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        dx, dy = px - pose[0], py - pose[1]
+        tx, ty = c * dx + s * dy, -s * dx + c * dy
+        kappa = _clip(2.0 * ty / max(tx * tx + ty * ty, 1e-6), -0.25, 0.25)
+        omega = _clip(v_new * kappa, -1.2, 1.2)
         return v_new, omega, self.a_prev
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    return float(min(max(x, lo), hi))
 
 
 def project_on_path(path: Path, s_prev: float, pose: np.ndarray) -> float:

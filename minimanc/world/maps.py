@@ -36,7 +36,6 @@ from minimanc.world.geometry import (
     arclength,
     headings,
     interp_polyline,
-    project_to_polyline,
     resample,
     to_ego_frame,
     wrap_angle,
@@ -736,28 +735,43 @@ def class_grid(m: Map, res: float) -> tuple[np.ndarray, np.ndarray, float]:
 # --------------------------------------------------------------------------- route queries
 
 
-def project_to_route(m: Map, xy: np.ndarray, yaw: float | None = None) -> tuple[float, float]:
-    """Arc length and signed lateral offset of a world point on the route.
+def project_to_route(m: Map, xy: np.ndarray, yaw: np.ndarray | float | None = None):
+    """Arc length and signed lateral offset of world point(s) ``xy (..., 2)`` on the route.
 
-    The nearest point on the route's segments; if ``yaw`` is given, parts of
+    The nearest point on the route's segments. If ``yaw`` is given, parts of
     the route heading more than 90 degrees away from it are ignored (so a
     route passing near itself is not confused), unless nothing else is left.
+    Returns ``(s, lateral)`` with the shape of ``xy[..., 0]`` (floats for one point).
     """
-    xy = np.asarray(xy, dtype=np.float64).reshape(1, 2)
-    if yaw is None:
-        s, lat = project_to_polyline(m.route_points, m.route_s, xy)
-        return float(s[0]), float(lat[0])
+    q = np.asarray(xy, dtype=np.float64)
+    single = q.ndim == 1
+    q = q.reshape(-1, 2)
     p, rs, rh = m.route_points, m.route_s, m.route_heads
-    ok = np.cos(wrap_angle(rh[:-1] - yaw)) > 0.0
-    d2 = np.sum((p[:-1] - xy) ** 2, axis=1)
-    if not ok.any():
-        s, lat = project_to_polyline(p, rs, xy)
+    a, d = p[:-1], p[1:] - p[:-1]
+    d2 = (q[:, None, 0] - a[None, :, 0]) ** 2 + (q[:, None, 1] - a[None, :, 1]) ** 2
+    if yaw is not None:
+        y = np.broadcast_to(np.asarray(yaw, dtype=np.float64).reshape(-1), (len(q),))
+        ok = np.cos(rh[None, :-1] - y[:, None]) > 0.0
+        ok[~ok.any(axis=1)] = True
+        d2 = np.where(ok, d2, np.inf)
+    k = np.argmin(d2, axis=1)
+    # exact projection on the segments around the nearest vertex
+    seg = np.clip(k[:, None] + np.arange(-3, 4)[None, :], 0, len(a) - 1)  # (Q, 7)
+    A, D = a[seg], d[seg]
+    L2 = np.maximum(np.sum(D * D, axis=-1), 1e-12)
+    rel = q[:, None, :] - A
+    tt = np.clip(np.sum(rel * D, axis=-1) / L2, 0.0, 1.0)
+    foot = A + tt[..., None] * D
+    dist2 = np.sum((q[:, None, :] - foot) ** 2, axis=-1)
+    j = np.argmin(dist2, axis=1)
+    rows = np.arange(len(q))
+    sg = seg[rows, j]
+    s = rs[sg] + tt[rows, j] * np.sqrt(L2[rows, j])
+    cross = D[rows, j, 0] * rel[rows, j, 1] - D[rows, j, 1] * rel[rows, j, 0]
+    lat = np.sign(cross) * np.sqrt(dist2[rows, j])
+    if single:
         return float(s[0]), float(lat[0])
-    # restrict to a window around the best vertex among direction-consistent segments
-    k = int(np.argmin(np.where(ok, d2, np.inf)))
-    lo, hi = max(k - 3, 0), min(k + 4, len(p))
-    s, lat = project_to_polyline(p[lo:hi], rs[lo:hi], xy)
-    return float(s[0]), float(lat[0])
+    return s.reshape(np.shape(xy)[:-1]), lat.reshape(np.shape(xy)[:-1])
 
 
 def lane_targets(
@@ -768,16 +782,19 @@ def lane_targets(
     From the ego's *own* position (never the human's time index — that would
     leak the human's speed): project the ego on the route, then take the
     points at ``s_ego + spacing * (1, 2, ..., k)``. Past the route's end the
-    centreline is extended straight. Returns ``(k, 2)`` float64.
+    centreline is extended straight. ``ego_pose`` is ``(3,)`` or a batch
+    ``(N, 3)``; returns ``(k, 2)`` or ``(N, k, 2)`` float64.
     """
     pose = np.asarray(ego_pose, dtype=np.float64)
-    if pose.shape != (3,):
-        raise ValueError(f"ego_pose must have shape (3,), got {pose.shape}")
+    if pose.ndim not in (1, 2) or pose.shape[-1] != 3 or not np.all(np.isfinite(pose)):
+        raise ValueError(f"ego_pose must be finite with shape (3,) or (N, 3), got {pose.shape}")
     if int(k) < 1:
         raise ValueError(f"k must be >= 1, got {k!r}")
     if not spacing > 0:
         raise ValueError(f"spacing must be positive, got {spacing!r}")
-    s, _ = project_to_route(m, pose[:2], float(pose[2]))
-    sq = s + spacing * np.arange(1, int(k) + 1)
+    P = pose.reshape(-1, 3)
+    s, _ = project_to_route(m, P[:, :2], P[:, 2])
+    sq = s[:, None] + spacing * np.arange(1, int(k) + 1)[None, :]
     pts, _ = m.route_pose(sq)
-    return to_ego_frame(pts, pose)
+    out = to_ego_frame(pts, P[:, None, :])
+    return out[0] if pose.ndim == 1 else out

@@ -205,6 +205,96 @@ def _check_pose(ego_pose: np.ndarray) -> np.ndarray:
     return pose
 
 
+def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
+            valid: np.ndarray | None, cfg: RasterConfig, draw_ego: bool) -> np.ndarray:
+    """Render S frames at once (checked inputs): see :func:`rasterize_batch`."""
+    S = poses.shape[0]
+    size = cfg.size
+    X, Y = _pixel_centres(cfg)
+    cos, sin = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    img = np.empty((S, size, size, 3), dtype=np.uint8)
+    lut = _class_lut(cfg)
+    groups: dict[int, tuple[Map, list[int]]] = {}
+    for i, m in enumerate(maps):
+        groups.setdefault(id(m), (m, []))[1].append(i)
+    for m, idx_list in groups.values():
+        idx = np.array(idx_list)
+        # static map: pixel centres -> world -> class grid (edge cells of the grid are
+        # empty, so clipping out-of-map pixels onto the edge gives the background)
+        grid, origin, gres = class_grid(m, cfg.grid_res())
+        gh, gw = grid.shape
+        c = (cos[idx] / gres)[:, None, None]
+        s = (sin[idx] / gres)[:, None, None]
+        gx = c * X - s * Y + ((poses[idx, 0] - origin[0]) / gres)[:, None, None]
+        gy = s * X + c * Y + ((poses[idx, 1] - origin[1]) / gres)[:, None, None]
+        ix = np.clip(np.floor(gx), 0, gw - 1).astype(np.intp)
+        iy = np.clip(np.floor(gy), 0, gh - 1).astype(np.intp)
+        img[idx] = np.take(lut, np.take(grid, iy * gw + ix), axis=0)
+        # lanes: dense centreline samples scattered into the image, coloured by relative yaw
+        if cfg.draw_lanes:
+            samples = m.lane_samples(float(cfg.resolution / 2.0))
+            # query square around the centre of the view
+            mid = (cfg.metres_ahead - cfg.metres_behind) / 2.0
+            reach = max(cfg.metres_ahead + cfg.metres_behind, 2 * cfg.metres_side) / 2.0 + 1.0
+            fs, rows, cols, qs = [], [], [], []
+            for i in idx_list:
+                centre = poses[i, :2] + mid * np.array([cos[i], sin[i]])
+                lp, lh = samples.near(centre, reach)
+                dx, dy = lp[:, 0] - poses[i, 0], lp[:, 1] - poses[i, 1]
+                ex = cos[i] * dx + sin[i] * dy
+                ey = -sin[i] * dx + cos[i] * dy
+                rows.append(np.floor((cfg.metres_ahead - ex) / cfg.res_row))
+                cols.append(np.floor((cfg.metres_side - ey) / cfg.res_col))
+                # colour look-up by relative yaw (0.18 degree bins, within 1 unit of
+                # hue_colours)
+                qs.append(np.floor(np.mod(poses[i, 2] - lh, 2 * np.pi)
+                                   * (_N_HUE / (2 * np.pi))))
+                fs.append(np.full(len(lp), i))
+            f = np.concatenate(fs)
+            row = np.concatenate(rows).astype(np.intp)
+            col = np.concatenate(cols).astype(np.intp)
+            colours = _HUE_LUT[np.minimum(np.concatenate(qs).astype(np.intp), _N_HUE - 1)]
+            thick = max(int(round(cfg.lane_width_m / cfg.resolution)), 1)
+            lo = -(thick // 2)
+            for dr in range(lo, lo + thick):
+                for dc in range(lo, lo + thick):
+                    r, cc = row + dr, col + dc
+                    ok = (r >= 0) & (r < size) & (cc >= 0) & (cc < size)
+                    img[f[ok], r[ok], cc[ok]] = colours[ok]
+    # ado boxes: every (frame, box) tested on a square crop of pixels around the box
+    if ado is not None:
+        fb, kb = np.nonzero(valid)
+        b = ado[fb, kb]
+        dx, dy = b[:, 0] - poses[fb, 0], b[:, 1] - poses[fb, 1]
+        bx = cos[fb] * dx + sin[fb] * dy
+        by = -sin[fb] * dx + cos[fb] * dy
+        half = np.hypot(b[:, 3], b[:, 4]) / 2
+        vis = ((bx - half < cfg.metres_ahead) & (bx + half > -cfg.metres_behind)
+               & (np.abs(by) - half < cfg.metres_side))
+        fb, b, bx, by, half = fb[vis], b[vis], bx[vis], by[vis], half[vis]
+        if len(fb):
+            byaw = b[:, 2] - poses[fb, 2]
+            K = int(np.ceil(half.max() / cfg.resolution)) + 1
+            off = np.arange(-K, K + 1)
+            rc = np.floor((cfg.metres_ahead - bx) / cfg.res_row).astype(np.intp)
+            cc = np.floor((cfg.metres_side - by) / cfg.res_col).astype(np.intp)
+            rr = rc[:, None, None] + off[None, :, None] + 0 * off[None, None, :]
+            ca = cc[:, None, None] + 0 * off[None, :, None] + off[None, None, :]
+            ok = (rr >= 0) & (rr < size) & (ca >= 0) & (ca < size)
+            rcl, ccl = np.clip(rr, 0, size - 1), np.clip(ca, 0, size - 1)
+            px = X[rcl, ccl] - bx[:, None, None]
+            py = Y[rcl, ccl] - by[:, None, None]
+            c, s = np.cos(byaw)[:, None, None], np.sin(byaw)[:, None, None]
+            u = c * px + s * py
+            v = -s * px + c * py
+            ok &= (np.abs(u) <= b[:, 3, None, None] / 2) & (np.abs(v) <= b[:, 4, None, None] / 2)
+            ff = np.broadcast_to(fb[:, None, None], ok.shape)
+            img[ff[ok], rr[ok], ca[ok]] = VEHICLE
+    if draw_ego:
+        img[:, _ego_mask(cfg)] = EGO
+    return img
+
+
 def rasterize(
     m: Map,
     ego_pose: np.ndarray,
@@ -221,61 +311,15 @@ def rasterize(
     """
     cfg = cfg or RasterConfig()
     pose = _check_pose(ego_pose)
-    X, Y = _pixel_centres(cfg)
-    c, s = np.cos(pose[2]), np.sin(pose[2])
-    # static map: pixel centres -> world -> class grid (edge cells of the grid are empty,
-    # so clipping out-of-map pixels onto the edge gives the background)
-    grid, origin, gres = class_grid(m, cfg.grid_res())
-    gh, gw = grid.shape
-    gx = (c / gres) * X - (s / gres) * Y + (pose[0] - origin[0]) / gres
-    gy = (s / gres) * X + (c / gres) * Y + (pose[1] - origin[1]) / gres
-    ix = np.clip(np.floor(gx), 0, gw - 1).astype(np.intp)
-    iy = np.clip(np.floor(gy), 0, gh - 1).astype(np.intp)
-    cls = np.take(grid, iy * gw + ix)
-    img = np.take(_class_lut(cfg), cls, axis=0)
-    # lanes: dense centreline samples scattered into the image, coloured by relative yaw
-    if cfg.draw_lanes:
-        spacing = float(min(0.25, cfg.resolution / 2.0))
-        reach = np.hypot(max(cfg.metres_ahead, cfg.metres_behind), cfg.metres_side) + 1.0
-        lp, lh = m.lane_samples(spacing).near(pose[:2], reach)
-        dx, dy = lp[:, 0] - pose[0], lp[:, 1] - pose[1]
-        row = np.floor((cfg.metres_ahead - (c * dx + s * dy)) / cfg.res_row).astype(np.int64)
-        col = np.floor((cfg.metres_side - (-s * dx + c * dy)) / cfg.res_col).astype(np.int64)
-        thick = max(int(round(cfg.lane_width_m / cfg.resolution)), 1)
-        lo = -(thick // 2)
-        # colour look-up by relative yaw (0.18 degree bins, within 1 unit of hue_colours)
-        q = np.floor(np.mod(pose[2] - lh, 2 * np.pi) * (_N_HUE / (2 * np.pi))).astype(np.int64)
-        colours = _HUE_LUT[np.minimum(q, _N_HUE - 1)]
-        for dr in range(lo, lo + thick):
-            for dc in range(lo, lo + thick):
-                r, cc = row + dr, col + dc
-                ok = (r >= 0) & (r < cfg.size) & (cc >= 0) & (cc < cfg.size)
-                img[r[ok], cc[ok]] = colours[ok]
-    # ado boxes: each tested only on the pixels of its bounding square
+    a, v = None, None
     if ado is not None:
         a = np.asarray(ado, dtype=np.float64).reshape(-1, 5)
-        valid = (np.ones(len(a), bool) if ado_valid is None
-                 else np.asarray(ado_valid, dtype=bool).reshape(-1))
-        if valid.shape[0] != a.shape[0]:
-            raise ValueError(f"ado_valid must have {a.shape[0]} entries, got {valid.shape[0]}")
-        a = a[valid]
-        if len(a):
-            dx, dy = a[:, 0] - pose[0], a[:, 1] - pose[1]
-            rel = np.stack([c * dx + s * dy, -s * dx + c * dy, a[:, 2] - pose[2],
-                            a[:, 3], a[:, 4]], axis=1)
-            half = np.hypot(a[:, 3], a[:, 4]) / 2
-            r0 = np.floor((cfg.metres_ahead - rel[:, 0] - half) / cfg.res_row).astype(int)
-            r1 = np.ceil((cfg.metres_ahead - rel[:, 0] + half) / cfg.res_row).astype(int)
-            c0 = np.floor((cfg.metres_side - rel[:, 1] - half) / cfg.res_col).astype(int)
-            c1 = np.ceil((cfg.metres_side - rel[:, 1] + half) / cfg.res_col).astype(int)
-            r0, c0 = np.maximum(r0, 0), np.maximum(c0, 0)
-            r1, c1 = np.minimum(r1, cfg.size), np.minimum(c1, cfg.size)
-            for k in np.nonzero((r1 > r0) & (c1 > c0))[0]:
-                sl = (slice(r0[k], r1[k]), slice(c0[k], c1[k]))
-                img[sl][box_mask(X[sl], Y[sl], rel[k])] = VEHICLE
-    if draw_ego:
-        img[_ego_mask(cfg)] = EGO
-    return img
+        v = (np.ones(len(a), bool) if ado_valid is None
+             else np.asarray(ado_valid, dtype=bool).reshape(-1))
+        if v.shape[0] != a.shape[0]:
+            raise ValueError(f"ado_valid must have {a.shape[0]} entries, got {v.shape[0]}")
+        a, v = a[None], v[None]
+    return _render([m], pose[None], a, v, cfg, draw_ego)[0]
 
 
 def rasterize_batch(
@@ -284,29 +328,32 @@ def rasterize_batch(
     ado: np.ndarray | None = None,
     ado_valid: np.ndarray | None = None,
     cfg: RasterConfig | None = None,
+    draw_ego: bool = True,
 ) -> np.ndarray:
     """Rasterise S frames: ``ego_poses (S, 3)``, ``ado (S, A, 5)``, ``ado_valid (S, A)``.
 
     ``maps`` is one map per frame, or a single map for all. Returns uint8
-    ``(S, H, W, 3)``.
+    ``(S, H, W, 3)``; frames are rendered together (vectorised over frames).
     """
     cfg = cfg or RasterConfig()
     poses = np.asarray(ego_poses, dtype=np.float64)
-    if poses.ndim != 2 or poses.shape[1] != 3:
-        raise ValueError(f"ego_poses must have shape (S, 3), got {poses.shape}")
+    if poses.ndim != 2 or poses.shape[1] != 3 or not np.all(np.isfinite(poses)):
+        raise ValueError(f"ego_poses must be finite with shape (S, 3), got {poses.shape}")
     S = poses.shape[0]
     if isinstance(maps, Map):
         maps = [maps] * S
     if len(maps) != S:
         raise ValueError(f"maps must have {S} entries, got {len(maps)}")
-    out = np.empty((S,) + cfg.shape, dtype=np.uint8)
-    for i in range(S):
-        out[i] = rasterize(
-            maps[i], poses[i],
-            None if ado is None else ado[i],
-            None if ado_valid is None else ado_valid[i], cfg,
-        )
-    return out
+    a, v = None, None
+    if ado is not None:
+        a = np.asarray(ado, dtype=np.float64)
+        if a.ndim != 3 or a.shape[0] != S or a.shape[2] != 5:
+            raise ValueError(f"ado must have shape ({S}, A, 5), got {a.shape}")
+        v = (np.ones(a.shape[:2], bool) if ado_valid is None
+             else np.asarray(ado_valid, dtype=bool))
+        if v.shape != a.shape[:2]:
+            raise ValueError(f"ado_valid must have shape {a.shape[:2]}, got {v.shape}")
+    return _render(list(maps), poses, a, v, cfg, draw_ego)
 
 
 def rasterize_goal(m: Map, goal_pose: np.ndarray, cfg: RasterConfig | None = None) -> np.ndarray:

@@ -34,6 +34,7 @@ change lanes when a few metres ahead of it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -87,8 +88,28 @@ def earliest_arrival(d: float, v: float, v0: float, a: float) -> float:
     t_acc = (v0 - v) / a
     d_acc = v * t_acc + 0.5 * a * t_acc**2
     if d <= d_acc:
-        return float((-v + np.sqrt(v * v + 2 * a * d)) / a)
-    return float(t_acc + (d - d_acc) / v0)
+        return (-v + math.sqrt(v * v + 2 * a * d)) / a
+    return t_acc + (d - d_acc) / v0
+
+
+def _lane_kappa(lane) -> np.ndarray:
+    """Smoothed curvature of a lane centreline (cached on the lane)."""
+    k = getattr(lane, "_kappa", None)
+    if k is None:
+        hu = np.unwrap(lane.heads)
+        ds = np.maximum(np.gradient(lane.s), 1e-6) if len(lane.s) > 1 else np.ones(1)
+        k = np.gradient(hu) / ds if len(hu) > 1 else np.zeros(1)
+        k = np.convolve(np.pad(k, 2, mode="edge"), np.ones(5) / 5, mode="valid")
+        lane._kappa = k
+    return k
+
+
+def _joined(m: Map, ids: list[int], j: int) -> bool:
+    """Whether lane ``ids[j]`` starts where ``ids[j - 1]`` ends (its first point is shared)."""
+    if j == 0:
+        return False
+    a, b = m.lanes[ids[j - 1]], m.lanes[ids[j]]
+    return bool(np.linalg.norm(b.points[0] - a.points[-1]) < 1e-6)
 
 
 @dataclass
@@ -106,10 +127,8 @@ class Path:
     @classmethod
     def from_lanes(cls, m: Map, ids: list[int]) -> Path:
         p, h, s, starts = concat_lanes(m.lanes, ids)
-        hu = np.unwrap(h)
-        ds = np.maximum(np.gradient(s), 1e-6)
-        k = np.gradient(hu) / ds
-        k = np.convolve(np.pad(k, 2, mode="edge"), np.ones(5) / 5, mode="valid")
+        k = np.concatenate([_lane_kappa(m.lanes[i])[1 if j else 0:] if _joined(m, ids, j)
+                            else _lane_kappa(m.lanes[i]) for j, i in enumerate(ids)])
         jl = [(lid, float(st)) for lid, st in zip(ids, starts) if m.lanes[lid].junction >= 0]
         return cls(list(ids), p, h, s, starts, k, jl)
 
@@ -120,11 +139,13 @@ class Path:
     def pose(self, s: float) -> tuple[np.ndarray, float]:
         """Position and heading at arc length ``s`` (clamped to the path)."""
         s = min(max(s, 0.0), self.length)
-        i = int(np.clip(np.searchsorted(self.s, s) - 1, 0, len(self.s) - 2))
+        i = min(max(int(np.searchsorted(self.s, s)) - 1, 0), len(self.s) - 2)
         f = (s - self.s[i]) / max(self.s[i + 1] - self.s[i], 1e-9)
         xy = self.points[i] + f * (self.points[i + 1] - self.points[i])
-        dh = wrap_angle(self.heads[i + 1] - self.heads[i])
-        return xy, float(wrap_angle(self.heads[i] + f * dh))
+        h0 = float(self.heads[i])
+        dh = (float(self.heads[i + 1]) - h0 + math.pi) % (2 * math.pi) - math.pi
+        h = (h0 + f * dh + math.pi) % (2 * math.pi) - math.pi
+        return xy, h
 
     def window(self, s0: float, s1: float) -> slice:
         i0 = max(int(np.searchsorted(self.s, s0)) - 1, 0)
@@ -337,6 +358,7 @@ class Traffic:
         self.sources = [ln.id for ln in m.lanes if ln.kind == "road" and not ln.predecessors]
         self.cut_in_done = False
         self.grid = -1.0 + WIN_SPACING * np.arange(WIN_POINTS)
+        self._brake_dist = np.maximum(self.grid - 2.0, 0.0)[None, :]
 
     def path(self, veh: Vehicle) -> Path:
         return self.bank.paths[veh.pid]
@@ -373,18 +395,22 @@ class Traffic:
             return
         pid = np.array([v.pid for v in vehicles])
         s = np.array([v.s for v in vehicles])
+        off = np.array([v.offset for v in vehicles])
+        rate = np.array([v.offset_rate for v in vehicles])
+        speed = np.maximum(np.array([v.v for v in vehicles]), 1.0)
         xy, h, _ = self.bank.query(pid, s)
-        for veh, p, hh in zip(vehicles, xy, h):
-            if veh.offset != 0.0:
-                p = p + veh.offset * np.array([-np.sin(hh), np.cos(hh)])
+        xy = xy + off[:, None] * np.stack([-np.sin(h), np.cos(h)], axis=1)
+        yaw = wrap_angle(h + np.arctan2(rate, speed))
+        for veh, p, y in zip(vehicles, xy, yaw.tolist()):
             veh.xy = p
-            veh.yaw = float(wrap_angle(hh + np.arctan2(veh.offset_rate, max(veh.v, 1.0))))
+            veh.yaw = y
 
     def clear_of(self, xy: np.ndarray, radius: float) -> bool:
-        for veh in self.vehicles:
-            if veh.active and np.hypot(*(veh.xy - xy)) < radius:
-                return False
-        return True
+        pts = [v.xy for v in self.vehicles if v.active]
+        if not pts:
+            return True
+        d = np.asarray(pts) - xy
+        return bool(np.all(d[:, 0] ** 2 + d[:, 1] ** 2 >= radius * radius))
 
     def populate(self, ego_xy: np.ndarray, ego_keepout: float) -> None:
         """Place ados along the road lanes at the scene's density (not on junction lanes).
@@ -437,36 +463,47 @@ class Traffic:
         yield) and ``v0`` (desired speed limited by the curves ahead).
         """
         vs = self.vehicles
-        boxes, speeds, active = self.snapshot()
-        pid = np.array([v.pid for v in vs])
-        s = np.array([v.s for v in vs])
-        L = np.array([v.length for v in vs])
-        W = np.array([v.width for v in vs])
-        off = np.array([v.offset for v in vs])
+        n = len(vs)
+        act = [i for i, v in enumerate(vs) if v.active]
+        sub = [vs[i] for i in act]
+        boxes = np.array([v.box for v in sub])
+        speeds = np.array([v.v for v in sub])
+        pid = np.array([v.pid for v in sub])
+        s = np.array([v.s for v in sub])
+        L = np.array([v.length for v in sub])
+        W = np.array([v.width for v in sub])
+        off = np.array([v.offset for v in sub])
         sq = s[:, None] + self.grid[None, :]
         win, wh, wk = self.bank.query(pid[:, None], sq)
         if np.any(off != 0.0):
             win = win + off[:, None, None] * np.stack([-np.sin(wh), np.cos(wh)], axis=-1)
         look = 25.0 + 3.5 * speeds
         ok = self.grid[None, :] <= look[:, None]
-        gap, vl, who = corridor_leaders(win, wh, sq, ok, s, L, W, boxes, speeds, active,
-                                        WIN_SPACING)
+        g, vl_, who_ = corridor_leaders(win, wh, sq, ok, s, L, W, boxes, speeds,
+                                        np.ones(len(sub), bool), WIN_SPACING)
+        act_arr = np.array(act)
+        gap = np.full(n, np.inf)
+        vl = np.zeros(n)
+        who = np.full(n, -1)
+        gap[act_arr], vl[act_arr] = g, vl_
+        who[act_arr] = np.where(who_ >= 0, act_arr[np.maximum(who_, 0)], -1)
         kind = np.where(who >= 0, 1, 0)
         # junction conflicts (only for vehicles near a junction)
         windows = [self.junction_window(v) if v.active else [] for v in vs]
-        for i in range(len(vs)):
-            if windows[i] and vs[i].active:
-                cg, cj = self.conflict_stop(i, windows)
+        near = [i for i in act if windows[i]]
+        for i in near:
+            if len(near) > 1:
+                cg, cj = self.conflict_stop(i, windows, near)
                 if cg < gap[i]:
                     gap[i], vl[i], who[i], kind[i] = cg, 0.0, cj, 2
         # desired speed limited by the curvature ahead (braking-feasible)
-        a_lat = np.array([v.a_lat for v in vs])[:, None]
-        b = np.array([v.b for v in vs])[:, None]
+        a_lat = np.array([v.a_lat for v in sub])[:, None]
+        b = np.array([v.b for v in sub])[:, None]
+        vlim2 = a_lat / np.maximum(wk, 1e-4)
+        env = np.where(self.grid[None, :] >= 0.0, vlim2 + 2.0 * b * self._brake_dist, np.inf)
+        v_curve = np.full(n, np.inf)
+        v_curve[act_arr] = np.sqrt(env.min(axis=1))
         v0 = np.array([v.v0 for v in vs])
-        vlim = np.sqrt(a_lat / np.maximum(wk, 1e-4))
-        dist = np.maximum(self.grid[None, :] - 2.0, 0.0)
-        env = np.where(self.grid[None, :] >= 0.0, np.sqrt(vlim**2 + 2.0 * b * dist), np.inf)
-        v_curve = env.min(axis=1)
         return {"gap": gap, "v_lead": vl, "who": who, "kind": kind,
                 "v0": np.minimum(v0, v_curve), "v_curve": v_curve}
 
@@ -479,19 +516,27 @@ class Traffic:
         """Junction lanes of ``veh``'s path it has not cleared, within its horizon."""
         horizon = 20.0 + 4.0 * veh.v
         rear = veh.s - veh.length / 2
+        path = self.path(veh)
+        if not path.junction_lanes or veh.s + horizon < path.junction_lanes[0][1]:
+            return []
         out = []
-        for lid, st in self.path(veh).junction_lanes:
+        for lid, st in path.junction_lanes:
             if st + self.m.lanes[lid].length > rear and st < veh.s + horizon:
                 out.append((lid, st))
         return out
 
-    def conflict_stop(self, i: int, windows: list) -> tuple[float, int]:
-        """Distance from vehicle ``i``'s front to the nearest conflict where it must yield."""
+    def conflict_stop(self, i: int, windows: list, near: list[int]) -> tuple[float, int]:
+        """Distance from vehicle ``i``'s front to the nearest conflict where it must yield.
+
+        ``windows[j]`` are the junction lanes ahead of vehicle ``j``; ``near`` the
+        active vehicles that have any.
+        """
         me = self.vehicles[i]
         best, who = np.inf, -1
-        for j, other in enumerate(self.vehicles):
-            if j == i or not other.active or not windows[j]:
+        for j in near:
+            if j == i:
                 continue
+            other = self.vehicles[j]
             for la, sa in windows[i]:
                 for lb, sb in windows[j]:
                     c = self.m.conflicts.get((la, lb))
