@@ -171,8 +171,10 @@ def multiply(p: Any, q: Any, xp: Any = np) -> Any:
 
     As rotations, ``p * q`` applies ``q`` first, then ``p``.
     """
-    p = _check_last("p", p, 4)
-    q = _check_last("q", q, 4)
+    return _multiply(_check_last("p", p, 4), _check_last("q", q, 4), xp)
+
+
+def _multiply(p: Any, q: Any, xp: Any) -> Any:
     w1, x1, y1, z1 = _parts(p)
     w2, x2, y2, z2 = _parts(q)
     return xp.stack(
@@ -188,7 +190,10 @@ def multiply(p: Any, q: Any, xp: Any = np) -> Any:
 
 def conjugate(q: Any, xp: Any = np) -> Any:
     """``q̄ = v − u`` (the inverse of a unit quaternion)."""
-    q = _check_last("q", q, 4)
+    return _conjugate(_check_last("q", q, 4), xp)
+
+
+def _conjugate(q: Any, xp: Any) -> Any:
     w, x, y, z = _parts(q)
     return xp.stack([w, -x, -y, -z], axis=-1)
 
@@ -244,7 +249,10 @@ def exp(omega: Any, xp: Any = np) -> Any:
     module notes). Uses the series ``1 − ‖ω‖²/2`` and ``1 − ‖ω‖²/6`` at ω = 0
     so the gradient there is finite (``∂q/∂ω = [0; I]``).
     """
-    omega = _check_last("omega", omega, 3)
+    return _exp(_check_last("omega", omega, 3), xp)
+
+
+def _exp(omega: Any, xp: Any) -> Any:
     n2 = xp.sum(omega * omega, axis=-1)
     small = n2 < _SMALL2
     theta = xp.sqrt(xp.where(small, 1.0, n2))
@@ -273,7 +281,7 @@ def integrate(q: Any, eta: Any, dt: Any, tau: Any = 1.0, xp: Any = np) -> Any:
 
 
 def _integrate(q: Any, eta: Any, h: Any, xp: Any) -> Any:
-    return _unit(multiply(exp((0.5 * h) * eta, xp=xp), q, xp=xp), xp)
+    return _unit(_multiply(_exp((0.5 * h) * eta, xp), q, xp), xp)
 
 
 def _shortest(r: Any, xp: Any) -> Any:
@@ -293,7 +301,11 @@ def orientation_error(g: Any, q: Any, xp: Any = np) -> Any:
     """
     g = _unit(_check_unit("g", g), xp)
     q = _unit(_check_unit("q", q), xp)
-    return 2.0 * _log(_shortest(multiply(g, conjugate(q, xp), xp), xp), xp)
+    return _error(g, q, xp)
+
+
+def _error(g: Any, q: Any, xp: Any) -> Any:
+    return 2.0 * _log(_shortest(_multiply(g, _conjugate(q, xp), xp), xp), xp)
 
 
 # --------------------------------------------------------------------------- conversions
@@ -388,7 +400,7 @@ _Q_METHODS = ("euler", "semi_implicit")
 
 
 def _q_substep(q, eta, g_q, alpha, beta, h, method, xp):
-    err = 2.0 * _log(_shortest(multiply(g_q, conjugate(q, xp), xp), xp), xp)
+    err = _error(g_q, q, xp)
     deta = alpha * (beta * err - eta)
     if method == "euler":
         return _integrate(q, eta, h, xp), eta + h * deta
@@ -434,6 +446,10 @@ def quaternion_step(
     q = _unit(_check_unit("q", q), xp)
     g_q = _unit(_check_unit("g_q", g_q), xp)
     eta = _check_last("eta", eta, 3)
+    return _q_step(q, eta, g_q, alpha, beta, dt, method, substeps, xp)
+
+
+def _q_step(q, eta, g_q, alpha, beta, dt, method, substeps, xp):
     h = dt / substeps
     q_next, eta_next = q, eta
     for _ in range(substeps):
@@ -470,7 +486,7 @@ def quaternion_rollout(
         raise ValueError(f"per_step entries must be 'g_q', 'alpha' or 'beta', got {unknown!r}")
     q = _unit(_check_unit("q0", q0), xp)
     eta = _check_last("eta0", eta0, 3)
-    g_q = _check_unit("g_q", g_q)
+    g_q = _unit(_check_unit("g_q", g_q), xp)
     for name, value in (("alpha", alpha), ("beta", beta)):
         dmp._maybe_check_finite(name, value)
     g_q = dmp._per_step("g_q", g_q, steps, "g_q" in per_step)
@@ -481,7 +497,7 @@ def quaternion_rollout(
         g_k = g_q[k] if "g_q" in per_step else g_q
         a_k = alpha[k] if "alpha" in per_step else alpha
         b_k = beta[k] if "beta" in per_step else beta
-        q, eta, deta = quaternion_step(q, eta, g_k, a_k, b_k, dt, method, substeps, xp=xp)
+        q, eta, deta = _q_step(q, eta, g_k, a_k, b_k, dt, method, substeps, xp)
         qs.append(q)
         etas.append(eta)
         detas.append(deta)
