@@ -93,3 +93,23 @@ def test_bad_recipe_raises():
         world.build_map({"kind": "spaghetti"})
     with pytest.raises(ValueError, match="kind"):
         world.random_recipe(np.random.default_rng(0), kind="spaghetti")
+
+
+def test_explicit_recipe_builds_the_given_geometry():
+    recipe = {"kind": "explicit", "map_kind": "straight", "start_s": 5.0,
+              "lanes": [{"points": [[0.0, 0.0], [100.0, 0.0]], "width": 3.5,
+                         "successors": [1]},
+                        {"points": [[100.0, 0.0], [100.0, 50.0]], "width": 3.5}],
+              "strips": [{"lane": 0, "half_width": 2.0}, {"lane": 1, "half_width": 2.0}],
+              "route": [0, 1]}
+    m = world.build_map(recipe)
+    assert m.kind == "straight" and m.key.startswith("x-") and m.start_s == 5.0
+    assert m.lanes[1].predecessors == [0]
+    assert m.route_s[-1] == pytest.approx(150.0)
+    assert m.is_drivable(np.array([[50.0, 1.5], [100.0, 30.0]])).all()
+    assert not m.is_drivable(np.array([[50.0, 3.0]])).any()
+    again = world.build_map(json.loads(json.dumps(recipe)))
+    assert again.key == m.key
+    with pytest.raises(ValueError, match="recipe"):
+        world.build_map({"kind": "explicit", "lanes": [{"points": [[0, 0]], "width": 3}],
+                         "route": [0]})

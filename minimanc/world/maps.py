@@ -636,10 +636,85 @@ def concat_lanes(
     return rp, np.concatenate(hds), rs, rs[np.array(first)]
 
 
+EXPLICIT_KIND = "explicit"
+"""Recipe kind of a map given by its geometry (e.g. taken from another simulator)."""
+
+
+def _explicit_map(recipe: dict) -> Map:
+    """A :class:`Map` from an *explicit* recipe: the geometry itself, as JSON-able numbers.
+
+    ::
+
+        {"kind": "explicit", "map_kind": "roundabout" | "intersection" | "straight" | ...,
+         "lanes": [{"points": [[x, y], ...], "width": w, "kind": "road"|"connector"|"ring",
+                    "successors": [ids], "left": id | -1, "right": id | -1,
+                    "junction": -1, "turn": ""}, ...],
+         "strips": [{"lane": id, "half_width": hw} | {"points": [...], "half_width": hw}],
+         "polygons": [[[x, y], ...]], "walkways": [{"points": ..., "half_width": hw}],
+         "crossings": [[[x, y] x 4]], "discs": [[cx, cy, r, class]],
+         "route": [lane ids], "start_s": s0}
+
+    Lanes are resampled every 1 m with headings from the polyline; the key
+    hashes the geometry only (the format of :func:`minimanc.highway.explicit_map`).
+    """
+    lanes: list[Lane] = []
+    for i, spec in enumerate(recipe["lanes"]):
+        raw = np.asarray(spec["points"], dtype=np.float64)
+        if raw.ndim != 2 or raw.shape[1] != 2 or len(raw) < 2:
+            raise ValueError(f"recipe lane {i}: points must be (N >= 2, 2), got {raw.shape}")
+        pts = resample(raw, 1.0)
+        lanes.append(Lane(
+            i, pts, wrap_angle(headings(pts)), arclength(pts), str(spec.get("kind", "road")),
+            float(spec["width"]), successors=[int(j) for j in spec.get("successors", [])],
+            junction=int(spec.get("junction", -1)), left=int(spec.get("left", -1)),
+            right=int(spec.get("right", -1)), turn=str(spec.get("turn", "")),
+        ))
+    for ln in lanes:
+        for j in ln.successors:
+            lanes[j].predecessors.append(ln.id)
+
+    def strip(spec: dict) -> tuple[np.ndarray, float]:
+        pts = (lanes[int(spec["lane"])].points if "lane" in spec
+               else np.asarray(spec["points"], dtype=np.float64))
+        return pts, float(spec["half_width"])
+
+    strips = [strip(sp) for sp in recipe.get("strips", [])]
+    walkways = [strip(sp) for sp in recipe.get("walkways", [])]
+    polygons = [np.asarray(p, dtype=np.float64) for p in recipe.get("polygons", [])]
+    crossings = [np.asarray(p, dtype=np.float64) for p in recipe.get("crossings", [])]
+    discs = [(float(d[0]), float(d[1]), float(d[2]), int(d[3])) for d in recipe.get("discs", [])]
+    route = [int(r) for r in recipe["route"]]
+    rp, rh, rs, _ = concat_lanes(lanes, route)
+    allp = np.concatenate([ln.points for ln in lanes] + [p for p, _ in walkways] + polygons)
+    margin = 12.0
+    bounds = (float(allp[:, 0].min() - margin), float(allp[:, 1].min() - margin),
+              float(allp[:, 0].max() + margin), float(allp[:, 1].max() + margin))
+    geometry = {k: recipe.get(k, []) for k in ("lanes", "strips", "polygons", "walkways",
+                                                "crossings", "discs")}
+    key = hashlib.sha256(json.dumps(geometry, sort_keys=True).encode()).hexdigest()[:16]
+    return Map(
+        recipe=recipe, kind=str(recipe.get("map_kind", "straight")), lanes=lanes,
+        strips=strips, polygons=polygons, discs=discs, walkways=walkways, crossings=crossings,
+        route=route, route_points=rp, route_heads=rh, route_s=rs,
+        start_s=float(recipe.get("start_s", 0.0)), conflicts=_conflicts(lanes),
+        bounds=bounds, key="x-" + key,
+    )
+
+
 def build_map(recipe: dict) -> Map:
-    """Build the :class:`Map` described by ``recipe`` (deterministic)."""
+    """Build the :class:`Map` described by ``recipe`` (deterministic).
+
+    ``recipe["kind"]`` is one of :data:`KINDS` (procedural, from
+    :func:`random_recipe`) or ``"explicit"`` (geometry given as numbers).
+    """
+    if isinstance(recipe, dict) and recipe.get("kind") == EXPLICIT_KIND:
+        try:
+            return _explicit_map(recipe)
+        except (KeyError, TypeError, IndexError) as e:
+            raise ValueError(f"recipe: invalid explicit map: {e!r}") from e
     if not isinstance(recipe, dict) or recipe.get("kind") not in KINDS:
-        raise ValueError(f"recipe must be a dict with kind in {KINDS}, got {recipe!r:.200}")
+        raise ValueError(f"recipe must be a dict with kind in {KINDS + (EXPLICIT_KIND,)}, "
+                         f"got {recipe!r:.200}")
     b = _Builder()
     kind = recipe["kind"]
     if kind in ("straight", "curved"):
