@@ -41,6 +41,7 @@ __all__ = [
     "defvjp_fwd",
     "unbroadcast",
     "backward",
+    "toposort",
     "grad",
     "value_and_grad",
     "tree_flatten",
@@ -206,21 +207,31 @@ def unbroadcast(target, g: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------
 # The backward pass
 # ---------------------------------------------------------------------------
-def toposort(end: Box) -> list[Box]:
-    """Boxes reachable from ``end``, each before its parents (iterative DFS)."""
-    order: list[Box] = []
+def _box_parents(box: Box) -> list[Box]:
+    return [parent for _, parent in box._parents]
+
+
+def toposort(end, parents_of: Callable[[Any], Sequence] | None = None) -> list:
+    """Nodes reachable from ``end``, each before its parents (iterative DFS).
+
+    ``parents_of(node)`` lists a node's parents (default: a :class:`Box`'s). An
+    explicit stack replaces recursion, so a chain of 10,000 operations is fine;
+    the order depends only on the graph, never on memory addresses.
+    """
+    parents_of = parents_of or _box_parents
+    order: list = []
     seen: dict[int, bool] = {}
-    stack: list[tuple[Box, bool]] = [(end, False)]
+    stack: list[tuple[Any, bool]] = [(end, False)]
     while stack:
-        box, children_done = stack.pop()
-        if children_done:
+        box, parents_done = stack.pop()
+        if parents_done:  # all its parents are in `order`: post-order
             order.append(box)
             continue
         if id(box) in seen:
             continue
         seen[id(box)] = True
         stack.append((box, True))
-        for _, parent in reversed(box._parents):
+        for parent in reversed(parents_of(box)):
             if id(parent) not in seen:
                 stack.append((parent, False))
     order.reverse()  # post-order reversed: every box comes before its parents
