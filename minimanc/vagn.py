@@ -343,43 +343,50 @@ def plot_automaton(
         _, ax = plt.subplots(figsize=(4, 4))
     angles = np.pi / 2 - 2 * np.pi * np.arange(N) / N
     pos = np.stack([np.cos(angles), np.sin(angles)], axis=1)
-    r_node = 0.22 if N <= 6 else 0.14
+    r_node = 0.27 if N <= 6 else 0.16
+    rad = 0.2  # curvature of the arcs, so that i → j and j → i do not overlap
     cmap = plt.get_cmap("Blues")
+    text_box = {"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85}
     for j in range(N):
         for i in range(N):
             w = T[i, j]
             if w < min_prob:
                 continue
             if i == j:
-                out = pos[i] / np.linalg.norm(pos[i])
+                out = pos[i] / np.linalg.norm(pos[i]) if N > 1 else np.array([0.0, 1.0])
                 centre = pos[i] + out * (r_node + 0.12)
                 ax.add_patch(
                     Circle(centre, 0.12, fill=False, lw=max(max_width * w, 0.3), color="0.3")
                 )
                 if show_probs:
-                    ax.text(*(centre + out * 0.2), f"{w:.2f}", ha="center", va="center",
-                            fontsize=8)
+                    ax.text(*(centre + out * 0.24), f"{w:.2f}", ha="center", va="center",
+                            fontsize=7, bbox=text_box)
                 continue
             d = pos[i] - pos[j]
-            u = d / np.linalg.norm(d)
+            dist = np.linalg.norm(d)
+            u = d / dist
             start, end = pos[j] + u * r_node, pos[i] - u * r_node
             ax.add_patch(
                 FancyArrowPatch(start, end, arrowstyle="-|>", mutation_scale=12,
-                                connectionstyle="arc3,rad=0.18",
+                                connectionstyle=f"arc3,rad={rad}",
                                 lw=max(max_width * w, 0.3), color="0.3")
             )
             if show_probs:
-                normal = np.array([u[1], -u[0]])  # right of j→i: arc3 bends that way
-                mid = (start + end) / 2 + normal * 0.17
-                ax.text(*mid, f"{w:.2f}", ha="center", va="center", fontsize=8)
+                # arc3 bends towards (u_y, -u_x); the curve's midpoint sits rad·|d|/2
+                # away; the label goes just beyond it, clear of a thick arrow
+                normal = np.array([u[1], -u[0]])
+                off = rad * np.linalg.norm(end - start) / 2 + 0.06 + 0.012 * max_width * w
+                mid = (start + end) / 2 + normal * off
+                ax.text(*mid, f"{w:.2f}", ha="center", va="center", fontsize=7, bbox=text_box)
     for i in range(N):
         face = cmap(0.15 + 0.8 * q[i]) if q is not None else "white"
         ax.add_patch(Circle(pos[i], r_node, facecolor=face, edgecolor="black", zorder=3))
         dark = q is not None and q[i] > 0.55
-        ax.text(*pos[i], labels[i], ha="center", va="center", zorder=4,
+        ax.text(*pos[i], labels[i], ha="center", va="center", zorder=4, fontsize=9,
                 color="white" if dark else "black")
-    ax.set_xlim(-1.6, 1.6)
-    ax.set_ylim(-1.6, 1.6)
+    lo, hi = pos.min(axis=0) - 0.75, pos.max(axis=0) + 0.75
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
     ax.axis("off")
     return ax
