@@ -70,8 +70,6 @@ except ImportError as exc:  # pragma: no cover - exercised with a monkeypatched 
     ) from exc
 
 import dataclasses
-import hashlib
-import json
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -82,16 +80,15 @@ import numpy as np
 
 from minimanc.world.geometry import (
     DT,
-    arclength,
     goal_in_ego_frame,
-    headings,
-    resample,
     wrap_angle,
 )
 from minimanc.world.maps import (
+    EXPLICIT_KIND,
     K_TARGETS,
     Lane,
     Map,
+    build_map,
     concat_lanes,
     lane_targets,
     project_to_route,
@@ -118,6 +115,7 @@ __all__ = [
     "ActionAdapter",
     "EXPERT_SPEEDS",
     "EVAL_SEED",
+    "ExpertVehicle",
     "install_expert",
     "Episode",
     "run_episode",
@@ -409,79 +407,18 @@ def _route_fields(lanes: list[Lane], route: list[int]) -> dict:
             "route_s": rs}
 
 
-EXPLICIT_KIND = "explicit"
-"""Recipe kind of a map given by its geometry (see :func:`explicit_map`)."""
-
-
 def explicit_map(recipe: dict) -> Map:
-    """Build a :class:`Map` from an *explicit* recipe: geometry given as numbers, not drawn.
+    """The :class:`Map` of an explicit recipe (:func:`map_recipe`), via :func:`world.build_map`.
 
-    The chapter-7 recipes describe procedural maps; a map taken from another
-    simulator needs its geometry itself. An explicit recipe is a JSON-able
-    dict::
-
-        {"kind": "explicit",
-         "map_kind": "roundabout" | "intersection" | "straight" | "curved",
-         "lanes": [{"points": [[x, y], ...], "width": w, "kind": "road"|"connector"|"ring",
-                    "successors": [ids], "left": id | -1, "right": id | -1,
-                    "junction": -1, "turn": ""}, ...],
-         "strips": [{"lane": id, "half_width": hw} | {"points": [...], "half_width": hw}],
-         "polygons": [[[x, y], ...]], "walkways": [{"points": ..., "half_width": hw}],
-         "crossings": [[[x, y] x 4]], "discs": [[cx, cy, r, class]],
-         "route": [lane ids], "start_s": s0, "source": {...}}
-
-    Lane points may be sparse (two points for a straight lane): each lane is
-    resampled every 1 m (:func:`minimanc.world.geometry.resample`) with
-    headings from the polyline, exactly like the procedural builder's lanes;
-    predecessors follow from the successors; ``bounds`` get the builder's
-    12 m margin. ``key`` hashes the geometry only, so maps with the same roads
-    share the rasteriser's caches. ``source`` is free-form provenance.
+    Explicit recipes carry the geometry itself (lane polylines and widths,
+    drivable strips, the route as lane ids) as JSON-able numbers, which is
+    what lets :func:`minimanc.world.load` rebuild the maps of highway-env
+    demonstrations without highway-env (see :mod:`minimanc.world.maps`).
     """
     if not isinstance(recipe, dict) or recipe.get("kind") != EXPLICIT_KIND:
         raise ValueError(f"recipe must be a dict with kind={EXPLICIT_KIND!r}, "
                          f"got {str(recipe)[:200]}")
-    lanes: list[Lane] = []
-    for i, spec in enumerate(recipe["lanes"]):
-        raw = np.asarray(spec["points"], dtype=np.float64)
-        if raw.ndim != 2 or raw.shape[1] != 2 or len(raw) < 2:
-            raise ValueError(f"recipe lane {i}: points must be (N >= 2, 2), got {raw.shape}")
-        pts = resample(raw, 1.0)
-        lanes.append(Lane(
-            i, pts, wrap_angle(headings(pts)), arclength(pts), str(spec.get("kind", "road")),
-            float(spec["width"]), successors=[int(j) for j in spec.get("successors", [])],
-            junction=int(spec.get("junction", -1)), left=int(spec.get("left", -1)),
-            right=int(spec.get("right", -1)), turn=str(spec.get("turn", "")),
-        ))
-    for ln in lanes:
-        for j in ln.successors:
-            lanes[j].predecessors.append(ln.id)
-
-    def strip(spec: dict) -> tuple[np.ndarray, float]:
-        pts = (lanes[int(spec["lane"])].points if "lane" in spec
-               else np.asarray(spec["points"], dtype=np.float64))
-        return pts, float(spec["half_width"])
-
-    strips = [strip(sp) for sp in recipe.get("strips", [])]
-    walkways = [strip(sp) for sp in recipe.get("walkways", [])]
-    polygons = [np.asarray(p, dtype=np.float64) for p in recipe.get("polygons", [])]
-    crossings = [np.asarray(p, dtype=np.float64) for p in recipe.get("crossings", [])]
-    discs = [(float(d[0]), float(d[1]), float(d[2]), int(d[3])) for d in recipe.get("discs", [])]
-    route = [int(r) for r in recipe["route"]]
-    rf = _route_fields(lanes, route)
-    allp = np.concatenate([ln.points for ln in lanes] + [p for p, _ in walkways] + polygons)
-    margin = 12.0
-    bounds = (float(allp[:, 0].min() - margin), float(allp[:, 1].min() - margin),
-              float(allp[:, 0].max() + margin), float(allp[:, 1].max() + margin))
-    geometry = {k: recipe.get(k, []) for k in ("lanes", "strips", "polygons", "walkways",
-                                                "crossings", "discs")}
-    key = hashlib.sha256(json.dumps(geometry, sort_keys=True).encode()).hexdigest()[:16]
-    return Map(
-        recipe=recipe, kind=str(recipe.get("map_kind", "straight")), lanes=lanes,
-        strips=strips, polygons=polygons, discs=discs, walkways=walkways, crossings=crossings,
-        route=rf["route"], route_points=rf["route_points"], route_heads=rf["route_heads"],
-        route_s=rf["route_s"], start_s=float(recipe.get("start_s", 0.0)), conflicts={},
-        bounds=bounds, key="x-" + key,
-    )
+    return build_map(recipe)
 
 
 def _round(a: np.ndarray) -> list:
@@ -756,13 +693,88 @@ EXPERT_SPEEDS = {"roundabout": (8.0, 12.0), "intersection": (7.0, 10.0),
 """Range of the expert's desired speed per scenario (m/s), drawn per episode (driving style)."""
 
 
+class ExpertVehicle(IDMVehicle):
+    """highway-env's IDM/MOBIL vehicle that also yields before merging into a roundabout.
+
+    highway-env's IDM follows only the leader in its lane, so at a roundabout
+    entry it drives into circulating traffic (about 40 % of episodes end in a
+    crash). Gap acceptance: while approaching the first ring lane of its route
+    (a ``CircularLane``), for every other vehicle on the ring heading towards
+    the merge point, compare arrival times ``t = distance / speed``; if the
+    other arrives within ``[t_ego - YIELD_AFTER, t_ego + YIELD_BEFORE]`` s, the
+    expert brakes as IDM would for a stopped leader at the merge point. Else
+    it is highway-env's ``IDMVehicle`` unchanged.
+    """
+
+    YIELD_BEFORE = 3.0
+    YIELD_AFTER = 1.5
+    MERGE_RADIUS = 40.0
+    substep: float = 1.0 / SIMULATION_FREQUENCY
+    """Integration step of the env (s): braking never reverses the car within one sub-step."""
+
+    def act(self, action: Any = None) -> None:
+        super().act(action)
+        if self.crashed:
+            return
+        self._yield()
+        # IDM's braking term can exceed the speed left: stop at 0 instead of reversing
+        self.action["acceleration"] = float(max(self.action["acceleration"],
+                                                -max(self.speed, 0.0) / self.substep))
+
+    def _yield(self) -> None:
+        if not self.route:
+            return
+        merge = self._merge_point()
+        if merge is None:
+            return
+        d = float(np.linalg.norm(merge - self.position))
+        if d > self.MERGE_RADIUS or d < 0.5:
+            return
+        t_ego = d / max(self.speed, 1.0)
+        for v in self.road.vehicles:
+            if v is self or not isinstance(getattr(v, "lane", None), CircularLane):
+                continue
+            to_merge = merge - v.position
+            dist = float(np.linalg.norm(to_merge))
+            if dist > self.MERGE_RADIUS or np.dot(v.velocity, to_merge) <= 0:
+                continue
+            t_other = dist / max(v.speed, 0.1)
+            if t_ego - self.YIELD_AFTER <= t_other <= t_ego + self.YIELD_BEFORE:
+                stop = self._idm_to_stop(d - 1.0)
+                self.action["acceleration"] = float(np.clip(
+                    min(self.action["acceleration"], stop), -self.ACC_MAX, self.ACC_MAX))
+                return
+
+    def _merge_point(self) -> np.ndarray | None:
+        """Start of the first ring lane ahead on the route, if the ego is not on the ring yet."""
+        if isinstance(self.lane, CircularLane):
+            return None
+        net = self.road.network
+        for a, b, k in self.route:
+            group = net.graph[a][b]
+            lane = group[k if k is not None and k < len(group) else 0]
+            if isinstance(lane, CircularLane):
+                starts = [ln.position(0.0, 0.0) for ln in group]
+                return min(starts, key=lambda p: float(np.linalg.norm(p - self.position)))
+        return None
+
+    def _idm_to_stop(self, gap: float) -> float:
+        """IDM acceleration behind a stopped leader ``gap`` m ahead."""
+        v = max(self.speed, 0.0)
+        ab = -self.COMFORT_ACC_MAX * self.COMFORT_ACC_MIN
+        s_star = self.DISTANCE_WANTED + v * self.TIME_WANTED + v * v / (2.0 * np.sqrt(ab))
+        free = 1.0 - (v / max(self.target_speed, 0.1)) ** self.DELTA
+        return float(self.COMFORT_ACC_MAX * (free - (s_star / max(gap, 0.1)) ** 2))
+
+
 def install_expert(env, target_speed: float | None = None) -> IDMVehicle:
-    """Replace the ego by highway-env's IDM/MOBIL vehicle (same state) that follows the route.
+    """Replace the ego by the expert (:class:`ExpertVehicle`: IDM/MOBIL, same state) on the route.
 
     Longitudinal: IDM car following towards ``target_speed`` (default: the
-    ego's current speed); lateral: highway-env's lane-keeping controller and
-    MOBIL lane changes; at junctions the route to the env's destination. The
-    expert is the env's ``vehicle``; step it with ``env.step(None)``.
+    ego's current speed), yielding at roundabout entries; lateral:
+    highway-env's lane-keeping controller and MOBIL lane changes; at junctions
+    the route to the env's destination; it brakes to a stop, never backwards.
+    The expert is the env's ``vehicle``; step it with ``env.step(None)``.
     """
     u = env.unwrapped
     ego = u.vehicle
@@ -770,11 +782,12 @@ def install_expert(env, target_speed: float | None = None) -> IDMVehicle:
     start = tuple(ego.lane_index)
     edges = _route_edges(net, start, getattr(u, "destination", None))
     route = [start] + [(a, b, None) for a, b in edges[1:]]
-    expert = IDMVehicle(
+    expert = ExpertVehicle(
         u.road, np.array(ego.position, dtype=np.float64), heading=float(ego.heading),
         speed=float(ego.speed), target_lane_index=start,
         target_speed=float(ego.speed if target_speed is None else target_speed), route=route,
     )
+    expert.substep = 1.0 / u.config["simulation_frequency"]
     i = next(j for j, v in enumerate(u.road.vehicles) if v is ego)
     u.road.vehicles[i] = expert
     u.vehicle = expert
