@@ -34,6 +34,7 @@ def plot_map(m: Map, ax=None, ego: np.ndarray | None = None, ado: np.ndarray | N
 
     if ax is None:
         _, ax = plt.subplots(figsize=(6, 6))
+    ax.set_facecolor("black")
     grid, origin, r = class_grid(m, res)
     cmap = ListedColormap([(0, 0, 0), (1, 1, 1), (119 / 255, 136 / 255, 153 / 255), (0, 0, 1)])
     ext = [origin[0], origin[0] + grid.shape[1] * r, origin[1], origin[1] + grid.shape[0] * r]
