@@ -116,6 +116,8 @@ BINARY = {
     "minimum": (lambda xp, x, y: xp.minimum(x, y), (-2, 2), (-2, 2)),
     "arctan2": (lambda xp, x, y: xp.arctan2(x, y), (-2, 2), (0.5, 2)),
     "where": (lambda xp, x, y: xp.where(x > 0, x * 2, y**2), (-2, 2), (-2, 2)),
+    "remainder": (lambda xp, x, y: x % y + xp.mod(y, 0.7), (-3, 3), (0.6, 1.5)),
+    "logaddexp": (lambda xp, x, y: xp.logaddexp(x, y), (-3, 3), (-3, 3)),
 }
 
 
@@ -527,6 +529,9 @@ def test_value_and_grad_has_aux_and_unused_arguments():
     np.testing.assert_array_equal(gy, np.zeros((2, 2)))
     with pytest.raises(ValueError, match="argnums"):
         grad(lambda x: x, argnums=3)(1.0)
+    with pytest.raises(ValueError, match="argnums=.*twice"):
+        grad(lambda x, y: x * y, argnums=(1, -1))(1.0, 2.0)
+    assert grad(lambda x, y: x * y, argnums=-1)(3.0, 2.0) == 3.0
 
 
 def test_determinism_bit_identical():

@@ -369,14 +369,15 @@ def value_and_grad(
 
     @functools.wraps(fun)
     def wrapped(*args, **kwargs):
-        for n in nums:
-            if not -len(args) <= n < len(args):
-                raise ValueError(
-                    f"argnums={argnums!r} but the function was called with {len(args)} "
-                    "positional arguments"
-                )
+        if not all(-len(args) <= n < len(args) for n in nums):
+            raise ValueError(
+                f"argnums={argnums!r} but the function was called with {len(args)} "
+                "positional arguments"
+            )
+        if len({n % len(args) for n in nums}) != len(nums):
+            raise ValueError(f"argnums={argnums!r} names the same argument twice")
         args = list(args)
-        per_arg = []  # (argnum, leaf boxes, rebuild, original leaves)
+        per_arg = []  # (leaf boxes, rebuild, original leaves) for each argnum
         for n in nums:
             leaves, paths, rebuild = tree_flatten(args[n])
             arrays = [_check_leaf(leaf, n, p) for leaf, p in zip(leaves, paths)]

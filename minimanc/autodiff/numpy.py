@@ -100,6 +100,22 @@ square = primitive(np.square)
 defvjp(square, lambda g, ans, x: g * 2 * x)
 
 
+remainder = primitive(np.remainder)  # x % y: d/dx = 1, d/dy = -floor(x / y), as in JAX
+defvjp(
+    remainder,
+    lambda g, ans, x, y: unbroadcast(x, g),
+    lambda g, ans, x, y: unbroadcast(y, -g * np.floor_divide(x, y)),
+)
+mod = remainder
+
+logaddexp = primitive(np.logaddexp)  # log(e^x + e^y), without overflow
+defvjp(
+    logaddexp,
+    lambda g, ans, x, y: unbroadcast(x, g * np.exp(x - ans)),
+    lambda g, ans, x, y: unbroadcast(y, g * np.exp(y - ans)),
+)
+
+
 def _balanced(first, second, g):
     """Weight 1 where ``first`` wins, 1/2 on ties, 0 elsewhere (JAX's convention)."""
     w = np.where(first > second, 1.0, np.where(first == second, 0.5, 0.0))
@@ -297,7 +313,7 @@ def _einsum_parse(subscripts: str, shapes) -> tuple[list[str], str]:
     return terms, out
 
 
-def _einsum_fn(subscripts, *operands):
+def _einsum_fn(subscripts, *operands, optimize=None):
     if not isinstance(subscripts, str):
         raise ValueError("einsum: only the subscripts-string form einsum('ij,jk->ik', a, b)")
     return _einsum_np(subscripts, *operands)
@@ -307,7 +323,7 @@ _einsum_fn.__name__ = "einsum"
 einsum = primitive(_einsum_fn)
 
 
-def _einsum_vjp(k: int, g, subscripts: str, *operands):
+def _einsum_vjp(k: int, g, subscripts: str, *operands, optimize=None):
     """Cotangent of operand ``k``: contract ``g`` with all the other operands."""
     terms, out = _einsum_parse(subscripts, [np.shape(o) for o in operands])
     target = terms[k]
@@ -328,7 +344,7 @@ def _einsum_vjp(k: int, g, subscripts: str, *operands):
 defvjp(
     einsum,
     None,
-    *[lambda g, ans, s, *ops, k=k: _einsum_vjp(k, g, s, *ops) for k in range(len(_LETTERS))],
+    *[lambda g, ans, s, *ops, k=k, **kw: _einsum_vjp(k, g, s, *ops) for k in range(len(_LETTERS))],
 )
 
 
@@ -684,6 +700,7 @@ zeros, ones, full, eye, identity = (_nondiff(f) for f in (np.zeros, np.ones, np.
 zeros_like, ones_like, full_like = (_nondiff(f) for f in (np.zeros_like, np.ones_like,
                                                           np.full_like))
 arange, linspace = _nondiff(np.arange), _nondiff(np.linspace)
+floor_divide = _nondiff(np.floor_divide)
 sign, floor, ceil, round = (_nondiff(f) for f in (np.sign, np.floor, np.ceil, np.round))  # noqa: A001
 isfinite, isnan, isinf = _nondiff(np.isfinite), _nondiff(np.isnan), _nondiff(np.isinf)
 all, any = _nondiff(np.all), _nondiff(np.any)  # noqa: A001
@@ -740,6 +757,8 @@ _BOX_METHODS = {
     "__truediv__": _method(divide), "__rtruediv__": _reflected(divide),
     "__pow__": _method(power), "__rpow__": _reflected(power),
     "__matmul__": _method(matmul), "__rmatmul__": _reflected(matmul),
+    "__mod__": _method(remainder), "__rmod__": _reflected(remainder),
+    "__floordiv__": _method(floor_divide), "__rfloordiv__": _reflected(floor_divide),
     "__neg__": _method(negative), "__pos__": lambda self: self, "__abs__": _method(abs),
     "__getitem__": _box_getitem, "__len__": _box_len, "__iter__": _box_iter,
     "__lt__": _comparison(np.less), "__le__": _comparison(np.less_equal),
