@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import vagn
+from minimanc import layers, vagn
 
 __all__ = [
     "PAPER_CMAP",
@@ -80,17 +80,6 @@ PAPER_CMAP = _paper_cmap()
 # ---------------------------------------------------------------------------
 # parameters
 # ---------------------------------------------------------------------------
-def _init_conv(rng: np.random.Generator, k: int, c_in: int, c_out: int) -> dict:
-    # He-normal for ReLU layers, HWIO kernel, zero bias.
-    std = np.sqrt(2.0 / (k * k * c_in))
-    return {"w": std * rng.standard_normal((k, k, c_in, c_out)), "b": np.zeros(c_out)}
-
-
-def _init_dense(rng: np.random.Generator, n_in: int, n_out: int) -> dict:
-    std = np.sqrt(1.0 / n_in)
-    return {"w": std * rng.standard_normal((n_in, n_out)), "b": np.zeros(n_out)}
-
-
 def init_extractor(
     rng: np.random.Generator,
     in_channels: int = 3,
@@ -102,7 +91,8 @@ def init_extractor(
     """Parameters of eq. 7: ``{"convs": [{"w": HWIO, "b"}, …], "head": {"w": (K, M), "b": (M,)}}``.
 
     ``channels`` lists the output channels of each convolution; the last one
-    is ``K``, the number of feature maps that CAM combines.
+    is ``K``, the number of feature maps that CAM combines.  Convolutions are
+    He-normal and the head Glorot-uniform (:mod:`minimanc.layers`).
     """
     if not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng must be a numpy.random.Generator; got rng = {rng!r}")
@@ -113,20 +103,11 @@ def init_extractor(
     channels = tuple(channels)
     if len(channels) == 0 or any(int(c) != c or c < 1 for c in channels):
         raise ValueError(f"channels must be a non-empty list of positive integers; got {channels}")
-    convs, c_in = [], int(in_channels)
+    k, convs, c_in = int(kernel_size), [], int(in_channels)
     for c in channels:
-        convs.append(_init_conv(rng, int(kernel_size), c_in, int(c)))
+        convs.append(layers.init_conv(rng, k, k, c_in, int(c), dtype=dtype))
         c_in = int(c)
-    params = {"convs": convs, "head": _init_dense(rng, c_in, int(n_predicates))}
-    return _cast(params, dtype)
-
-
-def _cast(tree: Any, dtype: Any) -> Any:
-    if isinstance(tree, dict):
-        return {k: _cast(v, dtype) for k, v in tree.items()}
-    if isinstance(tree, (list, tuple)):
-        return type(tree)(_cast(v, dtype) for v in tree)
-    return np.asarray(tree, dtype=dtype)
+    return {"convs": convs, "head": layers.init_dense(rng, c_in, int(n_predicates), dtype=dtype)}
 
 
 # ---------------------------------------------------------------------------
@@ -183,8 +164,8 @@ def predicate_extractor(
     h = xp.asarray(images)
     for layer, s in zip(convs, strides):
         pad = layer["w"].shape[0] // 2 if padding is None else int(padding)
-        h = act(nn.conv2d(h, layer["w"], layer["b"], s, pad))
-    p = xp.matmul(global_average_pool(h, xp=xp), params["head"]["w"]) + params["head"]["b"]
+        h = act(layers.conv2d(layer, h, nn, stride=s, padding=pad))
+    p = layers.dense(params["head"], global_average_pool(h, xp=xp), xp=xp)
     return (p, h) if return_features else p
 
 
@@ -361,6 +342,7 @@ def explain(
     strides: Sequence[int] | None = None,
     activation: str = "relu",
     upsample_to_input: bool = True,
+    baseline_cams: Any = None,
 ) -> dict:
     """Everything behind one frame of the paper's execution traces, as NumPy arrays.
 
@@ -369,11 +351,26 @@ def explain(
     returns a dict with ``p`` (B, M), ``q`` (B, N), ``cams`` (B, M, H, W),
     ``jacobian`` (B, N, M) and ``saliency`` (B, N, H, W); maps are upsampled
     to the input size unless ``upsample_to_input`` is False.
+
+    ``baseline_cams`` (M, h, w) at feature resolution, e.g. the mean CAM over
+    the training images, is subtracted from the CAMs before the saliency is
+    formed.  CAMs are only defined up to a map that is the same in every
+    image: adding ``B_i(x, y)`` to ``M_i`` and ``−mean(B_i)`` to ``b_i`` gives
+    the same predictor.  Objects present in every image (the ego vehicle of a
+    BEV) can therefore carry arbitrary CAM mass; a data-set baseline removes it.
     """
     p, f = predicate_extractor(params, images, nn, xp=xp, return_features=True,
                                strides=strides, activation=activation)
     p, f = np.asarray(p), np.asarray(f)
     cams = class_activation_maps(f, np.asarray(params["head"]["w"]))
+    if baseline_cams is not None:
+        baseline_cams = np.asarray(baseline_cams, dtype=float)
+        if baseline_cams.shape != cams.shape[1:]:
+            raise ValueError(
+                f"baseline_cams must have shape {cams.shape[1:]} (M, h, w at feature "
+                f"resolution); got baseline_cams with shape {baseline_cams.shape}"
+            )
+        cams = cams - baseline_cams
     q = vagn.step(q_prev, p, W)
     J = vagn_jacobian(q_prev, p, W)
     S = q_state_saliency(cams, J)

@@ -144,11 +144,15 @@ def test_global_average_pool_matches_nn(eng):
 def test_grad_cam_equals_cam_after_relu_and_minmax(name):
     """Zhou/Selvaraju: for conv → GAP → linear, Grad-CAM = normalised ReLU(CAM)."""
     e = engine(name)
-    _, params, images, _ = _setup(seed=3, size=10)
+    rng, params, images, _ = _setup(seed=3, size=10)
+    w = rng.standard_normal(params["head"]["w"].shape)
+    params["head"]["w"] = w - w.mean(axis=0)  # features are >= 0: zero-mean weights give maps
+    #                                            of both signs, so ReLU matters
     p, f = cam.predicate_extractor(params, images, e.nn, e.xp, return_features=True)
     f = np.asarray(f)
     head = params["head"]
     maps = cam.class_activation_maps(f, head["w"])
+    mixed = 0
     for c in range(3):
         def score(feat, c=c):
             pc = e.xp.matmul(cam.global_average_pool(feat, xp=e.xp), head["w"]) + head["b"]
@@ -159,6 +163,8 @@ def test_grad_cam_equals_cam_after_relu_and_minmax(name):
         expected = cam.minmax_normalize(np.maximum(maps[:, c], 0))
         np.testing.assert_allclose(cam.minmax_normalize(gc), expected, atol=1e-10)
         assert np.ptp(expected) > 0  # a real map, not a constant
+        mixed += bool(np.any(maps[:, c] < 0) and np.any(maps[:, c] > 0))
+    assert mixed >= 1  # at least one map where the ReLU has something to cut
 
 
 # --------------------------------------------------------------------- upsample / normalise
@@ -263,6 +269,22 @@ def test_explain_bundles_a_frame():
     np.testing.assert_allclose(out["q"].sum(-1), 1.0)
     small = cam.explain(params, images, q_prev, W, engine("numpy").nn, upsample_to_input=False)
     np.testing.assert_allclose(out["saliency"], cam.upsample(small["saliency"], 12))
+
+
+def test_explain_baseline_is_subtracted_before_the_saliency():
+    _, params, images, W = _setup(seed=9)
+    q_prev = vagn.uniform_state(4)
+    nn = engine("numpy").nn
+    raw = cam.explain(params, images, q_prev, W, nn, upsample_to_input=False)
+    base = raw["cams"].mean(axis=0)
+    out = cam.explain(params, images, q_prev, W, nn, upsample_to_input=False,
+                      baseline_cams=base)
+    np.testing.assert_allclose(out["cams"], raw["cams"] - base)
+    np.testing.assert_allclose(out["saliency"], cam.q_state_saliency(raw["cams"] - base,
+                                                                     raw["jacobian"]))
+    np.testing.assert_allclose(out["p"], raw["p"])  # the prediction itself is untouched
+    with pytest.raises(ValueError, match="baseline_cams must have shape"):
+        cam.explain(params, images, q_prev, W, nn, baseline_cams=base[0])
 
 
 def test_q_state_saliency_bad_input():
