@@ -126,6 +126,7 @@ __all__ = [
     "ClosedLoopResult",
     "closed_loop",
     "expert_result",
+    "plain_policy",
     "render_frame",
     "save_png",
     "save_gif",
@@ -1279,6 +1280,34 @@ def closed_loop(
         bev=None if ep.bev is None else ep.bev[:T]) for ep in experts]
     name = getattr(policy, "model", None) or "policy"
     return ClosedLoopResult(scenario, str(name), episodes, cut, time.perf_counter() - t0)
+
+
+def plain_policy(policy: Any, goal: np.ndarray, cfg: RasterConfig | None = None) -> PolicyFn:
+    """Wrap a chapter-9 policy (e.g. :class:`minimanc.rollout.ModelPolicy`) as a
+    :data:`PolicyFn` for :func:`run_episode` / :func:`render_episode` (one ego).
+
+    Each call builds the observation with :func:`minimanc.inputs.from_state`
+    exactly as :func:`closed_loop` does (``goal`` a world pose, ``cfg`` the
+    raster of the model) and carries the policy's recurrent state.
+    """
+    from minimanc import inputs
+
+    cfg = cfg or RasterConfig()
+    g = np.asarray(goal, dtype=np.float64).reshape(1, 3)
+    k = getattr(getattr(policy, "cfg", None), "k_targets", K_TARGETS)
+    carry = {"state": policy.initial_state(np.arange(1))}
+
+    def drive(obs: dict) -> np.ndarray:
+        if obs["t"] == 0:
+            carry["state"] = policy.initial_state(np.arange(1))
+        o = inputs.from_state([obs["map"]], obs["pose"][None], obs["ado"][None],
+                              obs["ado_valid"][None], g, cfg, policy.setting,
+                              motion=np.asarray(obs["motion"], np.float32)[None],
+                              model=policy.model, k_targets=k)
+        u, carry["state"], _ = policy(o, carry["state"], int(obs["t"]), np.arange(1))
+        return np.asarray(u, dtype=np.float64)[0]
+
+    return drive
 
 
 def expert_result(scenario: str, experts: Sequence[Episode]) -> ClosedLoopResult:

@@ -121,27 +121,16 @@ def cmd_render(args: argparse.Namespace) -> int:
     if hw is None:
         return 2
     if args.checkpoint:
-        import numpy as np
-
-        from minimanc import inputs, world
+        from minimanc import world
 
         pol = _policy(args.checkpoint, args.engine)
         experts, _ = hw.expert_episodes(args.scenario, 1, seed=args.seed, steps=args.steps,
                                         record_bev=False)
         goal = experts[0].poses[args.steps - 1]
         cfg = world.RasterConfig(size=pol.cfg.image_size)
-        state = {"s": pol.initial_state(np.arange(1))}
-
-        def drive(obs: dict) -> Any:
-            o = inputs.from_state([obs["map"]], obs["pose"][None], obs["ado"][None],
-                                  obs["ado_valid"][None], goal[None], cfg, pol.setting,
-                                  motion=obs["motion"][None], model=pol.model,
-                                  k_targets=pol.cfg.k_targets)
-            u, state["s"], _ = pol(o, state["s"], obs["t"], np.arange(1))
-            return u[0]
-
-        paths = hw.render_episode(args.scenario, experts[0].seed, args.out, drive,
-                                  steps=args.steps, goal=goal, cfg=cfg)
+        paths = hw.render_episode(args.scenario, experts[0].seed, args.out,
+                                  hw.plain_policy(pol, goal, cfg), steps=args.steps, goal=goal,
+                                  cfg=cfg)
     else:
         paths = hw.render_episode(args.scenario, args.seed, args.out, "expert", steps=args.steps)
     n = sum(1 for k in paths if k.startswith("frame_"))
