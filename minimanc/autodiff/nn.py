@@ -45,7 +45,7 @@ from numbers import Integral
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
-from minimanc.autodiff.core import defvjp, defvjp_fwd, primitive
+from minimanc.autodiff.core import Box, defvjp, defvjp_fwd, primitive
 
 __all__ = [
     "relu",
@@ -241,9 +241,10 @@ def conv2d_output_size(size: int, kernel: int, stride: int = 1, padding: int = 0
 class _ConvResiduals:
     """What the backward pass needs; ``col`` is released to the pool after use."""
 
-    __slots__ = ("x", "w", "b_dtype", "stride", "padding", "col", "wmat", "dtype", "out_hw")
+    __slots__ = ("x", "w", "b_dtype", "stride", "padding", "col", "wmat", "dtype", "out_hw",
+                 "need_dx")
 
-    def __init__(self, x, w, b_dtype, stride, padding, col, wmat, dtype, out_hw):
+    def __init__(self, x, w, b_dtype, stride, padding, col, wmat, dtype, out_hw, need_dx=True):
         self.x = x
         self.w = w
         self.b_dtype = b_dtype
@@ -253,6 +254,7 @@ class _ConvResiduals:
         self.wmat = wmat
         self.dtype = dtype
         self.out_hw = out_hw
+        self.need_dx = need_dx
 
 
 def _conv_dtype(x: np.ndarray, w: np.ndarray, b) -> np.dtype:
@@ -294,7 +296,7 @@ def _im2col(x: np.ndarray, kh: int, kw: int, stride: int, padding: int, col: np.
     return ho, wo
 
 
-def _conv_fwd(x, w, b=None, stride=1, padding=0):
+def _conv_fwd(x, w, b=None, stride=1, padding=0, need_dx=True):
     x = np.asarray(x)
     w = np.asarray(w)
     if x.ndim != 4:
@@ -330,7 +332,7 @@ def _conv_fwd(x, w, b=None, stride=1, padding=0):
     out = np.empty((rows, co), dtype=dt)
     np.matmul(col, wmat, out=out)
     res = _ConvResiduals(x, w, None if b is None else b.dtype, stride, padding, col, wmat, dt,
-                         (ho, wo))
+                         (ho, wo), need_dx)
     return out.reshape(n, ho, wo, co), res
 
 
@@ -398,13 +400,15 @@ def _conv_bwd(g, res: _ConvResiduals):
     res.col = None
     gm = np.ascontiguousarray(np.reshape(g, (rows, co)), dtype=dt)
     dwmat = col.T @ gm  # (k [+1], co): the bias gradient is the last row
-    dcol = _lru_get(_dcol_cache, (rows, k, dt.str), lambda: np.empty((rows, k), dtype=dt))
-    np.matmul(gm, res.wmat[:k].T, out=dcol)
     _give_col(col, k, with_bias)
-    dx = _col2im(dcol, x.shape, kh, kw, res.stride, res.padding, ho, wo, dt)
+    dx = None  # not wanted when x is data (not traced): skips a GEMM and the col2im
+    if res.need_dx:
+        dcol = _lru_get(_dcol_cache, (rows, k, dt.str), lambda: np.empty((rows, k), dtype=dt))
+        np.matmul(gm, res.wmat[:k].T, out=dcol)
+        dx = _col2im(dcol, x.shape, kh, kw, res.stride, res.padding, ho, wo, dt)
+        if dx.dtype != x.dtype and np.issubdtype(x.dtype, np.floating):
+            dx = dx.astype(x.dtype)
     dw = dwmat[:k].reshape(kh, kw, c, co)
-    if dx.dtype != x.dtype and np.issubdtype(x.dtype, np.floating):
-        dx = dx.astype(x.dtype)
     if dw.dtype != w.dtype and np.issubdtype(w.dtype, np.floating):
         dw = dw.astype(w.dtype)
     if not with_bias:
@@ -415,30 +419,32 @@ def _conv_bwd(g, res: _ConvResiduals):
     return dx, dw, db
 
 
-def _conv_plain(x, w, b=None, stride=1, padding=0):
+def _conv_plain(x, w, b=None, stride=1, padding=0, need_dx=True):
     out, res = _conv_fwd(x, w, b, stride, padding)
     _give_col(res.col, res.wmat.shape[0] - (b is not None), b is not None)
     return out
 
 
 @primitive
-def _conv2d_b(x, w, b, stride=1, padding=0):
+def _conv2d_b(x, w, b, stride=1, padding=0, need_dx=True):
     return _conv_plain(x, w, b, stride, padding)
 
 
 @primitive
-def _conv2d_nob(x, w, stride=1, padding=0):
+def _conv2d_nob(x, w, stride=1, padding=0, need_dx=True):
     return _conv_plain(x, w, None, stride, padding)
 
 
 defvjp_fwd(
     _conv2d_b,
-    lambda x, w, b, stride=1, padding=0: _conv_fwd(x, w, b, stride, padding),
+    lambda x, w, b, stride=1, padding=0, need_dx=True: _conv_fwd(x, w, b, stride, padding,
+                                                                 need_dx),
     _conv_bwd,
 )
 defvjp_fwd(
     _conv2d_nob,
-    lambda x, w, stride=1, padding=0: _conv_fwd(x, w, None, stride, padding),
+    lambda x, w, stride=1, padding=0, need_dx=True: _conv_fwd(x, w, None, stride, padding,
+                                                              need_dx),
     _conv_bwd,
 )
 
@@ -461,6 +467,9 @@ def conv2d(x, w, b=None, stride: int = 1, padding: int = 0):
         raise ValueError(f"stride must be an integer >= 1, got stride={stride!r}")
     if isinstance(padding, bool) or not isinstance(padding, Integral) or padding < 0:
         raise ValueError(f"padding must be an integer >= 0, got padding={padding!r}")
+    # an untraced x (the input images) needs no cotangent: the backward pass then
+    # skips the dcol GEMM and the col2im, the most expensive part for 3-channel inputs
+    kw = {"stride": int(stride), "padding": int(padding), "need_dx": isinstance(x, Box)}
     if b is None:
-        return _conv2d_nob(x, w, stride=int(stride), padding=int(padding))
-    return _conv2d_b(x, w, b, stride=int(stride), padding=int(padding))
+        return _conv2d_nob(x, w, **kw)
+    return _conv2d_b(x, w, b, **kw)
