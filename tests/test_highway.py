@@ -263,6 +263,28 @@ def test_closed_loop_replaying_the_expert_matches_it():
     assert res2.metrics["ade"] > 2.0 and res2.metrics["ade"] > 4 * m["ade"]
 
 
+def test_lane_target_follows_the_lane_the_ego_is_in():
+    turns = [0.1] * 3 + [-0.1] * 3 + [0.0] * 2
+    ep = hw.run_episode("highway-fast", 0, lambda o: np.array([25.0, turns[o["t"]]]), steps=8,
+                        record_bev=False, config={"vehicles_count": 0})
+    assert ep.poses[-1, 1] - ep.poses[0, 1] > 4.0  # moved one 4 m lane to the left
+    first = ep.lane_target[:, 0]
+    assert np.all(np.abs(first[:, 1]) <= 2.0 + 1e-6)  # never more than half a lane away
+    moved = ep.poses[-1, 1] - ep.poses[0, 1]  # now nearest to the lane 4 m left of the start
+    assert np.allclose(first[-1], [4.0, 4.0 - moved], atol=0.05)
+
+
+def test_plain_policy_drives_like_the_closed_loop():
+    experts, _ = hw.expert_episodes("roundabout", 1, seed=hw.EVAL_SEED, steps=5,
+                                    record_bev=False)
+    pol = _Replay(np.stack([ep.controls for ep in experts]) + np.array([1.0, 0.05]))
+    res = hw.closed_loop(pol, "roundabout", experts)
+    goal = experts[0].poses[experts[0].steps - 1]
+    ep = hw.run_episode("roundabout", experts[0].seed, hw.plain_policy(pol, goal), steps=4,
+                        goal=goal, record_bev=False)
+    assert np.array_equal(ep.poses, res.episodes[0].poses)
+
+
 # --------------------------------------------------------------------------- rendering
 
 
