@@ -750,6 +750,15 @@ class ExpertVehicle(IDMVehicle):
         """Start of the first ring lane ahead on the route, if the ego is not on the ring yet."""
         if isinstance(self.lane, CircularLane):
             return None
+        key = (self.lane_index, len(self.route))
+        cached = getattr(self, "_merge_cache", None)
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        merge = self._find_merge_point()
+        self._merge_cache = (key, merge)
+        return merge
+
+    def _find_merge_point(self) -> np.ndarray | None:
         net = self.road.network
         for a, b, k in self.route:
             group = net.graph[a][b]

@@ -285,6 +285,20 @@ def test_plain_policy_drives_like_the_closed_loop():
     assert np.array_equal(ep.poses, res.episodes[0].poses)
 
 
+def test_cli_collect_and_expert_eval(tmp_path, capsys):
+    from minimanc.cli import main
+
+    out = tmp_path / "hw.npz"
+    assert main(["highway", "collect", "--scenarios", "roundabout", "--episodes", "1",
+                 "--steps", "3", "--out", str(out), "--quiet"]) == 0
+    assert "wrote 1 expert episodes of 3 steps" in capsys.readouterr().out
+    assert world.load(out).bev.shape == (1, 3, 64, 64, 3)
+    assert main(["highway", "eval", "--scenarios", "roundabout", "--episodes", "1",
+                 "--steps", "3", "--out", str(tmp_path / "e.json")]) == 0
+    report = json.loads((tmp_path / "e.json").read_text())
+    assert report["roundabout"]["expert"]["ade"] == 0.0
+
+
 # --------------------------------------------------------------------------- rendering
 
 
