@@ -8,8 +8,9 @@ Chapter map (tutorials/, solutions/, exercises/ share the file names):
 __version__ = "0.1.0"
 
 
-def engine(name: str = "numpy"):
-    """Return the engine ``name`` ("numpy" or "jax"); see :mod:`minimanc.engine`."""
-    from minimanc.engine import get_engine
+# ``minimanc.engine(name)`` is the engine switch of chapter 1. Binding the function
+# after the submodule is imported keeps the name pointing at the function (a later
+# ``import minimanc.engine`` finds the module in ``sys.modules`` and leaves it alone).
+from minimanc.engine import get_engine as engine  # noqa: E402
 
-    return get_engine(name)
+__all__ = ["__version__", "engine"]

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import functools
 import importlib
-import sys
 import types
 from collections.abc import Callable
 from numbers import Integral
@@ -179,14 +178,3 @@ def get_engine(name: str = "numpy") -> Engine:
         return _jax_engine()
     raise ValueError(f"unknown engine name={name!r}; choose one of {', '.join(ENGINES)}")
 
-
-class _CallableModule(types.ModuleType):
-    """Importing ``minimanc.engine`` rebinds the package attribute ``minimanc.engine``
-    (the function) to this module; making the module callable keeps
-    ``minimanc.engine("jax")`` working either way."""
-
-    def __call__(self, name: str = "numpy") -> Engine:
-        return get_engine(name)
-
-
-sys.modules[__name__].__class__ = _CallableModule
