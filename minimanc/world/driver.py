@@ -41,7 +41,7 @@ from minimanc.world.geometry import (
     wrap_angle,
 )
 from minimanc.world.maps import Map
-from minimanc.world.traffic import B_MAX, Path, Traffic, Vehicle
+from minimanc.world.traffic import B_MAX, Path, Traffic, Vehicle, acc_acceleration
 
 T_STEPS = 40
 """Steps per scene: 20 s at 2 Hz, as nuScenes."""
@@ -110,11 +110,11 @@ class HumanDriver:
         self.a_prev = 0.0
 
     def act(self, veh: Vehicle, path: Path, pose: np.ndarray, gap: float, v_lead: float,
-            v_curve: float) -> tuple[float, float, float]:
+            a_curve: float) -> tuple[float, float, float]:
         """Controls ``(speed, yaw_rate)`` for this step and the applied acceleration.
 
         ``gap``/``v_lead`` is the binding constraint (leader or junction stop
-        point) and ``v_curve`` the curve-limited speed ahead, from
+        point) and ``a_curve`` the deceleration the curves ahead require, from
         :meth:`Traffic.perceive`.
         """
         st, dt, rng = self.style, self.dt, self.rng
@@ -124,12 +124,12 @@ class HumanDriver:
             2 * dt / 8.0) * n1
         self.lat += -self.lat / st.lat_tau * dt + st.lat_sigma * math.sqrt(
             2 * dt / st.lat_tau) * n2
-        self.lat = _clip(self.lat, -0.55, 0.55)
+        self.lat = _clip(self.lat, -0.4, 0.4)
         v = veh.v
-        v0 = max(min(st.v0 * self.speed_factor, v_curve), 1e-3)
-        # IDM (same formula as idm_acceleration, scalar)
-        s_star = st.s0 + max(0.0, v * st.T + v * (v - v_lead) / (2.0 * math.sqrt(st.a_max * st.b)))
-        a_cmd = st.a_max * (1.0 - (v / v0) ** 4 - (s_star / max(gap, 1e-2)) ** 2)
+        v0 = max(st.v0 * self.speed_factor, 1e-3)
+        # interactions reach the pedals after the reaction delay; the road geometry
+        # (a_curve) is anticipated and not delayed
+        a_cmd = float(acc_acceleration(v, v0, gap, v_lead, st.a_max, st.b, st.s0, st.T))
         a_cmd = _clip(a_cmd, -B_MAX, st.a_max)
         self.a_hist.append(a_cmd)
         # reaction delay: the command issued `reaction` seconds ago (linear interpolation)
@@ -141,6 +141,7 @@ class HumanDriver:
         a = a_del if a_cmd >= -1.5 else min(a_cmd, a_del)  # reflex for hard braking
         if a_cmd > -3.0:  # bounded jerk unless braking hard
             a = _clip(a, self.a_prev - st.jerk * dt, self.a_prev + st.jerk * dt)
+        a = min(a, max(a_curve, -B_MAX))
         v_new = _clip(v + a * dt, 0.0, 22.0)
         if v_new < 0.05:
             v_new = 0.0
@@ -172,7 +173,7 @@ def simulate_scene(m: Map, rng: np.random.Generator, T: int = T_STEPS, dt: float
                    max_ados: int = MAX_ADOS) -> SceneLog:
     """Simulate one scene on map ``m``: the human ego among IDM ados. See the module doc."""
     style = random_style(rng)
-    density = float(rng.uniform(1 / 90.0, 1 / 22.0))  # ados per metre of lane
+    density = float(rng.uniform(1 / 70.0, 1 / 18.0))  # ados per metre of lane
     spawn_rate = float(rng.uniform(0.02, 0.12))  # arrivals per second per entry lane
     traffic = Traffic(m, rng, dt, density, max_ados, spawn_rate)
     path = Path.from_lanes(m, m.route)
@@ -190,7 +191,7 @@ def simulate_scene(m: Map, rng: np.random.Generator, T: int = T_STEPS, dt: float
     per = traffic.perceive()
     v_des = min(style.v0, float(per["v_curve"][0]))
     ego.v = 0.0 if rng.random() < 0.12 else float(v_des * rng.uniform(0.55, 1.0))
-    if rng.random() < 0.55:
+    if rng.random() < 0.8:
         traffic.add_cut_in(ego, style.v0)
     # do not start closer to a leader than the style tolerates
     per = traffic.perceive()
@@ -213,7 +214,7 @@ def simulate_scene(m: Map, rng: np.random.Generator, T: int = T_STEPS, dt: float
             ado_log[t, j] = veh.box
             val_log[t, j] = veh.active
         v_cmd, omega, a = driver.act(ego, path, pose, float(per["gap"][0]),
-                                     float(per["v_lead"][0]), float(per["v_curve"][0]))
+                                     float(per["v_lead"][0]), float(per["a_curve"][0]))
         k = int(per["kind"][0])
         kinds.append(("", "leader", "yield")[k] if (a < -0.3 or (k == 2 and v_cmd < 0.5))
                      else "")

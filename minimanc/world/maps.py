@@ -386,7 +386,7 @@ class _Builder:
                 inner, outer = self.lanes[group[i]], self.lanes[group[i + 1]]
                 inner.right, outer.left = outer.id, inner.id
         hw = max(n_fwd, n_bwd) * LANE_WIDTH
-        self.strips.append((ref, hw + 0.25))
+        self.strips.append((ref, hw + 0.5))
         self.walkways.append((ref, hw + 2.75))
         return fwd, bwd
 
@@ -430,7 +430,7 @@ def _arm_lanes(b: _Builder, arm: dict, r0: float, centre=(0.0, 0.0)):
 def _build_intersection(recipe: dict, b: _Builder) -> tuple[list[int], float]:
     arms = recipe["arms"]
     hw_max = max(a["lanes"] for a in arms) * LANE_WIDTH
-    r0 = hw_max / np.cos(0.25) + 4.0
+    r0 = hw_max / np.cos(0.25) + 6.0
     refs, outs, ins = [], [], []
     for arm in arms:
         ref, hd, o, i = _arm_lanes(b, arm, r0)
@@ -445,7 +445,7 @@ def _build_intersection(recipe: dict, b: _Builder) -> tuple[list[int], float]:
     # junction polygon: hull of the arms' mouth corners
     corners = []
     for arm, (ref, hd) in zip(arms, refs):
-        hw = arm["lanes"] * LANE_WIDTH + 0.25
+        hw = arm["lanes"] * LANE_WIDTH + 0.5
         for side in (-1, 1):
             corners.append(_offset(ref[:1], hd[:1], side * hw)[0])
     corners = np.array(corners)
@@ -475,7 +475,7 @@ def _build_intersection(recipe: dict, b: _Builder) -> tuple[list[int], float]:
                 pairs = [(n_in - 1, n_out - 1)]
             for li, lo in pairs:
                 lane_in, lane_out = b.lanes[ins[ai][li]], b.lanes[outs[ao][lo]]
-                k = 0.33 if turn == "straight" else 0.5
+                k = 0.33 if turn == "straight" else 0.39  # 0.39: a quarter circle
                 pts = _bezier(lane_in.points[-1], lane_in.heads[-1], lane_out.points[0],
                               lane_out.heads[0], k, k)
                 cid = b.lane(pts, "connector", junction=0, turn=turn)

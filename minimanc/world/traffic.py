@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from minimanc.world.geometry import wrap_angle
+from minimanc.world.geometry import project_to_polyline, wrap_angle
 from minimanc.world.maps import LANE_WIDTH, Map, concat_lanes
 
 LANE_OFFSET = LANE_WIDTH
@@ -47,6 +47,8 @@ LANE_OFFSET = LANE_WIDTH
 
 B_COMMIT = 4.0
 """Deceleration (m/s^2) above which a vehicle can no longer stop before a conflict: committed."""
+B_COMFORT = 2.0
+"""A vehicle that accepted a gap only gives it up if it can stop braking at most this (m/s^2)."""
 B_MAX = 8.0
 """Physical braking limit (m/s^2)."""
 CONFLICT_MARGIN = 0.5
@@ -78,6 +80,50 @@ def idm_acceleration(
     gap = np.maximum(np.asarray(gap, dtype=np.float64), 1e-2)
     s_star = s0 + np.maximum(0.0, v * T + v * dv / (2.0 * np.sqrt(a_max * b)))
     return a_max * (1.0 - (v / v0) ** delta - (s_star / gap) ** 2)
+
+
+def acc_acceleration(
+    v: np.ndarray | float,
+    v0: np.ndarray | float,
+    gap: np.ndarray | float,
+    v_lead: np.ndarray | float,
+    a_max: np.ndarray | float = 1.5,
+    b: np.ndarray | float = 2.0,
+    s0: np.ndarray | float = 2.0,
+    T: np.ndarray | float = 1.5,
+    coolness: float = 0.99,
+) -> np.ndarray:
+    """IDM with the constant-acceleration heuristic (the "ACC model", Treiber & Kesting 2013).
+
+    Plain IDM over-reacts when a vehicle cuts in a few metres ahead while
+    driving *faster*: ``s* / gap`` is large although the gap is opening. The
+    constant-acceleration heuristic (CAH, the leader assumed not to
+    accelerate) gives the deceleration that is actually needed,
+    ``a_cah = 0`` if the leader is faster, else ``-(v - v_lead)^2 / (2 gap)``;
+    when IDM asks for more braking than that, the two are blended:
+    ``(1 - c) a_idm + c [a_cah + b tanh((a_idm - a_cah) / b)]``.
+    """
+    v = np.asarray(v, dtype=np.float64)
+    v_lead = np.asarray(v_lead, dtype=np.float64)
+    gap_c = np.maximum(np.asarray(gap, dtype=np.float64), 1e-2)
+    a_idm = idm_acceleration(v, v0, gap_c, v - v_lead, a_max, b, s0, T)
+    closing = np.maximum(v - v_lead, 0.0)
+    a_cah = np.minimum(-(closing**2) / (2.0 * gap_c), a_max)
+    blend = (1 - coolness) * a_idm + coolness * (a_cah + b * np.tanh((a_idm - a_cah) / b))
+    return np.where(a_idm >= a_cah, a_idm, blend)
+
+
+def curve_braking(v: np.ndarray, vlim2: np.ndarray, dist: np.ndarray,
+                  dt: float) -> np.ndarray:
+    """Acceleration bound from speed limits ahead: ``min_k (vlim_k^2 - v^2) / (2 d_k)``.
+
+    ``vlim2 (N, P)`` squared limits at distances ``dist (P,)`` ahead (``inf``
+    where none). Negative: the deceleration that exactly meets the limit at
+    the curve; positive: the most a vehicle may accelerate without exceeding
+    a limit (distances are at least one step of travel, ``v dt``).
+    """
+    d = np.maximum(dist[None, :], np.maximum(v[:, None] * dt, 1.0))
+    return ((vlim2 - v[:, None] ** 2) / (2.0 * d)).min(axis=1)
 
 
 def earliest_arrival(d: float, v: float, v0: float, a: float) -> float:
@@ -358,7 +404,7 @@ class Traffic:
         self.sources = [ln.id for ln in m.lanes if ln.kind == "road" and not ln.predecessors]
         self.cut_in_done = False
         self.grid = -1.0 + WIN_SPACING * np.arange(WIN_POINTS)
-        self._brake_dist = np.maximum(self.grid - 2.0, 0.0)[None, :]
+        self.going: set = set()  # (i, j, lane_i, lane_j) where i accepted a gap and goes
 
     def path(self, veh: Vehicle) -> Path:
         return self.bank.paths[veh.pid]
@@ -498,19 +544,18 @@ class Traffic:
                     gap[i], vl[i], who[i], kind[i] = cg, 0.0, cj, 2
         # desired speed limited by the curvature ahead (braking-feasible)
         a_lat = np.array([v.a_lat for v in sub])[:, None]
-        b = np.array([v.b for v in sub])[:, None]
-        vlim2 = a_lat / np.maximum(wk, 1e-4)
-        env = np.where(self.grid[None, :] >= 0.0, vlim2 + 2.0 * b * self._brake_dist, np.inf)
+        vlim2 = np.where(self.grid[None, :] >= 0.0, a_lat / np.maximum(wk, 1e-4), np.inf)
+        a_curve = np.full(n, np.inf)
+        a_curve[act_arr] = curve_braking(speeds, vlim2, self.grid, self.dt)
         v_curve = np.full(n, np.inf)
-        v_curve[act_arr] = np.sqrt(env.min(axis=1))
-        v0 = np.array([v.v0 for v in vs])
-        return {"gap": gap, "v_lead": vl, "who": who, "kind": kind,
-                "v0": np.minimum(v0, v_curve), "v_curve": v_curve}
+        v_curve[act_arr] = np.sqrt(vlim2.min(axis=1))
+        return {"gap": gap, "v_lead": vl, "who": who, "kind": kind, "a_curve": a_curve,
+                "v_curve": v_curve}
 
-    def committed(self, veh: Vehicle, s_in: float) -> bool:
-        """Whether ``veh`` can no longer stop before the conflict entry ``s_in``."""
+    def committed(self, veh: Vehicle, s_in: float, b: float = B_COMMIT) -> bool:
+        """Whether ``veh`` can no longer stop before the conflict entry ``s_in`` (braking ``b``)."""
         d = s_in - CONFLICT_MARGIN - (veh.s + veh.length / 2)
-        return d <= 0.0 or veh.v * veh.v > 2.0 * B_COMMIT * d
+        return d <= 0.0 or veh.v * veh.v > 2.0 * b * d
 
     def junction_window(self, veh: Vehicle) -> list[tuple[int, float]]:
         """Junction lanes of ``veh``'s path it has not cleared, within its horizon."""
@@ -547,7 +592,7 @@ class Traffic:
                     j_in, j_out = sb + cb[0], sb + cb[1]
                     if me.s - me.length / 2 > i_out or other.s - other.length / 2 > j_out:
                         continue  # one of them has cleared the conflict
-                    if not self.must_yield(me, other, la, lb, i_in, i_out, j_in):
+                    if not self.must_yield(me, other, la, lb, i_in, i_out, j_in, (i, j, la, lb)):
                         continue
                     d = i_in - CONFLICT_MARGIN - (me.s + me.length / 2)
                     if d < best:
@@ -555,9 +600,15 @@ class Traffic:
         return best, who
 
     def must_yield(self, me: Vehicle, other: Vehicle, la: int, lb: int,
-                   i_in: float, i_out: float, j_in: float) -> bool:
-        """Priority rules at a conflict between ``me`` (lane ``la``) and ``other`` (``lb``)."""
+                   i_in: float, i_out: float, j_in: float, key: tuple) -> bool:
+        """Priority rules at a conflict between ``me`` (lane ``la``) and ``other`` (``lb``).
+
+        A vehicle that accepted a gap keeps going unless it can still stop
+        comfortably (hysteresis: no stop-and-go flicker when estimates change).
+        """
         if self.committed(me, i_in):
+            return False
+        if key in self.going and self.committed(me, i_in, B_COMFORT):
             return False
         if not self.committed(other, j_in):
             ka, kb = self.m.lanes[la].kind, self.m.lanes[lb].kind
@@ -571,7 +622,11 @@ class Traffic:
         t_other = earliest_arrival(j_in - (other.s + other.length / 2), other.v,
                                    other.v0, other.a_max)
         t_clear = earliest_arrival(i_out + me.length / 2 + 1.0 - me.s, me.v, me.v0, me.a_max)
-        return t_other < t_clear + me.gap_crit
+        if t_other < t_clear + me.gap_crit:
+            self.going.discard(key)
+            return True
+        self.going.add(key)
+        return False
 
     def update_stamps(self, t: int) -> None:
         """Record when each vehicle reaches the approach zone of its junction."""
@@ -586,14 +641,15 @@ class Traffic:
 
     # ------------------------------------------------------------------ dynamics
     def ado_accelerations(self, per: dict[str, np.ndarray]) -> np.ndarray:
-        """IDM accelerations ``(N,)`` of all vehicles from :meth:`perceive` (ego's unused)."""
+        """Accelerations ``(N,)`` from :meth:`perceive`: ACC model, capped by curve braking."""
         vs = self.vehicles
         v = np.array([x.v for x in vs])
-        a = idm_acceleration(
-            v, per["v0"], per["gap"], v - per["v_lead"],
-            np.array([x.a_max for x in vs]), np.array([x.b for x in vs]),
-            np.array([x.s0 for x in vs]), np.array([x.T for x in vs]))
-        return np.clip(a, -B_MAX, np.array([x.a_max for x in vs]))
+        a_max = np.array([x.a_max for x in vs])
+        a = acc_acceleration(
+            v, np.array([x.v0 for x in vs]), per["gap"], per["v_lead"], a_max,
+            np.array([x.b for x in vs]), np.array([x.s0 for x in vs]),
+            np.array([x.T for x in vs]))
+        return np.clip(np.minimum(a, per["a_curve"]), -B_MAX, a_max)
 
     def step_ados(self, acc: np.ndarray, ego: Vehicle) -> None:
         """Move every active ado by one step (ballistic update, speeds never negative)."""
@@ -624,11 +680,12 @@ class Traffic:
         if not ci["started"]:
             # rear of the ado ahead of the ego's front by the chosen gap, on the same path
             ahead = (veh.s - veh.length / 2) - (ego.s + ego.length / 2)
-            if ci["gap"] <= ahead <= ci["gap"] + 6.0 and veh.v >= ego.v:
-                if veh.s + veh.v * ci["duration"] + 10.0 < ci["s_max"]:
+            if ci["gap"] <= ahead <= ci["gap"] + 8.0 and veh.v >= ego.v:
+                if (veh.s + veh.v * ci["duration"] + 10.0 < ci["s_max"]
+                        and self._room_ahead(veh) >= 6.0 + 1.0 * veh.v):
                     ci["started"] = True
                     ci["t"] = 0.0
-            elif ahead > ci["gap"] + 6.0 or veh.s > ci["s_max"]:
+            elif ahead > ci["gap"] + 8.0 or veh.s > ci["s_max"]:
                 self._to_own_lane(veh)  # the chance has passed: stays in its lane
                 return
         if ci["started"]:
@@ -641,6 +698,20 @@ class Traffic:
                 veh.offset, veh.offset_rate = 0.0, 0.0
                 veh.cut_in = None
                 self.cut_in_done = True
+
+    def _room_ahead(self, veh: Vehicle) -> float:
+        """Free distance ahead of ``veh`` along its path's centreline (the target lane)."""
+        path = self.path(veh)
+        w = path.window(veh.s, veh.s + 80.0)
+        others = [o for o in self.vehicles if o is not veh and o.active and not o.is_ego]
+        if not others or w.stop - w.start < 2:
+            return np.inf
+        xy = np.array([o.xy for o in others])
+        s, lat = project_to_polyline(path.points[w], path.s[w], xy)
+        lengths = np.array([o.length for o in others])
+        gaps = s - lengths / 2 - (veh.s + veh.length / 2)
+        ok = (np.abs(lat) < 2.2) & (s > veh.s) & (s < path.s[w][-1] - 0.5)
+        return float(gaps[ok].min()) if ok.any() else np.inf
 
     def _to_own_lane(self, veh: Vehicle) -> None:
         """Give up a cut-in: continue on the adjacent lane's own path."""
@@ -658,7 +729,7 @@ class Traffic:
         """Set up an ado that will cut in front of the ego from an adjacent lane.
 
         Looks for a route lane with a same-direction neighbour and at least
-        80 m of it left ahead of the ego; the ado starts a little behind the
+        60 m of it left ahead of the ego; the ado starts a little behind the
         ego in that neighbour lane, faster, and changes into the ego's lane
         once its rear is ``gap`` metres ahead of the ego's front.
         """
@@ -669,16 +740,16 @@ class Traffic:
                 continue
             nb = [(n, sgn) for n, sgn in ((lane.left, 1.0), (lane.right, -1.0)) if n >= 0]
             end = st + lane.length - 15.0
-            if not nb or end - ego.s < 80.0 or st > ego.s + 60.0:
+            if not nb or end - ego.s < 60.0 or st > ego.s + 40.0:
                 continue
             n, sgn = nb[int(self.rng.integers(len(nb)))]
-            s = max(ego.s + float(self.rng.uniform(-25.0, 0.0)), st + 5.0)
+            s = max(ego.s + float(self.rng.uniform(-20.0, 5.0)), st + 5.0)
             xy, h = path.pose(s)
             xy = xy + sgn * LANE_OFFSET * np.array([-np.sin(h), np.cos(h)])
             # make room in the neighbour lane
             self.vehicles = [v for v in self.vehicles
                              if v.is_ego or np.hypot(*(v.xy - xy)) >= 25.0]
-            v = max(ego.v + float(self.rng.uniform(1.5, 4.5)), 6.0)
+            v = max(ego.v + float(self.rng.uniform(2.0, 5.5)), 6.0)
             veh = self.add_ado(list(path.lanes), s, v,
                                v0=ego_v0 + float(self.rng.uniform(2.0, 5.0)))
             if veh is None:
