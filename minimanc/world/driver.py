@@ -224,7 +224,7 @@ def simulate_scene(m: Map, rng: np.random.Generator, T: int = T_STEPS, dt: float
         ego.xy, ego.yaw, ego.v = pose[:2].copy(), float(pose[2]), v_cmd
         ego.s = project_on_path(path, ego.s, pose)
         traffic.step_ados(acc, ego)
-        traffic.spawn()
+        traffic.spawn(pose[:2])
     del n_ado
     tags = {
         "kind": m.kind,

@@ -458,11 +458,13 @@ class Traffic:
         d = np.asarray(pts) - xy
         return bool(np.all(d[:, 0] ** 2 + d[:, 1] ** 2 >= radius * radius))
 
-    def populate(self, ego_xy: np.ndarray, ego_keepout: float) -> None:
+    def populate(self, ego_xy: np.ndarray, ego_keepout: float, radius: float = 250.0) -> None:
         """Place ados along the road lanes at the scene's density (not on junction lanes).
 
-        Each lane is filled from its end backwards so that every new ado knows
-        the one ahead and starts no faster than a safe following speed.
+        Only within ``radius`` m of the ego (farther ados could not reach it
+        within a scene) and outside ``ego_keepout``. Each lane is filled from
+        its end backwards so that every new ado knows the one ahead and starts
+        no faster than a safe following speed.
         """
         for lane in self.m.lanes:
             if lane.kind != "road":
@@ -472,7 +474,8 @@ class Traffic:
             while s > 4.0:
                 i = min(int(np.searchsorted(lane.s, s)), len(lane.s) - 1)
                 xy = lane.points[i]
-                if np.hypot(*(xy - ego_xy)) > ego_keepout and self.clear_of(xy, 9.0):
+                d = float(np.hypot(*(xy - ego_xy)))
+                if ego_keepout < d < radius and self.clear_of(xy, 9.0):
                     ids = random_lane_walk(self.m, self.rng, lane.id, 450.0 + s)
                     v = float(self.rng.uniform(5.0, 12.5))
                     if np.isfinite(ahead_s):
@@ -484,11 +487,17 @@ class Traffic:
                     ahead_s, ahead_v = s, v
                 s -= 9.0 + float(self.rng.exponential(1.0 / self.density))
 
-    def spawn(self) -> None:
-        """Poisson arrivals at the map's entry lanes."""
+    def spawn(self, ego_xy: np.ndarray, radius: float = 300.0) -> None:
+        """Poisson arrivals at the map's entry lanes within ``radius`` m of the ego.
+
+        Entries farther away cannot bring a vehicle near the ego within a scene.
+        """
         for lid in self.sources:
+            lane = self.m.lanes[lid]
+            d = lane.points[0] - ego_xy
+            if d[0] * d[0] + d[1] * d[1] > radius * radius:
+                continue
             if self.rng.random() < self.spawn_rate * self.dt:
-                lane = self.m.lanes[lid]
                 if self.clear_of(lane.points[0], 16.0):
                     ids = random_lane_walk(self.m, self.rng, lid, 450.0)
                     self.add_ado(ids, 0.0, float(self.rng.uniform(6.0, 11.0)))
