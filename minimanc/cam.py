@@ -448,10 +448,16 @@ def overlay(
 
 
 def plot_q_saliency(
-    image: Any, saliency: Any, q: Any, axes: Any = None, alpha: float = 0.5
+    image: Any,
+    saliency: Any,
+    q: Any,
+    axes: Any = None,
+    alpha: float = 0.5,
+    labels: Sequence[str] | None = None,
 ) -> Any:
     """Figures 3–4 style panel: the BEV image, then one overlay per q-state
-    titled with its probability.  ``saliency`` (N, H, W), ``q`` (N,).  Returns the axes."""
+    titled with its name (``labels``, default ``q_j``) and probability.
+    ``saliency`` (N, H, W), ``q`` (N,).  Returns the axes."""
     import matplotlib.pyplot as plt
 
     saliency = np.asarray(saliency, dtype=float)
@@ -461,6 +467,10 @@ def plot_q_saliency(
             f"saliency must be (N, H, W) and q (N,); got saliency {saliency.shape}, q {q.shape}"
         )
     N = saliency.shape[0]
+    if labels is None:
+        labels = [f"$q_{{{j}}}$" for j in range(N)]
+    if len(labels) != N:
+        raise ValueError(f"labels must have N = {N} entries; got {len(labels)}")
     if axes is None:
         _, axes = plt.subplots(1, N + 1, figsize=(2.4 * (N + 1), 2.6))
     axes = np.ravel(axes)
@@ -470,5 +480,5 @@ def plot_q_saliency(
     axes[0].set_yticks([])
     for j in range(N):
         overlay(image, saliency[j], ax=axes[j + 1], alpha=alpha,
-                title=f"$q_{{{j}}}$: P = {q[j]:.2f}")
+                title=f"{labels[j]}: P = {q[j]:.2f}")
     return axes
