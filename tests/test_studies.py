@@ -1,0 +1,172 @@
+"""Tests for minimanc.studies: findings from numbers, the markdown table, the CLI, and
+``minimanc reproduce`` end to end on a tiny configuration."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from minimanc import metrics, studies
+
+
+def agg(**means):
+    """An aggregate with the given means (std 0.1, 3 seeds)."""
+    return {k: {"mean": v, "std": 0.1, "n": 3, "values": [v] * 3} for k, v in means.items()}
+
+
+def row(ce, acc, ade, goal):
+    return agg(close_encounters=ce, max_acceleration=acc, ade=ade, goal_distance=goal,
+               collision_rate=0.0, off_road_rate=0.0)
+
+
+def fake_results(manc_ade=1.0, q_ades=(3.0, 2.0, 1.5, 1.0)):
+    human = row(2.0, 3.0, 0.0, 0.0)
+    table = {
+        "paper": {"human": human, "cnn": row(1.0, 5.0, 4.0, 9.0),
+                  "cnn_lstm": row(5.0, 6.0, 3.0, 8.0), "rvs_g": row(9.0, 1.0, 2.0, 7.0),
+                  "manc": row(2.5, 3.2, manc_ade, 3.0)},
+        "parity": {"human": human, "cnn": row(1.0, 5.0, 1.5, 4.0),
+                   "cnn_lstm": row(5.0, 6.0, 2.5, 5.0), "rvs_g": row(9.0, 1.0, 2.5, 6.0),
+                   "manc": row(2.5, 3.2, manc_ade, 3.0)},
+    }
+    return {
+        "config": {**studies.PRESETS["quick"].__dict__, "lrs": [1e-3, 3e-3], "n_seeds": 3},
+        "engine": "jax",
+        "close_gap_m": metrics.CLOSE_GAP,
+        "table1": table,
+        "sample_efficiency": {"setting": "paper", "fractions": [0.25, 1.0],
+                              "models": {"cnn": [row(1, 1, 6.0, 1), row(1, 1, 4.0, 1)],
+                                         "manc": [row(1, 1, 2.0, 1), row(1, 1, 1.0, 1)]}},
+        "q_states": {"setting": "paper", "n_states": [3, 6, 9, 12],
+                     "results": [row(1, 1, a, 1) for a in q_ades]},
+        "ablation": {"setting": "paper", "models": {
+            "manc": row(2.5, 3.2, manc_ade, 3.0), "vagn_only": row(1.0, 2.0, 5.0, 9.0),
+            "dmp_only": row(4.0, 5.0, 1.2, 3.5)}},
+        "param_counts": {"paper": {"cnn": 100_000, "cnn_lstm": 120_000, "rvs_g": 200_000,
+                                   "manc": 20_000, "vagn_only": 25_000, "dmp_only": 19_000}},
+        "lr": {"manc-paper": 1e-3},
+    }
+
+
+def by_id(found):
+    return {f["id"]: f for f in found}
+
+
+def test_findings_follow_the_numbers():
+    f = by_id(studies.findings(fake_results()))
+    assert f["manc_best_ade_paper"]["holds"] is True
+    assert f["manc_best_goal_distance_paper"]["holds"] is True
+    assert f["manc_best_ade_parity"]["holds"] is True
+    assert f["manc_near_human_close_encounters_paper"]["holds"] is True
+    assert f["manc_near_human_max_acceleration_paper"]["holds"] is True
+    assert f["q_states_ade"]["holds"] is True and "monotone" in f["q_states_ade"]["detail"]
+    assert f["ablation_dmp_only_aggressive"]["holds"] is True
+    assert f["ablation_vagn_only_safer"]["holds"] is True
+    assert f["ablation_vagn_only_worse_goal"]["holds"] is True
+    assert f["sample_efficiency"]["holds"] is True
+    assert f["param_counts"]["holds"] is True
+    # parity lowers cnn's ADE but not rvs_g's: the claim does not hold, the text says why
+    assert f["parity_helps_baselines"]["holds"] is False
+    assert "rvs_g 2.00 → 2.50" in f["parity_helps_baselines"]["detail"]
+
+
+def test_findings_report_failures_with_numbers():
+    f = by_id(studies.findings(fake_results(manc_ade=2.9, q_ades=(1.0, 2.0, 1.5, 3.0))))
+    ade = f["manc_best_ade_paper"]
+    assert ade["holds"] is False and "manc 2.90" in ade["detail"] and "best is rvs_g" in ade[
+        "detail"]
+    assert f["q_states_ade"]["holds"] is False
+    assert "not monotone" in f["q_states_ade"]["detail"]
+    # parity: cnn 1.50 beats manc 2.90
+    assert f["manc_best_ade_parity"]["holds"] is False
+    assert "best is cnn" in f["manc_best_ade_parity"]["detail"]
+
+
+def test_findings_mention_seed_noise():
+    res = fake_results(manc_ade=1.95)  # rvs_g 2.00: difference 0.05 < 0.1 + 0.1
+    d = by_id(studies.findings(res))["manc_best_ade_paper"]["detail"]
+    assert "within the seed spread" in d
+
+
+def test_table_markdown_contains_every_section():
+    res = fake_results()
+    res["findings"] = studies.findings(res)
+    md = studies.table_markdown(res)
+    for text in ("setting `paper`", "setting `parity`", "| MANC | 2.50 ± 0.10",
+                 "| Human | 2.00 |", "Sample efficiency", "q-states", "Self-ablation",
+                 "Parameters", "holds", "does NOT hold", "| 20,000 |"):
+        assert text in md, text
+
+
+def test_study_config_validation_and_fingerprint():
+    base = studies.PRESETS["tiny"]
+    assert base.fingerprint() == studies.StudyConfig(**{**base.__dict__}).fingerprint()
+    from dataclasses import replace
+
+    assert replace(base, n_seeds=3).fingerprint() == base.fingerprint()
+    assert replace(base, epochs=2).fingerprint() != base.fingerprint()
+    with pytest.raises(ValueError, match="n_val"):
+        replace(base, n_val=0)
+    with pytest.raises(ValueError, match="lrs"):
+        replace(base, lrs=())
+    with pytest.raises(ValueError, match="fractions"):
+        replace(base, fractions=(0.0, 1.0))
+    with pytest.raises(ValueError, match="table_models"):
+        replace(base, table_models=("resnet",))
+    with pytest.raises(ValueError, match="engine"):
+        studies.Study(base, "/tmp/x", engine="torch")
+
+
+def test_canonical_setting_shares_manc_runs():
+    assert studies.canonical_setting("manc", "parity") == "paper"
+    assert studies.canonical_setting("dmp_only", "parity") == "paper"
+    assert studies.canonical_setting("cnn", "parity") == "parity"
+
+
+def test_cli_registers_reproduce():
+    from minimanc import cli
+
+    parser = cli.build_parser()
+    args = parser.parse_args(["reproduce", "--quick", "--engine", "numpy", "--out", "x",
+                              "--seeds", "2"])
+    assert args.quick and args.engine == "numpy" and args.seeds == 2 and args.out == "x"
+
+
+def test_reproduce_tiny_writes_everything(tmp_path, capsys):
+    from minimanc import cli
+
+    out = tmp_path / "run"
+    code = cli.main(["reproduce", "--preset", "tiny", "--engine", "numpy", "--out", str(out),
+                     "--workers", "0", "--no-progress"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "table1.md" in printed and "results.json" in printed
+    res = json.loads((out / "results.json").read_text())
+    assert set(res["table1"]) == {"paper", "parity"}
+    assert set(res["table1"]["paper"]) == {"human", "cnn", "cnn_lstm", "rvs_g", "manc"}
+    assert res["table1"]["paper"]["human"]["ade"]["mean"] == 0.0
+    # MANC sees the same in both settings: the same run, the same numbers
+    assert res["table1"]["paper"]["manc"] == res["table1"]["parity"]["manc"]
+    assert [len(v) for v in res["sample_efficiency"]["models"].values()] == [2] * 4
+    assert res["q_states"]["n_states"] == [3, 6]
+    assert set(res["ablation"]["models"]) == {"manc", "vagn_only", "dmp_only"}
+    for f in res["findings"]:
+        assert f["holds"] in (True, False, None) and f["detail"]
+    md = (out / "table1.md").read_text()
+    assert "Table I" in md and "MANC" in md
+    figs = {p.name for p in (out / "figures").iterdir()}
+    for name in ("table1.png", "sample_efficiency.png", "param_counts.png", "q_states.png",
+                 "ablation.png", "trajectories.png", "rollout.gif"):
+        assert name in figs, name
+    assert any(n.startswith("explain_scene") for n in figs)
+    assert any(n.startswith("saliency_scene") for n in figs)
+    # a re-run reuses every cached model and rollout
+    mtimes = {p: p.stat().st_mtime for p in (out / "cache").rglob("*.npz")}
+    assert mtimes
+    res2 = studies.reproduce(studies.PRESETS["tiny"], out, engine="numpy", workers=0,
+                             progress=False, figures=False)
+    assert {p: p.stat().st_mtime for p in (out / "cache").rglob("*.npz")} == mtimes
+    assert np.isclose(res2["table1"]["paper"]["cnn"]["ade"]["mean"],
+                      res["table1"]["paper"]["cnn"]["ade"]["mean"])
