@@ -110,12 +110,12 @@ class HumanDriver:
         self.a_prev = 0.0
 
     def act(self, veh: Vehicle, path: Path, pose: np.ndarray, gap: float, v_lead: float,
-            a_curve: float) -> tuple[float, float, float]:
+            stop: float, a_curve: float) -> tuple[float, float, float]:
         """Controls ``(speed, yaw_rate)`` for this step and the applied acceleration.
 
-        ``gap``/``v_lead`` is the binding constraint (leader or junction stop
-        point) and ``a_curve`` the deceleration the curves ahead require, from
-        :meth:`Traffic.perceive`.
+        ``gap``/``v_lead``: the leader; ``stop``: distance to a junction stop
+        point where the human must yield; ``a_curve``: the acceleration bound of
+        the curves ahead (all from :meth:`Traffic.perceive`).
         """
         st, dt, rng = self.style, self.dt, self.rng
         # wandering desired speed and lateral offset (Ornstein-Uhlenbeck)
@@ -130,6 +130,9 @@ class HumanDriver:
         # interactions reach the pedals after the reaction delay; the road geometry
         # (a_curve) is anticipated and not delayed
         a_cmd = float(acc_acceleration(v, v0, gap, v_lead, st.a_max, st.b, st.s0, st.T))
+        if stop < np.inf:
+            a_cmd = min(a_cmd, float(acc_acceleration(v, v0, stop, 0.0, st.a_max, st.b,
+                                                      st.s0, st.T)))
         a_cmd = _clip(a_cmd, -B_MAX, st.a_max)
         self.a_hist.append(a_cmd)
         # reaction delay: the command issued `reaction` seconds ago (linear interpolation)
@@ -209,15 +212,14 @@ def simulate_scene(m: Map, rng: np.random.Generator, T: int = T_STEPS, dt: float
         traffic.update_stamps(t)
         per = traffic.perceive()
         ego_log[t] = pose
-        n_ado = len(traffic.vehicles) - 1
         for j, veh in enumerate(traffic.vehicles[1:]):
             ado_log[t, j] = veh.box
             val_log[t, j] = veh.active
-        v_cmd, omega, a = driver.act(ego, path, pose, float(per["gap"][0]),
-                                     float(per["v_lead"][0]), float(per["a_curve"][0]))
-        k = int(per["kind"][0])
-        kinds.append(("", "leader", "yield")[k] if (a < -0.3 or (k == 2 and v_cmd < 0.5))
-                     else "")
+        gap, stop = float(per["gap"][0]), float(per["stop"][0])
+        v_cmd, omega, a = driver.act(ego, path, pose, gap, float(per["v_lead"][0]), stop,
+                                     float(per["a_curve"][0]))
+        binding = "yield" if stop < gap else ("leader" if gap < np.inf else "")
+        kinds.append(binding if (a < -0.3 or (binding == "yield" and v_cmd < 0.5)) else "")
         acc = traffic.ado_accelerations(per)
         ctl_log[t] = (v_cmd, omega)
         pose = unicycle_step(pose, np.array([v_cmd, omega]), dt)
@@ -225,7 +227,6 @@ def simulate_scene(m: Map, rng: np.random.Generator, T: int = T_STEPS, dt: float
         ego.s = project_on_path(path, ego.s, pose)
         traffic.step_ados(acc, ego)
         traffic.spawn(pose[:2])
-    del n_ado
     tags = {
         "kind": m.kind,
         "has_junction": bool(m.has_junction),

@@ -513,9 +513,13 @@ class Traffic:
     def perceive(self) -> dict[str, np.ndarray]:
         """Every vehicle's binding constraint (vectorised corridors + junction conflicts).
 
-        Returns arrays over vehicles: ``gap``, ``v_lead``, ``who`` (index of the
-        vehicle that constrains, -1 none), ``kind`` (0 free, 1 leader, 2
-        yield) and ``v0`` (desired speed limited by the curves ahead).
+        Returns arrays over vehicles: ``gap``, ``v_lead`` and ``who`` of the
+        leader (``inf``, 0, -1 if none), ``stop`` and ``stop_who`` — the
+        distance to the stop point of a junction conflict where the vehicle
+        must yield, and to whom (``inf``, -1 if none) — ``a_curve`` (the
+        acceleration bound of the curves ahead) and ``v_curve`` (the lowest
+        curve speed limit ahead). The vehicle obeys the most constraining of
+        leader, stop point and curves.
         """
         vs = self.vehicles
         n = len(vs)
@@ -542,15 +546,14 @@ class Traffic:
         who = np.full(n, -1)
         gap[act_arr], vl[act_arr] = g, vl_
         who[act_arr] = np.where(who_ >= 0, act_arr[np.maximum(who_, 0)], -1)
-        kind = np.where(who >= 0, 1, 0)
         # junction conflicts (only for vehicles near a junction)
         windows = [self.junction_window(v) if v.active else [] for v in vs]
         near = [i for i in act if windows[i]]
+        stop = np.full(n, np.inf)
+        stop_who = np.full(n, -1)
         for i in near:
             if len(near) > 1:
-                cg, cj = self.conflict_stop(i, windows, near)
-                if cg < gap[i]:
-                    gap[i], vl[i], who[i], kind[i] = cg, 0.0, cj, 2
+                stop[i], stop_who[i] = self.conflict_stop(i, windows, near)
         # desired speed limited by the curvature ahead (braking-feasible)
         a_lat = np.array([v.a_lat for v in sub])[:, None]
         vlim2 = np.where(self.grid[None, :] >= 0.0, a_lat / np.maximum(wk, 1e-4), np.inf)
@@ -558,7 +561,8 @@ class Traffic:
         a_curve[act_arr] = curve_braking(speeds, vlim2, self.grid, self.dt)
         v_curve = np.full(n, np.inf)
         v_curve[act_arr] = np.sqrt(vlim2.min(axis=1))
-        return {"gap": gap, "v_lead": vl, "who": who, "kind": kind, "a_curve": a_curve,
+        return {"gap": gap, "v_lead": vl, "who": who, "stop": stop, "stop_who": stop_who,
+                "a_curve": a_curve,
                 "v_curve": v_curve}
 
     def committed(self, veh: Vehicle, s_in: float, b: float = B_COMMIT) -> bool:
@@ -650,15 +654,21 @@ class Traffic:
 
     # ------------------------------------------------------------------ dynamics
     def ado_accelerations(self, per: dict[str, np.ndarray]) -> np.ndarray:
-        """Accelerations ``(N,)`` from :meth:`perceive`: ACC model, capped by curve braking."""
+        """Accelerations ``(N,)`` from :meth:`perceive`.
+
+        The ACC model against the leader and against the stop point, capped by
+        curve braking.
+        """
         vs = self.vehicles
         v = np.array([x.v for x in vs])
         a_max = np.array([x.a_max for x in vs])
-        a = acc_acceleration(
-            v, np.array([x.v0 for x in vs]), per["gap"], per["v_lead"], a_max,
-            np.array([x.b for x in vs]), np.array([x.s0 for x in vs]),
-            np.array([x.T for x in vs]))
-        return np.clip(np.minimum(a, per["a_curve"]), -B_MAX, a_max)
+        v0 = np.array([x.v0 for x in vs])
+        b = np.array([x.b for x in vs])
+        s0 = np.array([x.s0 for x in vs])
+        T = np.array([x.T for x in vs])
+        a = acc_acceleration(v, v0, per["gap"], per["v_lead"], a_max, b, s0, T)
+        a_stop = acc_acceleration(v, v0, per["stop"], 0.0, a_max, b, s0, T)
+        return np.clip(np.minimum(np.minimum(a, a_stop), per["a_curve"]), -B_MAX, a_max)
 
     def step_ados(self, acc: np.ndarray, ego: Vehicle) -> None:
         """Move every active ado by one step (ballistic update, speeds never negative)."""
@@ -691,7 +701,7 @@ class Traffic:
             ahead = (veh.s - veh.length / 2) - (ego.s + ego.length / 2)
             if ci["gap"] <= ahead <= ci["gap"] + 8.0 and veh.v >= ego.v:
                 if (veh.s + veh.v * ci["duration"] + 10.0 < ci["s_max"]
-                        and self._room_ahead(veh) >= 6.0 + 1.0 * veh.v):
+                        and self._room_ahead(veh) >= 4.0 + 0.7 * veh.v):
                     ci["started"] = True
                     ci["t"] = 0.0
             elif ahead > ci["gap"] + 8.0 or veh.s > ci["s_max"]:
