@@ -128,7 +128,8 @@ assert ml[5] == CRUISE and ml[15] == FOLLOW and ml[23] == YIELD and ml[29] == CR
 # softmax that follows turns a zero into $e^0 = 1$, exactly like any other
 # logit. A column whose logits after ReLU are $R_{\cdot j}$ gives
 #
-# $$T_{ij} = \frac{e^{R_{ij}}}{\sum_r e^{R_{rj}}} \;\ge\; \frac{1}{1 + (N-1)\,e^{\max_r R_{rj}}} > 0 .$$
+# $$T_{ij} = \frac{e^{R_{ij}}}{\sum_r e^{R_{rj}}}
+#   \;\ge\; \frac{1}{1 + (N-1)\,e^{\max_r R_{rj}}} > 0 .$$
 #
 # So the automaton graph is **always complete**. With all predicates off
 # ($p = 0$) every column is uniform, and the *yield → cruise* transition under
@@ -224,7 +225,7 @@ eng = engine("numpy")
 value_and_grad = eng.value_and_grad(loss)
 W = vagn.init_vagn(rng, 3, 3, scale=0.1, mean=0.5)
 history = []
-for it in range(300):
+for _ in range(300):
     L, g = value_and_grad(W, ps_train, q0_train, target_train, eng.xp)
     W = W - 20.0 * g
     history.append(float(L))
