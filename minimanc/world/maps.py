@@ -580,8 +580,12 @@ def _conflicts(lanes: list[Lane], threshold: float = 2.6) -> dict:
     """
     out: dict[tuple[int, int], tuple[float, float]] = {}
     jl = [ln for ln in lanes if ln.junction >= 0]
+    lo = [ln.points.min(axis=0) - threshold for ln in jl]
+    hi = [ln.points.max(axis=0) + threshold for ln in jl]
     for i, a in enumerate(jl):
-        for b in jl[i + 1:]:
+        for k, b in enumerate(jl[i + 1:], start=i + 1):
+            if np.any(lo[i] > hi[k]) or np.any(lo[k] > hi[i]):
+                continue  # bounding boxes apart
             if b.id in a.successors or a.id in b.successors:
                 continue
             d = np.linalg.norm(a.points[:, None, :] - b.points[None, :, :], axis=-1)

@@ -400,6 +400,7 @@ class Traffic:
         self.max_ados = max_ados
         self.spawn_rate = spawn_rate
         self.bank = PathBank()
+        self._pids: dict[tuple[int, ...], int] = {}
         self.vehicles: list[Vehicle] = []
         self.sources = [ln.id for ln in m.lanes if ln.kind == "road" and not ln.predecessors]
         self.cut_in_done = False
@@ -428,8 +429,12 @@ class Traffic:
         L, W = random_vehicle_size(self.rng)
         p = self.ado_params(L, W)
         p.update(extra)
-        path = Path.from_lanes(self.m, lanes)
-        veh = Vehicle(pid=self.bank.add(path), s=s, v=v, **p)
+        key = tuple(lanes)
+        pid = self._pids.get(key)
+        if pid is None:  # vehicles on the same lane sequence share one path
+            pid = self._pids[key] = self.bank.add(Path.from_lanes(self.m, lanes))
+        path = self.bank.paths[pid]
+        veh = Vehicle(pid=pid, s=s, v=v, **p)
         xy, h = path.pose(s)
         veh.xy, veh.yaw = xy, h
         self.vehicles.append(veh)
