@@ -212,9 +212,10 @@ def simulate_scene(m: Map, rng: np.random.Generator, T: int = T_STEPS, dt: float
         traffic.update_stamps(t)
         per = traffic.perceive()
         ego_log[t] = pose
-        for j, veh in enumerate(traffic.vehicles[1:]):
-            ado_log[t, j] = veh.box
-            val_log[t, j] = veh.active
+        ados = traffic.vehicles[1:]
+        if ados:
+            ado_log[t, :len(ados)] = [(v.xy[0], v.xy[1], v.yaw, v.length, v.width) for v in ados]
+            val_log[t, :len(ados)] = [v.active for v in ados]
         gap, stop = float(per["gap"][0]), float(per["stop"][0])
         v_cmd, omega, a = driver.act(ego, path, pose, gap, float(per["v_lead"][0]), stop,
                                      float(per["a_curve"][0]))

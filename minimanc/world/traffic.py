@@ -117,12 +117,12 @@ def curve_braking(v: np.ndarray, vlim2: np.ndarray, dist: np.ndarray,
                   dt: float) -> np.ndarray:
     """Acceleration bound from speed limits ahead: ``min_k (vlim_k^2 - v^2) / (2 d_k)``.
 
-    ``vlim2 (N, P)`` squared limits at distances ``dist (P,)`` ahead (``inf``
+    ``vlim2 (N, P)`` squared limits at distances ``dist (N, P)`` ahead (``inf``
     where none). Negative: the deceleration that exactly meets the limit at
     the curve; positive: the most a vehicle may accelerate without exceeding
     a limit (distances are at least one step of travel, ``v dt``).
     """
-    d = np.maximum(dist[None, :], np.maximum(v[:, None] * dt, 1.0))
+    d = np.maximum(dist, np.maximum(v[:, None] * dt, 1.0))
     return ((vlim2 - v[:, None] ** 2) / (2.0 * d)).min(axis=1)
 
 
@@ -229,8 +229,31 @@ class PathBank:
         hd = np.concatenate([p.heads for p in self.paths])
         self.x, self.y = pts[:, 0], pts[:, 1]
         self.c, self.sn = np.cos(hd), np.sin(hd)
+        self.h = hd
+        self.xy = pts
         self.k = np.abs(np.concatenate([p.kappa for p in self.paths]))
+        sizes = np.array([len(p.s) for p in self.paths])
+        self.first = np.concatenate([[0], np.cumsum(sizes)[:-1]])  # first vertex of each path
+        self.last = self.first + sizes - 1
         self._dirty = False
+
+    def window(self, pid: np.ndarray, s: np.ndarray, n: int,
+               stride: int) -> tuple[np.ndarray, ...]:
+        """Path vertices ahead of each vehicle: every ``stride``-th vertex from just behind ``s``.
+
+        Gathers (no interpolation): returns points ``(N, n, 2)``, headings, arc
+        lengths and |curvature| ``(N, n)``, and ``inside (N, n)`` — False past
+        the path's end (those samples repeat the last vertex).
+        """
+        if self._dirty:
+            self._build()
+        g = self.base[pid] + np.clip(s, 0.0, self.lengths[pid])
+        k0 = np.maximum(np.searchsorted(self.gs, g) - 1, self.first[pid])
+        idx = k0[:, None] + stride * np.arange(n)[None, :]
+        inside = idx <= self.last[pid][:, None]
+        idx = np.minimum(idx, self.last[pid][:, None])
+        return (self.xy[idx], self.h[idx], self.gs[idx] - self.base[pid][:, None],
+                self.k[idx], inside)
 
     def query(self, pid: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, ...]:
         """Position ``(..., 2)``, heading, |curvature| at arc lengths ``s`` of paths ``pid``.
@@ -376,10 +399,10 @@ def random_lane_walk(m: Map, rng: np.random.Generator, first: int, min_length: f
     return ids
 
 
-WIN_SPACING = 2.0
-"""Spacing of the corridor samples (m)."""
+WIN_STRIDE = 2
+"""Corridor samples take every 2nd path vertex (~2 m apart; vertices are <= 1 m apart)."""
 WIN_POINTS = 44
-"""Corridor samples per vehicle: from 1 m behind to ~85 m ahead."""
+"""Corridor samples per vehicle: from just behind it to ~85 m ahead."""
 
 
 class Traffic:
@@ -404,7 +427,6 @@ class Traffic:
         self.vehicles: list[Vehicle] = []
         self.sources = [ln.id for ln in m.lanes if ln.kind == "road" and not ln.predecessors]
         self.cut_in_done = False
-        self.grid = -1.0 + WIN_SPACING * np.arange(WIN_POINTS)
         self.going: set = set()  # (i, j, lane_i, lane_j) where i accepted a gap and goes
 
     def path(self, veh: Vehicle) -> Path:
@@ -537,14 +559,14 @@ class Traffic:
         L = np.array([v.length for v in sub])
         W = np.array([v.width for v in sub])
         off = np.array([v.offset for v in sub])
-        sq = s[:, None] + self.grid[None, :]
-        win, wh, wk = self.bank.query(pid[:, None], sq)
+        win, wh, ws, wk, inside = self.bank.window(pid, s, WIN_POINTS, WIN_STRIDE)
         if np.any(off != 0.0):
             win = win + off[:, None, None] * np.stack([-np.sin(wh), np.cos(wh)], axis=-1)
+        ahead = ws - s[:, None]  # distance of each sample ahead of the vehicle's centre
         look = 25.0 + 3.5 * speeds
-        ok = self.grid[None, :] <= look[:, None]
-        g, vl_, who_ = corridor_leaders(win, wh, sq, ok, s, L, W, boxes, speeds,
-                                        np.ones(len(sub), bool), WIN_SPACING)
+        ok = inside & (ahead <= look[:, None])
+        g, vl_, who_ = corridor_leaders(win, wh, ws, ok, s, L, W, boxes, speeds,
+                                        np.ones(len(sub), bool), float(WIN_STRIDE))
         act_arr = np.array(act)
         gap = np.full(n, np.inf)
         vl = np.zeros(n)
@@ -561,9 +583,9 @@ class Traffic:
                 stop[i], stop_who[i] = self.conflict_stop(i, windows, near)
         # desired speed limited by the curvature ahead (braking-feasible)
         a_lat = np.array([v.a_lat for v in sub])[:, None]
-        vlim2 = np.where(self.grid[None, :] >= 0.0, a_lat / np.maximum(wk, 1e-4), np.inf)
+        vlim2 = np.where(inside & (ahead >= 0.0), a_lat / np.maximum(wk, 1e-4), np.inf)
         a_curve = np.full(n, np.inf)
-        a_curve[act_arr] = curve_braking(speeds, vlim2, self.grid, self.dt)
+        a_curve[act_arr] = curve_braking(speeds, vlim2, np.maximum(ahead, 0.0), self.dt)
         v_curve = np.full(n, np.inf)
         v_curve[act_arr] = np.sqrt(vlim2.min(axis=1))
         return {"gap": gap, "v_lead": vl, "who": who, "stop": stop, "stop_who": stop_who,
