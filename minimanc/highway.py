@@ -1154,6 +1154,9 @@ def collect(
     Save with :func:`minimanc.world.save`; :func:`minimanc.world.load` reads
     it back (its maps are explicit recipes, see :func:`explicit_map`).
     """
+    if isinstance(n_episodes, bool) or not isinstance(n_episodes, (int, np.integer)) \
+            or n_episodes < 1:
+        raise ValueError(f"n_episodes must be a positive integer, got {n_episodes!r}")
     names = [scenarios] if isinstance(scenarios, str) else list(scenarios)
     if not names:
         raise ValueError("scenarios must name at least one scenario, got none")

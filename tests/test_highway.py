@@ -332,3 +332,7 @@ def test_bad_input_is_rejected():
         hw.run_episode("roundabout", 0, "human", steps=3)
     with pytest.raises(ValueError, match="max_ado"):
         hw.ado_boxes(hw.make_env("roundabout"), -1)
+    with pytest.raises(ValueError, match="n_episodes"):
+        hw.collect("roundabout", n_episodes=0)
+    with pytest.raises(ValueError, match="scenario"):
+        hw.collect(["roundabout", "merge"], n_episodes=1)
