@@ -22,6 +22,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import sys
 import zipfile
 import zlib
 from dataclasses import asdict, dataclass, field
@@ -192,7 +193,9 @@ def generate(
 
     ``raster`` sets the BEV geometry (default :class:`RasterConfig`);
     ``progress`` shows a tqdm bar; ``workers`` processes share the work
-    (default: 2 when there are at least 64 scenes and 2 CPUs, else 1);
+    (default: 2 when there are at least 64 scenes and 2 CPUs, else 1; they
+    are forked, or spawned if JAX is already imported — scripts then need
+    the ``if __name__ == "__main__":`` guard);
     ``cache`` — ``True`` (directory ``$MINIMANC_CACHE`` or
     ``~/.cache/minimanc``) or a directory — reuses a saved result of the same
     arguments and version, and saves new results there.
@@ -236,7 +239,9 @@ def generate(
             import multiprocessing as mp
             from concurrent.futures import ProcessPoolExecutor
 
-            ctx = mp.get_context("spawn")
+            # fork is cheap and works from unguarded scripts; once JAX is loaded (its threads
+            # make fork unsafe) use fresh "spawn" processes, which notebooks support
+            ctx = mp.get_context("spawn" if "jax" in sys.modules else "fork")
             with ProcessPoolExecutor(max_workers=int(workers), mp_context=ctx) as ex:
                 for out in ex.map(_scene_worker, jobs, chunksize=8):
                     scenes.append(out)
