@@ -25,6 +25,7 @@ import os
 import sys
 import zipfile
 import zlib
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -47,13 +48,37 @@ class DatasetFileError(ValueError):
     """A dataset file that cannot be used (not ours, truncated, corrupt, wrong version)."""
 
 
+class LazyMaps(Sequence):
+    """A read-only list of maps built from their recipes on first access (then kept)."""
+
+    def __init__(self, recipes: list[dict], built: dict[int, Map] | None = None) -> None:
+        self._recipes = list(recipes)
+        self._built: dict[int, Map] = dict(built or {})
+
+    def __len__(self) -> int:
+        return len(self._recipes)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[k] for k in range(*i.indices(len(self)))]
+        i = range(len(self))[i]  # bounds check and negative indices
+        m = self._built.get(i)
+        if m is None:
+            m = self._built[i] = build_map(self._recipes[i])
+        return m
+
+    def __repr__(self) -> str:
+        return f"LazyMaps({len(self)} maps, {len(self._built)} built)"
+
+
 @dataclass
 class Dataset:
     """S scenes of T steps. Arrays are NumPy; see the field comments for shapes.
 
     ``maps[i]`` is scene ``i``'s :class:`~minimanc.world.maps.Map` (with the
-    ego's route); ``meta`` holds ``seed``, ``version``, ``raster`` (the
-    :class:`RasterConfig` as a dict), ``recipes``, ``tags`` (per scene: kind,
+    ego's route; built from its recipe on first access, see :class:`LazyMaps`);
+    ``meta`` holds ``seed``, ``version``, ``raster`` (the :class:`RasterConfig`
+    as a dict), ``recipes``, ``tags`` (per scene: kind,
     has_junction, has_roundabout, has_cut_in, turn, style, ...), ``attempts``
     and ``scene_index`` (index of each scene in its generation run).
     """
@@ -66,7 +91,7 @@ class Dataset:
     ado: np.ndarray  # float32 (S, T, A, 5) [x, y, yaw, length, width], world frame
     ado_valid: np.ndarray  # bool (S, T, A)
     goal_bev: np.ndarray  # uint8 (S, H, W, 3) static raster seen from the goal (RvS-G)
-    maps: list[Map] = field(repr=False)
+    maps: Sequence[Map] = field(repr=False)
     meta: dict = field(repr=False)
 
     def __len__(self) -> int:
@@ -277,8 +302,8 @@ def _assemble(scenes: list[dict], seed: int, cfg: RasterConfig) -> Dataset:
         "attempts": [int(sc["attempts"]) for sc in scenes],
         "scene_index": list(range(len(scenes))),
     }
-    maps = [sc["map"] if "map" in sc else build_map(r) for sc, r in zip(scenes, recipes)]
-    return Dataset(**arrays, maps=maps, meta=meta)
+    built = {i: sc["map"] for i, sc in enumerate(scenes) if "map" in sc}
+    return Dataset(**arrays, maps=LazyMaps(recipes, built), meta=meta)
 
 
 # --------------------------------------------------------------------------- files
@@ -348,8 +373,11 @@ def load(path: str | os.PathLike) -> Dataset:
                 raise DatasetFileError(f"{path}: checksum mismatch in array {name!r}")
             arrays[name] = a
     meta = header["meta"]
-    try:
-        maps = [build_map(r) for r in meta["recipes"]]
+    recipes = meta.get("recipes")
+    if not isinstance(recipes, list) or len(recipes) != arrays["ego"].shape[0]:
+        raise DatasetFileError(f"{path}: map recipes missing or not one per scene")
+    try:  # maps are built on first use; check one now so a bad file fails here
+        build_map(recipes[0]) if recipes else None
     except (KeyError, TypeError, ValueError, IndexError) as e:
         raise DatasetFileError(f"{path}: invalid map recipes: {e}") from e
-    return Dataset(**arrays, maps=maps, meta=meta)
+    return Dataset(**arrays, maps=LazyMaps(recipes), meta=meta)
