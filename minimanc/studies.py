@@ -217,10 +217,24 @@ def _load_split(data_path: str, lo: int, hi: int) -> Any:
     return sub
 
 
+def _enable_jax_cache(directory: str | Path) -> None:
+    """Persist JAX compilations under ``directory`` (unless the user set a cache already):
+    runs that differ only by their seed then compile once."""
+    import jax
+
+    if jax.config.jax_compilation_cache_dir:
+        return
+    Path(directory).mkdir(parents=True, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", str(directory))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
 def _evaluate_job(job: dict) -> dict:
     """Closed-loop rollout + metrics of one trained run (runs in a worker or inline)."""
     from minimanc import engine, rollout, train
 
+    if job["engine"] == "jax" and job.get("jax_cache"):
+        _enable_jax_cache(job["jax_cache"])
     ds = _load_split(job["data"], job["lo"], job["hi"])
     fit = train.load(job["checkpoint"])
     traj = rollout.closed_loop(fit.name, fit.params, ds, fit.cfg, engine(job["engine"]),
@@ -279,6 +293,9 @@ class Study:
         self.progress = progress
         self.log = log or (lambda msg: None)
         self.cache = self.out / "cache" / f"{config.fingerprint()}-{engine}"
+        self.jax_cache = self.out / "cache" / "jax"
+        if engine == "jax":
+            _enable_jax_cache(self.jax_cache)
         self._data: tuple[Any, Any, Any] | None = None
         self._pool: Any = None
         self._futures: dict[str, Any] = {}
@@ -396,7 +413,8 @@ class Study:
                 lo, hi = self._bounds(split)
                 job = {"data": str(self.data_path), "lo": lo, "hi": hi,
                        "checkpoint": str(ck), "engine": self.engine,
-                       "rollout": str(roll_path), "metrics": str(met_path)}
+                       "rollout": str(roll_path), "metrics": str(met_path),
+                       "jax_cache": str(self.jax_cache)}
                 if self.workers > 0:
                     fut = self._executor().submit(_evaluate_job, job)
                 else:
