@@ -124,3 +124,4 @@ def test_boxes_overlap_matches_sampling(x, y, ya, yb, la, wa, lb, wb):
     # corners of each box lie on the box boundary
     ca = world.box_corners(a)
     np.testing.assert_allclose(np.linalg.norm(ca[0] - ca[2]), np.hypot(la, wa))
+

@@ -41,7 +41,7 @@ from minimanc.world.geometry import (
     wrap_angle,
 )
 from minimanc.world.maps import Map
-from minimanc.world.traffic import B_MAX, Path, Traffic, Vehicle, acc_acceleration
+from minimanc.world.traffic import B_MAX, Path, Traffic, Vehicle
 
 T_STEPS = 40
 """Steps per scene: 20 s at 2 Hz, as nuScenes."""
@@ -129,10 +129,9 @@ class HumanDriver:
         v0 = max(st.v0 * self.speed_factor, 1e-3)
         # interactions reach the pedals after the reaction delay; the road geometry
         # (a_curve) is anticipated and not delayed
-        a_cmd = float(acc_acceleration(v, v0, gap, v_lead, st.a_max, st.b, st.s0, st.T))
-        if stop < np.inf:
-            a_cmd = min(a_cmd, float(acc_acceleration(v, v0, stop, 0.0, st.a_max, st.b,
-                                                      st.s0, st.T)))
+        a_cmd = _acc_scalar(v, v0, gap, v_lead, st)
+        if stop < math.inf:
+            a_cmd = min(a_cmd, _acc_scalar(v, v0, stop, 0.0, st))
         a_cmd = _clip(a_cmd, -B_MAX, st.a_max)
         self.a_hist.append(a_cmd)
         # reaction delay: the command issued `reaction` seconds ago (linear interpolation)
@@ -159,6 +158,17 @@ class HumanDriver:
         kappa = _clip(2.0 * ty / max(tx * tx + ty * ty, 1e-6), -0.25, 0.25)
         omega = _clip(v_new * kappa, -1.2, 1.2)
         return v_new, omega, self.a_prev
+
+
+def _acc_scalar(v: float, v0: float, gap: float, v_lead: float, st: HumanStyle) -> float:
+    """:func:`~minimanc.world.traffic.acc_acceleration` for one vehicle, in plain floats."""
+    gap = max(gap, 1e-2)
+    s_star = st.s0 + max(0.0, v * st.T + v * (v - v_lead) / (2.0 * math.sqrt(st.a_max * st.b)))
+    a_idm = st.a_max * (1.0 - (v / v0) ** 4 - (s_star / gap) ** 2)
+    a_cah = min(-(max(v - v_lead, 0.0) ** 2) / (2.0 * gap), st.a_max)
+    if a_idm >= a_cah:
+        return a_idm
+    return 0.01 * a_idm + 0.99 * (a_cah + st.b * math.tanh((a_idm - a_cah) / st.b))
 
 
 def _clip(x: float, lo: float, hi: float) -> float:
