@@ -219,8 +219,8 @@ for k in range(3):
 # `world.generate(n_scenes, seed)` draws scene $i$ from its own random stream
 # `default_rng([seed, i, attempt])`, so the data do not depend on the number
 # of worker processes, and the first 650 scenes of an 850-scene run are the
-# 650-scene run. Here 24 scenes (the full 850 take well under a minute on two
-# cores: `minimanc data generate`).
+# 650-scene run. Here 24 scenes; the full 850 need roughly 80–120 s of CPU,
+# which `minimanc data generate` splits over two worker processes.
 
 # %%
 ds = world.generate(24, seed=0, progress=False, workers=1)
