@@ -280,18 +280,22 @@ def from_dataset(
     """Observations of samples ``(scene_idx[b], t_idx[b])`` of a :mod:`minimanc.world` dataset.
 
     ``scene_idx`` and ``t_idx`` are integers or equal-length 1-D integer
-    arrays. With ``model`` given, only the keys that model sees in
-    ``setting`` are returned (``goal_bev`` is rendered only for RvS-G, once
-    per dataset); without it, every key except ``goal_bev``.
+    arrays (an integer or length-1 array broadcasts against the other).
+    With ``model`` given, only the keys that model sees in ``setting`` are
+    returned (``goal_bev`` only for RvS-G: the dataset's own goal rasters, or
+    rendered once per dataset); without it, every key except ``goal_bev``.
     """
     _check_setting(setting)
     S, T = np.asarray(ds.ego).shape[:2]
     s = _as_index("scene_idx", scene_idx, S)
     t = _as_index("t_idx", t_idx, T)
     if s.shape != t.shape:
-        raise ValueError(
-            f"scene_idx and t_idx must have the same length, got {s.shape} and {t.shape}"
-        )
+        if s.size == 1 or t.size == 1:  # one scene at many times, or many scenes at one time
+            s, t = np.broadcast_arrays(s, t)
+        else:
+            raise ValueError(
+                f"scene_idx and t_idx must have the same length, got {s.shape} and {t.shape}"
+            )
     keys = visible(model, setting) if model is not None else KEYS[:4]
     obs: dict = {}
     if "bev" in keys:
@@ -367,12 +371,12 @@ def from_state(
     mot = np.asarray(motion, dtype=np.float32)
     if mot.shape != (B, 2):
         raise ValueError(f"motion must have shape ({B}, 2), got motion with shape {mot.shape}")
-    if isinstance(maps, (list, tuple)):
-        if len(maps) != B:
-            raise ValueError(f"maps must have {B} entries, got {len(maps)}")
-        map_list = list(maps)
-    else:
+    if isinstance(maps, world_maps.Map):
         map_list = [maps] * B
+    else:
+        map_list = [maps[i] for i in range(len(maps))]
+        if len(map_list) != B:
+            raise ValueError(f"maps must have {B} entries, got {len(map_list)}")
     cfg = cfg if cfg is not None else RasterConfig()
     k = world_maps.K_TARGETS if k_targets is None else int(k_targets)
     keys = visible(model, setting) if model is not None else KEYS[:4]

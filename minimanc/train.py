@@ -326,7 +326,7 @@ def _make_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any,
             norm = _global_norm(grads, xp)
             factor = xp.minimum(1.0, tc.grad_clip / (norm + 1e-12))
             grads = _scale_tree(grads, factor)
-        new_params, new_state = optim.adam_update(params, grads, opt_state, lr=tc.lr, xp=xp)
+        new_params, new_state = optim.adam_update(grads, opt_state, params, lr=tc.lr)
         # keep every leaf's dtype: a float64 scalar must not promote float32 parameters
         # (under jit that would trigger a new compilation at the next step)
         return _like(new_params, params, xp), _like(new_state, opt_state, xp), loss

@@ -1,0 +1,264 @@
+"""Tests for minimanc.models (chapter 8): shapes, gradients on both engines, the DMP head, vAGN."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from minimanc import cam, dmp, engine, inputs, models, quaternion
+
+B = 3
+CFG = models.ModelConfig(image_size=16, channels=(4, 8), n_predicates=5, n_states=4, hidden=8,
+                         k_targets=6)
+
+
+def _obs(rng, cfg=CFG, lead=(B,)):
+    straight = np.stack([4.0 * np.arange(1, cfg.k_targets + 1), np.zeros(cfg.k_targets)], -1)
+    s = cfg.image_size
+    return {
+        "bev": rng.random(lead + (s, s, 3)),
+        "goal": rng.normal(size=lead + (3,)) * 20,
+        "lane_target": straight + rng.normal(0, 0.5, lead + (cfg.k_targets, 2)),
+        "motion": np.stack([rng.uniform(0, 12, lead), rng.normal(0, 0.1, lead)], -1),
+        "goal_bev": rng.random(lead + (s, s, 3)),
+    }
+
+
+@pytest.fixture(scope="module")
+def eng_np():
+    return engine("numpy")
+
+
+@pytest.fixture(scope="module")
+def eng_jax():
+    return engine("jax")
+
+
+@pytest.mark.parametrize("setting", inputs.SETTINGS)
+@pytest.mark.parametrize("name", models.MODEL_NAMES)
+def test_shapes(name, setting, eng_np):
+    cfg = models.ModelConfig(**{**CFG.to_dict(), "channels": CFG.channels, "setting": setting})
+    rng = np.random.default_rng(0)
+    params = models.init(name, rng, cfg)
+    obs = inputs.select(_obs(rng, cfg), name, setting)
+    state = models.initial_state(name, B, cfg)
+    controls, new, aux = models.step(name, params, obs, state, cfg, eng_np)
+    assert controls.shape == (B, 2) and np.all(np.isfinite(controls))
+    assert set(new) == set(state)
+    for k, v in state.items():
+        assert new[k].shape == v.shape
+    assert aux["features"].shape == (B, 4, 4, 8)  # 16 → 8 → 4
+    if name in models.VAGN_MODELS:
+        assert aux["q"].shape == (B, cfg.n_states)
+    if name in models.DMP_MODELS:
+        assert aux["alpha"].shape == aux["beta"].shape == (B, 2)
+    if name in ("manc", "vagn_only", "dmp_only"):
+        assert aux["predicates"].shape == (B, cfg.n_predicates)
+
+
+def _sum_tree(tree):
+    return sum(np.sum(np.asarray(x, dtype=np.float64) ** 2) for x in models._leaves(tree))
+
+
+@pytest.mark.parametrize("name", models.MODEL_NAMES)
+def test_gradients_numpy_equal_jax(name, eng_np, eng_jax):
+    """The same model code differentiated by our engine and by JAX agrees to 1e-6 (float64)."""
+    cfg = models.ModelConfig(**{**CFG.to_dict(), "channels": CFG.channels, "setting": "parity"})
+    rng = np.random.default_rng(1)
+    params = models.init(name, rng, cfg)
+    L = 2 if name in models.LSTM_MODELS + models.VAGN_MODELS else 1
+    obs = {k: v for k, v in _obs(rng, cfg, lead=(L, B)).items()}
+    target = rng.normal(size=(L, B, 2))
+
+    def loss(p, eng):
+        state = models.initial_state(name, B, cfg, xp=eng.xp, dtype=np.float64)
+        out, _ = models.sequence(name, p, obs, state, cfg, eng)
+        return eng.xp.mean((out - target) ** 2)
+
+    v_np, g_np = eng_np.value_and_grad(lambda p: loss(p, eng_np))(params)
+    v_jx, g_jx = eng_jax.jit(eng_jax.value_and_grad(lambda p: loss(p, eng_jax)))(params)
+    assert abs(float(v_np) - float(v_jx)) < 1e-9
+    leaves_np, leaves_jx = models._leaves(g_np), models._leaves(g_jx)
+    assert len(leaves_np) == len(leaves_jx) == len(models._leaves(params))
+    for a, b in zip(leaves_np, leaves_jx):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-6, atol=1e-9)
+    assert _sum_tree(g_np) > 0.0  # gradients reach the parameters
+
+
+@pytest.mark.parametrize("name", models.MODEL_NAMES)
+def test_sequence_equals_repeated_steps(name, eng_np):
+    rng = np.random.default_rng(2)
+    params = models.init(name, rng, CFG)
+    obs = _obs(rng, CFG, lead=(3, B))
+    state = models.initial_state(name, B, CFG, dtype=np.float64)
+    seq, final = models.sequence(name, params, inputs.select(obs, name), state, CFG, eng_np)
+    for t in range(3):
+        one = inputs.select({k: v[t] for k, v in obs.items()}, name)
+        out, state, _ = models.step(name, params, one, state, CFG, eng_np)
+        np.testing.assert_allclose(seq[t], out, rtol=1e-12, atol=1e-12)
+    for k in state:
+        np.testing.assert_allclose(final[k], state[k], rtol=1e-12)
+
+
+def test_step_under_jit(eng_jax):
+    rng = np.random.default_rng(3)
+    params = models.init("manc", rng, CFG, dtype=np.float32)
+    obs = {k: v.astype(np.float32) for k, v in inputs.select(_obs(rng), "manc").items()}
+    state = models.initial_state("manc", B, CFG)
+    f = eng_jax.jit(lambda p, o, s: models.step("manc", p, o, s, CFG, eng_jax)[0])
+    out = f(params, obs, state)
+    assert out.dtype == np.float32  # no silent promotion to float64
+    ref, _, _ = models.step("manc", params, obs, state, CFG, engine("numpy"))
+    np.testing.assert_allclose(np.asarray(out), ref, rtol=1e-4, atol=1e-4)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), scale=st.floats(0.1, 30.0), steps=st.integers(1, 6))
+def test_q_stays_a_distribution(seed, scale, steps):
+    """Over many closed-loop steps q stays non-negative and sums to one (eq. 9)."""
+    eng = engine("numpy")
+    rng = np.random.default_rng(seed)
+    params = models.init("manc", rng, CFG)
+    params["vagn"]["W"] = params["vagn"]["W"] * scale
+    state = models.initial_state("manc", B, CFG, rng=rng, mode="random", dtype=np.float64)
+    for _ in range(steps):
+        obs = inputs.select(_obs(rng), "manc")
+        _, state, aux = models.step("manc", params, obs, state, CFG, eng)
+        q = np.asarray(aux["q"])
+        assert np.all(q >= 0.0)
+        np.testing.assert_allclose(q.sum(axis=-1), 1.0, atol=1e-12)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), scale=st.floats(0.0, 1e3))
+def test_dmp_gains_in_the_stable_box(seed, scale):
+    """Whatever the network outputs, the gains stay in the ranges where dt = 0.5 is stable."""
+    rng = np.random.default_rng(seed)
+    logits = rng.normal(size=(6, 4)) * scale
+    obs = _obs(rng, lead=(6,))
+    controls, aux = models.dmp_head(logits, obs["lane_target"], obs["motion"], CFG)
+    a, b = aux["alpha"], aux["beta"]
+    assert np.all((a >= dmp.ALPHA_RANGE[0]) & (a <= dmp.ALPHA_RANGE[1]))
+    assert np.all((b >= dmp.BETA_RANGE[0]) & (b <= dmp.BETA_RANGE[1]))
+    assert np.all(dmp.step_stable(a, b, dt=CFG.dt))
+    assert np.all(np.isfinite(controls))
+
+
+def test_dmp_head_orientation_forms_agree():
+    """The yaw-angle orientation DMP equals the quaternion DMP of eq. 2 for yaw-only motion."""
+    rng = np.random.default_rng(4)
+    obs = _obs(rng, lead=(8,))
+    obs["lane_target"][..., 1] += rng.normal(0, 3, (8, 1))  # sizeable turns
+    logits = rng.normal(size=(8, 4)) * 2
+    yaw, _ = models.dmp_head(logits, obs["lane_target"], obs["motion"], CFG)
+    cfg_q = models.ModelConfig(**{**CFG.to_dict(), "channels": CFG.channels,
+                                  "orientation": "quaternion"})
+    quat, _ = models.dmp_head(logits, obs["lane_target"], obs["motion"], cfg_q)
+    np.testing.assert_allclose(yaw, quat, rtol=1e-9, atol=1e-9)
+    # and the quaternion module's own step agrees with the head's yaw rate
+    _, aux = models.dmp_head(logits, obs["lane_target"], obs["motion"], CFG)
+    a, b = aux["alpha"][:, 1:], aux["beta"][:, 1:]
+    z = np.zeros(8)
+    q1, _, _ = quaternion.quaternion_step(quaternion.identity((8,)),
+                                          np.stack([z, z, obs["motion"][:, 1]], -1),
+                                          quaternion.from_yaw(aux["psi_g"]), a, b)
+    np.testing.assert_allclose(quaternion.to_yaw(q1) / CFG.dt, yaw[:, 1], atol=1e-9)
+
+
+def _straight(offset, k=CFG.k_targets):
+    """Lane target of a straight lane whose centre is ``offset`` m to the ego's left."""
+    return np.stack([4.0 * np.arange(1, k + 1), np.full(k, offset)], -1)[None]
+
+
+def test_dmp_head_keeps_speed_and_corrects_a_lateral_offset():
+    zy = dmp.logits_from_gains(1.0, 1.0 / CFG.position_lookahead_time)
+    zq = dmp.logits_from_gains(3.0, 1.0 / CFG.heading_horizon)
+    logits = np.array([[zy[0], zy[1], zq[0], zq[1]]])
+    motion = np.array([[8.0, 0.0]])
+    centred, _ = models.dmp_head(logits, _straight(0.0), motion, CFG)
+    # on the lane centre: no turn, and beta_y * tau_y = 1 nearly keeps the speed
+    assert abs(centred[0, 1]) < 1e-12
+    assert abs(centred[0, 0] - 8.0) < 1.5
+    # lane centre 1 m to the right (ego is left of it): turn right, i.e. back to the lane
+    left_of_lane, _ = models.dmp_head(logits, _straight(-1.0), motion, CFG)
+    right_of_lane, _ = models.dmp_head(logits, _straight(1.0), motion, CFG)
+    assert left_of_lane[0, 1] < -0.01 and right_of_lane[0, 1] > 0.01
+    np.testing.assert_allclose(left_of_lane[0, 1], -right_of_lane[0, 1], rtol=1e-9)
+    # larger position gain beta_y: faster
+    fast, _ = models.dmp_head(logits + np.array([[0, 3.0, 0, 0]]), _straight(0.0), motion, CFG)
+    assert fast[0, 0] > centred[0, 0] + 0.5
+
+
+def test_predicates_match_cam(eng_np):
+    """MANC's eq. 7 is the chapter-6 predicate extractor (then a sigmoid) with our backbone."""
+    rng = np.random.default_rng(5)
+    params = models.init("manc", rng, CFG)
+    obs = inputs.select(_obs(rng), "manc")
+    _, _, aux = models.step("manc", params, obs, models.initial_state("manc", B, CFG), CFG,
+                            eng_np)
+    ext = {"convs": params["backbone"]["convs"], "head": params["predicates"]}
+    p = cam.predicate_extractor(ext, obs["bev"], eng_np.nn, xp=eng_np.xp, strides=(2, 2),
+                                padding=1, activation="silu")
+    np.testing.assert_allclose(aux["predicates"], 1.0 / (1.0 + np.exp(-p)), rtol=1e-10)
+
+
+def test_param_count():
+    cfg = CFG
+    params = models.init("manc", np.random.default_rng(0), cfg)
+    conv = (3 * 3 * 3 * 4 + 4) + (3 * 3 * 4 * 8 + 8)
+    M, N = cfg.n_predicates, cfg.n_states
+    assert models.param_count(params) == conv + (8 * M + M) + M * N * N + (N * 4 + 4)
+    counts = models.param_counts(models.ModelConfig())
+    assert set(counts) == set(models.MODEL_NAMES)
+    # the paper's claim (Fig. 7b): MANC is much smaller than the comparison models
+    for other in ("cnn", "cnn_lstm", "rvs_g"):
+        assert counts["manc"] < 0.7 * counts[other]
+
+
+def test_explain_saliency_identity():
+    rng = np.random.default_rng(6)
+    params = models.init("manc", rng, CFG)
+    obs = _obs(rng)
+    q_prev = np.full((B, CFG.n_states), 1.0 / CFG.n_states)
+    ex = models.explain(params, obs, q_prev, CFG, upsample_to_input=False)
+    N, M = CFG.n_states, CFG.n_predicates
+    assert ex["saliency"].shape == (B, N, 4, 4) and ex["cams"].shape == (B, M, 4, 4)
+    # mean over pixels of S_j = sum_i J_ji (z_i - b_i), z the predicate logits (chapter 6)
+    lhs = ex["saliency"].mean(axis=(-2, -1))
+    rhs = np.einsum("bji,bi->bj", ex["jacobian"], ex["logits"] - params["predicates"]["b"])
+    # and the Jacobian is dq/dlogits: compare with JAX
+    import jax
+
+    eng = engine("jax")
+
+    def q_of(z):
+        p = 1.0 / (1.0 + eng.xp.exp(-z))
+        return models.vagn.step(q_prev[0], p, params["vagn"]["W"], xp=eng.xp)
+
+    J = np.stack([jax.jacrev(q_of)(ex["logits"][i]) for i in range(B)])
+    np.testing.assert_allclose(ex["jacobian"], J, rtol=1e-7, atol=1e-10)
+    np.testing.assert_allclose(lhs, rhs, rtol=1e-9, atol=1e-12)
+    up = models.explain(params, obs, q_prev, CFG)
+    assert up["saliency"].shape == (B, N, 16, 16)
+    with pytest.raises(ValueError, match="vAGN"):
+        models.explain(models.init("cnn", rng, CFG), obs, q_prev, CFG)
+
+
+def test_bad_input_raises(eng_np):
+    rng = np.random.default_rng(7)
+    with pytest.raises(ValueError, match="name"):
+        models.init("transformer", rng, CFG)
+    with pytest.raises(ValueError, match="rng"):
+        models.initial_state("manc", 2, CFG, mode="random")
+    with pytest.raises(ValueError, match="n_states"):
+        models.ModelConfig(n_states=0)
+    with pytest.raises(ValueError, match="heading_lookahead"):
+        models.ModelConfig(heading_lookahead=2.0)
+    params = models.init("cnn", rng, CFG)
+    with pytest.raises(ValueError, match="goal"):
+        models.step("cnn", params, {"bev": np.zeros((1, 16, 16, 3))}, {}, CFG, eng_np)
+    with pytest.raises(ValueError, match="image_size"):
+        models.step("cnn", params, {"bev": np.zeros((1, 8, 8, 3)), "goal": np.zeros((1, 3))}, {},
+                    CFG, eng_np)

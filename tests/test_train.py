@@ -1,0 +1,163 @@
+"""Tests for minimanc.train (chapter 8): Algorithm 1 on both engines, checkpoints, divergence."""
+
+from __future__ import annotations
+
+import copy
+import os
+
+import numpy as np
+import pytest
+
+from minimanc import models, train, world
+
+CFG = models.ModelConfig(image_size=32, channels=(4, 8), n_predicates=4, n_states=3, hidden=8)
+
+
+@pytest.fixture(scope="module")
+def ds():
+    return world.generate(3, seed=0, raster=world.RasterConfig(size=32))
+
+
+def _tc(**kw):
+    base = dict(epochs=1, batch_size=8, seq_len=4, dtype="float64", max_steps_per_epoch=3)
+    base.update(kw)
+    return train.TrainConfig(**base)
+
+
+@pytest.mark.parametrize("name", ["manc", "cnn_lstm"])
+def test_equal_losses_on_both_engines(name, ds):
+    """Same code, same data order: our engine and jitted JAX give the same losses (float64)."""
+    tc = _tc(epochs=2, q_init="random")
+    a = train.fit(name, ds, CFG, tc, engine="numpy", progress=False)
+    b = train.fit(name, ds, CFG, tc, engine="jax", progress=False)
+    assert a.steps == b.steps == 6
+    np.testing.assert_allclose(a.history, b.history, rtol=1e-5, atol=1e-8)
+    for x, y in zip(models._leaves(a.params), models._leaves(b.params)):
+        np.testing.assert_allclose(x, y, rtol=1e-5, atol=1e-7)
+
+
+def test_overfit_a_handful_of_samples(ds):
+    """Algorithm 1's step on the same 8 samples again and again drives the loss down.
+
+    A direct head memorises them (loss ÷ 100). MANC starts far lower — its DMP
+    already follows the lane — and can only move its gains through q, so it
+    improves less (still more than halves its loss).
+    """
+    from minimanc import engine, optim
+
+    eng = engine("numpy")
+    s = np.array([[0, 0, 0, 1, 1, 1, 2, 2]])
+    t = np.array([[3, 17, 36, 5, 22, 30, 2, 25]])
+    inv = 1.0 / train.control_std(ds)
+    for name, lr, factor in (("cnn", 3e-3, 0.01), ("manc", 1e-2, 0.5)):
+        tc = train.TrainConfig(lr=lr, dtype="float64")
+        batch = train._make_batch(name, ds, s, t, CFG, np.float64)
+        q0 = train._q0(name, 8, CFG, tc, np.random.default_rng(0), np.float64)
+        if q0 is not None:
+            batch["q0"] = q0
+        params = models.init(name, np.random.default_rng(0), CFG)
+        opt = optim.adam_init(params)
+        step = train._make_step(name, CFG, tc, eng, inv)
+        losses = []
+        for _ in range(150):
+            params, opt, loss = step(params, opt, batch)
+            losses.append(float(loss))
+        assert losses[-1] < factor * losses[0], (name, losses[0], losses[-1])
+
+
+def test_checkpoint_resume_equals_uninterrupted(ds, tmp_path):
+    tc2 = _tc(epochs=2, q_init="random")
+    full = train.fit("manc", ds, CFG, tc2, engine="numpy", progress=False)
+    d = tmp_path / "run"
+    first = train.fit("manc", ds, CFG, _tc(epochs=1, q_init="random"), engine="numpy",
+                      checkpoint_dir=d, progress=False)
+    assert len(first.history) == 1 and (d / train.CHECKPOINT_NAME).exists()
+    resumed = train.fit("manc", ds, CFG, tc2, engine="numpy", checkpoint_dir=d, resume=True,
+                        progress=False)
+    assert resumed.history == pytest.approx(full.history, rel=1e-12)
+    for x, y in zip(models._leaves(full.params), models._leaves(resumed.params)):
+        np.testing.assert_array_equal(x, y)
+    assert sorted(os.listdir(d)) == [train.CHECKPOINT_NAME]  # no temporary files left
+    back = train.load(d / train.CHECKPOINT_NAME)
+    assert back.name == "manc" and back.cfg == CFG and back.history == resumed.history
+    for x, y in zip(models._leaves(back.params), models._leaves(resumed.params)):
+        np.testing.assert_array_equal(x, y)
+    # a checkpoint of another model is refused
+    with pytest.raises(ValueError, match="checkpoint"):
+        train.fit("cnn", ds, CFG, tc2, engine="numpy", checkpoint_dir=d, resume=True,
+                  progress=False)
+
+
+def test_nan_loss_stops_and_keeps_the_last_good_checkpoint(ds, tmp_path):
+    d = tmp_path / "run"
+    train.fit("cnn", ds, CFG, _tc(epochs=1), engine="numpy", checkpoint_dir=d, progress=False)
+    path = d / train.CHECKPOINT_NAME
+    before = path.read_bytes()
+    bad = copy.copy(ds)
+    bad.controls = ds.controls.copy()
+    bad.controls[:, :, 0] = np.nan
+    with pytest.raises(train.TrainingDiverged, match="diverged.*epoch 2.*kept"):
+        train.fit("cnn", bad, CFG, _tc(epochs=2), engine="numpy",
+                  checkpoint_dir=d, resume=True, progress=False)
+    assert path.read_bytes() == before
+    assert sorted(os.listdir(d)) == [train.CHECKPOINT_NAME]
+
+
+def test_subsets_are_nested():
+    a = train.subset_scenes(650, 0.25, seed=3)
+    b = train.subset_scenes(650, 0.5, seed=3)
+    c = train.subset_scenes(650, 1.0, seed=3)
+    assert len(a) == 163 and len(b) == 325 and len(c) == 650
+    assert set(a) <= set(b) <= set(c)
+    assert not np.array_equal(a, train.subset_scenes(650, 0.25, seed=4))
+
+
+def test_batches_cover_windows(ds):
+    tc = train.TrainConfig(batch_size=8, seq_len=4, seed=1)
+    plan = train.batches("cnn_lstm", ds, np.arange(3), tc, epoch=0)
+    assert all(s.shape == t.shape == (4, 2) for s, t in plan)
+    for s, t in plan:  # consecutive steps of one scene
+        assert np.all(np.diff(t, axis=0) == 1) and np.all(s == s[0])
+    ff = train.batches("cnn", ds, np.arange(3), tc, epoch=0)
+    pairs = {(int(s[0, i]), int(t[0, i])) for s, t in ff for i in range(s.shape[1])}
+    assert len(pairs) == 8 * len(ff) == 120  # every sample once per epoch
+    again = train.batches("cnn", ds, np.arange(3), tc, epoch=0)
+    assert all(np.array_equal(x[1], y[1]) for x, y in zip(ff, again))  # seeded
+
+
+def test_sweep_lr_picks_the_best(ds):
+    res = train.sweep_lr("dmp_only", ds, ds, CFG, lrs=(1e-4, 3e-3), train_cfg=_tc(epochs=1),
+                         engine="numpy", score=lambda r: r.train_cfg.lr)
+    assert res.best_lr == 1e-4 and set(res.scores) == {1e-4, 3e-3}
+    default = train.sweep_lr("dmp_only", ds, ds, CFG, lrs=(1e-3,), train_cfg=_tc(epochs=1),
+                             engine="numpy")
+    assert np.isfinite(default.scores[1e-3])
+
+
+def test_evaluate_matches_training_loss_definition(ds):
+    params = models.init("cnn", np.random.default_rng(0), CFG)
+    std = train.control_std(ds)
+    val = train.evaluate("cnn", params, ds, CFG, engine="numpy", std=std, dtype=np.float64)
+    from minimanc import engine, inputs
+
+    obs = inputs.from_dataset(ds, np.repeat(np.arange(3), 40), np.tile(np.arange(40), 3),
+                              model="cnn")
+    pred, _, _ = models.step("cnn", params, obs, {}, CFG, engine("numpy"))
+    ref = np.mean(((pred - ds.controls.reshape(-1, 2)) / std) ** 2)
+    assert val == pytest.approx(ref, rel=1e-6)
+
+
+def test_bad_config_raises(ds):
+    with pytest.raises(ValueError, match="lr"):
+        train.TrainConfig(lr=-1.0)
+    with pytest.raises(ValueError, match="subset"):
+        train.TrainConfig(subset=0.0)
+    with pytest.raises(ValueError, match="q_init"):
+        train.TrainConfig(q_init="zeros")
+    with pytest.raises(ValueError, match="image_size"):
+        train.fit("cnn", ds, models.ModelConfig(image_size=64), _tc(), engine="numpy",
+                  progress=False)
+    with pytest.raises(ValueError, match="engine"):
+        train.fit("cnn", ds, CFG, _tc(), engine="torch", progress=False)
+    with pytest.raises(ValueError, match="resume"):
+        train.fit("cnn", ds, CFG, _tc(), engine="numpy", resume=True, progress=False)
