@@ -390,8 +390,8 @@ class Study:
     # ----------------------------------------------------------------- evaluation
 
     def _paths(self, run: Run, split: str) -> tuple[Path, Path]:
-        base = self.cache / "rollouts" / f"{run.key}-{split}"
-        return base.with_suffix(".npz"), base.with_suffix(".json")
+        base = self.cache / "rollouts"
+        return base / f"{run.key}-{split}.npz", base / f"{run.key}-{split}.json"
 
     def submit(self, run: Run, split: str = "val") -> Any:
         """Train ``run`` if needed and start its closed-loop evaluation on ``split``.

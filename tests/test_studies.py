@@ -170,3 +170,13 @@ def test_reproduce_tiny_writes_everything(tmp_path, capsys):
     assert {p: p.stat().st_mtime for p in (out / "cache").rglob("*.npz")} == mtimes
     assert np.isclose(res2["table1"]["paper"]["cnn"]["ade"]["mean"],
                       res["table1"]["paper"]["cnn"]["ade"]["mean"])
+
+
+def test_run_files_are_distinct_per_lr_seed_and_split(tmp_path):
+    study = studies.Study(studies.PRESETS["tiny"], tmp_path, engine="numpy", workers=0)
+    runs = [studies.Run("cnn", "paper", 6, 1.0, s, lr) for s in (0, 1) for lr in (1e-3, 3e-3)]
+    paths = {p for r in runs for split in ("tune", "val") for p in study._paths(r, split)}
+    assert len(paths) == 2 * len(runs) * 2
+    assert len({study.checkpoint(r) for r in runs}) == len(runs)
+    assert all(p.name.endswith((".npz", ".json")) and "lr0.001" in p.name or "lr0.003" in p.name
+               for p in paths)
