@@ -356,6 +356,7 @@ def closed_loop(
     batch_size: int | None = None,
     q_init: str = "uniform",
     seed: int = 0,
+    steps: int | None = None,
     progress: bool = True,
 ) -> Rollout:
     """Closed-loop rollout of model ``name`` on the scenes of ``ds`` (see the module docstring).
@@ -370,5 +371,5 @@ def closed_loop(
             "the information setting it was trained in"
         )
     policy = ModelPolicy(name, params, cfg, eng, q_init=q_init, seed=seed)
-    return simulate(policy, ds, scenes=scenes, batch_size=batch_size, progress=progress,
-                    desc=f"closed loop {name} ({cfg.setting})")
+    return simulate(policy, ds, scenes=scenes, batch_size=batch_size, steps=steps,
+                    progress=progress, desc=f"closed loop {name} ({cfg.setting})")

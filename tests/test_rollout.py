@@ -129,3 +129,26 @@ def test_bad_input(ds):
 
     with pytest.raises(ValueError, match="controls"):
         rollout.simulate(Broken(ds), ds, steps=2, progress=False)
+
+
+@pytest.mark.parametrize("name", ["manc", "cnn_lstm"])
+def test_model_policy_batching_and_state_carry(ds, name):
+    from minimanc import engine, models, vagn
+
+    cfg = models.ModelConfig(image_size=32, n_states=4, setting="parity")
+    params = models.init(name, np.random.default_rng(1), cfg)
+    eng = engine("numpy")
+    kw = dict(scenes=[0, 2, 4], steps=5, progress=False)
+    a = rollout.closed_loop(name, params, ds, cfg, eng, batch_size=3, **kw)
+    b = rollout.closed_loop(name, params, ds, cfg, eng, batch_size=1, **kw)
+    assert np.allclose(a.ego, b.ego, atol=1e-5) and np.allclose(a.controls, b.controls, atol=1e-5)
+    assert a.name == name and a.setting == "parity" and np.all(np.isfinite(a.ego))
+    if name == "manc":
+        q, p, W = a.aux["q"], a.aux["predicates"], params["vagn"]["W"]
+        assert a.aux["alpha"].shape == (3, 5, 2) and np.allclose(q.sum(-1), 1.0, atol=1e-5)
+        # the state carries over: q[t] = vAGN(q[t-1], p[t]) (eq. 9), q[-1] uniform
+        for t in range(1, 5):
+            assert np.allclose(q[:, t], vagn.step(q[:, t - 1], p[:, t], W), atol=1e-5)
+        assert np.allclose(q[:, 0], vagn.step(np.full((3, 4), 0.25), p[:, 0], W), atol=1e-5)
+    with pytest.raises(ValueError, match="setting"):
+        rollout.closed_loop(name, params, ds, cfg, eng, setting="paper", **kw)
