@@ -24,15 +24,21 @@ anything:
   wrapper returning the chapter-7 ego-centric raster (same size, colours,
   ego pixel; :mod:`minimanc.world.raster`).
 * **Action adapter** (:func:`controls_to_action`, :class:`ActionAdapter`):
-  the package's controls ``[speed, yaw rate]`` (the unicycle of paper eq. 11's
-  integration, DT = 0.5 s) become highway-env's ``ContinuousAction``
+  the package's controls ``[speed, yaw rate]`` (the output of MANC's DMP
+  step, paper eqs. 10–11, integrated once; DT = 0.5 s) become highway-env's ``ContinuousAction``
   ``[acceleration, steering]`` on its kinematic bicycle.
-* **Expert** (:func:`run_episode` with ``policy="expert"``): the ego is
-  replaced by highway-env's own IDM/MOBIL vehicle following the route — the
-  "human" of this chapter — and :func:`collect` records its episodes in the
-  chapter-7 dataset format (``world.Dataset``; ``world.save``/``world.load``).
-* **Closed loop** (:func:`evaluate`): any policy (a trained MANC or baseline
-  through :func:`model_policy`) drives the ego; collision rate (highway-env's
+* **Expert** (:class:`ExpertVehicle`, :func:`install_expert`): the ego is
+  replaced by highway-env's own IDM/MOBIL vehicle following the route (plus
+  gap acceptance at roundabout entries) — the "human" of this chapter — and
+  :func:`collect` records collision-free episodes in the chapter-7 dataset
+  format (``world.Dataset``, maps as explicit recipes, so ``world.save`` /
+  ``world.load`` and ``minimanc.train`` work unchanged). The logged controls
+  are the speed reached at ``t + 1`` and the mean yaw rate over the step —
+  what the action adapter realises (:attr:`Episode.controls`).
+* **Closed loop** (:func:`closed_loop`): any chapter-9 policy
+  (:class:`minimanc.rollout.ModelPolicy` for MANC and the baselines) drives
+  the ego, observations from :func:`minimanc.inputs.from_state`; metrics
+  (:attr:`ClosedLoopResult.metrics`): collision rate (highway-env's
   ``crashed``), off-road rate (:func:`minimanc.metrics.off_road`), ADE to the
   expert of the same seed (:func:`minimanc.metrics.ade`), mean speed and
   episodes per second.
