@@ -102,6 +102,27 @@ def test_sequence_equals_repeated_steps(name, eng_np):
         np.testing.assert_allclose(final[k], state[k], rtol=1e-12)
 
 
+@pytest.mark.parametrize("name", models.DMP_MODELS)
+def test_sequence_feeds_the_dmp_its_own_motion(name, eng_np):
+    """With feedback, step i > 0 starts the DMP from the model's own previous controls."""
+    rng = np.random.default_rng(8)
+    params = models.init(name, rng, CFG)
+    obs = inputs.select(_obs(rng, CFG, lead=(3, B)), name)
+    state = models.initial_state(name, B, CFG, dtype=np.float64)
+    seq, _, aux = models.sequence(name, params, obs, state, CFG, eng_np, feedback_motion=True,
+                                  return_aux=True)
+    motion = obs["motion"][0]
+    for t in range(3):
+        one = {**{k: v[t] for k, v in obs.items()}, "motion": motion}
+        out, state, a = models.step(name, params, one, state, CFG, eng_np)
+        np.testing.assert_allclose(seq[t], out, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(aux["alpha"][t], a["alpha"], rtol=1e-12)
+        motion = out
+    plain, _ = models.sequence(name, params, obs, models.initial_state(name, B, CFG,
+                               dtype=np.float64), CFG, eng_np)
+    assert not np.allclose(plain[1:], seq[1:])  # the logged motion differs from the model's
+
+
 def test_step_under_jit(eng_jax):
     rng = np.random.default_rng(3)
     params = models.init("manc", rng, CFG, dtype=np.float32)

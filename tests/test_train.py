@@ -19,7 +19,8 @@ def ds():
 
 
 def _tc(**kw):
-    base = dict(epochs=1, batch_size=8, seq_len=4, dtype="float64", max_steps_per_epoch=3)
+    base = dict(epochs=1, batch_size=8, seq_len=4, dmp_seq_len=4, dtype="float64",
+                max_steps_per_epoch=3)
     base.update(kw)
     return train.TrainConfig(**base)
 
@@ -27,7 +28,7 @@ def _tc(**kw):
 @pytest.mark.parametrize("name", ["manc", "cnn_lstm"])
 def test_equal_losses_on_both_engines(name, ds):
     """Same code, same data order: our engine and jitted JAX give the same losses (float64)."""
-    tc = _tc(epochs=2, q_init="random")
+    tc = _tc(epochs=2, q_init="random", dmp_seq_len=2, seq_len=2)
     a = train.fit(name, ds, CFG, tc, engine="numpy", progress=False)
     b = train.fit(name, ds, CFG, tc, engine="jax", progress=False)
     assert a.steps == b.steps == 6
