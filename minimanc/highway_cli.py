@@ -69,8 +69,8 @@ def cmd_train(args: argparse.Namespace) -> int:
     for name in args.models:
         cfg = models.ModelConfig(image_size=size, setting=args.setting,
                                  k_targets=int(ds.lane_target.shape[2]))
-        tc = train.TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
-                               seed=args.seed)
+        given = {"epochs": args.epochs, "batch_size": args.batch_size, "lr": args.lr}
+        tc = train.TrainConfig(seed=args.seed, **{k: v for k, v in given.items() if v is not None})
         res = train.fit(name, ds, cfg, tc, engine=args.engine, checkpoint_dir=out / name,
                         resume=args.resume, progress=not args.quiet)
         print(f"{name}: {len(res.history)} epochs, final loss {res.history[-1]:.4f}, "
@@ -157,9 +157,9 @@ def register(subparsers: Any) -> None:
     t.add_argument("--data", required=True, help="file written by `minimanc highway collect`")
     t.add_argument("--models", nargs="+", default=["manc", "cnn"])
     t.add_argument("--setting", default="paper", choices=["paper", "parity"])
-    t.add_argument("--epochs", type=int, default=8)
-    t.add_argument("--batch-size", type=int, default=64)
-    t.add_argument("--lr", type=float, default=1e-3)
+    t.add_argument("--epochs", type=int, default=None, help="default: train.TrainConfig's")
+    t.add_argument("--batch-size", type=int, default=None, help="default: train.TrainConfig's")
+    t.add_argument("--lr", type=float, default=None, help="default: train.TrainConfig's")
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--engine", default="jax", choices=["jax", "numpy"])
     t.add_argument("--out", default="highway_runs")
