@@ -601,30 +601,36 @@ def fit(
             bar = tqdm(total=len(plan), desc=f"{name} epoch {epoch + 1}/{tc.epochs}",
                        leave=False)
         total, count = 0.0, 0
-        for s_idx, t_idx in plan:
-            batch = _make_batch(name, train_ds, s_idx, t_idx, cfg, dtype)
-            q0 = _q0(name, s_idx.shape[1], cfg, tc, q_rng, dtype)
-            if q0 is not None:
-                batch["q0"] = q0
-            params, opt_state, loss = step_fn(params, opt_state, batch)
-            loss = float(getattr(loss, "_value", loss))
-            steps += 1
-            if not math.isfinite(loss):
+        pending = None  # the previous step's loss: read after the next step is dispatched,
+        # so that JAX computes while the host prepares the next batch
+        for i in range(len(plan) + 1):
+            if i < len(plan):
+                s_idx, t_idx = plan[i]
+                batch = _make_batch(name, train_ds, s_idx, t_idx, cfg, dtype)
+                q0 = _q0(name, s_idx.shape[1], cfg, tc, q_rng, dtype)
+                if q0 is not None:
+                    batch["q0"] = q0
+                params, opt_state, loss_i = step_fn(params, opt_state, batch)
+                steps += 1
+            if pending is not None:
+                loss = float(getattr(pending, "_value", pending))
+                if not math.isfinite(loss):
+                    if bar is not None:
+                        bar.close()
+                    kept = (f"the checkpoint of epoch {len(history)} is kept in {ck_path}"
+                            if ck_path is not None and ck_path.exists()
+                            else "no checkpoint was written")
+                    raise TrainingDiverged(
+                        f"training {name!r} diverged: loss = {loss} at epoch {epoch + 1}, "
+                        f"step {count + 1} of {len(plan)} (lr={tc.lr}); {kept}. "
+                        "Lower the learning rate or check the data for NaNs."
+                    )
+                total += loss
+                count += 1
                 if bar is not None:
-                    bar.close()
-                kept = (f"the checkpoint of epoch {start_epoch if not history else len(history)}"
-                        f" is kept in {ck_path}" if ck_path is not None and ck_path.exists()
-                        else "no checkpoint was written")
-                raise TrainingDiverged(
-                    f"training {name!r} diverged: loss = {loss} at epoch {epoch + 1}, "
-                    f"step {count + 1} of {len(plan)} (lr={tc.lr}); {kept}. "
-                    "Lower the learning rate or check the data for NaNs."
-                )
-            total += loss
-            count += 1
-            if bar is not None:
-                bar.update(1)
-                bar.set_postfix(loss=f"{total / count:.4f}")
+                    bar.update(1)
+                    bar.set_postfix(loss=f"{total / count:.4f}")
+            pending = loss_i if i < len(plan) else None
         if bar is not None:
             bar.close()
         history.append(total / max(count, 1))
