@@ -265,32 +265,31 @@ for label, res in (("highway-trained", results["manc"]), ("world-trained", trans
 # ```
 #
 # One run of exactly these commands (36 demonstrations, 8 evaluation episodes per
-# scenario, seeds from 100000; about 9 minutes on two cores):
+# scenario, seeds from 100000; about 10 minutes on two cores):
 #
 # | scenario | driver | collision % | off-road % | ADE m | speed m/s |
 # |---|---|---:|---:|---:|---:|
 # | roundabout | expert | 0.0 | 0.0 | 0.00 | 6.00 |
-# | roundabout | MANC | 12.5 | 12.5 | 9.99 | 7.01 |
-# | roundabout | CNN | 0.0 | 50.0 | 6.96 | 6.04 |
-# | roundabout | MANC trained on the world | 12.5 | 100.0 | 7.24 | 5.04 |
+# | roundabout | MANC | 25.0 | 12.5 | 8.94 | 6.71 |
+# | roundabout | CNN | 12.5 | 50.0 | 6.18 | 5.10 |
+# | roundabout | MANC trained on the world | 0.0 | 0.0 | 7.03 | 5.36 |
 # | intersection | expert | 0.0 | 0.0 | 0.00 | 5.95 |
-# | intersection | MANC | 37.5 | 0.0 | 14.13 | 8.30 |
-# | intersection | CNN | 25.0 | 50.0 | 8.85 | 5.54 |
-# | intersection | MANC trained on the world | 25.0 | 25.0 | 6.63 | 6.05 |
+# | intersection | MANC | 50.0 | 0.0 | 7.91 | 5.11 |
+# | intersection | CNN | 37.5 | 50.0 | 7.70 | 4.66 |
+# | intersection | MANC trained on the world | 50.0 | 0.0 | 6.96 | 5.36 |
 # | highway-fast | expert | 0.0 | 0.0 | 0.00 | 20.79 |
-# | highway-fast | MANC | 0.0 | 0.0 | 11.61 | 18.31 |
-# | highway-fast | CNN | 0.0 | 0.0 | 24.18 | 15.88 |
-# | highway-fast | MANC trained on the world | 0.0 | 0.0 | 27.83 | 13.34 |
+# | highway-fast | MANC | 12.5 | 0.0 | 11.76 | 21.77 |
+# | highway-fast | CNN | 0.0 | 0.0 | 33.95 | 12.88 |
+# | highway-fast | MANC trained on the world | 0.0 | 0.0 | 20.56 | 15.44 |
 #
 # Read it with care: 8 episodes per cell (one episode is 12.5 %), one training seed,
-# one data set. What it does show: MANC's DMP head mostly keeps the car on the road
-# (it tracks the lane target) but, with 36 demonstrations, it has not learned to
-# *wait*: at the roundabout entry the expert slows to 2–4 m/s and yields while MANC
-# keeps 7–8 m/s (its collisions and large ADE), and at the intersection it is faster
-# than the expert on average. The CNN drives at about the expert's speed but leaves
-# the road in half of the junction episodes. The world-trained MANC, which never saw a
-# two-lane ring or 4 m lanes, stays on the highway but leaves the roundabout every
-# time. Things to try: the
-# `parity` setting (every model gets the lane target), more demonstrations and
-# epochs, several seeds, and `minimanc highway render --checkpoint ...` to watch a
-# failure.
+# one data set. What it does show: MANC's DMP head keeps the car on the road — it
+# tracks the lane target, also when trained on the chapter-7 world only — but neither
+# MANC has learned to *wait*: at the roundabout entry the expert slows to 2–4 m/s and
+# yields, the highway-trained MANC keeps about 7 m/s (its collisions), the
+# world-trained one about 5 m/s (slow enough to slip through in these 8 episodes); at
+# the intersection both collide in half of the episodes. The CNN does slow down at the
+# entry, but it leaves the road in half of the junction episodes and on the highway
+# it drives far too slowly (its ADE). Things to try: the `parity` setting (every
+# model gets the lane target), more demonstrations and epochs, several seeds, and
+# `minimanc highway render --checkpoint ...` to watch a failure.
