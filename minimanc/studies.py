@@ -429,6 +429,7 @@ class Study:
                     self.timing["rollout"] = (self.timing.get("rollout", 0.0)
                                               + time.perf_counter() - t0)
         self._futures[key] = fut
+        self._tick()
         return fut
 
     def _executor(self) -> Any:
@@ -488,7 +489,6 @@ class Study:
             setting = canonical_setting(model, setting)
             for lr in c.lrs:
                 self.submit(Run(model, setting, c.n_states, 1.0, 0, float(lr)), "tune")
-                self._tick()
 
     # ----------------------------------------------------------------- studies
 
@@ -507,7 +507,6 @@ class Study:
     def _submit_all(self, runs: list[Run]) -> None:
         for r in runs:
             self.submit(r)
-            self._tick()
 
     def _tick(self) -> None:
         if self._bar is not None:
@@ -571,7 +570,8 @@ class Study:
         return out
 
     def n_runs(self) -> int:
-        """Number of distinct trainings the whole study needs (for the progress bar)."""
+        """Number of closed-loop evaluations (tuning and validation) of the whole study,
+        one per training (for the progress bar)."""
         c = self.config
         keys = set()
         for m, s in self._sweep_pairs():

@@ -168,6 +168,10 @@ def test_reproduce_tiny_writes_everything(tmp_path, capsys):
     res2 = studies.reproduce(studies.PRESETS["tiny"], out, engine="numpy", workers=0,
                              progress=False, figures=False)
     assert {p: p.stat().st_mtime for p in (out / "cache").rglob("*.npz")} == mtimes
+    study = studies.Study(studies.PRESETS["tiny"], out, engine="numpy", workers=0,
+                          progress=False)
+    study.run()
+    assert len(study._futures) == study.n_runs()  # the progress bar's total is exact
     assert np.isclose(res2["table1"]["paper"]["cnn"]["ade"]["mean"],
                       res["table1"]["paper"]["cnn"]["ade"]["mean"])
 
