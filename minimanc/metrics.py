@@ -284,18 +284,22 @@ def evaluate(traj: Any, ds: Any, gap: float = CLOSE_GAP) -> dict[str, float]:
 def aggregate(per_seed: Sequence[Mapping[str, float]]) -> dict[str, dict[str, float]]:
     """``[{metric: value} per seed]`` → ``{metric: {"mean", "std", "n", "values"}}``.
 
-    ``std`` is the population standard deviation over seeds (``ddof = 0``).
-    Only the keys present in every seed's dict are kept.
+    ``std`` is the population standard deviation over seeds (``ddof = 0``; NaN
+    when a seed's value is infinite, e.g. a closed loop that blew up).
+    Only the numeric keys present in every seed's dict are kept.
     """
     if len(per_seed) == 0:
         raise ValueError("per_seed must hold at least one dict of metrics; got an empty sequence")
-    keys = [k for k in per_seed[0] if all(k in d for d in per_seed)]
+    def numeric(v: Any) -> bool:
+        return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+
+    keys = [k for k in per_seed[0] if all(k in d and numeric(d[k]) for d in per_seed)]
     out: dict[str, dict[str, Any]] = {}
     for k in keys:
         vals = np.array([float(d[k]) for d in per_seed])
         out[k] = {
             "mean": float(vals.mean()),
-            "std": float(vals.std()),
+            "std": float(vals.std()) if np.all(np.isfinite(vals)) else float("nan"),
             "n": len(vals),
             "values": [float(x) for x in vals],
         }

@@ -44,6 +44,7 @@ from minimanc.world.geometry import DT, unicycle_step
 __all__ = [
     "AUX_KEYS",
     "BATCH_SIZE",
+    "BadControls",
     "Policy",
     "ModelPolicy",
     "Rollout",
@@ -57,6 +58,10 @@ AUX_KEYS: tuple[str, ...] = ("q", "alpha", "beta", "predicates")
 
 BATCH_SIZE: int = 8
 """Default number of scenes driven together (see :func:`simulate`)."""
+
+
+class BadControls(ValueError):
+    """A policy returned controls of the wrong shape or not finite (NaN or infinite)."""
 
 
 class Policy(Protocol):
@@ -228,7 +233,7 @@ def simulate(
     chunks = [idx[i: i + bs] for i in range(0, len(idx), bs)]
     bar = None
     if progress:
-        from tqdm.auto import tqdm
+        from tqdm import tqdm
 
         bar = tqdm(total=len(chunks) * n_steps, desc=desc or f"closed loop {policy.model}",
                    unit="step", leave=False)
@@ -248,7 +253,7 @@ def simulate(
             u, state, aux = policy(obs, state, t, chunk)
             u = np.asarray(u, dtype=np.float64)
             if u.shape != (len(chunk), 2) or not np.all(np.isfinite(u)):
-                raise ValueError(
+                raise BadControls(
                     f"policy {policy.model!r} returned controls of shape {u.shape} "
                     f"(finite: {bool(np.all(np.isfinite(u)))}) at step {t}; "
                     f"expected finite ({len(chunk)}, 2)"

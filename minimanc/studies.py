@@ -243,8 +243,15 @@ def _evaluate_job(job: dict) -> dict:
         _enable_jax_cache(job["jax_cache"])
     ds = _load_split(job["data"], job["lo"], job["hi"])
     fit = train.load(job["checkpoint"])
-    traj = rollout.closed_loop(fit.name, fit.params, ds, fit.cfg, engine(job["engine"]),
-                               progress=False)
+    try:
+        traj = rollout.closed_loop(fit.name, fit.params, ds, fit.cfg, engine(job["engine"]),
+                                   progress=False)
+    except rollout.BadControls as exc:  # a model whose closed loop blows up scores inf
+        res = {k: float("inf") for k in metrics.METRICS}
+        res["error"] = str(exc)
+        _write_json(job["metrics"], res)
+        np.savez(job["rollout"], error=np.array(str(exc)))
+        return res
     traj.save(job["rollout"])
     res = metrics.evaluate(traj, ds)
     _write_json(job["metrics"], res)
@@ -611,7 +618,7 @@ class Study:
         self.datasets()
         bar = None
         if self.progress:
-            from tqdm.auto import tqdm
+            from tqdm import tqdm
 
             bar = tqdm(total=self.n_runs(), desc="reproduce: runs", unit="run")
         self._bar = bar
@@ -920,6 +927,9 @@ def write_explanations(study: Study, figdir: Path) -> list[Path]:
         return []
     _, _, val = study.datasets()
     run = study.explain_run()
+    if "error" in study.result(run):
+        study.log(f"figures: no explanations, the closed loop of {run.key} failed")
+        return []
     traj = study.rollout(run)
     fit = train.load(study.checkpoint(run))
     human = rollout.human(val)

@@ -189,6 +189,7 @@ def test_aggregate_mean_std():
     assert agg["ade"]["std"] == pytest.approx(np.std([1.0, 3.0, 2.0]))
     assert agg["ade"]["n"] == 3
     assert metrics.aggregate([{"ade": 5.0}])["ade"]["std"] == 0.0
+    assert set(metrics.aggregate([{"ade": 1.0, "error": "blew up"}])) == {"ade"}
 
 
 # --------------------------------------------------------------------------- bad input

@@ -184,3 +184,21 @@ def test_run_files_are_distinct_per_lr_seed_and_split(tmp_path):
     assert len({study.checkpoint(r) for r in runs}) == len(runs)
     assert all(p.name.endswith((".npz", ".json")) and "lr0.001" in p.name or "lr0.003" in p.name
                for p in paths)
+
+
+def test_a_closed_loop_that_blows_up_scores_inf(tmp_path):
+    from minimanc import models, train, world
+
+    ds = world.generate(2, seed=5, raster=world.RasterConfig(size=32), workers=1)
+    data = world.save(ds, tmp_path / "d.npz")
+    cfg = models.ModelConfig(image_size=32)
+    params = models.init("cnn", np.random.default_rng(0), cfg)
+    params["out"]["b"] = params["out"]["b"] * np.nan
+    ck = train.save(tmp_path / "ck.npz", "cnn", params, cfg)
+    job = {"data": str(data), "lo": 0, "hi": 2, "checkpoint": str(ck), "engine": "numpy",
+           "rollout": str(tmp_path / "r.npz"), "metrics": str(tmp_path / "m.json")}
+    res = studies._evaluate_job(job)
+    assert res["ade"] == float("inf") and "finite" in res["error"]
+    agg = metrics.aggregate([res])
+    assert "error" not in agg and agg["ade"]["mean"] == float("inf")
+    assert "diverged" in studies._cell(agg, "ade", 1)
