@@ -1014,6 +1014,9 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
             print(f"error: --seeds must be >= 1, got {args.seeds}", file=sys.stderr)
             return 2
         config = replace(config, n_seeds=int(args.seeds))
+    if args.workers < 0:
+        print(f"error: --workers must be >= 0, got {args.workers}", file=sys.stderr)
+        return 2
     out = Path(args.out) if args.out else Path("minimanc_results") / preset
     progress = not args.no_progress
     t0 = time.perf_counter()
@@ -1057,6 +1060,6 @@ def register(subparsers: Any) -> None:
     p.add_argument("--workers", type=int, default=1,
                    help="processes running closed-loop rollouts while training (0 = inline)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
-    p.add_argument("--verbose", action="store_true", help="one line per training and rollout")
+    p.add_argument("--verbose", action="store_true", help="one line per training")
     p.set_defaults(func=_cmd_reproduce)
 
