@@ -881,6 +881,9 @@ def table_markdown(results: dict) -> str:
         lines += [f"- {k}: {v:g}" for k, v in results["lr"].items()]
         lines.append("")
     lines += ["## The paper's claims, checked", ""]
+    if ns == 1:
+        lines += ["With one seed the seed-to-seed spread is unknown: small differences below "
+                  "may be noise (`minimanc reproduce --seeds 3`).", ""]
     for f in results.get("findings", []):
         mark = {True: "holds", False: "does NOT hold", None: "not tested"}[f["holds"]]
         lines.append(f"- **{f['claim']}** — {mark}. {f['detail']}.")
