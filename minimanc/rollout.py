@@ -23,7 +23,10 @@ The result is a :class:`Rollout`: poses ``(S, T, 3)`` on the log's clock,
 the applied controls ``(S, T−1, 2)`` and, per step, the model's explanation
 outputs (``q``, DMP ``alpha`` and ``beta``, ``predicates``) for the paper's
 explainability figures.  :func:`human` is the replay of the logged ego — the
-"Human" row of Table I.
+"Human" row of Table I — and :func:`fixed_gains` drives with MANC's DMP head
+at constant gains and no network at all (eqs. 10–11 with ``FC(q)`` replaced
+by a constant): the structured prior alone, the reference that tells how much
+the learned part adds.
 
 Any object with ``model``, ``setting``, ``initial_state(scenes)`` and
 ``__call__(obs, state, t, scenes) -> (controls, state, aux)`` can drive
@@ -45,12 +48,14 @@ __all__ = [
     "AUX_KEYS",
     "BATCH_SIZE",
     "BadControls",
+    "FixedGainsPolicy",
     "Policy",
     "ModelPolicy",
     "Rollout",
     "human",
     "simulate",
     "closed_loop",
+    "fixed_gains",
 ]
 
 AUX_KEYS: tuple[str, ...] = ("q", "alpha", "beta", "predicates")
@@ -378,3 +383,49 @@ def closed_loop(
     policy = ModelPolicy(name, params, cfg, eng, q_init=q_init, seed=seed)
     return simulate(policy, ds, scenes=scenes, batch_size=batch_size, steps=steps,
                     progress=progress, desc=f"closed loop {name} ({cfg.setting})")
+
+
+class FixedGainsPolicy:
+    """The DMP head of MANC (:func:`minimanc.models.dmp_head`, eqs. 10–11) at constant gains.
+
+    No CNN, no vAGN: every step makes one DMP step towards the lane target
+    from the current motion with the same ``gains = (α_y, β_y, α_q, β_q)``
+    (default :data:`minimanc.models.DEFAULT_GAINS`, the gains MANC starts
+    training from). It sees what DMP-only sees (the BEV is built but unused).
+    """
+
+    model = "dmp_only"
+    setting = "paper"
+
+    def __init__(self, cfg: Any = None, gains: Any = None) -> None:
+        from minimanc import dmp, models
+
+        self.cfg = cfg or models.ModelConfig()
+        g = np.asarray(models.DEFAULT_GAINS if gains is None else gains, dtype=np.float64)
+        if g.shape != (4,) or not np.all(np.isfinite(g)):
+            raise ValueError(f"gains must be four finite numbers (alpha_y, beta_y, alpha_q, "
+                             f"beta_q); got gains={gains!r}")
+        za, zb = dmp.logits_from_gains(g[0], g[1])
+        zqa, zqb = dmp.logits_from_gains(g[2], g[3])
+        self.logits = np.array([za, zb, zqa, zqb], dtype=np.float64)
+
+    def initial_state(self, scenes: np.ndarray) -> None:
+        return None
+
+    def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
+                 ) -> tuple[np.ndarray, Any, dict]:
+        from minimanc import models
+
+        logits = np.tile(self.logits, (len(scenes), 1))
+        u, aux = models.dmp_head(logits, np.asarray(obs["lane_target"], np.float64),
+                                 np.asarray(obs["motion"], np.float64), self.cfg)
+        return np.asarray(u), state, {"alpha": aux["alpha"], "beta": aux["beta"]}
+
+
+def fixed_gains(ds: Any, scenes: Any = None, cfg: Any = None, gains: Any = None,
+                progress: bool = False) -> Rollout:
+    """Closed loop of :class:`FixedGainsPolicy` on ``ds`` (the "DMP prior" reference)."""
+    policy = FixedGainsPolicy(cfg, gains)
+    traj = simulate(policy, ds, scenes=scenes, progress=progress, desc="closed loop DMP prior")
+    traj.name = "dmp_prior"
+    return traj

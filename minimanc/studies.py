@@ -527,6 +527,21 @@ class Study:
         res = metrics.evaluate(rollout.human(val), val)
         return metrics.aggregate([res])
 
+    def references(self) -> dict:
+        """``{"dmp_prior": aggregate}``: policies without learning, on the validation split.
+
+        ``dmp_prior`` is MANC's DMP head at its initial constant gains
+        (:func:`minimanc.rollout.fixed_gains`): what the structure alone does,
+        the bar the learned gains must clear.
+        """
+        from minimanc import models, rollout
+
+        _, _, val = self.datasets()
+        cfg = models.ModelConfig(n_states=self.config.n_states,
+                                 image_size=self.config.image_size)
+        res = metrics.evaluate(rollout.fixed_gains(val, cfg=cfg), val)
+        return {"dmp_prior": metrics.aggregate([res])}
+
     def table1(self) -> dict:
         """``{setting: {model: aggregate}}`` with ``"human"`` first (Table I)."""
         c = self.config
@@ -635,6 +650,7 @@ class Study:
                 "q_states": self.q_states(),
                 "ablation": self.ablation(),
                 "param_counts": self.param_counts(),
+                "references": self.references(),
             }
         finally:
             if bar is not None:
@@ -730,6 +746,16 @@ def findings(results: dict) -> list[dict]:
             add("parity_helps_baselines",
                 "Giving the baselines the lane target and their motion (parity) lowers their ADE",
                 all(gains), "ADE paper → parity: " + "; ".join(parts))
+    prior = results.get("references", {}).get("dmp_prior")
+    manc_rows = [t["manc"] for t in results.get("table1", {}).values() if "manc" in t]
+    if prior and manc_rows:
+        m, p = _mean(manc_rows[0], "ade"), _mean(prior, "ade")
+        add("learning_beats_prior",
+            "Learning the gains (MANC) imitates better than the DMP head at fixed gains "
+            "(not a claim of the paper: the bar the learned part must clear)", m < p,
+            f"ADE: MANC {_fmt(m)}, DMP at fixed gains {_fmt(p)}; goal distance: MANC "
+            f"{_fmt(_mean(manc_rows[0], 'goal_distance'))}, fixed gains "
+            f"{_fmt(_mean(prior, 'goal_distance'))}")
     qs = results.get("q_states")
     if qs and len(qs["n_states"]) >= 2:
         n = qs["n_states"]
@@ -866,6 +892,17 @@ def table_markdown(results: dict) -> str:
         lines += ["## Self-ablation", "", header, rule]
         for m, agg in ab["models"].items():
             lines.append(f"| {lab(m)} | " + " | ".join(_cell(agg, k, ns) for k in _COLS) + " |")
+        lines.append("")
+    refs = results.get("references")
+    if refs:
+        lines += ["## Reference without learning", "",
+                  "The DMP head of MANC at its initial constant gains, no network (eqs. 10–11 "
+                  "with a constant in place of FC(q)): what the structure alone achieves.", "",
+                  header, rule]
+        labels = {"dmp_prior": "DMP at fixed gains"}
+        for m, agg in refs.items():
+            lines.append(f"| {labels.get(m, m)} | "
+                         + " | ".join(_cell(agg, k, 1) for k in _COLS) + " |")
         lines.append("")
     pc = results.get("param_counts")
     if pc:

@@ -152,3 +152,34 @@ def test_model_policy_batching_and_state_carry(ds, name):
         assert np.allclose(q[:, 0], vagn.step(np.full((3, 4), 0.25), p[:, 0], W), atol=1e-5)
     with pytest.raises(ValueError, match="setting"):
         rollout.closed_loop(name, params, ds, cfg, eng, setting="paper", **kw)
+
+
+def test_fixed_gains_is_dmp_only_with_a_constant_head(ds):
+    """The DMP prior equals DMP-only whose gains layer ignores the predicates (weights 0,
+    bias = the gains' logits): the same controls, step by step."""
+    from minimanc import dmp, engine, models
+
+    cfg = models.ModelConfig(image_size=32, n_states=4)
+    gains = (1.5, 0.4, 2.0, 1.0)
+    prior = rollout.fixed_gains(ds, scenes=[0, 3], cfg=cfg, gains=gains)
+    params = models.init("dmp_only", np.random.default_rng(0), cfg)
+    params["gains"]["w"] = np.zeros_like(params["gains"]["w"])
+    za, zb = dmp.logits_from_gains(gains[0], gains[1])
+    zqa, zqb = dmp.logits_from_gains(gains[2], gains[3])
+    params["gains"]["b"] = np.array([za, zb, zqa, zqb])
+    model = rollout.closed_loop("dmp_only", params, ds, cfg, engine("numpy"), scenes=[0, 3],
+                                progress=False)
+    assert prior.name == "dmp_prior" and prior.ego.shape == model.ego.shape
+    np.testing.assert_allclose(prior.controls, model.controls, atol=1e-4)
+    np.testing.assert_allclose(prior.aux["alpha"][..., 0], gains[0], rtol=1e-9)
+    np.testing.assert_allclose(prior.aux["beta"][..., 1], gains[3], rtol=1e-9)
+    # the default gains are the ones MANC starts training from
+    manc_bias = models.init("manc", np.random.default_rng(0), cfg)["gains"]["b"]
+    np.testing.assert_allclose(rollout.FixedGainsPolicy(cfg).logits, manc_bias)
+
+
+@pytest.mark.parametrize("gains", [(1.0, 0.4, 2.0), (1.0, np.nan, 2.0, 1.0),
+                                   (100.0, 0.4, 2.0, 1.0)])
+def test_fixed_gains_rejects_bad_gains(gains):
+    with pytest.raises(ValueError):
+        rollout.FixedGainsPolicy(gains=gains)

@@ -47,6 +47,7 @@ def fake_results(manc_ade=1.0, q_ades=(3.0, 2.0, 1.5, 1.0)):
         "param_counts": {"paper": {"cnn": 100_000, "cnn_lstm": 120_000, "rvs_g": 200_000,
                                    "manc": 20_000, "vagn_only": 25_000, "dmp_only": 19_000}},
         "lr": {"manc-paper": 1e-3},
+        "references": {"dmp_prior": row(3.0, 2.0, 2.5, 6.0)},
     }
 
 
@@ -84,6 +85,16 @@ def test_findings_report_failures_with_numbers():
     assert "best is cnn" in f["manc_best_ade_parity"]["detail"]
 
 
+def test_findings_compare_manc_with_its_fixed_gain_prior():
+    f = by_id(studies.findings(fake_results(manc_ade=1.0)))["learning_beats_prior"]
+    assert f["holds"] is True and "MANC 1.00" in f["detail"] and "fixed gains 2.50" in f["detail"]
+    f = by_id(studies.findings(fake_results(manc_ade=2.9)))["learning_beats_prior"]
+    assert f["holds"] is False
+    res = fake_results()
+    del res["references"]
+    assert "learning_beats_prior" not in by_id(studies.findings(res))
+
+
 def test_findings_mention_seed_noise():
     res = fake_results(manc_ade=1.95)  # rvs_g 2.00: difference 0.05 < 0.1 + 0.1
     d = by_id(studies.findings(res))["manc_best_ade_paper"]["detail"]
@@ -96,7 +107,8 @@ def test_table_markdown_contains_every_section():
     md = studies.table_markdown(res)
     for text in ("setting `paper`", "setting `parity`", "| MANC | 2.50 ± 0.10",
                  "| Human | 2.00 |", "Sample efficiency", "q-states", "Self-ablation",
-                 "Parameters", "holds", "does NOT hold", "| 20,000 |"):
+                 "Parameters", "holds", "does NOT hold", "| 20,000 |",
+                 "| DMP at fixed gains | 3.00 | 2.00 | 2.50 |"):
         assert text in md, text
 
 
@@ -152,6 +164,7 @@ def test_reproduce_tiny_writes_everything(tmp_path, capsys):
     assert [len(v) for v in res["sample_efficiency"]["models"].values()] == [2] * 4
     assert res["q_states"]["n_states"] == [3, 6]
     assert set(res["ablation"]["models"]) == {"manc", "vagn_only", "dmp_only"}
+    assert res["references"]["dmp_prior"]["ade"]["mean"] > 0.0
     for f in res["findings"]:
         assert f["holds"] in (True, False, None) and f["detail"]
     md = (out / "table1.md").read_text()
