@@ -53,9 +53,13 @@ linearly between its 4-m points (:func:`lane_point`):
   from step to step, so a model trained only on one-step predictions can
   run away in closed loop (we saw 24 m/s); :mod:`minimanc.train` therefore
   trains the DMP models on windows in which the DMP's velocity carries over
-  (``TrainConfig.motion_feedback``). On 60 validation scenes, after 4 epochs,
-  that gave a closed-loop mean speed of 7.44 m/s (human 7.46), no off-road
-  scene and ADE 10.5 m; a fixed 20-m goal gave 7.0 m/s and ADE 12.2 m.
+  (``TrainConfig.motion_feedback``). With 8-step windows, on 60 validation
+  scenes after 4 epochs on 650 training scenes, that gave a closed-loop mean
+  speed of 7.44 m/s (human 7.46), no off-road scene and ADE 10.5 m; a fixed
+  20-m goal gave 7.0 m/s and ADE 12.2 m. The equilibrium speed of this goal
+  rule, ``v* ≈ β_y d_y / (1 − β_y τ_y)`` for a fully relaxed step, is very
+  sensitive to ``β_y`` (4 % more ``β_y`` at 7.5 m/s means 20 % more speed),
+  which is why the windows now span whole scenes (:mod:`minimanc.train`).
 * **Orientation DMP** (eq. 10, second row — the quaternion DMP of eq. 2 about
   the vertical axis): ``q₀`` = identity (the ego frame), ``η₀ = (0, 0, ω₀)``,
   goal ``g_q`` = the yaw ``ψ_g = clip(κ v₀ τ_q, ±π/2)`` with ``κ = 2 p_y /
@@ -584,7 +588,9 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
     """Run ``L`` steps on time-major observations ``(L, B, ...)``: ``(controls (L, B, 2), state)``.
 
     Equal to ``L`` calls of :func:`step` (tested), but the backbone runs once
-    on all ``L·B`` frames. Used to train the recurrent models on truncated
+    on all ``L·B`` frames. On JAX the time loop is one ``jax.lax.scan``
+    (compiled once instead of unrolled ``L`` times; equal to the loop, tested).
+    Used to train the recurrent models on truncated
     back-propagation-through-time windows. With ``feedback_motion`` (DMP
     models), the DMP's initial velocities at step ``i > 0`` are the model's
     own controls of step ``i − 1`` instead of ``obs_seq["motion"][i]``: the
@@ -603,6 +609,8 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
     enc = _encode(name, params, flat, cfg, eng)
     enc.pop("features")
     feedback = feedback_motion and name in DMP_MODELS
+    if eng.name == "jax":
+        return _scan_heads(name, params, enc, state, cfg, eng, L, feedback, return_aux)
     outs, auxs = [], []
     for i in range(L):
         enc_i = _take(enc, i, L)
@@ -615,6 +623,38 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
         return xp.stack(outs, axis=0), state
     stacked = {k: xp.stack([a[k] for a in auxs], axis=0) for k in auxs[0]}
     return xp.stack(outs, axis=0), state, stacked
+
+
+def _scan_heads(name: str, params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any,
+                L: int, feedback: bool, return_aux: bool) -> tuple:
+    """The time loop of :func:`sequence` as one ``jax.lax.scan``: the same steps as the
+    Python loop, but compiled once instead of unrolled ``L`` times (a 40-step window
+    compiles in seconds instead of a minute)."""
+    import jax
+
+    xp = eng.xp
+    none_keys = [k for k, v in enc.items() if v is None]
+    xs = {k: xp.reshape(v, (L, v.shape[0] // L) + tuple(v.shape[1:]))
+          for k, v in enc.items() if v is not None}
+
+    def body(carry: tuple, x: dict) -> tuple:
+        st, prev, i = carry
+        enc_i = dict(x)
+        enc_i.update({k: None for k in none_keys})
+        if feedback:
+            enc_i["motion"] = xp.where(i > 0, prev, x["motion"])
+        controls, new_st, aux = _head(name, params, enc_i, st, cfg, eng)
+        controls = controls.astype(prev.dtype)
+        new_st = {k: v.astype(st[k].dtype) for k, v in new_st.items()}
+        return (new_st, controls, i + 1), (controls, aux if return_aux else {})
+
+    B = next(iter(xs.values())).shape[1]
+    dtype = params["backbone"]["convs"][0]["w"].dtype
+    prev0 = xp.zeros((B, 2), dtype=dtype)
+    (state, _, _), (outs, auxs) = jax.lax.scan(body, (dict(state), prev0, 0), xs)
+    if not return_aux:
+        return outs, state
+    return outs, state, auxs
 
 
 # --------------------------------------------------------------------------- explainability

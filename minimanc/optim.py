@@ -61,6 +61,16 @@ def _check_positive(name: str, value: Any) -> None:
         raise ValueError(f"{name} must be a positive number, got {name}={value!r}")
 
 
+def _check_lr(lr: Any) -> None:
+    """A positive number, or a scalar array (e.g. traced under ``jit``, unchecked there)."""
+    if isinstance(lr, Real) and not isinstance(lr, bool):
+        _check_positive("lr", lr)
+    elif not (hasattr(lr, "dtype") and getattr(lr, "shape", None) == ()):
+        raise ValueError(f"lr must be a positive number or a scalar array, got lr={lr!r}")
+    elif isinstance(lr, np.ndarray) and not lr > 0:
+        raise ValueError(f"lr must be positive, got lr={lr!r}")
+
+
 def _check_unit(name: str, value: Any) -> None:
     if isinstance(value, bool) or not isinstance(value, Real) or not 0 <= value < 1:
         raise ValueError(f"{name} must be in [0, 1), got {name}={value!r}")
@@ -123,8 +133,10 @@ def adam_update(grads: Any, state: dict, params: Any, lr: float = 1e-3, b1: floa
     ``m ← b1 m + (1 − b1) g``, ``v ← b2 v + (1 − b2) g²``, ``t ← t + 1``,
     ``θ ← θ − lr m̂ / (sqrt(v̂) + eps)`` with the bias corrections
     ``m̂ = m / (1 − b1^t)``, ``v̂ = v / (1 − b2^t)``. Returns ``(new_params, new_state)``.
+    ``lr`` may be a scalar array, so that a jitted training step takes it as an
+    argument (one compilation serves every learning rate).
     """
-    _check_positive("lr", lr)
+    _check_lr(lr)
     _check_unit("b1", b1)
     _check_unit("b2", b2)
     _check_positive("eps", eps)

@@ -139,10 +139,20 @@ class StudyConfig:
                                      f"got {mdl!r}")
 
     def fingerprint(self) -> str:
-        """Hash of everything that changes data or training (not ``n_seeds`` or the figures)."""
+        """Hash of everything that changes data or training (not ``n_seeds`` or the figures).
+
+        Includes the library's defaults of :class:`minimanc.train.TrainConfig`
+        and :class:`minimanc.models.ModelConfig`, so that a cache written by a
+        version that trained differently is never reused.
+        """
+        from minimanc import models, train
+
         d = asdict(self)
         for k in ("preset", "n_seeds", "explain_scenes"):
             d.pop(k)
+        d["train_defaults"] = asdict(train.TrainConfig())
+        d["model_defaults"] = models.ModelConfig().to_dict()
+        d["default_gains"] = list(models.DEFAULT_GAINS)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
 
     @property

@@ -283,3 +283,31 @@ def test_bad_input_raises(eng_np):
     with pytest.raises(ValueError, match="image_size"):
         models.step("cnn", params, {"bev": np.zeros((1, 8, 8, 3)), "goal": np.zeros((1, 3))}, {},
                     CFG, eng_np)
+
+
+@pytest.mark.parametrize("feedback", [False, True])
+@pytest.mark.parametrize("name", models.MODEL_NAMES)
+def test_sequence_scan_on_jax_equals_the_loop_on_numpy(name, feedback, eng_np, eng_jax):
+    """On JAX the time loop of ``sequence`` is one ``lax.scan``: the same controls, final
+    state and per-step aux as the Python loop, with and without the DMP's own-speed
+    feedback."""
+    cfg = models.ModelConfig(**{**CFG.to_dict(), "channels": CFG.channels, "setting": "parity"})
+    rng = np.random.default_rng(4)
+    params = models.init(name, rng, cfg)
+    obs = inputs.select(_obs(rng, cfg, lead=(5, B)), name, "parity")
+    state = models.initial_state(name, B, cfg, dtype=np.float64)
+    a, sa, xa = models.sequence(name, params, obs, state, cfg, eng_np, feedback_motion=feedback,
+                                return_aux=True)
+    b, sb, xb = eng_jax.jit(lambda p, o, s: models.sequence(
+        name, p, o, s, cfg, eng_jax, feedback_motion=feedback, return_aux=True))(params, obs,
+                                                                                  state)
+    np.testing.assert_allclose(np.asarray(b), a, rtol=1e-9, atol=1e-9)
+    assert set(sa) == set(sb) and set(xa) == set(xb)
+    for k in sa:
+        np.testing.assert_allclose(np.asarray(sb[k]), sa[k], rtol=1e-9, atol=1e-9)
+    for k in xa:
+        np.testing.assert_allclose(np.asarray(xb[k]), xa[k], rtol=1e-9, atol=1e-9)
+    if feedback and name in models.DMP_MODELS:  # the feedback changes steps 1.. only
+        c, _ = models.sequence(name, params, obs, state, cfg, eng_jax)
+        np.testing.assert_allclose(np.asarray(c)[0], a[0], rtol=1e-9, atol=1e-9)
+        assert np.abs(np.asarray(c)[1:] - a[1:]).max() > 1e-6

@@ -182,3 +182,14 @@ def test_bad_state_raises():
         optim.sgd_update(p, optim.sgd_init(p), p, momentum=1.0)
     with pytest.raises(ValueError, match="step"):
         optim.adam_update(p, {**optim.adam_init(p), "step": 1.5}, p)
+
+
+def test_adam_takes_lr_as_a_scalar_array_and_rejects_bad_ones():
+    p = {"w": np.array([1.0, -2.0])}
+    g = {"w": np.array([0.5, 0.25])}
+    a, _ = optim.adam_update(g, optim.adam_init(p), p, lr=0.1)
+    b, _ = optim.adam_update(g, optim.adam_init(p), p, lr=np.asarray(0.1))
+    np.testing.assert_allclose(a["w"], b["w"], rtol=0, atol=0)
+    for bad in (np.asarray(-0.1), np.asarray([0.1, 0.2]), "0.1", None, True):
+        with pytest.raises(ValueError, match="lr"):
+            optim.adam_update(g, optim.adam_init(p), p, lr=bad)
