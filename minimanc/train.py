@@ -664,11 +664,15 @@ def fit(
 
 def evaluate(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = None,
              engine: Any = "jax", std: Any = None, q_init: str = "uniform",
-             batch_size: int = 256, dtype: Any = np.float32, scenes: Any = None) -> float:
+             batch_size: int = 256, dtype: Any = np.float32, scenes: Any = None,
+             motion_feedback: bool = True) -> float:
     """Open-loop loss of Algorithm 1 on a dataset (every sample once, no gradient).
 
-    Feed-forward and vAGN models see each step with ``q'`` as in training;
-    LSTM models run each scene from ``t = 0`` with their state carried.
+    Feed-forward models and vAGN-only see each step with ``q'`` as in
+    training; LSTM models run each scene from ``t = 0`` with their state
+    carried; the DMP models (MANC, DMP-only) run each scene from ``t = 0``
+    with q carried and, with ``motion_feedback`` (default, as trained), their
+    own speed fed back — the loss they are trained on.
     ``std`` normalises as in training (``None``: the dataset's own).
     Open-loop error ranks closed-loop quality poorly (``REFERENCE.md``); it is
     a cheap check, not the paper's metric.
@@ -683,13 +687,18 @@ def evaluate(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = 
     params = _cast_tree(params, dtype)
     rng = np.random.default_rng(0)
     total, n = 0.0, 0
-    loss_of = eng.jit(lambda p, b: loss_fn(name, p, b, cfg, eng, inv))
-    if name in models.LSTM_MODELS:
+    feedback = bool(motion_feedback) and name in models.DMP_MODELS
+    loss_of = eng.jit(lambda p, b: loss_fn(name, p, b, cfg, eng, inv,
+                                           motion_feedback=feedback))
+    if name in models.LSTM_MODELS or name in models.DMP_MODELS:
         for i in range(0, len(scenes), max(1, batch_size // T)):
             sc = scenes[i:i + max(1, batch_size // T)]
             s_idx = np.broadcast_to(sc, (T, len(sc)))
             t_idx = np.broadcast_to(np.arange(T)[:, None], (T, len(sc)))
             batch = _make_batch(name, ds, s_idx, t_idx, cfg, dtype)
+            q0 = _q0(name, len(sc), cfg, TrainConfig(q_init=q_init), rng, dtype)
+            if q0 is not None:
+                batch["q0"] = q0
             loss = loss_of(params, batch)
             total += float(np.asarray(loss)) * s_idx.size
             n += s_idx.size

@@ -148,6 +148,28 @@ def test_evaluate_matches_training_loss_definition(ds):
     assert val == pytest.approx(ref, rel=1e-6)
 
 
+def test_evaluate_runs_dmp_models_on_whole_scenes_with_their_own_speed(ds):
+    """MANC's evaluation loss is its training loss on whole scenes from t = 0: q carried
+    from uniform, the DMP fed its own speed (or the logged one without feedback)."""
+    from minimanc import engine, inputs
+
+    params = models.init("manc", np.random.default_rng(0), CFG)
+    std = train.control_std(ds)
+    S, T = ds.ego.shape[:2]
+    obs = inputs.from_dataset(ds, np.tile(np.arange(S), T), np.repeat(np.arange(T), S),
+                              model="manc")
+    obs = {k: v.reshape((T, S) + v.shape[1:]) for k, v in obs.items()}
+    target = np.swapaxes(np.asarray(ds.controls), 0, 1)
+    for feedback in (True, False):
+        state = models.initial_state("manc", S, CFG, dtype=np.float64)
+        pred, _ = models.sequence("manc", params, obs, state, CFG, engine("numpy"),
+                                  feedback_motion=feedback)
+        ref = np.mean(((pred - target) / std) ** 2)
+        val = train.evaluate("manc", params, ds, CFG, engine="numpy", std=std,
+                             dtype=np.float64, motion_feedback=feedback)
+        assert val == pytest.approx(ref, rel=1e-6)
+
+
 def test_bad_config_raises(ds):
     with pytest.raises(ValueError, match="lr"):
         train.TrainConfig(lr=-1.0)
