@@ -31,10 +31,10 @@ Algorithm 1 of the paper, for every controller of :mod:`minimanc.models`::
   driving, where "keep the current speed" fits the loss best, and the head
   never learns the acceleration at a scene's start that the closed loop must
   produce itself. On the ``full`` preset's data (96 training, 48 validation
-  scenes, 4 epochs, 3 seeds, lr 1e-3) MANC's closed-loop ADE was
-  19.2 ± 6.9 m with 8-step windows (a seed crawled at 3.9 m/s) and
-  15.1 ± 2.5 m with whole-scene windows; its open-loop speed error barely
-  differs (bias −0.05 m/s with 8-step windows). ``q'`` (Algorithm 1) is set
+  scenes, 4 epochs, 3 seeds) MANC's closed-loop ADE was 19.2 ± 6.9 m
+  with 8-step windows (a seed crawled at 3.9 m/s) and 15.6 ± 3.1 m with
+  whole-scene windows, although its open-loop speed was already unbiased
+  with 8-step windows (−0.05 m/s). ``q'`` (Algorithm 1) is set
   at each window's start; ``dmp_seq_len = 1`` gives Algorithm 1 exactly.
 * **Subsets.** ``subset`` ∈ (0, 1] keeps the first ``⌈subset·S⌉`` scenes of
   a seeded permutation: the 25 % subset is inside the 50 % one, etc.
