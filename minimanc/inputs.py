@@ -342,6 +342,7 @@ def from_state(
     motion: Any,
     model: str | None = None,
     k_targets: int | None = None,
+    keys: Sequence[str] | None = None,
 ) -> dict:
     """Observations for the closed loop, from the policy's *own* poses.
 
@@ -353,7 +354,9 @@ def from_state(
     from it; at the first step use :func:`initial_motion`). The BEV is
     re-rasterised, the goal and the lane targets (``k_targets`` points,
     default :data:`minimanc.world.maps.K_TARGETS`) re-expressed from each
-    ego pose. ``model`` restricts the keys as in :func:`from_dataset`.
+    ego pose. ``model`` restricts the keys as in :func:`from_dataset`;
+    ``keys`` (a subset of :data:`KEYS`) overrides that choice, e.g. for a
+    driver that reads no image (the BEV, the costly part, is then not drawn).
     """
     from minimanc.world import maps as world_maps
     from minimanc.world.geometry import goal_in_ego_frame
@@ -379,7 +382,12 @@ def from_state(
             raise ValueError(f"maps must have {B} entries, got {len(map_list)}")
     cfg = cfg if cfg is not None else RasterConfig()
     k = world_maps.K_TARGETS if k_targets is None else int(k_targets)
-    keys = visible(model, setting) if model is not None else KEYS[:4]
+    if keys is not None:
+        unknown = [k for k in keys if k not in KEYS]
+        if unknown:
+            raise ValueError(f"keys must be from {KEYS}, got unknown keys {unknown}")
+    else:
+        keys = visible(model, setting) if model is not None else KEYS[:4]
     obs: dict = {}
     if "bev" in keys:
         bev = rasterize_batch(map_list, poses, ado, ado_valid, cfg)

@@ -138,6 +138,7 @@ __all__ = [
     "backbone",
     "dmp_head",
     "explain",
+    "gain_logits",
     "init",
     "initial_state",
     "lane_point",
@@ -167,6 +168,19 @@ DEFAULT_GAINS: tuple[float, float, float, float] = (1.0, 0.45, 2.5, 1.15)
 """Initial ``(α_y, β_y, α_q, β_q)`` of the DMP heads (the bias of the gains FC):
 the best constant gains on 120 simulated scenes (rounded); β_y τ_y ≈ 1 keeps
 the speed, β_q τ_q ≈ 1 follows the pure-pursuit arc."""
+
+
+def gain_logits(gains: Any) -> np.ndarray:
+    """The four logits ``(4,)`` whose :func:`dmp_head` gains are ``gains = (α_y, β_y, α_q,
+    β_q)`` (inverse of :func:`minimanc.dmp.gains_from_logits`; each gain strictly inside
+    its range)."""
+    g = np.asarray(gains, dtype=np.float64)
+    if g.shape != (4,) or not np.all(np.isfinite(g)):
+        raise ValueError(f"gains must be four finite numbers (alpha_y, beta_y, alpha_q, "
+                         f"beta_q); got gains={gains!r}")
+    za_y, zb_y = dmp.logits_from_gains(g[0], g[1])
+    za_q, zb_q = dmp.logits_from_gains(g[2], g[3])
+    return np.array([za_y, zb_y, za_q, zb_q], dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -296,11 +310,9 @@ def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
         params["vagn"] = {"W": vagn.init_vagn(rng, M, N, scale=cfg.vagn_scale)}
     if name in DMP_MODELS:
         n_in = N if name == "manc" else M
-        za_y, zb_y = dmp.logits_from_gains(DEFAULT_GAINS[0], DEFAULT_GAINS[1])
-        za_q, zb_q = dmp.logits_from_gains(DEFAULT_GAINS[2], DEFAULT_GAINS[3])
         gains = layers.init_dense(rng, n_in, 4)
         gains["w"] = cfg.gains_scale * np.asarray(gains["w"])
-        gains["b"] = np.array([za_y, zb_y, za_q, zb_q], dtype=np.float64)
+        gains["b"] = gain_logits(DEFAULT_GAINS)
         params["gains"] = gains
     if name == "cnn":
         params["fc1"] = layers.init_dense(rng, flat + n_num, H)

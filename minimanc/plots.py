@@ -52,8 +52,10 @@ MODEL_LABELS: dict[str, str] = {
     "manc": "MANC",
     "vagn_only": "vAGN-only",
     "dmp_only": "DMP-only",
+    "dmp_prior": "DMP at fixed gains",
 }
-"""Display names of the comparison cases (the paper's Table I and Fig. 8)."""
+"""Display names of the comparison cases (the paper's Table I and Fig. 8) and of the
+no-learning reference (:func:`minimanc.rollout.fixed_gains`)."""
 
 METRIC_LABELS: dict[str, str] = {
     "close_encounters": "% close encounters",

@@ -74,8 +74,9 @@ class Policy(Protocol):
 
     ``model`` (a name of :data:`minimanc.inputs.MODEL_NAMES`, or ``None`` for
     every key but ``goal_bev``) and ``setting`` choose which observation keys
-    are built (:func:`minimanc.inputs.visible`).  ``scenes`` are the dataset
-    indices of the batch rows.
+    are built (:func:`minimanc.inputs.visible`); a policy may instead name them
+    in an optional ``keys`` attribute (a driver that reads no image then costs
+    no rasterising).  ``scenes`` are the dataset indices of the batch rows.
     """
 
     model: str | None
@@ -254,6 +255,7 @@ def simulate(
             obs = inputs.from_state(
                 maps, pose, ado[chunk, t], ado_valid[chunk, t], goal_world[chunk], cfg,
                 policy.setting, motion=motion, model=policy.model, k_targets=k,
+                keys=getattr(policy, "keys", None),
             )
             u, state, aux = policy(obs, state, t, chunk)
             u = np.asarray(u, dtype=np.float64)
@@ -391,23 +393,19 @@ class FixedGainsPolicy:
     No CNN, no vAGN: every step makes one DMP step towards the lane target
     from the current motion with the same ``gains = (α_y, β_y, α_q, β_q)``
     (default :data:`minimanc.models.DEFAULT_GAINS`, the gains MANC starts
-    training from). It sees what DMP-only sees (the BEV is built but unused).
+    training from). It reads only the lane target and its own motion, so no
+    BEV is drawn.
     """
 
     model = "dmp_only"
     setting = "paper"
+    keys = ("lane_target", "motion")
 
     def __init__(self, cfg: Any = None, gains: Any = None) -> None:
-        from minimanc import dmp, models
+        from minimanc import models
 
         self.cfg = cfg or models.ModelConfig()
-        g = np.asarray(models.DEFAULT_GAINS if gains is None else gains, dtype=np.float64)
-        if g.shape != (4,) or not np.all(np.isfinite(g)):
-            raise ValueError(f"gains must be four finite numbers (alpha_y, beta_y, alpha_q, "
-                             f"beta_q); got gains={gains!r}")
-        za, zb = dmp.logits_from_gains(g[0], g[1])
-        zqa, zqb = dmp.logits_from_gains(g[2], g[3])
-        self.logits = np.array([za, zb, zqa, zqb], dtype=np.float64)
+        self.logits = models.gain_logits(models.DEFAULT_GAINS if gains is None else gains)
 
     def initial_state(self, scenes: np.ndarray) -> None:
         return None

@@ -235,7 +235,8 @@ def _load_split(data_path: str, lo: int, hi: int) -> Any:
 
 def _enable_jax_cache(directory: str | Path) -> None:
     """Persist JAX compilations under ``directory`` (unless the user set a cache already):
-    runs that differ only by their seed then compile once."""
+    runs that differ only by their seed, learning rate or data fraction then compile once
+    (:func:`minimanc.train.fit` passes the last two to its jitted step as arguments)."""
     import jax
 
     if jax.config.jax_compilation_cache_dir:
@@ -909,10 +910,8 @@ def table_markdown(results: dict) -> str:
                   "The DMP head of MANC at its initial constant gains, no network (eqs. 10–11 "
                   "with a constant in place of FC(q)): what the structure alone achieves.", "",
                   header, rule]
-        labels = {"dmp_prior": "DMP at fixed gains"}
         for m, agg in refs.items():
-            lines.append(f"| {labels.get(m, m)} | "
-                         + " | ".join(_cell(agg, k, 1) for k in _COLS) + " |")
+            lines.append(f"| {lab(m)} | " + " | ".join(_cell(agg, k, 1) for k in _COLS) + " |")
         lines.append("")
     pc = results.get("param_counts")
     if pc:

@@ -690,25 +690,19 @@ def evaluate(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = 
     feedback = bool(motion_feedback) and name in models.DMP_MODELS
     loss_of = eng.jit(lambda p, b: loss_fn(name, p, b, cfg, eng, inv,
                                            motion_feedback=feedback))
-    if name in models.LSTM_MODELS or name in models.DMP_MODELS:
-        for i in range(0, len(scenes), max(1, batch_size // T)):
-            sc = scenes[i:i + max(1, batch_size // T)]
-            s_idx = np.broadcast_to(sc, (T, len(sc)))
-            t_idx = np.broadcast_to(np.arange(T)[:, None], (T, len(sc)))
-            batch = _make_batch(name, ds, s_idx, t_idx, cfg, dtype)
-            q0 = _q0(name, len(sc), cfg, TrainConfig(q_init=q_init), rng, dtype)
-            if q0 is not None:
-                batch["q0"] = q0
-            loss = loss_of(params, batch)
-            total += float(np.asarray(loss)) * s_idx.size
-            n += s_idx.size
-        return total / n
-    ss = np.repeat(scenes, T)
-    tt = np.tile(np.arange(T), len(scenes))
-    for i in range(0, ss.size, batch_size):
-        s_idx, t_idx = ss[None, i:i + batch_size], tt[None, i:i + batch_size]
+    tc = TrainConfig(q_init=q_init)
+    if name in models.LSTM_MODELS or name in models.DMP_MODELS:  # whole scenes from t = 0
+        per = max(1, batch_size // T)
+        plan = [(np.broadcast_to(sc, (T, len(sc))), np.broadcast_to(np.arange(T)[:, None],
+                                                                    (T, len(sc))))
+                for sc in (scenes[i:i + per] for i in range(0, len(scenes), per))]
+    else:  # every (scene, time) sample on its own
+        ss, tt = np.repeat(scenes, T), np.tile(np.arange(T), len(scenes))
+        plan = [(ss[None, i:i + batch_size], tt[None, i:i + batch_size])
+                for i in range(0, ss.size, batch_size)]
+    for s_idx, t_idx in plan:
         batch = _make_batch(name, ds, s_idx, t_idx, cfg, dtype)
-        q0 = _q0(name, s_idx.shape[1], cfg, TrainConfig(q_init=q_init), rng, dtype)
+        q0 = _q0(name, s_idx.shape[1], cfg, tc, rng, dtype)
         if q0 is not None:
             batch["q0"] = q0
         loss = loss_of(params, batch)

@@ -183,3 +183,25 @@ def test_fixed_gains_is_dmp_only_with_a_constant_head(ds):
 def test_fixed_gains_rejects_bad_gains(gains):
     with pytest.raises(ValueError):
         rollout.FixedGainsPolicy(gains=gains)
+
+
+def test_a_policy_may_name_its_observation_keys(ds):
+    """``keys`` on a policy decides what ``simulate`` builds: the fixed-gain reference reads
+    no image, so no BEV is drawn for it; unknown keys are refused."""
+    seen = []
+
+    class LaneOnly(rollout.FixedGainsPolicy):
+        def __call__(self, obs, state, t, scenes):
+            seen.append(sorted(obs))
+            return super().__call__(obs, state, t, scenes)
+
+    from minimanc import models
+
+    rollout.simulate(LaneOnly(models.ModelConfig(image_size=32)), ds, scenes=[1], steps=2,
+                     progress=False)
+    assert seen == [["lane_target", "motion"]] * 2
+    from minimanc import inputs
+
+    with pytest.raises(ValueError, match="keys"):
+        inputs.from_state(ds.maps[0], ds.ego[:1, 0], ds.ado[:1, 0], ds.ado_valid[:1, 0],
+                          ds.ego[:1, -1], motion=np.zeros((1, 2)), keys=("bev", "speed"))
