@@ -284,7 +284,8 @@ for label, res in (("highway-trained", results["manc"]), ("world-trained", trans
 #
 # Read it with care: 8 episodes per cell (one episode is 12.5 %), one training seed,
 # one data set, and measured when MANC still trained on 8-step windows (whole-scene
-# windows, chapter 8, are the default now; this table has not been re-measured). What it does show: MANC's DMP head keeps the car on the road — it
+# windows, chapter 8, are the default now; this table has not been re-measured).
+# What it does show: MANC's DMP head keeps the car on the road — it
 # tracks the lane target, also when trained on the chapter-7 world only — but neither
 # MANC has learned to *wait*: at the roundabout entry the expert slows to 2–4 m/s and
 # yields, the highway-trained MANC keeps about 7 m/s (its collisions), the
