@@ -259,6 +259,24 @@ def test_conv2d_grads_match_jax(case):
         np.testing.assert_allclose(a, np.asarray(r), rtol=1e-6, atol=1e-9)
 
 
+def test_conv2d_same_padded_shape_other_padding_regression():
+    """The hypothesis case (3, 3, 4, 1, 1, 1, 1, 1, 2, False, 0) failed once: an earlier
+    conv whose padded input had the same shape (here 3x5x6 with padding 1, also 7x8)
+    left its pixels in the padding ring of the shared buffer, so the first call of the
+    case gave a kernel gradient of -0.2265 instead of JAX's -4.1137."""
+    case = (3, 3, 4, 1, 1, 1, 1, 1, 2, False, 0)
+    x, k, b, s, p = _conv_arrays(case)
+    wts = _weights(case[-1], nn.conv2d(x, k, b, stride=s, padding=p).shape)
+    expected = _loop_conv_vjp(x, k, b, s, p, wts)
+    np.testing.assert_allclose(expected[1].ravel(), [-4.11369689], rtol=1e-8)
+    rng = np.random.default_rng(1)
+    for trial in range(3):
+        # same padded shape (3, 7, 8, 1), other padding: must not leak into this call
+        nn.conv2d(rng.standard_normal((3, 5, 6, 1)), k, stride=1, padding=1)
+        for a, r in zip(_ours_conv_grads(x, k, b, s, p, wts), expected):
+            np.testing.assert_allclose(a, r, rtol=1e-10, atol=1e-12, err_msg=f"call {trial}")
+
+
 @pytest.mark.parametrize("kh,kw,stride,padding", [(3, 3, 1, 1), (3, 3, 2, 1), (5, 5, 2, 2),
                                                   (1, 1, 1, 0)])
 def test_conv2d_grads_match_jax_lax_conv(kh, kw, stride, padding):

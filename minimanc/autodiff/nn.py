@@ -273,7 +273,9 @@ def _im2col(x: np.ndarray, kh: int, kw: int, stride: int, padding: int, col: np.
     wo = conv2d_output_size(w, kw, stride, padding)
     if padding:
         hp, wp = h + 2 * padding, w + 2 * padding
-        key = (n, hp, wp, c, dtype.str)
+        # keyed by the input shape *and* the padding: a buffer of the same padded shape
+        # filled for another padding would keep that call's pixels in the zero border
+        key = (n, h, w, c, padding, dtype.str)
         xp_buf = _lru_get(_pad_cache, key, lambda: np.zeros((n, hp, wp, c), dtype=dtype))
         np.copyto(xp_buf[:, padding:padding + h, padding:padding + w, :], x, casting="unsafe")
         src = xp_buf
