@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from minimanc import __version__
+from minimanc.errors import EXIT_USAGE, UsageError
 
 CHAPTERS = [
     ("00", "overview", "the stack, the chapter map, grading (00_warmup)"),
@@ -172,7 +173,11 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
-    return int(args.func(args) or 0)
+    try:
+        return int(args.func(args) or 0)
+    except UsageError as exc:
+        print(f"minimanc {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
 
 
 if __name__ == "__main__":
