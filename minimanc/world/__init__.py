@@ -12,7 +12,8 @@ package makes its own data:
 * :mod:`~minimanc.world.driver` — the human ego with a per-scene style;
 * :mod:`~minimanc.world.raster` — the ego-centric, heading-up BEV raster
   with the nuScenes devkit colours;
-* :mod:`~minimanc.world.dataset` — generate / split / save / load;
+* :mod:`~minimanc.world.dataset` — generate / split / save / load (sharded,
+  checksummed files; :func:`generate_file` streams any number of scenes to disk);
 * :mod:`~minimanc.world.geometry` — frames and the unicycle (``DT = 0.5`` s).
 
 >>> from minimanc import world
@@ -24,10 +25,17 @@ from minimanc.world.dataset import (
     FORMAT_VERSION,
     Dataset,
     DatasetFileError,
+    DatasetWriter,
+    Estimate,
+    check_finite,
+    estimate,
+    file_content_hash,
     generate,
+    generate_file,
     generate_scene,
     generate_splits,
     load,
+    read_meta,
     save,
 )
 from minimanc.world.driver import (
@@ -73,12 +81,13 @@ from minimanc.world.raster import (
 from minimanc.world.traffic import idm_acceleration
 
 __all__ = [
-    "DT", "EGO_LENGTH", "EGO_WIDTH", "FORMAT_VERSION", "K_TARGETS", "MAX_ADOS", "T_STEPS",
-    "TARGET_SPACING", "Dataset", "DatasetFileError", "HumanStyle", "Lane", "Map",
-    "RasterConfig", "box_corners", "box_mask", "boxes_overlap", "build_map", "check_scene",
-    "controls_from_poses", "from_ego_frame", "generate", "generate_scene", "generate_splits",
+    "DT", "Dataset", "DatasetFileError", "DatasetWriter", "EGO_LENGTH", "EGO_WIDTH", "Estimate",
+    "FORMAT_VERSION", "HumanStyle", "K_TARGETS", "Lane", "MAX_ADOS", "Map", "RasterConfig",
+    "TARGET_SPACING", "T_STEPS", "box_corners", "box_mask", "boxes_overlap", "build_map",
+    "check_finite", "check_scene", "controls_from_poses", "estimate", "file_content_hash",
+    "from_ego_frame", "generate", "generate_file", "generate_scene", "generate_splits",
     "goal_in_ego_frame", "hue_colours", "idm_acceleration", "lane_targets", "load",
     "project_to_route", "random_map", "random_recipe", "random_style", "rasterize",
-    "rasterize_batch", "rasterize_goal", "save", "simulate_scene", "to_ego_frame",
+    "rasterize_batch", "rasterize_goal", "read_meta", "save", "simulate_scene", "to_ego_frame",
     "unicycle_step", "wrap_angle",
 ]
