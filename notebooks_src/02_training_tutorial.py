@@ -140,7 +140,7 @@ assert np.allclose((col @ ker.reshape(9, 1)).reshape(1, 2, 2, 1), nn.conv2d(img,
 # ones, and float32 stays float32. The loop version pays a Python-level
 # iteration per output pixel:
 
-# %% tags=["NBVAL_IGNORE_OUTPUT"]
+# %%
 xb = rng.standard_normal((16, 32, 32, 8)).astype(np.float32)
 wb = rng.standard_normal((3, 3, 8, 16)).astype(np.float32)
 bb = np.zeros(16, np.float32)
@@ -373,7 +373,9 @@ n_params = sum(v.size for layer in params.values() for v in layer.values())
 acc0 = accuracy(params, x_test, y_test)
 print(f"{n_params} parameters; test accuracy before training {acc0:.3f}")
 
-# %%
+# %% tags=["nbval-ignore-output"]
+# 144 Adam steps of a non-convex network: float64, but BLAS sums in a CPU-dependent
+# order and training compounds it, so this cell is checked by its asserts, not its digits
 value_and_grad = eng.value_and_grad(loss_fn)
 opt_state = optim.adam_init(params)
 order_rng = np.random.default_rng(2)
@@ -389,6 +391,7 @@ for epoch in range(6):
     print(f"epoch {epoch}: mean loss {np.mean(losses[-24:]):.3f}   "
           f"test accuracy {test_acc[-1]:.3f}")
 assert test_acc[-1] >= 0.95, test_acc
+assert len(losses) == 6 * 24 and np.mean(losses[-24:]) < 0.1  # stored run: 0.001
 
 # %%
 fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(10, 3.2))
@@ -407,7 +410,7 @@ plt.show()
 # the class activation map of chapter 6 (eq. 7 without the pooling). It lights
 # up on the car in our lane and stays dark on the distractors.
 
-# %%
+# %% tags=["nbval-ignore-output"]
 def features(params, images):
     h = nn.relu(layers.conv2d(params["c1"], images, nn, stride=2, padding=1))
     h = nn.relu(layers.conv2d(params["c2"], h, nn, stride=2, padding=1))

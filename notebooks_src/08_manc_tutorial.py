@@ -220,11 +220,17 @@ assert worst < 1e-6
 # 8-step windows, which mostly start in steady driving, it learned "keep the
 # current speed" and never the acceleration at a scene's start.) On JAX the
 # window is one `lax.scan`, so its length does not lengthen the compilation.
+#
+# From here on every number comes from a trained model (float32 on JAX, whose
+# rounding differs between CPUs and releases): these cells are not compared
+# digit by digit when the notebooks are tested (tag `nbval-ignore-output`);
+# each checks its result with an `assert` instead.
 
-# %%
+# %% tags=["nbval-ignore-output"]
 tc = train.TrainConfig(epochs=8, batch_size=32, lr=3e-3, seed=0)
 fit = train.fit("manc", train_ds, cfg, tc, engine="jax", progress=False)
 print("window loss per epoch:", [round(h, 3) for h in fit.history], f"({fit.steps} Adam steps)")
+assert fit.steps == 72 and len(fit.history) == 8 and np.all(np.isfinite(fit.history))
 before = train.evaluate("manc", params, val_ds, cfg, engine="numpy", std=fit.control_std)
 after = train.evaluate("manc", fit.params, val_ds, cfg, engine="numpy", std=fit.control_std)
 print(f"validation loss (whole scenes, own speed fed back): {before:.3f} untrained "
@@ -244,7 +250,7 @@ assert after < before
 # carrying q from step to step as in closed loop, and records q, the gains
 # and the controls (the paper's Figure 4).
 
-# %%
+# %% tags=["nbval-ignore-output"]
 tr = models.replay("manc", fit.params, val_ds, 0, cfg)
 fig, ax = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
 vagn.plot_q_heatmap(tr["q"], ax=ax[0], colorbar=False)
@@ -268,6 +274,8 @@ print("q rows sum to one:", bool(np.allclose(tr["q"].sum(axis=1), 1.0)))
 err = np.mean(np.abs(tr["controls"] - tr["human"]), axis=0)
 print(f"mean |speed error| {err[0]:.2f} m/s, mean |yaw-rate error| {err[1]:.3f} rad/s")
 assert np.all((tr["alpha"] >= dmp.ALPHA_RANGE[0]) & (tr["alpha"] <= dmp.ALPHA_RANGE[1]))
+assert np.allclose(tr["q"].sum(axis=1), 1.0, atol=1e-5)
+assert err[0] < 3.0 and err[1] < 0.2  # stored run: 0.51 m/s and 0.022 rad/s
 
 # %% [markdown]
 # ### Per-q-state saliency
@@ -277,7 +285,7 @@ assert np.all((tr["alpha"] >= dmp.ALPHA_RANGE[0]) & (tr["alpha"] <= dmp.ALPHA_RA
 # (Figures 3–4 of the paper). Positive (yellow) regions push probability into
 # that q-state.
 
-# %%
+# %% tags=["nbval-ignore-output"]
 t = 20
 o = inputs.from_dataset(val_ds, 0, t, model="manc")
 ex = models.explain(fit.params, o, tr["q"][t - 1][None], cfg)

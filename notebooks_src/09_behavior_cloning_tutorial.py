@@ -68,8 +68,15 @@ print("validation map kinds:", [m.kind for m in val_ds.maps])
 # `Run` names one trained model (model, information setting, number of
 # q-states, data fraction, seed, learning rate); we train into the study's
 # checkpoint folder so the study of section 7 reuses it.
+#
+# Every number from here on that comes from a trained model depends on
+# float32 rounding, which differs between CPUs and JAX releases and is
+# compounded by training and by the closed loop. Such cells are not compared
+# digit by digit when the notebooks are tested (tag `nbval-ignore-output`);
+# each checks what it shows with an `assert` instead. Counts, shapes and
+# everything computed from the data alone are still compared exactly.
 
-# %%
+# %% tags=["nbval-ignore-output"]
 manc_run = studies.Run("manc", "paper", config.n_states, 1.0, 0, config.lrs[0])
 manc_cfg = study.model_config(manc_run)
 fit = train.fit("manc", train_ds, manc_cfg, study.train_config(manc_run), engine="jax",
@@ -82,6 +89,8 @@ loss = {name: [train.evaluate("manc", p, d, manc_cfg, std=fit.control_std)
         for name, d in (("training", train_ds), ("validation", val_ds))}
 for name, (before, after) in loss.items():
     print(f"{name} loss (whole scenes, own speed fed back): {before:.3f} -> {after:.3f}")
+assert fit.steps == 96 and models.param_count(fit.params) == 14_916
+assert len(fit.history) == 3 and np.all(np.isfinite(fit.history))
 assert loss["training"][1] < loss["training"][0]
 
 # %% [markdown]
@@ -135,11 +144,15 @@ def show(name, res):
     print(f"{name:<8}" + "  ".join(f"{k} {res[k]:6.2f}" for k in metrics.METRICS))
 
 
-res_human = metrics.evaluate(human, val_ds)
-res_manc = metrics.evaluate(traj, val_ds)
+res_human = metrics.evaluate(human, val_ds)   # the log replay: the data alone
 show("human", res_human)
-show("MANC", res_manc)
 assert res_human["ade"] == 0.0 and res_human["goal_distance"] < 1e-3
+
+# %% tags=["nbval-ignore-output"]
+res_manc = metrics.evaluate(traj, val_ds)
+show("MANC", res_manc)
+assert all(np.isfinite(res_manc[k]) for k in metrics.METRICS)
+assert 0 <= res_manc["collision_rate"] <= 100 and res_manc["ade"] < 40.0  # stored: 8.68 m
 
 # %% [markdown]
 # **The bar to clear.** MANC's DMP head already knows how to follow a lane:
@@ -148,11 +161,12 @@ assert res_human["ade"] == 0.0 and res_human["goal_distance"] < 1e-3
 # drives every scene too. Whatever the learned part adds must show up as an
 # improvement over this prior; `minimanc reproduce` reports it next to Table I.
 
-# %%
+# %% tags=["nbval-ignore-output"]
 prior = rollout.fixed_gains(val_ds, cfg=manc_cfg)
 res_prior = metrics.evaluate(prior, val_ds)
 show("prior", res_prior)
 print("learning beats the fixed-gain prior on ADE:", res_manc["ade"] < res_prior["ade"])
+assert all(np.isfinite(res_prior[k]) for k in metrics.METRICS)  # stored: ADE 13.53 m
 
 # %% [markdown]
 # Per scene, the numbers behind the means — for instance the gap to the
@@ -192,7 +206,7 @@ for name in ("cnn", "manc"):
     for setting in inputs.SETTINGS:
         print(f"{name:<14}{setting:<8} {', '.join(inputs.visible(name, setting))}")
 
-# %%
+# %% tags=["nbval-ignore-output"]
 parity = {}
 for setting in inputs.SETTINGS:
     run = studies.Run("cnn", setting, config.n_states, 1.0, 0, config.lrs[0])
@@ -201,12 +215,15 @@ parity["MANC"] = res_manc
 print(f"{'':<10}{'ADE (m)':>9}{'goal (m)':>10}")
 for key, res in parity.items():
     print(f"{key:<10}{res['ade']:9.2f}{res['goal_distance']:10.2f}")
+assert all(np.isfinite(r["ade"]) and r["ade"] < 60.0 for r in parity.values())
 
-# %%
+# %% tags=["nbval-ignore-output"]
 gain = parity["paper"]["ade"] - parity["parity"]["ade"]
 verdict = "lowers" if gain > 0 else "does not lower"
 print(f"Parity {verdict} the CNN's ADE ({parity['paper']['ade']:.2f} m → "
       f"{parity['parity']['ade']:.2f} m). MANC: {res_manc['ade']:.2f} m.")
+assert verdict == ("lowers" if parity["parity"]["ade"] < parity["paper"]["ade"] else
+                   "does not lower")
 
 # %% [markdown]
 # Whatever the numbers in this small run, the study reports **both** settings
@@ -224,7 +241,7 @@ scene = studies.pick_scenes(val_ds, traj, 1)[0]
 fig = plots.plot_explain_trace(traj, human, val_ds, scene)
 plt.show()
 
-# %%
+# %% tags=["nbval-ignore-output"]
 steps = studies.saliency_steps(traj, scene)
 maps_ = plots.saliency_maps(fit.params, manc_cfg, traj, val_ds, scene, steps)
 for m in maps_:  # the explanation reproduces the q the rollout recorded
@@ -241,18 +258,23 @@ plt.show()
 # one seed, 32 training scenes and 3 epochs the numbers are noisy: the point
 # here is the machinery, and that every claim is checked from the numbers.
 
-# %%
+# %% tags=["nbval-ignore-output"]
 results = studies.reproduce(config, workdir, engine="jax", workers=0, progress=False)
 for setting, table in results["table1"].items():
     print(f"setting {setting}:")
     for name, agg in table.items():
         print(f"  {name:<10}" + "  ".join(f"{k} {agg[k]['mean']:6.2f}"
                                           for k in metrics.TABLE_METRICS))
+assert sorted(results["table1"]) == sorted(inputs.SETTINGS)
+# the cached checkpoint of section 2, rolled out again: the same ADE up to float noise
+assert np.isclose(results["table1"]["paper"]["manc"]["ade"]["mean"], res_manc["ade"], rtol=0.05)
+assert results["table1"]["paper"]["human"]["ade"]["mean"] == 0.0
 
-# %%
+# %% tags=["nbval-ignore-output"]
 for f in results["findings"]:
     print(("holds       " if f["holds"] else "does NOT hold") + " | " + f["claim"])
     print("              " + f["detail"])
+assert results["findings"] and all(isinstance(f["holds"], bool) for f in results["findings"])
 
 # %%
 fig = plots.plot_table1(results["table1"])
@@ -269,7 +291,8 @@ print({k: v for k, v in results["param_counts"]["paper"].items()})
 
 # %%
 written = sorted(Path(p).name for p in results["files"]["figures"])
-print(len(written), "figures, e.g.", written[:4])
+fixed = [name for name in written if "scene" not in name]  # the explained scene is picked
+print(len(written), "figures, e.g.", fixed[:4])              # from the rollout
 assert (workdir / "table1.md").exists() and (workdir / "results.json").exists()
 
 # %% [markdown]

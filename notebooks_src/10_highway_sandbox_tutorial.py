@@ -159,15 +159,20 @@ print(f"replaying the logged controls through the adapter: ADE "
 # controls). A handful of epochs on six episodes is a toy budget — enough to see the
 # pipeline, not to compare architectures; `minimanc highway collect|train|eval`
 # (section 7) runs the real experiment.
+#
+# Numbers that come from a trained model depend on float32 rounding, which
+# differs between CPUs and JAX releases: those cells are not compared digit by
+# digit when the notebooks are tested (tag `nbval-ignore-output`); each checks
+# what it shows with an `assert` instead.
 
-# %%
+# %% tags=["nbval-ignore-output"]
 mcfg = models.ModelConfig(image_size=64, setting="paper")
 tcfg = train.TrainConfig(epochs=6, batch_size=32, seed=0)
 fits = {name: train.fit(name, ds, mcfg, tcfg, engine="jax", progress=False)
         for name in ("manc", "cnn")}
 for name, fit in fits.items():
     print(f"{name:<5} loss: first epoch {fit.history[0]:.3f}, last {fit.history[-1]:.3f}")
-    assert fit.history[-1] < fit.history[0]
+    assert fit.history[-1] < fit.history[0] and np.all(np.isfinite(fit.history))
 
 # %% [markdown]
 # ## 5. Drive them in highway-env
@@ -182,7 +187,7 @@ for name, fit in fits.items():
 # **off-road** (the ego's centre leaves the drivable area of the map), **ADE** to the
 # expert, **mean speed**, and episodes per second.
 
-# %%
+# %% tags=["nbval-ignore-output"]
 experts, tries = hw.expert_episodes("roundabout", 3, seed=hw.EVAL_SEED, steps=20,
                                     record_bev=False)
 results = {"expert": hw.expert_result("roundabout", experts)}
@@ -194,12 +199,16 @@ for name, res in results.items():
     m = res.metrics
     print(f"{name:<8} {m['collision_rate']:>11.1f} {m['off_road_rate']:>10.1f} "
           f"{m['ade']:>7.2f} {m['mean_speed']:>9.2f}")
+expert = results["expert"].metrics
+assert expert["collision_rate"] == 0.0 and expert["ade"] == 0.0  # the reference itself
+assert all(0 <= r.metrics["collision_rate"] <= 100 and np.isfinite(r.metrics["ade"])
+           for r in results.values())
 
-# %%
-# NBVAL_IGNORE_OUTPUT
+# %% tags=["nbval-ignore-output"]
 # (wall-clock speed varies from run to run)
 for name, res in results.items():
     print(f"{name:<8} {res.metrics['episodes_per_second']:.2f} episodes/s")
+assert all(res.metrics["episodes_per_second"] > 0 for res in results.values())
 
 # %% [markdown]
 # ## 6. Watch an episode
@@ -237,7 +246,7 @@ plt.show()
 # (4.7 × 1.9 vs 5 × 2 m), a two-lane roundabout ring, traffic that reacts, and a
 # bicycle instead of a unicycle under the controls.
 
-# %%
+# %% tags=["nbval-ignore-output"]
 wtrain, wval = world.generate(10, seed=0, raster=cfg).split(8)
 wfit = train.fit("manc", wtrain, mcfg, tcfg, engine="jax", progress=False)
 wroll = rollout.closed_loop("manc", wfit.params, wval, wfit.cfg, "jax", progress=False)
@@ -251,6 +260,8 @@ for label, res in (("highway-trained", results["manc"]), ("world-trained", trans
     print(f"{label:<16} MANC in highway-env: collision {m['collision_rate']:5.1f} %, "
           f"off-road {m['off_road_rate']:5.1f} %, ADE {m['ade']:5.2f} m, "
           f"speed {m['mean_speed']:5.2f} m/s")
+    assert 0 <= m["collision_rate"] <= 100 and np.isfinite(m["ade"])
+assert np.isfinite(wm["ade"]) and 0 <= wm["collision_rate"] <= 100
 
 # %% [markdown]
 # With toy budgets these numbers say little about the architectures; they show the

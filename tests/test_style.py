@@ -1,5 +1,6 @@
 """Project hygiene: ruff-clean code, the README's two commands, CI wiring."""
 
+import importlib.util
 import shutil
 import subprocess
 import sys
@@ -11,10 +12,14 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_ruff_clean():
-    ruff = shutil.which("ruff")
-    if ruff is None:
+    # the ruff of the running environment, also when its bin/ is not on PATH (.venv/bin/python)
+    if importlib.util.find_spec("ruff") is not None:
+        cmd = [sys.executable, "-m", "ruff"]
+    elif shutil.which("ruff"):
+        cmd = [shutil.which("ruff")]
+    else:
         pytest.fail("ruff is not installed: pip install -e '.[test]'")
-    out = subprocess.run([ruff, "check", "."], cwd=ROOT, capture_output=True, text=True)
+    out = subprocess.run([*cmd, "check", "."], cwd=ROOT, capture_output=True, text=True)
     assert out.returncode == 0, out.stdout + out.stderr
 
 
@@ -23,8 +28,10 @@ def test_readme_has_exactly_two_commands_and_ci_runs_the_second():
                           capture_output=True, text=True, check=True).stdout.strip()
     test = subprocess.run([sys.executable, ".ci/readme_command.py", "test"], cwd=ROOT,
                           capture_output=True, text=True, check=True).stdout.strip()
-    assert main.startswith("pip install") and "minimanc" in main
-    assert test.startswith("pip install") and "pytest" in test
+    for line in (main, test):  # each creates and uses its own virtual environment (PEP 668)
+        assert line.startswith("python3 -m venv .venv && .venv/bin/pip install -e "), line
+    assert main.endswith(".venv/bin/minimanc reproduce --quick"), main
+    assert test.endswith(".venv/bin/python -m pytest"), test
     assert "readme_command.py test" in (ROOT / ".ci" / "run").read_text()
 
 
@@ -64,3 +71,33 @@ def test_no_warnings_leak_into_notebook_outputs():
                     if out.get("name") == "stderr" and "Warning" in out.get("text", ""):
                         leaks.append(f"{folder}/{path.name}: cell {index}")
     assert not leaks, leaks
+
+
+def _code_cells(folders=("tutorials", "solutions")):
+    import nbformat
+
+    for folder in folders:
+        for path in sorted((ROOT / folder).glob("*.ipynb")):
+            nb = nbformat.read(path, as_version=4)
+            for index, cell in enumerate(nb.cells):
+                if cell.cell_type == "code":
+                    yield f"{folder}/{path.name} cell {index}", cell
+
+
+def test_nbval_tags_are_ones_nbval_reads():
+    """nbval 0.11 reads lower-case metadata tags; an upper-case tag is silently ignored."""
+    wrong = [where for where, cell in _code_cells(("tutorials", "solutions", "exercises"))
+             for tag in cell.metadata.get("tags", [])
+             if tag.upper().replace("-", "_").startswith("NBVAL") and tag != tag.lower()]
+    assert not wrong, f"upper-case nbval tags (write e.g. nbval-ignore-output): {wrong}"
+
+
+def test_every_output_nbval_ignores_is_checked_by_an_assert():
+    """A cell whose output is not compared (machine-dependent numbers) must check itself."""
+    unchecked = []
+    for where, cell in _code_cells():
+        ignored = ("nbval-ignore-output" in cell.metadata.get("tags", [])
+                   or "NBVAL_IGNORE_OUTPUT" in cell.source)
+        if ignored and "assert " not in cell.source:
+            unchecked.append(where)
+    assert not unchecked, f"nbval-ignore-output cells without an assert: {unchecked}"

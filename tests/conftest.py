@@ -1,0 +1,24 @@
+"""Test-suite settings shared by every test module.
+
+Hypothesis runs randomised on a developer's machine (new examples every run, so the
+property tests keep searching) and derandomised in CI: with ``CI`` set (as CI services
+do) or ``HYPOTHESIS_PROFILE=ci``, every run draws the same examples, so a red CI is
+reproducible and never the luck of the draw.
+"""
+
+import os
+
+from hypothesis import HealthCheck, settings
+
+settings.register_profile("default", deadline=None)
+settings.register_profile(
+    "ci",
+    derandomize=True,
+    database=None,
+    deadline=None,
+    print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.load_profile(
+    os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if os.environ.get("CI") else "default")
+)
