@@ -7,8 +7,67 @@
 from __future__ import annotations
 
 import argparse
+import shutil
+import sys
+import tempfile
 import time
 from pathlib import Path
+from typing import Any
+
+from minimanc.errors import UsageError
+
+DISK_MARGIN = 1.2
+"""``data generate`` refuses to start unless the disk has this times the estimated size free."""
+
+
+# --------------------------------------------------------------------------- argument checks
+# shared by the command modules (minimanc.highway_cli, minimanc.studies): each raises
+# UsageError, which `minimanc` prints as one line on stderr with exit code 2
+
+
+def check_int(value: Any, option: str, minimum: int) -> int:
+    """``value`` if it is an integer ``>= minimum``, else :class:`UsageError` naming ``option``."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise UsageError(f"{option} must be an integer >= {minimum}, got {value!r}")
+    return value
+
+
+def check_out_dir(path: str | Path, option: str = "--out") -> Path:
+    """Create the directory ``path`` if needed and check that a file can be written in it."""
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"{option} {out}: exists and is not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise UsageError(f"{option} {out}: cannot create the directory ({e.strerror or e})") from e
+    try:
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as e:
+        raise UsageError(f"{option} {out}: directory is not writable ({e.strerror or e})") from e
+    return out
+
+
+def check_out_file(path: str | Path, option: str = "--out") -> Path:
+    """Check that the file ``path`` can be written (its directory is created if needed)."""
+    target = Path(path)
+    if target.is_dir():
+        raise UsageError(f"{option} {target}: is a directory, expected a file name")
+    check_out_dir(target.parent, option=f"{option} {target}: its directory")
+    return target
+
+
+def load_data(path: str | Path, option: str = "--data") -> Any:
+    """``world.load(path)``; a missing or unusable file is a :class:`UsageError`."""
+    from minimanc import world
+
+    try:
+        return world.load(path)
+    except FileNotFoundError as e:
+        raise UsageError(f"{option} {path}: no such file") from e
+    except (world.DatasetFileError, OSError) as e:
+        raise UsageError(f"{option} {e}") from e
 
 
 def default_file(out: str | Path, n_scenes: int, seed: int) -> Path:
@@ -16,21 +75,46 @@ def default_file(out: str | Path, n_scenes: int, seed: int) -> Path:
     return Path(out) / f"world_{n_scenes}x{seed}.npz"
 
 
+def _raster(size: Any, option: str = "--size") -> Any:
+    from minimanc import world
+
+    check_int(size, option, 8)
+    return world.RasterConfig(size=size)
+
+
 def cmd_generate(args: argparse.Namespace) -> int:
     from minimanc import world
 
-    cfg = world.RasterConfig(size=args.size)
+    check_int(args.scenes, "--scenes", 1)
+    check_int(args.seed, "--seed", 0)
+    cfg = _raster(args.size)
+    if args.workers is not None:
+        check_int(args.workers, "--workers", 1)
+    out = check_out_dir(args.out)
+    path = default_file(out, args.scenes, args.seed)
+    if path.is_dir():
+        raise UsageError(f"--out {out}: {path.name} is a directory")
+    est = world.estimate(args.scenes, seed=args.seed, raster=cfg, workers=args.workers)
+    free = shutil.disk_usage(out).free
+    print(f"estimate for {args.scenes} scenes: {est}", file=sys.stderr)
+    if est.disk_bytes * DISK_MARGIN > free:
+        raise UsageError(f"not enough free disk space in {out}: {args.scenes} scenes need about "
+                         f"{est.disk_bytes / 1e9:.2f} GB (+{DISK_MARGIN - 1:.0%} margin), "
+                         f"{free / 1e9:.2f} GB are free; use fewer --scenes or another --out")
     t0 = time.perf_counter()
-    ds = world.generate(args.scenes, seed=args.seed, raster=cfg, progress=not args.quiet,
-                        workers=args.workers)
+    try:
+        path = world.generate_file(path, args.scenes, seed=args.seed, raster=cfg,
+                                   progress=not args.quiet, workers=args.workers)
+    except OSError as e:  # e.g. the disk filled up: nothing is left behind
+        raise UsageError(f"cannot write {path}: {e.strerror or e}") from e
     dt = time.perf_counter() - t0
-    path = world.save(ds, default_file(args.out, args.scenes, args.seed))
-    tags = ds.tags
+    tags = world.read_meta(path)["tags"]
     share = {k: sum(bool(t[k]) for t in tags) / len(tags)
              for k in ("has_junction", "has_roundabout", "has_cut_in")}
-    print(f"generated {len(ds)} scenes (seed {args.seed}) in {dt:.1f} s -> {path}")
+    print(f"generated {len(tags)} scenes (seed {args.seed}) in {dt:.1f} s -> {path} "
+          f"({path.stat().st_size / 1e6:.1f} MB)")
     print("  " + ", ".join(f"{k}: {v:.0%}" for k, v in share.items()))
-    print(f"  content hash {ds.content_hash()[:16]}")
+    print(f"  content hash {world.file_content_hash(path)[:16]}")
     return 0
 
 
@@ -43,19 +127,24 @@ def cmd_show(args: argparse.Namespace) -> int:
     from minimanc import world
     from minimanc.world import viz
 
+    if args.scene is not None:
+        check_int(args.scene, "--scene", 0)
     if args.data:
-        ds = world.load(args.data)
+        ds = load_data(args.data)
     else:
+        check_int(args.scenes, "--scenes", 1)
+        check_int(args.seed, "--seed", 0)
+    out = check_out_dir(args.out)
+    if not args.data:
         ds = world.generate(args.scenes, seed=args.seed, progress=False)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    fig = viz.gallery(ds, range(min(len(ds), 12)))
-    fig.savefig(out / "gallery.png", dpi=120)
-    plt.close(fig)
     scene = args.scene if args.scene is not None else next(
         (i for i, t in enumerate(ds.tags) if t["has_roundabout"] or t["has_junction"]), 0)
     if not 0 <= scene < len(ds):
-        raise SystemExit(f"--scene must be in [0, {len(ds) - 1}], got {scene}")
+        raise UsageError(f"--scene must be in [0, {len(ds) - 1}] (the dataset has {len(ds)} "
+                         f"scenes), got {scene}")
+    fig = viz.gallery(ds, range(min(len(ds), 12)))
+    fig.savefig(out / "gallery.png", dpi=120)
+    plt.close(fig)
     viz.save_gif(viz.scene_frames(ds, scene), out / "scene.gif")
     fig, ax = plt.subplots(figsize=(6, 6))
     viz.plot_map(ds.maps[scene], ax, ego=ds.ego[scene], ado=ds.ado[scene],
@@ -71,7 +160,11 @@ def register(subparsers) -> None:
     """Add ``data generate`` and ``data show`` to an argparse sub-parser collection."""
     p = subparsers.add_parser("data", help="generate and inspect the BEV driving dataset")
     sub = p.add_subparsers(dest="data_command", required=True)
-    g = sub.add_parser("generate", help="generate scenes and save them (.npz)")
+    g = sub.add_parser("generate", help="generate scenes and save them (.npz)",
+                       description="Generate scenes straight to disk, one shard at a time "
+                                   "(memory does not grow with --scenes). The estimated disk "
+                                   "size and time are printed first; the command refuses to "
+                                   "start if the disk lacks the space.")
     g.add_argument("--scenes", type=int, default=850, help="number of scenes (default 850)")
     g.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     g.add_argument("--out", default="data", help="output directory (default ./data)")
@@ -93,7 +186,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="minimanc")
     register(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
-    return int(args.func(args))
+    try:
+        return int(args.func(args))
+    except UsageError as exc:
+        print(f"minimanc data: error: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":
