@@ -7,6 +7,12 @@
 * :mod:`minimanc.autodiff.check` — central-difference gradient checks;
 * :mod:`minimanc.autodiff.nn` — neural-net primitives (activations, conv2d).
 
+Converting a traced value to a plain number or array (``float(x)``, ``x.item()``,
+``np.asarray(x)``, ``math.sin(x)``) raises :class:`TracerConversionError` instead
+of dropping its gradient; :func:`stop_gradient` does it on purpose. NumPy's own
+functions (``np.sum``, ``np.exp``, ``ndarray @ x``) dispatch to the primitives of
+:mod:`minimanc.autodiff.numpy`, and those without one raise a ``TypeError``.
+
 First-order derivatives only (no ``grad(grad(f))``): use the ``jax`` engine for
 higher orders.
 """
@@ -15,11 +21,13 @@ from minimanc.autodiff import numpy
 from minimanc.autodiff.check import check_grads
 from minimanc.autodiff.core import (
     Box,
+    TracerConversionError,
     backward,
     defvjp,
     defvjp_fwd,
     grad,
     primitive,
+    stop_gradient,
     toposort,
     tree_flatten,
     tree_unflatten,
@@ -29,6 +37,7 @@ from minimanc.autodiff.core import (
 
 __all__ = [
     "Box",
+    "TracerConversionError",
     "backward",
     "check_grads",
     "defvjp",
@@ -36,6 +45,7 @@ __all__ = [
     "grad",
     "numpy",
     "primitive",
+    "stop_gradient",
     "toposort",
     "tree_flatten",
     "tree_unflatten",

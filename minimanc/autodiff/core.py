@@ -17,6 +17,15 @@ Everything the engine needs fits in this file:
   more than once.
 * :func:`grad` / :func:`value_and_grad` — JAX's API on pytrees (nested dicts,
   lists and tuples of arrays).
+* :func:`stop_gradient` — the plain value of a traced one, for the places where
+  dropping the derivative is deliberate (logging a loss, a constant target).
+
+A gradient is never dropped silently: turning a ``Box`` into a Python or NumPy
+number or array (``float(x)``, ``x.item()``, ``np.asarray(x)``, ``math.sin(x)``,
+``y[i] = x`` into a NumPy array) raises :class:`TracerConversionError` saying
+what to write instead. ``bool(x)`` and comparisons stay allowed: the value is
+concrete, so Python control flow (``if x > 0:``) picks a branch and the
+gradient of that branch is exact, as under ``jax.grad`` without ``jit``.
 
 The primitives themselves (``add``, ``matmul``, ``sum``, …), each with its VJP
 beside it, live in :mod:`minimanc.autodiff.numpy`. The engine computes
@@ -29,6 +38,7 @@ model of section III (eqs. 7–11) with gradients of a behaviour-cloning loss
 from __future__ import annotations
 
 import functools
+import numbers
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -36,6 +46,8 @@ import numpy as np
 
 __all__ = [
     "Box",
+    "TracerConversionError",
+    "stop_gradient",
     "primitive",
     "defvjp",
     "defvjp_fwd",
@@ -52,17 +64,49 @@ __all__ = [
 # ---------------------------------------------------------------------------
 # Boxes: traced values and the graph they form
 # ---------------------------------------------------------------------------
+class TracerConversionError(TypeError):
+    """A traced value was turned into a plain number or array, which would lose its gradient."""
+
+
+def _describe(box: Box) -> str:
+    value = box._value
+    return f"a traced value (Box of shape {np.shape(value)}, dtype {np.result_type(value)})"
+
+
+_VALUE_HINT = (
+    "to use the value without its derivative on purpose (logging, a constant), write "
+    "minimanc.autodiff.stop_gradient(x) or x.value"
+)
+
+
+def _conversion_error(box: Box, operation: str, instead: str) -> TracerConversionError:
+    return TracerConversionError(
+        f"{operation} on {_describe(box)} inside a function being differentiated would lose "
+        f"its gradient. Instead: {instead}; {_VALUE_HINT}."
+    )
+
+
+_FLOAT_FIX = (
+    "keep x traced: math.sin(x), math.exp(x) ... -> minimanc.autodiff.numpy.sin(x), "
+    "minimanc.autodiff.numpy.exp(x) ...; build an array from traced pieces with "
+    "minimanc.autodiff.numpy.stack / concatenate / where, not by assignment into a NumPy array"
+)
+
+
 class Box:
     """A traced array: its value plus how it was computed.
 
     ``parents`` is a tuple of ``(argnum, parent_box)``: the positional argument
     ``argnum`` of ``prim`` was the traced value ``parent_box``. Leaves (the
     inputs of :func:`grad`) have no parents. Operators (``+``, ``@``, ``x[i]``,
-    ``.T`` …) are attached by :mod:`minimanc.autodiff.numpy`.
+    ``.T`` …) and NumPy dispatch (``np.sum(x)``, ``ndarray * x``) are attached by
+    :mod:`minimanc.autodiff.numpy`. Conversions that would drop the derivative
+    (``float``, ``int``, ``complex``, ``.item()``, ``.tolist()``, ``np.asarray``)
+    raise :class:`TracerConversionError`; ``bool(x)`` (control flow on the
+    concrete value), ``format(x, ".3f")`` and ``repr(x)`` are allowed.
     """
 
     __slots__ = ("_value", "_parents", "_prim", "_args", "_kwargs", "_res")
-    __array_ufunc__ = None  # make ``ndarray <op> Box`` defer to Box's reflected operator
     __array_priority__ = 1000
 
     def __init__(self, value, parents=(), prim=None, args=(), kwargs=None, res=None):
@@ -75,17 +119,68 @@ class Box:
 
     @property
     def value(self) -> np.ndarray:
-        """The plain NumPy value inside the box."""
+        """The plain NumPy value inside the box (its derivative is not tracked)."""
         return self._value
 
     def __repr__(self) -> str:
         return f"Box({self._value!r})"
 
-    def __array__(self, dtype=None, copy=None):
-        raise TypeError(
-            "a traced array (Box) cannot be converted to a plain NumPy array: use the "
-            "functions of minimanc.autodiff.numpy (the `xp` namespace) instead of numpy"
+    def __format__(self, spec: str) -> str:
+        return format(self._value, spec)
+
+    def __bool__(self) -> bool:
+        return bool(self._value)
+
+    def __float__(self) -> float:
+        raise _conversion_error(
+            self, "float(x) (also math.sin(x) ... or y[i] = x into a NumPy array)", _FLOAT_FIX
         )
+
+    def __complex__(self) -> complex:
+        raise _conversion_error(self, "complex(x)", _FLOAT_FIX)
+
+    def __int__(self) -> int:
+        raise _conversion_error(
+            self, "int(x)",
+            "a piecewise-constant function has derivative 0: say so with "
+            "int(minimanc.autodiff.stop_gradient(x)), or keep x traced and use "
+            "minimanc.autodiff.numpy.floor(x)",
+        )
+
+    def item(self, *args):
+        raise _conversion_error(
+            self, "x.item()",
+            "keep x as a 0-d traced array (x * 2, minimanc.autodiff.numpy.sin(x) work as "
+            "with a float)",
+        )
+
+    def tolist(self):
+        raise _conversion_error(
+            self, "x.tolist()",
+            "index x[i] or iterate `for v in x` (each element stays traced)",
+        )
+
+    def __array__(self, dtype=None, copy=None):
+        raise _conversion_error(
+            self, "np.asarray(x), np.array(x), np.float64(x) or y[i] = x into a NumPy array",
+            "minimanc.autodiff.numpy.asarray(x) and x.astype(np.float64) stay traced; build an "
+            "array from traced pieces with minimanc.autodiff.numpy.stack / concatenate / where "
+            "(never by assignment into a NumPy array)",
+        )
+
+
+def stop_gradient(tree):
+    """The plain NumPy values of ``tree`` (a traced value or a pytree of them).
+
+    Like ``jax.lax.stop_gradient``: what comes out is a constant to :func:`grad`.
+    Use it where dropping the derivative is deliberate (logging a loss inside a
+    traced function, a fixed target); plain values pass through unchanged.
+    """
+    if isinstance(tree, Box):
+        return tree._value
+    if isinstance(tree, dict | list | tuple):
+        return _strip_boxes(tree)
+    return tree
 
 
 def _unbox(x):
@@ -352,6 +447,30 @@ def _check_leaf(leaf, argnum: int, path: str) -> np.ndarray:
     raise TypeError(f"grad requires real floating-point inputs, got {dtype_name} for {where}")
 
 
+def _check_output(out, has_aux: bool) -> None:
+    """Refuse outputs that are not a scalar array (None, a tuple, a dict ...)."""
+    if isinstance(out, Box | np.ndarray | np.generic | numbers.Number) and not isinstance(
+        out, bool
+    ):
+        return
+    if out is None:
+        raise TypeError(
+            "grad requires a scalar output (shape ()), but the function returned None "
+            "(a missing `return`?)"
+        )
+    if isinstance(out, tuple | list):
+        hint = ("with has_aux=True the function returns (scalar, aux)" if has_aux
+                else "to return extra values use has_aux=True and return (scalar, aux)")
+        raise TypeError(
+            f"grad requires a scalar output (shape ()), got a {type(out).__name__} of "
+            f"{len(out)} values; {hint}"
+        )
+    raise TypeError(
+        f"grad requires a scalar output (shape ()), got {type(out).__name__}"
+        + (": a Python bool has no derivative" if isinstance(out, bool) else "")
+    )
+
+
 def value_and_grad(
     fun: Callable, argnums: int | Sequence[int] = 0, has_aux: bool = False
 ) -> Callable:
@@ -390,6 +509,7 @@ def value_and_grad(
                 raise ValueError("has_aux=True requires the function to return (value, aux)")
             out, aux = out
             aux = _strip_boxes(aux)
+        _check_output(out, has_aux)
         shape, dtype = np.shape(_unbox(out)), np.result_type(_unbox(out))
         if shape != ():
             raise TypeError(

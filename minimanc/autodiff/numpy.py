@@ -21,8 +21,10 @@ share the gradient equally, as in JAX. First-order derivatives only.
 from __future__ import annotations
 
 import builtins
+import inspect
 import math
 import string
+import sys
 import types
 from collections import Counter
 
@@ -764,10 +766,6 @@ _BOX_METHODS = {
     "__lt__": _comparison(np.less), "__le__": _comparison(np.less_equal),
     "__gt__": _comparison(np.greater), "__ge__": _comparison(np.greater_equal),
     "__eq__": _comparison(np.equal), "__ne__": _comparison(np.not_equal),
-    "__bool__": lambda self: bool(self._value),
-    "__float__": lambda self: float(self._value),
-    "__int__": lambda self: int(self._value),
-    "__format__": lambda self, spec: format(self._value, spec),
     "__hash__": None,
     "shape": property(lambda self: np.shape(self._value)),
     "ndim": property(lambda self: np.ndim(self._value)),
@@ -780,10 +778,230 @@ _BOX_METHODS = {
     "transpose": lambda self, *axes: transpose(self, _shape_arg(axes) or None),
     "swapaxes": _method(swapaxes), "squeeze": _method(squeeze), "ravel": _method(ravel),
     "flatten": _method(ravel), "astype": _method(astype), "dot": _method(dot),
-    "clip": _method(clip), "item": lambda self, *a: self._value.item(*a),
-    "all": _method(all), "any": _method(any), "argmax": _method(argmax),
+    "clip": _method(clip), "all": _method(all), "any": _method(any), "argmax": _method(argmax),
     "argmin": _method(argmin),
 }
 for _name, _attr in _BOX_METHODS.items():
     setattr(Box, _name, _attr)
 del _name, _attr
+
+
+# ---------------------------------------------------------------------------
+# NumPy's own functions on traced values: np.sum(x), np.exp(x), ndarray * x
+# ---------------------------------------------------------------------------
+# ``Box.__array_ufunc__`` and ``Box.__array_function__`` send a NumPy function
+# called on a traced value to the primitive of the same meaning here, as HIPS
+# autograd does; ``ndarray <op> Box`` is a ufunc call too and lands here. A
+# NumPy function without a primitive raises instead of losing the gradient.
+_INPLACE = (
+    "{what} writes into an existing array in place, which cannot be traced: build a new "
+    "array instead (y = y + x rather than y += x or np.add(y, x, out=y))"
+)
+
+_CLOSEST = {
+    "prod": "anp.exp(anp.sum(anp.log(x))) for positive x",
+    "cumprod": "anp.exp(anp.cumsum(anp.log(x))) for positive x",
+    "copy": "x itself (traced values are never modified in place)",
+    "average": "anp.sum(x * w) / anp.sum(w)",
+    "nansum": "anp.sum(anp.where(anp.isnan(x), 0.0, x))",
+    "nanmean": "anp.mean of the finite entries, via anp.where",
+    "outer": "x[:, None] * y[None, :]",
+    "multiply.outer": "x[:, None] * y[None, :]",
+    "multiply.reduce": "anp.exp(anp.sum(anp.log(x))) for positive x",
+    "add.accumulate": "anp.cumsum",
+    "ufunc.outer": "broadcasting, x[:, None] <op> y[None, :]",
+    "inner": "anp.dot or anp.einsum",
+    "vdot": "anp.sum(x * y)",
+    "tensordot": "anp.einsum",
+    "trace": "anp.einsum('ii->', x)",
+    "diagonal": "anp.einsum('ii->i', x)",
+    "take": "x[idx]",
+    "flip": "x[::-1] (indexing)",
+    "broadcast_arrays": "anp.broadcast_to",
+    "hstack": "anp.concatenate",
+    "vstack": "anp.concatenate or anp.stack",
+    "atleast_1d": "anp.reshape or anp.expand_dims",
+    "atleast_2d": "anp.reshape or anp.expand_dims",
+    "hypot": "anp.sqrt(x * x + y * y)",
+    "reciprocal": "1.0 / x",
+    "exp2": "anp.power(2.0, x)",
+    "log2": "anp.log(x) / anp.log(2.0)",
+    "log10": "anp.log(x) / anp.log(10.0)",
+    "cbrt": "anp.power(x, 1.0 / 3.0) for positive x",
+    "float_power": "anp.power",
+    "deg2rad": "x * (anp.pi / 180)",
+    "radians": "x * (anp.pi / 180)",
+    "rad2deg": "x * (180 / anp.pi)",
+    "degrees": "x * (180 / anp.pi)",
+}
+
+
+def _np_name(func) -> str:
+    """``np.sum``, ``np.linalg.svd``: how the user wrote the NumPy function."""
+    module = getattr(func, "__module__", None) or "numpy"
+    if isinstance(func, np.ufunc) or not module.startswith("numpy") or "._" in module:
+        module = "numpy"
+    return "np" + module[len("numpy"):] + "." + func.__name__
+
+
+def _no_derivative(display: str, name: str) -> TypeError:
+    hint = _CLOSEST.get(name)
+    if hint is None and hasattr(_THIS_MODULE, name):
+        hint = f"anp.{name}"
+    where = (f"use minimanc.autodiff.numpy (anp): {hint}," if hint else
+             "use the functions of minimanc.autodiff.numpy (the `xp` namespace)")
+    return TypeError(
+        f"{display} has no derivative in minimanc.autodiff: {where} or write the primitive "
+        "(@primitive with defvjp, see minimanc.autodiff.core)"
+    )
+
+
+def _positive(x):
+    return x
+
+
+_UFUNCS = {
+    np.add: add, np.subtract: subtract, np.multiply: multiply, np.divide: divide,
+    np.negative: negative, np.positive: _positive, np.power: power, np.square: square,
+    np.remainder: remainder, np.logaddexp: logaddexp, np.maximum: maximum, np.minimum: minimum,
+    np.exp: exp, np.expm1: expm1, np.log: log, np.log1p: log1p, np.sqrt: sqrt,
+    np.absolute: abs, np.tanh: tanh, np.sinh: sinh, np.cosh: cosh, np.sin: sin, np.cos: cos,
+    np.tan: tan, np.arcsin: arcsin, np.arccos: arccos, np.arctan: arctan, np.arctan2: arctan2,
+    np.matmul: matmul,
+    # no useful derivative: plain values out
+    np.floor_divide: floor_divide, np.sign: sign, np.floor: floor, np.ceil: ceil,
+    np.isfinite: isfinite, np.isnan: isnan, np.isinf: isinf, np.equal: equal,
+    np.not_equal: not_equal, np.less: less, np.less_equal: less_equal, np.greater: greater,
+    np.greater_equal: greater_equal, np.logical_and: logical_and, np.logical_or: logical_or,
+    np.logical_not: logical_not,
+}
+_UFUNC_REDUCE = {np.add: sum, np.maximum: max, np.minimum: min}
+_UFUNC_DEFAULTS = {"where": True, "casting": "same_kind", "order": "K", "dtype": None,
+                   "subok": True, "signature": None, "axis": 0, "keepdims": False}
+
+
+def _box_array_ufunc(self, ufunc, method, *inputs, **kwargs):
+    """``np.exp(x)``, ``ndarray * x``, ``np.add.reduce(x)`` → our primitive (or a clear error)."""
+    display = _np_name(ufunc) + ("" if method == "__call__" else f".{method}")
+    out = kwargs.pop("out", None)
+    if method == "at" or (out is not None and builtins.any(o is not None for o in out)):
+        what = f"{display}(...)" if method == "at" else (
+            f"{display}(..., out=...) (also `a += x` with a NumPy array a)")
+        raise TypeError(_INPLACE.format(what=what))
+    table = _UFUNCS if method == "__call__" else _UFUNC_REDUCE if method == "reduce" else {}
+    ours = table.get(ufunc)
+    if ours is None:
+        key = ufunc.__name__ if method == "__call__" else f"{ufunc.__name__}.{method}"
+        raise _no_derivative(display, key if key in _CLOSEST or method == "__call__"
+                             else f"ufunc.{method}")
+    keep = ("axis", "keepdims") if method == "reduce" else ()
+    call_kw = {}
+    for key, val in kwargs.items():
+        if key in keep:
+            call_kw[key] = val
+        elif not (key in _UFUNC_DEFAULTS and _same(val, _UFUNC_DEFAULTS[key])):
+            raise TypeError(
+                f"{display}(..., {key}=...) is not supported on traced values: call "
+                f"minimanc.autodiff.numpy.{ours.__name__} without {key}="
+            )
+    return ours(*inputs, **call_kw)
+
+
+def _same(val, default) -> bool:
+    if val is default:
+        return True
+    simple = (str, int, float, bool, type(None))
+    return isinstance(val, simple) and isinstance(default, simple) and val == default
+
+
+_POSITIONAL = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+
+
+def _adapt(np_func, ours):
+    """Call ``ours`` with the arguments of a call of ``np_func`` (NumPy's signature).
+
+    Parameters are matched by name (NumPy's first arguments ``a``/``array`` become
+    ours ``x``); the arrays and the leading parameters go positionally, as
+    primitives differentiate positional arguments only. ``out=`` is refused (an
+    in-place write), and so is any NumPy option ours lacks, unless it has its
+    default value.
+    """
+    np_sig = inspect.signature(np_func)
+    np_params = np_sig.parameters
+    our_params = list(inspect.signature(ours).parameters.values())
+    our_names = {p.name for p in our_params}
+    our_positional = [p.name for p in our_params if p.kind in _POSITIONAL]
+    rename = {}
+    for i, (name, p) in enumerate(np_params.items()):
+        if (name not in our_names and p.kind in _POSITIONAL and i < len(our_positional)
+                and our_positional[i] not in np_params):
+            rename[name] = our_positional[i]
+    display = _np_name(np_func)
+
+    def call(*args, **kwargs):
+        try:
+            bound = np_sig.bind(*args, **kwargs)
+        except TypeError as err:
+            raise TypeError(f"{display}: {err}") from None
+        varargs, given = (), {}
+        for name, val in bound.arguments.items():
+            kind = np_params[name].kind
+            if kind is inspect.Parameter.VAR_POSITIONAL:
+                varargs = val
+                continue
+            items = val.items() if kind is inspect.Parameter.VAR_KEYWORD else ((name, val),)
+            for key, v in items:
+                if key == "out" and v is not None:
+                    raise TypeError(_INPLACE.format(what=f"{display}(..., out=...)"))
+                ours_key = rename.get(key, key)
+                if ours_key in our_names:
+                    given[ours_key] = v
+                elif not (key in np_params and _same(v, np_params[key].default)):
+                    raise TypeError(
+                        f"{display}(..., {key}=...) is not supported on traced values: "
+                        f"minimanc.autodiff.numpy.{ours.__name__} takes "
+                        f"({', '.join(p.name for p in our_params)})"
+                    )
+        pos = list(varargs)
+        if not varargs:
+            for name in our_positional:
+                if name not in given:
+                    break
+                pos.append(given.pop(name))
+        return ours(*pos, **given)
+
+    call.__name__ = np_func.__name__
+    return call
+
+
+_THIS_MODULE = sys.modules[__name__]
+
+_DIFFERENTIABLE = (
+    (np.sum, sum), (np.mean, mean), (np.max, max), (np.amax, max), (np.min, min),
+    (np.amin, min), (np.var, var), (np.std, std), (np.cumsum, cumsum),
+    (np.linalg.norm, linalg.norm), (np.reshape, reshape), (np.ravel, ravel),
+    (np.expand_dims, expand_dims), (np.squeeze, squeeze), (np.broadcast_to, broadcast_to),
+    (np.transpose, transpose), (np.swapaxes, swapaxes), (np.moveaxis, moveaxis), (np.pad, pad),
+    (np.concatenate, concatenate), (np.stack, stack), (np.where, where), (np.clip, clip),
+    (np.dot, dot), (np.einsum, einsum), (np.cross, cross),
+)
+_PLAIN = (  # no useful derivative: run NumPy on the values
+    np.zeros_like, np.ones_like, np.full_like, np.empty_like, np.shape, np.ndim, np.size,
+    np.result_type, np.all, np.any, np.argmax, np.argmin, np.argsort, np.allclose, np.isclose,
+    np.count_nonzero, np.round, np.around, np.iscomplexobj, np.isrealobj, np.array_equal,
+    np.array_equiv, np.nonzero, np.flatnonzero, np.argwhere,
+)
+_FUNCTIONS = {f: _adapt(f, ours) for f, ours in _DIFFERENTIABLE}
+_FUNCTIONS.update({f: _nondiff(f) for f in _PLAIN})
+
+
+def _box_array_function(self, func, types, args, kwargs):
+    """``np.sum(x)``, ``np.concatenate([x, y])`` … → our primitive (or a clear error)."""
+    impl = _FUNCTIONS.get(func)
+    if impl is None:
+        raise _no_derivative(_np_name(func), func.__name__)
+    return impl(*args, **kwargs)
+
+
+Box.__array_ufunc__ = _box_array_ufunc
+Box.__array_function__ = _box_array_function
