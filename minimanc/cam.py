@@ -289,7 +289,7 @@ def vagn_jacobian(
     independent, so the gradient of ``Σ_batch q_j`` gives every row's
     ``∂q_j/∂p`` at once.  Returns shape ``(..., N, M)``.
     """
-    M, N = vagn._check_W(W)
+    M, N = vagn.check_weights(W)
     if grad is not None:
         rows = []
         for j in range(N):
@@ -301,7 +301,7 @@ def vagn_jacobian(
     p = np.asarray(p, dtype=float)
     q_prev = np.asarray(q_prev, dtype=float)
     W = np.asarray(W, dtype=float)
-    vagn._check_q(q_prev, N, name="q_prev")
+    vagn.check_state(q_prev, N, name="q_prev")
     A = vagn.combined_weights(p, W)
     T = vagn.transition_matrix(p, W)
     G = (A > 0)[..., None, :, :] * W  # (..., M, N, N)

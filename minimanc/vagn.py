@@ -20,7 +20,10 @@ Conventions used throughout this module
 Every differentiable function takes the array namespace ``xp`` (plain NumPy by
 default, ``engine("numpy").xp`` or ``engine("jax").xp`` for gradients) and uses
 only the operations listed in CONTRIBUTING.md.  Input checks run only on
-concrete NumPy inputs (never on traced values).
+concrete NumPy inputs (never on traced values); distributions and stochastic
+matrices are checked with a tolerance that fits their own dtype
+(:func:`minimanc.checks.float_tolerance`), and the distributions this module
+produces are renormalised rather than trusted to stay on the simplex.
 
 A property worth knowing (the tutorial shows it): ReLU sets negative entries
 of ``W^p`` to zero, but a zero still becomes ``e^0 = 1`` inside the softmax, so
@@ -38,7 +41,11 @@ from typing import Any
 
 import numpy as np
 
+from minimanc.checks import check_distribution, check_real, check_stochastic_columns, is_concrete
+
 __all__ = [
+    "check_weights",
+    "check_state",
     "init_vagn",
     "transition_matrix",
     "step",
@@ -53,74 +60,53 @@ __all__ = [
     "plot_q_heatmap",
 ]
 
-#: Tolerance on ``sum(q) == 1`` and ``q >= 0`` for concrete inputs.
-DIST_TOL = 1e-6
-
-
 # ---------------------------------------------------------------------------
 # input checks (concrete NumPy values only)
 # ---------------------------------------------------------------------------
-def _is_concrete(x: Any) -> bool:
-    """True for plain NumPy / Python values, False for traced values (our
-    autodiff boxes, JAX tracers) and device arrays, which are never inspected."""
-    return isinstance(x, (np.ndarray, np.generic, list, tuple, float, int))
+def check_weights(W: Any) -> tuple[int, int]:
+    """``(M, N)`` for transition weights ``W`` of shape ``(M, N, N)`` (eq. 8).
 
-
-def _check_W(W: Any) -> tuple[int, int]:
-    shape = tuple(np.shape(W)) if _is_concrete(W) else tuple(W.shape)
+    The shape is checked on every value; concrete ``W`` must also be finite.
+    ValueError otherwise.  Shared with :mod:`minimanc.cam`.
+    """
+    shape = tuple(np.shape(W)) if is_concrete(W) else tuple(W.shape)
     if len(shape) != 3 or shape[1] != shape[2]:
         raise ValueError(f"W must have shape (M, N, N); got W with shape {shape}")
-    if _is_concrete(W) and not np.all(np.isfinite(np.asarray(W, dtype=float))):
+    if is_concrete(W) and not np.all(np.isfinite(check_real("W", W))):
         raise ValueError("W must be finite; got W with non-finite entries")
     return shape[0], shape[1]
 
 
+def check_state(q: Any, n_states: int, name: str = "q") -> None:
+    """``q`` (..., N): distributions over the ``N`` q-states (ValueError otherwise).
+
+    For concrete ``q`` the sums must be one within
+    :func:`minimanc.checks.float_tolerance` of ``q``'s own precision and ``N``
+    terms (about 1e-6 · N/2 in float32, 2e-15 · N/2 in float64); see
+    :func:`minimanc.checks.check_distribution`.
+    """
+    check_distribution(name, q, n_states, what="q-states")
+
+
 def _check_p(p: Any, M: int) -> None:
-    shape = tuple(np.shape(p)) if _is_concrete(p) else tuple(p.shape)
+    shape = tuple(np.shape(p)) if is_concrete(p) else tuple(p.shape)
     if len(shape) == 0 or shape[-1] != M:
         raise ValueError(
             f"p must have shape (..., M) with M = {M} predicates (W.shape[0]); "
             f"got p with shape {shape}"
         )
-    if _is_concrete(p) and not np.all(np.isfinite(np.asarray(p, dtype=float))):
+    if is_concrete(p) and not np.all(np.isfinite(check_real("p", p))):
         raise ValueError(f"p must be finite; got p = {np.asarray(p)!r}")
 
 
-def _check_q(q: Any, N: int, name: str = "q", tol: float = DIST_TOL) -> None:
-    shape = tuple(np.shape(q)) if _is_concrete(q) else tuple(q.shape)
-    if len(shape) == 0 or shape[-1] != N:
-        raise ValueError(
-            f"{name} must have shape (..., N) with N = {N} q-states; got {name} with shape {shape}"
-        )
-    if not _is_concrete(q):
-        return
-    qa = np.asarray(q, dtype=float)
-    if not np.all(np.isfinite(qa)):
-        raise ValueError(f"{name} must be finite; got {name} = {qa!r}")
-    if np.any(qa < -tol):
-        raise ValueError(
-            f"{name} must be a probability distribution: it has a negative entry "
-            f"(min {qa.min():.3g}); got {name} = {qa!r}"
-        )
-    sums = qa.sum(axis=-1)
-    if np.any(np.abs(sums - 1.0) > tol):
-        worst = float(sums.reshape(-1)[np.argmax(np.abs(sums - 1.0).reshape(-1))])
-        raise ValueError(
-            f"{name} must be a probability distribution: entries sum to {worst:.6g}, "
-            f"not 1 (tolerance {tol:g}); got {name} = {qa!r}"
-        )
+def _check_T(T: Any, name: str = "T") -> np.ndarray:
+    """Concrete column-stochastic ``T`` as float64 (tolerance of its own precision)."""
+    return check_stochastic_columns(name, T)
 
 
-def _check_T(T: np.ndarray, tol: float = 1e-8) -> np.ndarray:
-    T = np.asarray(T, dtype=float)
-    if T.ndim < 2 or T.shape[-1] != T.shape[-2]:
-        raise ValueError(f"T must have shape (..., N, N); got T with shape {T.shape}")
-    if np.any(T < -tol) or np.any(np.abs(T.sum(axis=-2) - 1.0) > 1e-6):
-        raise ValueError(
-            "T must be column-stochastic (non-negative, every column summing to 1); "
-            f"got column sums {np.round(T.sum(axis=-2), 6)}"
-        )
-    return T
+def _renormalise(q: Any, xp: Any) -> Any:
+    """``q / Σ q`` along the last axis, in the array namespace ``xp``."""
+    return q / xp.expand_dims(xp.sum(q, axis=-1), -1)
 
 
 # ---------------------------------------------------------------------------
@@ -179,7 +165,7 @@ def random_state(
 # ---------------------------------------------------------------------------
 def combined_weights(p: Any, W: Any, xp: Any = np) -> Any:
     """Eq. 8: ``W^p = Σ_i p_i W_i`` — ``p`` (..., M), ``W`` (M, N, N) → (..., N, N)."""
-    M, N = _check_W(W)
+    M, N = check_weights(W)
     _check_p(p, M)
     p = xp.asarray(p)
     W = xp.asarray(W)
@@ -203,23 +189,33 @@ def transition_matrix(p: Any, W: Any, xp: Any = np) -> Any:
 
 
 def step(q: Any, p: Any, W: Any, xp: Any = np) -> Any:
-    """Eq. 9: one vAGN update ``q_t = T(p) q_{t-1}``; ``q`` (..., N), ``p`` (..., M)."""
-    M, N = _check_W(W)
-    _check_q(q, N)
+    """Eq. 9: one vAGN update ``q_t = T(p) q_{t-1}``; ``q`` (..., N), ``p`` (..., M).
+
+    The result is renormalised, ``q_t / Σ_i q_t[i]``.  In exact arithmetic this
+    is the identity — every column of ``T`` sums to one, so ``Σ q_t = Σ q_{t-1}
+    = 1`` — and it changes no gradient with respect to ``p`` or ``W``; in
+    floating point it removes the rounding drift of the sum, so ``q`` fed back
+    step after step (thousands of float32 steps) stays a distribution to the
+    precision of its dtype.  The concrete input ``q`` is checked with the
+    tolerance of its own dtype (:func:`check_state`).
+    """
+    M, N = check_weights(W)
+    check_state(q, N)
     T = transition_matrix(p, W, xp=xp)
     q = xp.asarray(q)
-    return xp.sum(T * xp.expand_dims(q, -2), axis=-1)
+    return _renormalise(xp.sum(T * xp.expand_dims(q, -2), axis=-1), xp)
 
 
 def rollout(q0: Any, ps: Any, W: Any, xp: Any = np) -> Any:
     """Run eq. 9 over a predicate sequence ``ps`` of shape ``(T, ..., M)``.
 
     Returns the stacked distributions ``(T + 1, ..., N)``: index 0 is ``q0``,
-    index ``t`` is the state after consuming ``ps[t - 1]``.
+    index ``t`` is the state after consuming ``ps[t - 1]``.  Each step is
+    renormalised as in :func:`step` (the identity in exact arithmetic).
     """
-    M, N = _check_W(W)
-    _check_q(q0, N, name="q0")
-    shape = tuple(np.shape(ps)) if _is_concrete(ps) else tuple(ps.shape)
+    M, N = check_weights(W)
+    check_state(q0, N, name="q0")
+    shape = tuple(np.shape(ps)) if is_concrete(ps) else tuple(ps.shape)
     if len(shape) < 2 or shape[-1] != M:
         raise ValueError(
             f"ps must have shape (T, ..., M) with M = {M}; got ps with shape {shape}"
@@ -230,7 +226,7 @@ def rollout(q0: Any, ps: Any, W: Any, xp: Any = np) -> Any:
     qs = [q]
     for t in range(shape[0]):
         T = transition_matrix(ps[t], W, xp=xp)
-        q = xp.sum(T * xp.expand_dims(q, -2), axis=-1)
+        q = _renormalise(xp.sum(T * xp.expand_dims(q, -2), axis=-1), xp)
         qs.append(q)
     if len(qs) > 1:  # broadcast q0 against the batch shape of the sequence
         qs[0] = qs[0] + xp.zeros_like(qs[1])
@@ -251,7 +247,9 @@ def stationary_distribution(T: Any) -> np.ndarray:
     vAGN matrices have strictly positive entries, so by Perron–Frobenius ``π``
     is unique, strictly positive, and ``T^k q → π`` for every start ``q``.  It
     is what the automaton settles to while the predicates stay constant.
-    Solved as the least-squares system ``[T − I; 1ᵀ] π = [0; 1]``.
+    Solved as the least-squares system ``[T − I; 1ᵀ] π = [0; 1]``; a ``T``
+    with NaN or ±inf entries, or one that is not column-stochastic, raises
+    ValueError before any linear algebra runs.
     """
     T = _check_T(T)
     if T.ndim != 2:
@@ -281,12 +279,14 @@ def most_likely_path(q0: Any, Ts: Any) -> tuple[np.ndarray, float]:
     ``transition_matrix(ps, W)``).  Returns ``(path of length T + 1, log
     probability)``.  The per-step argmax of the marginals
     (:func:`most_likely_states`) need not be a likely path — compare both.
+    ``Ts`` must be finite and column-stochastic and ``q0`` a distribution
+    (ValueError otherwise, so a NaN never yields a path with ``log p = nan``).
     """
-    Ts = _check_T(Ts)
+    Ts = _check_T(Ts, name="Ts")
     if Ts.ndim != 3:
         raise ValueError(f"Ts must have shape (T, N, N); got Ts with shape {Ts.shape}")
     N = Ts.shape[-1]
-    _check_q(q0, N, name="q0")
+    check_state(q0, N, name="q0")
     q0 = np.asarray(q0, dtype=float)
     if q0.ndim != 1:
         raise ValueError(f"q0 must have shape (N,); got q0 with shape {q0.shape}")
@@ -337,7 +337,7 @@ def plot_automaton(
     if len(labels) != N:
         raise ValueError(f"labels must have N = {N} entries; got {len(labels)}")
     if q is not None:
-        _check_q(q, N)
+        check_state(q, N)
         q = np.asarray(q, dtype=float)
     if ax is None:
         _, ax = plt.subplots(figsize=(4, 4))
@@ -404,10 +404,11 @@ def plot_q_heatmap(
     as in the paper's execution traces).  Returns the axes."""
     import matplotlib.pyplot as plt
 
+    shape = np.shape(qs)
+    if len(shape) != 2:
+        raise ValueError(f"qs must have shape (T, N); got qs with shape {shape}")
+    check_state(qs, shape[1], name="qs")
     qs = np.asarray(qs, dtype=float)
-    if qs.ndim != 2:
-        raise ValueError(f"qs must have shape (T, N); got qs with shape {qs.shape}")
-    _check_q(qs, qs.shape[1], name="qs")
     N = qs.shape[1]
     if labels is None:
         labels = [f"$q_{{{i}}}$" for i in range(N)]

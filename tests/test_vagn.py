@@ -13,8 +13,8 @@ import pytest  # noqa: E402
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from minimanc import engine, vagn  # noqa: E402
-from minimanc.autodiff.check import numerical_grad
+from minimanc import checks, engine, vagn  # noqa: E402
+from minimanc.autodiff.check import numerical_grad  # noqa: E402
 
 ENGINES = ["numpy", "jax"]
 
@@ -296,8 +296,10 @@ def test_bad_inputs_raise_value_errors_naming_the_problem():
         vagn.init_vagn(rng, 2, 0)
     with pytest.raises(ValueError, match="rng"):
         vagn.init_vagn(0, 2, 2)
-    # small rounding is tolerated
-    vagn.step(q + 1e-9, np.ones(3), W)
+    # rounding of the dtype is tolerated, more is not (float64: ~1e-15 per term)
+    vagn.step(q + 1e-16, np.ones(3), W)
+    with pytest.raises(ValueError, match="sum to 1.000000004"):
+        vagn.step(q + 1e-9, np.ones(3), W)
 
 
 def test_traced_inputs_skip_value_checks_but_keep_shape_checks():
@@ -341,3 +343,95 @@ def test_plot_q_heatmap_shows_the_distribution():
     plt.close(fig)
     with pytest.raises(ValueError, match="qs must be a probability distribution"):
         vagn.plot_q_heatmap(qs * 2)
+
+
+# --------------------------------------------------------------------- dtype-scaled tolerance
+def test_float32_feedback_loop_never_drifts_off_the_simplex():
+    rng = np.random.default_rng(12)
+    M, N = 4, 6
+    W = vagn.init_vagn(rng, M, N, scale=4.0).astype(np.float32)
+    q = vagn.uniform_state(N).astype(np.float32)[None].repeat(3, axis=0)
+    tol = checks.float_tolerance(np.float32, N)
+    worst = 0.0
+    for _ in range(2000):
+        p = rng.uniform(0.0, 1.0, size=(3, M)).astype(np.float32)
+        q = vagn.step(q, p, W)  # its own output, fed back: never refused
+        assert q.dtype == np.float32
+        worst = max(worst, float(np.abs(q.astype(np.float64).sum(-1) - 1.0).max()))
+    assert worst <= tol
+    qs = vagn.rollout(q[0], rng.uniform(0, 1, size=(2000, M)).astype(np.float32), W)
+    assert qs.dtype == np.float32
+    assert np.abs(qs.astype(np.float64).sum(-1) - 1.0).max() <= tol
+
+
+def test_q_tolerance_fits_the_dtype_of_the_input():
+    rng = np.random.default_rng(13)
+    W = vagn.init_vagn(rng, 3, 6)
+    q32 = np.full(6, 1 / 6, dtype=np.float32)
+    q32[0] -= np.float32(3e-7)
+    assert abs(float(q32.astype(np.float64).sum()) - (1 - 3e-7)) < 5e-8
+    vagn.step(q32, np.ones(3), W)  # float32 rounding: accepted
+    q32[0] -= np.float32(1.5e-6)  # still within 8 · 6 · eps32 = 5.7e-6, refused at 1e-6 before
+    vagn.step(q32, np.ones(3), W)
+    q64 = np.full(6, 1 / 6)
+    q64[0] -= 1e-3
+    with pytest.raises(ValueError, match=r"q must be a probability distribution: entries sum to "
+                                         r"0\.99899.*\|sum - 1\| = 0\.001 > tolerance 1\.07e-14"):
+        vagn.step(q64, np.ones(3), W)
+    q64 = np.full(6, 1 / 6)
+    q64[0] -= 1e-8  # accepted at the old fixed 1e-6; far beyond float64 rounding
+    with pytest.raises(ValueError, match="q must be a probability distribution"):
+        vagn.step(q64, np.ones(3), W)
+    with pytest.raises(ValueError, match="q0 must be a probability distribution"):
+        vagn.rollout(q64, np.ones((2, 3)), W)
+    with pytest.raises(ValueError, match=r"q0 must .* sum to 0\.99999998"):
+        vagn.most_likely_path(q64, vagn.transition_matrix(np.ones((2, 3)), W))
+
+
+def test_float32_values_recorded_as_float64_keep_the_float32_tolerance():
+    # a float32 model's q stored with np.asarray(q, float64) (as rollouts record aux outputs)
+    rng = np.random.default_rng(14)
+    W = vagn.init_vagn(rng, 3, 5).astype(np.float32)
+    q = vagn.uniform_state(5).astype(np.float32)
+    for _ in range(50):
+        q = vagn.step(q, rng.uniform(size=3).astype(np.float32), W)
+    recorded = np.asarray(q, dtype=np.float64)
+    vagn.step(recorded, np.ones(3), W.astype(np.float64))
+    vagn.plot_q_heatmap(recorded[None])
+    plt.close("all")
+
+
+def test_step_renormalisation_keeps_gradients_and_both_engines(eng):
+    rng = np.random.default_rng(15)
+    W = vagn.init_vagn(rng, 3, 4)
+    q0 = vagn.random_state(rng, 4)
+    p = rng.uniform(size=3)
+    # the renormalisation is the identity in exact arithmetic: same values as T q
+    T = vagn.transition_matrix(p, W)
+    assert np.allclose(vagn.step(q0, p, W), T @ q0, atol=1e-15, rtol=0)
+    # and it changes no gradient with respect to p (Σ q_t does not depend on p)
+    c = np.array([1.0, -2.0, 0.5, 3.0])
+
+    def f(pp):
+        return eng.xp.sum(vagn.step(q0, pp, W, xp=eng.xp) * eng.xp.asarray(c))
+
+    g = np.asarray(eng.grad(f)(p))
+    fd = numerical_grad(lambda pp: float(np.sum((vagn.transition_matrix(pp, W) @ q0) * c)),
+                        [p], 0, 1e-6)[0]
+    assert np.allclose(g, fd, atol=1e-7)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_analysis_refuses_non_finite_transitions_before_linear_algebra(bad):
+    rng = np.random.default_rng(16)
+    W = vagn.init_vagn(rng, 2, 3)
+    Ts = vagn.transition_matrix(rng.uniform(size=(4, 2)), W)
+    Ts[2, 1, 0] = bad
+    with pytest.raises(ValueError, match=r"Ts must be finite; got Ts with 1 non-finite entry"):
+        vagn.most_likely_path(vagn.uniform_state(3), Ts)
+    T = Ts[0].copy()
+    T[0, 0] = bad
+    with pytest.raises(ValueError, match=r"T must be finite; got T with 1 non-finite entry"):
+        vagn.stationary_distribution(T)
+    with pytest.raises(ValueError, match=r"T must be finite"):
+        vagn.stationary_distribution(np.full((3, 3), np.nan))

@@ -1,0 +1,253 @@
+"""Argument validators shared by all modules (used from chapter 3 on: dmp, quaternion, vagn, cam).
+
+Every check here follows the package's rule for bad input: a ``TypeError``
+when the argument is not a number at all (a string, ``None``), a
+``ValueError`` when it is a number of the wrong kind (non-finite, out of
+range, wrong shape), and both name the argument and its value.
+
+Traced values — our autodiff ``Box`` inside ``grad``, JAX tracers inside
+``grad``/``jit``, device arrays — are never inspected: :func:`is_concrete`
+tells them apart from plain Python and NumPy values, and the ``*_if_concrete``
+helpers return without looking at them.
+
+Tolerances of internal consistency checks (a distribution summing to one, a
+unit quaternion, a column-stochastic matrix) fit the precision of the values
+(:func:`float_tolerance`, :func:`value_dtype`): a float32 distribution is off
+by a few float32 roundings, a float64 one by a few float64 roundings, and a
+single fixed tolerance is either too tight for the first or too loose for the
+second.
+"""
+
+from __future__ import annotations
+
+import numbers
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "TOLERANCE_FACTOR",
+    "check_distribution",
+    "check_finite",
+    "check_finite_if_concrete",
+    "check_int",
+    "check_positive",
+    "check_real",
+    "check_stochastic_columns",
+    "first_bad",
+    "float_tolerance",
+    "is_concrete",
+    "value_dtype",
+]
+
+TOLERANCE_FACTOR: float = 8.0
+"""Roundings allowed per term of a reduction: :func:`float_tolerance` is
+``TOLERANCE_FACTOR · eps(dtype) · terms``.  Summing ``n`` numbers that each
+carry one rounding (relative error ``eps / 2``) in floating point is off by at
+most about ``n · eps`` (the sum's own ``n − 1`` roundings included); the factor
+8 leaves room for the few operations that produced each term (a softmax entry,
+a product ``T q``), while a genuinely wrong value (a distribution summing to
+0.999) stays many orders of magnitude outside."""
+
+
+# --------------------------------------------------------------------------- concreteness
+
+
+def is_concrete(x: Any) -> bool:
+    """True for plain Python numbers, NumPy arrays/scalars and lists/tuples of them.
+
+    False for traced values (autodiff boxes, JAX tracers), device arrays,
+    strings, ``None`` and anything else; only concrete values are inspected.
+    """
+    if isinstance(x, bool | numbers.Number | np.ndarray | np.generic):
+        return True
+    if isinstance(x, list | tuple):
+        return all(is_concrete(v) for v in x)
+    return False
+
+
+def _is_array_like(x: Any) -> bool:
+    """A traced or device array (it has a shape and a dtype but is not NumPy), or a
+    list/tuple holding one."""
+    if isinstance(x, list | tuple):
+        return any(_is_array_like(v) for v in x)
+    return hasattr(x, "shape") and hasattr(x, "dtype") and not is_concrete(x)
+
+
+# --------------------------------------------------------------------------- tolerances
+
+
+def value_dtype(x: Any) -> np.dtype:
+    """The floating-point precision the values of ``x`` carry.
+
+    The dtype of ``x`` for float arrays (float64 for Python floats, integers
+    and booleans, which convert exactly); **float32 for a float64 array whose
+    every entry is a float32 number**, which is what a float32 model's outputs
+    become when they are recorded with ``np.asarray(v, float64)``: their
+    rounding errors are float32 ones, and so must be the tolerance.  A float64
+    array computed in float64 almost never consists of float32 numbers only,
+    except for short exact values (0.5, 0.25, ...), for which either tolerance
+    gives the same verdict.
+    """
+    dt = np.asarray(x).dtype
+    if not np.issubdtype(dt, np.floating):
+        return np.dtype(np.float64)
+    if dt == np.float64:
+        a = np.asarray(x)
+        with np.errstate(over="ignore", invalid="ignore"):
+            if a.size and np.array_equal(a.astype(np.float32).astype(np.float64), a):
+                return np.dtype(np.float32)
+    return np.dtype(dt)
+
+
+def float_tolerance(dtype: Any, terms: int = 1) -> float:
+    """Tolerance of a consistency check on a reduction of ``terms`` values of ``dtype``.
+
+    ``TOLERANCE_FACTOR · eps(dtype) · terms`` (:data:`TOLERANCE_FACTOR` = 8):
+    about 1.8e-15 per term in float64 and 9.5e-7 per term in float32 (a ratio
+    of 2^29 ≈ 5.4e8).  Non-float dtypes (integers, booleans) use float64's
+    epsilon: they convert to it exactly.
+    """
+    try:
+        dt = np.dtype(dtype)
+    except TypeError as exc:
+        raise TypeError(f"dtype must be a NumPy dtype, got dtype={dtype!r}") from exc
+    if isinstance(terms, bool) or not isinstance(terms, numbers.Integral) or terms < 1:
+        raise ValueError(f"terms must be an integer >= 1, got terms={terms!r}")
+    eps = np.finfo(dt).eps if np.issubdtype(dt, np.floating) else np.finfo(np.float64).eps
+    return float(TOLERANCE_FACTOR * eps * int(terms))
+
+
+# --------------------------------------------------------------------------- scalars and arrays
+
+
+def first_bad(values: np.ndarray, bad: np.ndarray) -> Any:
+    """The first offending entry of ``values`` where ``bad`` is true, for error messages."""
+    values = np.asarray(values)
+    return float(values[bad].flat[0] if values.ndim else values.item())
+
+
+def check_real(name: str, value: Any) -> np.ndarray:
+    """``value`` as a float64 array; TypeError naming ``name`` unless it is real numbers.
+
+    Strings, bytes, ``None``, complex numbers and other objects raise
+    ``TypeError``; non-finite values pass (see :func:`check_finite`).
+    """
+    if value is None or isinstance(value, str | bytes):
+        raise TypeError(f"{name} must be a real number or array, got {name}={value!r}")
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError) as exc:  # ragged nested lists
+        raise TypeError(f"{name} must be a real number or array, got {name}={value!r}") from exc
+    if not (np.issubdtype(raw.dtype, np.number) or raw.dtype == np.bool_) or np.issubdtype(
+        raw.dtype, np.complexfloating
+    ):
+        raise TypeError(
+            f"{name} must be a real number or array, got {name}={value!r} (dtype {raw.dtype})"
+        )
+    return raw.astype(np.float64)
+
+
+def check_finite(name: str, value: Any) -> np.ndarray:
+    """:func:`check_real`, then ValueError naming ``name`` if any entry is NaN or ±inf."""
+    arr = check_real(name, value)
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        raise ValueError(f"{name} must be finite, got {name}={first_bad(arr, bad)!r}")
+    return arr
+
+
+def check_finite_if_concrete(name: str, value: Any) -> None:
+    """:func:`check_finite` on concrete values; traced values pass unseen.
+
+    Anything that is neither concrete nor an array (a string, ``None``, a dict)
+    raises the TypeError of :func:`check_real`.
+    """
+    if _is_array_like(value):
+        return
+    check_finite(name, value)
+
+
+def check_positive(name: str, value: Any) -> np.ndarray:
+    """:func:`check_finite`, then ValueError naming ``name`` unless every entry is > 0."""
+    arr = check_finite(name, value)
+    bad = arr <= 0
+    if bad.any():
+        raise ValueError(f"{name} must be > 0, got {name}={first_bad(arr, bad)!r}")
+    return arr
+
+
+def check_int(name: str, value: Any, minimum: int) -> int:
+    """An integer ``>= minimum`` (not a bool, not a float like 2.5) or ValueError naming it."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {name}={value!r}")
+    return int(value)
+
+
+# --------------------------------------------------------------------------- distributions
+
+
+def _shape(x: Any) -> tuple[int, ...]:
+    shape = getattr(x, "shape", None)
+    return tuple(shape) if shape is not None else tuple(np.shape(x))
+
+
+def check_distribution(name: str, q: Any, n: int, what: str = "states") -> None:
+    """``q`` of shape ``(..., n)``: probability distributions along the last axis.
+
+    The shape is checked on every value (also traced ones); concrete values
+    must also be finite, have no entry below ``−tol`` and sum to one within
+    ``tol = float_tolerance(value_dtype(q), n)`` — the tolerance of ``q``'s own
+    precision, taken before any conversion.  ValueError names ``name``.
+    """
+    shape = _shape(q)
+    if len(shape) == 0 or shape[-1] != n:
+        raise ValueError(
+            f"{name} must have shape (..., N) with N = {n} {what}; got {name} with shape {shape}"
+        )
+    if _is_array_like(q):
+        return
+    tol = float_tolerance(value_dtype(q), n)
+    qa = check_real(name, q)
+    if not np.all(np.isfinite(qa)):
+        raise ValueError(f"{name} must be finite; got {name} = {qa!r}")
+    if np.any(qa < -tol):
+        raise ValueError(
+            f"{name} must be a probability distribution: it has a negative entry "
+            f"(min {qa.min():.3g}); got {name} = {qa!r}"
+        )
+    off = np.abs(qa.sum(axis=-1) - 1.0)
+    if np.any(off > tol):
+        worst = float(qa.sum(axis=-1).reshape(-1)[np.argmax(off.reshape(-1))])
+        raise ValueError(
+            f"{name} must be a probability distribution: entries sum to {worst!r}, "
+            f"not 1 (|sum - 1| = {float(off.max()):.3g} > tolerance {tol:.3g}); "
+            f"got {name} = {qa!r}"
+        )
+
+
+def check_stochastic_columns(name: str, T: Any) -> np.ndarray:
+    """A concrete ``(..., N, N)`` column-stochastic matrix, returned as float64.
+
+    Finite (ValueError otherwise, before any linear algebra), non-negative and
+    every column summing to one within ``float_tolerance(value_dtype(T), N)``.
+    """
+    tol_dtype = value_dtype(T)
+    Ta = check_real(name, T)
+    if Ta.ndim < 2 or Ta.shape[-1] != Ta.shape[-2]:
+        raise ValueError(f"{name} must have shape (..., N, N); got {name} with shape {Ta.shape}")
+    bad = ~np.isfinite(Ta)
+    if bad.any():
+        raise ValueError(
+            f"{name} must be finite; got {name} with {int(bad.sum())} non-finite "
+            f"entr{'y' if bad.sum() == 1 else 'ies'} (first {first_bad(Ta, bad)!r})"
+        )
+    tol = float_tolerance(tol_dtype, Ta.shape[-1])
+    sums = Ta.sum(axis=-2)
+    if np.any(Ta < -tol) or np.any(np.abs(sums - 1.0) > tol):
+        raise ValueError(
+            f"{name} must be column-stochastic (non-negative, every column summing to 1 "
+            f"within {tol:.3g}); got column sums {np.round(sums, 6)} and minimum entry "
+            f"{float(Ta.min()):.3g}"
+        )
+    return Ta
