@@ -42,11 +42,21 @@ Algorithm 1 of the paper, for every controller of :mod:`minimanc.models`::
   ``e`` shuffles with ``default_rng([seed, e])``. A resumed run therefore
   repeats an uninterrupted one exactly.
 * **Checkpoints.** With ``checkpoint_dir``, ``checkpoint.npz`` is written
-  after every epoch through a temporary file and :func:`os.replace` (atomic:
-  a crash never leaves half a file). ``resume=True`` continues from it.
-* **Divergence.** A NaN or infinite loss stops training with
-  :class:`TrainingDiverged`; the checkpoint of the last good epoch is left
-  untouched.
+  after every epoch through a temporary file in the same directory and
+  :func:`os.replace` (atomic: a crash never leaves half a file; the
+  temporary file is removed on failure, and those a killed run left,
+  ``checkpoint.npz.*.tmp``, are removed when the next run starts).
+  ``resume=True`` continues from it. A checkpoint that cannot be read
+  (truncated, corrupt) raises :class:`CheckpointError` naming the file:
+  delete it, or train without ``resume``, to start again from epoch 0.
+* **Divergence.** A NaN or infinite loss, or parameters that are not
+  finite or exceed :data:`PARAM_LIMIT` in magnitude (checked after every
+  epoch, before the checkpoint is written), stop training with
+  :class:`TrainingDiverged`; a checkpoint is never written with such
+  parameters, so the one of the last good epoch is left untouched.
+* **Data.** A non-finite number in the training (or validation) data is a
+  ``ValueError`` naming the array, scene and step: one NaN would otherwise
+  change the loss normalisation (:func:`control_std`) of every run.
 """
 
 from __future__ import annotations
@@ -56,6 +66,8 @@ import math
 import os
 import tempfile
 import time
+import zipfile
+import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -64,13 +76,17 @@ from typing import Any
 import numpy as np
 
 from minimanc import inputs, models, optim
+from minimanc.world.dataset import describe_non_finite, first_non_finite, remove_temp_files
 
 __all__ = [
     "CHECKPOINT_NAME",
+    "PARAM_LIMIT",
+    "CheckpointError",
     "FitResult",
     "SweepResult",
     "TrainConfig",
     "TrainingDiverged",
+    "bad_params",
     "batches",
     "control_std",
     "evaluate",
@@ -89,8 +105,16 @@ CHECKPOINT_NAME = "checkpoint.npz"
 _DTYPES = {"float32": np.float32, "float64": np.float64}
 
 
+PARAM_LIMIT = 1e6
+"""Largest parameter magnitude :func:`fit` accepts (trained weights stay far below it)."""
+
+
 class TrainingDiverged(RuntimeError):
-    """Raised when the training loss becomes NaN or infinite."""
+    """Raised when the training loss or the parameters become non-finite or explode."""
+
+
+class CheckpointError(ValueError):
+    """A checkpoint file that cannot be used (truncated, corrupt, not a checkpoint)."""
 
 
 @dataclass(frozen=True)
@@ -412,6 +436,24 @@ def _to_numpy(tree: Any) -> Any:
     return np.array(tree)
 
 
+def bad_params(params: Any, limit: float = PARAM_LIMIT) -> str | None:
+    """Why ``params`` cannot be kept — a non-finite entry or one above ``limit`` in
+    magnitude, naming the array — or ``None`` when they are fine."""
+    worst, where = 0.0, ""
+    for key, a in _flatten(_to_numpy(params)).items():
+        a = np.asarray(a)
+        if not np.issubdtype(a.dtype, np.floating) or a.size == 0:
+            continue
+        if not np.all(np.isfinite(a)):
+            return f"non-finite value in {key!r}"
+        m = float(np.max(np.abs(a)))
+        if m > worst:
+            worst, where = m, key
+    if worst > limit:
+        return f"max |param| = {worst:.3g} in {where!r} exceeds {limit:.0e}"
+    return None
+
+
 def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
@@ -421,10 +463,9 @@ def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-        raise
 
 
 def _meta(name: str, cfg: models.ModelConfig, tc: TrainConfig, epoch: int,
@@ -448,8 +489,14 @@ def save(path: str | Path, name: str, params: dict, cfg: models.ModelConfig,
          train_cfg: TrainConfig | None = None, opt_state: Any = None, epoch: int = 0,
          history: Sequence[float] = (), val_history: Sequence[float] = (), steps: int = 0,
          std: Any = None) -> Path:
-    """Write parameters (and optionally the optimiser state) atomically to ``path`` (.npz)."""
+    """Write parameters (and optionally the optimiser state) atomically to ``path`` (.npz).
+
+    Refuses (``ValueError``) parameters that :func:`bad_params` rejects.
+    """
     path = Path(path)
+    bad = bad_params(params)
+    if bad is not None:
+        raise ValueError(f"params cannot be saved to {path}: {bad}")
     arrays = {f"params/{k}": v for k, v in _flatten(_to_numpy(params)).items()}
     if opt_state is not None:
         arrays.update({f"opt/{k}": v for k, v in _flatten(_to_numpy(opt_state)).items()})
@@ -462,28 +509,41 @@ def save(path: str | Path, name: str, params: dict, cfg: models.ModelConfig,
 
 def load_checkpoint(path: str | Path) -> dict:
     """Read a file written by :func:`save`: ``name, params, cfg, train_cfg, opt_state,
-    epoch, history, val_history, steps, control_std``."""
+    epoch, history, val_history, steps, control_std``.
+
+    A file that cannot be read raises :class:`CheckpointError` naming it.
+    """
     path = Path(path)
     if not path.exists():
         raise ValueError(f"no checkpoint at path={str(path)!r}")
-    with np.load(path) as z:
-        meta = json.loads(bytes(z["meta"]).decode())
-        p = {k[len("params/"):]: z[k] for k in z.files if k.startswith("params/")}
-        o = {k[len("opt/"):]: z[k] for k in z.files if k.startswith("opt/")}
-    cfg_d = dict(meta["cfg"])
-    cfg_d["channels"] = tuple(cfg_d["channels"])
-    return {
-        "name": meta["name"],
-        "params": _unflatten(p),
-        "opt_state": _unflatten(o) if o else None,
-        "cfg": models.ModelConfig(**cfg_d),
-        "train_cfg": TrainConfig(**meta["train_cfg"]),
-        "epoch": meta["epoch"],
-        "history": list(meta["history"]),
-        "val_history": list(meta["val_history"]),
-        "steps": meta["steps"],
-        "control_std": np.asarray(meta["control_std"]),
-    }
+    restart = ("delete it (or train without resume / --resume) to start again from epoch 0")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(bytes(z["meta"]).decode())
+            p = {k[len("params/"):]: z[k] for k in z.files if k.startswith("params/")}
+            o = {k[len("opt/"):]: z[k] for k in z.files if k.startswith("opt/")}
+        cfg_d = dict(meta["cfg"])
+        cfg_d["channels"] = tuple(cfg_d["channels"])
+        out = {
+            "name": meta["name"],
+            "params": _unflatten(p),
+            "opt_state": _unflatten(o) if o else None,
+            "cfg": models.ModelConfig(**cfg_d),
+            "train_cfg": TrainConfig(**meta["train_cfg"]),
+            "epoch": meta["epoch"],
+            "history": list(meta["history"]),
+            "val_history": list(meta["val_history"]),
+            "steps": meta["steps"],
+            "control_std": np.asarray(meta["control_std"]),
+        }
+    except (zipfile.BadZipFile, zlib.error, EOFError, OSError, KeyError, TypeError, ValueError,
+            UnicodeDecodeError, AttributeError) as e:
+        raise CheckpointError(f"{path}: unreadable checkpoint (truncated or corrupt: "
+                              f"{type(e).__name__}: {e}); {restart}") from e
+    bad = bad_params(out["params"])
+    if bad is not None:
+        raise CheckpointError(f"{path}: checkpoint holds unusable parameters ({bad}); {restart}")
+    return out
 
 
 def load(path: str | Path) -> FitResult:
@@ -533,6 +593,15 @@ def _get_engine(engine: Any) -> Any:
     raise ValueError(f"engine must be 'numpy', 'jax' or an engine object, got engine={engine!r}")
 
 
+def _kept(ck_path: Path | None, saved_epoch: int | None) -> str:
+    """What a divergence leaves behind, for its message."""
+    if ck_path is None:
+        return "no checkpoint_dir was given"
+    if saved_epoch is None:
+        return "this run wrote no checkpoint"
+    return f"the checkpoint of epoch {saved_epoch} is kept in {ck_path}"
+
+
 def fit(
     name: str,
     train_ds: Any,
@@ -570,11 +639,19 @@ def fit(
     if H != cfg.image_size:
         raise ValueError(f"cfg.image_size={cfg.image_size} does not match the dataset's "
                          f"BEV size {H}")
+    for label, data in (("train_ds", train_ds), ("val_ds", val_ds)):
+        found = first_non_finite(data) if data is not None else None
+        if found is not None:
+            raise ValueError(f"{label} holds a non-finite number: {describe_non_finite(found)}; "
+                             "training needs finite data (check how it was made)")
     scenes = subset_scenes(S, tc.subset, tc.seed)
     std = control_std(train_ds, scenes) if tc.normalize else np.ones(2)
     t_start = time.perf_counter()
 
     ck_path = Path(checkpoint_dir) / CHECKPOINT_NAME if checkpoint_dir is not None else None
+    if ck_path is not None:
+        remove_temp_files(ck_path)  # left by a run that was killed while saving
+    saved_epoch = None  # epoch of the checkpoint at ck_path written or resumed by this run
     start_epoch, history, val_history, steps = 0, [], [], 0
     if params is None:
         params = models.init(name, np.random.default_rng(tc.seed), cfg)
@@ -595,7 +672,7 @@ def fit(
             params = _cast_tree(ck["params"], dtype)
             if ck["opt_state"] is not None:
                 opt_state = _restore_opt(optim.adam_init(params), ck["opt_state"])
-            start_epoch = ck["epoch"]
+            start_epoch = saved_epoch = ck["epoch"]
             history, val_history, steps = ck["history"], ck["val_history"], ck["steps"]
             std = ck["control_std"]
 
@@ -627,16 +704,16 @@ def fit(
                 q0 = _q0(name, s_idx.shape[1], cfg, tc, q_rng, dtype)
                 if q0 is not None:
                     batch["q0"] = q0
-                params, opt_state, loss_i = step_fn(params, opt_state, batch)
+                # overflow to inf / nan is caught below (loss) and after the epoch (params)
+                with np.errstate(over="ignore", invalid="ignore"):
+                    params, opt_state, loss_i = step_fn(params, opt_state, batch)
                 steps += 1
             if pending is not None:
                 loss = float(getattr(pending, "_value", pending))
                 if not math.isfinite(loss):
                     if bar is not None:
                         bar.close()
-                    kept = (f"the checkpoint of epoch {len(history)} is kept in {ck_path}"
-                            if ck_path is not None and ck_path.exists()
-                            else "no checkpoint was written")
+                    kept = _kept(ck_path, saved_epoch)
                     raise TrainingDiverged(
                         f"training {name!r} diverged: loss = {loss} at epoch {epoch + 1}, "
                         f"step {count + 1} of {len(plan)} (lr={tc.lr}); {kept}. "
@@ -650,6 +727,13 @@ def fit(
             pending = loss_i if i < len(plan) else None
         if bar is not None:
             bar.close()
+        bad = bad_params(params)
+        if bad is not None:
+            raise TrainingDiverged(
+                f"training {name!r} diverged: after epoch {epoch + 1} (lr={tc.lr}) the "
+                f"parameters are unusable ({bad}); {_kept(ck_path, saved_epoch)}. "
+                "Lower the learning rate."
+            )
         history.append(total / max(count, 1))
         if val_ds is not None:
             val_history.append(evaluate(name, _to_numpy(params), val_ds, cfg, eng,
@@ -657,6 +741,7 @@ def fit(
         if ck_path is not None:
             save(ck_path, name, params, cfg, tc, opt_state, epoch + 1, history, val_history,
                  steps, std)
+            saved_epoch = epoch + 1
     return FitResult(name=name, params=_to_numpy(params), history=list(history), cfg=cfg,
                      train_cfg=tc, val_history=list(val_history), steps=steps,
                      seconds=time.perf_counter() - t_start, control_std=np.asarray(std))

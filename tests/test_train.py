@@ -89,19 +89,94 @@ def test_checkpoint_resume_equals_uninterrupted(ds, tmp_path):
                   progress=False)
 
 
-def test_nan_loss_stops_and_keeps_the_last_good_checkpoint(ds, tmp_path):
+def test_divergence_stops_and_keeps_the_last_good_checkpoint(ds, tmp_path):
     d = tmp_path / "run"
     train.fit("cnn", ds, CFG, _tc(epochs=1), engine="numpy", checkpoint_dir=d, progress=False)
     path = d / train.CHECKPOINT_NAME
     before = path.read_bytes()
-    bad = copy.copy(ds)
-    bad.controls = ds.controls.copy()
-    bad.controls[:, :, 0] = np.nan
-    with pytest.raises(train.TrainingDiverged, match="diverged.*epoch 2.*kept"):
-        train.fit("cnn", bad, CFG, _tc(epochs=2), engine="numpy",
+    # lr may change on resume: epoch 2 explodes the parameters
+    with pytest.raises(train.TrainingDiverged,
+                       match=r"diverged.*epoch 2.*the checkpoint of epoch 1 is kept"):
+        train.fit("cnn", ds, CFG, _tc(epochs=2, lr=1e30), engine="numpy",
                   checkpoint_dir=d, resume=True, progress=False)
     assert path.read_bytes() == before
     assert sorted(os.listdir(d)) == [train.CHECKPOINT_NAME]
+    # ... and the message is true: the kept checkpoint is epoch 1's, with sane parameters
+    ck = train.load_checkpoint(path)
+    assert ck["epoch"] == 1 and train.bad_params(ck["params"]) is None
+
+
+@pytest.mark.parametrize("name", ["cnn", "manc"])
+def test_exploded_parameters_are_never_checkpointed(ds, tmp_path, name):
+    """lr = 1e30 keeps the loss of epoch 1 finite, but |param| reaches 1e30."""
+    d = tmp_path / "run"
+    with pytest.raises(train.TrainingDiverged,
+                       match=r"after epoch 1.*max \|param\| = .*e\+30.*this run wrote no "
+                             r"checkpoint"):
+        train.fit(name, ds, CFG, _tc(epochs=2, lr=1e30), engine="numpy", checkpoint_dir=d,
+                  progress=False)
+    assert not d.exists() or os.listdir(d) == []
+    with pytest.raises(train.TrainingDiverged, match="no checkpoint_dir"):
+        train.fit(name, ds, CFG, _tc(epochs=1, lr=1e30), engine="numpy", progress=False)
+    # save() itself refuses such parameters
+    params = models.init("cnn", np.random.default_rng(0), CFG)
+    params["out"]["b"] = np.full_like(params["out"]["b"], np.nan)
+    with pytest.raises(ValueError, match="non-finite value in 'out/b'"):
+        train.save(tmp_path / "x.npz", "cnn", params, CFG)
+    assert not list(tmp_path.glob("x.npz*"))
+
+
+def test_non_finite_data_is_refused_naming_scene_and_step(ds):
+    bad = copy.copy(ds)
+    bad.controls = ds.controls.copy()
+    bad.controls[1, 5, 0] = np.nan
+    with pytest.raises(ValueError, match=r"train_ds.*controls\[scene 1, step 5, 0\] = nan"):
+        train.fit("cnn", bad, CFG, _tc(), engine="numpy", progress=False)
+    with pytest.raises(ValueError, match=r"val_ds.*controls\[scene 1, step 5"):
+        train.fit("cnn", ds, CFG, _tc(), engine="numpy", progress=False, val_ds=bad)
+
+
+def test_corrupt_checkpoint_names_the_file_and_how_to_restart(ds, tmp_path):
+    d = tmp_path / "run"
+    train.fit("cnn", ds, CFG, _tc(epochs=1), engine="numpy", checkpoint_dir=d, progress=False)
+    path = d / train.CHECKPOINT_NAME
+    raw = path.read_bytes()
+    for broken in (raw[: len(raw) // 2], b"", raw[:-30], b"garbage" * 10):
+        path.write_bytes(broken)
+        for call in (lambda: train.load(path),
+                     lambda: train.fit("cnn", ds, CFG, _tc(epochs=2), engine="numpy",
+                                       checkpoint_dir=d, resume=True, progress=False)):
+            with pytest.raises(train.CheckpointError,
+                               match=r"run/checkpoint\.npz: unreadable checkpoint.*delete it"):
+                call()
+    # what the message says works: without resume the run starts again from epoch 0
+    res = train.fit("cnn", ds, CFG, _tc(epochs=1), engine="numpy", checkpoint_dir=d,
+                    progress=False)
+    assert len(res.history) == 1 and train.load_checkpoint(path)["epoch"] == 1
+
+
+def test_temporary_checkpoint_files_are_cleaned(ds, tmp_path, monkeypatch):
+    d = tmp_path / "run"
+    d.mkdir()
+    # what a killed run leaves: an empty and a partial temporary file
+    (d / "checkpoint.npz.a1b2c3.tmp").write_bytes(b"")
+    (d / "checkpoint.npz.d4e5f6.tmp").write_bytes(b"PK\x03\x04partial")
+    (d / "notes.txt").write_text("kept")
+    train.fit("cnn", ds, CFG, _tc(epochs=1), engine="numpy", checkpoint_dir=d, progress=False)
+    assert sorted(os.listdir(d)) == [train.CHECKPOINT_NAME, "notes.txt"]
+    # a save that fails half-way removes its temporary file
+    real = np.savez
+
+    def crash(fh, **arrays):
+        fh.write(b"PK\x03\x04half")
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(train.np, "savez", crash)
+    with pytest.raises(OSError, match="No space"):
+        train.fit("cnn", ds, CFG, _tc(epochs=2), engine="numpy", checkpoint_dir=d, resume=True,
+                  progress=False)
+    monkeypatch.setattr(train.np, "savez", real)
+    assert sorted(os.listdir(d)) == [train.CHECKPOINT_NAME, "notes.txt"]
+    assert train.load_checkpoint(d / train.CHECKPOINT_NAME)["epoch"] == 1
 
 
 def test_subsets_are_nested():
