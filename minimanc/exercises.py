@@ -304,8 +304,11 @@ _HEADER = re.compile(r"^# %%(.*)$")
 _ATTR = re.compile(r"""(\w+)=("[^"]*"|'[^']*'|\[[^\]]*\]|\S+)""")
 
 
+_NOQA = re.compile(r"\s+#\s*noqa\b.*$")
+
+
 def _parse_header(text: str, where: str) -> tuple[str, dict]:
-    text = text.strip()
+    text = _NOQA.sub("", text.strip())  # a long header may end in a ruff noqa comment
     kind = "code"
     if text.startswith("[markdown]"):
         kind, text = "markdown", text[len("[markdown]"):].strip()
@@ -819,7 +822,7 @@ class ForbiddenFunctionError(RuntimeError):
     """A library function an exercise asks the student to write was called while grading."""
 
 
-def _resolve(dotted: str) -> tuple[Any, str, Any]:
+def resolve(dotted: str) -> tuple[Any, str, Any]:
     """(owner module or object, attribute name, value) of ``pkg.module.attr``."""
     parts = dotted.split(".")
     for cut in range(len(parts) - 1, 0, -1):
@@ -884,7 +887,7 @@ def shadow(targets: Sequence[str], exercise: str, namespace: dict | None = None)
     namespace = namespace if namespace is not None else {}
     for dotted in targets:
         try:
-            owner, attr, value = _resolve(dotted)
+            owner, attr, value = resolve(dotted)
         except (ImportError, AttributeError):
             continue
         message = (f"Exercise {exercise}: write {attr} yourself; {dotted} is disabled "
