@@ -32,7 +32,12 @@ the minibatch order; the data are the same for all.
 Everything is cached under the output directory (``data/``, then
 ``cache/<fingerprint>/`` with checkpoints, rollouts and metrics per run), so
 a re-run is fast and an interrupted run resumes where it stopped (training
-resumes from its last epoch).  Closed-loop rollouts can run in worker
+resumes from its last epoch).  The cache is derived data: an entry that
+cannot be read (a checkpoint or data file truncated by a killed run, a file
+of an older format, a broken metrics file) is deleted with a note on stderr
+and recomputed, so a re-run always recovers.  A run that diverged is recorded
+(``diverged.json``) and scored as infinite without training it again.
+Closed-loop rollouts can run in worker
 processes while the main process trains (:attr:`Study.workers`).
 
 The findings (:func:`findings`) are generated from the numbers: each of the
@@ -46,6 +51,7 @@ import hashlib
 import json
 import os
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, replace
@@ -270,11 +276,27 @@ def _evaluate_job(job: dict) -> dict:
 
 
 def _write_json(path: str | Path, obj: Any) -> None:
+    """Write ``obj`` as JSON atomically (temporary file in the same directory, removed on
+    failure, then :func:`os.replace`)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(obj, indent=1, sort_keys=True))
-    os.replace(tmp, path)
+    text = json.dumps(obj, indent=1, sort_keys=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _read_json(path: Path) -> Any:
+    """The JSON in ``path``, or ``None`` if it is missing or unreadable (a broken cache entry)."""
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError, UnicodeDecodeError):
+        return None
 
 
 class _Done:
@@ -345,10 +367,14 @@ class Study:
         c = self.config
         n = c.n_train + c.n_tune + c.n_val
         t0 = time.perf_counter()
+        ds = None
         if self.data_path.exists():
-            ds = world.load(self.data_path)
-            self.log(f"data: loaded {n} scenes from {self.data_path}")
-        else:
+            try:
+                ds = world.load(self.data_path)
+                self.log(f"data: loaded {n} scenes from {self.data_path}")
+            except world.DatasetFileError as exc:  # older format, truncated, altered: remake
+                self.discard(self.data_path, str(exc))
+        if ds is None:
             self.log(f"data: generating {n} scenes ({c.image_size}x{c.image_size} BEV)")
             ds = world.generate(n, seed=c.data_seed,
                                 raster=world.RasterConfig(size=c.image_size),
@@ -390,10 +416,17 @@ class Study:
         from minimanc import train
 
         path = self.checkpoint(run)
+        if self._diverged(run):
+            return path  # scored as inf; delete diverged.json to train it again
         if path.exists():
-            ck = train.load_checkpoint(path)
-            if ck["epoch"] >= self.config.epochs:
-                return path
+            try:
+                ck = train.load_checkpoint(path)
+            except train.CheckpointError as exc:
+                # the cache is derived data: drop the broken entry and train the run again
+                self.discard(path, str(exc))
+            else:
+                if ck["epoch"] >= self.config.epochs:
+                    return path
         train_ds, _, _ = self.datasets()
         t0 = time.perf_counter()
         try:
@@ -411,6 +444,13 @@ class Study:
     def _diverged(self, run: Run) -> bool:
         return (self.checkpoint(run).parent / "diverged.json").exists()
 
+    def discard(self, path: Path, why: str) -> None:
+        """Delete the unreadable cache entry ``path`` (it is recomputed), saying so on stderr."""
+        print(f"minimanc reproduce: discarding the unreadable cache entry {path} ({why}); "
+              "recomputing it", file=sys.stderr)
+        self.log(f"cache: discarded {path}")
+        path.unlink(missing_ok=True)
+
     # ----------------------------------------------------------------- evaluation
 
     def _paths(self, run: Run, split: str) -> tuple[Path, Path]:
@@ -426,8 +466,11 @@ class Study:
         if key in self._futures:
             return self._futures[key]
         roll_path, met_path = self._paths(run, split)
-        if met_path.exists() and roll_path.exists():
-            fut: Any = _Done(json.loads(met_path.read_text()))
+        cached = _read_json(met_path) if met_path.exists() and roll_path.exists() else None
+        if met_path.exists() and roll_path.exists() and not isinstance(cached, dict):
+            self.discard(met_path, "not a JSON object")
+        if isinstance(cached, dict):
+            fut: Any = _Done(cached)
         else:
             ck = self.fit(run)
             if self._diverged(run):
@@ -1056,17 +1099,14 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     import matplotlib
 
     matplotlib.use("Agg")
+    from minimanc.world.cli import check_int, check_out_dir
+
     preset = args.preset or ("quick" if args.quick else "full")
     config = PRESETS[preset]
     if args.seeds is not None:
-        if args.seeds < 1:
-            print(f"error: --seeds must be >= 1, got {args.seeds}", file=sys.stderr)
-            return 2
-        config = replace(config, n_seeds=int(args.seeds))
-    if args.workers < 0:
-        print(f"error: --workers must be >= 0, got {args.workers}", file=sys.stderr)
-        return 2
-    out = Path(args.out) if args.out else Path("minimanc_results") / preset
+        config = replace(config, n_seeds=check_int(args.seeds, "--seeds", 1))
+    check_int(args.workers, "--workers", 0)
+    out = check_out_dir(Path(args.out) if args.out else Path("minimanc_results") / preset)
     progress = not args.no_progress
     t0 = time.perf_counter()
     print(f"minimanc reproduce: preset {preset}, engine {args.engine}, {config.n_seeds} "

@@ -199,8 +199,11 @@ def test_run_files_are_distinct_per_lr_seed_and_split(tmp_path):
                for p in paths)
 
 
-def test_a_closed_loop_that_blows_up_scores_inf(tmp_path):
+def test_a_closed_loop_that_blows_up_scores_inf(tmp_path, monkeypatch):
     from minimanc import models, train, world
+
+    # train.save/load refuse non-finite parameters; let them through to reach the closed loop
+    monkeypatch.setattr(train, "bad_params", lambda *a, **k: None)
 
     ds = world.generate(2, seed=5, raster=world.RasterConfig(size=32), workers=1)
     data = world.save(ds, tmp_path / "d.npz")
@@ -215,3 +218,82 @@ def test_a_closed_loop_that_blows_up_scores_inf(tmp_path):
     agg = metrics.aggregate([res])
     assert "error" not in agg and agg["ade"]["mean"] == float("inf")
     assert "diverged" in studies._cell(agg, "ade", 1)
+
+
+# --------------------------------------------------------------------------- cache recovery
+
+
+def _tiny_run(study):
+    c = study.config
+    return studies.Run("cnn", "paper", c.n_states, 1.0, 0, float(c.lrs[0]))
+
+
+def test_a_broken_checkpoint_in_the_cache_is_retrained(tmp_path, capsys):
+    from minimanc import train
+
+    tiny = studies.PRESETS["tiny"]
+    study = studies.Study(tiny, tmp_path, engine="numpy", workers=0, progress=False)
+    run = _tiny_run(study)
+    path = study.fit(run)
+    good = train.load_checkpoint(path)
+    raw = path.read_bytes()
+    for broken in (raw[: len(raw) // 2], b""):
+        path.write_bytes(broken)
+        (path.parent / f"{path.name}.x1y2.tmp").write_bytes(b"")  # a killed save's leftover
+        again = studies.Study(tiny, tmp_path, engine="numpy", workers=0, progress=False)
+        assert again.fit(run) == path
+        err = capsys.readouterr().err
+        assert "discarding the unreadable cache entry" in err and path.name in err
+        ck = train.load_checkpoint(path)  # retrained: readable and complete
+        assert ck["epoch"] == tiny.epochs and ck["history"] == good["history"]
+        assert sorted(p.name for p in path.parent.iterdir()) == [path.name]
+
+
+def test_a_broken_data_file_in_the_cache_is_regenerated(tmp_path, capsys):
+    tiny = studies.PRESETS["tiny"]
+    study = studies.Study(tiny, tmp_path, engine="numpy", workers=0, progress=False)
+    train_ds, _, _ = study.datasets()
+    raw = study.data_path.read_bytes()
+    study.data_path.write_bytes(raw[:1000])
+    again = studies.Study(tiny, tmp_path, engine="numpy", workers=0, progress=False)
+    train2, _, _ = again.datasets()
+    assert "discarding the unreadable cache entry" in capsys.readouterr().err
+    assert train2.content_hash() == train_ds.content_hash()
+    assert study.data_path.read_bytes() == raw
+
+
+def test_a_broken_metrics_file_is_recomputed(tmp_path, capsys):
+    tiny = studies.PRESETS["tiny"]
+    study = studies.Study(tiny, tmp_path, engine="numpy", workers=0, progress=False)
+    run = _tiny_run(study)
+    first = study.result(run)
+    _, met = study._paths(run, "val")
+    met.write_text('{"ade": 1.')  # cut short
+    again = studies.Study(tiny, tmp_path, engine="numpy", workers=0, progress=False)
+    assert again.result(run) == first
+    assert "discarding the unreadable cache entry" in capsys.readouterr().err
+    assert json.loads(met.read_text()) == first
+    assert not list(met.parent.glob("*.tmp"))
+
+
+@pytest.mark.parametrize("args,expected", [
+    (["--seeds", "0"], "--seeds must be an integer >= 1, got 0"),
+    (["--workers", "-1"], "--workers must be an integer >= 0, got -1"),
+])
+def test_reproduce_bad_arguments_are_one_line_exit_2(tmp_path, capsys, args, expected):
+    from minimanc import cli
+
+    code = cli.main(["reproduce", "--preset", "tiny", "--out", str(tmp_path / "r"), *args])
+    err = capsys.readouterr().err
+    assert code == 2 and err.strip() == f"minimanc reproduce: error: {expected}", err
+    assert not (tmp_path / "r").exists()
+
+
+def test_reproduce_unwritable_out_is_one_line_exit_2(tmp_path, capsys):
+    from minimanc import cli
+
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    code = cli.main(["reproduce", "--preset", "tiny", "--out", str(blocker / "sub")])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1 and "cannot create the directory" in err
