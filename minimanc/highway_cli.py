@@ -14,7 +14,9 @@
 the nuScenes-style world (``minimanc.train`` on ``minimanc.world`` data).
 This module imports without highway-env; each command imports
 :mod:`minimanc.highway` when it runs and, if highway-env is missing, prints
-the install command and exits with status 2.
+the install command and exits with status 2. Bad arguments (a negative seed,
+zero episodes, an unwritable ``--out``, a missing or unreadable ``--data`` or
+checkpoint) are one line on stderr and exit status 2, checked before any work.
 """
 
 from __future__ import annotations
@@ -22,9 +24,13 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any
+
+from minimanc.errors import UsageError
+from minimanc.world.cli import check_int, check_out_dir, check_out_file, load_data
 
 SCENARIO_NAMES = ("roundabout", "intersection", "highway-fast")
 """The sandbox scenarios (``minimanc.highway.SCENARIOS``), listed here so that the
@@ -40,8 +46,23 @@ def _highway() -> Any:
         return None
 
 
+def _check_episode_args(args: argparse.Namespace) -> None:
+    for option in ("episodes", "steps"):
+        if hasattr(args, option):
+            check_int(getattr(args, option), f"--{option}", 1)
+    check_int(args.seed, "--seed", 0)
+
+
+def _check_lr(lr: Any) -> None:
+    if lr is not None and not (math.isfinite(lr) and lr > 0):
+        raise UsageError(f"--lr must be a positive finite number, got {lr!r}")
+
+
 def cmd_collect(args: argparse.Namespace) -> int:
     """Expert demonstrations (IDM/MOBIL) in the chapter-7 dataset format."""
+    _check_episode_args(args)
+    check_int(args.size, "--size", 8)
+    check_out_file(args.out)
     hw = _highway()
     if hw is None:
         return 2
@@ -59,34 +80,58 @@ def cmd_collect(args: argparse.Namespace) -> int:
 
 def cmd_train(args: argparse.Namespace) -> int:
     """Behaviour cloning (``minimanc.train.fit``) on collected demonstrations."""
+    from minimanc import models, train
+
+    for option in ("epochs", "batch_size"):
+        if getattr(args, option) is not None:
+            check_int(getattr(args, option), "--" + option.replace("_", "-"), 1)
+    _check_lr(args.lr)
+    check_int(args.seed, "--seed", 0)
+    unknown = [m for m in args.models if m not in models.MODEL_NAMES]
+    if unknown:
+        raise UsageError(f"--models: unknown model(s) {', '.join(unknown)}; choose from "
+                         f"{', '.join(models.MODEL_NAMES)}")
+    given = {"epochs": args.epochs, "batch_size": args.batch_size, "lr": args.lr}
+    try:
+        tc = train.TrainConfig(seed=args.seed, **{k: v for k, v in given.items() if v is not None})
+    except ValueError as e:
+        raise UsageError(str(e)) from e
+    out = check_out_dir(args.out)
     if _highway() is None:
         return 2
-    from minimanc import models, train, world
-
-    ds = world.load(args.data)
+    ds = load_data(args.data)
     size = int(ds.bev.shape[2])
-    out = Path(args.out)
     for name in args.models:
         cfg = models.ModelConfig(image_size=size, setting=args.setting,
                                  k_targets=int(ds.lane_target.shape[2]))
-        given = {"epochs": args.epochs, "batch_size": args.batch_size, "lr": args.lr}
-        tc = train.TrainConfig(seed=args.seed, **{k: v for k, v in given.items() if v is not None})
-        res = train.fit(name, ds, cfg, tc, engine=args.engine, checkpoint_dir=out / name,
-                        resume=args.resume, progress=not args.quiet)
+        try:
+            res = train.fit(name, ds, cfg, tc, engine=args.engine, checkpoint_dir=out / name,
+                            resume=args.resume, progress=not args.quiet)
+        except train.CheckpointError as e:
+            raise UsageError(str(e)) from e
+        except train.TrainingDiverged as e:
+            print(f"minimanc highway train: {e}", file=sys.stderr)
+            return 1
         print(f"{name}: {len(res.history)} epochs, final loss {res.history[-1]:.4f}, "
               f"checkpoint {out / name / train.CHECKPOINT_NAME}")
     return 0
 
 
-def _policy(path: str, engine: str) -> Any:
+def _policy(path: str, engine: str, option: str = "--checkpoints") -> Any:
     from minimanc import rollout, train
 
-    fit = train.load(path)
+    try:
+        fit = train.load(path)
+    except ValueError as e:  # missing (ValueError) or unreadable (CheckpointError)
+        raise UsageError(f"{option} {e}") from e
     return rollout.ModelPolicy(fit.name, fit.params, fit.cfg, engine)
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
     """Closed-loop evaluation of checkpoints against the expert, per scenario."""
+    _check_episode_args(args)
+    if args.out:
+        check_out_file(args.out)
     hw = _highway()
     if hw is None:
         return 2
@@ -117,13 +162,15 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 def cmd_render(args: argparse.Namespace) -> int:
     """One episode headless: highway-env frames as PNG, the episode and the BEV as GIF."""
+    _check_episode_args(args)
+    check_out_dir(args.out)
     hw = _highway()
     if hw is None:
         return 2
     if args.checkpoint:
         from minimanc import world
 
-        pol = _policy(args.checkpoint, args.engine)
+        pol = _policy(args.checkpoint, args.engine, option="--checkpoint")
         experts, _ = hw.expert_episodes(args.scenario, 1, seed=args.seed, steps=args.steps,
                                         record_bev=False)
         goal = experts[0].poses[args.steps - 1]

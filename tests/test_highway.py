@@ -299,6 +299,50 @@ def test_cli_collect_and_expert_eval(tmp_path, capsys):
     assert report["roundabout"]["expert"]["ade"] == 0.0
 
 
+@pytest.mark.parametrize("argv,expected", [
+    (["collect", "--seed", "-1"], "--seed must be an integer >= 0, got -1"),
+    (["collect", "--episodes", "0"], "--episodes must be an integer >= 1, got 0"),
+    (["collect", "--steps", "-2"], "--steps must be an integer >= 1, got -2"),
+    (["collect", "--size", "0"], "--size must be an integer >= 8, got 0"),
+    (["train", "--data", "x.npz", "--epochs", "0"], "--epochs must be an integer >= 1, got 0"),
+    (["train", "--data", "x.npz", "--lr", "-1"], "--lr must be a positive finite number"),
+    (["train", "--data", "x.npz", "--models", "gpt"], "--models: unknown model(s) gpt"),
+    (["train", "--data", "{tmp}/none.npz", "--out", "{tmp}/runs"], "none.npz: no such file"),
+    (["train", "--data", "{tmp}/x.npy", "--out", "{tmp}/runs"],
+     "x.npy: is a single NumPy array (.npy file); expected a dataset archive"),
+    (["eval", "--episodes", "0"], "--episodes must be an integer >= 1, got 0"),
+    (["eval", "--checkpoints", "{tmp}/none.npz"], "no checkpoint at path="),
+    (["eval", "--checkpoints", "{tmp}/x.npy"], "x.npy: unreadable checkpoint"),
+    (["render", "--seed", "-5"], "--seed must be an integer >= 0, got -5"),
+    (["render", "--checkpoint", "{tmp}/x.npy", "--out", "{tmp}/f"],
+     "--checkpoint {tmp}/x.npy: unreadable checkpoint"),
+])
+def test_cli_user_errors_are_one_line_exit_2(tmp_path, capsys, argv, expected):
+    from minimanc.cli import main
+
+    np.save(tmp_path / "x.npy", np.zeros(3))
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    code = main(["highway", *argv])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert err.startswith("minimanc highway: error: ")
+    assert expected.replace("{tmp}", str(tmp_path)) in err
+
+
+def test_cli_unwritable_out_is_refused_before_collecting(tmp_path, capsys, monkeypatch):
+    from minimanc.cli import main
+
+    monkeypatch.setattr(hw, "collect", lambda *a, **k: pytest.fail("collected anyway"))
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    for out, expected in ((blocker / "hw.npz", "file: exists and is not a directory"),
+                          (blocker / "sub" / "hw.npz", "cannot create the directory"),
+                          (tmp_path, "is a directory, expected a file name")):
+        code = main(["highway", "collect", "--out", str(out), "--quiet"])
+        err = capsys.readouterr().err
+        assert code == 2 and len(err.splitlines()) == 1 and expected in err, err
+
+
 # --------------------------------------------------------------------------- rendering
 
 
