@@ -16,6 +16,13 @@ every function returns plain NumPy results.
 
 Ties in ``max``/``min``/``maximum``/``minimum`` (and ``clip``, built from them)
 share the gradient equally, as in JAX. First-order derivatives only.
+
+NumPy's own functions also work on traced values, as in HIPS autograd:
+``np.sum(x)``, ``np.exp(x)``, ``np.ones(3) * x``, ``A @ x`` dispatch (through
+``__array_function__`` / ``__array_ufunc__``) to the primitive of the same name
+here. A NumPy function without one (``np.prod``, ``np.linalg.svd`` …) raises a
+``TypeError`` naming the closest function here, and so does ``out=`` (an
+in-place write cannot be traced).
 """
 
 from __future__ import annotations
@@ -24,7 +31,6 @@ import builtins
 import inspect
 import math
 import string
-import sys
 import types
 from collections import Counter
 
@@ -846,7 +852,7 @@ def _np_name(func) -> str:
 
 def _no_derivative(display: str, name: str) -> TypeError:
     hint = _CLOSEST.get(name)
-    if hint is None and hasattr(_THIS_MODULE, name):
+    if hint is None and name in _FUNCTION_NAMES:
         hint = f"anp.{name}"
     where = (f"use minimanc.autodiff.numpy (anp): {hint}," if hint else
              "use the functions of minimanc.autodiff.numpy (the `xp` namespace)")
@@ -974,8 +980,6 @@ def _adapt(np_func, ours):
     return call
 
 
-_THIS_MODULE = sys.modules[__name__]
-
 _DIFFERENTIABLE = (
     (np.sum, sum), (np.mean, mean), (np.max, max), (np.amax, max), (np.min, min),
     (np.amin, min), (np.var, var), (np.std, std), (np.cumsum, cumsum),
@@ -992,6 +996,10 @@ _PLAIN = (  # no useful derivative: run NumPy on the values
     np.array_equiv, np.nonzero, np.flatnonzero, np.argwhere,
 )
 _FUNCTIONS = {f: _adapt(f, ours) for f, ours in _DIFFERENTIABLE}
+_FUNCTION_NAMES = frozenset(  # the public functions of this namespace, for hints
+    k for k, v in globals().items()
+    if not k.startswith("_") and callable(v) and not isinstance(v, type | types.ModuleType)
+)
 _FUNCTIONS.update({f: _nondiff(f) for f in _PLAIN})
 
 
