@@ -293,8 +293,11 @@ assert v.std() > 2.0 and (v < 0.3).any()
 #   the same integrator);
 # * re-rendering from a stored pose gives exactly the stored raster (the
 #   closed loop re-renders from the policy's pose);
-# * files carry a version and checksums: a corrupt, truncated or
-#   wrong-version file is refused with an error naming the file.
+# * files carry a version and checksums of the arrays and of the metadata
+#   (seed, `dt`, raster, tags, recipes): a corrupt, truncated, altered or
+#   wrong-version file is refused with an error naming the file. Scenes are
+#   stored in shards, so `minimanc data generate` writes any number of them
+#   with the memory of one shard.
 
 # %%
 ego = ds.ego.astype(np.float64)
