@@ -627,13 +627,13 @@ def instrument_grade_source(source: str, nonce: str) -> tuple[str, bool]:
             labelled.append(f'{indent}{_PART} = "visible"')
         else:
             labelled.append(line)
-    tail = f"\nprint({nonce!r})"
-    candidate = f'{_PART} = "visible"; ' + "\n".join(labelled) + tail
+    head, tail = f'{_PART} = "visible"\n', f"\nprint({nonce!r})"
+    candidate = head + "\n".join(labelled) + tail
     try:
         ast.parse(candidate)
         return candidate, True
     except SyntaxError:
-        return f'{_PART} = "visible"; ' + source + tail, False
+        return head + source + tail, False
 
 
 def _setup_source(targets: list[str], exercise: str) -> str:

@@ -20,7 +20,7 @@ rng = np.random.default_rng(0)
 # $p_{ego} = R(-\psi)\,(p - (x_e, y_e))$.
 # `points` has shape `(n, 2)`, `ego` is `(x_e, y_e, psi)`.
 
-# %% solution id=ex00_1 title="Points into the ego frame"
+# %% solution id=ex00_1 title="Points into the ego frame" forbids="minimanc.world.geometry.to_ego_frame"  # noqa: E501
 def to_ego_frame(points, ego):
     ### BEGIN SOLUTION
     x, y, psi = ego

@@ -194,6 +194,15 @@ def test_every_grade_cell_fails_on_its_stub():
     assert checked > 0
 
 
+@pytest.mark.parametrize("path", notebooks("solutions"), ids=lambda p: p.stem)
+def test_every_solution_scores_full_marks_when_graded(path):
+    """The reference solutions pass their own tests under the grader, with the
+    library functions each exercise forbids switched off."""
+    report = exercises.grade(path, source=path, timeout=600)
+    failed = [(r.grade_id, r.message) for r in report.rows if r.points != r.max_points]
+    assert report.rows and not failed, failed
+
+
 # ------------------------------------------------------------------- grading robustness
 def make_student_nb(tmp_path: Path, grade_sources: list[str], answer: str = "x = 1"):
     sol = solution_nb(

@@ -369,3 +369,17 @@ def test_chapter_3_boundary_mistakes_fail_the_hidden_tests(tmp_path):
     nbformat.write(nb, path)
     row = rows(exercises.grade(path, roots=[ROOT]))["ex03_1_tests"]
     assert row.points == 0 and "disabled while grading" in row.message
+
+
+@pytest.mark.parametrize("source, labelled", [
+    ("def f():\n    return 1\nassert f() == 1", True),
+    ("for i in range(3):\n    ### BEGIN HIDDEN TESTS\n    assert i < 3\n    ### END HIDDEN TESTS\n"
+     "    assert i >= 0", True),
+    ("if True:\n    x = 1\n  ### BEGIN HIDDEN TESTS\n    assert x\n### END HIDDEN TESTS", False),
+])
+def test_instrumented_grade_cells_stay_valid_python(source, labelled):
+    import ast
+
+    out, ok = exercises.instrument_grade_source(source, "NONCE")
+    ast.parse(out)
+    assert ok is labelled and out.endswith("print('NONCE')")
