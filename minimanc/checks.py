@@ -27,16 +27,20 @@ import numpy as np
 
 __all__ = [
     "TOLERANCE_FACTOR",
+    "check_broadcast",
     "check_distribution",
     "check_finite",
     "check_finite_if_concrete",
     "check_int",
+    "check_leading_axis",
     "check_positive",
     "check_real",
     "check_stochastic_columns",
     "first_bad",
     "float_tolerance",
     "is_concrete",
+    "is_traced",
+    "shape_of",
     "value_dtype",
 ]
 
@@ -66,11 +70,15 @@ def is_concrete(x: Any) -> bool:
     return False
 
 
-def _is_array_like(x: Any) -> bool:
-    """A traced or device array (it has a shape and a dtype but is not NumPy), or a
-    list/tuple holding one."""
+def is_traced(x: Any) -> bool:
+    """True for a traced or device array (it has a shape and a dtype but is not
+    NumPy: an autodiff ``Box``, a JAX tracer or array), or a list/tuple holding one.
+
+    Neither concrete nor traced (a string, ``None``, a dict) is a type error
+    for every numeric argument: the ``check_*`` functions raise ``TypeError``.
+    """
     if isinstance(x, list | tuple):
-        return any(_is_array_like(v) for v in x)
+        return any(is_traced(v) for v in x)
     return hasattr(x, "shape") and hasattr(x, "dtype") and not is_concrete(x)
 
 
@@ -163,7 +171,7 @@ def check_finite_if_concrete(name: str, value: Any) -> None:
     Anything that is neither concrete nor an array (a string, ``None``, a dict)
     raises the TypeError of :func:`check_real`.
     """
-    if _is_array_like(value):
+    if is_traced(value):
         return
     check_finite(name, value)
 
@@ -184,12 +192,57 @@ def check_int(name: str, value: Any, minimum: int) -> int:
     return int(value)
 
 
-# --------------------------------------------------------------------------- distributions
+def check_leading_axis(name: str, value: Any, length: int, why: str) -> Any:
+    """``value`` whose first axis has ``length`` (ValueError naming it otherwise).
+
+    Lists become NumPy arrays (so that ``value[k]`` works); arrays are
+    returned unchanged, dtype included.  ``why`` completes the message:
+    ``f"{name} {why}, so its leading axis must have length ..."`` (e.g.
+    ``"is listed in per_step"``).
+    """
+    if isinstance(value, list | tuple) and not is_traced(value):
+        check_real(name, value)
+        value = np.asarray(value)
+    shape = shape_of(value)
+    if len(shape) == 0 or shape[0] != length:
+        raise ValueError(
+            f"{name} {why}, so its leading axis must have length {length}; "
+            f"got {name} with shape {shape}"
+        )
+    return value
 
 
-def _shape(x: Any) -> tuple[int, ...]:
+# --------------------------------------------------------------------------- shapes
+
+
+def shape_of(x: Any) -> tuple[int, ...]:
+    """The shape of any array-like (NumPy, traced, nested lists, scalars)."""
     shape = getattr(x, "shape", None)
     return tuple(shape) if shape is not None else tuple(np.shape(x))
+
+
+def check_broadcast(*named: tuple[str, Any, int]) -> tuple[int, ...]:
+    """The common batch shape of several arguments, or ValueError naming them all.
+
+    Each entry is ``(name, value, core)`` where ``core`` is the number of
+    trailing axes that are not batch axes (1 for a quaternion ``(..., 4)``, 0
+    for an angle ``(...)``).  Works on traced values (only shapes are read).
+    """
+    batches = []
+    for name, value, core in named:
+        shape = shape_of(value)
+        batches.append((name, shape, shape[: len(shape) - core] if core else shape))
+    try:
+        return tuple(np.broadcast_shapes(*(b for _, _, b in batches)))
+    except ValueError:
+        listed = ", ".join(f"{n} with shape {s}" for n, s, _ in batches)
+        batch = ", ".join(f"{n}: {b}" for n, _, b in batches)
+        raise ValueError(
+            f"the batch shapes do not broadcast: {listed} (batch shapes {batch})"
+        ) from None
+
+
+# --------------------------------------------------------------------------- distributions
 
 
 def check_distribution(name: str, q: Any, n: int, what: str = "states") -> None:
@@ -200,12 +253,12 @@ def check_distribution(name: str, q: Any, n: int, what: str = "states") -> None:
     ``tol = float_tolerance(value_dtype(q), n)`` — the tolerance of ``q``'s own
     precision, taken before any conversion.  ValueError names ``name``.
     """
-    shape = _shape(q)
+    shape = shape_of(q)
     if len(shape) == 0 or shape[-1] != n:
         raise ValueError(
             f"{name} must have shape (..., N) with N = {n} {what}; got {name} with shape {shape}"
         )
-    if _is_array_like(q):
+    if is_traced(q):
         return
     tol = float_tolerance(value_dtype(q), n)
     qa = check_real(name, q)

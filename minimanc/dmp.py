@@ -43,11 +43,22 @@ traced values (inside ``grad``/``jit``) the value checks are skipped.
 
 from __future__ import annotations
 
-import numbers
+import warnings
 from collections.abc import Iterable
 from typing import Any, NamedTuple
 
 import numpy as np
+
+from minimanc.checks import (
+    check_finite,
+    check_finite_if_concrete,
+    check_int,
+    check_leading_axis,
+    check_positive,
+    first_bad,
+    float_tolerance,
+    is_traced,
+)
 
 __all__ = [
     "ALPHA_RANGE",
@@ -69,6 +80,9 @@ __all__ = [
     "step",
     "step_matrix",
     "step_stable",
+    "check_dt",
+    "check_gains",
+    "check_step_stability",
     "zeta_penalty",
 ]
 
@@ -115,62 +129,44 @@ class Rollout(NamedTuple):
 # --------------------------------------------------------------------------- validation
 
 
-def _is_concrete(x: Any) -> bool:
-    """True for plain Python/NumPy values (checked), False for traced ones (skipped)."""
-    if isinstance(x, (numbers.Number, np.ndarray, np.generic)):
-        return True
-    if isinstance(x, (list, tuple)):
-        return all(_is_concrete(v) for v in x)
-    return False
-
-
-def _first_bad(values: np.ndarray, bad: np.ndarray) -> Any:
-    """The first offending entry, for error messages."""
-    return float(values[bad].flat[0] if values.ndim else values.item())
-
-
-def _check_real(name: str, value: Any) -> np.ndarray:
-    """Concrete, finite, real array (any shape) or ValueError naming ``name``."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a real number or array, got {value!r}") from exc
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        raise ValueError(f"{name} must be finite, got {name}={_first_bad(arr, bad)!r}")
-    return arr
-
-
-def _check_positive(name: str, value: Any) -> np.ndarray:
-    arr = _check_real(name, value)
-    bad = arr <= 0
-    if bad.any():
-        raise ValueError(f"{name} must be > 0, got {name}={_first_bad(arr, bad)!r}")
-    return arr
-
-
 def _check_method(method: Any) -> str:
     if not isinstance(method, str) or method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got method={method!r}")
     return method
 
 
-def _check_int(name: str, value: Any, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {name}={value!r}")
-    return int(value)
-
-
-def _check_dt(dt: Any) -> None:
-    if _is_concrete(dt):
-        arr = _check_positive("dt", dt)
+def check_dt(dt: Any) -> None:
+    """A concrete ``dt`` must be a finite scalar > 0 (ValueError naming it); traced passes."""
+    if not is_traced(dt):
+        arr = check_positive("dt", dt)
         if arr.ndim:
             raise ValueError(f"dt must be a scalar, got dt with shape {arr.shape}")
 
 
-def _maybe_check_finite(name: str, value: Any) -> None:
-    if _is_concrete(value):
-        _check_real(name, value)
+def check_gains(alpha: Any, beta: Any) -> bool:
+    """Check the gains of a step or rollout; True when both are concrete.
+
+    Concrete gains must be real (``TypeError`` naming the argument for a
+    string, ``None``, ...), finite, with ``α > 0`` and ``β ≥ 0`` (``ValueError``
+    naming the argument and the first offending value): ``α ≤ 0`` removes or
+    reverses the damping and ``β < 0`` makes the spring repel, and either runs
+    away from the goal exponentially.  ``β = 0`` is allowed (pure damping: the
+    velocity decays, the position stops where it is).  Traced gains are not
+    inspected.
+    """
+    concrete = True
+    for name, value, low in (("alpha", alpha, "> 0"), ("beta", beta, ">= 0")):
+        if is_traced(value):
+            concrete = False
+            continue
+        arr = check_finite(name, value)
+        bad = arr <= 0 if low == "> 0" else arr < 0
+        if bad.any():
+            raise ValueError(
+                f"{name} must be {low} (otherwise the DMP runs away from the goal), "
+                f"got {name}={first_bad(arr, bad)!r}"
+            )
+    return concrete
 
 
 def _maybe_scalar(arr: np.ndarray) -> Any:
@@ -189,8 +185,8 @@ def eigenvalues(alpha: Any, beta: Any) -> np.ndarray:
     ``(−α − √(α² − 4αβ))/2`` (for complex pairs, the one with positive
     imaginary part first).
     """
-    a = _check_real("alpha", alpha)
-    b = _check_real("beta", beta)
+    a = check_finite("alpha", alpha)
+    b = check_finite("beta", beta)
     a, b = np.broadcast_arrays(a, b)
     root = np.sqrt((a * a - 4.0 * a * b).astype(complex))
     return np.stack([(-a + root) / 2.0, (-a - root) / 2.0], axis=-1)
@@ -203,9 +199,9 @@ def damping_ratio(alpha: Any, beta: Any, xp: Any = np) -> Any:
     negative gives the paper's ζ < 0 (unstable). ``αβ ≤ 0`` raises ValueError
     (no natural frequency). Differentiable through ``xp``.
     """
-    if _is_concrete(alpha) and _is_concrete(beta):
-        a = _check_real("alpha", alpha)
-        b = _check_real("beta", beta)
+    if not is_traced(alpha) and not is_traced(beta):
+        a = check_finite("alpha", alpha)
+        b = check_finite("beta", beta)
         ab, bb = np.broadcast_arrays(a, b)
         bad = ab * bb <= 0
         if bad.any():
@@ -224,21 +220,31 @@ def classify(alpha: Any, beta: Any) -> Any:
       goal: α ≤ 0 (no or negative damping, the paper's ζ ≤ 0) or β ≤ 0 (no or
       repelling spring);
     * otherwise by ζ of eq. (13): ``"underdamped"`` (ζ < 1, complex roots,
-      overshoot), ``"critically damped"`` (ζ = 1, i.e. β = α/4, within
-      :data:`CRITICAL_RTOL`), ``"overdamped"`` (ζ > 1, two real roots).
+      overshoot), ``"critically damped"`` (ζ = 1, i.e. β = α/4),
+      ``"overdamped"`` (ζ > 1, two real roots).
+
+    **What counts as critical.** A repeated root is not exact in floating
+    point, so the test is relative: critically damped iff
+    ``|α − 4β| ≤ CRITICAL_RTOL · α`` (:data:`CRITICAL_RTOL` = 1e-9).  Since
+    ``(α − 4β) / α = 1 − 1/ζ²``, that is ``|1 − 1/ζ²| ≤ 1e-9``, i.e. ζ within
+    about ``5e-10`` of 1: ζ = 1 ± 1e-12 is critically damped, ζ = 1 ± 1e-9 is
+    not.  Near β = α/4, ``α − 4β`` is computed exactly (``4β`` is exact and the
+    difference of two floats within a factor 2 is exact), so the only rounding
+    is that of the product ``CRITICAL_RTOL · α``, one ulp of the threshold.
+    Outside the band, the sign of ``α − 4β`` decides.
 
     Scalars give a ``str``; arrays give an array of strings.
     """
-    a = _check_real("alpha", alpha)
-    b = _check_real("beta", beta)
+    a = check_finite("alpha", alpha)
+    b = check_finite("beta", beta)
     a, b = np.broadcast_arrays(a, b)
     stable = (a > 0) & (b > 0)
-    gap = (a - 4.0 * b) / np.where(stable, a, 1.0)  # ζ² − 1 = (α − 4β) / (4β): same sign
+    gap = a - 4.0 * b  # ζ² − 1 = (α − 4β) / (4β): same sign
     out = np.where(
         ~stable,
         "unstable",
         np.where(
-            np.abs(gap) <= CRITICAL_RTOL,
+            np.abs(gap) <= CRITICAL_RTOL * np.abs(a),
             "critically damped",
             np.where(gap < 0, "underdamped", "overdamped"),
         ),
@@ -275,6 +281,29 @@ def _substep(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, h: Any, method: 
     )
 
 
+def _step(y, dy, goal, alpha, beta, dt, method, substeps):
+    """One step without checks (the callers validated their arguments once)."""
+    h = dt / substeps
+    y_next, dy_next = y, dy
+    for _ in range(substeps):
+        y_next, dy_next = _substep(y_next, dy_next, goal, alpha, beta, h, method)
+    return y_next, dy_next, (dy_next - dy) / dt
+
+
+def _check_call(method, substeps, dt, alpha, beta, allow_unstable, stacklevel):
+    """Shared argument checks of :func:`step` and :func:`rollout` (once per call)."""
+    method = _check_method(method)
+    substeps = check_int("substeps", substeps, 1)
+    check_dt(dt)
+    if not isinstance(allow_unstable, bool):
+        raise TypeError(f"allow_unstable must be True or False, got "
+                        f"allow_unstable={allow_unstable!r}")
+    if check_gains(alpha, beta) and not is_traced(dt):
+        check_step_stability(alpha, beta, dt, method, substeps, allow_unstable,
+                             stacklevel=stacklevel + 1)
+    return method, substeps
+
+
 def step(
     y: Any,
     dy: Any,
@@ -285,6 +314,7 @@ def step(
     method: str = DEFAULT_METHOD,
     substeps: int = DEFAULT_SUBSTEPS,
     xp: Any = np,
+    allow_unstable: bool = False,
 ) -> tuple[Any, Any, Any]:
     """Advance eq. (10) by ``dt`` seconds; goal and gains are held over the step.
 
@@ -294,31 +324,20 @@ def step(
     mean acceleration over the step (for ``"euler"`` with one sub-step this is
     eq. (10) evaluated at the start). ``xp`` is accepted for uniformity: only
     arithmetic is used, so any engine's arrays pass through.
+
+    Concrete gains are checked (:func:`check_gains`: α > 0, β ≥ 0, finite,
+    real) and so is the step itself (:func:`check_step_stability`): a step
+    whose spectral radius exceeds 1 — the error would grow every step, e.g.
+    α = 25, β = α/4, ``dt = 0.5`` with one explicit Euler sub-step (ρ = 5.25)
+    — raises ValueError stating ρ and the stable range of α, unless
+    ``allow_unstable=True``, which runs it with a ``RuntimeWarning``.  Traced
+    gains (inside ``grad``/``jit``) are not checked.
     """
     del xp  # arithmetic only
-    method = _check_method(method)
-    substeps = _check_int("substeps", substeps, 1)
-    _check_dt(dt)
-    h = dt / substeps
-    y_next, dy_next = y, dy
-    for _ in range(substeps):
-        y_next, dy_next = _substep(y_next, dy_next, goal, alpha, beta, h, method)
-    return y_next, dy_next, (dy_next - dy) / dt
-
-
-def _per_step(name: str, value: Any, steps: int, varying: bool) -> Any:
-    if not varying:
-        return value
-    shape = getattr(value, "shape", None)
-    if shape is None:
-        value = np.asarray(value, dtype=float)
-        shape = value.shape
-    if len(shape) == 0 or shape[0] != steps:
-        raise ValueError(
-            f"{name} is listed in per_step, so its leading axis must have length steps={steps}; "
-            f"got {name} with shape {tuple(shape)}"
-        )
-    return value
+    method, substeps = _check_call(method, substeps, dt, alpha, beta, allow_unstable, 2)
+    for name, value in (("y", y), ("dy", dy), ("goal", goal)):
+        check_finite_if_concrete(name, value)
+    return _step(y, dy, goal, alpha, beta, dt, method, substeps)
 
 
 def rollout(
@@ -333,6 +352,7 @@ def rollout(
     substeps: int = DEFAULT_SUBSTEPS,
     per_step: Iterable[str] = (),
     xp: Any = np,
+    allow_unstable: bool = False,
 ) -> Rollout:
     """Integrate eq. (10) for ``steps`` steps of ``dt`` seconds.
 
@@ -344,21 +364,27 @@ def rollout(
     step. Returns a :class:`Rollout` with ``y``, ``dy`` of shape
     ``(steps + 1, ...)`` and ``ddy`` of shape ``(steps, ...)``.
     Differentiable: ``xp`` provides ``stack``.
+
+    The gains and the stability of the step are checked once for the whole
+    rollout, as in :func:`step` (with per-step gains, every step's own matrix
+    must have spectral radius ≤ 1); ``allow_unstable=True`` runs an unstable
+    rollout with one ``RuntimeWarning``.
     """
     method = _check_method(method)
-    substeps = _check_int("substeps", substeps, 1)
-    steps = _check_int("steps", steps, 0)
-    _check_dt(dt)
+    substeps = check_int("substeps", substeps, 1)
+    steps = check_int("steps", steps, 0)
+    check_dt(dt)
     per_step = tuple(per_step)
     unknown = [p for p in per_step if p not in ("goal", "alpha", "beta")]
     if unknown:
         raise ValueError(f"per_step entries must be 'goal', 'alpha' or 'beta', got {unknown!r}")
-    for name, value in (("y0", y0), ("dy0", dy0), ("goal", goal), ("alpha", alpha),
-                        ("beta", beta)):
-        _maybe_check_finite(name, value)
-    goal = _per_step("goal", goal, steps, "goal" in per_step)
-    alpha = _per_step("alpha", alpha, steps, "alpha" in per_step)
-    beta = _per_step("beta", beta, steps, "beta" in per_step)
+    for name, value in (("y0", y0), ("dy0", dy0), ("goal", goal)):
+        check_finite_if_concrete(name, value)
+    why = "is listed in per_step"
+    goal = check_leading_axis("goal", goal, steps, why) if "goal" in per_step else goal
+    alpha = check_leading_axis("alpha", alpha, steps, why) if "alpha" in per_step else alpha
+    beta = check_leading_axis("beta", beta, steps, why) if "beta" in per_step else beta
+    _check_call(method, substeps, dt, alpha, beta, allow_unstable, 2)
 
     y, dy = xp.asarray(y0), xp.asarray(dy0)
     ys, dys, ddys = [y], [dy], []
@@ -366,7 +392,7 @@ def rollout(
         g_k = goal[k] if "goal" in per_step else goal
         a_k = alpha[k] if "alpha" in per_step else alpha
         b_k = beta[k] if "beta" in per_step else beta
-        y, dy, ddy = step(y, dy, g_k, a_k, b_k, dt, method, substeps)
+        y, dy, ddy = _step(y, dy, g_k, a_k, b_k, dt, method, substeps)
         ys.append(y)
         dys.append(dy)
         ddys.append(ddy)
@@ -428,13 +454,13 @@ def _substep_eigs(a: np.ndarray, b: np.ndarray, h: float, method: str) -> np.nda
 
 
 def _check_step_args(alpha, beta, dt, method, substeps):
-    a = _check_positive("alpha", alpha)
-    b = _check_positive("beta", beta)
-    d = _check_positive("dt", dt)
+    a = check_positive("alpha", alpha)
+    b = check_positive("beta", beta)
+    d = check_positive("dt", dt)
     if d.ndim:
         raise ValueError(f"dt must be a scalar, got dt with shape {d.shape}")
     method = _check_method(method)
-    substeps = _check_int("substeps", substeps, 1)
+    substeps = check_int("substeps", substeps, 1)
     a, b = np.broadcast_arrays(a, b)
     return a, b, float(d), method, substeps
 
@@ -475,6 +501,51 @@ def spectral_radius(
     return _maybe_scalar(np.abs(eig).max(axis=-1) ** substeps)
 
 
+def _jury(a: np.ndarray, b: np.ndarray, h: float, method: str):
+    """``(det, 1 + tr + det, 1 − tr + det)`` of the Euler / semi-implicit sub-step matrix.
+
+    Written in factored form so that the boundaries are exact in floating
+    point: explicit Euler ``det = 1 − hα (1 − hβ)``, ``1 + tr + det = 4 − hα (2 − hβ)``;
+    semi-implicit ``det = 1 − hα``, ``1 + tr + det = 4 − hα (2 + hβ)``; both
+    ``1 − tr + det = h² αβ``.
+    """
+    if method == "euler":
+        det = 1.0 - h * a * (1.0 - h * b)
+        plus = 4.0 - h * a * (2.0 - h * b)
+    else:
+        det = 1.0 - h * a
+        plus = 4.0 - h * a * (2.0 + h * b)
+    return det, plus, (h * h) * a * b
+
+
+#: Slack on ``ρ(M_h) ≤ 1`` for RK4, whose modulus is evaluated from a quartic.
+_RK4_RHO_TOL: float = float_tolerance(np.float64, 16)
+
+
+def _sub_radius(a: np.ndarray, b: np.ndarray, h: float, method: str) -> np.ndarray:
+    return np.abs(_substep_eigs(a, b, h, method)).max(axis=-1)
+
+
+def _stable(a: np.ndarray, b: np.ndarray, h: float, method: str) -> np.ndarray:
+    """Asymptotic stability of the sub-step (ρ < 1), exact for the two Euler methods."""
+    if method == "rk4":
+        return _sub_radius(a, b, h, method) < 1.0
+    det, plus, minus = _jury(a, b, h, method)
+    return (np.abs(det) < 1.0) & (plus > 0.0) & (minus > 0.0)
+
+
+def _bounded(a: np.ndarray, b: np.ndarray, h: float, method: str) -> np.ndarray:
+    """``ρ ≤ 1`` (no eigenvalue outside the unit circle), exact for the two Euler methods.
+
+    Jury's conditions with ``≤``: the roots of ``z² − tr z + det`` lie in the
+    closed unit disc iff ``|det| ≤ 1`` and ``|tr| ≤ 1 + det``.
+    """
+    if method == "rk4":
+        return _sub_radius(a, b, h, method) <= 1.0 + _RK4_RHO_TOL
+    det, plus, minus = _jury(a, b, h, method)
+    return (np.abs(det) <= 1.0) & (plus >= 0.0) & (minus >= 0.0)
+
+
 def step_stable(
     alpha: Any,
     beta: Any,
@@ -482,9 +553,47 @@ def step_stable(
     method: str = DEFAULT_METHOD,
     substeps: int = DEFAULT_SUBSTEPS,
 ) -> Any:
-    """True where the discrete step is asymptotically stable (:func:`spectral_radius` < 1)."""
-    rho = np.asarray(spectral_radius(alpha, beta, dt, method, substeps))
-    return _maybe_scalar(rho < 1.0)
+    """True where the discrete step is asymptotically stable (spectral radius ρ < 1).
+
+    ``ρ(M_h^n) = ρ(M_h)^n``, so the step is stable iff one sub-step of
+    ``h = dt / substeps`` is.  For ``"euler"`` and ``"semi_implicit"`` this is
+    decided exactly by Jury's conditions on the sub-step matrix (``|det| < 1``,
+    ``1 ± tr + det > 0``; see ``_jury``), not by comparing a rounded ρ with 1:
+
+    * ``"euler"``: stable iff ``hβ < 1`` and ``hα (2 − hβ) < 4``.  At exactly
+      ``hβ = 1`` no α is stable: ``det = 1 − hα (1 − hβ) = 1``, the complex
+      roots ``1 + hλ`` have modulus² ``1 − hα (1 − hβ) = 1`` and the error
+      oscillates forever without decaying (ρ = 1, "marginal");
+    * ``"semi_implicit"``: stable iff ``hα (2 + hβ) < 4``;
+    * ``"rk4"``: ``ρ < 1`` evaluated from its stability polynomial.
+    """
+    a, b, dt, method, substeps = _check_step_args(alpha, beta, dt, method, substeps)
+    return _maybe_scalar(_stable(a, b, dt / substeps, method))
+
+
+def _alpha_bound(b: float, h: float, method: str) -> float:
+    """Supremum of the stable α at β = ``b`` ≥ 0 for one sub-step of ``h`` (no checks)."""
+    if method == "euler":
+        return 4.0 / (h * (2.0 - h * b)) if h * b < 1.0 else 0.0
+    if method == "semi_implicit":
+        return 4.0 / (h * (2.0 + h * b))
+    # RK4: its real stability interval ends at hλ ≈ −2.785, so scan up to 8/h.
+    grid = np.linspace(0.0, 8.0 / h, 4001)[1:]
+    rho = _sub_radius(grid, np.full_like(grid, b), h, "rk4")
+    unstable = np.nonzero(rho >= 1.0)[0]
+    if unstable.size == 0:
+        return float(grid[-1])
+    if unstable[0] == 0:
+        lo, hi = 0.0, float(grid[0])
+    else:
+        lo, hi = float(grid[unstable[0] - 1]), float(grid[unstable[0]])
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if _sub_radius(np.asarray(mid), np.asarray(b), h, "rk4") < 1.0:
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 def max_stable_alpha(
@@ -498,38 +607,80 @@ def max_stable_alpha(
     With ``h = dt / substeps`` (Jury's conditions on the 2×2 sub-step matrix):
 
     * ``"euler"``: ``4 / (h (2 − h β))`` if ``h β < 1``, else 0 (no α is stable:
-      the complex roots ``1 + hλ`` have modulus² ``1 − hα + h²αβ``);
+      the complex roots ``1 + hλ`` have modulus² ``1 − hα + h²αβ``, which is
+      ``≥ 1`` once ``hβ ≥ 1``; at exactly ``hβ = 1`` it is 1, marginal, not
+      stable);
     * ``"semi_implicit"``: ``4 / (h (2 + h β))`` (det ``= 1 − hα``, and
       ``1 + det + tr = 4 − 2hα − h²αβ > 0``);
     * ``"rk4"``: found numerically (scan, then bisection on
       :func:`spectral_radius`), the end of the stable interval that starts at 0.
+
+    The bound itself is not stable (ρ = 1 there): :func:`step_stable` is
+    ``False`` at ``α = max_stable_alpha``.
     """
-    b = float(_check_positive("beta", beta))
-    d = float(_check_positive("dt", dt))
+    b = float(check_positive("beta", beta))
+    d = float(check_positive("dt", dt))
     method = _check_method(method)
-    substeps = _check_int("substeps", substeps, 1)
-    h = d / substeps
-    if method == "euler":
-        return 4.0 / (h * (2.0 - h * b)) if h * b < 1.0 else 0.0
-    if method == "semi_implicit":
-        return 4.0 / (h * (2.0 + h * b))
-    # RK4: its real stability interval ends at hλ ≈ −2.785, so scan up to 8/h.
-    grid = np.linspace(0.0, 8.0 / h, 4001)[1:]
-    rho = np.abs(_substep_eigs(grid, np.full_like(grid, b), h, "rk4")).max(axis=-1)
-    unstable = np.nonzero(rho >= 1.0)[0]
-    if unstable.size == 0:
-        return float(grid[-1])
-    if unstable[0] == 0:
-        lo, hi = 0.0, float(grid[0])
+    substeps = check_int("substeps", substeps, 1)
+    return _alpha_bound(b, d / substeps, method)
+
+
+_METHOD_NAMES = {"euler": "explicit Euler", "semi_implicit": "semi-implicit Euler",
+                 "rk4": "RK4"}
+
+
+def check_step_stability(
+    alpha: Any,
+    beta: Any,
+    dt: float = DT,
+    method: str = DEFAULT_METHOD,
+    substeps: int = DEFAULT_SUBSTEPS,
+    allow_unstable: bool = False,
+    stacklevel: int = 2,
+) -> None:
+    """Refuse a step whose spectral radius exceeds 1 (the error would grow every step).
+
+    For concrete gains α > 0, β ≥ 0 (arrays broadcast; :func:`step` and
+    :func:`rollout` call it once per call).  A sub-step matrix with an
+    eigenvalue outside the unit circle (decided as in :func:`step_stable`,
+    with ``≤``: a marginal ρ = 1 passes) raises ValueError stating the
+    spectral radius of the worst entry and the stable range of α for its β
+    (:func:`max_stable_alpha`); with ``allow_unstable=True`` it emits one
+    ``RuntimeWarning`` instead.  The cost is a few vectorised operations on
+    the gains; the stable bound is computed only when reporting.
+    """
+    a = np.asarray(alpha, dtype=float)
+    b = np.asarray(beta, dtype=float)
+    a, b = np.broadcast_arrays(a, b)
+    dt = float(dt)
+    h = dt / substeps
+    ok = _bounded(a, b, h, method)
+    if np.all(ok):
+        return
+    rho = np.where(ok, -np.inf, _sub_radius(a, b, h, method) ** substeps)
+    i = int(np.argmax(rho)) if rho.ndim else 0
+    a_i, b_i, rho_i = float(a.flat[i]), float(b.flat[i]), float(rho.flat[i])
+    n_bad = int(np.size(ok) - np.count_nonzero(ok))
+    where = f" (the worst of {n_bad} unstable gain pairs)" if n_bad > 1 else ""
+    bound = _alpha_bound(b_i, h, method)
+    if method == "euler" and h * b_i >= 1.0:
+        stable_range = (f"no alpha is stable (h*beta = {h * b_i:.6g} >= 1, "
+                        f"with h = dt/substeps = {h:.6g})")
+    elif b_i == 0.0:  # pure damping: at best marginal (an eigenvalue 1)
+        stable_range = f"the step stays bounded only for 0 < alpha < {bound:.6g}"
     else:
-        lo, hi = float(grid[unstable[0] - 1]), float(grid[unstable[0]])
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        if np.abs(_substep_eigs(np.asarray(mid), np.asarray(b), h, "rk4")).max() < 1.0:
-            lo = mid
-        else:
-            hi = mid
-    return lo
+        stable_range = f"the step is stable only for 0 < alpha < {bound:.6g}"
+    head = (f"{_METHOD_NAMES[method]} (method={method!r}) with dt={dt!r} and substeps={substeps} "
+            f"is unstable for alpha={a_i!r}, beta={b_i!r}{where}: the spectral radius of one "
+            f"step is {rho_i:.6g} > 1, so the error grows {rho_i:.3g}x per step. At "
+            f"beta={b_i!r} {stable_range}.")
+    if allow_unstable:
+        warnings.warn(head + " Running it anyway (allow_unstable=True).", RuntimeWarning,
+                      stacklevel=stacklevel + 1)
+        return
+    other = "" if method == "semi_implicit" else ", method='semi_implicit'"
+    raise ValueError(f"{head} Use more substeps, a smaller dt{other} or smaller gains, or pass "
+                     "allow_unstable=True to run it anyway.")
 
 
 # --------------------------------------------------------------------------- learned gains
@@ -592,12 +743,12 @@ def logits_from_gains(
     out = []
     for name, value, rng in (("alpha", alpha, alpha_range), ("beta", beta, beta_range)):
         lo, hi = _check_range(f"{name}_range", rng)
-        v = _check_real(name, value)
+        v = check_finite(name, value)
         bad = (v <= lo) | (v >= hi)
         if bad.any():
             raise ValueError(
                 f"{name} must lie strictly inside {name}_range={rng!r}, "
-                f"got {name}={_first_bad(v, bad)!r}"
+                f"got {name}={first_bad(v, bad)!r}"
             )
         p = (v - lo) / (hi - lo)
         out.append(np.log(p) - np.log1p(-p))
@@ -610,6 +761,6 @@ def zeta_penalty(alpha: Any, beta: Any, xp: Any = np, zeta_min: float = 0.5) -> 
     Zero while every ζ = ½ √(α/β) ≥ ``zeta_min``; grows quadratically below
     (continuous gradient). Add ``λ · zeta_penalty(α, β, xp)`` to the BC loss.
     """
-    zm = float(_check_positive("zeta_min", zeta_min))
+    zm = float(check_positive("zeta_min", zeta_min))
     zeta = damping_ratio(alpha, beta, xp=xp)
     return xp.mean(xp.maximum(zm - zeta, 0.0) ** 2)

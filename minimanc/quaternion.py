@@ -28,9 +28,10 @@ Conventions and edge cases (decided here, tested in ``tests/test_quaternion.py``
   ``to_matrix``, ``to_axis_angle``, ``to_yaw``, ``integrate``,
   ``orientation_error``, the DMP) normalise their input. On concrete NumPy
   input they first check it: the zero quaternion raises ``ValueError``, and so
-  does a norm further than :data:`UNIT_TOL` from 1 (a sign of a bug, not of
-  rounding). On traced values (inside ``grad``/``jit``) no check is possible;
-  they are normalised silently. ``multiply``, ``conjugate`` and ``exp`` are
+  does a norm further than :func:`unit_tolerance` of its dtype from 1 (a sign
+  of a bug, not of rounding: a few float64 or float32 roundings are accepted).
+  On traced values (inside ``grad``/``jit``) no check is possible; they are
+  normalised silently. ``multiply``, ``conjugate`` and ``exp`` are
   plain algebra and accept any input.
 * **Sign.** ``q`` and ``−q`` are the same rotation. ``log`` is eq. (4) as
   written — angle ``atan2(‖u‖, w) ∈ [0, π]`` — so ``exp(log q) = q`` exactly
@@ -52,15 +53,25 @@ Conventions and edge cases (decided here, tested in ``tests/test_quaternion.py``
 
 from __future__ import annotations
 
-import numbers
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from minimanc import dmp
+from minimanc.checks import (
+    check_broadcast,
+    check_finite,
+    check_int,
+    check_leading_axis,
+    check_positive,
+    check_real,
+    float_tolerance,
+    is_traced,
+    shape_of,
+    value_dtype,
+)
 
 __all__ = [
-    "UNIT_TOL",
     "QuaternionRollout",
     "conjugate",
     "exp",
@@ -80,10 +91,8 @@ __all__ = [
     "to_matrix",
     "to_rotation_vector",
     "to_yaw",
+    "unit_tolerance",
 ]
-
-UNIT_TOL: float = 1e-6
-"""Largest ``|‖q‖ − 1|`` accepted (and normalised away) where a unit quaternion is expected."""
 
 _SMALL2: float = 1e-24
 """``‖u‖²`` (or ``‖ω‖²``) below which the series branch is used (‖u‖ < 1e-12).
@@ -105,42 +114,47 @@ class QuaternionRollout(NamedTuple):
 # --------------------------------------------------------------------------- validation
 
 
-def _is_concrete(x: Any) -> bool:
-    return isinstance(x, (numbers.Number, np.ndarray, np.generic, list, tuple))
-
-
-def _shape(x: Any) -> tuple[int, ...]:
-    shape = getattr(x, "shape", None)
-    return tuple(shape) if shape is not None else np.shape(x)
+def unit_tolerance(dtype: Any = np.float64) -> float:
+    """Largest ``|‖q‖ − 1|`` accepted (and normalised away) where a unit quaternion is
+    expected: ``float_tolerance(dtype, 4)`` (:func:`minimanc.checks.float_tolerance`),
+    about 7e-15 in float64 and 3.8e-6 in float32 — a few roundings of the four
+    squares, while a norm further from 1 is a bug, not rounding."""
+    return float_tolerance(dtype, 4)
 
 
 def _check_last(name: str, x: Any, size: int) -> Any:
-    if _is_concrete(x):
-        try:
-            x = np.asarray(x, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"{name} must be a real array, got {name}={x!r}") from exc
-    shape = _shape(x)
+    if not is_traced(x):
+        x = check_real(name, x)
+    shape = shape_of(x)
     if len(shape) == 0 or shape[-1] != size:
         raise ValueError(f"{name} must have shape (..., {size}), got {name} with shape {shape}")
-    if _is_concrete(x) and not np.all(np.isfinite(x)):
+    if not is_traced(x) and not np.all(np.isfinite(x)):
         raise ValueError(f"{name} must be finite, got {name}={x!r}")
+    return x
+
+
+def _check_angle(name: str, x: Any) -> Any:
+    """A concrete angle (any shape) must be real and finite; traced passes."""
+    if not is_traced(x):
+        x = check_finite(name, x)
     return x
 
 
 def _check_unit(name: str, q: Any) -> Any:
     """Validate a (concrete) unit quaternion; return it as an array."""
+    tol = unit_tolerance(value_dtype(q)) if not is_traced(q) else 0.0
     q = _check_last(name, q, 4)
-    if _is_concrete(q):
+    if not is_traced(q):
         n = np.linalg.norm(q, axis=-1)
         if np.any(n == 0):
             raise ValueError(f"{name} contains the zero quaternion, which is not a rotation")
         off = np.abs(n - 1.0)
-        if np.any(off > UNIT_TOL):
+        if np.any(off > tol):
             worst = float(n.flat[np.argmax(off)]) if n.ndim else float(n)
             raise ValueError(
-                f"{name} must be a unit quaternion (|norm - 1| <= UNIT_TOL={UNIT_TOL:g}), "
-                f"got norm {worst!r}; call quaternion.normalize first if that is intended"
+                f"{name} must be a unit quaternion (|norm - 1| <= unit_tolerance = {tol:.3g} "
+                f"for its dtype), got norm {worst!r}; call quaternion.normalize first if "
+                "that is intended"
             )
     return q
 
@@ -171,7 +185,9 @@ def multiply(p: Any, q: Any, xp: Any = np) -> Any:
 
     As rotations, ``p * q`` applies ``q`` first, then ``p``.
     """
-    return _multiply(_check_last("p", p, 4), _check_last("q", q, 4), xp)
+    p, q = _check_last("p", p, 4), _check_last("q", q, 4)
+    check_broadcast(("p", p, 1), ("q", q, 1))
+    return _multiply(p, q, xp)
 
 
 def _multiply(p: Any, q: Any, xp: Any) -> Any:
@@ -201,7 +217,7 @@ def _conjugate(q: Any, xp: Any) -> Any:
 def normalize(q: Any, xp: Any = np) -> Any:
     """``q / ‖q‖`` for any non-zero ``q``; the zero quaternion raises ValueError (concrete)."""
     q = _check_last("q", q, 4)
-    if _is_concrete(q) and np.any(np.linalg.norm(q, axis=-1) == 0):
+    if not is_traced(q) and np.any(np.linalg.norm(q, axis=-1) == 0):
         raise ValueError("q contains the zero quaternion, which cannot be normalised")
     return _unit(q, xp)
 
@@ -231,7 +247,7 @@ def log(q: Any, xp: Any = np) -> Any:
     ``q = −1`` the map is undefined: ValueError on concrete input.
     """
     q = _check_unit("q", q)
-    if _is_concrete(q):
+    if not is_traced(q):
         at_minus_one = (np.sum(q[..., 1:] ** 2, axis=-1) < _SMALL2) & (q[..., 0] < 0)
         if np.any(at_minus_one):
             raise ValueError(
@@ -272,11 +288,10 @@ def integrate(q: Any, eta: Any, dt: Any, tau: Any = 1.0, xp: Any = np) -> Any:
     """
     q = _check_unit("q", q)
     eta = _check_last("eta", eta, 3)
+    check_broadcast(("q", q, 1), ("eta", eta, 1))
     for name, value in (("dt", dt), ("tau", tau)):
-        if _is_concrete(value):
-            v = np.asarray(value, dtype=float)
-            if not (np.all(np.isfinite(v)) and np.all(v > 0)):
-                raise ValueError(f"{name} must be finite and > 0, got {name}={value!r}")
+        if not is_traced(value):
+            check_positive(name, value)
     return _integrate(_unit(q, xp), eta, dt / tau, xp)
 
 
@@ -301,6 +316,7 @@ def orientation_error(g: Any, q: Any, xp: Any = np) -> Any:
     """
     g = _unit(_check_unit("g", g), xp)
     q = _unit(_check_unit("q", q), xp)
+    check_broadcast(("g", g, 1), ("q", q, 1))
     return _error(g, q, xp)
 
 
@@ -312,9 +328,15 @@ def _error(g: Any, q: Any, xp: Any) -> Any:
 
 
 def from_axis_angle(axis: Any, angle: Any, xp: Any = np) -> Any:
-    """Rotation by ``angle`` (rad) about ``axis`` (..., 3; normalised; zero axis → ValueError)."""
+    """Rotation by ``angle`` (rad, shape ``(...)``) about ``axis`` (..., 3; normalised).
+
+    A zero axis, or a non-finite axis or angle, raises ValueError naming it;
+    the batch shapes of ``axis[..., 0]`` and ``angle`` must broadcast.
+    """
     axis = _check_last("axis", axis, 3)
-    if _is_concrete(axis) and np.any(np.linalg.norm(axis, axis=-1) == 0):
+    angle = _check_angle("angle", angle)
+    check_broadcast(("axis", axis, 1), ("angle", angle, 0))
+    if not is_traced(axis) and np.any(np.linalg.norm(axis, axis=-1) == 0):
         raise ValueError("axis contains a zero vector, which has no direction")
     n = axis / xp.expand_dims(_norm(axis, xp), -1)
     half = 0.5 * xp.asarray(angle)
@@ -350,7 +372,11 @@ def to_axis_angle(q: Any, xp: Any = np) -> tuple[Any, Any]:
 
 
 def from_yaw(psi: Any, xp: Any = np) -> Any:
-    """Rotation by ``psi`` (rad) about +z, counter-clockwise: ``(cos ψ/2, 0, 0, sin ψ/2)``."""
+    """Rotation by ``psi`` (rad) about +z, counter-clockwise: ``(cos ψ/2, 0, 0, sin ψ/2)``.
+
+    A non-finite (or non-numeric) concrete ``psi`` raises ValueError (TypeError).
+    """
+    psi = _check_angle("psi", psi)
     half = 0.5 * xp.asarray(psi)
     zero = xp.zeros_like(half)
     return xp.stack([xp.cos(half), zero, zero, xp.sin(half)], axis=-1)
@@ -382,6 +408,7 @@ def rotate(q: Any, v: Any, xp: Any = np) -> Any:
     """Rotate vectors ``v`` (..., 3) by ``q``: ``q v q̄`` as ``v + 2w (u × v) + 2 u × (u × v)``."""
     q = _unit(_check_unit("q", q), xp)
     v = _check_last("v", v, 3)
+    check_broadcast(("q", q, 1), ("v", v, 1))
     w = xp.expand_dims(q[..., 0], -1)
     u = q[..., 1:]
     t = 2.0 * _cross(u, v, xp)
@@ -425,6 +452,7 @@ def quaternion_step(
     method: str = dmp.DEFAULT_METHOD,
     substeps: int = dmp.DEFAULT_SUBSTEPS,
     xp: Any = np,
+    allow_unstable: bool = False,
 ) -> tuple[Any, Any, Any]:
     """Advance the quaternion DMP (eq. 2 without forcing, gains as in eq. 10) by ``dt``.
 
@@ -439,14 +467,32 @@ def quaternion_step(
     be the linear DMP's. Returns ``(q_next, eta_next, deta)`` with
     ``deta = (eta_next − eta) / dt``. For yaw-only motion this is exactly the
     1-D DMP of :func:`minimanc.dmp.step` on the wrapped yaw error.
+
+    Gains are checked as in :func:`minimanc.dmp.step` (concrete values only:
+    α > 0, β ≥ 0, finite, real).  Near the goal the error is the rotation
+    vector and the map linearises to the 1-D DMP's step, per axis, so
+    :func:`minimanc.dmp.check_step_stability` applies unchanged: a step with
+    spectral radius > 1 raises ValueError unless ``allow_unstable=True``
+    (then a ``RuntimeWarning``).  ``q``, ``eta`` and ``g_q`` must broadcast.
     """
     method = _check_q_method(method)
-    substeps = dmp._check_int("substeps", substeps, 1)
-    dmp._check_dt(dt)
+    substeps = check_int("substeps", substeps, 1)
+    dmp.check_dt(dt)
     q = _unit(_check_unit("q", q), xp)
     g_q = _unit(_check_unit("g_q", g_q), xp)
     eta = _check_last("eta", eta, 3)
+    check_broadcast(("q", q, 1), ("eta", eta, 1), ("g_q", g_q, 1))
+    _check_q_gains(alpha, beta, dt, method, substeps, allow_unstable)
     return _q_step(q, eta, g_q, alpha, beta, dt, method, substeps, xp)
+
+
+def _check_q_gains(alpha, beta, dt, method, substeps, allow_unstable, stacklevel=3):
+    if not isinstance(allow_unstable, bool):
+        raise TypeError(f"allow_unstable must be True or False, got "
+                        f"allow_unstable={allow_unstable!r}")
+    if dmp.check_gains(alpha, beta) and not is_traced(dt):
+        dmp.check_step_stability(alpha, beta, dt, method, substeps, allow_unstable,
+                                 stacklevel=stacklevel)
 
 
 def _q_step(q, eta, g_q, alpha, beta, dt, method, substeps, xp):
@@ -469,17 +515,19 @@ def quaternion_rollout(
     substeps: int = dmp.DEFAULT_SUBSTEPS,
     per_step: tuple[str, ...] = (),
     xp: Any = np,
+    allow_unstable: bool = False,
 ) -> QuaternionRollout:
     """Roll the quaternion DMP out for ``steps`` steps (see :func:`quaternion_step`).
 
     ``q0`` (..., 4), ``eta0`` (..., 3), goal ``g_q`` (..., 4). Names in
     ``per_step`` (from ``("g_q", "alpha", "beta")``) carry a leading time axis
-    of length ``steps``. Returns a :class:`QuaternionRollout`.
+    of length ``steps``. Returns a :class:`QuaternionRollout`.  Gains and the
+    stability of the step are checked once, as in :func:`quaternion_step`.
     """
     method = _check_q_method(method)
-    substeps = dmp._check_int("substeps", substeps, 1)
-    steps = dmp._check_int("steps", steps, 0)
-    dmp._check_dt(dt)
+    substeps = check_int("substeps", substeps, 1)
+    steps = check_int("steps", steps, 0)
+    dmp.check_dt(dt)
     per_step = tuple(per_step)
     unknown = [p for p in per_step if p not in ("g_q", "alpha", "beta")]
     if unknown:
@@ -487,11 +535,14 @@ def quaternion_rollout(
     q = _unit(_check_unit("q0", q0), xp)
     eta = _check_last("eta0", eta0, 3)
     g_q = _unit(_check_unit("g_q", g_q), xp)
-    for name, value in (("alpha", alpha), ("beta", beta)):
-        dmp._maybe_check_finite(name, value)
-    g_q = dmp._per_step("g_q", g_q, steps, "g_q" in per_step)
-    alpha = dmp._per_step("alpha", alpha, steps, "alpha" in per_step)
-    beta = dmp._per_step("beta", beta, steps, "beta" in per_step)
+    why = "is listed in per_step"
+    if "g_q" in per_step:
+        g_q = check_leading_axis("g_q", g_q, steps, why)
+    alpha = check_leading_axis("alpha", alpha, steps, why) if "alpha" in per_step else alpha
+    beta = check_leading_axis("beta", beta, steps, why) if "beta" in per_step else beta
+    check_broadcast(("q0", q, 1), ("eta0", eta, 1),
+                    ("g_q", g_q[0] if "g_q" in per_step and steps else g_q, 1))
+    _check_q_gains(alpha, beta, dt, method, substeps, allow_unstable)
     qs, etas, detas = [q], [eta], []
     for k in range(steps):
         g_k = g_q[k] if "g_q" in per_step else g_q
@@ -502,7 +553,7 @@ def quaternion_rollout(
         etas.append(eta)
         detas.append(deta)
     if steps == 0:
-        return QuaternionRollout(xp.stack(qs), xp.stack(etas), xp.zeros((0,) + _shape(eta)))
-    qs[0] = qs[0] + xp.zeros(_shape(qs[-1]))
-    etas[0] = etas[0] + xp.zeros(_shape(etas[-1]))
+        return QuaternionRollout(xp.stack(qs), xp.stack(etas), xp.zeros((0,) + shape_of(eta)))
+    qs[0] = qs[0] + xp.zeros(shape_of(qs[-1]))
+    etas[0] = etas[0] + xp.zeros(shape_of(etas[-1]))
     return QuaternionRollout(xp.stack(qs), xp.stack(etas), xp.stack(detas))

@@ -15,6 +15,7 @@ from minimanc.autodiff.check import numerical_grad
 ENGINES = ["numpy", "jax"]
 ID = np.array([1.0, 0.0, 0.0, 0.0])
 SETTINGS = settings(max_examples=40, deadline=None)
+finite = dict(allow_nan=False, allow_infinity=False)
 
 
 @pytest.fixture(params=ENGINES)
@@ -306,7 +307,7 @@ def test_gradients_match_finite_differences():
 def _rollout_loss(params, xp, q0, gq):
     za, zb, eta0 = params
     a, b = dmp.gains_from_logits(za, zb, xp=xp)
-    r = Q.quaternion_rollout(q0, eta0, gq, a, b, 0.5, 2, substeps=2, per_step=("alpha", "beta"),
+    r = Q.quaternion_rollout(q0, eta0, gq, a, b, 0.5, 2, substeps=10, per_step=("alpha", "beta"),
                              xp=xp)
     return xp.sum(r.eta[-1] ** 2) + xp.sum(r.q[-1] * xp.asarray(np.arange(4.0)))
 
@@ -366,6 +367,7 @@ def test_quaternion_dmp_converges_with_learned_gains():
 def test_yaw_only_quaternion_dmp_equals_1d_dmp_on_wrapped_error(psi0, psi_g, w0, alpha, beta,
                                                                 method, substeps):
     steps, dt = 12, 0.5
+    assume(dmp.step_stable(alpha, beta, dt, method, substeps))  # unstable steps are refused
     r = Q.quaternion_rollout(Q.from_yaw(psi0), np.array([0.0, 0.0, w0]), Q.from_yaw(psi_g),
                              alpha, beta, dt, steps, method=method, substeps=substeps)
     # the 1-D DMP of chapter 3, one sub-step at a time, its goal re-chosen as the nearest
@@ -416,9 +418,10 @@ def test_unit_tolerance_normalises_small_errors_only():
     rng = np.random.default_rng(7)
     q = Q.normalize(rng.normal(size=4))
     v = np.array([0.3, -1.0, 2.0])
-    assert np.allclose(Q.rotate(q * (1 + 0.5 * Q.UNIT_TOL), v), Q.rotate(q, v), atol=1e-12)
+    tol = Q.unit_tolerance(np.float64)
+    assert np.allclose(Q.rotate(q * (1 + 0.5 * tol), v), Q.rotate(q, v), atol=1e-12)
     with pytest.raises(ValueError, match="unit quaternion"):
-        Q.rotate(q * (1 + 10 * Q.UNIT_TOL), v)
+        Q.rotate(q * (1 + 10 * tol), v)
     assert np.allclose(Q.normalize(3 * q), q)  # normalize itself accepts any non-zero q
 
 
@@ -460,3 +463,113 @@ def test_unit_tolerance_normalises_small_errors_only():
 def test_bad_input_raises_value_error_naming_parameter(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+# ------------------------------------------------------------- non-finite angles, broadcasting
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_constructors_refuse_non_finite_angles_naming_them(bad):
+    with pytest.raises(ValueError, match=r"psi must be finite, got psi=(nan|inf|-inf)"):
+        Q.from_yaw(bad)
+    with pytest.raises(ValueError, match=r"psi must be finite"):
+        Q.from_yaw(np.array([0.0, 1.0, bad]))
+    with pytest.raises(ValueError, match=r"angle must be finite, got angle="):
+        Q.from_axis_angle(np.array([0.0, 0.0, 1.0]), bad)
+    with pytest.raises(ValueError, match=r"axis must be finite"):
+        Q.from_axis_angle(np.array([0.0, bad, 1.0]), 0.3)
+    with pytest.raises(ValueError, match=r"v must be finite"):
+        Q.from_rotation_vector(np.array([bad, 0.0, 0.0]))
+
+
+@pytest.mark.parametrize("bad", ["0.5", None])
+def test_constructors_refuse_non_numeric_angles_with_a_type_error(bad):
+    with pytest.raises(TypeError, match="psi must be a real number or array"):
+        Q.from_yaw(bad)
+    with pytest.raises(TypeError, match="angle must be a real number or array"):
+        Q.from_axis_angle(np.array([0.0, 0.0, 1.0]), bad)
+
+
+def test_traced_angles_still_differentiate(eng):
+    z = eng.xp.asarray([0.0, 0.0, 0.0, 1.0])
+    g = eng.grad(lambda a: eng.xp.sum(Q.from_yaw(a, xp=eng.xp) * z))(0.4)
+    assert float(g) == pytest.approx(0.5 * np.cos(0.2))
+
+
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda: Q.multiply(np.ones((2, 4)), np.ones((3, 4))),
+         r"p with shape \(2, 4\), q with shape \(3, 4\) \(batch shapes p: \(2,\), q: \(3,\)\)"),
+        (lambda: Q.rotate(Q.normalize(np.ones((2, 4))), np.ones((3, 3))),
+         r"q with shape \(2, 4\), v with shape \(3, 3\)"),
+        (lambda: Q.orientation_error(Q.normalize(np.ones((2, 4))), Q.normalize(np.ones((5, 4)))),
+         r"g with shape \(2, 4\), q with shape \(5, 4\)"),
+        (lambda: Q.from_axis_angle(np.ones((2, 3)), np.zeros(3)),
+         r"axis with shape \(2, 3\), angle with shape \(3,\)"),
+        (lambda: Q.integrate(Q.normalize(np.ones((2, 4))), np.zeros((4, 3)), 0.5),
+         r"q with shape \(2, 4\), eta with shape \(4, 3\)"),
+        (lambda: Q.quaternion_step(Q.normalize(np.ones((2, 4))), np.zeros((3, 3)), ID, 1.0, 1.0),
+         r"q with shape \(2, 4\), eta with shape \(3, 3\), g_q with shape \(4,\)"),
+        (lambda: Q.quaternion_rollout(Q.normalize(np.ones((3, 4))), np.zeros(3),
+                                      Q.normalize(np.ones((2, 2, 4))), 1.0, 1.0, steps=2,
+                                      per_step=("g_q",)),
+         r"q0 with shape \(3, 4\), eta0 with shape \(3,\), g_q with shape \(2, 4\)"),
+    ],
+)
+def test_broadcast_failures_name_both_arguments_and_shapes(call, match):
+    with pytest.raises(ValueError, match=r"the batch shapes do not broadcast: " + match):
+        call()
+
+
+def test_broadcasting_batches_still_work():
+    rng = np.random.default_rng(11)
+    p, q = Q.normalize(rng.normal(size=(3, 1, 4))), Q.normalize(rng.normal(size=(5, 4)))
+    assert Q.multiply(p, q).shape == (3, 5, 4)
+    assert Q.from_axis_angle(np.array([0.0, 0.0, 1.0]), np.zeros((2, 3))).shape == (2, 3, 4)
+
+
+# ------------------------------------------------------------------- dtype-scaled unit check
+
+
+def test_unit_tolerance_fits_the_dtype():
+    assert Q.unit_tolerance(np.float32) / Q.unit_tolerance(np.float64) == pytest.approx(2.0**29)
+    v = np.array([0.3, -1.0, 2.0])
+    q32 = np.array([0.5, 0.5, 0.5, 0.5], dtype=np.float32) * np.float32(1 + 2e-6)
+    Q.rotate(q32, v)  # float32 rounding-sized error: accepted (refused at the old fixed 1e-6)
+    with pytest.raises(ValueError, match="unit quaternion"):
+        Q.rotate(np.array([0.5, 0.5, 0.5, 0.5], dtype=np.float32) * np.float32(1 + 1e-4), v)
+    with pytest.raises(ValueError, match=r"q must be a unit quaternion .*got norm 1\.000000001"):
+        Q.rotate(np.array([0.5, 0.5, 0.5, 0.5]) * (1 + 1e-9), v)  # accepted before
+
+
+@SETTINGS
+@given(hnp.arrays(np.float64, 4, elements=st.floats(-10, 10, **finite)))
+def test_float32_normalised_quaternions_pass_every_check(raw):
+    assume(np.linalg.norm(raw) > 1e-3)
+    q = Q.normalize(raw.astype(np.float32)).astype(np.float32)
+    Q.to_matrix(q)
+    Q.log(np.where(q[0] < 0, -q, q) if np.abs(q[1:]).max() < 1e-6 else q)
+    Q.orientation_error(q, q)
+
+
+# --------------------------------------------------------------------------- quaternion DMP gains
+
+
+def test_quaternion_dmp_refuses_bad_and_unstable_gains():
+    eta = np.zeros(3)
+    g = Q.from_yaw(1.0)
+    with pytest.raises(TypeError, match="alpha must be a real number or array, got alpha='10'"):
+        Q.quaternion_step(ID, eta, g, "10", 1.0)
+    with pytest.raises(TypeError, match="beta must be a real number or array, got beta=None"):
+        Q.quaternion_rollout(ID, eta, g, 1.0, None)
+    with pytest.raises(ValueError, match=r"beta must be >= 0 .*got beta=-1\.0"):
+        Q.quaternion_step(ID, eta, g, 1.0, -1.0)
+    with pytest.raises(ValueError, match=r"alpha must be > 0 .*got alpha=0\.0"):
+        Q.quaternion_rollout(ID, eta, g, 0.0, 1.0)
+    with pytest.raises(ValueError, match=r"spectral radius of one step is 5\.25 > 1"):
+        Q.quaternion_rollout(ID, eta, g, 25.0, 6.25, 0.5, 5, "euler", 1)
+    with pytest.warns(RuntimeWarning, match="allow_unstable=True") as record:
+        r = Q.quaternion_rollout(ID, eta, g, 25.0, 6.25, 0.5, 5, "euler", 1,
+                                 allow_unstable=True)
+    assert len(record) == 1 and np.abs(r.eta[-1]).max() > 100
