@@ -194,7 +194,7 @@ def test_corrupt_truncated_and_wrong_version_files(ds, tmp_path, monkeypatch):
     with pytest.raises(world.DatasetFileError, match="checksum"):
         world.load(altered)
     # wrong version
-    monkeypatch.setattr(dsmod, "FORMAT_VERSION", 999)
+    monkeypatch.setattr(dsmod, "FILE_FORMAT_VERSION", 999)
     old = world.save(small, tmp_path / "v999.npz")
     monkeypatch.undo()
     with pytest.raises(world.DatasetFileError, match="v999.npz.*version 999"):

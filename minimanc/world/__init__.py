@@ -22,6 +22,7 @@ package makes its own data:
 """
 
 from minimanc.world.dataset import (
+    FILE_FORMAT_VERSION,
     FORMAT_VERSION,
     Dataset,
     DatasetFileError,
@@ -82,7 +83,8 @@ from minimanc.world.traffic import idm_acceleration
 
 __all__ = [
     "DT", "Dataset", "DatasetFileError", "DatasetWriter", "EGO_LENGTH", "EGO_WIDTH", "Estimate",
-    "FORMAT_VERSION", "HumanStyle", "K_TARGETS", "Lane", "MAX_ADOS", "Map", "RasterConfig",
+    "FILE_FORMAT_VERSION", "FORMAT_VERSION", "HumanStyle", "K_TARGETS", "Lane", "MAX_ADOS", "Map",
+    "RasterConfig",
     "TARGET_SPACING", "T_STEPS", "box_corners", "box_mask", "boxes_overlap", "build_map",
     "check_finite", "check_scene", "controls_from_poses", "estimate", "file_content_hash",
     "from_ego_frame", "generate", "generate_file", "generate_scene", "generate_splits",

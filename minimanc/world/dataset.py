@@ -9,7 +9,7 @@ each scene depends only on ``(seed, i)``, the result is the same whatever the
 number of worker processes, and the first 650 scenes of an 850-scene set are
 the 650-scene set.
 
-**Files** (format version 2) are zip archives that ``numpy.load`` also opens
+**Files** (:data:`FILE_FORMAT_VERSION` 2) are zip archives that ``numpy.load`` also opens
 (``.npz``, deflate-compressed). The scenes are stored in *shards* of
 consecutive scenes, one member ``<array>-<k>.npy`` per array and shard, so
 that :func:`generate_file` writes a dataset of any size while holding one
@@ -49,8 +49,11 @@ from minimanc.world.geometry import DT, goal_in_ego_frame
 from minimanc.world.maps import K_TARGETS, Map, build_map, lane_targets, random_recipe
 from minimanc.world.raster import RasterConfig, rasterize_batch, rasterize_goal
 
-FORMAT_VERSION = 2
-"""Version of the generator and file format; files of another version are refused."""
+FORMAT_VERSION = 1
+"""Version of the generator and of the dataset layout, recorded as ``meta["version"]``."""
+FILE_FORMAT_VERSION = 2
+"""Version of the file format (2: sharded, metadata under the checksum); files of another
+version are refused."""
 MAX_ATTEMPTS = 25
 """Redraws allowed per scene before giving up."""
 SHARD_BYTES = 64 * 2**20
@@ -269,7 +272,8 @@ def _cache_file(cache: bool | str | os.PathLike, key: dict) -> Path:
     else:
         root = Path(cache)
     digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
-    return root / f"world_v{FORMAT_VERSION}_{key['n_scenes']}x{key['seed']}_{digest}.npz"
+    return root / (f"world_v{FORMAT_VERSION}.{FILE_FORMAT_VERSION}_{key['n_scenes']}x"
+                   f"{key['seed']}_{digest}.npz")
 
 
 def _check_generate_args(n_scenes: Any, seed: Any, raster: Any, k_targets: Any,
@@ -630,7 +634,7 @@ class DatasetWriter:
     def finish(self, meta: dict) -> Path:
         """Write the header (``meta`` and the checksums) and move the file into place."""
         _check_meta(meta, self._n, str(self.path), ValueError)
-        header = {"format": _FORMAT_NAME, "version": FORMAT_VERSION, "n_scenes": self._n,
+        header = {"format": _FORMAT_NAME, "version": FILE_FORMAT_VERSION, "n_scenes": self._n,
                   "shards": self._shards, "meta": meta}
         header = json.loads(json.dumps(header))  # the checksum covers what load will read
         header["sha256"] = _header_sha(header)
@@ -759,9 +763,10 @@ class _Archive:
             raise DatasetFileError(f"{path}: corrupt header: {e}") from e
         if not isinstance(header, dict) or header.get("format") != _FORMAT_NAME:
             raise DatasetFileError(f"{path}: not a minimanc world file; {_EXPECTED}")
-        if header.get("version") != FORMAT_VERSION:
+        if header.get("version") != FILE_FORMAT_VERSION:
             raise DatasetFileError(f"{path}: file format version {header.get('version')!r}, "
-                                   f"this minimanc reads version {FORMAT_VERSION}; regenerate "
+                                   f"this minimanc reads version {FILE_FORMAT_VERSION}; "
+                                   "regenerate "
                                    "it with `minimanc data generate`")
         if header.get("sha256") != _header_sha(header):
             raise DatasetFileError(f"{path}: header checksum mismatch — the metadata or the "
