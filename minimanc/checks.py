@@ -147,13 +147,11 @@ def check_real(name: str, value: Any) -> np.ndarray:
         raw = np.asarray(value)
     except (TypeError, ValueError) as exc:  # ragged nested lists
         raise TypeError(f"{name} must be a real number or array, got {name}={value!r}") from exc
-    if not (np.issubdtype(raw.dtype, np.number) or raw.dtype == np.bool_) or np.issubdtype(
-        raw.dtype, np.complexfloating
-    ):
+    if raw.dtype.kind not in "biuf":  # bool, signed, unsigned, float (not complex, str, object)
         raise TypeError(
             f"{name} must be a real number or array, got {name}={value!r} (dtype {raw.dtype})"
         )
-    return raw.astype(np.float64)
+    return raw if raw.dtype == np.float64 else raw.astype(np.float64)
 
 
 def check_finite(name: str, value: Any) -> np.ndarray:

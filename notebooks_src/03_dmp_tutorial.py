@@ -28,6 +28,8 @@
 # $\Delta t = 0.5$ s) converge — which is a different question.
 
 # %%
+import warnings
+
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -126,9 +128,30 @@ for method, n in [("euler", 1), ("semi_implicit", 1), ("rk4", 1), ("euler", 4),
           f"{'stable' if rho < 1 else 'DIVERGES'}")
 assert np.isclose(dmp.spectral_radius(a_tb, b_tb, 0.5, "euler", 1), 5.25)
 
+# %% [markdown]
+# `dmp.step` and `dmp.rollout` run this same analysis once per call (on
+# concrete gains; never inside `grad`/`jit`) and refuse a step whose spectral
+# radius exceeds 1, stating ρ and the stable range of α:
+
+# %% tags=["raises-exception"]
+dmp.rollout(np.array([1.0]), np.array([0.0]), 0.0, a_tb, b_tb, 0.5, 8, "euler", 1)
+
+# %% [markdown]
+# To *show* the divergence anyway, opt in with `allow_unstable=True`: the
+# rollout runs and emits one `RuntimeWarning` (caught here, so that we can
+# assert on it).
+
+# %%
 fig, ax = plt.subplots(figsize=(8, 3.2))
 for method, n in [("euler", 1), ("euler", 4), ("semi_implicit", 10)]:
-    r = dmp.rollout(np.array([1.0]), np.array([0.0]), 0.0, a_tb, b_tb, 0.5, 8, method, n)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        r = dmp.rollout(np.array([1.0]), np.array([0.0]), 0.0, a_tb, b_tb, 0.5, 8, method, n,
+                        allow_unstable=True)
+    unstable = [w for w in caught if issubclass(w.category, RuntimeWarning)]
+    assert len(unstable) == (not dmp.step_stable(a_tb, b_tb, 0.5, method, n))
+    print(f"{method:14s} substeps={n:2d}: "
+          f"{'RuntimeWarning: unstable, run anyway' if unstable else 'stable, no warning'}")
     ax.semilogy(np.arange(9) * 0.5, np.abs(r.y[:, 0]) + 1e-16, marker="o",
                 label=f"{method}, {n} sub-step(s)")
 ax.set_xlabel("t (s)")
@@ -345,7 +368,8 @@ assert abs(a_fit - a_true) < 0.03 * a_true and abs(b_fit - b_true) < 0.03 * b_tr
 # * ζ (eq. 13) describes the *continuous* system: any α, β > 0 converge.
 # * The *discrete* step is stable only inside a region that depends on the
 #   integrator and the step: at 0.5 s, explicit Euler needs α < 4/(h(2 − hβ));
-#   the textbook α = 25 diverges. Check with `dmp.spectral_radius`.
+#   the textbook α = 25 diverges. Check with `dmp.spectral_radius`; `dmp.step`
+#   and `dmp.rollout` refuse such a step unless `allow_unstable=True`.
 # * `dmp.gains_from_logits` keeps learned gains in a box that is stable with
 #   the default integrator and bounds ζ away from 0; `dmp.zeta_penalty` and
 #   `critically_damped=True` are the paper's extra guards.
