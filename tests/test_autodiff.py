@@ -871,7 +871,10 @@ def test_numpy_options_we_do_not_support_are_refused_by_name():
 
 
 @SETTINGS
-@given(x=hnp.arrays(np.float64, shapes, elements=st.floats(-2, 2)), seed=seeds)
+# distinct, normal floats: a tie in max splits its gradient, and XLA flushes subnormal
+# results to zero (sin(1e-308) == 0 there), which turns distinct entries into a tie
+@given(x=hnp.arrays(np.float64, shapes, elements=st.floats(-2, 2, allow_subnormal=False),
+                    unique=True), seed=seeds)
 def test_numpy_functions_give_our_gradient_and_jax_s(x, seed):
     w = np.random.default_rng(seed).normal(size=x.shape)
 

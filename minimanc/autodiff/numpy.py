@@ -923,6 +923,19 @@ def _same(val, default) -> bool:
 _POSITIONAL = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
 
 
+def _numpy_signature(np_func, our_sig: inspect.Signature) -> inspect.Signature:
+    """NumPy's signature of ``np_func``; where NumPy publishes none (C functions such as
+    ``np.where``, ``np.concatenate`` and ``np.dot`` before NumPy 2), ours with NumPy's
+    ``out=None`` added, so that ``out=`` is still refused by name."""
+    try:
+        return inspect.signature(np_func)
+    except (TypeError, ValueError):
+        params = list(our_sig.parameters.values())
+        if "out" not in our_sig.parameters:
+            params.append(inspect.Parameter("out", inspect.Parameter.KEYWORD_ONLY, default=None))
+        return our_sig.replace(parameters=params)
+
+
 def _adapt(np_func, ours):
     """Call ``ours`` with the arguments of a call of ``np_func`` (NumPy's signature).
 
@@ -932,9 +945,10 @@ def _adapt(np_func, ours):
     in-place write), and so is any NumPy option ours lacks, unless it has its
     default value.
     """
-    np_sig = inspect.signature(np_func)
+    our_sig = inspect.signature(ours)
+    np_sig = _numpy_signature(np_func, our_sig)
     np_params = np_sig.parameters
-    our_params = list(inspect.signature(ours).parameters.values())
+    our_params = list(our_sig.parameters.values())
     our_names = {p.name for p in our_params}
     our_positional = [p.name for p in our_params if p.kind in _POSITIONAL]
     rename = {}
