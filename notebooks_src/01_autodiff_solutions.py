@@ -116,8 +116,9 @@ check_grads(lambda x: anp.sum(my_sum(x * x, axis=(0, 2), keepdims=True) ** 2),
             rng.normal(size=(2, 3, 2)), verbose=False)
 check_grads(lambda x: anp.sum(my_sum(x, axis=-1) * np.arange(2.0)), rng.normal(size=(2, 3)),
             verbose=False)
-check_grads(lambda a, b: my_sum(my_multiply(a, b) ** 2), rng.normal(size=(2, 1, 3)),
-            rng.normal(size=(4, 1)), verbose=False)
+report = check_grads(lambda a, b: my_sum(my_multiply(a, b) ** 2), rng.normal(size=(2, 1, 3)),
+                     rng.normal(size=(4, 1)), verbose=False)
+assert report.passed  # (its errors are rounding-level floats: not printed)
 ### END HIDDEN TESTS
 
 # %% [markdown]

@@ -19,11 +19,20 @@
 # (9) what the engine does not do.
 
 # %%
+import math
+
 import numpy as np
 
 import minimanc.autodiff.numpy as anp
 from minimanc import engine
-from minimanc.autodiff import check_grads, defvjp, grad, primitive, value_and_grad
+from minimanc.autodiff import (
+    TracerConversionError,
+    check_grads,
+    defvjp,
+    grad,
+    primitive,
+    value_and_grad,
+)
 
 rng = np.random.default_rng(0)
 
@@ -277,6 +286,11 @@ print(f"loss numpy {results['numpy'][0]:.6f}  jax {results['jax'][0]:.6f}  "
 #   code functionally (also a JAX requirement).
 # * **float32 stays float32**: gradients keep the dtype of the inputs; integer
 #   inputs are refused, as in JAX.
+# * **A gradient is never dropped silently**: `float(x)`, `x.item()`,
+#   `math.sin(x)`, `np.asarray(x)` or `y[i] = x` on a traced value raise
+#   `TracerConversionError`, saying what to write instead; `stop_gradient(x)`
+#   drops the gradient on purpose. NumPy's own `np.sum`, `np.exp`, … dispatch
+#   to `minimanc.autodiff.numpy`; those without a derivative say so.
 
 # %%
 try:
@@ -287,5 +301,10 @@ try:
     grad(lambda x: anp.sum(x * 1.0))(np.arange(3))
 except TypeError as err:
     print(err)
+try:
+    grad(lambda x: math.sin(x) * 2)(1.0)
+except TracerConversionError as err:
+    print(err)
+print(grad(lambda x: np.sum(np.exp(x)))(np.zeros(2)))  # NumPy's own sum and exp: traced
 w32 = rng.normal(size=(3, 2)).astype(np.float32)
 print(grad(lambda w: anp.sum(anp.tanh(w) ** 2))(w32).dtype)
