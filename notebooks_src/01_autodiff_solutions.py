@@ -30,7 +30,7 @@ rng = np.random.default_rng(0)
 # Example: `shape=(3, 1)`, `g.shape == (2, 3, 4)` → sum over axis 0 (new) and
 # axis 2 (stretched, keeping it with size one).
 
-# %% solution id=ex01_1 title="Unbroadcast a cotangent"
+# %% solution id=ex01_1 title="Unbroadcast a cotangent" forbids="minimanc.autodiff.core.unbroadcast"  # noqa: E501
 def my_unbroadcast(shape, g):
     ### BEGIN SOLUTION
     g = np.asarray(g)
@@ -52,8 +52,15 @@ assert np.allclose(my_unbroadcast((4,), g), g.sum(axis=(0, 1)))
 assert np.allclose(my_unbroadcast((2, 3, 4), g), g)
 ### BEGIN HIDDEN TESTS
 assert np.isclose(my_unbroadcast((), g), g.sum())
-for shape in [(1, 1, 4), (2, 1, 1), (1,), (1, 3, 1)]:
-    assert np.allclose(my_unbroadcast(shape, g), unbroadcast(shape, g)), shape
+# the sums written out by hand: new leading axes go, stretched axes of size one stay
+expected = {(1, 1, 4): g.sum(axis=(0, 1), keepdims=True),
+            (2, 1, 1): g.sum(axis=(1, 2), keepdims=True),
+            (1,): np.array([g.sum()]),
+            (1, 3, 1): g.sum(axis=(0, 2), keepdims=True)}
+for shape, want in expected.items():
+    got = my_unbroadcast(shape, g)
+    assert np.shape(got) == shape and np.allclose(got, want), shape
+assert np.allclose(my_unbroadcast((1, 3, 1), g)[0, :, 0], [g[:, i].sum() for i in range(3)])
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -129,7 +136,7 @@ assert report.passed  # (its errors are rounding-level floats: not printed)
 # \sum_j \bar Y_{ij} B_{lj}$). Return both as a tuple. Never build the
 # Jacobian.
 
-# %% solution id=ex01_3 title="VJP of matmul"
+# %% solution id=ex01_3 title="VJP of matmul" forbids="minimanc.autodiff.numpy._matmul_vjp_x,minimanc.autodiff.numpy._matmul_vjp_y"  # noqa: E501
 def matmul_vjps(g, A, B):
     ### BEGIN SOLUTION
     return g @ B.T, A.T @ g
@@ -145,9 +152,13 @@ assert gA.shape == A.shape and gB.shape == B.shape
 check_grads(lambda A, B: anp.sum(anp.tanh(my_matmul(A, B))), A, B, verbose=False)
 ### BEGIN HIDDEN TESTS
 W = rng.normal(size=(3, 2))
-ref = grad(lambda A, B: anp.sum((A @ B) * W), argnums=(0, 1))(A, B)
+# d/dA sum((A B) * W) = W B^T and d/dB = A^T W, written element by element
+ref_A = np.array([[sum(W[i, j] * B[l, j] for j in range(2)) for l in range(4)] for i in range(3)])
+ref_B = np.array([[sum(A[i, l] * W[i, j] for i in range(3)) for j in range(2)] for l in range(4)])
 mine = grad(lambda A, B: anp.sum(my_matmul(A, B) * W), argnums=(0, 1))(A, B)
-assert np.allclose(ref[0], mine[0]) and np.allclose(ref[1], mine[1])
+assert np.allclose(ref_A, mine[0]) and np.allclose(ref_B, mine[1])
+gA, gB = matmul_vjps(W, A, B)
+assert np.allclose(gA, ref_A) and np.allclose(gB, ref_B)
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -208,7 +219,7 @@ print(z, "parents:", z.parents)
 # visited nodes by `id(node)` (a `Var` is not hashable by value), and visit
 # parents in their tuple order so the result is deterministic.
 
-# %% solution id=ex01_4 title="Topological sort"
+# %% solution id=ex01_4 title="Topological sort" forbids="minimanc.autodiff.core.toposort"  # noqa: E501
 def topo_order(end):
     ### BEGIN SOLUTION
     order, seen = [], set()
