@@ -227,7 +227,7 @@ def upsample(maps: Any, size: tuple[int, int] | int, mode: str = "bilinear", xp:
     """
     if mode not in ("bilinear", "nearest"):
         raise ValueError(f"mode must be 'bilinear' or 'nearest'; got mode = {mode!r}")
-    if isinstance(size, (int, np.integer)):
+    if isinstance(size, int | np.integer):
         size = (int(size), int(size))
     size = tuple(int(s) for s in size)
     if len(size) != 2 or min(size) < 1:

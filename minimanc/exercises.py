@@ -200,7 +200,7 @@ def validate(nb, name: str) -> list[str]:
             seen[gid] = index
         if is_grade_cell(cell):
             points = _nbgrader(cell).get("points")
-            if not isinstance(points, (int, float)) or points <= 0:
+            if not isinstance(points, int | float) or points <= 0:
                 raise NotebookFormatError(f"{where}: grade cell {gid!r} needs positive points")
         if is_solution_cell(cell):
             exercises.append(gid)

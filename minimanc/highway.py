@@ -1009,7 +1009,7 @@ def run_episode(
 
 
 def _check_steps(steps: Any) -> int:
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 2:
+    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 2:
         raise ValueError(f"steps must be an integer >= 2, got {steps!r}")
     return int(steps)
 
@@ -1055,7 +1055,7 @@ def expert_episodes(
     """
     _check_scenario(scenario)
     _check_steps(steps)
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
         raise ValueError(f"n must be a positive integer, got {n!r}")
     limit = 3 * int(n) + 10 if max_tries is None else int(max_tries)
     out: list[Episode] = []
@@ -1160,7 +1160,7 @@ def collect(
     Save with :func:`minimanc.world.save`; :func:`minimanc.world.load` reads
     it back (its maps are explicit recipes, see :func:`explicit_map`).
     """
-    if isinstance(n_episodes, bool) or not isinstance(n_episodes, (int, np.integer)) \
+    if isinstance(n_episodes, bool) or not isinstance(n_episodes, int | np.integer) \
             or n_episodes < 1:
         raise ValueError(f"n_episodes must be a positive integer, got {n_episodes!r}")
     names = [scenarios] if isinstance(scenarios, str) else list(scenarios)

@@ -291,7 +291,7 @@ def aggregate(per_seed: Sequence[Mapping[str, float]]) -> dict[str, dict[str, fl
     if len(per_seed) == 0:
         raise ValueError("per_seed must hold at least one dict of metrics; got an empty sequence")
     def numeric(v: Any) -> bool:
-        return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+        return isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool)
 
     keys = [k for k in per_seed[0] if all(k in d and numeric(d[k]) for d in per_seed)]
     out: dict[str, dict[str, Any]] = {}

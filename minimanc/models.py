@@ -227,11 +227,11 @@ class ModelConfig:
     def __post_init__(self) -> None:
         for name in ("n_states", "n_predicates", "image_size", "hidden", "k_targets"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+            if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1:
                 raise ValueError(f"{name} must be a positive integer, got {name}={v!r}")
         inputs._check_setting(self.setting)
         ch = tuple(self.channels)
-        if not ch or any(isinstance(c, bool) or not isinstance(c, (int, np.integer)) or c < 1
+        if not ch or any(isinstance(c, bool) or not isinstance(c, int | np.integer) or c < 1
                          for c in ch):
             raise ValueError(f"channels must be a non-empty tuple of positive integers, "
                              f"got channels={self.channels!r}")
@@ -242,12 +242,12 @@ class ModelConfig:
         reach = 4.0 * self.k_targets
         for name in ("position_lookahead", "heading_lookahead"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and 4.0 <= v <= min(reach, 22.0)):
+            if not (isinstance(v, int | float) and 4.0 <= v <= min(reach, 22.0)):
                 raise ValueError(f"{name} must be in [4, {min(reach, 22.0)}] m (the lane "
                                  f"target spans 4 .. 4·k_targets m), got {name}={v!r}")
         for name in ("position_lookahead_time", "heading_lookahead_time", "heading_horizon"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and v >= 0.0 and np.isfinite(v)):
+            if not (isinstance(v, int | float) and v >= 0.0 and np.isfinite(v)):
                 raise ValueError(f"{name} must be a finite number >= 0 s, got {name}={v!r}")
         if not self.heading_horizon > 0.0:
             raise ValueError(f"heading_horizon must be > 0 s, got "
@@ -258,7 +258,7 @@ class ModelConfig:
         if self.predicate_activation not in ("sigmoid", "linear"):
             raise ValueError(f"predicate_activation must be 'sigmoid' or 'linear', got "
                              f"predicate_activation={self.predicate_activation!r}")
-        if not (isinstance(self.gains_scale, (int, float)) and self.gains_scale > 0.0):
+        if not (isinstance(self.gains_scale, int | float) and self.gains_scale > 0.0):
             raise ValueError(f"gains_scale must be > 0, got gains_scale={self.gains_scale!r}")
         if not self.vagn_scale > 0.0:
             raise ValueError(f"vagn_scale must be > 0, got vagn_scale={self.vagn_scale!r}")
@@ -333,7 +333,7 @@ def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
 def _cast(tree: Any, dtype: Any) -> Any:
     if isinstance(tree, dict):
         return {k: _cast(v, dtype) for k, v in tree.items()}
-    if isinstance(tree, (list, tuple)):
+    if isinstance(tree, list | tuple):
         return type(tree)(_cast(v, dtype) for v in tree)
     return np.asarray(tree, dtype=dtype)
 
@@ -341,7 +341,7 @@ def _cast(tree: Any, dtype: Any) -> Any:
 def _leaves(tree: Any) -> list:
     if isinstance(tree, dict):
         return [x for k in sorted(tree) for x in _leaves(tree[k])]
-    if isinstance(tree, (list, tuple)):
+    if isinstance(tree, list | tuple):
         return [x for v in tree for x in _leaves(v)]
     return [tree]
 
@@ -368,7 +368,7 @@ def initial_state(name: str, batch: int, cfg: ModelConfig | None = None, xp: Any
     """
     name = _check_name(name)
     cfg = cfg or ModelConfig()
-    if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
+    if isinstance(batch, bool) or not isinstance(batch, int | np.integer) or batch < 1:
         raise ValueError(f"batch must be a positive integer, got batch={batch!r}")
     if mode not in ("uniform", "random"):
         raise ValueError(f"mode must be 'uniform' or 'random', got mode={mode!r}")
@@ -722,7 +722,7 @@ def _value(x: Any) -> Any:
 def _value_tree(tree: Any) -> Any:
     if isinstance(tree, dict):
         return {k: _value_tree(v) for k, v in tree.items()}
-    if isinstance(tree, (list, tuple)):
+    if isinstance(tree, list | tuple):
         return type(tree)(_value_tree(v) for v in tree)
     return np.asarray(_value(tree), dtype=np.float64)
 

@@ -352,7 +352,7 @@ def _value(x: Any) -> Any:
 def _cast_tree(tree: Any, dtype: Any) -> Any:
     if isinstance(tree, dict):
         return {k: _cast_tree(v, dtype) for k, v in tree.items()}
-    if isinstance(tree, (list, tuple)):
+    if isinstance(tree, list | tuple):
         return type(tree)(_cast_tree(v, dtype) for v in tree)
     return np.asarray(_value(tree), dtype=dtype)
 

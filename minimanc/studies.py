@@ -121,12 +121,12 @@ class StudyConfig:
                      "seq_len", "n_seeds", "n_states", "explain_scenes"):
             v = getattr(self, name)
             low = 0 if name == "explain_scenes" else 1
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
+            if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < low:
                 raise ValueError(f"{name} must be an integer >= {low}; got {name}={v!r}")
         if self.n_train < 2:
             raise ValueError(f"n_train must be >= 2; got n_train={self.n_train!r}")
         m = self.max_steps_per_epoch
-        if m is not None and (isinstance(m, bool) or not isinstance(m, (int, np.integer))
+        if m is not None and (isinstance(m, bool) or not isinstance(m, int | np.integer)
                               or m < 1):
             raise ValueError(f"max_steps_per_epoch must be None or >= 1; got {m!r}")
         if not self.lrs or any(not (np.isfinite(x) and x > 0) for x in self.lrs):
@@ -983,9 +983,9 @@ def table_markdown(results: dict) -> str:
 def _json_safe(obj: Any) -> Any:
     if isinstance(obj, dict):
         return {str(k): _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
+    if isinstance(obj, list | tuple):
         return [_json_safe(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
+    if isinstance(obj, np.floating | float):
         x = float(obj)
         return x if np.isfinite(x) else None
     if isinstance(obj, np.integer):

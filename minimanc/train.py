@@ -155,14 +155,14 @@ class TrainConfig:
     def __post_init__(self) -> None:
         for name in ("epochs", "batch_size", "seq_len", "dmp_seq_len", "q_seq_len"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+            if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1:
                 raise ValueError(f"{name} must be a positive integer, got {name}={v!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) \
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer) \
                 or self.seed < 0:
             raise ValueError(f"seed must be a non-negative integer, got seed={self.seed!r}")
-        if not (isinstance(self.lr, (int, float)) and math.isfinite(self.lr) and self.lr > 0):
+        if not (isinstance(self.lr, int | float) and math.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr must be a positive finite number, got lr={self.lr!r}")
-        if not (isinstance(self.subset, (int, float)) and 0.0 < self.subset <= 1.0):
+        if not (isinstance(self.subset, int | float) and 0.0 < self.subset <= 1.0):
             raise ValueError(f"subset must be in (0, 1], got subset={self.subset!r}")
         if self.q_init not in ("uniform", "random"):
             raise ValueError(f"q_init must be 'uniform' or 'random', got q_init={self.q_init!r}")
@@ -171,12 +171,12 @@ class TrainConfig:
         if not (math.isfinite(self.zeta_weight) and self.zeta_weight >= 0):
             raise ValueError(f"zeta_weight must be >= 0, got zeta_weight={self.zeta_weight!r}")
         m = self.max_steps_per_epoch
-        if m is not None and (isinstance(m, bool) or not isinstance(m, (int, np.integer))
+        if m is not None and (isinstance(m, bool) or not isinstance(m, int | np.integer)
                               or m < 1):
             raise ValueError(f"max_steps_per_epoch must be None or a positive integer, "
                              f"got max_steps_per_epoch={m!r}")
         c = self.grad_clip
-        if c is not None and not (isinstance(c, (int, float)) and math.isfinite(c) and c > 0):
+        if c is not None and not (isinstance(c, int | float) and math.isfinite(c) and c > 0):
             raise ValueError(f"grad_clip must be None or > 0, got grad_clip={c!r}")
 
 
@@ -338,7 +338,7 @@ def _global_norm(tree: Any, xp: Any) -> Any:
 def _scale_tree(tree: Any, s: Any) -> Any:
     if isinstance(tree, dict):
         return {k: _scale_tree(v, s) for k, v in tree.items()}
-    if isinstance(tree, (list, tuple)):
+    if isinstance(tree, list | tuple):
         return type(tree)(_scale_tree(v, s) for v in tree)
     return tree * s
 
@@ -347,7 +347,7 @@ def _like(tree: Any, template: Any, xp: Any) -> Any:
     """``tree`` with every array leaf cast to the dtype of the matching ``template`` leaf."""
     if isinstance(tree, dict):
         return {k: _like(v, template[k], xp) for k, v in tree.items()}
-    if isinstance(tree, (list, tuple)):
+    if isinstance(tree, list | tuple):
         items = [_like(v, template[i], xp) for i, v in enumerate(tree)]
         return type(tree)(*items) if hasattr(tree, "_fields") else type(tree)(items)
     dt = getattr(template, "dtype", None)
@@ -397,7 +397,7 @@ def _flatten(tree: Any, prefix: str = "") -> dict[str, np.ndarray]:
     if isinstance(tree, dict):
         for k in sorted(tree):
             out.update(_flatten(tree[k], f"{prefix}{k}/"))
-    elif isinstance(tree, (list, tuple)):
+    elif isinstance(tree, list | tuple):
         for i, v in enumerate(tree):
             out.update(_flatten(v, f"{prefix}#{i}/"))
     elif tree is None:
@@ -429,7 +429,7 @@ def _lists(node: Any) -> Any:
 def _to_numpy(tree: Any) -> Any:
     if isinstance(tree, dict):
         return {k: _to_numpy(v) for k, v in tree.items()}
-    if isinstance(tree, (list, tuple)):
+    if isinstance(tree, list | tuple):
         return type(tree)(_to_numpy(v) for v in tree)
     if tree is None:
         return None
@@ -558,14 +558,14 @@ def _restore_opt(template: Any, loaded: Any) -> Any:
     """Put loaded optimiser arrays into the structure of ``template`` (tuples, scalars)."""
     if isinstance(template, dict):
         return {k: _restore_opt(v, loaded[k]) for k, v in template.items()}
-    if isinstance(template, (list, tuple)):
+    if isinstance(template, list | tuple):
         items = [_restore_opt(v, loaded[i]) for i, v in enumerate(template)]
         if hasattr(template, "_fields"):  # NamedTuple
             return type(template)(*items)
         return type(template)(items)
     if template is None:
         return None
-    if isinstance(template, (int, np.integer)) and not isinstance(template, bool):
+    if isinstance(template, int | np.integer) and not isinstance(template, bool):
         return int(np.asarray(loaded))
     arr = np.asarray(loaded)
     return arr.astype(np.asarray(template).dtype)
@@ -577,7 +577,7 @@ def _restore_opt(template: Any, loaded: Any) -> Any:
 def _cast_tree(tree: Any, dtype: Any) -> Any:
     if isinstance(tree, dict):
         return {k: _cast_tree(v, dtype) for k, v in tree.items()}
-    if isinstance(tree, (list, tuple)):
+    if isinstance(tree, list | tuple):
         return type(tree)(_cast_tree(v, dtype) for v in tree)
     arr = np.asarray(tree)
     return arr.astype(dtype) if np.issubdtype(arr.dtype, np.floating) else arr

@@ -159,7 +159,7 @@ class Dataset:
 
     def split(self, n_train: int = 650) -> tuple[Dataset, Dataset]:
         """First ``n_train`` scenes for training, the rest for validation."""
-        if not (isinstance(n_train, (int, np.integer)) and 0 < n_train < len(self)):
+        if not (isinstance(n_train, int | np.integer) and 0 < n_train < len(self)):
             raise ValueError(f"n_train must be an integer in [1, {len(self) - 1}], "
                              f"got {n_train!r}")
         return self.subset(slice(0, n_train)), self.subset(slice(n_train, None))
@@ -278,13 +278,13 @@ def _cache_file(cache: bool | str | os.PathLike, key: dict) -> Path:
 
 def _check_generate_args(n_scenes: Any, seed: Any, raster: Any, k_targets: Any,
                          max_ados: Any) -> RasterConfig:
-    if not (isinstance(n_scenes, (int, np.integer)) and n_scenes >= 1):
+    if not (isinstance(n_scenes, int | np.integer) and n_scenes >= 1):
         raise ValueError(f"n_scenes must be a positive integer, got {n_scenes!r}")
-    if not (isinstance(seed, (int, np.integer)) and seed >= 0):
+    if not (isinstance(seed, int | np.integer) and seed >= 0):
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    if not (isinstance(k_targets, (int, np.integer)) and k_targets >= 1):
+    if not (isinstance(k_targets, int | np.integer) and k_targets >= 1):
         raise ValueError(f"k_targets must be a positive integer, got {k_targets!r}")
-    if not (isinstance(max_ados, (int, np.integer)) and max_ados >= 1):
+    if not (isinstance(max_ados, int | np.integer) and max_ados >= 1):
         raise ValueError(f"max_ados must be a positive integer, got {max_ados!r}")
     cfg = raster or RasterConfig()
     if not isinstance(cfg, RasterConfig):
@@ -295,7 +295,7 @@ def _check_generate_args(n_scenes: Any, seed: Any, raster: Any, k_targets: Any,
 def _check_workers(workers: Any, n_scenes: int) -> int:
     if workers is None:
         workers = 2 if (n_scenes >= 64 and (os.cpu_count() or 1) >= 2) else 1
-    if not (isinstance(workers, (int, np.integer)) and workers >= 1):
+    if not (isinstance(workers, int | np.integer) and workers >= 1):
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
     return int(workers)
 
@@ -476,7 +476,7 @@ def generate_file(
     workers = _check_workers(workers, int(n_scenes))
     if shard_scenes is None:
         shard_scenes = default_shard_scenes(cfg, k_targets, max_ados)
-    if not (isinstance(shard_scenes, (int, np.integer)) and shard_scenes >= 1):
+    if not (isinstance(shard_scenes, int | np.integer) and shard_scenes >= 1):
         raise ValueError(f"shard_scenes must be a positive integer, got {shard_scenes!r}")
     from tqdm import tqdm
 
@@ -499,9 +499,9 @@ def generate_file(
 def generate_splits(n_train: int = 650, n_val: int = 200, seed: int = 0,
                     **kwargs) -> tuple[Dataset, Dataset]:
     """``generate(n_train + n_val, seed, ...).split(n_train)`` (the paper's 650 / 200)."""
-    if not (isinstance(n_train, (int, np.integer)) and n_train >= 1):
+    if not (isinstance(n_train, int | np.integer) and n_train >= 1):
         raise ValueError(f"n_train must be a positive integer, got {n_train!r}")
-    if not (isinstance(n_val, (int, np.integer)) and n_val >= 1):
+    if not (isinstance(n_val, int | np.integer) and n_val >= 1):
         raise ValueError(f"n_val must be a positive integer, got {n_val!r}")
     return generate(n_train + n_val, seed=seed, **kwargs).split(n_train)
 
@@ -687,7 +687,7 @@ def save(ds: Dataset, path: str | os.PathLike, shard_scenes: int | None = None) 
     if shard_scenes is None:
         shard_scenes = max(1, SHARD_BYTES // max(1, sum(
             getattr(ds, f)[:1].nbytes for f in ARRAY_FIELDS)))
-    if not (isinstance(shard_scenes, (int, np.integer)) and shard_scenes >= 1):
+    if not (isinstance(shard_scenes, int | np.integer) and shard_scenes >= 1):
         raise ValueError(f"shard_scenes must be a positive integer, got {shard_scenes!r}")
     with DatasetWriter(path) as writer:
         for a in range(0, len(ds), int(shard_scenes)):
@@ -714,7 +714,7 @@ def _check_meta(meta: Any, n: int, where: str, err: type[Exception]) -> None:
     except (TypeError, ValueError) as e:
         raise err(f"{where}: metadata 'raster' is not a raster config: {e}") from e
     dt = meta["dt"]
-    if not (isinstance(dt, (int, float)) and not isinstance(dt, bool) and math.isfinite(dt)
+    if not (isinstance(dt, int | float) and not isinstance(dt, bool) and math.isfinite(dt)
             and dt > 0):
         raise err(f"{where}: metadata 'dt' must be a positive number, got {dt!r}")
 

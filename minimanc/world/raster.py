@@ -78,7 +78,7 @@ class RasterConfig:
     ego_width: float = EGO_WIDTH
 
     def __post_init__(self) -> None:
-        if not isinstance(self.size, (int, np.integer)) or self.size < 8:
+        if not isinstance(self.size, int | np.integer) or self.size < 8:
             raise ValueError(f"size must be an integer >= 8, got {self.size!r}")
         for name in ("metres_ahead", "metres_side", "ego_length", "ego_width",
                      "lane_width_m"):
