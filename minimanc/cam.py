@@ -37,6 +37,7 @@ they use only the operations listed in CONTRIBUTING.md.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -45,7 +46,7 @@ import numpy as np
 from minimanc import layers, vagn
 
 __all__ = [
-    "PAPER_CMAP",
+    "paper_cmap",
     "init_extractor",
     "predicate_extractor",
     "global_average_pool",
@@ -63,18 +64,23 @@ __all__ = [
 ]
 
 
-def _paper_cmap() -> Any:
+@functools.cache
+def paper_cmap() -> Any:
+    """The colormap of the paper's saliency figures: high → low = yellow → red → cyan
+    → magenta. Built on first use, so that the math of this module (and every module
+    importing it) does not import matplotlib; also available as ``cam.PAPER_CMAP``."""
     from matplotlib.colors import LinearSegmentedColormap
 
-    # low → high: magenta → cyan → red → yellow (the paper ranks high → low as
-    # yellow → red → cyan → magenta).
+    # low → high: magenta → cyan → red → yellow
     return LinearSegmentedColormap.from_list(
         "manc_paper", ["#ff00ff", "#00ffff", "#ff0000", "#ffff00"], N=256
     )
 
 
-#: Colormap of the paper's saliency figures: high → low = yellow → red → cyan → magenta.
-PAPER_CMAP = _paper_cmap()
+def __getattr__(name: str) -> Any:
+    if name == "PAPER_CMAP":  # the colormap, built on first access (see paper_cmap)
+        return paper_cmap()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ---------------------------------------------------------------------------
@@ -420,7 +426,7 @@ def blend(image: Any, saliency: Any, alpha: float = 0.5, cmap: Any = None) -> np
     if s.shape != img.shape[:2]:
         s = upsample(s, img.shape[:2])
     s = minmax_normalize(s)
-    colours = np.asarray((cmap or PAPER_CMAP)(s))[..., :3]
+    colours = np.asarray((cmap or paper_cmap())(s))[..., :3]
     return (1.0 - alpha) * img + alpha * colours
 
 

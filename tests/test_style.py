@@ -101,3 +101,11 @@ def test_every_output_nbval_ignores_is_checked_by_an_assert():
         if ignored and "assert " not in cell.source:
             unchecked.append(where)
     assert not unchecked, f"nbval-ignore-output cells without an assert: {unchecked}"
+
+
+def test_model_code_imports_no_matplotlib():
+    """Plotting is imported where a figure is drawn, never by the math and model modules."""
+    code = ("import sys, minimanc.models, minimanc.train, minimanc.rollout; "
+            "print('matplotlib' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False", "importing the model code imported matplotlib"
