@@ -23,6 +23,9 @@ formulas; these are ours, stated exactly so that every number in
 * **ADE** (:func:`ade`, the paper's "human driving similarity"): the mean
   over the ``T`` steps of the Euclidean distance between the policy's and the
   logged human's ego positions (same start pose, synchronised time).  m.
+  :func:`along_cross_track` splits each step's displacement into its
+  component along the human's heading (ahead > 0: speed or timing) and
+  across it (left > 0: steering), ``along² + cross² = ‖p − p_human‖²``.
 * **Goal distance** (:func:`goal_distance`): the distance between the ego's
   position at the last step and the goal, the final human position.  m.
 
@@ -64,6 +67,7 @@ __all__ = [
     "close_encounters",
     "max_acceleration",
     "ade",
+    "along_cross_track",
     "goal_distance",
     "collisions",
     "off_road",
@@ -219,6 +223,30 @@ def ade(ego: Any, human: Any) -> np.ndarray:
     if e.shape != h.shape:
         raise ValueError(f"ego and human must have the same shape; got {e.shape} and {h.shape}")
     return np.linalg.norm(e[..., :2] - h[..., :2], axis=-1).mean(axis=1)
+
+
+def along_cross_track(ego: Any, human: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Per scene and step, the displacement from the human split along and across its heading (m).
+
+    With ``d[t] = p[t] − p_human[t]`` (the policy's position minus the logged
+    human's at the same time) and the human's heading ``ψ[t]``:
+    ``along[t] = d[t] · (cos ψ[t], sin ψ[t])`` (positive when the policy is
+    ahead of the human) and ``cross[t] = d[t] · (−sin ψ[t], cos ψ[t])``
+    (positive when it is to the human's left).  A rotation, so
+    ``along² + cross² = ‖d‖²`` and ``mean_t sqrt(along² + cross²)`` is
+    :func:`ade`.  ``ego`` and ``human`` are ``(S, T, 3)`` poses on the same
+    clock (the policy's yaw does not enter).  Returns ``(along, cross)``,
+    each ``(S, T)``.
+    """
+    e = _traj(ego)
+    h = _traj(human, "human")
+    if e.shape != h.shape:
+        raise ValueError(f"ego and human must have the same shape; got {e.shape} and {h.shape}")
+    d = e[..., :2] - h[..., :2]
+    c, s = np.cos(h[..., 2]), np.sin(h[..., 2])
+    along = d[..., 0] * c + d[..., 1] * s
+    cross = -d[..., 0] * s + d[..., 1] * c
+    return along, cross
 
 
 def goal_distance(ego: Any, goal: Any) -> np.ndarray:

@@ -150,6 +150,60 @@ def test_ade_and_goal_distance():
     assert metrics.goal_distance(slow, goal[:, :2])[0] == pytest.approx(20.0)
 
 
+# --------------------------------------------------------------------------- along / cross track
+
+
+def test_along_cross_track_constructed_cases():
+    human = straight(10.0, T=9)  # heading 0: along = dx, cross = dy
+    along, cross = metrics.along_cross_track(human + [0.0, 3.0, 0.0], human)
+    assert along.shape == cross.shape == (1, 9)
+    assert np.allclose(along, 0.0) and np.allclose(cross, 3.0)  # 3 m to the left
+    slow = straight(5.0, T=9)  # falls behind by 2.5 m per step, no lateral error
+    along, cross = metrics.along_cross_track(slow, human)
+    assert np.allclose(along[0], -2.5 * np.arange(9)) and np.allclose(cross, 0.0)
+    # a human heading north (yaw pi/2): +x is to its right, +y ahead
+    north = np.array([[[0.0, 0.0, np.pi / 2], [0.0, 5.0, np.pi / 2]]])
+    along, cross = metrics.along_cross_track(north + [[[1.0, 0.0, 0.0], [0.0, 2.0, 0.0]]], north)
+    assert np.allclose(along, [[0.0, 2.0]]) and np.allclose(cross, [[-1.0, 0.0]])
+    # the policy's own yaw does not enter
+    twisted = north + [[[1.0, 0.0, 1.3], [0.0, 2.0, -0.4]]]
+    assert np.allclose(metrics.along_cross_track(twisted, north), (along, cross))
+    # batched over scenes: each scene uses its own human's heading
+    both = np.concatenate([human[:, :2], north])
+    shift = both + [3.0, 4.0, 0.0]
+    along, cross = metrics.along_cross_track(shift, both)
+    assert np.allclose(along, [[3.0, 3.0], [4.0, 4.0]])
+    assert np.allclose(cross, [[4.0, 4.0], [-3.0, -3.0]])
+
+
+poses = st.lists(st.tuples(coord, coord, yaw), min_size=2, max_size=6)
+
+
+@settings(max_examples=60, deadline=None)
+@given(poses, poses, yaw, coord, coord)
+def test_along_cross_track_splits_ade(a, b, turn, tx, ty):
+    T = min(len(a), len(b))
+    ego = np.array(a[:T])[None]
+    human = np.array(b[:T])[None]
+    along, cross = metrics.along_cross_track(ego, human)
+    d2 = np.sum((ego[..., :2] - human[..., :2]) ** 2, axis=-1)
+    assert np.allclose(along**2 + cross**2, d2, atol=1e-9)
+    assert np.allclose(np.sqrt(along**2 + cross**2).mean(axis=1), metrics.ade(ego, human))
+    # a rigid motion of the whole scene (both trajectories) leaves the split unchanged
+    c, s = np.cos(turn), np.sin(turn)
+
+    def move(p):
+        xy = p[..., :2] @ np.array([[c, s], [-s, c]]) + [tx, ty]
+        return np.concatenate([xy, p[..., 2:] + turn], axis=-1)
+
+    moved = metrics.along_cross_track(move(ego), move(human))
+    assert np.allclose(moved[0], along, atol=1e-9) and np.allclose(moved[1], cross, atol=1e-9)
+    # with the same headings, swapping policy and human flips both signs
+    same = np.concatenate([ego[..., :2], human[..., 2:]], axis=-1)
+    back = metrics.along_cross_track(human, same)
+    assert np.allclose(back[0], -along, atol=1e-9) and np.allclose(back[1], -cross, atol=1e-9)
+
+
 def test_off_road_uses_the_map():
     class Strip:  # drivable where |y| < 2
         def is_drivable(self, p):
@@ -213,5 +267,11 @@ def test_bad_input_raises_value_error_naming_parameter():
         metrics.goal_distance(ego, np.zeros((2, 3)))
     with pytest.raises(ValueError, match="ego"):
         metrics.ade(ego * np.nan, ego)
+    with pytest.raises(ValueError, match="human"):
+        metrics.along_cross_track(ego, ego[:, :-1])
+    with pytest.raises(ValueError, match="human"):
+        metrics.along_cross_track(ego, ego * np.inf)
+    with pytest.raises(ValueError, match="ego"):
+        metrics.along_cross_track(ego[0], ego)
     with pytest.raises(ValueError, match="per_seed"):
         metrics.aggregate([])
