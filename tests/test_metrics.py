@@ -270,7 +270,7 @@ def test_bad_input_raises_value_error_naming_parameter():
     with pytest.raises(ValueError, match="human"):
         metrics.along_cross_track(ego, ego[:, :-1])
     with pytest.raises(ValueError, match="human"):
-        metrics.along_cross_track(ego, ego * np.inf)
+        metrics.along_cross_track(ego, ego + np.inf)
     with pytest.raises(ValueError, match="ego"):
         metrics.along_cross_track(ego[0], ego)
     with pytest.raises(ValueError, match="per_seed"):
