@@ -4,19 +4,22 @@
 # Modules used in this chapter: `minimanc.rollout`, `minimanc.metrics` and
 # `minimanc.studies` (with `minimanc.models`, `minimanc.inputs`, `minimanc.world`).
 #
-# Three exercises, each checked by the grade cell below it:
+# Five exercises, each checked by the grade cell below it:
 #
 # 1. **The MANC forward pass** from library pieces: CNN backbone → visual
 #    predicates (eq. 7) → vAGN step (eqs. 8–9) → FC → one DMP step (eqs. 10–11).
 # 2. **One closed-loop step**: observe from the ego's *own* pose, act, move.
 # 3. **A metric**: the maximum acceleration of a trajectory.
+# 4. **ADE split in two**: the error along the human's heading (speed, timing)
+#    and across it (steering).
+# 5. **% close encounters**: the share of steps with an ado box within 1 m.
 #
 # Replace each `raise NotImplementedError(...)` with your code.
 
 # %%
 import numpy as np
 
-from minimanc import engine, inputs, layers, models, rollout, vagn, world
+from minimanc import engine, inputs, layers, metrics, models, rollout, vagn, world
 
 rng = np.random.default_rng(0)
 eng = engine("numpy")
@@ -62,14 +65,17 @@ obs = inputs.from_dataset(ds, [0, 1, 2], [0, 5, 10], "paper", model="manc")
 q0 = np.full((3, 4), 0.25)
 u, q, alpha, beta = manc_step(params, obs, q0, cfg, eng)
 u_ref, state_ref, aux_ref = models.step("manc", params, obs, {"q": q0}, cfg, eng)
-assert np.allclose(u, u_ref, atol=1e-8), (u, u_ref)
-assert np.allclose(q, state_ref["q"]) and np.allclose(q.sum(-1), 1.0)
-assert np.allclose(alpha, aux_ref["alpha"]) and np.allclose(beta, aux_ref["beta"])
+assert np.allclose(u, u_ref, atol=1e-8), f"controls should be models.step's {u_ref}, got {u}"
+assert np.allclose(q, state_ref["q"]), "q should be vagn.step(q_prev, p, W) with p = eq. 7"
+assert np.allclose(q.sum(-1), 1.0), "each row of q is a distribution: it should sum to 1"
+assert np.allclose(alpha, aux_ref["alpha"]) and np.allclose(beta, aux_ref["beta"]), (
+    "alpha, beta should be aux['alpha'], aux['beta'] of models.dmp_head")
 ### BEGIN HIDDEN TESTS
 q1 = vagn.random_state(rng, 4, size=3)
 u1, qq, _, _ = manc_step(params, obs, q1, cfg, eng)
 u1_ref, s1, _ = models.step("manc", params, obs, {"q": q1}, cfg, eng)
-assert np.allclose(u1, u1_ref, atol=1e-8) and np.allclose(qq, s1["q"])
+assert np.allclose(u1, u1_ref, atol=1e-8) and np.allclose(qq, s1["q"]), (
+    "from a random q_prev, controls and q should still match models.step")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -108,10 +114,13 @@ for t in range(4):
     pose, motion, state = closed_loop_step(policy, ds, scenes, pose, motion, state, t)
     poses.append(pose)
 ref = rollout.simulate(policy, ds, scenes=scenes, steps=4, progress=False)
-assert np.allclose(np.stack(poses, axis=1), ref.ego, atol=1e-6)
-assert np.allclose(state["q"], ref.aux["q"][:, -1], atol=1e-6)
+assert np.allclose(np.stack(poses, axis=1), ref.ego, atol=1e-6), (
+    "four of your steps should give rollout.simulate's poses (observe from the ego's pose)")
+assert np.allclose(state["q"], ref.aux["q"][:, -1], atol=1e-6), (
+    "the policy's state should be carried from step to step")
 ### BEGIN HIDDEN TESTS
-assert np.allclose(motion, ref.controls[:, -1], atol=1e-6)
+assert np.allclose(motion, ref.controls[:, -1], atol=1e-6), (
+    "the controls returned at the last step should be the rollout's last controls")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -140,9 +149,10 @@ circle = [np.zeros(3)]
 for _ in range(10):
     circle.append(world.unicycle_step(circle[-1], np.array([6.0, 0.3])))
 circle = np.stack(circle)[None]
-assert np.allclose(max_acceleration(circle), [1.8])  # v·ω = 6 · 0.3
+assert np.allclose(max_acceleration(circle), [1.8]), "a circle at v·ω = 6 · 0.3 = 1.8 m/s²"
 human = max_acceleration(ds.ego)
-assert human.shape == (len(ds.ego),) and np.all(human >= 0)
+assert human.shape == (len(ds.ego),), f"one number per scene: shape ({len(ds.ego)},)"
+assert np.all(human >= 0), "a magnitude is never negative"
 ### BEGIN HIDDEN TESTS
 ramp = np.zeros((1, 6, 3))
 ramp[0, :, 0] = np.cumsum([0, 1, 2, 3, 5, 7]) * 0.5
@@ -154,6 +164,123 @@ assert np.allclose(max_acceleration(np.stack(arc)[None]), [5.0]), "a_lon = 4, a_
 ### END HIDDEN TESTS
 
 # %% [markdown]
+# ## Exercise 9.4 — ADE split along and across the human's path
+# ADE mixes two different failures: driving too slowly or too fast (the policy is
+# behind or ahead of the human on the same road) and steering off the human's line.
+# Split each step's displacement $d[t] = p[t] - p_{human}[t]$ (policy position minus
+# the human's at the same time) in the frame of the **human's** heading $\psi[t]$:
+#
+# $$\text{along}[t] = d[t]\cdot(\cos\psi[t], \sin\psi[t]),\qquad
+#   \text{cross}[t] = d[t]\cdot(-\sin\psi[t], \cos\psi[t]).$$
+#
+# Positive *along* means the policy is ahead of the human, positive *cross* that it
+# is to the human's left. It is a rotation, so
+# $\text{along}^2 + \text{cross}^2 = \lVert d\rVert^2$ and
+# $\text{mean}_t\sqrt{\text{along}^2+\text{cross}^2}$ is the ADE.
+#
+# Write `along_cross_track(ego, human)`: both `(S, T, 3)` poses `[x, y, yaw]`; return
+# `(along, cross)`, each `(S, T)`. Only the human's yaw enters.
+
+# %% solution id=ex09_4 title="Along-track and cross-track error" forbids="minimanc.metrics.along_cross_track"  # noqa: E501
+def along_cross_track(ego, human):
+    ### BEGIN SOLUTION
+    ego, human = np.asarray(ego, dtype=float), np.asarray(human, dtype=float)
+    d = ego[..., :2] - human[..., :2]
+    c, s = np.cos(human[..., 2]), np.sin(human[..., 2])
+    return d[..., 0] * c + d[..., 1] * s, -d[..., 0] * s + d[..., 1] * c
+    ### END SOLUTION
+
+# %% grade id=ex09_4_tests points=3
+east = np.zeros((1, 5, 3))
+east[0, :, 0] = 10.0 * np.arange(5)                       # the human drives east at 20 m/s
+along, cross = along_cross_track(east + [0.0, 3.0, 0.0], east)
+assert along.shape == (1, 5) and cross.shape == (1, 5), "one value per scene and step"
+assert np.allclose(along, 0.0) and np.allclose(cross, 3.0), "3 m to the left: along 0, cross +3"
+slow = east * [0.5, 1.0, 1.0]                              # half the speed, same line
+along, cross = along_cross_track(slow, east)
+assert np.allclose(along, [[0, -5, -10, -15, -20]]), "behind the human: along = -5 m per step"
+assert np.allclose(cross, 0.0), "on the human's line: cross = 0"
+north = np.array([[[0.0, 0.0, np.pi / 2]]])                # heading north, +x is its right
+along, cross = along_cross_track(north + [1.0, 2.0, 0.7], north)
+assert np.allclose(along, 2.0) and np.allclose(cross, -1.0), (
+    "heading north: +y is ahead (along 2), +x is to the right (cross -1); the policy's yaw "
+    "does not enter")
+### BEGIN HIDDEN TESTS
+# literal values for a curved human (8 m/s, 0.4 rad/s) and a slower, straighter policy,
+# computed once with metrics.along_cross_track
+h, e = [np.zeros(3)], [np.zeros(3)]
+for _ in range(6):
+    h.append(world.unicycle_step(h[-1], np.array([8.0, 0.4])))
+    e.append(world.unicycle_step(e[-1], np.array([7.0, 0.3])))
+h, e = np.stack(h)[None], np.stack(e)[None]
+along, cross = along_cross_track(e, h)
+assert np.allclose(along, [[0.0, -0.49, -0.9896, -1.5219, -2.1086, -2.7684, -3.5168]],
+                   atol=1e-4), "falls behind the human by 0.5 m per step and more"
+assert np.allclose(cross, [[0.0, 0.0993, 0.1235, 0.078, -0.0267, -0.1755, -0.3497]],
+                   atol=1e-4), "first left of the human's arc, then right of it"
+# batched over scenes, each against its own human; the split reproduces the distance
+shifted = ds.ego + [2.0, -1.0, 0.3]
+along, cross = along_cross_track(shifted, ds.ego)
+assert along.shape == ds.ego.shape[:2], f"shape (S, T) = {ds.ego.shape[:2]}"
+assert np.allclose(along**2 + cross**2, 5.0), "along² + cross² = 2² + 1² at every step"
+yaw = ds.ego[..., 2]
+assert np.allclose(along, 2 * np.cos(yaw) - np.sin(yaw)), "along = d · (cos ψ, sin ψ)"
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 9.5 — % close encounters
+# The safety metric of Table I: the share of the steps of a scene at which some
+# valid ado's box is closer than `gap` metres to the ego's box (edge to edge, 0 when
+# they overlap). A step counts once, however many ados are close; invalid ados
+# never count.
+#
+# Write `close_encounters(ego, ado, ado_valid, gap=1.0)`: `ego` `(S, T, 3)`, `ado`
+# `(S, T, A, 5)` boxes `[x, y, yaw, length, width]`, `ado_valid` `(S, T, A)`. Return
+# the share in $[0, 1]$ per scene, shape `(S,)`. Use `metrics.ego_boxes(ego)` (the
+# ego's boxes `(S, T, 5)`) and `metrics.box_gap(a, b)` (the gap between boxes, with
+# broadcasting).
+
+# %% solution id=ex09_5 title="Close encounters" forbids="minimanc.metrics.close_encounters,minimanc.metrics.ado_gaps"  # noqa: E501
+def close_encounters(ego, ado, ado_valid, gap=1.0):
+    ### BEGIN SOLUTION
+    gaps = metrics.box_gap(metrics.ego_boxes(ego)[:, :, None, :], np.asarray(ado, float))
+    close = (gaps < gap) & np.asarray(ado_valid, bool)                 # (S, T, A)
+    return close.any(axis=-1).mean(axis=1)
+    ### END SOLUTION
+
+# %% grade id=ex09_5_tests points=3
+ego = np.zeros((1, 11, 3))
+ego[0, :, 0] = 2.0 * np.arange(11)                         # x = 0, 2, ..., 20, heading east
+parked = np.tile(np.array([10.0, 2.5, 0.0, 4.0, 1.8]), (1, 11, 1, 1))   # next lane
+valid = np.ones((1, 11, 1), bool)
+# lateral gap 2.5 - 1.907/2 - 0.9 = 0.6465 m while the boxes overlap in x, corners otherwise
+dx = np.maximum(np.abs(ego[0, :, 0] - 10.0) - (4.727 / 2 + 2.0), 0.0)
+expected = np.mean(np.hypot(dx, 2.5 - 1.907 / 2 - 0.9) < 1.0)
+share = close_encounters(ego, parked, valid)
+assert share.shape == (1,), "one share per scene"
+assert np.isclose(share[0], expected), f"expected {expected:.4f} of the steps"
+assert close_encounters(ego, parked, valid, gap=0.5)[0] == 0.0, "0.6465 m is not < 0.5 m"
+assert close_encounters(ego, parked, ~valid)[0] == 0.0, "invalid ados never count"
+### BEGIN HIDDEN TESTS
+two = np.concatenate([parked, parked + [0.0, 0.2, 0.0, 0.0, 0.0]], axis=2)  # two close ados
+assert np.isclose(close_encounters(ego, two, np.ones((1, 11, 2), bool))[0], expected), (
+    "a step counts once however many ados are close")
+r = np.random.default_rng(10)  # its own generator: the literal counts below depend on it
+S, T, A = 3, 8, 3
+ego_r = np.concatenate([np.cumsum(r.normal(size=(S, T, 2)) * 2, axis=1),
+                        r.uniform(-3, 3, (S, T, 1))], -1)
+ado_r = np.concatenate([ego_r[:, :, None, :2] + r.normal(size=(S, T, A, 2)) * 4,
+                        r.uniform(-3, 3, (S, T, A, 1)), r.uniform(3, 6, (S, T, A, 1)),
+                        r.uniform(1.5, 2.5, (S, T, A, 1))], -1)
+val_r = r.random((S, T, A)) < 0.7
+# literal counts of close steps out of 8, computed once with metrics.close_encounters
+# (every gap is at least 0.03 m away from the thresholds)
+assert np.allclose(close_encounters(ego_r, ado_r, val_r) * T, [6, 4, 5]), "gap 1 m"
+assert np.allclose(close_encounters(ego_r, ado_r, val_r, gap=2.0) * T, [7, 7, 6]), "gap 2 m"
+### END HIDDEN TESTS
+
+# %% [markdown]
 # The library versions: `models.step` (9.1), `rollout.simulate` /
-# `rollout.closed_loop` (9.2) and `metrics.max_acceleration` (9.3). The
+# `rollout.closed_loop` (9.2), `metrics.max_acceleration` (9.3),
+# `metrics.along_cross_track` (9.4) and `metrics.close_encounters` (9.5). The
 # tutorial of this chapter uses them to reproduce Table I.
