@@ -5,6 +5,8 @@
 * :mod:`minimanc.autodiff.numpy` — the NumPy-like namespace (``anp``, the ``xp``
   of ``engine("numpy")``), each primitive with its VJP beside it;
 * :mod:`minimanc.autodiff.check` — central-difference gradient checks;
+* :mod:`minimanc.autodiff.graph` — :func:`computation_graph`, the traced graph of a
+  function at a point with the cotangent on each edge (``Graph.draw`` plots it);
 * :mod:`minimanc.autodiff.nn` — neural-net primitives (activations, conv2d).
 
 Converting a traced value to a plain number or array (``float(x)``, ``x.item()``,
@@ -34,12 +36,15 @@ from minimanc.autodiff.core import (
     unbroadcast,
     value_and_grad,
 )
+from minimanc.autodiff.graph import Graph, computation_graph
 
 __all__ = [
     "Box",
+    "Graph",
     "TracerConversionError",
     "backward",
     "check_grads",
+    "computation_graph",
     "defvjp",
     "defvjp_fwd",
     "grad",

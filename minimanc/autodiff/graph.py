@@ -1,0 +1,276 @@
+"""Chapter 1 — the computation graph of a function at a point, with a cotangent on each edge.
+
+:func:`computation_graph` runs ``f(*args)`` once with every argument traced (a
+:class:`~minimanc.autodiff.core.Box`), then walks the tape the way
+:func:`~minimanc.autodiff.core.backward` does, but records what ``backward``
+throws away: the cotangent that travels along **each edge**. An edge
+``parent → child`` carries ``∂L/∂parent`` *through that one use*, i.e. the VJP
+of ``child``'s primitive applied to ``child``'s cotangent; a node's cotangent
+is the sum over the edges that leave it (a value used twice receives two
+contributions). At the inputs these sums are the gradient, which is what the
+paper's training (Algorithm 1, the behaviour-cloning loss of eqs. 7–11) needs.
+
+>>> import numpy as np
+>>> import minimanc.autodiff.numpy as anp
+>>> g = computation_graph(lambda x: anp.sin(x * x) + x, np.array(0.7))
+>>> [n.name for n in g.nodes]
+['arg0', 'multiply', 'sin', 'add']
+>>> round(float(g.gradients()[0]), 6)   # cos(0.49) * 2 * 0.7 + 1
+2.235266
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from minimanc.autodiff.core import Box, toposort
+
+__all__ = ["Node", "Edge", "Graph", "computation_graph"]
+
+
+@dataclass(frozen=True)
+class Node:
+    """One value of the traced computation.
+
+    ``name`` is ``"arg<k>"`` for the k-th input and the primitive's name
+    (``"multiply"``, ``"sin"`` …) otherwise; ``value`` is the forward value.
+    """
+
+    index: int
+    name: str
+    shape: tuple[int, ...]
+    value: np.ndarray
+
+
+@dataclass(frozen=True)
+class Edge:
+    """``parent`` was positional argument ``argnum`` of ``child`` (indices into ``Graph.nodes``).
+
+    ``cotangent`` is the contribution to ``∂L/∂parent`` that flows back along
+    this edge: the VJP of the child's primitive, for argument ``argnum``,
+    applied to the child's cotangent. It has the parent's shape.
+    """
+
+    parent: int
+    child: int
+    argnum: int
+    cotangent: np.ndarray
+
+
+@dataclass(frozen=True)
+class Graph:
+    """Nodes in forward order (inputs first, the output last) and cotangent-carrying edges.
+
+    ``inputs`` are the node indices of the arguments of ``f`` (in argument
+    order), ``output`` the index of the node holding ``f(*args)``.
+    """
+
+    nodes: tuple[Node, ...]
+    edges: tuple[Edge, ...]
+    inputs: tuple[int, ...]
+    output: int
+
+    def cotangent(self, index: int) -> np.ndarray:
+        """``∂L/∂node``: 1 at the output, else the sum of the cotangents on the edges leaving it."""
+        if isinstance(index, bool) or not isinstance(index, int | np.integer) or not (
+            0 <= index < len(self.nodes)
+        ):
+            raise ValueError(
+                f"index must be a node index in [0, {len(self.nodes)}), got index={index!r}"
+            )
+        node = self.nodes[index]
+        if index == self.output:
+            return np.ones(node.shape, dtype=np.result_type(node.value))
+        total = np.zeros(node.shape, dtype=np.result_type(node.value))
+        for edge in self.edges:
+            if edge.parent == index:
+                total = total + edge.cotangent
+        return np.asarray(total)
+
+    def gradients(self) -> tuple[np.ndarray, ...]:
+        """The cotangent of each input: the gradient of ``f`` with respect to every argument."""
+        return tuple(self.cotangent(i) for i in self.inputs)
+
+    def lines(self, digits: int = 4) -> list[str]:
+        """One line per edge, ``parent -> child (arg k)  cotangent``, rounded to ``digits``."""
+        if isinstance(digits, bool) or not isinstance(digits, int) or digits < 0:
+            raise ValueError(f"digits must be a non-negative integer, got digits={digits!r}")
+        label = {n.index: f"{n.name}#{n.index}" for n in self.nodes}
+        width = max(len(s) for s in label.values())
+        out = []
+        for e in self.edges:
+            ct = np.round(np.asarray(e.cotangent, dtype=np.float64), digits) + 0.0  # no -0.0
+            text = (f"{float(ct):.{digits}f}" if ct.ndim == 0
+                    else np.array2string(ct, precision=digits, separator=", ",
+                                         max_line_width=10**6))
+            out.append(f"{label[e.parent]:>{width}} -> {label[e.child]:<{width}} "
+                       f"(arg {e.argnum})  cotangent {text}")
+        return out
+
+    def __str__(self) -> str:
+        return "\n".join(self.lines())
+
+    def draw(self, ax: Any = None, digits: int = 3) -> Any:
+        """Draw the graph on the matplotlib axes ``ax`` (a new figure if ``None``); return ``ax``.
+
+        Nodes sit in columns by depth (longest path from an input), each labelled
+        with its name and shape; every edge is an arrow labelled with its
+        cotangent (its value for a scalar, its norm ``|·|`` otherwise).
+        """
+        if ax is None:
+            import matplotlib.pyplot as plt
+
+            _, ax = plt.subplots(figsize=(2.2 * (self._depths()[1] + 1), 3.0))
+        depth, max_depth = self._depths()
+        columns: dict[int, list[int]] = {}
+        for node in self.nodes:
+            columns.setdefault(depth[node.index], []).append(node.index)
+        pos = {}
+        for d, members in columns.items():
+            for k, i in enumerate(members):
+                pos[i] = (float(d), (len(members) - 1) / 2.0 - k)
+        seen: dict[tuple[int, int], int] = {}
+        for e in self.edges:
+            k = seen.get((e.parent, e.child), 0)  # x * x: two edges between the same nodes
+            seen[(e.parent, e.child)] = k + 1
+            (x0, y0), (x1, y1) = pos[e.parent], pos[e.child]
+            # a second edge between the same nodes, or one that would run through the
+            # nodes of its row, is drawn as an arc below the straight line
+            skips = y0 == y1 and abs(x1 - x0) > 1
+            rad = 0.3 * k + (0.25 if skips else 0.0)
+            ax.annotate("", xy=(x1, y1), xytext=(x0, y0),
+                        arrowprops={"arrowstyle": "-|>", "color": "0.4", "shrinkA": 22,
+                                    "shrinkB": 22, "connectionstyle": f"arc3,rad={rad}"})
+            ct = np.asarray(e.cotangent, dtype=np.float64)
+            text = f"{float(ct):.{digits}g}" if ct.ndim == 0 else \
+                f"|{float(np.linalg.norm(ct)):.{digits}g}|"
+            if rad:  # the middle of the arc (data coordinates, as arc3 in a square box)
+                lx, ly = (x0 + x1) / 2 + rad * (y1 - y0) / 2, (y0 + y1) / 2 - rad * (x1 - x0) / 2
+            else:  # nearer the child, so that crossing edges keep their labels apart
+                lx, ly = x0 + 0.6 * (x1 - x0), y0 + 0.6 * (y1 - y0) + 0.08
+            ax.text(lx, ly, text, ha="center", va="bottom" if not rad else "center",
+                    fontsize=8, color="tab:red",
+                    bbox={"fc": "white", "ec": "none", "pad": 0.5, "alpha": 0.8})
+        for node in self.nodes:
+            x, y = pos[node.index]
+            shape = "()" if node.shape == () else str(node.shape)
+            ax.text(x, y, f"{node.name}\n{shape}", ha="center", va="center", fontsize=9,
+                    bbox={"boxstyle": "round", "fc": "tab:blue" if node.index in self.inputs
+                          else "white", "ec": "0.3", "alpha": 0.3 if node.index in self.inputs
+                          else 1.0})
+        height = max(len(m) for m in columns.values())
+        ax.set_xlim(-0.5, max_depth + 0.5)
+        ax.set_ylim(-height / 2 - 0.6, height / 2 + 0.5)
+        ax.axis("off")
+        return ax
+
+    def _depths(self) -> tuple[dict[int, int], int]:
+        depth = {i: 0 for i in range(len(self.nodes))}
+        for e in sorted(self.edges, key=lambda e: e.child):  # nodes are in forward order
+            depth[e.child] = max(depth[e.child], depth[e.parent] + 1)
+        return depth, max(depth.values(), default=0)
+
+
+def _check_input(value: Any, k: int) -> np.ndarray:
+    if isinstance(value, Box):
+        raise TypeError(f"computation_graph: argument {k} is already traced; pass a plain array")
+    if isinstance(value, bool):
+        raise TypeError(f"computation_graph: argument {k} must be a real floating-point array, "
+                        f"got bool {value!r}")
+    arr = np.asarray(value)
+    if not np.issubdtype(arr.dtype, np.floating):
+        raise TypeError(f"computation_graph: argument {k} must be a real floating-point array, "
+                        f"got dtype {arr.dtype}")
+    return arr
+
+
+def _edge_cotangents(box: Box, g: np.ndarray) -> list[tuple[int, Box, np.ndarray]]:
+    """``(argnum, parent, cotangent)`` for each traced parent of ``box``, given its cotangent."""
+    prim = box._prim
+    name = getattr(prim, "__name__", repr(prim))
+    out = []
+    if prim.bwd is not None:  # a defvjp_fwd pair
+        cts = prim.bwd(g, box._res)
+        if not isinstance(cts, tuple | list):
+            cts = (cts,)
+        for argnum, parent in box._parents:
+            ct = cts[argnum] if argnum < len(cts) else None
+            if ct is None:
+                raise NotImplementedError(f"{name}: argument {argnum} is not differentiable")
+            out.append((argnum, parent, ct))
+        return out
+    for argnum, parent in box._parents:
+        vjp = prim.vjps[argnum] if argnum < len(prim.vjps) else None
+        if vjp is None:
+            raise NotImplementedError(
+                f"VJP of primitive '{name}' with respect to argument {argnum} is not defined"
+            )
+        out.append((argnum, parent, vjp(g, box._value, *box._args, **box._kwargs)))
+    return out
+
+
+def computation_graph(f: Callable, *args: Any) -> Graph:
+    """The computation graph of the scalar function ``f`` at ``args``, cotangents on the edges.
+
+    Every positional argument (a floating-point array or float) becomes an
+    input node; ``f`` must return a scalar that depends on them through the
+    primitives of :mod:`minimanc.autodiff.numpy`. The cotangents are those of
+    the reverse pass started with ``∂L/∂output = 1``, so ``graph.gradients()``
+    equals ``grad(f, argnums=tuple(range(len(args))))(*args)``.
+    """
+    if not callable(f):
+        raise TypeError(f"computation_graph: f must be callable, got f={f!r}")
+    if not args:
+        raise ValueError("computation_graph: give at least one argument to trace, got args=()")
+    leaves = [Box(_check_input(a, k)) for k, a in enumerate(args)]
+    out = f(*leaves)
+    if out is None or isinstance(out, tuple | list | dict | str):
+        raise TypeError(f"computation_graph: f must return a scalar, got {type(out).__name__}")
+    value = out._value if isinstance(out, Box) else np.asarray(out)
+    if np.shape(value) != ():
+        raise TypeError(f"computation_graph: f must return a scalar (shape ()), got shape "
+                        f"{np.shape(value)}; reduce it first, e.g. with .sum()")
+    if not np.issubdtype(np.result_type(value), np.floating):
+        raise TypeError(f"computation_graph: f must return a real floating-point scalar, got "
+                        f"dtype {np.result_type(value)}")
+
+    index = {id(b): k for k, b in enumerate(leaves)}
+    nodes = [Node(k, f"arg{k}", np.shape(b._value), b._value) for k, b in enumerate(leaves)]
+    if not isinstance(out, Box):  # f does not depend on its arguments
+        nodes.append(Node(len(nodes), "constant", (), value))
+        return Graph(tuple(nodes), (), tuple(range(len(leaves))), len(nodes) - 1)
+    order = toposort(out)  # each box before its parents
+    for box in reversed(order):  # forward order
+        if id(box) not in index:
+            if not box._parents:
+                raise TypeError("computation_graph: f traced a value that is not one of its "
+                                "arguments (a Box created inside f?)")
+            index[id(box)] = len(nodes)
+            prim = box._prim
+            nodes.append(Node(len(nodes), getattr(prim, "__name__", repr(prim)),
+                              np.shape(box._value), box._value))
+    cotangents: dict[int, Any] = {id(out): np.ones((), dtype=np.result_type(value))}
+    edges = []
+    for box in order:
+        g = cotangents.pop(id(box), None)
+        if g is None or not box._parents:
+            continue
+        for argnum, parent, ct in _edge_cotangents(box, g):
+            ct = np.asarray(ct)
+            pval = parent._value
+            if ct.shape != np.shape(pval):
+                raise ValueError(
+                    f"VJP of '{nodes[index[id(box)]].name}' returned a cotangent of shape "
+                    f"{ct.shape} for an argument of shape {np.shape(pval)}"
+                )
+            pdtype = np.result_type(pval)
+            if ct.dtype != pdtype and np.issubdtype(pdtype, np.floating):
+                ct = ct.astype(pdtype)
+            edges.append(Edge(index[id(parent)], index[id(box)], argnum, ct))
+            key = id(parent)
+            cotangents[key] = ct if key not in cotangents else cotangents[key] + ct
+    return Graph(tuple(nodes), tuple(edges), tuple(range(len(leaves))), index[id(out)])
