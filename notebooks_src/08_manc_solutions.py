@@ -7,9 +7,12 @@
 # scores the notebook.
 #
 # You will rebuild MANC's head (FC → DMP gains → one DMP step → controls,
-# eqs. 10–11), count its parameters, and assemble the whole forward pass
-# (eqs. 7–11) from the chapter modules. Every exercise is checked against the
-# library's `models.step`.
+# eqs. 10–11), count its parameters, assemble the whole forward pass
+# (eqs. 7–11) from the chapter modules, look up the DMP's goals on the lane
+# target and write out who sees what (information parity). Each grade cell
+# checks your code against the equations written out (a matrix power,
+# `np.interp`, hand-counted totals), never against the library function the
+# exercise asks for: that one is disabled while the exercise is graded.
 
 # %%
 import numpy as np
@@ -50,8 +53,10 @@ def gains_from_q(q, w, b):
 # %% grade id=ex08_1_tests points=2
 q = vagn.step(q_prev, rng.random((4, cfg.n_predicates)), params["vagn"]["W"])
 a, b = gains_from_q(q, params["gains"]["w"], params["gains"]["b"])
-assert a.shape == (4, 2) and b.shape == (4, 2)
-assert np.all((a > dmp.ALPHA_RANGE[0]) & (a < dmp.ALPHA_RANGE[1]))
+assert np.shape(a) == (4, 2) and np.shape(b) == (4, 2), \
+    f"expected alpha and beta of shape (4, 2); got {np.shape(a)} and {np.shape(b)}"
+assert np.all((a > dmp.ALPHA_RANGE[0]) & (a < dmp.ALPHA_RANGE[1])), \
+    f"every alpha must lie inside dmp.ALPHA_RANGE = {dmp.ALPHA_RANGE}; got {a}"
 
 
 def gains_reference(q, w, b):
@@ -62,18 +67,21 @@ def gains_reference(q, w, b):
 
 
 a_ref, b_ref = gains_reference(q, params["gains"]["w"], params["gains"]["b"])
-assert np.allclose(a[:, 0], a_ref[:, 0]) and np.allclose(b[:, 0], b_ref[:, 0]), "position gains"
+assert np.allclose(a[:, 0], a_ref[:, 0]) and np.allclose(b[:, 0], b_ref[:, 0]), \
+    f"position gains: expected alpha {a_ref[:, 0]}, beta {b_ref[:, 0]} (logits 0 and 1)"
 ### BEGIN HIDDEN TESTS
-assert np.allclose(a, a_ref) and np.allclose(b, b_ref)
+assert np.allclose(a, a_ref) and np.allclose(b, b_ref), \
+    "orientation gains: expected logits 2 and 3 in the second column"
 q2 = vagn.random_state(rng, cfg.n_states, size=6)
 w2, c2 = rng.normal(size=(cfg.n_states, 4)) * 3, rng.normal(size=4)
 a2, b2 = gains_from_q(q2, w2, c2)
 a2_ref, b2_ref = gains_reference(q2, w2, c2)
-assert np.allclose(a2, a2_ref) and np.allclose(b2, b2_ref)
+assert np.allclose(a2, a2_ref) and np.allclose(b2, b2_ref), "other weights and states"
 assert np.allclose(gains_from_q(q2, np.zeros((cfg.n_states, 4)), np.zeros(4))[0],
                    np.mean(dmp.ALPHA_RANGE)), "zero logits: the middle of the range"
 big, _ = gains_from_q(np.eye(2), np.full((2, 4), 1e4), np.zeros(4))
-assert np.all(np.isfinite(big)) and np.allclose(big, dmp.ALPHA_RANGE[1])
+assert np.all(np.isfinite(big)) and np.allclose(big, dmp.ALPHA_RANGE[1]), \
+    "logits of 1e4: expected the top of the range, finite (use the tanh form)"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -87,9 +95,13 @@ assert np.all(np.isfinite(big)) and np.allclose(big, dmp.ALPHA_RANGE[1])
 #   y \leftarrow y + h\,\dot y\quad\text{(with the new }\dot y).$$
 #
 # The speed control is the forward (x) displacement over the step divided by
-# `dt`. Return it, shape `(B,)`.
+# `dt`. Return it, shape `(B,)`. Write the loop yourself: `dmp.step` and
+# `models.dmp_head` are disabled while this exercise is graded.
+#
+# *Hint:* update `ẏ` first and move `y` with the **new** `ẏ`; moving `y`
+# with the old one is explicit Euler and gives a slightly different speed.
 
-# %% solution id=ex08_2 title="One DMP step to a speed"
+# %% solution id=ex08_2 title="One DMP step to a speed" forbids="minimanc.dmp.step,minimanc.models.dmp_head"  # noqa: E501
 def dmp_speed(v0, g, alpha, beta, dt=0.5, substeps=10):
     ### BEGIN SOLUTION
     h = dt / substeps
@@ -103,21 +115,39 @@ def dmp_speed(v0, g, alpha, beta, dt=0.5, substeps=10):
     ### END SOLUTION
 
 # %% grade id=ex08_2_tests points=3
+def speed_reference(v0, gx, alpha, beta, dt=0.5, n=10):
+    """The n sub-steps as the n-th power of the 2x2 map on (e, v) = (y_x - g_x, dy_x):
+    v' = (1 - h a) v - h a b e and e' = e + h v' (semi-implicit Euler, linear in (e, v))."""
+    h, out = dt / n, []
+    for v, g_, a, b in zip(v0, gx, alpha, beta):
+        A = np.array([[1.0 - h * h * a * b, h * (1.0 - h * a)], [-h * a * b, 1.0 - h * a]])
+        e, _ = np.linalg.matrix_power(A, n) @ np.array([-g_, v])
+        out.append((e + g_) / dt)
+    return np.array(out)
+
+
 v0 = obs["motion"][:, 0].astype(float)
-L_y = np.clip(cfg.position_lookahead + cfg.position_lookahead_time * v0, 4.0, 40.0)
-g = models.lane_point(obs["lane_target"].astype(float), L_y)
-controls, head = models.dmp_head(q_prev @ params["gains"]["w"] + params["gains"]["b"],
-                                 obs["lane_target"], obs["motion"], cfg)
-speed = dmp_speed(v0, g, head["alpha"][:, 0], head["beta"][:, 0])
-assert speed.shape == (4,)
-assert np.allclose(speed, controls[:, 0], atol=1e-4), "compare with models.dmp_head"
+g = np.array([[22.0, 0.5], [16.0, -1.0], [20.0, 0.0], [21.0, 2.0]])
+alpha, beta = np.array([1.0, 4.0, 0.5, 12.0]), np.array([0.45, 0.2, 1.5, 0.05])
+speed = dmp_speed(v0, g, alpha, beta)
+assert np.shape(speed) == (4,), f"expected one speed per sample, shape (4,); got {np.shape(speed)}"
+assert np.allclose(speed, speed_reference(v0, g[:, 0], alpha, beta)), \
+    f"expected {speed_reference(v0, g[:, 0], alpha, beta)} (x displacement after 10 " \
+    f"semi-implicit Euler sub-steps / dt); got {speed}"
 ### BEGIN HIDDEN TESTS
-y1, _, _ = dmp.step(np.zeros((4, 2)), np.stack([v0, 0 * v0], -1), g,
-                    head["alpha"][:, :1], head["beta"][:, :1])
-assert np.allclose(speed, y1[:, 0] / 0.5)
-# at the goal speed beta*(g - y) the speed hardly changes
+# one sub-step by hand: dy1 = v0 + dt alpha (beta g - v0), y1 = dt dy1, so the speed is dy1
+one = dmp_speed(v0, g, alpha, beta, substeps=1)
+assert np.allclose(one, v0 + 0.5 * alpha * (beta * g[:, 0] - v0)), "substeps=1: dy1 by hand"
+lateral = dmp_speed(v0, g * np.array([1.0, -3.0]), alpha, beta)
+assert np.allclose(lateral, speed), "the lateral goal must not change the forward speed"
+# at the speed beta * (g - y) the speed hardly changes
 keep = dmp_speed(np.array([8.0]), np.array([[20.0, 0.0]]), np.array([0.5]), np.array([0.4]))
-assert abs(keep[0] - 8.0) < 0.3
+assert abs(keep[0] - 8.0) < 0.3, f"expected about 8 m/s; got {keep[0]}"
+v2 = rng.uniform(0.0, 15.0, size=6)
+g2 = np.stack([rng.uniform(4.0, 40.0, size=6), rng.normal(size=6)], axis=-1)
+a2, b2 = rng.uniform(0.5, 20.0, size=6), rng.uniform(0.05, 5.0, size=6)
+assert np.allclose(dmp_speed(v2, g2, a2, b2, dt=0.2, substeps=4),
+                   speed_reference(v2, g2[:, 0], a2, b2, dt=0.2, n=4)), "dt=0.2, substeps=4"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -127,9 +157,15 @@ assert abs(keep[0] - 8.0) < 0.3
 # its heading (+x) and passes through the lane point `p` at
 # `L = clip(5 + 1·v0, 5, 22)` metres ahead. Its curvature is
 # `κ = 2 p_y / (p_x² + p_y²)` and the goal is `ψ_g = clip(κ · v0 · τ, −π/2, π/2)`.
-# Use `models.lane_point(lane_target, L)` for `p`. Return `ψ_g`, shape `(B,)`.
+# Use `models.lane_point(lane_target, L)` for `p`. Return `ψ_g`, shape `(B,)`
+# (`models.dmp_head`, which computes it too, is disabled while grading).
+#
+# *Why the circle:* a circle through the origin tangent to +x has its centre
+# at `(0, 1/κ)`; asking it to pass through `p` gives `p_x² + (p_y − 1/κ)² =
+# 1/κ²`, i.e. `κ = 2 p_y / |p|²`. Driving `v0 τ` metres along it turns the
+# heading by `κ v0 τ`.
 
-# %% solution id=ex08_3 title="Pure-pursuit orientation goal"
+# %% solution id=ex08_3 title="Pure-pursuit orientation goal" forbids="minimanc.models.dmp_head"  # noqa: E501
 def orientation_goal(lane_target, v0, tau=1.0):
     ### BEGIN SOLUTION
     L = np.clip(5.0 + 1.0 * v0, 5.0, 22.0)
@@ -139,16 +175,42 @@ def orientation_goal(lane_target, v0, tau=1.0):
     ### END SOLUTION
 
 # %% grade id=ex08_3_tests points=2
-psi = orientation_goal(obs["lane_target"].astype(float), v0)
-assert psi.shape == (4,)
-assert np.allclose(psi, head["psi_g"], atol=1e-5), "compare with models.dmp_head's psi_g"
+def psi_reference(lane, v0, tau=1.0):
+    """Pure pursuit written out, the lane point by np.interp along 4, 8, ..., 4K m."""
+    L = np.clip(5.0 + v0, 5.0, 22.0)
+    s = 4.0 * np.arange(1, lane.shape[1] + 1)
+    px = np.array([np.interp(d, s, t[:, 0]) for d, t in zip(L, lane)])
+    py = np.array([np.interp(d, s, t[:, 1]) for d, t in zip(L, lane)])
+    return np.clip(2.0 * py / (px ** 2 + py ** 2) * v0 * tau, -np.pi / 2, np.pi / 2)
+
+
+v0 = obs["motion"][:, 0].astype(float)
+lt = obs["lane_target"].astype(float)
+psi = orientation_goal(lt, v0)
+assert np.shape(psi) == (4,), f"expected one heading per sample, shape (4,); got {np.shape(psi)}"
+assert np.allclose(psi, psi_reference(lt, v0), atol=1e-9), \
+    f"expected {psi_reference(lt, v0)}; got {psi}"
 left = np.stack([4.0 * np.arange(1, 11), np.full(10, 1.0)], -1)[None]
-assert orientation_goal(left, np.array([10.0]))[0] > 0, "lane to the left: turn left"
+# v0 = 10: L = 15 m, p = (15, 1), kappa = 2 / 226, psi_g = 10 * 2 / 226
+assert np.isclose(orientation_goal(left, np.array([10.0]))[0], 20.0 / 226.0), \
+    "lane 1 m to the left at 10 m/s: expected psi_g = 20 / 226 rad (turn left, > 0)"
 ### BEGIN HIDDEN TESTS
 right = left * np.array([1.0, -1.0])
-assert np.isclose(orientation_goal(right, np.array([10.0]))[0],
-                  -orientation_goal(left, np.array([10.0]))[0])
-assert orientation_goal(left, np.array([0.0]))[0] == 0.0
+assert np.isclose(orientation_goal(right, np.array([10.0]))[0], -20.0 / 226.0), \
+    "a lane to the right mirrors the goal"
+assert orientation_goal(left, np.array([0.0]))[0] == 0.0, "a standing car: psi_g = 0"
+assert np.isclose(orientation_goal(left, np.array([10.0]), tau=2.0)[0], 40.0 / 226.0), \
+    "psi_g grows linearly with tau"
+# the diagonal lane (4k, 4k): at v0 = 20, L = 22 (clipped), p = (22, 22), kappa = 1/22
+diag = np.stack([4.0 * np.arange(1, 11)] * 2, -1)[None]
+assert np.isclose(orientation_goal(diag, np.array([20.0]))[0], 20.0 / 22.0), \
+    "expected L clipped at 22 m: psi_g = 20 / 22"
+assert np.isclose(orientation_goal(diag, np.array([20.0]), tau=3.0)[0], np.pi / 2), \
+    "expected psi_g clipped at pi/2"
+lanes = np.cumsum(rng.normal(size=(5, 10, 2)) * [0.1, 0.5] + [4.0, 0.0], axis=1)
+speeds = rng.uniform(0.0, 20.0, size=5)
+assert np.allclose(orientation_goal(lanes, speeds), psi_reference(lanes, speeds), atol=1e-9), \
+    "random lanes"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -181,18 +243,20 @@ def manc_count(cfg):
     ### END SOLUTION
 
 # %% grade id=ex08_4_tests points=2
-assert count({"a": np.zeros((2, 3)), "b": [np.zeros(4), {"c": np.zeros(())}]}) == 11
+assert count({"a": np.zeros((2, 3)), "b": [np.zeros(4), {"c": np.zeros(())}]}) == 11, \
+    "expected 6 + 4 + 1 = 11 scalars (a 0-d array counts as one)"
 # convs 448 + 4640 + 9248, predicates 32 * 8 + 8, vAGN 8 * 6 * 6, gains 6 * 4 + 4
-assert count(params) == 14916 == 14336 + 264 + 288 + 28
-assert manc_count(cfg) == 14916
+assert count(params) == 14916 == 14336 + 264 + 288 + 28, \
+    f"expected 14916 parameters in MANC's pytree; got {count(params)}"
+assert manc_count(cfg) == 14916, f"expected 14916 from the configuration; got {manc_count(cfg)}"
 ### BEGIN HIDDEN TESTS
 # by hand: (8, 16) channels: 224 + 1168 + 136 + 72 + 16; n_predicates=4: 14336 + 132 + 576 + 52;
 # the CNN totals were computed once with models.param_count
 for c, manc_total, cnn_total in ((models.ModelConfig(n_states=3, channels=(8, 16)), 1616, 263922),
                                  (models.ModelConfig(n_states=12, n_predicates=4), 15096, 145794)):
-    assert manc_count(c) == manc_total
-    assert count(models.init("manc", rng, c)) == manc_total
-    assert count(models.init("cnn", rng, c)) == cnn_total
+    assert manc_count(c) == manc_total, f"{c}: expected {manc_total}"
+    assert count(models.init("manc", rng, c)) == manc_total, f"{c}: expected {manc_total}"
+    assert count(models.init("cnn", rng, c)) == cnn_total, f"{c}: expected {cnn_total}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -206,9 +270,12 @@ for c, manc_total, cnn_total in ((models.ModelConfig(n_states=3, channels=(8, 16
 # 4. the gain logits `FC(q)` with `params["gains"]`;
 # 5. `models.dmp_head(logits, lane_target, motion, cfg)` (eqs. 10–11).
 #
-# Return `(controls (B, 2), q (B, N))`.
+# Return `(controls (B, 2), q (B, N))`. `models.step` (and `models.sequence`,
+# `models.replay`) are disabled while grading; the test rebuilds the step from
+# the equations alone (its own convolution, eq. 8–9 with `einsum`, and the DMP
+# as a matrix power).
 
-# %% solution id=ex08_5 title="The MANC forward pass"
+# %% solution id=ex08_5 title="The MANC forward pass" forbids="minimanc.models.step,minimanc.models.sequence,minimanc.models.replay"  # noqa: E501
 def manc_step(params, obs, q_prev, cfg):
     ### BEGIN SOLUTION
     f = models.backbone(params["backbone"], obs["bev"], cfg, eng)
@@ -221,16 +288,207 @@ def manc_step(params, obs, q_prev, cfg):
     ### END SOLUTION
 
 # %% grade id=ex08_5_tests points=3
+def manc_reference(params, obs, q_prev):
+    """Eqs. 7-11 written out with NumPy, for the default ModelConfig."""
+    sig = lambda z: 1.0 / (1.0 + np.exp(-z))  # noqa: E731
+    h = np.asarray(obs["bev"], dtype=float)
+    for layer in params["backbone"]["convs"]:  # 3x3, stride 2, zero padding 1, SiLU
+        hp, n = np.pad(h, ((0, 0), (1, 1), (1, 1), (0, 0))), (h.shape[1] - 1) // 2 + 1
+        a = sum(np.einsum("bhwc,ck->bhwk", hp[:, i:i + 2 * n:2, j:j + 2 * n:2], layer["w"][i, j])
+                for i in range(3) for j in range(3)) + layer["b"]
+        h = a * sig(a)
+    p = sig(h.mean(axis=(1, 2)) @ params["predicates"]["w"] + params["predicates"]["b"])
+    A = np.maximum(np.einsum("bm,mij->bij", p, params["vagn"]["W"]), 0.0)  # eq. 8 + ReLU
+    E = np.exp(A - A.max(axis=1, keepdims=True))
+    q = np.einsum("bij,bj->bi", E / E.sum(axis=1, keepdims=True), q_prev)  # eq. 9
+    z = q @ params["gains"]["w"] + params["gains"]["b"]
+    (a_lo, a_hi), (b_lo, b_hi) = dmp.ALPHA_RANGE, dmp.BETA_RANGE
+    al = a_lo + (a_hi - a_lo) * sig(z[:, [0, 2]])
+    be = b_lo + (b_hi - b_lo) * sig(z[:, [1, 3]])
+    lane = np.asarray(obs["lane_target"], dtype=float)
+    v0, w0 = np.asarray(obs["motion"], dtype=float).T
+    s = 4.0 * np.arange(1, lane.shape[1] + 1)
+
+    def at(dist, k):
+        return np.array([np.interp(d, s, t[:, k]) for d, t in zip(dist, lane)])
+
+    def one_step(v, goal, a_, b_, dt=0.5, n=10):  # 10 semi-implicit Euler sub-steps: A^10
+        out = []
+        for vi, gi, ai, bi in zip(v, goal, a_, b_):
+            hh = dt / n
+            M = np.array([[1 - hh * hh * ai * bi, hh * (1 - hh * ai)],
+                          [-hh * ai * bi, 1 - hh * ai]])
+            out.append(((np.linalg.matrix_power(M, n) @ [-gi, vi])[0] + gi) / dt)
+        return np.array(out)
+
+    L_q = np.clip(5.0 + v0, 5.0, 22.0)
+    px, py = at(L_q, 0), at(L_q, 1)
+    psi_g = np.clip(2.0 * py / (px ** 2 + py ** 2) * v0, -np.pi / 2, np.pi / 2)
+    speed = one_step(v0, at(np.clip(4.0 + 2.0 * v0, 4.0, 40.0), 0), al[:, 0], be[:, 0])
+    return np.stack([speed, one_step(w0, psi_g, al[:, 1], be[:, 1])], axis=-1), q
+
+
 u, q = manc_step(params, obs, q_prev, cfg)
-u_ref, state, _ = models.step("manc", params, obs, {"q": q_prev}, cfg, eng)
-assert u.shape == (4, 2) and q.shape == (4, cfg.n_states)
-assert np.allclose(q.sum(axis=1), 1.0)
-assert np.allclose(u, u_ref, atol=1e-6) and np.allclose(q, state["q"])
+u_ref, q_ref = manc_reference(params, obs, q_prev)
+assert np.shape(u) == (4, 2) and np.shape(q) == (4, cfg.n_states), \
+    f"expected controls (4, 2) and q (4, {cfg.n_states}); got {np.shape(u)}, {np.shape(q)}"
+assert np.allclose(q.sum(axis=1), 1.0), f"each q must be a distribution; row sums {q.sum(axis=1)}"
+assert np.allclose(q, q_ref, atol=1e-9), f"expected q = {q_ref}; got {q}"
+assert np.allclose(u, u_ref, atol=1e-6), f"expected controls {u_ref}; got {u}"
 ### BEGIN HIDDEN TESTS
 p2 = models.init("manc", np.random.default_rng(5), cfg)
-u2, q2 = manc_step(p2, obs, state["q"], cfg)
-u2_ref, s2, _ = models.step("manc", p2, obs, state, cfg, eng)
-assert np.allclose(u2, u2_ref, atol=1e-6) and np.allclose(q2, s2["q"])
+u2, q2 = manc_step(p2, obs, q, cfg)  # q carried over from the first step
+u2_ref, q2_ref = manc_reference(p2, obs, q_ref)
+assert np.allclose(u2, u2_ref, atol=1e-6) and np.allclose(q2, q2_ref, atol=1e-9), \
+    "second step (other weights, q carried over)"
+obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model="manc")
+q3 = vagn.random_state(rng, cfg.n_states, size=2)
+u3, q3_out = manc_step(params, obs3, q3, cfg)
+u3_ref, q3_ref = manc_reference(params, obs3, q3)
+assert np.allclose(u3, u3_ref, atol=1e-6) and np.allclose(q3_out, q3_ref, atol=1e-9), \
+    "first and last steps of a scene, random q'"
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 8.6 — the lane-target lookup and the position goal
+# `lane_target` (B, K, 2) holds the route's centre points at 4, 8, …, 4K
+# metres of arc length ahead of the ego, in the ego frame. The DMP head needs
+# the point a given distance ahead.
+#
+# (a) `lane_lookup(lane_target, dist)`: the point `dist` (B,) metres ahead,
+#     `dist` in [4, 4K], by linear interpolation between the two neighbouring
+#     points. Write it with **hat weights** `w_k = max(1 − |dist/4 − k|, 0)`,
+#     `k = 1 … K`, and `Σ_k w_k · point_k`: only arithmetic, so it is
+#     differentiable in the points and runs on both engines.
+# (b) `position_goal(lane_target, v0)`: the goal `g` (B, 2) of the position
+#     DMP, the lane point `L_y = 4 m + 2 s · v0` ahead, clipped to [4, 4K] m.
+#     The goal moves with the speed: at `v0 = 7.5` m/s it lies 19 m ahead.
+#
+# `models.lane_point` and `models.dmp_head` are disabled while grading.
+
+# %% solution id=ex08_6 title="Lane lookup and position goal" forbids="minimanc.models.lane_point,minimanc.models.dmp_head"  # noqa: E501
+def lane_lookup(lane_target, dist):
+    ### BEGIN SOLUTION
+    K = lane_target.shape[1]
+    u = np.asarray(dist, dtype=float)[:, None] / 4.0
+    w = np.maximum(1.0 - np.abs(u - np.arange(1, K + 1)), 0.0)
+    return np.sum(lane_target * w[:, :, None], axis=1)
+    ### END SOLUTION
+
+
+def position_goal(lane_target, v0):
+    ### BEGIN SOLUTION
+    K = lane_target.shape[1]
+    L_y = np.clip(4.0 + 2.0 * np.asarray(v0, dtype=float), 4.0, 4.0 * K)
+    return lane_lookup(lane_target, L_y)
+    ### END SOLUTION
+
+# %% grade id=ex08_6_tests points=2
+k = np.arange(1, 11)
+ramp = np.stack([4.0 * k, 1.0 * k], -1)[None]  # the point d metres ahead is (d, d / 4)
+assert np.allclose(lane_lookup(ramp, np.array([6.0])), [[6.0, 1.5]]), \
+    f"6 m: halfway between (4, 1) and (8, 2), expected [[6, 1.5]]; got {lane_lookup(ramp, [6.0])}"
+assert np.allclose(lane_lookup(ramp, np.array([8.0])), [[8.0, 2.0]]), "on a point: that point"
+assert np.allclose(position_goal(ramp, np.array([0.0])), [[4.0, 1.0]]), \
+    "v0 = 0: L_y = 4 m, the first point (4, 1)"
+assert np.allclose(position_goal(ramp, np.array([7.5])), [[19.0, 4.75]]), \
+    "v0 = 7.5 m/s: L_y = 4 + 2 * 7.5 = 19 m, expected [[19, 4.75]]"
+### BEGIN HIDDEN TESTS
+assert np.allclose(position_goal(ramp, np.array([30.0])), [[40.0, 10.0]]), \
+    "v0 = 30 m/s: L_y = 64 m clipped at 4K = 40 m, the last point"
+short = ramp[:, :5]
+assert np.allclose(position_goal(short, np.array([30.0])), [[20.0, 5.0]]), \
+    "K = 5: clipped at 20 m"
+lanes = np.cumsum(rng.normal(size=(6, 10, 2)) + [4.0, 0.0], axis=1)
+d = rng.uniform(4.0, 40.0, size=6)
+s = 4.0 * k
+ref = np.array([[np.interp(di, s, li[:, 0]), np.interp(di, s, li[:, 1])]
+                for di, li in zip(d, lanes)])
+assert np.allclose(lane_lookup(lanes, d), ref), "random lanes: compare with np.interp"
+v = rng.uniform(0.0, 20.0, size=6)
+ref_g = np.array([[np.interp(di, s, li[:, 0]), np.interp(di, s, li[:, 1])]
+                  for di, li in zip(np.clip(4 + 2 * v, 4, 40), lanes)])
+assert np.allclose(position_goal(lanes, v), ref_g), "random lanes and speeds"
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 8.7 — information parity: who sees what
+# The observation keys are `("bev", "goal", "lane_target", "motion",
+# "goal_bev")` (`inputs.KEYS`). In the paper's setting (`"paper"`) the
+# comparison models `cnn`, `cnn_lstm`, `vagn_only` see `bev` and `goal`;
+# `rvs_g` also the goal's BEV, `goal_bev`. MANC and DMP-only see `bev`,
+# `lane_target` and `motion` (the DMP's goal and initial state) in **both**
+# settings. In the `"parity"` setting every comparison model also gets
+# `lane_target` and `motion`, so that a gap left between models is due to
+# the architecture and not to information.
+#
+# (a) `visible_keys(model, setting)`: the tuple of keys, in the order of
+#     `inputs.KEYS`; an unknown model or setting raises `ValueError` naming it.
+# (b) `numeric_length(model, setting, k_targets=10)`: the length of the
+#     numbers vector built from what the model sees (`inputs.numeric_features`):
+#     3 for the goal `[x, y, yaw]`, `2·k_targets` for the lane target, 2 for
+#     the motion (the rasters are not numbers).
+#
+# `inputs.visible`, `inputs.select` and `inputs.numeric_size` are disabled
+# while grading: write the table yourself.
+
+# %% solution id=ex08_7 title="Information parity" forbids="minimanc.inputs.visible,minimanc.inputs.select,minimanc.inputs.numeric_size"  # noqa: E501
+def visible_keys(model, setting):
+    ### BEGIN SOLUTION
+    if model not in ("cnn", "cnn_lstm", "rvs_g", "manc", "vagn_only", "dmp_only"):
+        raise ValueError(f"unknown model={model!r}")
+    if setting not in ("paper", "parity"):
+        raise ValueError(f"unknown setting={setting!r}")
+    if model in ("manc", "dmp_only"):
+        return ("bev", "lane_target", "motion")
+    keys = ("bev", "goal") + (("lane_target", "motion") if setting == "parity" else ())
+    return keys + (("goal_bev",) if model == "rvs_g" else ())
+    ### END SOLUTION
+
+
+def numeric_length(model, setting, k_targets=10):
+    ### BEGIN SOLUTION
+    keys = visible_keys(model, setting)
+    return 3 * ("goal" in keys) + 2 * k_targets * ("lane_target" in keys) + 2 * ("motion" in keys)
+    ### END SOLUTION
+
+# %% grade id=ex08_7_tests points=2
+assert tuple(visible_keys("cnn", "paper")) == ("bev", "goal"), \
+    f"cnn, paper: expected ('bev', 'goal'); got {visible_keys('cnn', 'paper')}"
+assert tuple(visible_keys("rvs_g", "parity")) == ("bev", "goal", "lane_target", "motion",
+                                                  "goal_bev"), "rvs_g, parity: all five keys"
+assert tuple(visible_keys("manc", "paper")) == ("bev", "lane_target", "motion"), \
+    "manc: bev, lane_target, motion"
+assert numeric_length("cnn", "parity") == 25, "cnn, parity: 3 + 2 * 10 + 2 = 25 numbers"
+### BEGIN HIDDEN TESTS
+table = {  # inputs.py's table, written out
+    ("cnn", "paper"): ("bev", "goal"),
+    ("cnn", "parity"): ("bev", "goal", "lane_target", "motion"),
+    ("cnn_lstm", "paper"): ("bev", "goal"),
+    ("cnn_lstm", "parity"): ("bev", "goal", "lane_target", "motion"),
+    ("rvs_g", "paper"): ("bev", "goal", "goal_bev"),
+    ("rvs_g", "parity"): ("bev", "goal", "lane_target", "motion", "goal_bev"),
+    ("manc", "paper"): ("bev", "lane_target", "motion"),
+    ("manc", "parity"): ("bev", "lane_target", "motion"),
+    ("vagn_only", "paper"): ("bev", "goal"),
+    ("vagn_only", "parity"): ("bev", "goal", "lane_target", "motion"),
+    ("dmp_only", "paper"): ("bev", "lane_target", "motion"),
+    ("dmp_only", "parity"): ("bev", "lane_target", "motion"),
+}
+for (m, st), want in table.items():
+    assert tuple(visible_keys(m, st)) == want, f"{m}, {st}: expected {want}"
+lengths = {("cnn", "paper"): 3, ("rvs_g", "paper"): 3, ("rvs_g", "parity"): 13,
+           ("manc", "paper"): 10, ("dmp_only", "parity"): 10, ("vagn_only", "parity"): 13}
+for (m, st), want in lengths.items():
+    assert numeric_length(m, st, k_targets=4) == want, f"{m}, {st}, k_targets=4: expected {want}"
+for bad in (("lstm", "paper"), ("cnn", "Paper")):
+    try:
+        visible_keys(*bad)
+    except ValueError as exc:
+        assert repr(bad[0] if bad[0] == "lstm" else bad[1]) in str(exc), \
+            f"the message should name the bad value; got {exc}"
+    else:
+        raise AssertionError(f"visible_keys{bad} should raise ValueError")
 ### END HIDDEN TESTS
 
 # %% [markdown]
