@@ -199,7 +199,7 @@ for name, p in zip(PREDICATES, np.eye(3)):
 # (`mean=0.5`): the predicates are non-negative, so every entry of $W^p$
 # begins outside ReLU's dead zone and receives gradient.
 
-# %%
+# %% tags=["nbval-ignore-output"]
 def sample_predicates(rng, T, B, M=3):
     """Piecewise-constant random predicate sequences, shape (T, B, M)."""
     ps = np.zeros((T, B, M))
@@ -237,7 +237,7 @@ assert history[-1] < 0.01 * history[0]
 # teacher's. Compare $T$, not $W$: many $W$ give the same $T$ (any negative
 # value is "zero" after ReLU), so the weights themselves are not identifiable.
 
-# %%
+# %% tags=["nbval-ignore-output"]
 ps_val = sample_predicates(rng, 20, 64)
 q0_val = vagn.random_state(rng, 3, size=64)
 val = loss(W, ps_val, q0_val, vagn.rollout(q0_val, ps_val, W_hand), np)
@@ -274,6 +274,35 @@ print(f"max |grad_numpy - grad_jax| < 1e-10: {diff < 1e-10}")
 assert diff < 1e-10
 
 # %% [markdown]
+# ## 7. Algorithm 1: a fresh $q'$ for every sample
+# The paper never knows the true q-state of the human driver. Algorithm 1
+# therefore starts vAGN from $q' = \texttt{UniformInit}()$ (or
+# $\texttt{RandomInit}()$) **for every sample of every minibatch**: no sample
+# inherits another's q. With a single step, as Algorithm 1 is written, the q
+# that reaches the DMP is $T(p)\,\tfrac1N\mathbf 1$ — the row means of $T$, a
+# function of this one image with no memory at all. Run over a window of $k$
+# steps instead, the start is forgotten geometrically: below, the largest
+# distance between the q reached from the uniform start and from each one-hot
+# start, on the drive of section 2.
+
+# %%
+q_unif = vagn.rollout(vagn.uniform_state(3), ps, W_hand)
+T1 = vagn.transition_matrix(ps[0], W_hand)
+assert np.allclose(q_unif[1], T1.mean(axis=1))    # one step from uniform = row means of T
+print("one step from the uniform q' = the row means of T(p_1):", np.round(q_unif[1], 3))
+gaps = np.max([np.abs(vagn.rollout(q0, ps, W_hand) - q_unif).max(axis=1) for q0 in np.eye(3)],
+              axis=0)
+for k in (0, 1, 2, 4, 8):
+    print(f"after {k} steps: max |q(one-hot start) - q(uniform start)| = {gaps[k]:.0e}")
+assert gaps[0] > 0.6 and gaps[8] < 1e-3 and np.all(np.diff(gaps) <= 1e-12)
+
+# %% [markdown]
+# The course's training (chapters 8–9) resets $q'$ at the start of each
+# *window* of consecutive steps (a whole 20-s scene for MANC), so the
+# automaton's memory is exercised; `TrainConfig(q_seq_len=1)` is Algorithm 1's
+# single step for the vAGN-only model. Exercise 5.5 writes the per-sample
+# reset for a minibatch.
+#
 # ## Summary
 # * `transition_matrix(p, W)` is eqs. 8–9: a predicate-weighted sum of
 #   matrices, a ReLU and a column softmax; `step` and `rollout` apply it.
@@ -283,3 +312,46 @@ assert diff < 1e-10
 #   `plot_automaton` and `plot_q_heatmap` are the tools to read a learned
 #   planner. Chapter 6 builds the predicates $p$ from images and asks *where*
 #   in the image each q-state looks.
+# * Algorithm 1 starts every sample from a fresh $q'$; over a window the start
+#   is forgotten within a few steps.
+
+# %% [markdown]
+# ## Paper vs. this course
+# Where this chapter departs from section III-B and Algorithm 1 of the paper,
+# and where the paper itself slips:
+#
+# * **Eq. 8's index set.** The sum is written over $i \in \{0, M-1\}$, a set of
+#   two elements; it means all $M$ predicates, $i = 0, \dots, M-1$. Likewise
+#   "$W_i \in \mathcal W \in \mathbb R^{N\times N}$": $\mathcal W$ is
+#   $\mathbb R^{M\times N\times N}$ and each $W_i$ is $N \times N$.
+# * **"ReLU preserves only the positive transitions."** It does not remove any:
+#   the column softmax that follows turns a ReLU zero into $e^0 = 1$, so every
+#   transition keeps a probability $\ge 1/(1 + (N-1)e^{\max R})$ (section 3).
+#   We read sparse automata off only with a stated threshold (`min_prob`).
+# * **"Softmax ... ensures that the columns of $\mathcal W^{p^v}$ sum to one"**:
+#   it is the softmax's *output* $T$ whose columns sum to one, and the "dot
+#   product" of eq. 9 is the matrix–vector product $q_t = T q_{t-1}$. We fix
+#   the convention $T_{ij} = P(q_t = i \mid q_{t-1} = j)$ and renormalise $q$
+#   after each step (the identity in exact arithmetic; it stops float32 drift).
+# * **Predicates pass through a sigmoid after eq. 7.** Eq. 7 ends in a linear
+#   layer, so $p^v$ is unbounded and may be negative. The course's models
+#   (chapter 8, `ModelConfig.predicate_activation="sigmoid"`; `"linear"` is
+#   eq. 7 as written) squash $p$ into $(0, 1)$, like the hand-set predicates
+#   here: with linear predicates training let $|p|$ grow until the softmax
+#   saturated and q stopped depending on the image.
+# * **Algorithm 1 runs vAGN for one step from $q'$**; with a uniform $q'$ that
+#   step gives the row means of $T$ and no memory (section 7). Our DMP models
+#   train on windows spanning whole scenes, resetting $q'$ once per window,
+#   and the vAGN-only baseline keeps Algorithm 1's single step
+#   (`q_seq_len=1`).
+# * **Learning from q-targets (section 5, exercise 5.6) is a teaching device.**
+#   The paper never observes q; it trains vAGN only through the DMP's action
+#   loss. With known q-targets we can check that `grad` recovers the
+#   teacher's transition matrices (not its weights: $W$ is not identifiable
+#   through the ReLU).
+# * **Algorithm 1's update** is $\theta \leftarrow \theta - \gamma\frac1m\nabla L$
+#   with $L$ already a mean (MSE) over the minibatch; the extra $\frac1m$ only
+#   rescales the learning rate $\gamma$. We average once.
+# * **Reading the automaton.** The stationary distribution and Viterbi paths
+#   are our additions; the paper reads the automaton from heat maps of $q_t$
+#   and from saliency maps (chapter 6).
