@@ -6,12 +6,14 @@
 # run the grade cell below it; `minimanc grade exercises/10_highway_sandbox.ipynb`
 # scores the notebook.
 #
-# Three pieces connect a policy trained on BEV rasters to highway-env:
+# Four pieces connect a policy trained on BEV rasters to highway-env:
 #
 # 1. an **action adapter**: the models output `[speed, yaw rate]`; highway-env's ego is
 #    a kinematic bicycle driven by `[acceleration, steering]`;
 # 2. the **BEV observation**: highway-env's vehicles drawn into the chapter-7 raster;
-# 3. a **metric**: how often a driver collides.
+# 3. a **metric**: how often a driver collides;
+# 4. the **logged controls** of a demonstration: what a perfect imitator must output
+#    for the adapter to reproduce the expert.
 #
 # Frames: highway-env's $y$ axis points *down* its screen. `minimanc.highway` mirrors
 # it, $x_w = x$, $y_w = -y$, $\psi_w = -\psi$, so that the world frame of chapter 7
@@ -61,12 +63,13 @@ def adapter(controls, speed, length=5.0, dt=0.5, substep=0.1, a_max=5.0,
 
 # %% grade id=ex10_1_tests points=3
 out = adapter(np.array([11.0, 0.0]), 10.0)
-assert np.allclose(out, [2.0 / 5.0, 0.0]), out                    # a = 2 m/s², no steering
+assert np.allclose(out, [2.0 / 5.0, 0.0]), f"a = 2 m/s² and no steering: [0.4, 0], got {out}"
 left = adapter(np.array([10.0, 0.2]), 10.0)
 assert left[1] < 0, "a world left turn (omega > 0) is a negative highway-env steering"
 beta = np.arctan(np.tan(left[1] * np.pi / 4) / 2)
 assert np.isclose(10.0 * np.sin(beta) / 2.5, -0.2), "the bicycle must turn at 0.2 rad/s"
-assert np.allclose(adapter(np.array([40.0, 3.0]), 10.0), [1.0, -1.0]), "clip both"
+assert np.allclose(adapter(np.array([40.0, 3.0]), 10.0), [1.0, -1.0]), (
+    "out of range: clip both to [1, -1] (full throttle, full steering to the world's left)")
 # in the simulator: the yaw rate is tracked exactly, the speed reached at the end of a step
 env = hw.make_env("highway-fast", steps=12, config={"vehicles_count": 0})
 env.reset(seed=0)
@@ -74,29 +77,31 @@ yaw0 = hw.ego_pose(env)[2]
 for _ in range(6):
     env.step(adapter(np.array([23.0, 0.1]), env.vehicle.speed).astype(np.float32))
     yaw1 = hw.ego_pose(env)[2]
-    assert abs(world.wrap_angle(yaw1 - yaw0) / 0.5 - 0.1) < 1e-6
+    assert abs(world.wrap_angle(yaw1 - yaw0) / 0.5 - 0.1) < 1e-6, (
+        "highway-env should turn at exactly 0.1 rad/s (world frame) over each 0.5 s step")
     yaw0 = yaw1
-assert abs(env.vehicle.speed - 23.0) < 1e-6
+assert abs(env.vehicle.speed - 23.0) < 1e-6, "the commanded 23 m/s should be reached"
 ### BEGIN HIDDEN TESTS
 for _ in range(30):
     u = np.array([rng.uniform(-2, 35), rng.uniform(-1, 1)])
     v = rng.uniform(-1, 30)
     out = adapter(u, v)
     a = np.clip((u[0] - v) / 0.5, -5.0, 5.0)                   # the P-controller
-    assert np.isclose(out[0], a / 5.0), (u, v)
+    assert np.isclose(out[0], a / 5.0), f"acceleration clip((v* - v) / dt) / 5 for {u}, v = {v}"
     v_mean = v + a * (0.5 - 0.1) / 2
     delta = out[1] * np.pi / 4
     if abs(v_mean) < 0.1:
-        assert out[1] == 0.0, (u, v)
+        assert out[1] == 0.0, f"|v_mean| < 0.1 m/s: no steering, for {u}, v = {v}"
         continue
     # the bicycle realises omega = -v_mean sin(beta) / (L / 2), unless the steering saturates
     omega = -v_mean * np.sin(np.arctan(np.tan(delta) / 2)) / 2.5
-    assert abs(out[1]) <= 1.0 + 1e-12, (u, v)
+    assert abs(out[1]) <= 1.0 + 1e-12, f"steering within [-1, 1] for {u}, v = {v}"
     if abs(out[1]) < 1.0 - 1e-9 and abs(u[1] * 2.5 / v_mean) < 1.0:
-        assert np.isclose(omega, u[1], atol=1e-6), (u, v)
+        assert np.isclose(omega, u[1], atol=1e-6), f"the bicycle should turn at {u[1]}, v = {v}"
     else:  # saturated: the closest reachable rate, turning the requested way
-        assert np.sign(omega) == np.sign(u[1]) or u[1] == 0.0, (u, v)
-assert np.allclose(adapter(np.array([0.0, 0.5]), 0.0), [0.0, 0.0])
+        assert np.sign(omega) == np.sign(u[1]) or u[1] == 0.0, (
+            f"saturated steering should still turn the requested way, for {u}, v = {v}")
+assert np.allclose(adapter(np.array([0.0, 0.5]), 0.0), [0.0, 0.0]), "standing still: [0, 0]"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -113,7 +118,7 @@ assert np.allclose(adapter(np.array([0.0, 0.5]), 0.0), [0.0, 0.0])
 # nearest first (a stable sort on the distance); unused rows are zero with
 # `valid` False.
 
-# %% solution id=ex10_2 title="Vehicle boxes for the BEV"
+# %% solution id=ex10_2 title="Vehicle boxes for the BEV" forbids="minimanc.highway.ado_boxes"  # noqa: E501
 def vehicle_boxes(ego, others, max_ado=16):
     ### BEGIN SOLUTION
     others = np.asarray(others, dtype=float).reshape(-1, 5)
@@ -127,13 +132,11 @@ def vehicle_boxes(ego, others, max_ado=16):
     return boxes, valid
     ### END SOLUTION
 
-# %% grade id=ex10_2_tests points=3
-b, v = vehicle_boxes((0.0, 0.0, 0.0), np.array([[10.0, 4.0, 0.5, 5.0, 2.0],
-                                                 [3.0, 0.0, 0.0, 5.0, 2.0]]), max_ado=3)
-assert b.shape == (3, 5) and v.tolist() == [True, True, False]
-assert np.allclose(b[0], [3.0, 0.0, 0.0, 5.0, 2.0]), "nearest first"
-assert np.allclose(b[1], [10.0, -4.0, -0.5, 5.0, 2.0]), "mirror y and the heading"
-# the raster drawn from your boxes equals the library's BEV observation
+# %% [markdown]
+# A live roundabout scene for the test below: the BEV that the library's wrapper
+# `hw.BEVObservation` draws after 1.5 s, and the highway-env state it was drawn from.
+
+# %%
 env = hw.BEVObservation(hw.make_env("roundabout", steps=4))
 obs, _ = env.reset(seed=2)
 for _ in range(3):
@@ -142,18 +145,46 @@ u = env.unwrapped
 ego = (u.vehicle.position[0], u.vehicle.position[1], u.vehicle.heading)
 others = np.array([[*o.position, o.heading, o.LENGTH, o.WIDTH]
                    for o in u.road.vehicles if o is not u.vehicle])
+print(f"{len(others)} other vehicles; BEV {obs.shape}")
+
+# %% grade id=ex10_2_tests points=3
+b, v = vehicle_boxes((0.0, 0.0, 0.0), np.array([[10.0, 4.0, 0.5, 5.0, 2.0],
+                                                 [3.0, 0.0, 0.0, 5.0, 2.0]]), max_ado=3)
+assert b.shape == (3, 5), "boxes should have shape (max_ado, 5) = (3, 5)"
+assert v.tolist() == [True, True, False], "two vehicles: two valid rows, then an unused one"
+assert np.allclose(b[0], [3.0, 0.0, 0.0, 5.0, 2.0]), "nearest first"
+assert np.allclose(b[1], [10.0, -4.0, -0.5, 5.0, 2.0]), "mirror y and the heading"
+assert np.allclose(b[2], 0.0), "unused rows are zero"
+# the raster drawn from your boxes equals the library's BEV observation
 boxes, valid = vehicle_boxes(ego, others, 16)
 mine = world.rasterize(env.map, hw.ego_pose(env), boxes, valid, env.cfg)
 assert np.array_equal(mine, obs), "your BEV differs from BEVObservation's"
 ### BEGIN HIDDEN TESTS
-ref_b, ref_v = hw.ado_boxes(env, 16)
-assert np.allclose(boxes, ref_b) and np.array_equal(valid, ref_v)
+# an oracle written out: Python's sort is stable, the mirror is (x, -y, -heading)
+order = sorted(range(len(others)), key=lambda i: np.hypot(*(others[i, :2] - ego[:2])))[:16]
+for row, i in enumerate(order):
+    x, y, h, length, width = others[i]
+    assert np.allclose(boxes[row], [x, -y, world.wrap_angle(-h), length, width]), (
+        f"row {row} should be vehicle {i} mirrored")
+assert valid.tolist() == [True] * len(order) + [False] * (16 - len(order)), (
+    "one valid row per vehicle, nearest first, then unused rows")
+# headings wrap to (-pi, pi]; equal distances keep the input order; max_ado cuts
+tie = np.array([[0.0, 5.0, 3.5, 4.0, 2.0], [5.0, 0.0, -np.pi, 4.5, 1.8],
+                [0.0, -5.0, np.pi, 5.0, 2.0], [9.0, 0.0, 0.0, 5.0, 2.0]])
+b3, v3 = vehicle_boxes((0.0, 0.0, 0.0), tie, 3)
+assert np.allclose(b3, [[0.0, -5.0, 2 * np.pi - 3.5, 4.0, 2.0],
+                        [5.0, 0.0, np.pi, 4.5, 1.8],
+                        [0.0, 5.0, np.pi, 5.0, 2.0]]), (
+    "three vehicles at 5 m in input order, yaw = wrap(-heading) in (-pi, pi]; the one at 9 m cut")
+assert v3.all(), "three valid rows"
+b0, v0 = vehicle_boxes((1.0, 1.0, 0.0), np.zeros((0, 5)), 4)
+assert np.allclose(b0, 0.0) and not v0.any(), "no other vehicle: all rows zero and invalid"
 rand = np.column_stack([rng.normal(size=(20, 2)) * 30, rng.uniform(-4, 4, 20),
                         np.full(20, 5.0), np.full(20, 2.0)])
 b2, v2 = vehicle_boxes((1.0, 2.0, 0.3), rand, 8)
-assert v2.sum() == 8 and np.all(np.abs(b2[:, 2]) <= np.pi)
+assert v2.sum() == 8 and np.all(np.abs(b2[:, 2]) <= np.pi), "8 valid rows, yaw in (-pi, pi]"
 dist = np.linalg.norm(b2[:, :2] - [1.0, -2.0], axis=1)
-assert np.all(np.diff(dist) >= 0)
+assert np.all(np.diff(dist) >= 0), "rows sorted by distance to the (mirrored) ego"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -194,12 +225,13 @@ ado = np.zeros((2, 3, 1, 5))
 ado[..., :] = [20.0, 0.0, 0.0, 4.0, 2.0]                # far away
 ado[1, 2, 0] = [4.0, 1.5, 0.7, 4.0, 2.0]                # episode 1 touches at t = 2
 valid = np.ones((2, 3, 1), dtype=bool)
-assert np.isclose(collision_rate(ego, ado, valid), 50.0)
+assert np.isclose(collision_rate(ego, ado, valid), 50.0), "one episode of two collides: 50 %"
 assert np.isclose(collision_rate(ego, ado, np.zeros_like(valid)), 0.0), "invalid ados"
 # a rotated box whose bounding box overlaps but which does not (SAT needed)
 corner = np.zeros((1, 1, 1, 5))
 corner[0, 0, 0] = [4.45, 2.45, np.pi / 4, 4.0, 1.0]
-assert collision_rate(np.zeros((1, 1, 3)), corner, np.ones((1, 1, 1), bool)) == 0.0
+assert collision_rate(np.zeros((1, 1, 3)), corner, np.ones((1, 1, 1), bool)) == 0.0, (
+    "the bounding boxes overlap but the rotated boxes do not: 0 %")
 ### BEGIN HIDDEN TESTS
 r = np.random.default_rng(10)  # its own generator: the literal counts below depend on it
 E, T, A = 12, 5, 4
@@ -209,17 +241,84 @@ ado_r = np.concatenate([r.normal(size=(E, T, A, 2)) * 10, r.uniform(-3, 3, (E, T
                        -1)
 val_r = r.random((E, T, A)) < 0.7
 # literal values, computed once with metrics.collisions (episodes 5, 9 and 10 are clear)
-assert np.isclose(collision_rate(ego_r, ado_r, val_r), 75.0)
+assert np.isclose(collision_rate(ego_r, ado_r, val_r), 75.0), "9 of 12 episodes collide"
 per_step = [collision_rate(ego_r[:, t:t + 1], ado_r[:, t:t + 1], val_r[:, t:t + 1]) * E / 100
             for t in range(T)]
-assert np.allclose(per_step, [1, 1, 3, 5, 4]), per_step
+assert np.allclose(per_step, [1, 1, 3, 5, 4]), (
+    f"colliding episodes per step 1 1 3 5 4, got {per_step}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Using the three pieces: does a driver that ignores traffic crash?
+# ## Exercise 10.4 — the logged controls of a demonstration
+# Behaviour cloning learns the controls logged with each state. For a perfect imitator
+# to reproduce the expert through the adapter of 10.1, the logged control of step $t$
+# must be what the adapter *realises* over that step: the P-controller reaches the
+# commanded speed at the **end** of the step, and the steering realises the **mean**
+# yaw rate over it. So, from the recorded states $t = 0 \dots T$,
+#
+# $$u[t] = \big[\,v[t+1],\ \operatorname{wrap}(\psi_w[t+1] - \psi_w[t]) / \Delta t\,\big],
+#   \qquad t = 0 \dots T-1,$$
+#
+# with the world yaw $\psi_w$ and the difference wrapped to $(-\pi, \pi]$
+# (`world.wrap_angle`): a heading that crosses $\pm\pi$ turns by a small angle, not
+# by almost $2\pi$. Speeds are highway-env's `vehicle.speed`, in m/s.
+#
+# Write `logged_controls(poses, speeds, dt=0.5)`: `poses` `(T+1, 3)` world poses,
+# `speeds` `(T+1,)`; return `(T, 2)`. Taking the speed at the *start* of the step, or
+# the unicycle speed `world.controls_from_poses`, is the natural wrong choice: the
+# replay then lags the expert.
+
+# %% solution id=ex10_4 title="Logged controls"
+def logged_controls(poses, speeds, dt=0.5):
+    ### BEGIN SOLUTION
+    poses, speeds = np.asarray(poses, dtype=float), np.asarray(speeds, dtype=float)
+    yaw_rate = world.wrap_angle(np.diff(poses[:, 2])) / dt
+    return np.stack([speeds[1:], yaw_rate], axis=-1)
+    ### END SOLUTION
+
+# %% grade id=ex10_4_tests points=4
+toy = logged_controls(np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.1], [10.0, 0.5, 0.0]]),
+                      np.array([10.0, 10.0, 12.0]))
+assert toy.shape == (2, 2), "T + 1 = 3 states give T = 2 controls"
+assert np.allclose(toy, [[10.0, 0.2], [12.0, -0.2]]), (
+    "[speed at t + 1, yaw change / 0.5 s]: [[10, 0.2], [12, -0.2]]")
+wrap = logged_controls(np.array([[0.0, 0.0, 3.1], [1.0, 0.0, -3.1]]), np.array([2.0, 2.0]))
+assert np.allclose(wrap, [[2.0, (2 * np.pi - 6.2) / 0.5]]), (
+    "3.1 -> -3.1 rad is a left turn of 2π - 6.2 = 0.083 rad, not -6.2 rad")
+# in the simulator: drive an empty highway with commands the adapter can realise, log the
+# states, and the logged controls give the commands back
+env = hw.make_env("highway-fast", steps=12, config={"vehicles_count": 0})
+env.reset(seed=0)
+act = hw.ActionAdapter(env)
+commands = np.array([(24.0, 0.0), (22.0, 0.05), (20.0, 0.1), (21.0, -0.08), (23.0, -0.05)])
+states, speeds = [hw.ego_pose(env)], [env.vehicle.speed]
+for c in commands:
+    env.step(act(c))
+    states.append(hw.ego_pose(env))
+    speeds.append(env.vehicle.speed)
+logged = logged_controls(np.array(states), np.array(speeds))
+assert np.allclose(logged, commands, atol=1e-6), (
+    f"the logged controls should be the commands the adapter realised:\n{commands}\ngot\n{logged}")
+### BEGIN HIDDEN TESTS
+ep = hw.run_episode("roundabout", 3, "expert", steps=12, record_bev=False)
+u_ep = logged_controls(ep.poses, ep.speeds)
+assert u_ep.shape == (12, 2), "12 actions: 12 controls"
+assert np.array_equal(u_ep[:, 0], ep.speeds[1:]), "the speed reached at the end of each step"
+yaw = world.wrap_angle(ep.poses[0, 2] + np.cumsum(u_ep[:, 1]) * 0.5)
+assert np.allclose(world.wrap_angle(yaw - ep.poses[1:, 2]), 0.0, atol=1e-9), (
+    "integrating the yaw rates from the first yaw should give every logged yaw")
+half = logged_controls(ep.poses, ep.speeds, dt=0.25)
+assert np.allclose(half[:, 1], 2 * u_ep[:, 1]), "the yaw rate is divided by dt"
+circle = np.stack([np.zeros(9), np.zeros(9), world.wrap_angle(0.9 * np.arange(9))], -1)
+assert np.allclose(logged_controls(circle, np.ones(9))[:, 1], 1.8), (
+    "a steady turn of 0.9 rad per step is 1.8 rad/s at every step, across ±π too")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Using the pieces: does a driver that ignores traffic crash?
 # From here on the notebook uses the library (`hw.controls_to_action`,
-# `hw.BEVObservation`, `metrics.collisions`), so it runs even with unfinished
-# exercises. A *lane follower* drives the lane target at a constant 10 m/s with
+# `hw.BEVObservation`, `metrics.collisions`, `hw.Episode.controls`), so it runs even
+# with unfinished exercises. A *lane follower* drives the lane target at a constant 10 m/s with
 # pure pursuit, blind to other vehicles; the expert (highway-env's IDM/MOBIL, which
 # also yields at the roundabout entry) sees them. Same seeds, same roundabout.
 
