@@ -1,8 +1,8 @@
 # %% [markdown]
 # # Chapter 6 — Visual predicates and class activation maps
 #
-# Module built in this chapter: `minimanc.cam` (paper section III-A, eq. 7, and
-# the saliency figures 3–4).
+# Module built in this chapter: `minimanc.cam` (paper section IV-A, eq. 7, and
+# the saliency maps of the execution-trace figures in section V).
 #
 # The vAGN of chapter 5 needs predicates $p^v \in \mathbb{R}^M$: numbers that say
 # whether something is in the bird's-eye-view (BEV) image. MANC computes them
@@ -307,6 +307,11 @@ for j in range(3):
 #
 # $$J_{ji} = \frac{\partial q_j}{\partial p_i},\qquad S_j(x, y) = \sum_i J_{ji}\, M_i(x, y).$$
 #
+# (The paper shows these maps but never says how it computes them; this
+# definition is ours. It is the first-order answer to "which pixels move
+# $q_j$", and it reduces to the CAM of predicate $i$ when $q_j$ depends on
+# $p_i$ alone.)
+#
 # Since $p_i$ is linear in the features, $S_j(x, y) = HW\sum_k f_k(x,y)\,
 # \partial q_j/\partial f_k(x, y)$: gradient × feature at the last conv layer.
 # Positive $S_j$ marks pixels whose evidence pushes probability *into* $q_j$.
@@ -354,3 +359,40 @@ for j, target in ((1, "vehicle"), (2, "pedestrian")):
 # * `grad_cam` equals CAM for conv → GAP → linear; `vagn_jacobian` and
 #   `q_state_saliency` carry the maps through the vAGN to each q-state, and
 #   `overlay` / `plot_q_saliency` draw them in the paper's colours.
+#
+# ## Paper vs. this course
+# Where this chapter departs from the paper (section IV-A, eq. 7, and the
+# execution traces of section V), and where the paper itself slips:
+#
+# * **Supervised toy predicates.** Here the three predicates are trained with
+#   a binary cross-entropy against labels we know, on 32 × 32 toy rasters, so
+#   that the CAMs can be checked against the objects' boxes. In the paper the
+#   predicates have no labels: they are learned end to end from the
+#   behaviour-cloning loss (Algorithm 1), as in chapter 8.
+# * **A sigmoid after eq. 7.** Eq. 7 ends in `Linear`: $p^v$ is unbounded.
+#   MANC in chapter 8 passes it through a sigmoid
+#   (`ModelConfig.predicate_activation = "sigmoid"`; `"linear"` is eq. 7
+#   literally), because with unbounded predicates the column softmax of eq. 9
+#   saturated during training and $q$ stopped depending on the image. The
+#   CAMs are those of the logits, so the identity $\mathrm{mean}\,M_i + b_i =
+#   p_i$ still holds before the sigmoid.
+# * **The q-state saliency is our definition.** The paper overlays "the
+#   saliency map indicating where each q-state is attending to" but gives no
+#   formula. We use $S_j = \sum_i \partial q_j/\partial p_i\, M_i$
+#   (section 7), gradient × feature at the last convolution; another choice
+#   (e.g. CAMs weighted by $W$ directly) would draw different maps.
+# * **A baseline the paper does not mention.** CAMs are defined only up to a
+#   map shared by all images, so the ego vehicle (in every BEV) can take any
+#   share of a map; we subtract the data-set mean CAM before reading maps.
+#   The paper's maps are raw CAMs as far as the text says.
+# * **Normalisation of the overlays.** The paper ranks colours yellow → red →
+#   cyan → magenta (we use the same ramp, `cam.PAPER_CMAP`) but does not say
+#   how a map is scaled; we min–max normalise each map on its own, so only
+#   the ranking within one map is shown, never its size.
+# * **Slips in the paper.** Eq. 8 sums over $i \in \{0, M-1\}$, a set of
+#   two indices; it means $i = 0, \dots, M-1$ (all $M$ predicates, as in
+#   `vagn.combined_weights`). The text says the execution-trace figure
+#   "illustrates 3 time-steps", but its caption describes four panels
+#   (a)–(d). The same paragraph says $q_2$ avoids the road boundary while its
+#   parenthesis gives more weight to $q_3$ near the boundary; we cannot tell
+#   which is meant.
