@@ -1,8 +1,9 @@
-"""Chapter 3 — the DMP point attractor, its damping ratio and the stability of its discrete step.
+"""Chapter 3 — the DMP of eq. (1): point attractor, damping ratio, step stability, forcing term.
 
 The paper (``../shared/paper/manc.tex``) starts from the linear DMP of eq. (1),
-``τ ÿ = α(β(g − y) − ẏ) + f``, drops the forcing term ``f`` and lets a network
-choose the gains instead (eq. 10)::
+``τ ÿ = α(β(g − y) − ẏ) + f(x)`` with the canonical system ``τ ẋ = −α_x x``
+(the paper prints ``τ ẋ = α_x x``, a sign slip: the phase must decay), drops the
+forcing term ``f`` and lets a network choose the gains instead (eq. 10)::
 
     ÿ = α(s) (β(s) (g − y) − ẏ)
 
@@ -28,6 +29,15 @@ and integrates it — :func:`step`, :func:`rollout` — with the three integrato
 * ``"rk4"`` (classical Runge–Kutta),
 
 each repeated ``substeps`` times with ``h = dt / substeps``.
+
+The full DMP of eq. (1) is here too, for the chapter that builds it (MANC's
+head outputs gains only): the phase of the canonical system
+(:func:`canonical_system`, :func:`phase`), Gaussian basis functions spaced in
+phase (:func:`basis_centres`, :func:`basis_functions`), the forcing term
+``f(x) = Σ ψ_i(x) w_i / Σ ψ_i(x) · x · (g − y0)`` (:func:`forcing_term`,
+:class:`Forcing`), its weights fitted to one demonstration by locally weighted
+regression (:func:`fit_forcing_weights`), and :func:`rollout` with
+``forcing=...``, which adds the term inside the same integrators.
 
 Learned gains (:func:`gains_from_logits`) pass network outputs through a
 sigmoid into the boxes :data:`ALPHA_RANGE` × :data:`BETA_RANGE`, chosen so that
@@ -66,9 +76,17 @@ __all__ = [
     "DEFAULT_METHOD",
     "DEFAULT_SUBSTEPS",
     "DT",
+    "Forcing",
     "METHODS",
+    "PHASE_END",
     "Rollout",
     "acceleration",
+    "basis_centres",
+    "basis_functions",
+    "canonical_system",
+    "fit_forcing_weights",
+    "forcing_term",
+    "phase",
     "classify",
     "damping_ratio",
     "eigenvalues",
@@ -143,7 +161,7 @@ def check_dt(dt: Any) -> None:
             raise ValueError(f"dt must be a scalar, got dt with shape {arr.shape}")
 
 
-def check_gains(alpha: Any, beta: Any) -> bool:
+def check_gains(alpha: Any, beta: Any, allow_negative: bool = False) -> bool:
     """Check the gains of a step or rollout; True when both are concrete.
 
     Concrete gains must be real (``TypeError`` naming the argument for a
@@ -151,8 +169,10 @@ def check_gains(alpha: Any, beta: Any) -> bool:
     naming the argument and the first offending value): ``α ≤ 0`` removes or
     reverses the damping and ``β < 0`` makes the spring repel, and either runs
     away from the goal exponentially.  ``β = 0`` is allowed (pure damping: the
-    velocity decays, the position stops where it is).  Traced gains are not
-    inspected.
+    velocity decays, the position stops where it is).  With
+    ``allow_negative=True`` only reality and finiteness are checked (the
+    opt-in of :func:`step` / :func:`rollout` with ``allow_unstable=True``, to
+    study the paper's ζ < 0).  Traced gains are not inspected.
     """
     concrete = True
     for name, value, low in (("alpha", alpha, "> 0"), ("beta", beta, ">= 0")):
@@ -160,13 +180,31 @@ def check_gains(alpha: Any, beta: Any) -> bool:
             concrete = False
             continue
         arr = check_finite(name, value)
+        if allow_negative:
+            continue
         bad = arr <= 0 if low == "> 0" else arr < 0
         if bad.any():
             raise ValueError(
                 f"{name} must be {low} (otherwise the DMP runs away from the goal), "
-                f"got {name}={first_bad(arr, bad)!r}"
+                f"got {name}={first_bad(arr, bad)!r}; pass allow_unstable=True to run it anyway"
             )
     return concrete
+
+
+def _warn_negative_gains(alpha: Any, beta: Any, stacklevel: int) -> bool:
+    """One RuntimeWarning if some concrete α ≤ 0 or β < 0 (allowed by ``allow_unstable``)."""
+    a, b = np.broadcast_arrays(np.asarray(alpha, dtype=float), np.asarray(beta, dtype=float))
+    bad = (a <= 0) | (b < 0)
+    if not bad.any():
+        return False
+    i = int(np.argmax(bad)) if bad.ndim else 0
+    a_i, b_i = float(a.flat[i]), float(b.flat[i])
+    zeta = f", zeta={a_i / (2.0 * np.sqrt(a_i * b_i)):.6g}" if a_i * b_i > 0 else ""
+    warnings.warn(
+        f"alpha={a_i!r}, beta={b_i!r}{zeta}: the continuous system of eq. (12) is unstable "
+        "(alpha <= 0 or beta < 0), the DMP runs away from the goal. Running it anyway "
+        "(allow_unstable=True).", RuntimeWarning, stacklevel=stacklevel + 1)
+    return True
 
 
 def _maybe_scalar(arr: np.ndarray) -> Any:
@@ -255,38 +293,53 @@ def classify(alpha: Any, beta: Any) -> Any:
 # ------------------------------------------------------------------- dynamics and integrators
 
 
-def acceleration(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any) -> Any:
-    """Right-hand side of eq. (10): ``ÿ = α (β (g − y) − ẏ)`` (broadcasts)."""
-    return alpha * (beta * (goal - y) - dy)
+def acceleration(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, force: Any = None) -> Any:
+    """Right-hand side of eq. (10), ``ÿ = α (β (g − y) − ẏ)``, plus ``force`` if given.
+
+    With ``force = f / τ`` and the gain ``α / τ`` this is eq. (1),
+    ``τ ÿ = α (β (g − y) − ẏ) + f`` (what :func:`rollout` passes). Broadcasts.
+    """
+    acc = alpha * (beta * (goal - y) - dy)
+    return acc if force is None else acc + force
 
 
-def _substep(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, h: Any, method: str):
+def _substep(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, h: Any, method: str,
+             force: Any = None, t0: float = 0.0):
+    """One sub-step; ``force(t)`` (or None) is the forcing acceleration at local time ``t``."""
+    def f(t):
+        return None if force is None else force(t)
+
     if method == "euler":
-        a = acceleration(y, dy, goal, alpha, beta)
+        a = acceleration(y, dy, goal, alpha, beta, f(t0))
         return y + h * dy, dy + h * a
     if method == "semi_implicit":
-        dy_new = dy + h * acceleration(y, dy, goal, alpha, beta)
+        dy_new = dy + h * acceleration(y, dy, goal, alpha, beta, f(t0))
         return y + h * dy_new, dy_new
-    # classical RK4 on (y, ẏ)
-    k1y, k1v = dy, acceleration(y, dy, goal, alpha, beta)
+    # classical RK4 on (y, ẏ); the forcing is evaluated at t0, t0 + h/2 and t0 + h
+    f_mid = f(t0 + 0.5 * h)
+    k1y, k1v = dy, acceleration(y, dy, goal, alpha, beta, f(t0))
     y2, v2 = y + 0.5 * h * k1y, dy + 0.5 * h * k1v
-    k2y, k2v = v2, acceleration(y2, v2, goal, alpha, beta)
+    k2y, k2v = v2, acceleration(y2, v2, goal, alpha, beta, f_mid)
     y3, v3 = y + 0.5 * h * k2y, dy + 0.5 * h * k2v
-    k3y, k3v = v3, acceleration(y3, v3, goal, alpha, beta)
+    k3y, k3v = v3, acceleration(y3, v3, goal, alpha, beta, f_mid)
     y4, v4 = y + h * k3y, dy + h * k3v
-    k4y, k4v = v4, acceleration(y4, v4, goal, alpha, beta)
+    k4y, k4v = v4, acceleration(y4, v4, goal, alpha, beta, f(t0 + h))
     return (
         y + (h / 6.0) * (k1y + 2.0 * k2y + 2.0 * k3y + k4y),
         dy + (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
     )
 
 
-def _step(y, dy, goal, alpha, beta, dt, method, substeps):
-    """One step without checks (the callers validated their arguments once)."""
+def _step(y, dy, goal, alpha, beta, dt, method, substeps, force=None):
+    """One step without checks (the callers validated their arguments once).
+
+    ``force(t)``, if given, is the forcing acceleration at time ``t`` ∈ [0, dt]
+    after the start of the step.
+    """
     h = dt / substeps
     y_next, dy_next = y, dy
-    for _ in range(substeps):
-        y_next, dy_next = _substep(y_next, dy_next, goal, alpha, beta, h, method)
+    for j in range(substeps):
+        y_next, dy_next = _substep(y_next, dy_next, goal, alpha, beta, h, method, force, j * h)
     return y_next, dy_next, (dy_next - dy) / dt
 
 
@@ -298,9 +351,10 @@ def _check_call(method, substeps, dt, alpha, beta, allow_unstable, stacklevel):
     if not isinstance(allow_unstable, bool):
         raise TypeError(f"allow_unstable must be True or False, got "
                         f"allow_unstable={allow_unstable!r}")
-    if check_gains(alpha, beta) and not is_traced(dt):
-        check_step_stability(alpha, beta, dt, method, substeps, allow_unstable,
-                             stacklevel=stacklevel + 1)
+    if check_gains(alpha, beta, allow_negative=allow_unstable) and not is_traced(dt):
+        if not (allow_unstable and _warn_negative_gains(alpha, beta, stacklevel + 1)):
+            check_step_stability(alpha, beta, dt, method, substeps, allow_unstable,
+                                 stacklevel=stacklevel + 1)
     return method, substeps
 
 
@@ -330,7 +384,9 @@ def step(
     whose spectral radius exceeds 1 — the error would grow every step, e.g.
     α = 25, β = α/4, ``dt = 0.5`` with one explicit Euler sub-step (ρ = 5.25)
     — raises ValueError stating ρ and the stable range of α, unless
-    ``allow_unstable=True``, which runs it with a ``RuntimeWarning``.  Traced
+    ``allow_unstable=True``, which runs it with a ``RuntimeWarning``; the same
+    opt-in lets α ≤ 0 or β < 0 run (the paper's ζ < 0, eq. 13), with a
+    ``RuntimeWarning`` that the continuous system is unstable.  Traced
     gains (inside ``grad``/``jit``) are not checked.
     """
     del xp  # arithmetic only
@@ -353,8 +409,11 @@ def rollout(
     per_step: Iterable[str] = (),
     xp: Any = np,
     allow_unstable: bool = False,
+    forcing: Forcing | None = None,
+    tau: float = 1.0,
+    gate: bool = True,
 ) -> Rollout:
-    """Integrate eq. (10) for ``steps`` steps of ``dt`` seconds.
+    """Integrate eq. (10) — or, with ``forcing``, eq. (1) — for ``steps`` steps of ``dt`` seconds.
 
     ``y0``, ``dy0``: shape ``(..., D)`` for any dimension ``D`` and batch ``...``.
     ``goal``, ``alpha``, ``beta`` broadcast against them (gains are usually a
@@ -368,7 +427,22 @@ def rollout(
     The gains and the stability of the step are checked once for the whole
     rollout, as in :func:`step` (with per-step gains, every step's own matrix
     must have spectral radius ≤ 1); ``allow_unstable=True`` runs an unstable
-    rollout with one ``RuntimeWarning``.
+    rollout with one ``RuntimeWarning`` (negative gains too: the paper's ζ < 0).
+
+    **The full DMP of eq. (1).** With a :class:`Forcing` ``forcing``, the
+    acceleration becomes that of ``τ ÿ = α (β (g − y) − ẏ) + f(x)`` with the
+    forcing term of :func:`forcing_term` (scaled by ``g − y0``, ``y0`` the
+    start of the rollout) and the phase ``x(t) = exp(−α_x t / τ)`` of the
+    canonical system ``τ ẋ = −α_x x`` (the paper's eq. 1 prints ``+α_x x``),
+    advanced exactly in the same time loop (:func:`canonical_system`); inside a
+    step each sub-step evaluates ``f`` at its own phase (RK4 also at the
+    midpoint and the end). The step is eq. (10)'s with the gain ``α / τ`` plus
+    the input ``f / τ``: its stability check is that of gains ``(α / τ, β)``,
+    and ``tau = 1`` with zero weights gives the point attractor exactly.
+    ``tau`` is a concrete positive scalar (the gains may be traced).
+    ``gate=False`` drops the factor ``x`` from ``f`` (a forcing term that never
+    fades: the rollout settles away from the goal). Without ``forcing``, ``tau``
+    still scales eq. (1)'s left-hand side.
     """
     method = _check_method(method)
     substeps = check_int("substeps", substeps, 1)
@@ -384,15 +458,28 @@ def rollout(
     goal = check_leading_axis("goal", goal, steps, why) if "goal" in per_step else goal
     alpha = check_leading_axis("alpha", alpha, steps, why) if "alpha" in per_step else alpha
     beta = check_leading_axis("beta", beta, steps, why) if "beta" in per_step else beta
-    _check_call(method, substeps, dt, alpha, beta, allow_unstable, 2)
+    tau = _check_tau(tau)
+    if not isinstance(gate, bool):
+        raise TypeError(f"gate must be True or False, got gate={gate!r}")
+    if forcing is not None and not isinstance(forcing, Forcing):
+        raise TypeError(f"forcing must be a dmp.Forcing or None, got forcing={forcing!r}")
+    if forcing is not None and is_traced(dt):
+        raise ValueError("forcing needs a concrete dt (the phase is computed before the loop)")
+    alpha_eff = alpha if tau == 1.0 else alpha / tau
+    _check_call(method, substeps, dt, alpha_eff, beta, allow_unstable, 2)
 
     y, dy = xp.asarray(y0), xp.asarray(dy0)
+    if forcing is not None:
+        x_steps = canonical_system(steps, dt, forcing.alpha_x, tau)
     ys, dys, ddys = [y], [dy], []
     for k in range(steps):
         g_k = goal[k] if "goal" in per_step else goal
-        a_k = alpha[k] if "alpha" in per_step else alpha
+        a_k = alpha_eff[k] if "alpha" in per_step else alpha_eff
         b_k = beta[k] if "beta" in per_step else beta
-        y, dy, ddy = _step(y, dy, g_k, a_k, b_k, dt, method, substeps)
+        force = None
+        if forcing is not None:
+            force = _forcing_of_time(forcing, float(x_steps[k]), tau, g_k, y0, gate, xp)
+        y, dy, ddy = _step(y, dy, g_k, a_k, b_k, dt, method, substeps, force)
         ys.append(y)
         dys.append(dy)
         ddys.append(ddy)
@@ -406,6 +493,227 @@ def rollout(
     dys[0] = dys[0] + xp.zeros(full)
     ddy_all = xp.stack(ddys)
     return Rollout(xp.stack(ys), xp.stack(dys), ddy_all)
+
+
+# --------------------------------------------------------------------------- forcing term (eq. 1)
+
+
+PHASE_END: float = 0.01
+"""Phase reached at the end of a demonstration by default: :func:`fit_forcing_weights`
+picks ``α_x = −ln(PHASE_END) τ / T`` so that ``x(T) = 0.01`` (as movement_primitives)."""
+
+
+class Forcing(NamedTuple):
+    """The learned part of eq. (1): ``f(x) = Σ_i ψ_i(x) w_i / Σ_i ψ_i(x) · x · (g − y0)``.
+
+    ``weights`` (n_basis, D): one weight per basis function and dimension;
+    ``centres``, ``widths`` (n_basis,): the Gaussians ``ψ_i(x) = exp(−h_i (x − c_i)²)``
+    in phase (:func:`basis_centres`); ``alpha_x``: the rate of the canonical
+    system ``τ ẋ = −α_x x``.
+    """
+
+    weights: Any
+    centres: np.ndarray
+    widths: np.ndarray
+    alpha_x: float
+
+
+def _check_alpha_x(alpha_x: Any) -> float:
+    arr = check_positive("alpha_x", alpha_x)
+    if arr.ndim:
+        raise ValueError(f"alpha_x must be a scalar, got alpha_x with shape {arr.shape}")
+    return float(arr)
+
+
+def _check_tau(tau: Any) -> float:
+    arr = check_positive("tau", tau)
+    if arr.ndim:
+        raise ValueError(f"tau must be a scalar, got tau with shape {arr.shape}")
+    return float(arr)
+
+
+def phase(t: Any, alpha_x: float, tau: float = 1.0) -> np.ndarray:
+    """Phase of the canonical system of eq. (1), ``x(t) = exp(−α_x t / τ)``.
+
+    The solution of ``τ ẋ = −α_x x`` with ``x(0) = 1`` (the paper's eq. 1 prints
+    ``τ ẋ = α_x x``, which would make x grow: the phase must decay so that the
+    forcing term fades). ``t`` (s, ≥ 0) may be an array; plain NumPy.
+    """
+    a = _check_alpha_x(alpha_x)
+    tau = _check_tau(tau)
+    tt = check_finite("t", t)
+    if (tt < 0).any():
+        raise ValueError(f"t must be >= 0, got t={first_bad(tt, tt < 0)!r}")
+    return np.exp(-a * tt / tau)
+
+
+def canonical_system(steps: int, dt: float, alpha_x: float, tau: float = 1.0) -> np.ndarray:
+    """Phase at the step times ``k dt``, ``k = 0 … steps``, stepped exactly (eq. 1).
+
+    The canonical system ``τ ẋ = −α_x x`` is linear, so its exact discrete
+    solution is ``x_{k+1} = exp(−α_x dt / τ) x_k`` with ``x_0 = 1``: no
+    integration error, whatever ``dt`` (explicit Euler, ``x_{k+1} = (1 − α_x dt / τ) x_k``,
+    would even change sign once ``α_x dt > τ``). Returns shape ``(steps + 1,)``,
+    equal to :func:`phase` at ``k dt`` up to rounding (tested).
+    """
+    steps = check_int("steps", steps, 0)
+    check_dt(dt)
+    decay = float(np.exp(-_check_alpha_x(alpha_x) * float(dt) / _check_tau(tau)))
+    x = np.empty(steps + 1)
+    x[0] = 1.0
+    for k in range(steps):
+        x[k + 1] = x[k] * decay
+    return x
+
+
+def basis_centres(
+    n_basis: int,
+    alpha_x: float,
+    duration: float,
+    tau: float = 1.0,
+    overlap: float = 0.5,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Centres and widths of the Gaussian basis functions of the forcing term (eq. 1).
+
+    The movement_primitives / Ijspeert convention: the centres are the phase at
+    ``n_basis`` instants equally spaced in time over ``[0, duration]``,
+    ``c_i = exp(−α_x t_i / τ)`` (so they crowd together near x = 0, where time
+    runs slowly in phase), and each width ``h_i = −ln(overlap) / (c_{i+1} − c_i)²``
+    makes ``ψ_i`` fall to ``overlap`` at the next centre (the last width repeats
+    the one before). Returns ``(centres, widths)``, each of shape ``(n_basis,)``.
+    """
+    n = check_int("n_basis", n_basis, 2)
+    a = _check_alpha_x(alpha_x)
+    tau = _check_tau(tau)
+    d = check_positive("duration", duration)
+    if d.ndim:
+        raise ValueError(f"duration must be a scalar, got duration with shape {d.shape}")
+    ov = check_finite("overlap", overlap)
+    if ov.ndim or not 0.0 < float(ov) < 1.0:
+        raise ValueError(f"overlap must be a scalar in (0, 1), got overlap={overlap!r}")
+    centres = np.exp(-a * np.linspace(0.0, float(d), n) / tau)
+    widths = -np.log(float(ov)) / np.diff(centres) ** 2
+    return centres, np.concatenate([widths, widths[-1:]])
+
+
+def basis_functions(x: Any, centres: Any, widths: Any) -> np.ndarray:
+    """Gaussian basis functions of eq. (1) in phase, ``ψ_i(x) = exp(−h_i (x − c_i)²)``.
+
+    ``x`` of any shape; returns ``x.shape + (n_basis,)`` (not normalised).
+    """
+    xx = check_finite("x", x)
+    c = check_finite("centres", centres)
+    h = check_positive("widths", widths)
+    if c.ndim != 1 or h.shape != c.shape:
+        raise ValueError(f"centres and widths must be 1-D of one length, got shapes "
+                         f"centres {c.shape}, widths {h.shape}")
+    return np.exp(-h * (xx[..., None] - c) ** 2)
+
+
+def _normalised_basis(x: Any, forcing: Forcing) -> np.ndarray:
+    psi = basis_functions(x, forcing.centres, forcing.widths)
+    return psi / psi.sum(axis=-1, keepdims=True)
+
+
+def forcing_term(
+    x: Any,
+    forcing: Forcing,
+    goal: Any,
+    y0: Any,
+    gate: bool = True,
+    xp: Any = np,
+) -> Any:
+    """The forcing term of eq. (1), ``f(x) = Σ_i ψ_i(x) w_i / Σ_i ψ_i(x) · x · (g − y0)``.
+
+    ``x``: phase, a scalar or shape ``(T,)``; ``goal``, ``y0``: shape ``(..., D)``.
+    Returns ``x.shape + (D,)`` broadcast with the batch of ``goal − y0``. The
+    gate ``x`` makes ``f`` vanish as the phase decays, so the point attractor
+    alone decides where the motion ends; ``gate=False`` drops it (then ``f``
+    tends to the weighted mean of the last weights, a force that never fades).
+    The factor ``g − y0`` rescales the learned shape to a new goal. The weights
+    may be traced (``xp`` provides ``matmul``): the basis is plain NumPy.
+    """
+    if not isinstance(forcing, Forcing):
+        raise TypeError(f"forcing must be a dmp.Forcing, got forcing={forcing!r}")
+    xx = check_finite("x", x)
+    basis = _normalised_basis(xx, forcing)  # (..., n)
+    shape = xp.matmul(basis, forcing.weights)  # (..., D)
+    if gate:
+        shape = shape * xx[..., None] if xx.ndim else shape * float(xx)
+    return shape * (goal - y0)
+
+
+def _forcing_of_time(forcing, x_k, tau, goal, y0, gate, xp):
+    """``s ↦ f(x_k exp(−α_x s / τ)) / τ``, the forcing acceleration within one step."""
+    def force(s):
+        x = x_k * float(np.exp(-forcing.alpha_x * s / tau)) if s else x_k
+        f = forcing_term(x, forcing, goal, y0, gate, xp)
+        return f if tau == 1.0 else f / tau
+    return force
+
+
+def fit_forcing_weights(
+    demo: Any,
+    dt: float,
+    alpha: float = 4.0,
+    beta: float = 1.0,
+    n_basis: int = 20,
+    alpha_x: float | None = None,
+    tau: float = 1.0,
+    overlap: float = 0.5,
+    regularization: float = 1e-10,
+) -> Forcing:
+    """Fit the forcing term of eq. (1) to one demonstration by locally weighted regression.
+
+    ``demo``: positions, shape ``(T + 1, D)`` (or ``(T + 1,)`` for one
+    dimension), sampled every ``dt`` seconds; ``y0 = demo[0]`` and
+    ``g = demo[-1]``. Velocities and accelerations come from finite differences
+    (second-order central, one-sided at the ends: ``numpy.gradient``). The
+    target is what eq. (1) must add to the point attractor,
+    ``f_target = τ ÿ − α (β (g − y) − ẏ)``; with ``s = x (g − y0)``, each weight
+    is the weighted least-squares fit of ``f_target ≈ w_i s`` under the weights
+    ``ψ_i(x)`` (Schaal and Atkeson's LWR, as in Ijspeert et al. 2013)::
+
+        w_id = Σ_t ψ_i(x_t) s_td f_td / (Σ_t ψ_i(x_t) s_td² + regularization)
+
+    A dimension with ``g = y0`` gets zero weights (the scaled forcing term
+    cannot move it). ``alpha_x`` defaults to ``−ln(PHASE_END) τ / T``, so the
+    phase reaches :data:`PHASE_END` at the end of the demonstration; the basis
+    is :func:`basis_centres` over the demonstration's duration. Returns a
+    :class:`Forcing` for :func:`rollout` (with the same ``alpha``, ``beta``,
+    ``tau``, ``dt``, start at rest at ``demo[0]``).
+    """
+    y = check_finite("demo", demo)
+    if y.ndim == 1:
+        y = y[:, None]
+    if y.ndim != 2 or y.shape[0] < 3:
+        raise ValueError(f"demo must have shape (T + 1, D) with T + 1 >= 3 samples, got demo "
+                         f"with shape {np.shape(demo)}")
+    check_dt(dt)
+    dt = float(dt)
+    tau = _check_tau(tau)
+    for name, value in (("alpha", alpha), ("beta", beta)):
+        v = check_positive(name, value)
+        if v.ndim:
+            raise ValueError(f"{name} must be a scalar, got {name} with shape {v.shape}")
+    reg = check_finite("regularization", regularization)
+    if reg.ndim or float(reg) < 0:
+        raise ValueError(f"regularization must be a scalar >= 0, got "
+                         f"regularization={regularization!r}")
+    duration = (y.shape[0] - 1) * dt
+    a_x = -np.log(PHASE_END) * tau / duration if alpha_x is None else _check_alpha_x(alpha_x)
+    centres, widths = basis_centres(n_basis, a_x, duration, tau, overlap)
+    dy = np.gradient(y, dt, axis=0, edge_order=2)
+    ddy = np.gradient(dy, dt, axis=0, edge_order=2)
+    g, y0 = y[-1], y[0]
+    f_target = tau * ddy - float(alpha) * (float(beta) * (g - y) - dy)  # (T + 1, D)
+    x = np.exp(-a_x * np.arange(y.shape[0]) * dt / tau)
+    psi = basis_functions(x, centres, widths)  # (T + 1, n)
+    s = x[:, None] * (g - y0)  # (T + 1, D)
+    num = psi.T @ (s * f_target)  # (n, D)
+    den = psi.T @ (s * s) + float(reg)
+    weights = np.divide(num, den, out=np.zeros_like(num), where=den > 0)
+    return Forcing(weights, centres, widths, float(a_x))
 
 
 # --------------------------------------------------------------------------- discrete step analysis
