@@ -1,5 +1,5 @@
 # %% [markdown]
-# # Chapter 4 — Graded exercises: quaternion product, log, exp and orientation error
+# # Chapter 4 — Graded exercises: quaternion product, log, exp, orientation error, integration
 #
 # Module built in this chapter: **`minimanc.quaternion`**. Read the tutorial
 # `tutorials/04_quaternions.ipynb` first. Replace each
@@ -43,17 +43,22 @@ def multiply(p, q):
 
 # %% grade id=ex04_1_tests points=2
 i, j, k = np.eye(4)[1:]
-assert np.allclose(multiply(i, j), k) and np.allclose(multiply(j, i), -k)
-assert np.allclose(multiply(i, i), -ID)
-assert np.allclose(multiply(ID, [0.5, 0.5, 0.5, 0.5]), [0.5, 0.5, 0.5, 0.5])
+assert np.allclose(multiply(i, j), k) and np.allclose(multiply(j, i), -k), (
+    f"expected i*j = k = [0, 0, 0, 1] and j*i = -k; got {multiply(i, j)} and {multiply(j, i)}")
+assert np.allclose(multiply(i, i), -ID), f"expected i*i = -1 = [-1, 0, 0, 0]; got {multiply(i, i)}"
+assert np.allclose(multiply(ID, [0.5, 0.5, 0.5, 0.5]), [0.5, 0.5, 0.5, 0.5]), (
+    "the identity (1, 0, 0, 0) times q must give q")
 ### BEGIN HIDDEN TESTS
 p, q = random_unit(50), random_unit(50)
 w, x, y, z = np.moveaxis(p, -1, 0)
 left = np.stack([np.stack([w, -x, -y, -z], -1), np.stack([x, w, -z, y], -1),
                  np.stack([y, z, w, -x], -1), np.stack([z, -y, x, w], -1)], -2)
-assert np.allclose(multiply(p, q), np.einsum("nij,nj->ni", left, q))   # p q = L(p) q
-assert multiply(p[:, None], q[None, :5]).shape == (50, 5, 4)
-assert np.allclose(np.linalg.norm(multiply(p, q), axis=-1), 1.0)
+assert np.allclose(multiply(p, q), np.einsum("nij,nj->ni", left, q)), (
+    "p * q must equal the left-multiplication matrix L(p) applied to q, for a batch")
+assert multiply(p[:, None], q[None, :5]).shape == (50, 5, 4), (
+    "multiply must broadcast: (50, 1, 4) with (1, 5, 4) gives (50, 5, 4)")
+assert np.allclose(np.linalg.norm(multiply(p, q), axis=-1), 1.0), (
+    "the product of unit quaternions is a unit quaternion")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -77,18 +82,22 @@ def quat_log(q):
 
 # %% grade id=ex04_2_tests points=3
 half = np.array([np.cos(0.3), 0.0, 0.0, np.sin(0.3)])   # rotation by 0.6 rad about z
-assert np.allclose(quat_log(half), [0.0, 0.0, 0.3])
-assert np.allclose(quat_log(ID), 0.0)
+assert np.allclose(quat_log(half), [0.0, 0.0, 0.3]), (
+    f"log of (cos 0.3, 0, 0, sin 0.3) is the half-angle vector [0, 0, 0.3]; got {quat_log(half)}")
+assert np.allclose(quat_log(ID), 0.0), f"log of the identity is [0, 0, 0]; got {quat_log(ID)}"
 ### BEGIN HIDDEN TESTS
 with warnings.catch_warnings():
     warnings.simplefilter("error")
-    assert np.allclose(quat_log(ID), 0.0)
+    assert np.allclose(quat_log(ID), 0.0), "log of the identity is 0, without a warning"
     qs = random_unit(100)
-    assert np.allclose(Q.exp(quat_log(qs)), qs), "exp(log q) = q"
-    assert np.all(np.linalg.norm(quat_log(qs), axis=-1) <= np.pi + 1e-12), "principal branch"
-    assert quat_log(qs.reshape(10, 10, 4)).shape == (10, 10, 3)
+    assert np.allclose(Q.exp(quat_log(qs)), qs), "exp(log q) = q for random unit q"
+    assert np.all(np.linalg.norm(quat_log(qs), axis=-1) <= np.pi + 1e-12), (
+        "principal branch: |log q| = atan2(|u|, w) lies in [0, pi]")
+    assert quat_log(qs.reshape(10, 10, 4)).shape == (10, 10, 3), (
+        "a (10, 10, 4) batch gives a (10, 10, 3) result")
     tiny = np.array([np.cos(1e-9), np.sin(1e-9), 0.0, 0.0])
-    assert np.isclose(quat_log(tiny)[0], 1e-9, rtol=1e-9)   # arccos(w) would give 0
+    assert np.isclose(quat_log(tiny)[0], 1e-9, rtol=1e-9), (
+        "a 2e-9 rad rotation has log 1e-9: use atan2(|u|, w) (arccos(w) gives 0)")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -108,19 +117,23 @@ def quat_exp(omega):
     ### END SOLUTION
 
 # %% grade id=ex04_3_tests points=3
-assert np.allclose(quat_exp(np.zeros(3)), ID)
-assert np.allclose(quat_exp([0.0, 0.0, 0.3]), [np.cos(0.3), 0.0, 0.0, np.sin(0.3)])
-assert np.allclose(quat_exp([np.pi / 2, 0.0, 0.0]), [0.0, 1.0, 0.0, 0.0])
+assert np.allclose(quat_exp(np.zeros(3)), ID), f"exp(0) = (1, 0, 0, 0); got {quat_exp(np.zeros(3))}"  # noqa: E501
+assert np.allclose(quat_exp([0.0, 0.0, 0.3]), [np.cos(0.3), 0.0, 0.0, np.sin(0.3)]), (
+    "exp([0, 0, 0.3]) = (cos 0.3, 0, 0, sin 0.3)")
+assert np.allclose(quat_exp([np.pi / 2, 0.0, 0.0]), [0.0, 1.0, 0.0, 0.0]), (
+    "exp([pi/2, 0, 0]) = (0, 1, 0, 0) = i")
 ### BEGIN HIDDEN TESTS
 with warnings.catch_warnings():
     warnings.simplefilter("error")
     w = rng.normal(size=(100, 3))
     n = np.linalg.norm(w, axis=-1, keepdims=True)
-    assert np.allclose(quat_exp(w), np.concatenate([np.cos(n), np.sin(n) * w / n], -1))
-    assert np.allclose(np.linalg.norm(quat_exp(w), axis=-1), 1.0)
+    assert np.allclose(quat_exp(w), np.concatenate([np.cos(n), np.sin(n) * w / n], -1)), (
+        "exp(w) = (cos|w|, sin|w| w/|w|) for a batch of random w")
+    assert np.allclose(np.linalg.norm(quat_exp(w), axis=-1), 1.0), "exp(w) is a unit quaternion"
     w = w / np.linalg.norm(w, axis=-1, keepdims=True) * rng.uniform(0, 3.1, size=(100, 1))
-    assert np.allclose(Q.log(quat_exp(w)), w)   # inverse of log for |w| < pi
-    assert quat_exp(np.zeros((2, 5, 3))).shape == (2, 5, 4)
+    assert np.allclose(Q.log(quat_exp(w)), w), "log(exp w) = w for |w| < pi"
+    assert quat_exp(np.zeros((2, 5, 3))).shape == (2, 5, 4), (
+        "a (2, 5, 3) batch (zeros, without warnings) gives (2, 5, 4)")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -143,16 +156,126 @@ def orientation_error(g, q):
 
 # %% grade id=ex04_4_tests points=4
 e = orientation_error(Q.from_yaw(np.deg2rad(-170.0)), Q.from_yaw(np.deg2rad(170.0)))
-assert np.allclose(np.rad2deg(e), [0.0, 0.0, 20.0]), np.rad2deg(e)   # not -340
-assert np.allclose(orientation_error(ID, ID), 0.0)
+assert np.allclose(np.rad2deg(e), [0.0, 0.0, 20.0]), (
+    f"from 170 deg to -170 deg is +20 deg about z, not -340; got {np.rad2deg(e)} deg")
+assert np.allclose(orientation_error(ID, ID), 0.0), "no error between the identity and itself"
 ### BEGIN HIDDEN TESTS
 g, q = random_unit(100), random_unit(100)
 e = orientation_error(g, q)
 r = Q.multiply(g, Q.conjugate(q))
-assert np.allclose(Q.exp(e / 2), np.where(r[..., :1] < 0, -r, r)), "exp(e / 2) = +-g q*"
-assert np.all(np.linalg.norm(e, axis=-1) <= np.pi + 1e-12)
-assert np.allclose(orientation_error(-g, q), e) and np.allclose(orientation_error(g, -q), e)
-assert np.allclose(orientation_error(-ID, ID), 0.0)   # -1 is the identity rotation
+assert np.allclose(Q.exp(e / 2), np.where(r[..., :1] < 0, -r, r)), (
+    "exp(e / 2) must be the w >= 0 representative of g q*")
+assert np.all(np.linalg.norm(e, axis=-1) <= np.pi + 1e-12), "the error angle |e| is at most pi"
+assert np.allclose(orientation_error(-g, q), e) and np.allclose(orientation_error(g, -q), e), (
+    "g and -g (q and -q) are the same rotation: the error must not change")
+assert np.allclose(orientation_error(-ID, ID), 0.0), "-1 is the identity rotation: error 0"
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 4.5 — the sign guard between logged steps
+# A logged orientation sequence may jump from $q$ to $-q$ between two steps
+# (both are the same rotation; a simulator or a conversion routine picks either
+# sign). Differences and interpolation between consecutive samples then see
+# a huge jump. The authors' environment repairs the log step by step: **flip
+# $q_t$ to $-q_t$ whenever $\lVert q_t - q_{t-1}\rVert > 1.8$**, where $q_{t-1}$
+# is the previous quaternion *after* its own repair. Write
+# `sign_continuous(qs, threshold=1.8)` for `qs` of shape `(T, 4)`: keep `qs[0]`,
+# apply the rule to every later step in order, return a new array (do not
+# modify `qs`).
+#
+# Why 1.8? For unit quaternions $\lVert q - p\rVert^2 = 2 - 2\,q\cdot p$, and
+# $q\cdot p = \pm\cos(\varphi/2)$ for the rotation $\varphi \in [0, \pi]$ that
+# takes one to the other. A genuine step has $q\cdot p \ge 0$ and is never
+# flipped; a sign jump is caught when $\cos(\varphi/2) > 0.62$, i.e. for steps
+# that rotate by less than about 103° — always the case at a car's data rate.
+
+# %% solution id=ex04_5 title="Sign continuity of a logged sequence"
+def sign_continuous(qs, threshold=1.8):
+    ### BEGIN SOLUTION
+    qs = np.asarray(qs, dtype=float)
+    out = [qs[0]]
+    for q in qs[1:]:
+        out.append(-q if np.linalg.norm(q - out[-1]) > threshold else q)
+    return np.array(out)
+    ### END SOLUTION
+
+# %% grade id=ex04_5_tests points=2
+psi = np.linspace(0.0, 4 * np.pi, 41)          # two full turns, 18 deg per step
+smooth = Q.from_yaw(psi)                       # continuous: (cos psi/2, 0, 0, sin psi/2)
+signs = np.where(np.random.default_rng(45).random(41) < 0.5, -1.0, 1.0)
+signs[0] = 1.0
+logged = signs[:, None] * smooth
+fixed = sign_continuous(logged)
+assert np.shape(fixed) == (41, 4), f"expected shape (41, 4); got {np.shape(fixed)}"
+assert np.allclose(fixed, smooth), (
+    "after the repair the sequence must be the continuous one: flip q_t when "
+    "|q_t - q_(t-1)| > 1.8, comparing with the already repaired q_(t-1)")
+assert np.allclose(logged, signs[:, None] * smooth), "sign_continuous must not modify its input"
+### BEGIN HIDDEN TESTS
+rng_s = np.random.default_rng(451)
+path = [random_unit(1)[0]]
+for _ in range(60):                            # a smooth 3-D path, steps of tens of degrees
+    path.append(Q.integrate(path[-1], rng_s.normal(size=3) * 0.35, 1.0))
+path = np.array(path)
+s = np.where(rng_s.random(61) < 0.5, -1.0, 1.0)
+out = sign_continuous(s[:, None] * path)
+assert np.allclose(out, s[0] * path), (
+    "a random 3-D path with random sign jumps must come back continuous, with the sign of "
+    "its first sample")
+assert np.allclose(np.abs(np.einsum("ti,ti->t", out, s[:, None] * path)), 1.0), (
+    "every repaired sample is +-the logged one")
+q_a, q_b = ID, Q.from_yaw(np.deg2rad(126.0))   # a 126-deg step with a sign jump
+kept = sign_continuous(np.stack([q_a, -q_b]))
+assert np.allclose(kept[1], -q_b), (
+    "|q_b + 1| = 1.70 < 1.8 for a 126-deg step: the 1.8 rule keeps it (the rule only catches "
+    "jumps across steps below about 103 deg); use the threshold as specified")
+assert np.allclose(sign_continuous(np.stack([q_a, -q_b]), threshold=np.sqrt(2))[1], q_b), (
+    "with threshold = sqrt(2) the rule flips whenever q_t . q_(t-1) < 0")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 4.6 — integrating an angular velocity (eq. 5)
+# Eq. 5 advances an orientation by the rotation an angular velocity η (rad/s,
+# world frame) makes in δt: $q_{k+1} = \exp(\tfrac{\delta t}{2}\,\eta_k) * q_k$
+# (the paper's $\eta/\tau$ with τ = 1), renormalised so that rounding cannot
+# carry q off the sphere. Write `integrate_sequence(q0, etas, dt)` for `q0` of
+# shape `(4,)` and `etas` of shape `(K, 3)`: return all orientations
+# $q_0, \dots, q_K$, shape `(K + 1, 4)`. Left-multiply: η is in the world frame.
+# You may use `Q.exp` and `Q.multiply` (or your functions above);
+# `Q.integrate` is disabled while this exercise is graded.
+
+# %% solution id=ex04_6 title="Integrating an angular velocity" forbids="minimanc.quaternion.integrate"  # noqa: E501
+def integrate_sequence(q0, etas, dt):
+    ### BEGIN SOLUTION
+    qs = [np.asarray(q0, dtype=float)]
+    for eta in np.asarray(etas, dtype=float):
+        q = Q.multiply(Q.exp(0.5 * dt * eta), qs[-1])
+        qs.append(q / np.linalg.norm(q))
+    return np.array(qs)
+    ### END SOLUTION
+
+# %% grade id=ex04_6_tests points=3
+eta_c = np.array([0.3, -0.5, 1.2])
+traj = integrate_sequence(ID, np.tile(eta_c, (40, 1)), 0.5)
+assert np.shape(traj) == (41, 4), f"K = 40 steps give K + 1 = 41 orientations; got {np.shape(traj)}"  # noqa: E501
+assert np.allclose(traj[0], ID), "the first orientation is q0"
+assert np.allclose(traj[-1], Q.exp(40 * 0.5 * eta_c / 2)), (
+    "for a constant eta the result is exact: q_K = exp(K dt eta / 2) * q0")
+### BEGIN HIDDEN TESTS
+x_rate, z_rate = np.array([np.pi, 0.0, 0.0]), np.array([0.0, 0.0, np.pi])
+two = integrate_sequence(ID, np.stack([x_rate, z_rate]), 0.5)     # 90 deg about x, then z
+assert np.allclose(two[-1], Q.multiply(Q.exp(z_rate / 4), Q.exp(x_rate / 4))), (
+    "eq. 5 left-multiplies (world frame): q_2 = exp(dt/2 eta_1) * exp(dt/2 eta_0) * q0")
+q0_r = random_unit(1)[0]
+etas_r = np.random.default_rng(46).normal(size=(2000, 3)) * 3.0
+long = integrate_sequence(q0_r, etas_r, 0.1)
+assert np.allclose(np.linalg.norm(long, axis=1), 1.0, atol=1e-12), (
+    "after 2000 steps every q must still be a unit quaternion (renormalise)")
+assert np.allclose(long[1], Q.multiply(Q.exp(0.05 * etas_r[0]), q0_r)), (
+    "q_1 = exp(dt/2 eta_0) * q0")
+k = 1234
+assert np.allclose(long[k + 1], Q.multiply(Q.exp(0.05 * etas_r[k]), long[k])), (
+    "every step is q_(k+1) = exp(dt/2 eta_k) * q_k")
 ### END HIDDEN TESTS
 
 # %% [markdown]
