@@ -10,10 +10,17 @@
 # therefore writes the orientation part of its DMP with **unit quaternions**
 # $q = [v, \mathbf u] \in S^3$ (eq. 2):
 #
-# $$\dot{\boldsymbol\eta} = \alpha\big(\beta\; 2\log(g_q * \bar q) - \boldsymbol\eta\big),
-# \qquad \dot q = \tfrac12\, \boldsymbol\eta * q,$$
+# $$\tau\dot{\boldsymbol\eta} = \alpha_q\big(\beta_q\; 2\log(g_q * \bar q) - \boldsymbol\eta\big)
+#   + \mathbf f_q(s, x \mid \theta_q),
+# \qquad \tau\dot q = \tfrac12\, \boldsymbol\eta * q,$$
 #
-# where η is the angular velocity. This chapter builds the pieces: the product
+# where η is the (scaled) angular velocity, τ a time constant and $\mathbf f_q$ a
+# learned forcing term gated by the phase $x$ of chapter 3's canonical system.
+# MANC drops the forcing term and lets the network output the gains, with τ
+# folded into them (eq. 10); so from section 5 on this chapter integrates
+# eq. 2 with $\tau = 1$ and $\mathbf f_q = 0$:
+# $\dot{\boldsymbol\eta} = \alpha(\beta\, 2\log(g_q * \bar q) - \boldsymbol\eta)$,
+# $\dot q = \tfrac12 \boldsymbol\eta * q$. This chapter builds the pieces: the product
 # $*$ (eq. 3), the logarithm (eq. 4), the exponential (eq. 6), the integration
 # rule (eq. 5) — and the traps: two quaternions per rotation, a logarithm that is
 # undefined at −1, and a norm whose gradient is NaN at the identity.
@@ -174,7 +181,9 @@ assert abs(bad[-1] - bad[0] + 340) < 1 and abs(good[-1] - good[0] - 20) < 1
 # %% [markdown]
 # ## 4. Integrating an angular velocity
 # Eq. (5) advances the orientation by the rotation the angular velocity makes
-# in δt: $q(t + \delta t) = \exp(\tfrac{\delta t}{2}\,\eta/\tau) * q(t)$. For a
+# in δt: $q(t + \delta t) = \exp(\tfrac{\delta t}{2}\,\eta/\tau) * q(t)$. (The paper
+# introduces it with "Equation (4) can be integrated as"; what it integrates is
+# the second line of eq. 2, $\tau\dot q = \tfrac12\eta * q$ — eq. 4 is the log map.) For a
 # constant η this is exact after any number of steps, and it stays on the
 # sphere up to rounding (we renormalise anyway). A first-order update of
 # $\dot q = \tfrac12 \eta * q$, $q \leftarrow q + \tfrac{\delta t}2\, \eta * q$,
@@ -316,3 +325,42 @@ assert np.all(np.isnan(g_naive)) and np.allclose(g_ours, [0.0, 1.0, 1.0, 1.0])
 # * `quaternion_rollout` is the orientation DMP; for yaw-only motion it is the 1-D
 #   DMP of chapter 3 on the wrapped heading error.
 # * Gradients are finite at the identity on both engines (double-where trick).
+
+# %% [markdown]
+# ## Paper vs. this course
+# Where this chapter departs from section II-B of the paper (eqs. 2–6), and
+# where the paper itself slips:
+#
+# * **Eq. 2 without τ and $\mathbf f_q$.** The paper's eq. 2 has a time constant
+#   τ and a forcing term $\mathbf f_q(s, x \mid \theta_q)$. An earlier version of
+#   this tutorial quoted it without either; the introduction now states it in
+#   full. The course integrates eq. 2 with τ = 1 and no forcing term, because
+#   MANC replaces the forcing term by learned gains and folds τ into them
+#   (eq. 10); its head outputs α and β only.
+# * **"Equation (4) can be integrated as" eq. 5** means eq. 2: eq. 5 integrates
+#   the kinematics $\tau\dot q = \tfrac12\eta * q$; eq. 4 is the logarithm.
+# * **Eq. 1's canonical system** reads $\tau\dot x = \alpha_x x$, which grows;
+#   it should be $\tau\dot x = -\alpha_x x$ (the phase $x$ that would gate
+#   $\mathbf f_q$ must decay); `minimanc.dmp` (chapter 3) uses the minus sign.
+# * **Eq. 4's `arccos(v)`** loses small rotations in floating point
+#   (`cos(1e-9)` rounds to 1, section 2). We compute the same angle as
+#   `atan2(‖u‖, v)`, identical for unit q in exact arithmetic.
+# * **"η ... treated as unit quaternion with zero scalar"**: η enters the
+#   product as the *pure* quaternion $(0, \eta)$; it is not a unit quaternion
+#   (its norm is the angular speed).
+# * **Which sign of $g_q * \bar q$?** Eq. 2 does not say; taken literally it can
+#   turn a car 340° the long way (section 3). `orientation_error` takes the
+#   representative with $w \ge 0$. The paper's domain remark (log and Exp
+#   inverse on $S^3 \setminus \{-1\}$, $\lVert\omega\rVert < \pi$) is about
+#   quaternions; as *rotations*, q and −q coincide, and a unique rotation vector
+#   needs $\lVert\omega\rVert \le \pi/2$, i.e. $w \ge 0$.
+# * **Eq. 10's gains** are written $\alpha_y(s\mid\theta_q), \beta_y(s\mid\theta_q)$
+#   and eq. 11's $\mathtt{FC}(q) = \{\alpha_y, \beta_y, \alpha_y, \beta_y\}$: the
+#   last two should be the orientation gains $\alpha_q, \beta_q$.
+# * **The sign guard $\lVert q - q_{prev}\rVert > 1.8$** comes from the authors'
+#   environment, not the paper. It repairs a sign jump only across steps that
+#   rotate by less than about 103° (exercise 4.5); the rule
+#   $q\cdot q_{prev} < 0$ (threshold $\sqrt2$) would catch every jump.
+# * **Gradients at the identity** are not discussed in the paper: eqs. 4 and
+#   6 as written (a case split on $\mathbf u = 0$) give NaN gradients under
+#   autodiff; our double `where` keeps them exact (section 7).
