@@ -156,6 +156,43 @@ assert np.isclose(x_bar, np.cos(0.7**2) * 2 * 0.7 + 1)
 print(f"x_bar = {float(x_bar):.6f}")
 
 # %% [markdown]
+# The backward pass above keeps one cotangent per node. To *see* how each one
+# is assembled, `computation_graph(f, *args)` runs the same reverse pass but
+# records the cotangent that flows along **each edge** `parent → child`: the
+# VJP of the child's primitive applied to the child's cotangent. A node's
+# cotangent is the sum over the edges that leave it — here the three edges
+# leaving `arg0` add up to $\bar x$. (Exercise 1.6 writes this traversal.)
+
+# %%
+from minimanc.autodiff import computation_graph
+
+graph = computation_graph(lambda x: anp.sin(x * x) + x, np.array(0.7))
+print(graph)   # cotangents to 4 decimals: cos(0.49) = 0.8823, 0.7 cos(0.49) = 0.6176
+from_edges = sum(float(e.cotangent) for e in graph.edges if e.parent == 0)
+assert np.isclose(from_edges, float(x_bar)) and np.isclose(float(graph.gradients()[0]), x_bar)
+
+# %% [markdown]
+# Drawn, with a second function of two inputs: nodes sit in columns by depth,
+# each edge carries its cotangent (red). In $h(x, y) = \sin(xy) + x e^y$ the
+# input $x$ feeds two products, so $\partial h/\partial x$ is the sum of the
+# two red numbers on its outgoing edges: $-1.064 + 0.301 = -0.763$.
+
+# %%
+import matplotlib.pyplot as plt
+
+graph_h = computation_graph(lambda x, y: anp.sin(x * y) + x * anp.exp(y), np.array(0.4),
+                            np.array(-1.2))
+fig, axes = plt.subplots(1, 2, figsize=(13, 3.6), gridspec_kw={"width_ratios": [1, 1.25]})
+graph.draw(axes[0])
+axes[0].set_title("sin(x·x) + x at x = 0.7")
+graph_h.draw(axes[1])
+axes[1].set_title("sin(x·y) + x·exp(y) at (0.4, −1.2)")
+plt.show()
+dh_dx = sum(float(e.cotangent) for e in graph_h.edges if e.parent == 0)
+assert np.isclose(dh_dx, np.cos(-0.48) * -1.2 + np.exp(-1.2))
+print(f"dh/dx from the edges of arg0: {dh_dx:.4f}")
+
+# %% [markdown]
 # ## 5. Why a topological sort, and why an iterative one
 # A box may only pass its cotangent to its parents once it has received **all**
 # its own contributions, i.e. after every box that uses it. A topological order
@@ -308,3 +345,28 @@ except TracerConversionError as err:
 print(grad(lambda x: np.sum(np.exp(x)))(np.zeros(2)))  # NumPy's own sum and exp: traced
 w32 = rng.normal(size=(3, 2)).astype(np.float32)
 print(grad(lambda w: anp.sum(anp.tanh(w) ** 2))(w32).dtype)
+
+# %% [markdown]
+# ## Paper vs. this course
+# Chapter 1 is infrastructure: the paper (`manc.tex`) never says how its
+# gradients are computed. Where this course departs from it, and where the
+# paper slips:
+#
+# * **A framework vs. an engine we write.** The authors trained in a
+#   deep-learning framework (their model code was never released); we build
+#   reverse mode from scratch, first-order only, and check it against JAX
+#   (section 8). Every model of chapters 2–10 is trained with it or with
+#   `engine("jax")` — the same code on both.
+# * **float64 by default.** Our engine computes in the dtype of its inputs
+#   (NumPy's default float64); frameworks default to float32. `minimanc.train`
+#   trains in float32 on JAX by default, for speed.
+# * **Algorithm 1's step divides by $m$ twice.** Line 10 writes
+#   $\theta \leftarrow \theta - \gamma \frac1m \nabla L$ with $L = \mathrm{MSE}$,
+#   which is already a mean over the minibatch of $m$ samples; read literally,
+#   the gradient is averaged twice (or $L$ is meant as a sum). We use the mean
+#   loss and no extra $\frac1m$: the same step with $\gamma$ rescaled by $m$.
+# * **Long chains.** Algorithm 1 differentiates through a single DMP step per
+#   sample; the DMP windows of `minimanc.train` span whole scenes (40 steps,
+#   chapter 9), i.e. chains of thousands of operations. That is why our
+#   topological sort is iterative (section 5): a recursive one would stop at
+#   Python's recursion limit.

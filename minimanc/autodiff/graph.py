@@ -150,8 +150,8 @@ class Graph:
                 f"|{float(np.linalg.norm(ct)):.{digits}g}|"
             if rad:  # the middle of the arc (data coordinates, as arc3 in a square box)
                 lx, ly = (x0 + x1) / 2 + rad * (y1 - y0) / 2, (y0 + y1) / 2 - rad * (x1 - x0) / 2
-            else:  # nearer the child, so that crossing edges keep their labels apart
-                lx, ly = x0 + 0.6 * (x1 - x0), y0 + 0.6 * (y1 - y0) + 0.08
+            else:  # the middle of the arrow, just above it
+                lx, ly = (x0 + x1) / 2, (y0 + y1) / 2 + 0.06
             ax.text(lx, ly, text, ha="center", va="bottom" if not rad else "center",
                     fontsize=8, color="tab:red",
                     bbox={"fc": "white", "ec": "none", "pad": 0.5, "alpha": 0.8})
