@@ -1,8 +1,9 @@
 # %% [markdown]
-# # Chapter 3 — Dynamic movement primitives: damping and step stability
+# # Chapter 3 — Dynamic movement primitives: damping, step stability, forcing term
 #
 # Module built in this chapter: **`minimanc.dmp`** (point attractor, damping
-# ratio, stability of the discrete step, rollouts, learned gains).
+# ratio, stability of the discrete step, rollouts, learned gains, and the full
+# DMP of eq. 1 with its canonical system and forcing term).
 #
 # The motion controller of MANC is a *dynamic movement primitive* (DMP). The
 # classical DMP (paper, eq. 1) is a spring–damper pulled towards a goal $g$,
@@ -10,9 +11,11 @@
 #
 # $$\tau \ddot y = \alpha\,(\beta\,(g - y) - \dot y) + f(s, x).$$
 #
-# The paper drops $f$ — a forcing term that never fades could fight the
-# attractor on an endless drive — and lets the network choose the gains
-# instead (eq. 10):
+# Here $x$ is the phase of the *canonical system* $\tau\dot x = -\alpha_x x$
+# (the paper prints $\tau\dot x = \alpha_x x$, a sign slip: the phase must
+# decay). The paper drops $f$ — a forcing term that never fades could fight the
+# attractor on an endless drive; section 7 builds $f$ and *shows* it — and lets
+# the network choose the gains instead (eq. 10):
 #
 # $$\ddot y = \alpha(s)\,\big(\beta(s)\,(g - y) - \dot y\big).$$
 #
@@ -221,20 +224,38 @@ plt.show()
 # Red is unstable (ρ > 1), blue stable. The right panel is the package
 # default (semi-implicit Euler, 10 sub-steps of 0.05 s) with the box in which
 # learned gains live (green); `tests/test_dmp.py` proves that the whole box is
-# stable: both Jury conditions get harder as α or β grow, so the corner
-# (α_max, β_max) is the worst case.
+# stable. Two different questions hide here, and they have different worst
+# corners:
+#
+# * **Stability margin — the corner (α_max, β_max) = (20, 5).** The Jury
+#   condition that can fail, $4 - h\alpha(2 + h\beta) > 0$, gets harder as α or β
+#   grow, so the box is closest to the stability boundary at its top-right
+#   corner: there α may grow to 35.6 before the step diverges.
+# * **Slowest convergence — the corner (α_max, β_min) = (20, 0.05).** The
+#   spectral radius says how fast a stable step forgets the error. With α ≫ β the
+#   slow root of eq. (12) is λ ≈ −β: the error closes at rate β, so per step it
+#   shrinks only by about $e^{-\beta\,\Delta t} \approx 0.975$. That ρ is close to 1
+#   because the motion is sluggish, not because the step is near divergence.
 
 # %%
 h = dmp.DT / dmp.DEFAULT_SUBSTEPS
 for b in dmp.BETA_RANGE:
     print(f"beta = {b:4.2f}: stable for alpha < {dmp.max_stable_alpha(b):6.2f} "
           f"(box goes to {dmp.ALPHA_RANGE[1]:.0f})")
+a_hi, b_hi = dmp.ALPHA_RANGE[1], dmp.BETA_RANGE[1]
+margin = 4 - h * a_hi * (2 + h * b_hi)  # the Jury condition 1 + tr + det > 0
+print(f"stability margin: smallest 4 - h*alpha*(2 + h*beta) = {margin:.4f} at the corner "
+      f"alpha={a_hi:.0f}, beta={b_hi:.0f} (> 0: stable)")
 a_grid, b_grid = np.meshgrid(np.linspace(*dmp.ALPHA_RANGE, 100), np.linspace(*dmp.BETA_RANGE, 100))
 rho_box = dmp.spectral_radius(a_grid, b_grid)
-print(f"largest spectral radius in the box: {rho_box.max():.4f} "
-      f"(at the slow corner alpha={a_grid.flat[rho_box.argmax()]:.2f}, "
-      f"beta={b_grid.flat[rho_box.argmax()]:.2f})")
-assert rho_box.max() < 1
+margins = 4 - h * a_grid * (2 + h * b_grid)
+assert margins.min() == margins[-1, -1] == margin  # the margin is smallest at (20, 5)
+print(f"slowest convergence: largest spectral radius {rho_box.max():.3f} "
+      f"at alpha={a_grid.flat[rho_box.argmax()]:.0f}, beta={b_grid.flat[rho_box.argmax()]:.2f} "
+      f"(about exp(-beta*DT) = {np.exp(-dmp.BETA_RANGE[0] * dmp.DT):.3f})")
+print(f"at the margin corner (20, 5) the spectral radius is only "
+      f"{dmp.spectral_radius(a_hi, b_hi):.3f}: close to the boundary, yet fast")
+assert rho_box.max() < 1 and np.isclose(rho_box.max(), dmp.spectral_radius(20.0, 0.05))
 
 # %% [markdown]
 # ## 4. Learned gains: why the sigmoid keeps ζ > 0
@@ -364,6 +385,207 @@ assert abs(a_fit - a_true) < 0.03 * a_true and abs(b_fit - b_true) < 0.03 * b_tr
 
 
 # %% [markdown]
+# ## 7. The full DMP of eq. 1: canonical system and forcing term
+# MANC drops the forcing term, but it is what makes a DMP a *movement
+# primitive*: the point attractor alone can only go straight (or spiral) to
+# $g$; the forcing term bends the path into a learned shape. Eq. (1) with its
+# canonical system, as `minimanc.dmp` implements it:
+#
+# $$\tau\ddot y = \alpha\,(\beta\,(g - y) - \dot y) + f(x), \qquad
+# \tau\dot x = -\alpha_x x, \qquad
+# f(x) = \frac{\sum_i \psi_i(x)\, w_i}{\sum_i \psi_i(x)}\; x\,(g - y_0).$$
+#
+# ### 7.1 The canonical system
+# The phase starts at $x = 1$ and decays, $x(t) = e^{-\alpha_x t/\tau}$. It is a
+# clock that runs down: the forcing term is multiplied by it, so it fades
+# whatever the weights. The equation is linear, so its *exact* discrete step is
+# $x_{k+1} = e^{-\alpha_x \Delta t/\tau} x_k$ (`dmp.canonical_system`); explicit
+# Euler, $x_{k+1} = (1 - \alpha_x\Delta t/\tau)\, x_k$, would even turn negative at
+# our 0.5 s step once $\alpha_x \Delta t > \tau$.
+
+# %%
+alpha_x, T_demo = -np.log(dmp.PHASE_END), 1.0  # x(1 s) = 0.01, as movement_primitives
+x_exact = dmp.canonical_system(4, 0.5, 3.0)
+x_euler = (1 - 3.0 * 0.5) ** np.arange(5)
+print("alpha_x = 3, dt = 0.5: exact", " ".join(f"{v:.4f}" for v in x_exact))
+print("             explicit Euler", " ".join(f"{v:+.4f}" for v in x_euler))
+assert np.allclose(x_exact, np.exp(-3.0 * 0.5 * np.arange(5)), rtol=1e-14)
+print(f"alpha_x for the demonstrations below: -ln(0.01)/1 s = {alpha_x:.4f}")
+
+# %% [markdown]
+# ### 7.2 Basis functions spaced in phase
+# The forcing term is a normalised mixture of Gaussians in $x$,
+# $\psi_i(x) = e^{-h_i (x - c_i)^2}$. `dmp.basis_centres` follows the
+# movement_primitives / Ijspeert convention: the centres are the phase at
+# instants *equally spaced in time*, $c_i = e^{-\alpha_x t_i/\tau}$, so they crowd
+# together near $x = 0$; each width makes $\psi_i$ fall to one half at the next
+# centre. Plotted against time, the bumps are evenly spread over the movement.
+
+# %%
+n_basis = 10
+centres, widths = dmp.basis_centres(n_basis, alpha_x, T_demo)
+tt = np.linspace(0, T_demo, 401)
+psi = dmp.basis_functions(dmp.phase(tt, alpha_x), centres, widths)  # (401, 10)
+fig, axes = plt.subplots(1, 2, figsize=(12, 3.3))
+axes[0].plot(tt, psi)
+axes[0].plot(tt, dmp.phase(tt, alpha_x), "k--", label="phase x(t)")
+axes[0].set_xlabel("t (s)")
+axes[0].set_title("ψ_i(x(t)): equally spaced in time")
+axes[0].legend()
+axes[1].plot(dmp.phase(tt, alpha_x), psi / psi.sum(1, keepdims=True))
+axes[1].set_xlabel("phase x")
+axes[1].set_title("normalised ψ_i / Σψ: crowded near x = 0")
+plt.show()
+half = np.exp(-widths[:-1] * np.diff(centres) ** 2)
+print(f"centres (in x): {' '.join(f'{c:.3f}' for c in centres)}")
+assert np.allclose(half, 0.5)  # ψ_i is one half at the next centre
+peaks = tt[psi.argmax(axis=0)]
+assert np.allclose(peaks, np.linspace(0, T_demo, n_basis), atol=tt[1])  # even in time
+
+# %% [markdown]
+# ### 7.3 Learning the weights from one demonstration
+# `dmp.fit_forcing_weights(demo, dt)` takes positions only. Finite differences
+# give $\dot y, \ddot y$; eq. (1) then says what the forcing term must add to the
+# point attractor, $f_{target} = \tau\ddot y - \alpha(\beta(g - y) - \dot y)$ with
+# $g$ the demo's last point. Locally weighted regression fits each weight on its
+# own, a weighted least-squares fit of $f_{target} \approx w_i\, s$ with
+# $s = x\,(g - y_0)$ under the weights $\psi_i$:
+#
+# $$w_i = \frac{\sum_t \psi_i(x_t)\, s_t\, f_{target,t}}{\sum_t \psi_i(x_t)\, s_t^2}.$$
+#
+# The demonstration: a 2-D reach of 1 s that swerves sideways on the way
+# (sampled every 10 ms, at rest at both ends). Gains: the textbook α = 25,
+# β = α/4 — fine here, because this DMP is stepped at 10 ms, not 0.5 s.
+
+# %%
+dt_demo, a_d, b_d = 0.01, 25.0, 25.0 / 4
+t_d = np.arange(101) * dt_demo
+sd = t_d / T_demo
+min_jerk = 10 * sd**3 - 15 * sd**4 + 6 * sd**5
+demo = np.stack([2.0 * min_jerk, 1.0 * min_jerk + 0.8 * np.sin(np.pi * sd) ** 2], axis=-1)
+errors = {}
+fig, ax = plt.subplots(figsize=(6, 4))
+ax.plot(demo[:, 0], demo[:, 1], "k", lw=4, alpha=0.3, label="demonstration")
+for nb in (5, 10, 30):
+    forcing = dmp.fit_forcing_weights(demo, dt_demo, a_d, b_d, n_basis=nb)
+    r = dmp.rollout(demo[0], np.zeros(2), demo[-1], a_d, b_d, dt_demo, 100, forcing=forcing)
+    errors[nb] = np.abs(r.y - demo).max()
+    ax.plot(r.y[:, 0], r.y[:, 1], label=f"{nb} basis functions")
+plain = dmp.rollout(demo[0], np.zeros(2), demo[-1], a_d, b_d, dt_demo, 100)
+ax.plot(plain.y[:, 0], plain.y[:, 1], "k:", label="no forcing term")
+ax.set_aspect("equal")
+ax.legend(fontsize=8)
+plt.show()
+for nb, e in errors.items():
+    print(f"{nb:2d} basis functions: largest deviation from the demo < {np.ceil(e * 100):.0f} cm")
+assert errors[30] < errors[10] < errors[5] and errors[30] < 0.03
+forcing = dmp.fit_forcing_weights(demo, dt_demo, a_d, b_d, n_basis=30)
+
+# %% [markdown]
+# ### 7.4 Generalisation to a new goal
+# The factor $g - y_0$ makes the learned shape scale with the movement: with
+# $u = (y - y_0)/(g - y_0)$, eq. (1) becomes
+# $\tau\ddot u = \alpha(\beta(1 - u) - \dot u) + x\,\sum\psi_i w_i/\sum\psi_i$, which does
+# not depend on $g$. So a new goal stretches each coordinate of the same motion
+# about the start, and — because $x \to 0$ — every rollout ends exactly at its
+# goal (`tests/test_dmp.py` checks both).
+
+# %%
+goals = np.array([[2.0, 1.0], [1.5, 2.0], [3.0, -0.5], [-1.0, 1.5]])
+fig, ax = plt.subplots(figsize=(6, 4))
+for goal_new in goals:
+    r = dmp.rollout(demo[0], np.zeros(2), goal_new, a_d, b_d, dt_demo, 300, forcing=forcing)
+    ax.plot(r.y[:, 0], r.y[:, 1])
+    ax.plot(*goal_new, "k*", ms=10)
+    k = (goal_new - demo[0]) / (demo[-1] - demo[0])
+    assert np.allclose(r.y[:101], demo[0] + k * (dmp.rollout(
+        demo[0], np.zeros(2), demo[-1], a_d, b_d, dt_demo, 100, forcing=forcing).y - demo[0]))
+    assert np.abs(r.y[-1] - goal_new).max() < 1e-3  # at the goal after 3 s
+    print(f"goal ({goal_new[0]:+.1f}, {goal_new[1]:+.1f}): reached to within 1 mm")
+ax.set_aspect("equal")
+ax.set_title("one demonstration, four goals")
+plt.show()
+
+# %% [markdown]
+# ### 7.5 Why the forcing term must fade
+# Take the gate $x$ out of $f$ (`gate=False`). As $x \to 0$ the normalised
+# basis settles on its last functions and $f$ tends to a constant
+# $f_\infty = \sum_i \psi_i(0) w_i / \sum_i \psi_i(0)\,(g - y_0)$. A constant force
+# moves the rest point of eq. (1): $0 = \alpha(\beta(g - y) - 0) + f_\infty$ gives
+# $y_\infty = g + f_\infty/(\alpha\beta)$ — the DMP never reaches its goal. This
+# is what the paper means by "if they are always kept in effect, then the
+# system may never reach the goal state", and why MANC, which drives for an
+# unbounded time with no phase to run down, drops $f$.
+
+# %%
+long = dict(dt=0.05, steps=80, substeps=5, forcing=forcing)  # 4 s
+gated = dmp.rollout(demo[0], np.zeros(2), demo[-1], a_d, b_d, **long)
+ungated = dmp.rollout(demo[0], np.zeros(2), demo[-1], a_d, b_d, gate=False, **long)
+f_inf = dmp.forcing_term(0.0, forcing, demo[-1], demo[0], gate=False)
+rest = demo[-1] + f_inf / (a_d * b_d)
+t_long = np.arange(81) * 0.05
+fig, axes = plt.subplots(1, 2, figsize=(12, 3.6))
+axes[0].plot(demo[:, 0], demo[:, 1], "k", lw=4, alpha=0.3, label="demonstration")
+axes[0].plot(gated.y[:, 0], gated.y[:, 1], label="f gated by x (eq. 1)")
+axes[0].plot(ungated.y[:, 0], ungated.y[:, 1], label="f never fades")
+axes[0].plot(*demo[-1], "k*", ms=12, label="goal")
+axes[0].plot(*rest, "rx", ms=10, label="g + f∞/(αβ)")
+axes[0].legend(fontsize=8)
+axes[0].set_aspect("equal")
+axes[1].semilogy(t_long, np.linalg.norm(gated.y - demo[-1], axis=-1) + 1e-12, label="gated")
+axes[1].semilogy(t_long, np.linalg.norm(ungated.y - demo[-1], axis=-1), label="never fades")
+axes[1].set_xlabel("t (s)")
+axes[1].set_ylabel("distance to the goal")
+axes[1].legend()
+plt.show()
+gap_gated = np.linalg.norm(gated.y[-1] - demo[-1])
+gap_ungated = np.linalg.norm(ungated.y[-1] - demo[-1])
+print(f"after 4 s: gated within 1 mm of the goal: {gap_gated < 1e-3}; never fading "
+      f"{gap_ungated:.2f} m off, at the predicted rest point g + f_inf/(alpha beta)")
+assert gap_gated < 1e-3 and gap_ungated > 0.1
+assert np.allclose(ungated.y[-1], rest, atol=1e-4)
+
+# %% [markdown]
+# ### 7.6 The paper's ζ < 0
+# The paper warns that the system "can become unstable when ζ < 0". With
+# ζ = α/(2√(αβ)) that needs α < 0 *and* β < 0 (αβ > 0): negative damping and a
+# repelling spring. `dmp.rollout` refuses negative gains — the error names the
+# opt-in — and runs them with `allow_unstable=True` and one `RuntimeWarning`.
+# A sigmoid head (the paper's, and `dmp.gains_from_logits`) can never output them.
+
+# %% tags=["raises-exception"]
+dmp.rollout(np.array([1.0]), np.zeros(1), 0.0, -2.0, -0.5, 0.5, 12)
+
+# %%
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    neg = dmp.rollout(np.array([1.0]), np.zeros(1), 0.0, -2.0, -0.5, 0.5, 12,
+                      allow_unstable=True)
+assert len(caught) == 1 and issubclass(caught[0].category, RuntimeWarning)
+print(f"zeta = {dmp.damping_ratio(-2.0, -0.5):.1f} ({dmp.classify(-2.0, -0.5)}); "
+      f"RuntimeWarning: {'unstable' in str(caught[0].message)}")
+pos = dmp.rollout(np.array([1.0]), np.zeros(1), 0.0, 2.0, 0.5, 0.5, 12)
+fig, ax = plt.subplots(figsize=(7, 3))
+ax.semilogy(np.arange(13) * 0.5, np.abs(neg.y[:, 0]), "o-", label="α = −2, β = −0.5 (ζ = −1)")
+ax.semilogy(np.arange(13) * 0.5, np.abs(pos.y[:, 0]), "o-", label="α = 2, β = 0.5 (ζ = 1)")
+ax.set_xlabel("t (s)")
+ax.set_ylabel("|y − g|")
+ax.legend()
+plt.show()
+assert abs(neg.y[-1, 0]) > 1e3 and abs(pos.y[-1, 0]) < 0.1
+
+# %% [markdown]
+# ### 7.7 Why MANC's head outputs gains only
+# Eqs. (10)–(11) replace $f$ by learned gains: `FC(q)` outputs α and β (for
+# position and orientation) and nothing else, so the model in chapter 8
+# (`minimanc.models`) keeps a gain-only head. Three reasons, all visible above:
+# a driving episode has no end time for the phase to run down over (7.1), so
+# $f$ would either fade too early or — kept in effect — pull the car off its
+# goal (7.5), "overturning the point attractor"; and with gains in a sigmoid box
+# the whole family is stable by construction (sections 3–4), which no bound on
+# the weights $w_i$ gives for $f$.
+
+# %% [markdown]
 # ## Summary
 # * ζ (eq. 13) describes the *continuous* system: any α, β > 0 converge.
 # * The *discrete* step is stable only inside a region that depends on the
@@ -373,4 +595,39 @@ assert abs(a_fit - a_true) < 0.03 * a_true and abs(b_fit - b_true) < 0.03 * b_tr
 # * `dmp.gains_from_logits` keeps learned gains in a box that is stable with
 #   the default integrator and bounds ζ away from 0; `dmp.zeta_penalty` and
 #   `critically_damped=True` are the paper's extra guards.
+# * The full DMP of eq. 1 (`rollout(..., forcing=dmp.fit_forcing_weights(demo, dt))`)
+#   learns a shape from one demonstration and carries it to new goals, because
+#   the phase x gates the forcing term; without the gate it never reaches the goal.
 # * Next, chapter 4 does the same for orientations: quaternions.
+
+# %% [markdown]
+# ## Paper vs. this course
+# Where this chapter departs from the paper (section III-A, eq. 1; section IV-C,
+# eqs. 10–13), and where the paper itself slips:
+#
+# * **Eq. 1's canonical system has a sign slip.** It reads $\tau\dot x = \alpha_x x$;
+#   with α_x > 0 the phase would grow and the forcing term would never fade.
+#   It must be $\tau\dot x = -\alpha_x x$ (Ijspeert et al.), as in `dmp.phase`.
+# * **Eq. 1's form of τ.** The paper writes $\tau\ddot y = \alpha(\beta(g - y) - \dot y) + f$;
+#   Ijspeert's original is $\tau\dot z = \alpha(\beta(g - y) - z) + f$, $\tau\dot y = z$.
+#   They agree at τ = 1, which is what every example here uses; `dmp.rollout`
+#   implements the paper's form (`tau` enters as the gain α/τ).
+# * **The forcing term's details are ours.** The paper says only "a linear
+#   combination of N RBFs". We follow movement_primitives / Ijspeert: Gaussians
+#   in phase, normalised, gated by x, scaled by $g - y_0$, α_x such that
+#   x(T) = 0.01, weights by locally weighted regression.
+# * **ζ < 0 needs both gains negative.** "Unstable when ζ < 0": ζ = α/(2√(αβ))
+#   is real only for αβ > 0, so ζ < 0 means α < 0 and β < 0; one negative gain
+#   makes ζ undefined — and the system unstable too (`dmp.classify` says
+#   "unstable" for either).
+# * **"Too close together" is backwards.** The paper suggests an auxiliary loss
+#   against α and β "too close together" to avoid ζ ≈ 0; but ζ = ½√(α/β) is 1/2
+#   when α = β. ζ → 0 needs β ≫ α; `dmp.zeta_penalty` penalises ζ < ζ_min
+#   directly.
+# * **FC(q)'s list.** After eq. 11 the paper writes FC(q) = {α_y, β_y, α_y, β_y};
+#   the last two should be α_q, β_q, the orientation gains of eq. 10.
+# * **Stability of the step, not only of the ODE.** The paper analyses eq. 12
+#   in continuous time. At its 0.5 s data rate the discrete step matters too
+#   (section 3); our gains live in a box (`ALPHA_RANGE` × `BETA_RANGE`) where the
+#   default integrator (semi-implicit Euler, 10 sub-steps) is stable, instead of
+#   the paper's bare sigmoid into (0, 1).
