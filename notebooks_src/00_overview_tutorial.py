@@ -102,3 +102,54 @@ source = '''def double(x):
 stub, top_level = exercises.stub_solution(source, "ex00_0", "Double a number", "demo")
 print(stub)
 assert "NotImplementedError" in stub and not top_level
+
+# %% [markdown]
+# ## Paper vs. this course
+# The course follows the paper (`manc.tex`: Background, section III and
+# Algorithm 1) equation by equation, but not blindly. The map of where it
+# departs, or where the paper itself slips, and why; each chapter's own box
+# has the details:
+#
+# * **Eq. 1, the canonical system** is printed τẋ = α_x x; the phase must
+#   decay, so it reads τẋ = −α_x x (chapter 3). Chapter 3 also builds the
+#   forcing term the paper then drops, to show why it must fade.
+# * **Numbering slips around eq. 2.** The quaternion DMP is introduced as "the
+#   equivalent of Equations (1) and (2)", but it *is* eq. 2; and "Equation (4)
+#   can be integrated as" eq. 5 means eq. 2 (its τq̇ = ½ η ∗ q), since eq. 4
+#   is the logarithmic map (chapter 4).
+# * **Eq. 8 sums over i ∈ {0, M−1}**, a two-element set; it means
+#   i = 0, …, M−1 (chapter 5).
+# * **Eq. 9's ReLU keeps every transition.** The paper applies the ReLU "to
+#   preserve only the positive transitions", but a zero still becomes e⁰ = 1
+#   inside the column softmax: no transition ever has probability zero
+#   (chapter 5).
+# * **Our predicates pass through a sigmoid after eq. 7** (`Linear` in the
+#   paper): linear predicates grew in training until eq. 9's softmax
+#   saturated and q stopped depending on the image (chapters 6 and 8).
+# * **FC(q) = {α_y, β_y, α_y, β_y}** after eq. 11 repeats the position gains;
+#   it should end in α_q, β_q, the orientation gains of eq. 10's second row
+#   (chapter 8).
+# * **The advice to keep α and β from getting "too close together" is
+#   backwards.** With eq. 13, ζ = α / (2√(αβ)) = ½√(α/β): α = β gives ζ = ½,
+#   and ζ → 0 needs β ≫ α (chapter 3).
+# * **Positive gains are not enough.** The paper argues stability from ζ > 0
+#   (sigmoid outputs); that holds for the continuous system, but the step of
+#   0.5 s can diverge (α = 25, β = α/4, one explicit Euler step multiplies the
+#   error by −5.25). The course confines the gains to a box in which its
+#   integrator is stable (chapter 3).
+# * **The goals of eq. 10** are "a moving target along the center lane"
+#   without a rule; ours are a lane point 4 m + 2 s · v₀ ahead and the
+#   pure-pursuit heading, and the control is the mean velocity over one DMP
+#   step (chapter 8).
+# * **Our DMP windows span whole scenes** rather than Algorithm 1's single
+#   steps: the DMP models train on 40-step windows in which q and the DMP's
+#   velocity carry over, because trained step by step the speed drifted in
+#   closed loop (chapters 8 and 9); we use Adam instead of the plain gradient
+#   step.
+# * **Information parity.** The comparison models get the BEV and the goal
+#   pose, MANC the lane target; a second setting gives every model the lane
+#   target and the motion, so a gap left is the architecture's (chapters 8–9).
+# * **Data and sandbox.** nuScenes (850 scenes of 20 s at 2 Hz) cannot ship
+#   with a course; chapter 7 builds a nuScenes-style BEV world with the same
+#   20 s at 2 Hz, and chapter 10 adds a highway-env sandbox the paper does not
+#   have.

@@ -139,6 +139,14 @@ assert np.allclose(controls, ref) and np.allclose(q, aux["q"])
 #
 # The gains live in the box of `dmp.ALPHA_RANGE` × `dmp.BETA_RANGE`, where the
 # step is stable at dt = 0.5 s whatever the network outputs (chapter 3).
+#
+# Two places where the code above departs from the letter of the paper: the
+# text after eq. 11 writes $\texttt{FC}(q) = \{\alpha_y, \beta_y, \alpha_y,
+# \beta_y\}$, but the last two logits are the **orientation** gains
+# $\alpha_q, \beta_q$ of eq. 10's second row (a copy slip: four distinct
+# gains are needed); and eq. 7 ends in `Linear`, while our predicates pass
+# through a sigmoid (`p = 1 / (1 + e^{-z})` above), because linear predicates
+# grew during training until eq. 9's softmax saturated (`models` docstring).
 
 # %%
 lane = np.stack([4.0 * np.arange(1, 11), np.full(10, -1.0)], -1)[None]  # lane 1 m to the right
@@ -305,3 +313,56 @@ assert np.allclose(ex["q"][0], tr["q"][t], atol=1e-5)
 #
 # Chapter 9 drives these models in closed loop and reproduces the paper's
 # studies.
+
+# %% [markdown]
+# ## Paper vs. this course
+# Where this chapter departs from the paper's sections III-C ("Interfacing
+# vAGN with DMP") and III-D (Algorithm 1), or the paper itself slips, and why:
+#
+# * **FC(q) lists the position gains twice.** After eq. 11 the paper writes
+#   $\texttt{FC}(q) = \{\alpha_y, \beta_y, \alpha_y, \beta_y\}$, and the learned
+#   functions before it as $\alpha_y(s|\theta_q), \beta_y(s|\theta_q)$; eq. 10's
+#   second row needs $\alpha_q, \beta_q$. Ours: four logits
+#   `[α_y, β_y, α_q, β_q]` (exercise 8.1).
+# * **Eq. 10 drops τ and the forcing terms** on purpose ("τ can be
+#   incorporated in these 4 parameters"); so do we. The gains are not just
+#   positive (the paper's sigmoid argument for ζ > 0, eq. 13) but confined to
+#   `dmp.ALPHA_RANGE` × `dmp.BETA_RANGE`: the continuous system is stable for
+#   every α, β > 0, its step of 0.5 s need not be (chapter 3).
+# * **"Too close together" is backwards.** To avoid ζ ≈ 0 the paper suggests
+#   an auxiliary loss that keeps α and β from getting "too close together".
+#   With eq. 13, ζ = α / (2√(αβ)) = ½√(α/β): α = β gives ζ = ½, and ζ → 0
+#   needs β ≫ α. What a penalty must prevent is β large relative to α
+#   (`dmp.zeta_penalty`); β = α/4 gives ζ = 1, as the paper says.
+# * **"Integrate eq. 11 once".** Eq. 11 outputs accelerations and the paper
+#   integrates once to get velocities; which velocity is left open. Ours: one
+#   step of 0.5 s (10 semi-implicit Euler sub-steps) from the current motion,
+#   and the control is the **mean** velocity over the step, displacement /
+#   0.5 s, which is what the unicycle does with a speed control (exercise 8.2).
+# * **The goals g, g_q** are "a moving target along the center lane" in the
+#   paper, with no rule. Ours: g is the lane point L_y = 4 m + 2 s · v0 ahead
+#   (exercise 8.6), so the goal moves with the speed the network never sees;
+#   g_q is the heading after 1 s on the pure-pursuit arc through the lane
+#   point 5 m + 1 s · v0 ahead (exercise 8.3), which corrects a lateral offset
+#   that the lane's own heading would not.
+# * **The orientation DMP** is eq. 2 about the vertical axis; for yaw-only
+#   driving it equals the 1-D DMP on the yaw angle, which runs by default
+#   (`orientation="quaternion"` runs eq. 2 literally, same numbers, tested).
+# * **Algorithm 1 trains on single samples** with q' uniform or random per
+#   minibatch. Our DMP models train on **whole scenes** (40 steps) in which q
+#   and the DMP's velocity carry over, q' set at the window's start: trained
+#   one step at a time from the human's speed, the head learned only speed
+#   changes and drifted in closed loop (`train` docstring;
+#   `dmp_seq_len=1` is Algorithm 1 exactly). We use Adam on the loss with
+#   each control divided by its standard deviation instead of the plain
+#   gradient step $\theta \leftarrow \theta - \gamma \frac{1}{m} \nabla L$ (if
+#   MSE is already the minibatch mean, that 1/m divides by m twice; only the
+#   learning rate's scale changes).
+# * **Information.** The paper's comparison models get the BEV and the goal
+#   pose, while MANC's DMP gets the lane target: the "parity" setting gives
+#   them the lane target and the motion too (exercise 8.7), so a remaining
+#   gap is the architecture's. The authors' RvS-G has a Gaussian action head;
+#   ours predicts the mean, trained with the same MSE as all others.
+# * **Size.** The paper reports MANC with "more than 30 % less parameters";
+#   ours has 14,916, about a tenth of the CNN's (section 3), because its head
+#   reads the global average of the features.
