@@ -32,15 +32,17 @@ def to_ego_frame(points, ego):
 # %% grade id=ex00_1_tests points=2
 ego = (10.0, 5.0, np.pi / 2)          # facing world +y
 ahead = to_ego_frame(np.array([[10.0, 15.0]]), ego)
-assert np.allclose(ahead, [[10.0, 0.0]]), ahead   # 10 m straight ahead
+assert np.allclose(ahead, [[10.0, 0.0]]), f"10 m straight ahead: expected [[10, 0]]; got {ahead}"
 left = to_ego_frame(np.array([[0.0, 5.0]]), ego)
-assert np.allclose(left, [[0.0, 10.0]]), left     # 10 m to the left
+assert np.allclose(left, [[0.0, 10.0]]), f"10 m to the left: expected [[0, 10]]; got {left}"
 ### BEGIN HIDDEN TESTS
 pts = rng.normal(size=(20, 2)) * 30
 e = (1.5, -2.0, 0.7)
 back = to_ego_frame(pts, e)
-assert np.allclose(np.linalg.norm(back, axis=1), np.linalg.norm(pts - [1.5, -2.0], axis=1))
-assert np.allclose(to_ego_frame(pts, (0.0, 0.0, 0.0)), pts)
+assert np.allclose(np.linalg.norm(back, axis=1), np.linalg.norm(pts - [1.5, -2.0], axis=1)), \
+    "a rotation keeps each point's distance to the ego"
+assert np.allclose(to_ego_frame(pts, (0.0, 0.0, 0.0)), pts), \
+    "an ego at the origin facing +x: the points are unchanged"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -59,14 +61,17 @@ def column_softmax(a):
 
 # %% grade id=ex00_2_tests points=2
 t = column_softmax(np.array([[0.0, 1.0], [0.0, 3.0]]))
-assert np.allclose(t.sum(axis=0), 1.0)
-assert np.allclose(t[:, 0], [0.5, 0.5])
-assert np.isclose(t[1, 1], np.exp(3) / (np.exp(1) + np.exp(3)))
+assert np.allclose(t.sum(axis=0), 1.0), f"every column must sum to one; got {t.sum(axis=0)}"
+assert np.allclose(t[:, 0], [0.5, 0.5]), f"equal scores: expected [0.5, 0.5]; got {t[:, 0]}"
+assert np.isclose(t[1, 1], np.exp(3) / (np.exp(1) + np.exp(3))), \
+    f"expected e^3 / (e^1 + e^3) = {np.exp(3) / (np.exp(1) + np.exp(3)):.6f}; got {t[1, 1]}"
 ### BEGIN HIDDEN TESTS
 big = column_softmax(np.array([[1000.0, 0.0], [999.0, 0.0]]))
-assert np.all(np.isfinite(big)) and np.allclose(big.sum(axis=0), 1.0)
+assert np.all(np.isfinite(big)) and np.allclose(big.sum(axis=0), 1.0), \
+    "scores of 1000 must not overflow: subtract each column's maximum"
 r = column_softmax(rng.normal(size=(5, 5)))
-assert np.all(r > 0) and np.allclose(r.sum(axis=0), 1.0)
+assert np.all(r > 0) and np.allclose(r.sum(axis=0), 1.0), \
+    "expected positive entries and columns (not rows) summing to one"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -82,10 +87,11 @@ def euler_step(f, s, dt):
 
 # %% grade id=ex00_3_tests points=1
 decay = lambda s: -s  # noqa: E731
-assert np.isclose(euler_step(decay, 1.0, 0.1), 0.9)
+assert np.isclose(euler_step(decay, 1.0, 0.1), 0.9), "1 + 0.1 * (-1) = 0.9"
 ### BEGIN HIDDEN TESTS
 s = np.array([1.0, 2.0])
-assert np.allclose(euler_step(lambda v: np.array([v[1], -v[0]]), s, 0.5), [2.0, 1.5])
+assert np.allclose(euler_step(lambda v: np.array([v[1], -v[0]]), s, 0.5), [2.0, 1.5]), \
+    "(1, 2) + 0.5 * (2, -1) = (2, 1.5)"
 ### END HIDDEN TESTS
 
 # %% [markdown]
