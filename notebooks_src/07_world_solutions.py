@@ -1,20 +1,25 @@
 # %% [markdown]
-# # Chapter 7 — Exercises: frames, boxes in the raster, the IDM
+# # Chapter 7 — Exercises: frames, the BEV raster, the IDM, the lane-following expert
 #
 # Module built in this chapter: `minimanc.world` (the tutorial
-# `tutorials/07_world.ipynb` walks through it). Three pieces of the world, each
-# checked against the library:
+# `tutorials/07_world.ipynb` walks through it; paper section V-A, *Setup*).
+# Six pieces of the world, each checked against hand-made references:
 #
 # 1. a **pose in the ego frame** — the goal input of every model;
-# 2. **rasterising a rotated box** — how ado vehicles get into the BEV;
-# 3. the **Intelligent Driver Model** — how every vehicle picks its
-#    acceleration.
+# 2. **world points in the BEV raster** — the rotation into the ego frame
+#    and the pixel grid (heading up);
+# 3. **rasterising a rotated box** — how ado vehicles get into the BEV;
+# 4. the **lane colours** — hue from the lane's heading relative to the ego;
+# 5. the **Intelligent Driver Model** — how every vehicle picks its
+#    acceleration;
+# 6. one step of a **lane-following expert** — pure pursuit and the unicycle.
 #
 # Replace each `raise NotImplementedError(...)` with your code and run the
 # grade cell below it; `minimanc grade exercises/07_world.ipynb` scores the
 # whole notebook.
 
 # %%
+import colorsys
 import math
 
 import matplotlib.pyplot as plt
@@ -53,24 +58,29 @@ def pose_in_ego_frame(goal, ego):
 # %% grade id=ex07_1_tests points=2
 ego = np.array([10.0, 5.0, np.pi / 2])                      # facing north
 out = pose_in_ego_frame(np.array([10.0, 15.0, np.pi / 2]), ego)
-assert np.allclose(out, [10.0, 0.0, 0.0]), out               # 10 m ahead, same heading
+assert np.allclose(out, [10.0, 0.0, 0.0]), (
+    f"10 m north of an ego facing north, same heading: [10, 0, 0]; got {out}")
 out = pose_in_ego_frame(np.array([0.0, 5.0, -np.pi / 2]), ego)
-assert np.allclose(out, [0.0, 10.0, np.pi]), out             # 10 m left, facing back
+assert np.allclose(out, [0.0, 10.0, np.pi]), (
+    f"10 m west = 10 m to the left, facing back: [0, 10, pi] (pi, not -pi); got {out}")
 ### BEGIN HIDDEN TESTS
 g = rng.normal(size=(50, 3)) * [40, 40, 4]
 e = rng.normal(size=(50, 3)) * [40, 40, 4]
 got = pose_in_ego_frame(g, e)
-assert got.shape == (50, 3)
+assert got.shape == (50, 3), f"a batch of 50 poses gives (50, 3); got {got.shape}"
 # the inverse map: rotating (x, y) back by the ego yaw and adding the ego position
 # gives the goal position again; the heading differs from psi_g - psi_e by a turn
 back_x = e[:, 0] + np.cos(e[:, 2]) * got[:, 0] - np.sin(e[:, 2]) * got[:, 1]
 back_y = e[:, 1] + np.sin(e[:, 2]) * got[:, 0] + np.cos(e[:, 2]) * got[:, 1]
-assert np.allclose(back_x, g[:, 0], atol=1e-9) and np.allclose(back_y, g[:, 1], atol=1e-9)
+assert np.allclose(back_x, g[:, 0], atol=1e-9) and np.allclose(back_y, g[:, 1], atol=1e-9), (
+    "rotating (x, y) back by the ego yaw and adding the ego position must give the goal")
 turns = (g[:, 2] - e[:, 2] - got[:, 2]) / (2 * np.pi)
-assert np.allclose(turns, np.round(turns), atol=1e-9)
-assert np.allclose(np.hypot(got[:, 0], got[:, 1]), np.hypot(*(g[:, :2] - e[:, :2]).T))
-assert np.all(got[:, 2] > -np.pi) and np.all(got[:, 2] <= np.pi)
-assert np.allclose(pose_in_ego_frame(e, e), 0.0)
+assert np.allclose(turns, np.round(turns), atol=1e-9), (
+    "the yaw must equal psi_g - psi_e up to whole turns")
+assert np.allclose(np.hypot(got[:, 0], got[:, 1]), np.hypot(*(g[:, :2] - e[:, :2]).T)), (
+    "a rotation keeps the distance between goal and ego")
+assert np.all(got[:, 2] > -np.pi) and np.all(got[:, 2] <= np.pi), "yaw must lie in (-pi, pi]"
+assert np.allclose(pose_in_ego_frame(e, e), 0.0), "the ego seen from itself is [0, 0, 0]"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -85,7 +95,89 @@ assert np.allclose(goal_ref, ds.goal[0], atol=1e-4)
 print(ds.goal[0, ::10].round(2))
 
 # %% [markdown]
-# ## Exercise 7.2 — rasterising a rotated box
+# ## Exercise 7.2 — world points in the BEV raster
+# The raster is ego-centric and heading up: row 0 is `cfg.metres_ahead` = 40 m
+# ahead of the ego, column 0 is `cfg.metres_side` = 25 m to its left. A world
+# point $p$ is first rotated into the ego frame, $(x, y) = R(-\psi_e)(p - p_e)$
+# (+x forward, +y left), then falls into the pixel
+#
+# $$\mathrm{row} = \Big\lfloor \frac{40 - x}{\text{res\_row}} \Big\rfloor,\qquad
+#   \mathrm{col} = \Big\lfloor \frac{25 - y}{\text{res\_col}} \Big\rfloor$$
+#
+# with `cfg.res_row`, `cfg.res_col` the metres per pixel (0.78125 m at 64 px).
+# `points` is `(..., 2)`, `ego_pose` `(3,)`; return two integer arrays `(row,
+# col)` of shape `points.shape[:-1]` (points off the raster give indices
+# outside `0 … size - 1`; do not clip them).
+
+# %% solution id=ex07_2 title="World points in the BEV raster" forbids="minimanc.world.geometry.to_ego_frame,minimanc.world.geometry.goal_in_ego_frame,minimanc.world.raster.RasterConfig.ego_to_pixel"  # noqa: E501
+def world_to_pixel(points, ego_pose, cfg):
+    ### BEGIN SOLUTION
+    p = np.asarray(points, dtype=float)
+    xe, ye, yaw = np.asarray(ego_pose, dtype=float)
+    c, s = np.cos(yaw), np.sin(yaw)
+    dx, dy = p[..., 0] - xe, p[..., 1] - ye
+    x, y = c * dx + s * dy, -s * dx + c * dy
+    row = np.floor((cfg.metres_ahead - x) / cfg.res_row).astype(int)
+    col = np.floor((cfg.metres_side - y) / cfg.res_col).astype(int)
+    return row, col
+    ### END SOLUTION
+
+# %% grade id=ex07_2_tests points=3
+cfg = world.RasterConfig()
+ego = np.array([10.0, 5.0, np.pi / 2])                                # facing north
+row, col = world_to_pixel(np.array([[10.3, 15.0], [0.0, 5.0], [9.7, 5.0]]), ego, cfg)
+assert np.issubdtype(np.asarray(row).dtype, np.integer), "row and col must be integer arrays"
+assert list(row) == [38, 51, 51], (
+    f"10 m ahead -> row floor(30 / 0.78125) = 38; 10 m left and the ego's centre -> "
+    f"row floor(40 / 0.78125) = 51; got rows {list(row)}")
+assert list(col) == [32, 19, 31], (
+    f"10 m ahead, 0.3 m right -> col floor(25.3 / 0.78125) = 32; 10 m left -> col "
+    f"floor(15 / 0.78125) = 19; 0.3 m left -> col floor(24.7 / 0.78125) = 31; "
+    f"got cols {list(col)}")
+r, c = world_to_pixel(np.array([10.2, -30.0]), np.array([10.0, 0.0, -np.pi / 2]), cfg)
+assert (int(r), int(c)) == (12, 31), (
+    "facing south, 30 m further south is 30 m ahead and 0.2 m further east is 0.2 m to "
+    f"the left: pixel (12, 31); got ({r}, {c})")
+### BEGIN HIDDEN TESTS
+X, Y = cfg.pixel_centres()
+for _ in range(5):
+    e = np.array([*rng.uniform(-100, 100, 2), rng.uniform(-4, 4)])
+    pts = e[:2] + rng.uniform(-60, 60, size=(200, 2))
+    r, c = world_to_pixel(pts, e, cfg)
+    assert r.shape == (200,) and c.shape == (200,), "one (row, col) per point"
+    # the ego frame with complex numbers: (p - p_e) e^{-i yaw}
+    z = ((pts[:, 0] - e[0]) + 1j * (pts[:, 1] - e[1])) * np.exp(-1j * e[2])
+    inside = (r >= 0) & (r < 64) & (c >= 0) & (c < 64)
+    want = (z.real > -10) & (z.real < 40) & (np.abs(z.imag) < 25)
+    assert np.array_equal(inside, want), "a point is on the raster iff -10 < x < 40, |y| < 25"
+    assert np.all(np.abs(X[r[inside], c[inside]] - z.real[inside]) <= cfg.res_row / 2 + 1e-9), (
+        "the centre of the returned pixel must be within half a pixel of the point (rows)")
+    assert np.all(np.abs(Y[r[inside], c[inside]] - z.imag[inside]) <= cfg.res_col / 2 + 1e-9), (
+        "the centre of the returned pixel must be within half a pixel of the point (cols)")
+big = world.RasterConfig(size=250)
+r, c = world_to_pixel(np.array([[4.9, 13.1], [-3.1, 7.1]]), np.array([5.0, 7.0, np.pi / 2]), big)
+assert list(r) == [169, 199] and list(c) == [124, 84], (
+    "250 px at 0.2 m/px: (6.1 m ahead, 0.1 m left) -> (169, 124); (0.1 m ahead, 8.1 m left) "
+    f"-> (199, 84); got rows {list(r)}, cols {list(c)}")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# The library's pair is `world.to_ego_frame` then `cfg.ego_to_pixel`. The
+# ego's own centre lands on `cfg.ego_pixel`, which is red in every stored
+# raster; the logged pose one second later lands ahead of it.
+
+# %%
+cfg = ds.raster
+ego_now, ego_later = ds.ego[0, 10].astype(np.float64), ds.ego[0, 12].astype(np.float64)
+r, c = cfg.ego_to_pixel(world.to_ego_frame(ego_now[:2], ego_now))
+print("ego pixel", (int(r), int(c)), "colour", ds.bev[0, 10, r, c])
+assert (int(r), int(c)) == cfg.ego_pixel and np.array_equal(ds.bev[0, 10, r, c], [255, 0, 0])
+r2, c2 = cfg.ego_to_pixel(world.to_ego_frame(ego_later[:2], ego_now))
+print("one second later:", (int(r2), int(c2)))
+assert r2 <= r
+
+# %% [markdown]
+# ## Exercise 7.3 — rasterising a rotated box
 # The raster is drawn by **inverse mapping**: instead of drawing the box's
 # outline, ask every pixel whether its centre lies inside the box. With the
 # box $[x_b, y_b, \psi_b, l, w]$ and the pixel centres $(X, Y)$ — all in the
@@ -99,7 +191,7 @@ print(ds.goal[0, ::10].round(2))
 # row 51, column 32 (heading up, +y to the left). Return a boolean `(H, W)`
 # mask — no Python loop over pixels.
 
-# %% solution id=ex07_2 title="Rasterising a rotated box" forbids="minimanc.world.raster.box_mask"  # noqa: E501
+# %% solution id=ex07_3 title="Rasterising a rotated box" forbids="minimanc.world.raster.box_mask"  # noqa: E501
 def box_pixels(box, cfg):
     ### BEGIN SOLUTION
     X, Y = cfg.pixel_centres()
@@ -110,14 +202,19 @@ def box_pixels(box, cfg):
     return (np.abs(u) <= length / 2) & (np.abs(v) <= width / 2)
     ### END SOLUTION
 
-# %% grade id=ex07_2_tests points=3
+# %% grade id=ex07_3_tests points=3
 cfg = world.RasterConfig()
 mask = box_pixels(np.array([10.0, 0.0, 0.0, 4.5, 1.9]), cfg)   # a car 10 m straight ahead
-assert mask.shape == (64, 64) and mask.dtype == bool
-assert mask[38, 32]                                             # floor((40 - 10) / 0.78125)
-assert not mask[51, 32] and mask.sum() < 30
+assert mask.shape == (64, 64) and mask.dtype == bool, (
+    f"expected a boolean (64, 64) mask; got {mask.dtype} {mask.shape}")
+assert mask[38, 32], "a car 10 m ahead covers pixel (38, 32): floor((40 - 10) / 0.78125) = 38"
+assert not mask[51, 32] and mask.sum() < 30, (
+    f"the ego's pixel (51, 32) is not in the box, and a 4.5 x 1.9 m box covers < 30 pixels; "
+    f"got {int(mask.sum())} pixels")
 side = box_pixels(np.array([0.0, 10.0, np.pi / 2, 4.5, 1.9]), cfg)  # 10 m left, turned
-assert side[51, 19] and side[51, 17] and not side[48, 19] and not side[51, 23]
+assert side[51, 19] and side[51, 17] and not side[48, 19] and not side[51, 23], (
+    "a box 10 m to the left turned by 90 degrees is 4.5 m along the columns (17 and 19 inside, "
+    "23 outside) and 1.9 m along the rows (row 48 outside)")
 ### BEGIN HIDDEN TESTS
 def slow_box(b, cfg):
     """The box test with complex numbers: (p - c) e^{-i yaw} is p in the box frame.
@@ -132,11 +229,13 @@ def slow_box(b, cfg):
 for _ in range(20):
     b = np.array([*rng.uniform(-20, 30, 2), rng.uniform(-4, 4), *rng.uniform([1, 0.5], [12, 3])])
     want, tie = slow_box(b, cfg)
-    assert np.array_equal(box_pixels(b, cfg)[~tie], want[~tie])
+    assert np.array_equal(box_pixels(b, cfg)[~tie], want[~tie]), (
+        f"box {b.round(2)}: the mask must match the rotated-frame test at every pixel")
 big = world.RasterConfig(size=128)
 b = np.array([5.0, -3.0, 0.7, 4.7, 1.9])
 want, tie = slow_box(b, big)
-assert np.array_equal(box_pixels(b, big)[~tie], want[~tie]) and want.sum() > 20
+assert np.array_equal(box_pixels(b, big)[~tie], want[~tie]) and want.sum() > 20, (
+    "a 128 px raster: the mask must match the rotated-frame test at every pixel")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -156,7 +255,58 @@ for ax, size in zip(axs, (32, 64, 250)):
 plt.show()
 
 # %% [markdown]
-# ## Exercise 7.3 — the IDM acceleration
+# ## Exercise 7.4 — lane colours from the heading
+# The devkit colours every lane centreline by its heading relative to the
+# agent: with $\Delta = \mathrm{wrap}(\psi_{ego} - \psi_{lane})$ the hue is
+# $h = (\Delta + \pi) / 2\pi \in [0, 1]$, at full saturation and value. A lane
+# in the ego's direction ($\Delta = 0$, $h = \tfrac12$) is cyan, an oncoming
+# one ($\Delta = \pi$) red. Convert HSV with $s = v = 1$ to RGB: with
+# $i = \lfloor 6h \rfloor \bmod 6$ and $f = 6h - \lfloor 6h \rfloor$,
+#
+# | $i$ | 0 | 1 | 2 | 3 | 4 | 5 |
+# |---|---|---|---|---|---|---|
+# | (r, g, b) | (1, f, 0) | (1−f, 1, 0) | (0, 1, f) | (0, 1−f, 1) | (f, 0, 1) | (1, 0, 1−f) |
+#
+# and return `uint8` values `round(255 · (r, g, b))`, shape `(..., 3)` for
+# `relative_yaw` of shape `(...)`.
+
+# %% solution id=ex07_4 title="Lane colours from the heading" forbids="minimanc.world.raster.hue_colours"  # noqa: E501
+def lane_colour(relative_yaw):
+    ### BEGIN SOLUTION
+    d = np.mod(np.asarray(relative_yaw, dtype=float) + np.pi, 2 * np.pi) - np.pi
+    h6 = (d + np.pi) / (2 * np.pi) * 6.0
+    i = np.floor(h6).astype(int) % 6
+    f = h6 - np.floor(h6)
+    one, zero = np.ones_like(f), np.zeros_like(f)
+    r = np.choose(i, [one, 1 - f, zero, zero, f, one])
+    g = np.choose(i, [f, one, one, 1 - f, zero, zero])
+    b = np.choose(i, [zero, zero, f, one, one, 1 - f])
+    return np.round(np.stack([r, g, b], axis=-1) * 255).astype(np.uint8)
+    ### END SOLUTION
+
+# %% grade id=ex07_4_tests points=2
+out = lane_colour(np.array([0.0, np.pi, 2 * np.pi]))
+assert out.shape == (3, 3) and out.dtype == np.uint8, (
+    f"expected uint8 colours of shape (3, 3); got {out.dtype} {out.shape}")
+assert out[0].tolist() == [0, 255, 255], f"same direction (0 rad) is cyan; got {out[0].tolist()}"
+assert out[1].tolist() == [255, 0, 0], f"opposite direction (pi) is red; got {out[1].tolist()}"
+assert out[2].tolist() == [0, 255, 255], f"2 pi is the same direction: cyan; got {out[2].tolist()}"
+q = lane_colour(np.array([-np.pi / 2, np.pi / 2])).astype(int)
+assert np.abs(q - [[127.5, 255, 0], [127.5, 0, 255]]).max() <= 1, (
+    f"-pi/2 (h = 1/4) is (127.5, 255, 0) and +pi/2 (h = 3/4) is (127.5, 0, 255) up to rounding; "
+    f"got {q.tolist()}")
+### BEGIN HIDDEN TESTS
+ang = rng.uniform(-10, 10, size=(7, 11))
+got = lane_colour(ang).astype(int)
+assert got.shape == (7, 11, 3), "one colour per angle"
+d = np.mod(ang + np.pi, 2 * np.pi) - np.pi
+ref = np.array([[colorsys.hsv_to_rgb((a + np.pi) / (2 * np.pi) % 1.0, 1.0, 1.0) for a in row]
+                for row in d]) * 255
+assert np.abs(got - ref).max() <= 1, "colours must match colorsys.hsv_to_rgb(h, 1, 1) * 255"
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 7.5 — the IDM acceleration
 # Every vehicle in the world — ados and the human — picks its acceleration
 # with the Intelligent Driver Model:
 #
@@ -168,7 +318,7 @@ plt.show()
 # $\delta = 4$. Inputs may be arrays (broadcast). Return the raw value (no
 # clipping).
 
-# %% solution id=ex07_3 title="The IDM acceleration" forbids="minimanc.world.traffic.idm_acceleration"  # noqa: E501
+# %% solution id=ex07_5 title="The IDM acceleration" forbids="minimanc.world.traffic.idm_acceleration"  # noqa: E501
 def idm(v, v0, gap, dv, a_max=1.5, b=2.0, s0=2.0, T=1.5, delta=4.0):
     ### BEGIN SOLUTION
     v = np.asarray(v, dtype=float)
@@ -176,11 +326,13 @@ def idm(v, v0, gap, dv, a_max=1.5, b=2.0, s0=2.0, T=1.5, delta=4.0):
     return a_max * (1.0 - (v / v0) ** delta - (s_star / np.asarray(gap, dtype=float)) ** 2)
     ### END SOLUTION
 
-# %% grade id=ex07_3_tests points=2
-assert np.isclose(idm(0.0, 13.0, np.inf, 0.0), 1.5)             # standing start, free road
-assert np.isclose(idm(13.0, 13.0, np.inf, 0.0), 0.0)            # cruising at v0
+# %% grade id=ex07_5_tests points=2
+assert np.isclose(idm(0.0, 13.0, np.inf, 0.0), 1.5), "standing start, free road: a = a_max = 1.5"
+assert np.isclose(idm(13.0, 13.0, np.inf, 0.0), 0.0), "cruising at v0 on a free road: a = 0"
 a_close = idm(10.0, 13.0, 10.0, 5.0)                              # closing in fast
-assert a_close < -5.0, a_close
+assert np.isclose(a_close, -13.846, atol=1e-3), (
+    f"v = 10, gap 10 m, closing at 5 m/s: s* = 2 + 15 + 50 / (2 sqrt 3) = 31.43 m, "
+    f"a = 1.5 (1 - (10/13)^4 - 3.143^2) = -13.85; got {a_close}")
 ### BEGIN HIDDEN TESTS
 v = rng.uniform(0, 15, 100)
 v0 = rng.uniform(5, 15, 100)
@@ -191,9 +343,10 @@ kw = dict(a_max=1.2, b=2.5, s0=1.5, T=1.1)
 ref = [1.2 * (1 - (vi / v0i) ** 4
               - ((1.5 + max(0.0, vi * 1.1 + vi * dvi / (2 * math.sqrt(1.2 * 2.5)))) / gi) ** 2)
        for vi, v0i, gi, dvi in zip(v, v0, gap, dv)]
-assert np.allclose(idm(v, v0, gap, dv, **kw), ref)
+assert np.allclose(idm(v, v0, gap, dv, **kw), ref), (
+    "100 random vehicles with a_max = 1.2, b = 2.5, s0 = 1.5, T = 1.1: the IDM formula")
 gaps = np.linspace(3, 60, 50)
-assert np.all(np.diff(idm(8.0, 12.0, gaps, 0.0)) > 0)            # more room, more throttle
+assert np.all(np.diff(idm(8.0, 12.0, gaps, 0.0)) > 0), "more room must give more acceleration"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -220,3 +373,92 @@ plt.plot(np.arange(len(gaps)) * dt, gaps)
 plt.xlabel("time (s)")
 plt.ylabel("gap (m)")
 plt.show()
+
+# %% [markdown]
+# ## Exercise 7.6 — one step of the lane-following expert
+# The human of `world.driver` steers by **pure pursuit**: it aims at the
+# point of its route `lookahead` metres (of arc length) beyond its own
+# projection on the route, and drives the circular arc through that point
+# that is tangent to its heading. With the target in the ego frame, $(x_t,
+# y_t)$, the arc's curvature and the yaw rate are
+#
+# $$\kappa = \frac{2\, y_t}{x_t^2 + y_t^2},\qquad \omega = v\,\kappa .$$
+#
+# Then the pose moves one explicit-Euler unicycle step (the position along
+# the *old* heading, then the heading turns by $\omega\,\Delta t$, wrapped to
+# $(-\pi, \pi]$). Write `expert_step(pose, route, v, lookahead, dt)`:
+# `route` is an `(N, 2)` polyline, `pose` `(3,)`; return `(controls, next_pose)`
+# with `controls = [v, ω]`. You may use `world.geometry.arclength` and
+# `world.geometry.project_to_polyline` (nearest point on the segments) and
+# `np.interp` along the arc length; write the frame change and the step
+# yourself. (The library's human also clips $\kappa$ and $\omega$ and adds a
+# lateral wander; leave those out.)
+#
+# *Hint.* On a circle of radius $R$ with the ego on it, tangent to it, every
+# target on the circle gives $\kappa = 1/R$ exactly — the arc *is* the circle.
+
+# %% solution id=ex07_6 title="A lane-following expert step" forbids="minimanc.world.geometry.unicycle_step,minimanc.world.geometry.to_ego_frame,minimanc.world.geometry.goal_in_ego_frame"  # noqa: E501
+def expert_step(pose, route, v, lookahead, dt=world.DT):
+    ### BEGIN SOLUTION
+    pose, route = np.asarray(pose, dtype=float), np.asarray(route, dtype=float)
+    s = world.geometry.arclength(route)
+    s0, _ = world.geometry.project_to_polyline(route, s, pose[None, :2])
+    st = s0[0] + lookahead
+    tx, ty = np.interp(st, s, route[:, 0]), np.interp(st, s, route[:, 1])
+    c, sn = np.cos(pose[2]), np.sin(pose[2])
+    dx, dy = tx - pose[0], ty - pose[1]
+    x, y = c * dx + sn * dy, -sn * dx + c * dy
+    omega = v * 2.0 * y / (x * x + y * y)
+    yaw = np.mod(pose[2] + omega * dt + np.pi, 2 * np.pi) - np.pi
+    yaw = np.pi if yaw == -np.pi else yaw
+    nxt = np.array([pose[0] + v * c * dt, pose[1] + v * sn * dt, yaw])
+    return np.array([v, omega]), nxt
+    ### END SOLUTION
+
+# %% grade id=ex07_6_tests points=3
+line = np.stack([np.arange(-10.0, 101.0), np.zeros(111)], axis=1)    # the x axis, 1 m apart
+u, nxt = expert_step(np.array([0.0, 1.0, 0.0]), line, 10.0, 10.0, 0.5)
+# target (10, 0) is (10, -1) in the ego frame: kappa = -2 / 101, omega = -20 / 101
+assert np.allclose(u, [10.0, -20 / 101]), f"1 m left of the line: controls [10, -20/101]; got {u}"
+assert np.allclose(nxt, [5.0, 1.0, -10 / 101]), (
+    f"Euler step along the old heading: [5, 1, -10/101]; got {nxt}")
+theta = np.linspace(0, 2 * np.pi, 3601)
+circle = 50 * np.stack([np.cos(theta), np.sin(theta)], axis=1)      # counter-clockwise
+u, nxt = expert_step(np.array([50.0, 0.0, np.pi / 2]), circle, 8.0, 12.0, 0.5)
+assert abs(u[1] - 8.0 / 50) < 1e-4, f"on a circle of radius 50 m: omega = v / R = 0.16; got {u[1]}"
+assert np.allclose(nxt, [50.0, 4.0, np.pi / 2 + 0.08], atol=1e-4), (
+    f"next pose [50, 4, pi/2 + 0.08]; got {nxt}")
+### BEGIN HIDDEN TESTS
+for _ in range(10):
+    R, sign = rng.uniform(15, 80), rng.choice([-1.0, 1.0])
+    a0, v, L = rng.uniform(-np.pi, np.pi), rng.uniform(2, 15), rng.uniform(4, 20)
+    th = a0 + sign * np.linspace(0, 1.5 * np.pi, 4000)
+    route = R * np.stack([np.cos(th), np.sin(th)], axis=1)
+    pose = np.array([R * np.cos(a0), R * np.sin(a0), a0 + sign * np.pi / 2])
+    u, nxt = expert_step(pose, route, v, L, 0.5)
+    assert abs(u[1] - sign * v / R) < 1e-4, (
+        f"circle R = {R:.1f} m, v = {v:.1f}: omega must be {sign * v / R:.5f}; got {u[1]:.5f}")
+    # a rigid motion of the whole world changes no control
+    rot, shift = rng.uniform(-np.pi, np.pi), rng.uniform(-500, 500, 2)
+    Rm = np.array([[np.cos(rot), -np.sin(rot)], [np.sin(rot), np.cos(rot)]])
+    pose2 = np.array([*(Rm @ pose[:2] + shift), pose[2] + rot])
+    u2, nxt2 = expert_step(pose2, route @ Rm.T + shift, v, L, 0.5)
+    assert np.allclose(u2, u, atol=1e-7), (
+        "rotating and shifting the world must not change [v, omega]")
+    assert np.allclose(nxt2[:2], Rm @ nxt[:2] + shift, atol=1e-7), (
+        "the next position must move with the world")
+    assert -np.pi < nxt2[2] <= np.pi, "the next yaw must be wrapped to (-pi, pi]"
+# closed loop on a generated curved road (20 s at 8 m/s, starting 0.5 m off the lane
+# centre): the reference stays within 0.25 m of the route
+m = world.random_map(np.random.default_rng(3), "curved")
+p0, h0 = m.route_pose(m.start_s)
+pose = np.array([p0[0], p0[1] + 0.5, h0])
+worst = 0.0
+for _ in range(40):
+    _, pose = expert_step(pose, m.route_points, 8.0, 10.0, 0.5)
+    _, lat = world.geometry.project_to_polyline(m.route_points, m.route_s, pose[None, :2])
+    worst = max(worst, abs(float(lat[0])))
+assert worst < 0.5, (
+    f"40 expert steps at 8 m/s on a curved road must stay within 0.5 m of the route; "
+    f"worst {worst:.2f} m")
+### END HIDDEN TESTS

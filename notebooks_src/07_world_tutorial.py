@@ -44,7 +44,9 @@ rng = np.random.default_rng(0)
 #
 # The ego moves as a **unicycle** with controls $u = [v, \omega]$ (speed and
 # yaw rate), integrated with explicit Euler at $\Delta t = 0.5$ s as in the
-# authors' environment — the position moves along the *old* heading:
+# authors' environment — the position moves along the *old* heading. (The
+# paper's text says its baselines output "speed and steering"; the released
+# environment's second control is a yaw rate, and so is ours.)
 #
 # $$x' = x + v\cos\psi\,\Delta t,\quad y' = y + v\sin\psi\,\Delta t,\quad
 #   \psi' = \psi + \omega\,\Delta t.$$
@@ -137,6 +139,11 @@ print("spacing:", np.linalg.norm(np.diff(targets, axis=0), axis=1).round(2))
 # (drawn once per map); lane samples are scattered into the image; boxes are
 # tested pixel by pixel in their own frame. All vectorised NumPy, any pose —
 # the closed loop re-renders from the policy's own pose every step.
+#
+# The pixel that holds an ego-frame point $(x, y)$ is
+# $\mathrm{row} = \lfloor (40 - x)/\text{res\_row} \rfloor$,
+# $\mathrm{col} = \lfloor (25 - y)/\text{res\_col} \rfloor$
+# (`cfg.ego_to_pixel`; a world point goes through `world.to_ego_frame` first).
 
 # %%
 cfg = world.RasterConfig()
@@ -201,7 +208,11 @@ print(f"standing start:  {float(world.idm_acceleration(0.0, 13.0, np.inf, 0.0)):
 #   comfortable deceleration). Commands reach the pedals after the reaction
 #   delay — except hard braking.
 # * **Lateral**: pure pursuit of a route point ahead, shifted by an
-#   Ornstein–Uhlenbeck lateral offset.
+#   Ornstein–Uhlenbeck lateral offset. With that point at $(x_t, y_t)$ in the
+#   ego frame, the circular arc tangent to the heading through it has
+#   curvature $\kappa = 2 y_t / (x_t^2 + y_t^2)$, and the yaw rate is
+#   $\omega = v\kappa$ (clipped to $|\kappa| \le 0.25$ m⁻¹, $|\omega| \le
+#   1.2$ rad/s). On a circle the arc *is* the circle: $\kappa = 1/R$.
 # * The controls are $[v, \omega]$ and the pose follows the unicycle above,
 #   so **integrating the logged controls reproduces the logged trajectory**.
 # * A scene in which the human would leave the drivable area or touch an ado
@@ -330,3 +341,38 @@ with tempfile.TemporaryDirectory() as tmp:
 # Limitations, honestly: vehicles only (no pedestrians), the ego never
 # changes lanes, junctions are unsignalised, and the human is a controller —
 # richer than constant speed on straight roads, but simpler than people.
+#
+# ## Paper vs. this course
+# Where this chapter departs from the paper's set-up (section V-A) and why:
+#
+# * **Not nuScenes.** The paper trains on nuScenes: 850 real scenes of 20 s
+#   at 2 Hz from Boston and Singapore, 23 object classes, HD maps with 11
+#   layers, 650 scenes for training and 200 for validation. Nothing can be
+#   downloaded here, and the devkit pins `numpy < 2` and needs the map files,
+#   so our data are **self-generated nuScenes-style scenes**: the same 2 Hz,
+#   always exactly 40 steps (nuScenes has "a max of 40"), the same 650 / 200
+#   split of `world.generate(850)`, the devkit's raster layers and colours.
+#   Vehicles only (no pedestrians), right-hand traffic only (Singapore drives
+#   on the left), unsignalised junctions; the map has drivable area,
+#   walkways, crossings and lanes, not 11 layers.
+# * **The human is a controller.** nuScenes' drivers are people; ours is the
+#   IDM plus pure pursuit with a per-scene style, and scenes where it would
+#   leave the road or touch an ado are drawn again, so the data contain
+#   neither.
+# * **Raster size and resolution.** The paper's text gives none. The
+#   authors' released environment uses 3 × 250 × 250 px at 0.2 m/px; the
+#   devkit 500 × 500 at 0.1 m/px. We keep the devkit's proportions (40 m
+#   ahead, 10 m behind, 25 m each side) and train on **64 × 64 px at
+#   0.78 m/px** for CPU budgets; `RasterConfig(size=250)` is the authors'
+#   0.2 m/px. In closed loop there is no history, as in their environment.
+# * **Controls and goal.** The text says "speed and steering"; like the
+#   released environment we use speed and **yaw rate** on a unicycle with
+#   explicit Euler at Δt = 0.5 s. The text never defines the goal pose; we
+#   take the environment's: the human's last pose, re-expressed in the
+#   current ego frame every step (exercise 7.1).
+# * **The ados in closed loop.** The paper says "all agents are rolled out
+#   synchronously" and, in the next paragraph, that the ados "move according
+#   to the trajectories recorded in the dataset": a replay that does not
+#   react to the ego. Chapter 9 does the same: its closed loop replays the
+#   ados from the log, so they react to the human who was there, not to the
+#   policy (a reactive protocol with IDM ados, as nuPlan has, is not built).
