@@ -343,6 +343,19 @@ plt.show()
 # $-\frac1B\sum_b \log \mathrm{softmax}(z_b)_{y_b}$, computed with `log_softmax`
 # for numerical stability. **The model is written once**, against `eng`; in
 # section 10 we hand it the JAX engine.
+#
+# Its gradient with respect to the logits is remarkably simple,
+# $\partial L/\partial z = (\mathrm{softmax}(z) - \mathrm{onehot}(y))/B$: each
+# row pushes the true class up and the others down in proportion to their
+# probability, and sums to zero. Checked on three samples:
+
+# %%
+z_demo = np.array([[2.0, -1.0], [0.0, 0.0], [-3.0, 1.0]])
+onehot_demo = np.eye(2)[[0, 1, 1]]
+dz = eng.grad(lambda z: -xp.mean(xp.sum(nn.log_softmax(z, axis=-1) * onehot_demo, axis=-1)))(
+    z_demo)
+assert np.allclose(dz, (nn.softmax(z_demo, axis=-1) - onehot_demo) / 3)
+print(np.round(dz, 4))
 
 # %%
 def init_cnn(rng, dtype=np.float64):
@@ -472,3 +485,38 @@ assert abs(loss_after[0] - loss_after[1]) < 1e-5
 # **What we did not build.** Batch normalisation, dropout, dilated or grouped
 # convolutions, second derivatives (use JAX), learning-rate schedules and
 # weight decay (a line each on top of `optim`).
+
+# %% [markdown]
+# ## Paper vs. this course
+# Chapter 2 is infrastructure for eq. 7 (section IV-A of `manc.tex`,
+# $p^v = \texttt{Linear}(\texttt{GlobalAveragePooling}(\texttt{ConvEncoder}(\mathcal X)))$).
+# Where this course departs from the paper, and where the paper is silent or slips:
+#
+# * **What the predicate extractor is.** Eq. 7 is exactly conv layers → GAP →
+#   one linear map, with *no* nonlinearity after the linear map, so $p^v$ is
+#   unbounded. The text never gives the number of layers, filters, kernel
+#   sizes or strides: it refers to a table ("F denotes number of filters, K
+#   kernel size, S stride") that is not in the paper. Our backbone
+#   (`minimanc.models`, chapter 8) is three 3×3 convolutions with stride 2; MANC
+#   passes $p^v$ through a sigmoid after eq. 7 (`predicate_activation`), because
+#   with unbounded predicates the column softmax of eq. 9 saturated in training.
+# * **A framework vs. our engine.** The authors trained in a deep-learning
+#   framework (their model code was never released); we train with the
+#   engine of chapter 1 or with JAX, the same model code on both (section 10).
+# * **NHWC images, HWIO kernels.** JAX/TensorFlow's layout, where an im2col
+#   GEMM's output *is* the next activation (section 4). PyTorch uses NCHW, and
+#   the authors' environment renders channels-first 3×250×250 rasters; we use
+#   64×64×3 in chapter 7 for CPU training.
+# * **SiLU, not ReLU, in MANC.** The paper names no activation; the authors'
+#   run name suggests SiLU, which `minimanc.models` uses. This chapter's toy CNN
+#   uses ReLU, for which He initialisation's $\sigma^2 = 2/n_\text{in}$ is
+#   derived exactly; with SiLU it is a good approximation, not an identity.
+# * **Adam, not Algorithm 1's plain step.** Algorithm 1 writes plain gradient
+#   descent $\theta \leftarrow \theta - \gamma\frac1m\nabla L$ (and, with $L$
+#   already a mean, divides by $m$ twice — chapter 1). Its `Initialize(N)` is
+#   unspecified; we use He for convolutions and Glorot for dense layers, and
+#   train with Adam (section 7), because a conv kernel and the DMP-gain layer
+#   next to it need very different step sizes.
+# * **Cross-entropy here, MSE there.** The toy task of this chapter is a
+#   classification; the paper's loss is the MSE between predicted and human
+#   controls (Algorithm 1), which chapters 8–9 use.
