@@ -240,7 +240,8 @@ assert np.abs(r5.y - demo5).max() < 0.07, "a cosine reach from 0 to 3 m within 7
 # The package integrates with semi-implicit Euler (velocity first, then the
 # position with the new velocity). One sub-step of `h` maps $[e, \dot e]$ by
 #
-# $$M = \begin{pmatrix} 1 - h^2\alpha\beta & h(1 - h\alpha) \\ -h\alpha\beta & 1 - h\alpha \end{pmatrix},
+# $$M = \begin{pmatrix} 1 - h^2\alpha\beta & h(1 - h\alpha) \\
+#                      -h\alpha\beta & 1 - h\alpha \end{pmatrix},
 # \qquad \det M = 1 - h\alpha, \quad \mathrm{tr}\, M = 2 - h\alpha - h^2\alpha\beta.$$
 #
 # Jury's conditions say both eigenvalues of a 2×2 matrix lie strictly inside
