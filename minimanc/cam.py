@@ -1,6 +1,6 @@
 """Chapter 6 — the visual predicate extractor, class activation maps and per-q-state saliency.
 
-Eq. 7 of the paper (section III-A)::
+Eq. 7 of the paper (section IV-A)::
 
     f^v = ConvEncoder(X)                     features, NHWC: (B, H, W, K)
     p^v = Linear(GlobalAveragePooling(f^v))  predicates, (B, M)

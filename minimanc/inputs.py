@@ -37,7 +37,7 @@ policy's *own* previous control.
 Information parity
 ------------------
 The paper gives the comparison models the BEV and the goal pose, while MANC's
-DMP tracks the moving lane target (section III-C, Algorithm 1). The lesson of
+DMP tracks the moving lane target (section IV-C, Algorithm 1). The lesson of
 the closed-loop prototype (``REFERENCE.md``) is that such a comparison turns
 on the goal information each model gets, so ``setting`` selects one of two
 honest protocols. What each model sees (✓ = input, — = not given):

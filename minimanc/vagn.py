@@ -1,6 +1,6 @@
 """Chapter 5 — vAGN, the visual automaton generative network, as a soft automaton.
 
-The planner of the paper (section III-B) is a probabilistic automaton with ``N``
+The planner of the paper (section IV-B) is a probabilistic automaton with ``N``
 hidden states ("q-states").  Its state is a distribution ``q_t`` over the
 q-states and its transitions are *generated* from the visual predicates
 ``p ∈ R^M`` produced by the predicate extractor of chapter 6 (eq. 7):

@@ -354,7 +354,7 @@ def test_chapter_3_boundary_mistakes_fail_the_hidden_tests(tmp_path):
     }
     for cell in nb.cells:
         if exercises.is_solution_cell(cell):
-            cell.source = answers[exercises.grade_id(cell)]
+            cell.source = answers.get(exercises.grade_id(cell), cell.source)
     path = tmp_path / "03_dmp-Copy1.ipynb"
     nbformat.write(nb, path)
     report = exercises.grade(path, roots=[ROOT])

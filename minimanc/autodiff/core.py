@@ -31,7 +31,7 @@ The primitives themselves (``add``, ``matmul``, ``sum``, …), each with its VJP
 beside it, live in :mod:`minimanc.autodiff.numpy`. The engine computes
 first-order derivatives only: VJPs are plain NumPy, so ``grad(grad(f))`` is not
 supported (it raises a clear error). The paper (``manc.tex``) trains every
-model of section III (eqs. 7–11) with gradients of a behaviour-cloning loss
+model of section IV (eqs. 7–11) with gradients of a behaviour-cloning loss
 (Algorithm 1); this file is what computes them.
 """
 
@@ -53,6 +53,7 @@ __all__ = [
     "defvjp_fwd",
     "unbroadcast",
     "backward",
+    "parent_cotangents",
     "toposort",
     "grad",
     "value_and_grad",
@@ -121,6 +122,17 @@ class Box:
     def value(self) -> np.ndarray:
         """The plain NumPy value inside the box (its derivative is not tracked)."""
         return self._value
+
+    @property
+    def parents(self) -> tuple:
+        """``(argnum, parent_box)`` for each traced argument of the primitive that made
+        this box; empty for a leaf (an input of :func:`grad`)."""
+        return tuple(self._parents)
+
+    @property
+    def primitive_name(self) -> str | None:
+        """The name of the primitive that made this box (``None`` for a leaf)."""
+        return None if self._prim is None else _name(self._prim)
 
     def __repr__(self) -> str:
         return f"Box({self._value!r})"
@@ -333,8 +345,8 @@ def toposort(end, parents_of: Callable[[Any], Sequence] | None = None) -> list:
     return order
 
 
-def _parent_cotangents(box: Box, g: np.ndarray):
-    """Yield ``(parent, cotangent)`` for each traced parent of ``box``."""
+def _raw_cotangents(box: Box, g: np.ndarray):
+    """Yield ``(argnum, parent, cotangent)`` for each traced parent of ``box``."""
     prim, name = box._prim, _name(box._prim)
     if prim.bwd is not None:
         cts = prim.bwd(g, box._res)
@@ -344,7 +356,7 @@ def _parent_cotangents(box: Box, g: np.ndarray):
             ct = cts[argnum] if argnum < len(cts) else None
             if ct is None:
                 raise NotImplementedError(f"{name}: argument {argnum} is not differentiable")
-            yield parent, ct
+            yield argnum, parent, ct
         return
     for argnum, parent in box._parents:
         vjp = prim.vjps[argnum] if argnum < len(prim.vjps) else None
@@ -352,14 +364,36 @@ def _parent_cotangents(box: Box, g: np.ndarray):
             raise NotImplementedError(
                 f"VJP of primitive '{name}' with respect to argument {argnum} is not defined"
             )
-        yield parent, vjp(g, box._value, *box._args, **box._kwargs)
+        yield argnum, parent, vjp(g, box._value, *box._args, **box._kwargs)
 
 
-def backward(end: Box, g: np.ndarray) -> dict[int, np.ndarray]:
+def parent_cotangents(box: Box, g: np.ndarray):
+    """Yield ``(argnum, parent, cotangent)`` for each traced parent of ``box``, given
+    the cotangent ``g`` of ``box``: one application of the chain rule (a VJP), its
+    shape checked and its dtype that of the parent (float32 stays float32)."""
+    for argnum, parent, ct in _raw_cotangents(box, g):
+        ct = np.asarray(ct)
+        pval = parent._value
+        if ct.shape != np.shape(pval):
+            raise ValueError(
+                f"VJP of '{_name(box._prim)}' returned a cotangent of shape {ct.shape} "
+                f"for an argument of shape {np.shape(pval)}"
+            )
+        pdtype = np.result_type(pval)
+        if ct.dtype != pdtype and np.issubdtype(pdtype, np.floating):
+            ct = ct.astype(pdtype)
+        yield argnum, parent, ct
+
+
+def backward(end: Box, g: np.ndarray,
+             on_edge: Callable[[Box, int, Box, np.ndarray], None] | None = None
+             ) -> dict[int, np.ndarray]:
     """Run every VJP from ``end`` (with cotangent ``g``) back to the leaves.
 
     Returns ``{id(leaf): cotangent}`` for the leaves (boxes without parents).
     A value used several times receives the *sum* of its cotangents.
+    ``on_edge(box, argnum, parent, cotangent)``, if given, sees every edge's
+    cotangent as it is computed (:func:`minimanc.autodiff.graph.computation_graph`).
     """
     cotangents: dict[int, Any] = {id(end): g}
     leaves: dict[int, np.ndarray] = {}
@@ -368,17 +402,9 @@ def backward(end: Box, g: np.ndarray) -> dict[int, np.ndarray]:
         if not box._parents:
             leaves[id(box)] = g
             continue
-        for parent, ct in _parent_cotangents(box, g):
-            ct = np.asarray(ct)
-            pval = parent._value
-            if ct.shape != np.shape(pval):
-                raise ValueError(
-                    f"VJP of '{_name(box._prim)}' returned a cotangent of shape {ct.shape} "
-                    f"for an argument of shape {np.shape(pval)}"
-                )
-            pdtype = np.result_type(pval)
-            if ct.dtype != pdtype and np.issubdtype(pdtype, np.floating):
-                ct = ct.astype(pdtype)  # float32 stays float32
+        for argnum, parent, ct in parent_cotangents(box, g):
+            if on_edge is not None:
+                on_edge(box, argnum, parent, ct)
             key = id(parent)
             cotangents[key] = ct if key not in cotangents else cotangents[key] + ct
     return leaves

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc.autodiff.core import Box, toposort
+from minimanc.autodiff.core import Box, backward, toposort
 
 __all__ = ["Node", "Edge", "Graph", "computation_graph"]
 
@@ -188,31 +188,6 @@ def _check_input(value: Any, k: int) -> np.ndarray:
     return arr
 
 
-def _edge_cotangents(box: Box, g: np.ndarray) -> list[tuple[int, Box, np.ndarray]]:
-    """``(argnum, parent, cotangent)`` for each traced parent of ``box``, given its cotangent."""
-    prim = box._prim
-    name = getattr(prim, "__name__", repr(prim))
-    out = []
-    if prim.bwd is not None:  # a defvjp_fwd pair
-        cts = prim.bwd(g, box._res)
-        if not isinstance(cts, tuple | list):
-            cts = (cts,)
-        for argnum, parent in box._parents:
-            ct = cts[argnum] if argnum < len(cts) else None
-            if ct is None:
-                raise NotImplementedError(f"{name}: argument {argnum} is not differentiable")
-            out.append((argnum, parent, ct))
-        return out
-    for argnum, parent in box._parents:
-        vjp = prim.vjps[argnum] if argnum < len(prim.vjps) else None
-        if vjp is None:
-            raise NotImplementedError(
-                f"VJP of primitive '{name}' with respect to argument {argnum} is not defined"
-            )
-        out.append((argnum, parent, vjp(g, box._value, *box._args, **box._kwargs)))
-    return out
-
-
 def computation_graph(f: Callable, *args: Any) -> Graph:
     """The computation graph of the scalar function ``f`` at ``args``, cotangents on the edges.
 
@@ -230,7 +205,7 @@ def computation_graph(f: Callable, *args: Any) -> Graph:
     out = f(*leaves)
     if out is None or isinstance(out, tuple | list | dict | str):
         raise TypeError(f"computation_graph: f must return a scalar, got {type(out).__name__}")
-    value = out._value if isinstance(out, Box) else np.asarray(out)
+    value = out.value if isinstance(out, Box) else np.asarray(out)
     if np.shape(value) != ():
         raise TypeError(f"computation_graph: f must return a scalar (shape ()), got shape "
                         f"{np.shape(value)}; reduce it first, e.g. with .sum()")
@@ -239,38 +214,21 @@ def computation_graph(f: Callable, *args: Any) -> Graph:
                         f"dtype {np.result_type(value)}")
 
     index = {id(b): k for k, b in enumerate(leaves)}
-    nodes = [Node(k, f"arg{k}", np.shape(b._value), b._value) for k, b in enumerate(leaves)]
+    nodes = [Node(k, f"arg{k}", np.shape(b.value), b.value) for k, b in enumerate(leaves)]
     if not isinstance(out, Box):  # f does not depend on its arguments
         nodes.append(Node(len(nodes), "constant", (), value))
         return Graph(tuple(nodes), (), tuple(range(len(leaves))), len(nodes) - 1)
-    order = toposort(out)  # each box before its parents
-    for box in reversed(order):  # forward order
+    for box in reversed(toposort(out)):  # forward order: each box after its parents
         if id(box) not in index:
-            if not box._parents:
+            if not box.parents:
                 raise TypeError("computation_graph: f traced a value that is not one of its "
                                 "arguments (a Box created inside f?)")
             index[id(box)] = len(nodes)
-            prim = box._prim
-            nodes.append(Node(len(nodes), getattr(prim, "__name__", repr(prim)),
-                              np.shape(box._value), box._value))
-    cotangents: dict[int, Any] = {id(out): np.ones((), dtype=np.result_type(value))}
+            nodes.append(Node(len(nodes), box.primitive_name, np.shape(box.value), box.value))
     edges = []
-    for box in order:
-        g = cotangents.pop(id(box), None)
-        if g is None or not box._parents:
-            continue
-        for argnum, parent, ct in _edge_cotangents(box, g):
-            ct = np.asarray(ct)
-            pval = parent._value
-            if ct.shape != np.shape(pval):
-                raise ValueError(
-                    f"VJP of '{nodes[index[id(box)]].name}' returned a cotangent of shape "
-                    f"{ct.shape} for an argument of shape {np.shape(pval)}"
-                )
-            pdtype = np.result_type(pval)
-            if ct.dtype != pdtype and np.issubdtype(pdtype, np.floating):
-                ct = ct.astype(pdtype)
-            edges.append(Edge(index[id(parent)], index[id(box)], argnum, ct))
-            key = id(parent)
-            cotangents[key] = ct if key not in cotangents else cotangents[key] + ct
+
+    def record(box: Box, argnum: int, parent: Box, ct: np.ndarray) -> None:
+        edges.append(Edge(index[id(parent)], index[id(box)], argnum, ct))
+
+    backward(out, np.ones((), dtype=np.result_type(value)), on_edge=record)  # the one reverse pass
     return Graph(tuple(nodes), tuple(edges), tuple(range(len(leaves))), index[id(out)])
