@@ -105,10 +105,10 @@ assert "NotImplementedError" in stub and not top_level
 
 # %% [markdown]
 # ## Paper vs. this course
-# The course follows the paper (`manc.tex`: Background, section III and
-# Algorithm 1) equation by equation, but not blindly. The map of where it
-# departs, or where the paper itself slips, and why; each chapter's own box
-# has the details:
+# The course follows the paper (`manc.tex`: the DMP background of section III,
+# the controller of section IV and Algorithm 1) equation by equation, but not
+# blindly. The map of where it departs, or where the paper itself slips, and
+# why; each chapter's own box has the details:
 #
 # * **Eq. 1, the canonical system** is printed τẋ = α_x x; the phase must
 #   decay, so it reads τẋ = −α_x x (chapter 3). Chapter 3 also builds the

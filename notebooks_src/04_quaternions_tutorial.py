@@ -328,7 +328,7 @@ assert np.all(np.isnan(g_naive)) and np.allclose(g_ours, [0.0, 1.0, 1.0, 1.0])
 
 # %% [markdown]
 # ## Paper vs. this course
-# Where this chapter departs from section II-B of the paper (eqs. 2–6), and
+# Where this chapter departs from section III-B of the paper (eqs. 2–6), and
 # where the paper itself slips:
 #
 # * **Eq. 2 without τ and $\mathbf f_q$.** The paper's eq. 2 has a time constant

@@ -1,7 +1,7 @@
 # %% [markdown]
 # # Chapter 5 — vAGN: the behaviour planner as a soft automaton
 #
-# Module built in this chapter: `minimanc.vagn` (paper section III-B, eqs. 8–9).
+# Module built in this chapter: `minimanc.vagn` (paper section IV-B, eqs. 8–9).
 #
 # A classical behaviour planner is a finite automaton: *cruise*, *follow the
 # car ahead*, *yield to crossing traffic*, with transitions triggered by
@@ -124,7 +124,7 @@ assert ml[5] == CRUISE and ml[15] == FOLLOW and ml[23] == YIELD and ml[29] == CR
 
 # %% [markdown]
 # ## 3. ReLU does not make zeros: every transition stays possible
-# ReLU "preserves only the positive transitions" (section III-B) — but the
+# ReLU "preserves only the positive transitions" (section IV-B) — but the
 # softmax that follows turns a zero into $e^0 = 1$, exactly like any other
 # logit. A column whose logits after ReLU are $R_{\cdot j}$ gives
 #
@@ -317,7 +317,7 @@ assert gaps[0] > 0.6 and gaps[8] < 1e-3 and np.all(np.diff(gaps) <= 1e-12)
 
 # %% [markdown]
 # ## Paper vs. this course
-# Where this chapter departs from section III-B and Algorithm 1 of the paper,
+# Where this chapter departs from section IV-B and Algorithm 1 of the paper,
 # and where the paper itself slips:
 #
 # * **Eq. 8's index set.** The sum is written over $i \in \{0, M-1\}$, a set of

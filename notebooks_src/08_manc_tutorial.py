@@ -316,8 +316,8 @@ assert np.allclose(ex["q"][0], tr["q"][t], atol=1e-5)
 
 # %% [markdown]
 # ## Paper vs. this course
-# Where this chapter departs from the paper's sections III-C ("Interfacing
-# vAGN with DMP") and III-D (Algorithm 1), or the paper itself slips, and why:
+# Where this chapter departs from the paper's section IV-C ("Interfacing
+# vAGN with DMP") and its Algorithm 1, or the paper itself slips, and why:
 #
 # * **FC(q) lists the position gains twice.** After eq. 11 the paper writes
 #   $\texttt{FC}(q) = \{\alpha_y, \beta_y, \alpha_y, \beta_y\}$, and the learned
