@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from minimanc import metrics, studies
+from minimanc.studies import jobs, report
 
 
 def agg(**means):
@@ -213,11 +214,11 @@ def test_a_closed_loop_that_blows_up_scores_inf(tmp_path, monkeypatch):
     ck = train.save(tmp_path / "ck.npz", "cnn", params, cfg)
     job = {"data": str(data), "lo": 0, "hi": 2, "checkpoint": str(ck), "engine": "numpy",
            "rollout": str(tmp_path / "r.npz"), "metrics": str(tmp_path / "m.json")}
-    res = studies._evaluate_job(job)
+    res = jobs.evaluate_job(job)
     assert res["ade"] == float("inf") and "finite" in res["error"]
     agg = metrics.aggregate([res])
     assert "error" not in agg and agg["ade"]["mean"] == float("inf")
-    assert "diverged" in studies._cell(agg, "ade", 1)
+    assert "diverged" in report.cell(agg, "ade", 1)
 
 
 # --------------------------------------------------------------------------- cache recovery

@@ -1,0 +1,155 @@
+"""Chapter 9 — the configuration of the paper's studies: :class:`StudyConfig` (sizes and
+budgets, and the fingerprint that names its cache), the named :data:`PRESETS`, and
+:class:`Run`, one trained model of a study."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from minimanc import inputs
+
+TABLE_MODELS: tuple[str, ...] = ("cnn", "cnn_lstm", "rvs_g", "manc")
+"""The learned comparison cases of Table I, in the paper's order."""
+
+ABLATION_MODELS: tuple[str, ...] = ("manc", "vagn_only", "dmp_only")
+"""The self-ablation of Fig. 8."""
+
+
+@dataclass(frozen=True)
+class StudyConfig:
+    """Sizes and budgets of a study. See :data:`PRESETS` for the named ones.
+
+    Data: ``n_train`` / ``n_tune`` / ``n_val`` scenes of one generated set
+    (``data_seed``, BEV ``image_size``). Training (the same for every model):
+    ``epochs``, ``batch_size``, ``max_steps_per_epoch`` (``None`` = all),
+    ``seq_len`` (LSTM windows), the learning-rate sweep ``lrs``, ``n_seeds``
+    training seeds. Studies: ``n_states`` of MANC in Table I, ``q_states``,
+    ``fractions``, ``settings``; ``explain_scenes`` scenes get
+    explainability figures.
+    """
+
+    preset: str = "custom"
+    n_train: int = 650
+    n_tune: int = 40
+    n_val: int = 200
+    image_size: int = 64
+    data_seed: int = 0
+    epochs: int = 6
+    batch_size: int = 64
+    max_steps_per_epoch: int | None = None
+    seq_len: int = 8
+    lrs: tuple[float, ...] = (1e-3, 3e-3)
+    n_seeds: int = 3
+    n_states: int = 6
+    q_states: tuple[int, ...] = (3, 6, 9, 12)
+    fractions: tuple[float, ...] = (0.25, 0.5, 0.75, 1.0)
+    settings: tuple[str, ...] = ("paper", "parity")
+    table_models: tuple[str, ...] = TABLE_MODELS
+    ablation_models: tuple[str, ...] = ABLATION_MODELS
+    sample_models: tuple[str, ...] = TABLE_MODELS
+    explain_scenes: int = 3
+
+    def __post_init__(self) -> None:
+        for name in ("n_train", "n_tune", "n_val", "image_size", "epochs", "batch_size",
+                     "seq_len", "n_seeds", "n_states", "explain_scenes"):
+            v = getattr(self, name)
+            low = 0 if name == "explain_scenes" else 1
+            if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < low:
+                raise ValueError(f"{name} must be an integer >= {low}; got {name}={v!r}")
+        if self.n_train < 2:
+            raise ValueError(f"n_train must be >= 2; got n_train={self.n_train!r}")
+        m = self.max_steps_per_epoch
+        if m is not None and (isinstance(m, bool) or not isinstance(m, int | np.integer)
+                              or m < 1):
+            raise ValueError(f"max_steps_per_epoch must be None or >= 1; got {m!r}")
+        if not self.lrs or any(not (np.isfinite(x) and x > 0) for x in self.lrs):
+            raise ValueError(f"lrs must be positive learning rates; got lrs={self.lrs!r}")
+        if not self.fractions or any(not 0 < f <= 1 for f in self.fractions):
+            raise ValueError(f"fractions must lie in (0, 1]; got fractions={self.fractions!r}")
+        if not self.q_states or any(int(n) != n or n < 1 for n in self.q_states):
+            raise ValueError(f"q_states must be positive integers; got {self.q_states!r}")
+        for s in self.settings:
+            if s not in inputs.SETTINGS:
+                raise ValueError(f"settings must be from {inputs.SETTINGS}; got {s!r}")
+        for group in ("table_models", "ablation_models", "sample_models"):
+            for mdl in getattr(self, group):
+                if mdl not in inputs.MODEL_NAMES:
+                    raise ValueError(f"{group} must hold names from {inputs.MODEL_NAMES}; "
+                                     f"got {mdl!r}")
+
+    def fingerprint(self) -> str:
+        """Hash of everything that changes data or training (not ``n_seeds`` or the figures).
+
+        Includes the library's defaults of :class:`minimanc.train.TrainConfig`
+        and :class:`minimanc.models.ModelConfig`, so that a cache written by a
+        version that trained differently is never reused.
+        """
+        from minimanc import models, train
+
+        d = asdict(self)
+        for k in ("preset", "n_seeds", "explain_scenes"):
+            d.pop(k)
+        d["train_defaults"] = asdict(train.TrainConfig())
+        d["model_defaults"] = models.ModelConfig().to_dict()
+        d["default_gains"] = list(models.DEFAULT_GAINS)
+        return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
+
+    @property
+    def seeds(self) -> tuple[int, ...]:
+        return tuple(range(self.n_seeds))
+
+
+PRESETS: dict[str, StudyConfig] = {
+    # the test suite: seconds, numbers meaningless
+    "tiny": StudyConfig(
+        preset="tiny", n_train=4, n_tune=1, n_val=2, image_size=32, epochs=1, batch_size=16,
+        max_steps_per_epoch=2, seq_len=4, lrs=(1e-3,), n_seeds=1, q_states=(3, 6),
+        fractions=(0.5, 1.0), explain_scenes=1,
+    ),
+    # ≈ 10 minutes on 2 cores: every study and the learning-rate sweep, one seed, small data
+    "quick": StudyConfig(
+        preset="quick", n_train=64, n_tune=8, n_val=24, image_size=64, epochs=3,
+        batch_size=64, lrs=(1e-3, 3e-3), n_seeds=1,
+    ),
+    # ≤ 60 minutes on 2 cores (estimated from "quick"): three seeds, more data and epochs
+    "full": StudyConfig(
+        preset="full", n_train=96, n_tune=16, n_val=48, image_size=64, epochs=4,
+        batch_size=64, lrs=(1e-3, 3e-3), n_seeds=3,
+    ),
+    # the paper's sizes (650 training / 200 validation scenes): many hours on 2 cores
+    "paper": StudyConfig(
+        preset="paper", n_train=650, n_tune=40, n_val=200, image_size=64, epochs=6,
+        batch_size=64, lrs=(3e-4, 1e-3, 3e-3), n_seeds=3,
+    ),
+}
+"""Named configurations: ``tiny`` (tests), ``quick`` (``--quick``), ``full`` (the default)
+and ``paper`` (the paper's data sizes; hours)."""
+
+
+@dataclass(frozen=True)
+class Run:
+    """One trained model: ``model``, information ``setting``, ``n_states``, data
+    ``fraction``, training ``seed`` and learning rate ``lr``."""
+
+    model: str
+    setting: str
+    n_states: int
+    fraction: float
+    seed: int
+    lr: float
+
+    @property
+    def key(self) -> str:
+        return (f"{self.model}-{self.setting}-q{self.n_states}-f{round(100 * self.fraction)}"
+                f"-lr{self.lr:g}-s{self.seed}")
+
+
+def canonical_setting(model: str, setting: str) -> str:
+    """``"paper"`` when ``model`` sees the same inputs in both settings (MANC, DMP-only)."""
+    if inputs.visible(model, "paper") == inputs.visible(model, setting):
+        return "paper"
+    return setting

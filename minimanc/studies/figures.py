@@ -1,0 +1,86 @@
+"""Chapter 9 — the figures of a finished study (Table I, Fig. 5a/5b, 7, 8 as PNGs) and the
+explainability figures of the MANC run, on validation scenes chosen by rule
+(:func:`pick_scenes`, :func:`saliency_steps`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from minimanc.studies.runner import Study
+
+
+def write_figures(study: Study, results: dict, figdir: Path) -> list[Path]:
+    """Every PNG (and the GIF) of a finished study; returns the paths."""
+    from minimanc import plots
+
+    paths = [
+        plots.save(plots.plot_table1(results["table1"]), figdir / "table1.png"),
+        plots.save(plots.plot_sample_efficiency(results["sample_efficiency"]),
+                   figdir / "sample_efficiency.png"),
+        plots.save(plots.plot_param_counts(results["param_counts"]["paper"]),
+                   figdir / "param_counts.png"),
+        plots.save(plots.plot_q_states(results["q_states"]), figdir / "q_states.png"),
+        plots.save(plots.plot_ablation(results["ablation"]), figdir / "ablation.png"),
+    ]
+    paths += write_explanations(study, figdir)
+    return paths
+
+
+def write_explanations(study: Study, figdir: Path) -> list[Path]:
+    """Explainability figures for a few validation scenes of the MANC run (paper, seed 0)."""
+    from minimanc import plots, rollout, train
+
+    c = study.config
+    if c.explain_scenes == 0:
+        return []
+    _, _, val = study.datasets()
+    run = study.explain_run()
+    if "error" in study.result(run):
+        study.log(f"figures: no explanations, the closed loop of {run.key} failed")
+        return []
+    traj = study.rollout(run)
+    fit = train.load(study.checkpoint(run))
+    human = rollout.human(val)
+    scenes = pick_scenes(val, traj, c.explain_scenes)
+    paths = [plots.save(plots.plot_trajectories({"MANC": traj}, human, val, scenes),
+                        figdir / "trajectories.png")]
+    for s in scenes:
+        paths.append(plots.save(plots.plot_explain_trace(traj, human, val, s),
+                                figdir / f"explain_scene{s:03d}.png"))
+        steps = saliency_steps(traj, s)
+        paths.append(plots.save(
+            plots.plot_saliency_steps(fit.params, fit.cfg, traj, val, s, steps),
+            figdir / f"saliency_scene{s:03d}.png"))
+    paths.append(plots.save_gif(traj, human, val, scenes[0], figdir / "rollout.gif"))
+    return paths
+
+
+def pick_scenes(ds: Any, traj: Any, k: int) -> list[int]:
+    """``k`` validation scenes for the explainability figures, chosen by rule, not by eye:
+    first a roundabout, an intersection and a curved road (in that order, the first
+    scene of each kind), then the scenes where the q-distribution moves most."""
+    chosen: list[int] = []
+    for kind in ("roundabout", "intersection", "curved"):
+        for s in range(len(ds)):
+            if ds.maps[s].kind == kind and s not in chosen:
+                chosen.append(s)
+                break
+    if "q" in traj.aux:
+        move = np.abs(np.diff(traj.aux["q"], axis=1)).sum(axis=(1, 2))
+        chosen += [int(s) for s in np.argsort(-move) if int(s) not in chosen]
+    chosen += [s for s in range(len(ds)) if s not in chosen]
+    return chosen[:k]
+
+
+def saliency_steps(traj: Any, scene: int, k: int = 3) -> list[int]:
+    """``k`` consecutive-ish steps around the largest change of the q-distribution."""
+    T = traj.controls.shape[1]
+    if "q" not in traj.aux or T < 2:
+        return list(range(min(k, T)))
+    move = np.abs(np.diff(traj.aux["q"][scene], axis=0)).sum(axis=1)
+    t = int(np.argmax(move)) + 1
+    lo = int(np.clip(t - k // 2 * 2, 0, max(T - 1 - 2 * (k - 1), 0)))
+    return [min(lo + 2 * i, T - 1) for i in range(k)]

@@ -1,0 +1,426 @@
+"""Chapter 9 — :class:`Study`: trains, rolls out and evaluates every run of the paper's
+studies (Table I, sample efficiency, q-states, self-ablation, parameter counts), with the
+cache under the output directory, the pool of rollout workers and the learning-rate
+sweeps on the tuning split."""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from minimanc import metrics
+from minimanc.studies.config import Run, StudyConfig, canonical_setting
+from minimanc.studies.jobs import Done, enable_jax_cache, evaluate_job, read_json, write_json
+from minimanc.studies.report import findings
+
+
+class Study:
+    """Runs the studies of one :class:`StudyConfig` under ``out`` (see :mod:`minimanc.studies`).
+
+    ``engine`` trains and drives ("jax" or "numpy"); ``workers`` processes do
+    the closed-loop rollouts while the main process trains (0: inline);
+    ``progress`` shows tqdm bars; ``log`` receives one line per event.
+    """
+
+    def __init__(self, config: StudyConfig, out: str | Path, engine: str = "jax",
+                 workers: int = 1, progress: bool = True,
+                 log: Callable[[str], None] | None = None) -> None:
+        if not isinstance(config, StudyConfig):
+            raise ValueError(f"config must be a StudyConfig; got config={config!r}")
+        if engine not in ("jax", "numpy"):
+            raise ValueError(f"engine must be 'jax' or 'numpy'; got engine={engine!r}")
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+            raise ValueError(f"workers must be an integer >= 0; got workers={workers!r}")
+        self.config = config
+        self.out = Path(out)
+        self.engine = engine
+        self.workers = workers
+        self.progress = progress
+        self.log = log or (lambda msg: None)
+        self.cache = self.out / "cache" / f"{config.fingerprint()}-{engine}"
+        self.jax_cache = self.out / "cache" / "jax"
+        if engine == "jax":
+            enable_jax_cache(self.jax_cache)
+        self._data: tuple[Any, Any, Any] | None = None
+        self._pool: Any = None
+        self._futures: dict[str, Any] = {}
+        self._lr: dict[tuple[str, str], float] = {}
+        self._sweeps: dict[str, dict] = {}
+        self.timing: dict[str, float] = {}
+        self._bar: Any = None
+
+    # ----------------------------------------------------------------- data
+
+    @property
+    def data_path(self) -> Path:
+        c = self.config
+        n = c.n_train + c.n_tune + c.n_val
+        return self.out / "data" / f"world-{n}x{c.data_seed}-{c.image_size}px.npz"
+
+    def datasets(self) -> tuple[Any, Any, Any]:
+        """``(train, tune, val)``: generated once (saved under ``data/``), then loaded."""
+        if self._data is not None:
+            return self._data
+        from minimanc import world
+
+        c = self.config
+        n = c.n_train + c.n_tune + c.n_val
+        t0 = time.perf_counter()
+        ds = None
+        if self.data_path.exists():
+            try:
+                ds = world.load(self.data_path)
+                self.log(f"data: loaded {n} scenes from {self.data_path}")
+            except world.DatasetFileError as exc:  # older format, truncated, altered: remake
+                self.discard(self.data_path, str(exc))
+        if ds is None:
+            self.log(f"data: generating {n} scenes ({c.image_size}x{c.image_size} BEV)")
+            ds = world.generate(n, seed=c.data_seed,
+                                raster=world.RasterConfig(size=c.image_size),
+                                progress=self.progress)
+            world.save(ds, self.data_path)
+        self.timing["data"] = time.perf_counter() - t0
+        a, b = c.n_train, c.n_train + c.n_tune
+        self._data = (ds.subset(slice(0, a)), ds.subset(slice(a, b)), ds.subset(slice(b, n)))
+        return self._data
+
+    def _bounds(self, split: str) -> tuple[int, int]:
+        c = self.config
+        a, b = c.n_train, c.n_train + c.n_tune
+        return {"tune": (a, b), "val": (b, b + c.n_val)}[split]
+
+    # ----------------------------------------------------------------- training
+
+    def model_config(self, run: Run) -> Any:
+        from minimanc import models
+
+        return models.ModelConfig(n_states=run.n_states, image_size=self.config.image_size,
+                                  setting=run.setting)
+
+    def train_config(self, run: Run) -> Any:
+        from minimanc import train
+
+        c = self.config
+        return train.TrainConfig(epochs=c.epochs, batch_size=c.batch_size, lr=run.lr,
+                                 seed=run.seed, subset=run.fraction, seq_len=c.seq_len,
+                                 max_steps_per_epoch=c.max_steps_per_epoch)
+
+    def checkpoint(self, run: Run) -> Path:
+        from minimanc import train
+
+        return self.cache / "models" / run.key / train.CHECKPOINT_NAME
+
+    def fit(self, run: Run) -> Path:
+        """Train ``run`` (or resume / reuse its checkpoint). Returns the checkpoint path."""
+        from minimanc import train
+
+        path = self.checkpoint(run)
+        if self._diverged(run):
+            return path  # scored as inf; delete diverged.json to train it again
+        if path.exists():
+            try:
+                ck = train.load_checkpoint(path)
+            except train.CheckpointError as exc:
+                # the cache is derived data: drop the broken entry and train the run again
+                self.discard(path, str(exc))
+            else:
+                if ck["epoch"] >= self.config.epochs:
+                    return path
+        train_ds, _, _ = self.datasets()
+        t0 = time.perf_counter()
+        try:
+            train.fit(run.model, train_ds, self.model_config(run), self.train_config(run),
+                      engine=self.engine, checkpoint_dir=path.parent, resume=True,
+                      progress=self.progress)
+        except train.TrainingDiverged as exc:
+            self.log(f"train: {run.key} diverged ({exc}); scored as inf")
+            write_json(path.parent / "diverged.json", {"error": str(exc)})
+        dt = time.perf_counter() - t0
+        self.timing["train"] = self.timing.get("train", 0.0) + dt
+        self.log(f"train: {run.key} in {dt:.1f} s")
+        return path
+
+    def _diverged(self, run: Run) -> bool:
+        return (self.checkpoint(run).parent / "diverged.json").exists()
+
+    def discard(self, path: Path, why: str) -> None:
+        """Delete the unreadable cache entry ``path`` (it is recomputed), saying so on stderr."""
+        print(f"minimanc reproduce: discarding the unreadable cache entry {path} ({why}); "
+              "recomputing it", file=sys.stderr)
+        self.log(f"cache: discarded {path}")
+        path.unlink(missing_ok=True)
+
+    # ----------------------------------------------------------------- evaluation
+
+    def _paths(self, run: Run, split: str) -> tuple[Path, Path]:
+        base = self.cache / "rollouts"
+        return base / f"{run.key}-{split}.npz", base / f"{run.key}-{split}.json"
+
+    def submit(self, run: Run, split: str = "val") -> Any:
+        """Train ``run`` if needed and start its closed-loop evaluation on ``split``.
+
+        Returns a future-like object whose ``result()`` is the metrics dict.
+        """
+        key = f"{run.key}-{split}"
+        if key in self._futures:
+            return self._futures[key]
+        roll_path, met_path = self._paths(run, split)
+        cached = read_json(met_path) if met_path.exists() and roll_path.exists() else None
+        if met_path.exists() and roll_path.exists() and not isinstance(cached, dict):
+            self.discard(met_path, "not a JSON object")
+        if isinstance(cached, dict):
+            fut: Any = Done(cached)
+        else:
+            ck = self.fit(run)
+            if self._diverged(run):
+                fut = Done({k: float("inf") for k in metrics.METRICS})
+            else:
+                self.datasets()
+                lo, hi = self._bounds(split)
+                job = {"data": str(self.data_path), "lo": lo, "hi": hi,
+                       "checkpoint": str(ck), "engine": self.engine,
+                       "rollout": str(roll_path), "metrics": str(met_path),
+                       "jax_cache": str(self.jax_cache)}
+                if self.workers > 0:
+                    fut = self._executor().submit(evaluate_job, job)
+                else:
+                    t0 = time.perf_counter()
+                    fut = Done(evaluate_job(job))
+                    self.timing["rollout"] = (self.timing.get("rollout", 0.0)
+                                              + time.perf_counter() - t0)
+        self._futures[key] = fut
+        self._tick()
+        return fut
+
+    def _executor(self) -> Any:
+        if self._pool is None:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(max_workers=self.workers,
+                                             mp_context=mp.get_context("spawn"))
+        return self._pool
+
+    def result(self, run: Run, split: str = "val") -> dict:
+        """Metrics of ``run`` on ``split`` (trains and evaluates if needed; waits)."""
+        return self.submit(run, split).result()
+
+    def rollout(self, run: Run, split: str = "val") -> Any:
+        """The saved :class:`minimanc.rollout.Rollout` of ``run`` on ``split``."""
+        from minimanc import rollout
+
+        self.result(run, split)
+        return rollout.Rollout.load(self._paths(run, split)[0])
+
+    def close(self) -> None:
+        """Shut the worker processes down."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
+
+    # ----------------------------------------------------------------- tuning
+
+    def lr(self, model: str, setting: str = "paper") -> float:
+        """Learning rate of ``model`` in ``setting``: best closed-loop ADE on the tuning split."""
+        setting = canonical_setting(model, setting)
+        key = (model, setting)
+        if key in self._lr:
+            return self._lr[key]
+        c = self.config
+        if len(c.lrs) == 1:
+            self._lr[key] = float(c.lrs[0])
+            return self._lr[key]
+        runs = [Run(model, setting, c.n_states, 1.0, 0, float(lr)) for lr in c.lrs]
+        futs = [self.submit(r, "tune") for r in runs]
+        scores = {float(r.lr): float(f.result()["ade"]) for r, f in zip(runs, futs)}
+        best = min(scores, key=lambda k: (scores[k], k))
+        self._sweeps[f"{model}-{setting}"] = {"tune_ade": {f"{k:g}": v for k, v in
+                                                           scores.items()},
+                                              "best_lr": best}
+        self._lr[key] = best
+        return best
+
+    def start_sweeps(self, pairs: Sequence[tuple[str, str]]) -> None:
+        """Train every sweep run first, so the rollout workers can overlap with training."""
+        c = self.config
+        if len(c.lrs) == 1:
+            return
+        for model, setting in pairs:
+            setting = canonical_setting(model, setting)
+            for lr in c.lrs:
+                self.submit(Run(model, setting, c.n_states, 1.0, 0, float(lr)), "tune")
+
+    # ----------------------------------------------------------------- studies
+
+    def runs(self, model: str, setting: str = "paper", n_states: int | None = None,
+             fraction: float = 1.0) -> list[Run]:
+        """One :class:`Run` per seed, at ``model``'s tuned learning rate."""
+        setting = canonical_setting(model, setting)
+        n = self.config.n_states if n_states is None else int(n_states)
+        lr = self.lr(model, setting)
+        return [Run(model, setting, n, float(fraction), s, lr) for s in self.config.seeds]
+
+    def _aggregate(self, runs: list[Run]) -> dict:
+        futs = [self.submit(r) for r in runs]
+        return metrics.aggregate([f.result() for f in futs])
+
+    def _submit_all(self, runs: list[Run]) -> None:
+        for r in runs:
+            self.submit(r)
+
+    def _tick(self) -> None:
+        if self._bar is not None:
+            self._bar.update(1)
+
+    def human(self) -> dict:
+        """Metrics of the logged human on the validation split (the "Human" row)."""
+        from minimanc import rollout
+
+        _, _, val = self.datasets()
+        res = metrics.evaluate(rollout.human(val), val)
+        return metrics.aggregate([res])
+
+    def references(self) -> dict:
+        """``{"dmp_prior": aggregate}``: policies without learning, on the validation split.
+
+        ``dmp_prior`` is MANC's DMP head at its initial constant gains
+        (:func:`minimanc.rollout.fixed_gains`): what the structure alone does,
+        the bar the learned gains must clear.
+        """
+        from minimanc import models, rollout
+
+        _, _, val = self.datasets()
+        cfg = models.ModelConfig(n_states=self.config.n_states,
+                                 image_size=self.config.image_size)
+        res = metrics.evaluate(rollout.fixed_gains(val, cfg=cfg), val)
+        return {"dmp_prior": metrics.aggregate([res])}
+
+    def table1(self) -> dict:
+        """``{setting: {model: aggregate}}`` with ``"human"`` first (Table I)."""
+        c = self.config
+        for s in c.settings:
+            for m in c.table_models:
+                self._submit_all(self.runs(m, s))
+        human = self.human()
+        return {s: {"human": human, **{m: self._aggregate(self.runs(m, s))
+                                       for m in c.table_models}} for s in c.settings}
+
+    def sample_efficiency(self, setting: str = "paper") -> dict:
+        """``{"setting", "fractions", "models": {model: [aggregate per fraction]}}`` (Fig. 5a)."""
+        c = self.config
+        for m in c.sample_models:
+            for f in c.fractions:
+                self._submit_all(self.runs(m, setting, fraction=f))
+        return {"setting": setting, "fractions": list(c.fractions),
+                "models": {m: [self._aggregate(self.runs(m, setting, fraction=f))
+                               for f in c.fractions] for m in c.sample_models}}
+
+    def q_states(self, setting: str = "paper") -> dict:
+        """``{"setting", "n_states", "results": [aggregate per n]}`` for MANC (Fig. 7)."""
+        c = self.config
+        for n in c.q_states:
+            self._submit_all(self.runs("manc", setting, n_states=n))
+        return {"setting": setting, "n_states": [int(n) for n in c.q_states],
+                "results": [self._aggregate(self.runs("manc", setting, n_states=n))
+                            for n in c.q_states]}
+
+    def ablation(self, setting: str = "paper") -> dict:
+        """``{"setting", "models": {model: aggregate}}`` (Fig. 8)."""
+        c = self.config
+        for m in c.ablation_models:
+            self._submit_all(self.runs(m, setting))
+        return {"setting": setting,
+                "models": {m: self._aggregate(self.runs(m, setting))
+                           for m in c.ablation_models}}
+
+    def param_counts(self) -> dict:
+        """``{setting: {model: number of parameters}}`` (Fig. 5b), at ``n_states``."""
+        from minimanc import models
+
+        c = self.config
+        out = {}
+        for s in c.settings:
+            cfg = models.ModelConfig(n_states=c.n_states, image_size=c.image_size, setting=s)
+            out[s] = models.param_counts(cfg)
+        return out
+
+    def n_runs(self) -> int:
+        """Number of closed-loop evaluations (tuning and validation) of the whole study,
+        one per training (for the progress bar)."""
+        c = self.config
+        keys = set()
+        for m, s in self._sweep_pairs():
+            for lr in (c.lrs if len(c.lrs) > 1 else ()):
+                keys.add((m, canonical_setting(m, s), c.n_states, 1.0, 0, lr))
+        for s in c.settings:
+            for m in c.table_models:
+                keys.update((m, canonical_setting(m, s), c.n_states, 1.0, sd, None)
+                            for sd in c.seeds)
+        for m in c.sample_models:
+            for f in c.fractions:
+                keys.update((m, "paper", c.n_states, f, sd, None) for sd in c.seeds)
+        for n in c.q_states:
+            keys.update(("manc", "paper", n, 1.0, sd, None) for sd in c.seeds)
+        for m in c.ablation_models:
+            keys.update((m, "paper", c.n_states, 1.0, sd, None) for sd in c.seeds)
+        return len(keys)
+
+    def _sweep_pairs(self) -> list[tuple[str, str]]:
+        c = self.config
+        pairs = [(m, s) for s in c.settings for m in c.table_models]
+        pairs += [(m, "paper") for m in c.ablation_models]
+        pairs += [(m, "paper") for m in c.sample_models]
+        seen, out = set(), []
+        for m, s in pairs:
+            k = (m, canonical_setting(m, s))
+            if k not in seen:
+                seen.add(k)
+                out.append(k)
+        return out
+
+    # ----------------------------------------------------------------- everything
+
+    def run(self) -> dict:
+        """Every study; returns the ``results`` dict written to ``results.json``."""
+        t0 = time.perf_counter()
+        self.datasets()
+        bar = None
+        if self.progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=self.n_runs(), desc="reproduce: runs", unit="run")
+        self._bar = bar
+        try:
+            self.start_sweeps(self._sweep_pairs())
+            results = {
+                "config": asdict(self.config),
+                "engine": self.engine,
+                "n_scenes": {"train": self.config.n_train, "tune": self.config.n_tune,
+                             "val": self.config.n_val},
+                "close_gap_m": metrics.CLOSE_GAP,
+                "table1": self.table1(),
+                "sample_efficiency": self.sample_efficiency(),
+                "q_states": self.q_states(),
+                "ablation": self.ablation(),
+                "param_counts": self.param_counts(),
+                "references": self.references(),
+            }
+        finally:
+            if bar is not None:
+                bar.close()
+            self._bar = None
+        results["lr"] = {f"{m}-{s}": lr for (m, s), lr in sorted(self._lr.items())}
+        results["sweeps"] = self._sweeps
+        results["findings"] = findings(results)
+        self.timing["total"] = time.perf_counter() - t0
+        results["timing_s"] = {k: round(v, 1) for k, v in self.timing.items()}
+        return results
+
+    def explain_run(self) -> Run:
+        """The run whose rollouts the explainability figures show: MANC, paper, seed 0."""
+        c = self.config
+        return Run("manc", "paper", c.n_states, 1.0, 0, self.lr("manc", "paper"))
