@@ -1,0 +1,180 @@
+"""Chapter 10 — expert demonstrations in the chapter-7 dataset format.
+
+:func:`expert_episodes` records collision-free expert episodes,
+:func:`to_dataset` assembles them into a :class:`minimanc.world.Dataset`
+(maps as explicit recipes, so ``world.save`` / ``world.load`` and
+``minimanc.train`` work unchanged) and :func:`collect` does both for
+several scenarios.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from minimanc.highway.env import (
+    DEFAULT_STEPS,
+    ENV_IDS,
+    MAX_ADO,
+    SCENARIOS,
+    check_scenario,
+)
+from minimanc.highway.episodes import Episode, check_steps, run_episode
+from minimanc.world.geometry import DT, goal_in_ego_frame
+from minimanc.world.raster import RasterConfig, rasterize
+
+EVAL_SEED = 100_000
+"""First env seed of evaluation episodes (training demonstrations start at 0)."""
+
+
+def expert_episodes(
+    scenario: str,
+    n: int,
+    seed: int = 0,
+    steps: int = DEFAULT_STEPS,
+    cfg: RasterConfig | None = None,
+    max_ado: int = MAX_ADO,
+    record_bev: bool = True,
+    max_tries: int | None = None,
+    progress: bool = False,
+) -> tuple[list[Episode], int]:
+    """``n`` collision-free expert episodes from env seeds ``seed, seed + 1, …``.
+
+    IDM/MOBIL sometimes crashes (roundabout entries, intersections); such
+    episodes are skipped, as chapter 7 redraws scenes where the human
+    collides. Returns ``(episodes, tries)``; ``tries − n`` were skipped.
+    Raises RuntimeError after ``max_tries`` (default ``3 n + 10``) attempts.
+    """
+    check_scenario(scenario)
+    check_steps(steps)
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+        raise ValueError(f"n must be a positive integer, got {n!r}")
+    limit = 3 * int(n) + 10 if max_tries is None else int(max_tries)
+    out: list[Episode] = []
+    tries = 0
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=int(n), desc=f"expert {scenario}", leave=False)
+    try:
+        while len(out) < n:
+            if tries >= limit:
+                raise RuntimeError(f"{scenario}: only {len(out)} collision-free expert "
+                                   f"episodes in {tries} tries from seed {seed}")
+            ep = run_episode(scenario, int(seed) + tries, "expert", steps=steps, cfg=cfg,
+                             max_ado=max_ado, record_bev=record_bev)
+            tries += 1
+            if not ep.collided:
+                out.append(ep)
+                if bar is not None:
+                    bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return out, tries
+
+
+def to_dataset(episodes: Sequence[Episode], cfg: RasterConfig | None = None,
+               seed: int = 0, attempts: Sequence[int] | None = None):
+    """Chapter-7 :class:`minimanc.world.Dataset` from expert episodes of equal length.
+
+    An episode of ``T`` actions gives one scene of ``T`` steps: ``ego`` the
+    poses ``0 … T−1``, ``controls[t]`` (:attr:`Episode.controls`) from ``t`` to
+    ``t + 1``, ``goal`` the last pose in each ego frame, the lane targets and
+    ados recorded at each step, ``bev`` the rasters (re-rendered with ``cfg``
+    if the episode has none), ``goal_bev`` the static raster at the goal, and
+    ``maps`` the episode maps (explicit recipes in ``meta["recipes"]``).
+    ``meta["tags"]`` records the scenario, env id and seed, destination and
+    expert speed per scene.
+    """
+    from dataclasses import asdict
+
+    from minimanc.world import dataset as wds
+
+    cfg = cfg or RasterConfig()
+    if len(episodes) == 0:
+        raise ValueError("episodes must hold at least one episode, got 0")
+    lengths = {ep.steps for ep in episodes}
+    if len(lengths) != 1:
+        raise ValueError(f"episodes must all have the same number of steps, got {sorted(lengths)}")
+    As = {ep.ado.shape[1] for ep in episodes}
+    if len(As) != 1:
+        raise ValueError(f"episodes must all have the same number of ado rows, got {sorted(As)}")
+    T = lengths.pop()
+    cols: dict[str, list] = {f: [] for f in wds.ARRAY_FIELDS}
+    for ep in episodes:
+        ego = ep.poses[:T]
+        bev = ep.bev[:T] if ep.bev is not None and ep.bev.shape[1:] == cfg.shape else None
+        if bev is None:
+            bev = np.stack([rasterize(ep.map, ep.poses[t], ep.ado[t], ep.ado_valid[t], cfg)
+                            for t in range(T)])
+        cols["bev"].append(bev)
+        cols["ego"].append(ego.astype(np.float32))
+        cols["controls"].append(ep.controls[:T].astype(np.float32))
+        cols["goal"].append(goal_in_ego_frame(np.broadcast_to(ego[-1], ego.shape), ego)
+                            .astype(np.float32))
+        cols["lane_target"].append(ep.lane_target[:T].astype(np.float32))
+        cols["ado"].append(ep.ado[:T].astype(np.float32))
+        cols["ado_valid"].append(ep.ado_valid[:T])
+        cols["goal_bev"].append(rasterize(ep.map, ego[-1], None, None, cfg))
+    arrays = {f: np.stack(v) for f, v in cols.items()}
+    wds.check_finite(arrays, "demonstrations")
+    tags = [{
+        "kind": ep.map.kind, "source": "highway-env", "scenario": ep.scenario,
+        "env_id": ENV_IDS[ep.scenario], "env_seed": ep.seed, "destination": ep.destination,
+        "expert_speed": round(float(ep.expert_speed), 4),
+        "has_junction": ep.map.kind == "intersection",
+        "has_roundabout": ep.map.kind == "roundabout",
+    } for ep in episodes]
+    per_scene = {
+        "recipes": [ep.map.recipe for ep in episodes], "tags": tags,
+        "attempts": [1] * len(episodes) if attempts is None else [int(a) for a in attempts],
+        "scene_index": [ep.seed for ep in episodes],  # the env seeds
+    }
+    values = {"seed": int(seed), "version": wds.FORMAT_VERSION, "dt": DT, "raster": asdict(cfg),
+              **{k: per_scene[k] for k in wds.PER_SCENE_KEYS}}
+    meta = {k: values[k] for k in wds.META_KEYS}  # the world's keys, in the world's order
+    meta["source"] = "highway-env"
+    return wds.Dataset(**arrays, maps=[ep.map for ep in episodes], meta=meta)
+
+
+def collect(
+    scenarios: Sequence[str] | str = tuple(SCENARIOS),
+    n_episodes: int = 20,
+    seed: int = 0,
+    steps: int = DEFAULT_STEPS,
+    cfg: RasterConfig | None = None,
+    max_ado: int = MAX_ADO,
+    progress: bool = False,
+):
+    """Expert demonstrations in the chapter-7 format: ``n_episodes`` per scenario.
+
+    Episodes come from :func:`expert_episodes` (env seeds from ``seed``,
+    collisions skipped), scenario by scenario, and are assembled by
+    :func:`to_dataset`; ``meta["attempts"]`` counts the seeds each scene took.
+    Save with :func:`minimanc.world.save`; :func:`minimanc.world.load` reads
+    it back (its maps are explicit recipes, see :func:`explicit_map`).
+    """
+    if isinstance(n_episodes, bool) or not isinstance(n_episodes, int | np.integer) \
+            or n_episodes < 1:
+        raise ValueError(f"n_episodes must be a positive integer, got {n_episodes!r}")
+    names = [scenarios] if isinstance(scenarios, str) else list(scenarios)
+    if not names:
+        raise ValueError("scenarios must name at least one scenario, got none")
+    for sc in names:
+        check_scenario(sc)
+    cfg = cfg or RasterConfig()
+    episodes: list[Episode] = []
+    attempts: list[int] = []
+    for sc in names:
+        eps, tries = expert_episodes(sc, n_episodes, seed, steps, cfg, max_ado, True,
+                                     progress=progress)
+        prev = int(seed) - 1
+        for ep in eps:
+            attempts.append(ep.seed - prev)
+            prev = ep.seed
+        episodes += eps
+    return to_dataset(episodes, cfg, seed=seed, attempts=attempts)
+

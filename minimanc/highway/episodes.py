@@ -1,0 +1,250 @@
+"""Chapter 10 — episodes: one env driven by the expert or a policy, step by step.
+
+:func:`run_episode` drives one sandbox episode (the expert, or a policy
+through the action adapter) and records an :class:`Episode` in the world
+frame: poses, speeds, ados, lane targets, BEV rasters and highway-env's
+flags. The logged controls (:attr:`Episode.controls`) are the speed reached
+at ``t + 1`` and the mean yaw rate over the step — what the action adapter
+realises, which :func:`replay_error` checks.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from minimanc.highway.control import EXPERT_SPEEDS, ActionAdapter, install_expert
+from minimanc.highway.env import (
+    DEFAULT_STEPS,
+    MAX_ADO,
+    ado_boxes,
+    check_scenario,
+    ego_pose,
+    make_env,
+)
+from minimanc.highway.mapping import RouteTracker, road_map
+from minimanc.highway.render import render_frame
+from minimanc.world.geometry import DT, goal_in_ego_frame, wrap_angle
+from minimanc.world.maps import K_TARGETS, Map, lane_targets
+from minimanc.world.raster import RasterConfig, rasterize
+
+
+@dataclass
+class Episode:
+    """One episode of ``T`` actions: ``T + 1`` recorded states (world frame).
+
+    ``poses (T+1, 3)``, ``speeds (T+1,)``, ``ado (T+1, A, 5)``, ``ado_valid
+    (T+1, A)``, ``lane_target (T+1, K, 2)`` (ego frame), ``bev (T+1, H, W, 3)``
+    uint8 (when recorded), ``commands (T, 2)`` the ``[speed, yaw rate]`` a
+    policy asked for (NaN for the expert), ``actions (T, 2)`` the
+    ContinuousAction sent (NaN for the expert), ``crashed`` and ``on_road``
+    ``(T+1,)`` highway-env's flags, the episode ``map`` (route from the start
+    lane), ``seed``, ``scenario``, ``destination``, ``expert_speed`` (the
+    expert's desired speed, NaN for a policy), highway-env ``frames`` (when
+    rendered) and the wall-clock ``seconds``.
+    """
+
+    scenario: str
+    seed: int
+    destination: str | None
+    map: Map
+    poses: np.ndarray
+    speeds: np.ndarray
+    ado: np.ndarray
+    ado_valid: np.ndarray
+    lane_target: np.ndarray
+    commands: np.ndarray
+    actions: np.ndarray
+    crashed: np.ndarray
+    on_road: np.ndarray
+    bev: np.ndarray | None = None
+    expert_speed: float = float("nan")
+    frames: list = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def steps(self) -> int:
+        return len(self.poses) - 1
+
+    @property
+    def controls(self) -> np.ndarray:
+        """The logged controls ``(T, 2)``: ``[speeds[t+1], wrap(yaw[t+1] − yaw[t]) / DT]``.
+
+        The speed reached at the end of the step and the mean yaw rate over it:
+        exactly what :func:`controls_to_action` realises (its P-controller
+        reaches the commanded speed at the end of the step, its steering the
+        yaw rate), so replaying an expert's controls through the adapter
+        reproduces the expert (:func:`replay_error`). The chapter-7 unicycle
+        replay of these controls is close but not exact: highway-env's bicycle
+        slips sideways (β) in turns and accelerates within the step.
+        """
+        yaw_rate = wrap_angle(np.diff(self.poses[:, 2])) / DT
+        return np.stack([self.speeds[1:], yaw_rate], axis=-1)
+
+    @property
+    def collided(self) -> bool:
+        return bool(self.crashed.any())
+
+
+PolicyFn = Callable[[dict], np.ndarray]
+"""A plain policy: observation dict (see :func:`run_episode`) → controls ``[speed, yaw_rate]``."""
+
+
+class EpisodeRun:
+    """One env driven step by step (the expert or a policy), recording an :class:`Episode`."""
+
+    def __init__(self, scenario: str, seed: int, steps: int, expert: bool,
+                 cfg: RasterConfig, max_ado: int, record_bev: bool, render: bool,
+                 config: dict | None, expert_speed: float | None,
+                 goal: np.ndarray | None) -> None:
+        self.t0 = time.perf_counter()
+        self.scenario, self.seed, self.expert = scenario, int(seed), expert
+        self.cfg, self.max_ado, self.record_bev, self.render = cfg, max_ado, record_bev, render
+        self.env = make_env(scenario, steps=steps, render=render, config=config)
+        self.env.reset(seed=int(seed))
+        self.map = road_map(self.env, scenario)
+        self.tracker = RouteTracker(self.env, self.map)
+        self.expert_speed = float("nan")
+        if expert:
+            lo, hi = EXPERT_SPEEDS[scenario]
+            self.expert_speed = (float(np.random.default_rng(int(seed)).uniform(lo, hi))
+                                 if expert_speed is None else float(expert_speed))
+            install_expert(self.env, self.expert_speed)
+        self.adapter = ActionAdapter(self.env)
+        self.goal = None if goal is None else np.asarray(goal, dtype=np.float64)
+        self.rec: dict[str, list] = {k: [] for k in ("poses", "speeds", "ado", "valid", "targets",
+                                                     "bev", "crashed", "on_road", "commands",
+                                                     "actions", "frames")}
+        self.obs = self._record()
+
+    def _record(self) -> dict:
+        env, rec = self.env, self.rec
+        pose = ego_pose(env)
+        ado, valid = ado_boxes(env, self.max_ado)
+        m_t = self.tracker.map_for(pose)
+        rec["poses"].append(pose)
+        rec["speeds"].append(float(env.vehicle.speed))
+        rec["ado"].append(ado)
+        rec["valid"].append(valid)
+        rec["targets"].append(lane_targets(m_t, pose, K_TARGETS))
+        rec["crashed"].append(bool(env.vehicle.crashed))
+        rec["on_road"].append(bool(env.vehicle.on_road))
+        if self.record_bev:
+            rec["bev"].append(rasterize(m_t, pose, ado, valid, self.cfg))
+        if self.render:
+            rec["frames"].append(render_frame(env))
+        return {"pose": pose, "map": m_t, "ado": ado, "ado_valid": valid,
+                "speed": float(env.vehicle.speed)}
+
+    def step(self, controls: np.ndarray | None) -> None:
+        if controls is None:
+            self.rec["commands"].append(np.full(2, np.nan))
+            self.rec["actions"].append(np.full(2, np.nan, np.float32))
+            self.env.step(None)
+        else:
+            u = np.asarray(controls, dtype=np.float64).reshape(2)
+            action = self.adapter(u)
+            self.rec["commands"].append(u)
+            self.rec["actions"].append(action)
+            self.env.step(action)
+        self.obs = self._record()
+
+    def finish(self) -> Episode:
+        rec = self.rec
+        ep = Episode(
+            scenario=self.scenario, seed=self.seed,
+            destination=getattr(self.env, "destination", None), map=self.map,
+            poses=np.array(rec["poses"]), speeds=np.array(rec["speeds"]),
+            ado=np.array(rec["ado"]), ado_valid=np.array(rec["valid"]),
+            lane_target=np.array(rec["targets"]),
+            commands=np.array(rec["commands"]).reshape(-1, 2),
+            actions=np.array(rec["actions"], np.float32).reshape(-1, 2),
+            crashed=np.array(rec["crashed"]), on_road=np.array(rec["on_road"]),
+            bev=np.array(rec["bev"], dtype=np.uint8) if self.record_bev else None,
+            expert_speed=self.expert_speed, frames=rec["frames"],
+            seconds=time.perf_counter() - self.t0,
+        )
+        self.env.close()
+        return ep
+
+
+def run_episode(
+    scenario: str,
+    seed: int,
+    policy: PolicyFn | str = "expert",
+    steps: int = DEFAULT_STEPS,
+    goal: np.ndarray | None = None,
+    cfg: RasterConfig | None = None,
+    max_ado: int = MAX_ADO,
+    record_bev: bool = True,
+    render: bool = False,
+    config: dict | None = None,
+    expert_speed: float | None = None,
+) -> Episode:
+    """Run one episode of ``steps`` actions from ``env.reset(seed=seed)``.
+
+    ``policy="expert"`` drives with highway-env's IDM/MOBIL (:func:`install_expert`;
+    desired speed ``expert_speed``, by default drawn from
+    :data:`EXPERT_SPEEDS` with ``numpy.random.default_rng(seed)``).
+    Otherwise ``policy(obs)`` is called every step with ``obs = {"bev",
+    "goal", "lane_target", "motion", "pose", "speed", "map", "ado",
+    "ado_valid", "t"}`` — the chapter-8 observation of one ego (unbatched:
+    ``bev`` uint8 (H, W, 3), ``goal`` the world pose ``goal`` (typically the
+    expert's final pose of the same seed; default the start pose) in the
+    current ego frame, ``lane_target`` (K, 2), ``motion`` the previous
+    command) — and its ``[speed, yaw rate]`` goes through
+    :class:`ActionAdapter`. The episode runs to the end even after a crash
+    (highway-env then brakes the ego to a stop). ``render=True`` keeps
+    highway-env's frames in ``Episode.frames``.
+    """
+    check_scenario(scenario)
+    check_steps(steps)
+    if not (callable(policy) or policy == "expert"):
+        raise ValueError(f"policy must be 'expert' or a callable, got {policy!r}")
+    cfg = cfg or RasterConfig()
+    expert = policy == "expert"
+    run = EpisodeRun(scenario, seed, int(steps), expert, cfg, max_ado, record_bev, render, config,
+               expert_speed, goal)
+    goal_w = run.rec["poses"][0] if goal is None else np.asarray(goal, dtype=np.float64)
+    motion = np.array([run.rec["speeds"][0], 0.0])
+    for t in range(int(steps)):
+        if expert:
+            run.step(None)
+            continue
+        o = run.obs
+        bev = run.rec["bev"][-1] if record_bev else rasterize(
+            o["map"], o["pose"], o["ado"], o["ado_valid"], cfg)
+        obs = {**o, "bev": bev, "t": t, "goal": goal_in_ego_frame(goal_w, o["pose"]),
+               "lane_target": run.rec["targets"][-1], "motion": motion.copy()}
+        controls = np.asarray(policy(obs), dtype=np.float64).reshape(2)
+        if not np.all(np.isfinite(controls)):
+            raise ValueError(f"policy returned non-finite controls {controls!r} at step {t}")
+        run.step(controls)
+        motion = controls
+    return run.finish()
+
+
+def check_steps(steps: Any) -> int:
+    """``steps`` as an int if it is an integer >= 2, else ``ValueError``."""
+    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 2:
+        raise ValueError(f"steps must be an integer >= 2, got {steps!r}")
+    return int(steps)
+
+
+def replay_error(episode: Episode) -> float:
+    """ADE (m) between an expert episode and the replay of its logged controls.
+
+    The controls (:attr:`Episode.controls`) are sent through
+    :class:`ActionAdapter` from the same seed; a small value means the
+    adapter inverts the logging, so that a perfect imitator would reproduce
+    the expert. (Traffic reacts to the ego, so tiny deviations can grow.)
+    """
+    u = episode.controls
+    rp = run_episode(episode.scenario, episode.seed, lambda obs: u[obs["t"]],
+                     steps=episode.steps, record_bev=False)
+    return float(np.linalg.norm(rp.poses[:, :2] - episode.poses[:, :2], axis=1).mean())
+
