@@ -35,8 +35,8 @@ def _batches(name, ds, cfg, tc, n):
     rng = np.random.default_rng(0)
     out = []
     for s, t in plan:
-        b = train._make_batch(name, ds, s, t, cfg, np.float32)
-        q0 = train._q0(name, s.shape[1], cfg, tc, rng, np.float32)
+        b = train.make_batch(name, ds, s, t, cfg, np.float32)
+        q0 = train.initial_q(name, s.shape[1], cfg, tc, rng, np.float32)
         if q0 is not None:
             b["q0"] = q0
         out.append(b)
@@ -53,7 +53,7 @@ def bench_steps(ds, cfg, batch: int, rounds: int, steps: int) -> None:
         eng = engine(e)
         params = models.init(name, np.random.default_rng(0), cfg, dtype=np.float32)
         opt = optim.adam_init(params)
-        fn = train._make_step(name, cfg, tc, eng, inv)
+        fn = train.make_step(name, cfg, tc, eng, inv)
         t0 = time.perf_counter()
         params, opt, loss = fn(params, opt, data[0])  # JAX compiles here
         float(loss)

@@ -138,7 +138,8 @@ def _check_model(name: Any) -> str:
     return name
 
 
-def _check_setting(setting: Any) -> str:
+def check_setting(setting: Any) -> str:
+    """``setting`` if it is one of :data:`SETTINGS`, else a ValueError naming it."""
     if setting not in SETTINGS:
         raise ValueError(f"setting must be one of {SETTINGS}, got setting={setting!r}")
     return setting
@@ -146,7 +147,7 @@ def _check_setting(setting: Any) -> str:
 
 def visible(model: str, setting: str = "paper") -> tuple[str, ...]:
     """Observation keys ``model`` receives in ``setting`` (the table of the module docstring)."""
-    return VISIBLE[(_check_model(model), _check_setting(setting))]
+    return VISIBLE[(_check_model(model), check_setting(setting))]
 
 
 def select(obs: dict, model: str, setting: str = "paper") -> dict:
@@ -285,7 +286,7 @@ def from_dataset(
     returned (``goal_bev`` only for RvS-G: the dataset's own goal rasters, or
     rendered once per dataset); without it, every key except ``goal_bev``.
     """
-    _check_setting(setting)
+    check_setting(setting)
     S, T = np.asarray(ds.ego).shape[:2]
     s = _as_index("scene_idx", scene_idx, S)
     t = _as_index("t_idx", t_idx, T)
@@ -362,7 +363,7 @@ def from_state(
     from minimanc.world.geometry import goal_in_ego_frame
     from minimanc.world.raster import RasterConfig, rasterize_batch
 
-    _check_setting(setting)
+    check_setting(setting)
     poses = np.asarray(ego_poses, dtype=np.float64)
     if poses.ndim != 2 or poses.shape[1] != 3:
         raise ValueError(f"ego_poses must have shape (B, 3), got ego_poses with shape "

@@ -127,6 +127,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import cam, dmp, inputs, layers, quaternion, vagn
+from minimanc.tree import leaves as tree_leaves
 
 __all__ = [
     "CONTROL_SCALE",
@@ -229,7 +230,7 @@ class ModelConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1:
                 raise ValueError(f"{name} must be a positive integer, got {name}={v!r}")
-        inputs._check_setting(self.setting)
+        inputs.check_setting(self.setting)
         ch = tuple(self.channels)
         if not ch or any(isinstance(c, bool) or not isinstance(c, int | np.integer) or c < 1
                          for c in ch):
@@ -280,7 +281,8 @@ class ModelConfig:
         return d
 
 
-def _check_name(name: Any) -> str:
+def check_name(name: Any) -> str:
+    """``name`` if it is one of :data:`MODEL_NAMES`, else a ValueError naming it."""
     if name not in MODEL_NAMES:
         raise ValueError(f"name must be one of {MODEL_NAMES}, got name={name!r}")
     return name
@@ -292,7 +294,7 @@ def _check_name(name: Any) -> str:
 def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
          dtype: Any = np.float64) -> dict:
     """Initial parameters of model ``name``: a pytree (nested dicts/lists) of NumPy arrays."""
-    name = _check_name(name)
+    name = check_name(name)
     cfg = cfg or ModelConfig()
     if not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng must be a numpy.random.Generator, got rng={rng!r}")
@@ -338,17 +340,9 @@ def _cast(tree: Any, dtype: Any) -> Any:
     return np.asarray(tree, dtype=dtype)
 
 
-def _leaves(tree: Any) -> list:
-    if isinstance(tree, dict):
-        return [x for k in sorted(tree) for x in _leaves(tree[k])]
-    if isinstance(tree, list | tuple):
-        return [x for v in tree for x in _leaves(v)]
-    return [tree]
-
-
 def param_count(params: dict) -> int:
     """Number of scalar parameters in a pytree."""
-    return int(sum(int(np.prod(np.shape(x))) for x in _leaves(params)))
+    return int(sum(int(np.prod(np.shape(x))) for x in tree_leaves(params)))
 
 
 def param_counts(cfg: ModelConfig | None = None, names: tuple[str, ...] = MODEL_NAMES) -> dict:
@@ -366,7 +360,7 @@ def initial_state(name: str, batch: int, cfg: ModelConfig | None = None, xp: Any
     ``mode="random"`` (``RandomInit``: flat Dirichlet draws, needs ``rng``).
     LSTM models: ``{"h": 0, "c": 0}`` of shape ``(B, hidden)``. Others: ``{}``.
     """
-    name = _check_name(name)
+    name = check_name(name)
     cfg = cfg or ModelConfig()
     if isinstance(batch, bool) or not isinstance(batch, int | np.integer) or batch < 1:
         raise ValueError(f"batch must be a positive integer, got batch={batch!r}")
@@ -586,7 +580,7 @@ def step(name: str, params: dict, obs: dict, state: dict, cfg: ModelConfig | Non
     (position, orientation) gains for DMP models, and ``features`` (the
     backbone's output, B × h × w × C).
     """
-    name = _check_name(name)
+    name = check_name(name)
     cfg = cfg or ModelConfig()
     _check_obs(name, obs, cfg, 1)
     enc = _encode(name, params, obs, cfg, eng)
@@ -611,7 +605,7 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
     motion). With ``return_aux`` a third item holds the per-step ``aux``
     arrays of :func:`step` stacked along time (``features`` excluded).
     """
-    name = _check_name(name)
+    name = check_name(name)
     cfg = cfg or ModelConfig()
     _check_obs(name, obs_seq, cfg, 2)
     xp = eng.xp
@@ -739,7 +733,7 @@ def replay(name: str, params: dict, ds: Any, scene: int, cfg: ModelConfig | None
     """
     from minimanc import engine as _engine
 
-    name = _check_name(name)
+    name = check_name(name)
     cfg = cfg or ModelConfig()
     eng = eng or _engine("numpy")
     T = np.asarray(ds.ego).shape[1]

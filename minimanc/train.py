@@ -76,6 +76,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import inputs, models, optim
+from minimanc.tree import leaves as tree_leaves
 from minimanc.world.dataset import describe_non_finite, first_non_finite, remove_temp_files
 
 __all__ = [
@@ -278,7 +279,7 @@ def batches(name: str, ds: Any, scenes: np.ndarray, tc: TrainConfig, epoch: int
     return out
 
 
-def _make_batch(name: str, ds: Any, s_idx: np.ndarray, t_idx: np.ndarray,
+def make_batch(name: str, ds: Any, s_idx: np.ndarray, t_idx: np.ndarray,
                 cfg: models.ModelConfig, dtype: Any) -> dict:
     """Observations ``(L, b, ...)`` and controls ``(L, b, 2)`` for index arrays ``(L, b)``."""
     L, b = s_idx.shape
@@ -289,8 +290,10 @@ def _make_batch(name: str, ds: Any, s_idx: np.ndarray, t_idx: np.ndarray,
     return batch
 
 
-def _q0(name: str, b: int, cfg: models.ModelConfig, tc: TrainConfig,
-        rng: np.random.Generator, dtype: Any) -> np.ndarray | None:
+def initial_q(name: str, b: int, cfg: models.ModelConfig, tc: TrainConfig,
+              rng: np.random.Generator, dtype: Any) -> np.ndarray | None:
+    """Algorithm 1's q' for a minibatch of ``b`` samples (uniform or random, ``tc.q_init``);
+    ``None`` for models without a vAGN."""
     if name not in models.VAGN_MODELS:
         return None
     st = models.initial_state(name, b, cfg, xp=np, rng=rng, mode=tc.q_init, dtype=dtype)
@@ -331,7 +334,7 @@ def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: 
 
 
 def _global_norm(tree: Any, xp: Any) -> Any:
-    leaves = models._leaves(tree)
+    leaves = tree_leaves(tree)
     return xp.sqrt(sum(xp.sum(g * g) for g in leaves))
 
 
@@ -356,7 +359,7 @@ def _like(tree: Any, template: Any, xp: Any) -> Any:
     return xp.asarray(tree, dtype=dt)
 
 
-def _make_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any,
+def make_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any,
                inv_std: np.ndarray) -> Callable:
     """The (jitted) training step ``(params, opt_state, batch) → (params, opt_state, loss)``.
 
@@ -625,7 +628,7 @@ def fit(
     validation loss each epoch; ``params``: start from these instead of a
     fresh initialisation. Returns a :class:`FitResult`.
     """
-    name = models._check_name(name)
+    name = models.check_name(name)
     cfg = cfg or models.ModelConfig()
     tc = train_cfg or TrainConfig()
     if not isinstance(cfg, models.ModelConfig):
@@ -676,7 +679,7 @@ def fit(
             history, val_history, steps = ck["history"], ck["val_history"], ck["steps"]
             std = ck["control_std"]
 
-    step_fn = _make_step(name, cfg, tc, eng, 1.0 / std)
+    step_fn = make_step(name, cfg, tc, eng, 1.0 / std)
     if eng.name == "jax":
         import jax
 
@@ -700,8 +703,8 @@ def fit(
         for i in range(len(plan) + 1):
             if i < len(plan):
                 s_idx, t_idx = plan[i]
-                batch = _make_batch(name, train_ds, s_idx, t_idx, cfg, dtype)
-                q0 = _q0(name, s_idx.shape[1], cfg, tc, q_rng, dtype)
+                batch = make_batch(name, train_ds, s_idx, t_idx, cfg, dtype)
+                q0 = initial_q(name, s_idx.shape[1], cfg, tc, q_rng, dtype)
                 if q0 is not None:
                     batch["q0"] = q0
                 # overflow to inf / nan is caught below (loss) and after the epoch (params)
@@ -762,7 +765,7 @@ def evaluate(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = 
     Open-loop error ranks closed-loop quality poorly (``REFERENCE.md``); it is
     a cheap check, not the paper's metric.
     """
-    name = models._check_name(name)
+    name = models.check_name(name)
     cfg = cfg or models.ModelConfig()
     eng = _get_engine(engine)
     S, T = _shape(ds)
@@ -786,8 +789,8 @@ def evaluate(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = 
         plan = [(ss[None, i:i + batch_size], tt[None, i:i + batch_size])
                 for i in range(0, ss.size, batch_size)]
     for s_idx, t_idx in plan:
-        batch = _make_batch(name, ds, s_idx, t_idx, cfg, dtype)
-        q0 = _q0(name, s_idx.shape[1], cfg, tc, rng, dtype)
+        batch = make_batch(name, ds, s_idx, t_idx, cfg, dtype)
+        q0 = initial_q(name, s_idx.shape[1], cfg, tc, rng, dtype)
         if q0 is not None:
             batch["q0"] = q0
         loss = loss_of(params, batch)

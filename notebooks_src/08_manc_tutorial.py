@@ -22,7 +22,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-from minimanc import cam, dmp, engine, inputs, models, train, vagn, world
+from minimanc import cam, dmp, engine, inputs, models, train, tree, vagn, world
 
 np.set_printoptions(precision=3, suppress=True)
 rng = np.random.default_rng(0)
@@ -209,8 +209,8 @@ e_np, e_jax = engine("numpy"), engine("jax")
 g_np = e_np.grad(lambda p: loss(p, e_np))(params)
 g_jax = e_jax.jit(e_jax.grad(lambda p: loss(p, e_jax)))(params)
 worst = max(float(np.max(np.abs(np.asarray(a) - np.asarray(b))))
-            for a, b in zip(models._leaves(g_np), models._leaves(g_jax)))
-print(f"{len(models._leaves(g_np))} parameter arrays, largest |difference| < 1e-12:",
+            for a, b in zip(tree.leaves(g_np), tree.leaves(g_jax)))
+print(f"{len(tree.leaves(g_np))} parameter arrays, largest |difference| < 1e-12:",
       worst < 1e-12)
 assert worst < 1e-6
 

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from minimanc import cam, dmp, engine, inputs, models, quaternion
+from minimanc import cam, dmp, engine, inputs, models, quaternion, tree
 
 B = 3
 CFG = models.ModelConfig(image_size=16, channels=(4, 8), n_predicates=5, n_states=4, hidden=8,
@@ -58,8 +58,8 @@ def test_shapes(name, setting, eng_np):
         assert aux["predicates"].shape == (B, cfg.n_predicates)
 
 
-def _sum_tree(tree):
-    return sum(np.sum(np.asarray(x, dtype=np.float64) ** 2) for x in models._leaves(tree))
+def _sum_tree(params):
+    return sum(np.sum(np.asarray(x, dtype=np.float64) ** 2) for x in tree.leaves(params))
 
 
 @pytest.mark.parametrize("name", models.MODEL_NAMES)
@@ -80,8 +80,8 @@ def test_gradients_numpy_equal_jax(name, eng_np, eng_jax):
     v_np, g_np = eng_np.value_and_grad(lambda p: loss(p, eng_np))(params)
     v_jx, g_jx = eng_jax.jit(eng_jax.value_and_grad(lambda p: loss(p, eng_jax)))(params)
     assert abs(float(v_np) - float(v_jx)) < 1e-9
-    leaves_np, leaves_jx = models._leaves(g_np), models._leaves(g_jx)
-    assert len(leaves_np) == len(leaves_jx) == len(models._leaves(params))
+    leaves_np, leaves_jx = tree.leaves(g_np), tree.leaves(g_jx)
+    assert len(leaves_np) == len(leaves_jx) == len(tree.leaves(params))
     for a, b in zip(leaves_np, leaves_jx):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-6, atol=1e-9)
     assert _sum_tree(g_np) > 0.0  # gradients reach the parameters

@@ -109,3 +109,45 @@ def test_model_code_imports_no_matplotlib():
             "print('matplotlib' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False", "importing the model code imported matplotlib"
+
+
+def _private_reach_ins(path: Path) -> list[str]:
+    """``module._name`` uses and ``from module import _name`` of another minimanc module."""
+    import ast
+    import importlib.util
+
+    def is_module(dotted: str) -> bool:
+        try:
+            return importlib.util.find_spec(dotted) is not None
+        except (ImportError, ValueError):
+            return False
+
+    tree = ast.parse(path.read_text())
+    own = ".".join(path.relative_to(ROOT).with_suffix("").parts)
+    aliases, found = {}, []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith("minimanc") and a.asname:
+                    aliases[a.asname] = a.name
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("minimanc"):
+            for a in node.names:
+                dotted = f"{node.module}.{a.name}"
+                if a.name.startswith("_") and not a.name.startswith("__"):
+                    found.append(f"from {node.module} import {a.name}")
+                elif is_module(dotted):
+                    aliases[a.asname or a.name] = dotted
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                and node.value.id in aliases and node.attr.startswith("_")
+                and not node.attr.startswith("__") and aliases[node.value.id] != own):
+            found.append(f"{node.value.id}.{node.attr} (line {node.lineno})")
+    return found
+
+
+def test_no_module_reaches_into_another_modules_private_names():
+    """What two modules share is public and lives once (library, benchmarks, notebooks)."""
+    files = [*(ROOT / "minimanc").rglob("*.py"), *(ROOT / "benchmarks").glob("*.py"),
+             *(ROOT / "notebooks_src").glob("*.py")]
+    bad = {str(p.relative_to(ROOT)): r for p in sorted(files) if (r := _private_reach_ins(p))}
+    assert not bad, f"private names used across modules: {bad}"

@@ -8,7 +8,7 @@ import os
 import numpy as np
 import pytest
 
-from minimanc import models, train, world
+from minimanc import models, train, tree, world
 
 CFG = models.ModelConfig(image_size=32, channels=(4, 8), n_predicates=4, n_states=3, hidden=8)
 
@@ -33,7 +33,7 @@ def test_equal_losses_on_both_engines(name, ds):
     b = train.fit(name, ds, CFG, tc, engine="jax", progress=False)
     assert a.steps == b.steps == 6
     np.testing.assert_allclose(a.history, b.history, rtol=1e-5, atol=1e-8)
-    for x, y in zip(models._leaves(a.params), models._leaves(b.params)):
+    for x, y in zip(tree.leaves(a.params), tree.leaves(b.params)):
         np.testing.assert_allclose(x, y, rtol=1e-5, atol=1e-7)
 
 
@@ -52,13 +52,13 @@ def test_overfit_a_handful_of_samples(ds):
     inv = 1.0 / train.control_std(ds)
     for name, lr, factor in (("cnn", 3e-3, 0.01), ("manc", 1e-2, 0.5)):
         tc = train.TrainConfig(lr=lr, dtype="float64")
-        batch = train._make_batch(name, ds, s, t, CFG, np.float64)
-        q0 = train._q0(name, 8, CFG, tc, np.random.default_rng(0), np.float64)
+        batch = train.make_batch(name, ds, s, t, CFG, np.float64)
+        q0 = train.initial_q(name, 8, CFG, tc, np.random.default_rng(0), np.float64)
         if q0 is not None:
             batch["q0"] = q0
         params = models.init(name, np.random.default_rng(0), CFG)
         opt = optim.adam_init(params)
-        step = train._make_step(name, CFG, tc, eng, inv)
+        step = train.make_step(name, CFG, tc, eng, inv)
         losses = []
         for _ in range(150):
             params, opt, loss = step(params, opt, batch)
@@ -76,12 +76,12 @@ def test_checkpoint_resume_equals_uninterrupted(ds, tmp_path):
     resumed = train.fit("manc", ds, CFG, tc2, engine="numpy", checkpoint_dir=d, resume=True,
                         progress=False)
     assert resumed.history == pytest.approx(full.history, rel=1e-12)
-    for x, y in zip(models._leaves(full.params), models._leaves(resumed.params)):
+    for x, y in zip(tree.leaves(full.params), tree.leaves(resumed.params)):
         np.testing.assert_array_equal(x, y)
     assert sorted(os.listdir(d)) == [train.CHECKPOINT_NAME]  # no temporary files left
     back = train.load(d / train.CHECKPOINT_NAME)
     assert back.name == "manc" and back.cfg == CFG and back.history == resumed.history
-    for x, y in zip(models._leaves(back.params), models._leaves(resumed.params)):
+    for x, y in zip(tree.leaves(back.params), tree.leaves(resumed.params)):
         np.testing.assert_array_equal(x, y)
     # a checkpoint of another model is refused
     with pytest.raises(ValueError, match="checkpoint"):
