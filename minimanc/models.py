@@ -30,7 +30,8 @@ The DMP head (MANC and DMP-only)
 into :data:`minimanc.dmp.ALPHA_RANGE` × :data:`minimanc.dmp.BETA_RANGE`: the
 position gains ``(α_y, β_y)`` and the orientation gains ``(α_q, β_q)`` of
 eq. 10. In that box the default integrator (semi-implicit Euler, 10 sub-steps)
-is stable at ``dt = 0.5`` s (proved in ``tests/test_dmp.py``). Then, all in
+is stable at ``dt = 0.5`` s (the spectral radius of :func:`minimanc.dmp.step_matrix`
+stays below 1 at every corner; chapter 3). Then, all in
 the current **ego frame** (+x forward, +y left), with ``v₀, ω₀`` the current
 speed and yaw rate (``obs["motion"]``) and the lane target interpolated
 linearly between its 4-m points (:func:`lane_point`):
@@ -46,20 +47,15 @@ linearly between its 4-m points (:func:`lane_point`):
   ``β_y τ_y ≈ 1`` keeps the speed, larger speeds up, smaller brakes; ``α_y``
   sets how quickly. The goal moves with the speed because the network never
   sees the speed: with a fixed goal distance the gains alone would have to
-  encode it (we measured: best constant gains give a speed RMSE of 0.71 m/s
-  with a fixed 12-m goal, 0.56 m/s with this one, 0.59 m/s for "copy the
-  previous speed"). ``d_y`` lets a standing car start. A bend ahead shortens
+  encode it. ``d_y`` lets a standing car start. A bend ahead shortens
   ``gₓ`` and slows the car by itself. The price: ``β_y τ_y > 1`` compounds
   from step to step, so a model trained only on one-step predictions can
-  run away in closed loop (we saw 24 m/s); :mod:`minimanc.train` therefore
-  trains the DMP models on windows in which the DMP's velocity carries over
-  (``TrainConfig.motion_feedback``). With 8-step windows, on 60 validation
-  scenes after 4 epochs on 650 training scenes, that gave a closed-loop mean
-  speed of 7.44 m/s (human 7.46), no off-road scene and ADE 10.5 m; a fixed
-  20-m goal gave 7.0 m/s and ADE 12.2 m. The equilibrium speed of this goal
+  run away in closed loop; :mod:`minimanc.train` therefore trains the DMP
+  models on windows in which the DMP's velocity carries over
+  (``TrainConfig.motion_feedback``). The equilibrium speed of this goal
   rule, ``v* ≈ β_y d_y / (1 − β_y τ_y)`` for a fully relaxed step, is very
-  sensitive to ``β_y`` (4 % more ``β_y`` at 7.5 m/s means 20 % more speed),
-  which is why the windows now span whole scenes (:mod:`minimanc.train`).
+  sensitive to ``β_y`` near ``β_y τ_y = 1``, which is why the windows span
+  whole scenes (:mod:`minimanc.train`).
 * **Orientation DMP** (eq. 10, second row — the quaternion DMP of eq. 2 about
   the vertical axis): ``q₀`` = identity (the ego frame), ``η₀ = (0, 0, ω₀)``,
   goal ``g_q`` = the yaw ``ψ_g = clip(κ v₀ τ_q, ±π/2)`` with ``κ = 2 p_y /
@@ -78,31 +74,27 @@ linearly between its 4-m points (:func:`lane_point`):
   quaternion DMP equals the 1-D DMP on the yaw angle
   (:func:`minimanc.quaternion.quaternion_step`), which is what runs by
   default (``orientation="yaw"``; ``"quaternion"`` runs eq. 2 literally and
-  gives the same numbers, tested, but XLA compiles it ~40× slower).
+  gives the same numbers, tested, but compiles far more slowly under XLA).
 
 These look-ahead rules are a textbook pure-pursuit prior: the synthetic human
 of :mod:`minimanc.world.driver` steers by pure pursuit too (with a per-scene
 look-ahead gain of 0.85–1.3 and an unobservable lateral wander), so the prior
 suits the data — that is the structural advantage the paper claims for the
-DMP ("lane following built in"). With constant gains (no CNN at all) the head
-predicts the human's yaw rate with an RMSE of 0.036 rad/s (copying the
-previous yaw rate: 0.058; zero: 0.148), and in closed loop with the human's
-speed its steering alone keeps the car within 0.4 m of the human's path
-(ADE, 60 validation scenes; 1 of 60 scenes briefly off-road). The speed is
-the hard part: it must come from the CNN (leaders, yields, bends). Initial
-gains: :data:`DEFAULT_GAINS`.
+DMP ("lane following built in"): with constant gains (no CNN at all) the
+head already steers along the lane (chapter 8 measures it against the logs).
+The speed is the hard part: it must come from the CNN (leaders, yields,
+bends). Initial gains: :data:`DEFAULT_GAINS`.
 
 Two choices the paper leaves open, made here for trainability
 ----------------------------------------------------------------
 * **Predicates in (0, 1).** Eq. 7 is ``p = Linear(GAP(f))``; we follow it
   with a sigmoid (:attr:`ModelConfig.predicate_activation`, ``"linear"``
   gives eq. 7 literally), reading ``p_i`` as "how much predicate ``i``
-  holds". With the linear form, training MANC on the default data made the
-  predicates grow (mean ``|p|`` from 0.13 to 11 in two epochs): the column
-  softmax of eq. 9 saturated, q became the same for every image and the gains
-  stopped depending on the scene (their spread across samples fell to 0).
-  Bounded predicates leave the scale of ``W^p`` to the vAGN weights, and the
-  automaton stays responsive. The CAMs of chapter 6 are those of the logits.
+  holds". With the linear form the predicates can grow without bound during
+  training, the column softmax of eq. 9 saturates, q becomes the same for
+  every image and the gains stop depending on the scene. Bounded predicates
+  leave the scale of ``W^p`` to the vAGN weights, and the automaton stays
+  responsive. The CAMs of chapter 6 are those of the logits.
 * **Scales at initialisation.** vAGN weights ``N(0, 4²)``
   (:attr:`ModelConfig.vagn_scale`) so that q moves visibly from image to
   image, and the gains FC (N → 4) starts ``gains_scale`` = 3 times larger
