@@ -21,7 +21,7 @@ from minimanc.highway.env import (
     check_scenario,
 )
 from minimanc.highway.episodes import Episode, check_steps, run_episode
-from minimanc.world.geometry import DT, goal_in_ego_frame
+from minimanc.world.geometry import goal_in_ego_frame
 from minimanc.world.raster import RasterConfig, rasterize
 
 EVAL_SEED = 100_000
@@ -89,8 +89,6 @@ def to_dataset(episodes: Sequence[Episode], cfg: RasterConfig | None = None,
     ``meta["tags"]`` records the scenario, env id and seed, destination and
     expert speed per scene.
     """
-    from dataclasses import asdict
-
     from minimanc.world import dataset as wds
 
     cfg = cfg or RasterConfig()
@@ -128,14 +126,10 @@ def to_dataset(episodes: Sequence[Episode], cfg: RasterConfig | None = None,
         "has_junction": ep.map.kind == "intersection",
         "has_roundabout": ep.map.kind == "roundabout",
     } for ep in episodes]
-    per_scene = {
-        "recipes": [ep.map.recipe for ep in episodes], "tags": tags,
-        "attempts": [1] * len(episodes) if attempts is None else [int(a) for a in attempts],
-        "scene_index": [ep.seed for ep in episodes],  # the env seeds
-    }
-    values = {"seed": int(seed), "version": wds.FORMAT_VERSION, "dt": DT, "raster": asdict(cfg),
-              **{k: per_scene[k] for k in wds.PER_SCENE_KEYS}}
-    meta = {k: values[k] for k in wds.META_KEYS}  # the world's keys, in the world's order
+    meta = wds.empty_meta(seed, cfg)
+    wds.append_scenes(meta, [ep.map.recipe for ep in episodes], tags,
+                      [1] * len(episodes) if attempts is None else attempts,
+                      [ep.seed for ep in episodes])  # scene_index: the env seeds
     meta["source"] = "highway-env"
     return wds.Dataset(**arrays, maps=[ep.map for ep in episodes], meta=meta)
 

@@ -480,7 +480,7 @@ def generate_file(
         raise ValueError(f"shard_scenes must be a positive integer, got {shard_scenes!r}")
     from tqdm import tqdm
 
-    meta = _empty_meta(seed, cfg)
+    meta = empty_meta(seed, cfg)
     bar = tqdm(total=n_scenes, desc="world scenes", disable=not progress, leave=False)
     try:
         with DatasetWriter(path) as writer:
@@ -506,21 +506,33 @@ def generate_splits(n_train: int = 650, n_val: int = 200, seed: int = 0,
     return generate(n_train + n_val, seed=seed, **kwargs).split(n_train)
 
 
-def _empty_meta(seed: int, cfg: RasterConfig) -> dict:
+def empty_meta(seed: int, cfg: RasterConfig) -> dict:
+    """The metadata of a dataset with no scenes yet (keys :data:`META_KEYS`, in order):
+    every dataset writer of the package starts from it, so the format lives here."""
     return {"seed": int(seed), "version": FORMAT_VERSION, "dt": DT, "raster": asdict(cfg),
             "recipes": [], "tags": [], "attempts": [], "scene_index": []}
 
 
+def append_scenes(meta: dict, recipes: Sequence[dict], tags: Sequence[dict],
+                  attempts: Sequence[int], scene_index: Sequence[int]) -> None:
+    """Add the per-scene metadata (:data:`PER_SCENE_KEYS`) of some scenes to ``meta``."""
+    lists = {"recipes": list(recipes), "tags": list(tags),
+             "attempts": [int(a) for a in attempts], "scene_index": [int(i) for i in scene_index]}
+    if len({len(v) for v in lists.values()}) != 1:
+        raise ValueError("recipes, tags, attempts and scene_index must have one entry per scene, "
+                         f"got {', '.join(f'{k}: {len(v)}' for k, v in lists.items())}")
+    for key in PER_SCENE_KEYS:
+        meta[key].extend(lists[key])
+
+
 def _extend_meta(meta: dict, scenes: list[dict], start: int) -> None:
-    meta["recipes"].extend(sc["recipe"] for sc in scenes)
-    meta["tags"].extend(sc["tags"] for sc in scenes)
-    meta["attempts"].extend(int(sc["attempts"]) for sc in scenes)
-    meta["scene_index"].extend(range(start, start + len(scenes)))
+    append_scenes(meta, [sc["recipe"] for sc in scenes], [sc["tags"] for sc in scenes],
+                  [sc["attempts"] for sc in scenes], range(start, start + len(scenes)))
 
 
 def _assemble(scenes: list[dict], seed: int, cfg: RasterConfig) -> Dataset:
     arrays = {f: np.stack([sc[f] for sc in scenes]) for f in ARRAY_FIELDS}
-    meta = _empty_meta(seed, cfg)
+    meta = empty_meta(seed, cfg)
     _extend_meta(meta, scenes, 0)
     built = {i: sc["map"] for i, sc in enumerate(scenes) if "map" in sc}
     return Dataset(**arrays, maps=LazyMaps(meta["recipes"], built), meta=meta)
