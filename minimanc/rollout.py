@@ -31,10 +31,14 @@ the learned part adds.
 Any object with ``model``, ``setting``, ``initial_state(scenes)`` and
 ``__call__(obs, state, t, scenes) -> (controls, state, aux)`` can drive
 (:class:`Policy`); :class:`ModelPolicy` wraps :func:`minimanc.models.step`.
+The loop itself is :func:`drive`, written once over a :class:`Simulator`
+(reset, observe, step): :class:`LogReplay` is the log above, and
+:class:`minimanc.highway.HighwaySim` is highway-env (chapter 10).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -48,6 +52,13 @@ __all__ = [
     "AUX_KEYS",
     "BATCH_SIZE",
     "BadControls",
+    "Drive",
+    "LogReplay",
+    "SceneState",
+    "Simulator",
+    "check_controls",
+    "drive",
+    "observation",
     "FixedGainsPolicy",
     "Policy",
     "ModelPolicy",
@@ -199,7 +210,167 @@ def human(ds: Any, scenes: Any = None) -> Rollout:
     return Rollout("human", "log", ego, controls, {}, idx)
 
 
-# --------------------------------------------------------------------------- the loop
+# --------------------------------------------------------------------------- the driver
+
+
+@dataclass
+class SceneState:
+    """What a :class:`Simulator` shows at one step, for a batch of ``B`` scenes.
+
+    ``maps`` one :class:`minimanc.world.maps.Map` per row, ``pose (B, 3)`` the
+    ego's world pose ``[x, y, yaw]``, ``ado (B, A, 5)`` the ado boxes
+    ``[x, y, yaw, length, width]`` at this step with ``ado_valid (B, A)`` bool,
+    ``goal (B, 3)`` the goal world pose.
+    """
+
+    maps: list
+    pose: np.ndarray
+    ado: np.ndarray
+    ado_valid: np.ndarray
+    goal: np.ndarray
+
+
+class Simulator(Protocol):
+    """A world that :func:`drive` runs a :class:`Policy` in, ``B`` scenes at a time.
+
+    Attributes: ``scenes (B,)`` the integer ids of the rows (passed to the
+    policy), ``raster`` the :class:`minimanc.world.RasterConfig` the BEV is
+    drawn with, ``k_targets`` the number of lane-target points (``None``: the
+    default :data:`minimanc.world.maps.K_TARGETS`).
+
+    * ``reset()`` puts every row at its start and returns the ego's motion
+      there, ``(B, 2)`` float32 ``[speed, yaw rate]`` (the ``motion`` input at
+      ``t = 0``);
+    * ``observe()`` returns the current :class:`SceneState` (ego poses
+      ``(B, 3)``, ados ``(B, A, 5)`` and ``(B, A)``, maps, goals ``(B, 3)``);
+    * ``step(controls)`` applies ``controls (B, 2)`` float64
+      ``[speed, yaw rate]`` for one decision (``DT`` = 0.5 s) and returns
+      ``None``; the simulator keeps whatever trajectory it records.
+
+    Implemented by :class:`LogReplay` (the chapter-9 log: ados replay their
+    recorded boxes) and :class:`minimanc.highway.HighwaySim` (highway-env,
+    reactive traffic).
+    """
+
+    scenes: np.ndarray
+    raster: Any
+    k_targets: int | None
+
+    def reset(self) -> np.ndarray: ...
+
+    def observe(self) -> SceneState: ...
+
+    def step(self, controls: np.ndarray) -> None: ...
+
+
+@dataclass
+class Drive:
+    """What :func:`drive` returns: ``controls (B, steps, 2)`` applied and, for the keys of
+    :data:`AUX_KEYS` the policy returned at every step, ``aux[key] (B, steps, ...)``."""
+
+    controls: np.ndarray
+    aux: dict[str, np.ndarray]
+
+
+def observation(policy: Policy, scene: SceneState, motion: np.ndarray, raster: Any = None,
+                k_targets: int | None = None) -> dict:
+    """The observation ``policy`` sees in ``scene`` (:func:`minimanc.inputs.from_state`).
+
+    The keys are ``policy.keys`` when the policy names them, else those its
+    ``model`` and ``setting`` see; ``motion (B, 2)`` is its previous control.
+    """
+    return inputs.from_state(
+        scene.maps, scene.pose, scene.ado, scene.ado_valid, scene.goal, raster, policy.setting,
+        motion=motion, model=policy.model, k_targets=k_targets,
+        keys=getattr(policy, "keys", None),
+    )
+
+
+def check_controls(controls: Any, batch: int, t: int, policy: Any = None) -> np.ndarray:
+    """``controls`` as float64 ``(batch, 2)``, else :class:`BadControls` (shape or NaN/inf)."""
+    u = np.asarray(controls, dtype=np.float64)
+    if u.shape != (batch, 2) or not np.all(np.isfinite(u)):
+        raise BadControls(
+            f"policy {getattr(policy, 'model', None)!r} returned controls of shape {u.shape} "
+            f"(finite: {bool(np.all(np.isfinite(u)))}) at step {t}; "
+            f"expected finite ({batch}, 2)"
+        )
+    return u
+
+
+def drive(policy: Policy, sim: Simulator, steps: int,
+          on_step: Callable[[int], None] | None = None) -> Drive:
+    """Run ``policy`` in closed loop in ``sim`` for ``steps`` decisions.
+
+    ``sim.reset()``, then at each step ``t``: observe the scene, build the
+    policy's observation from the ego's own state (:func:`observation`, with
+    ``motion`` the policy's previous control, at ``t = 0`` the motion
+    ``reset`` returned), call the policy, check its controls
+    (:func:`check_controls`), carry its state over and ``sim.step`` them.
+    ``on_step(t)`` is called after each step (e.g. a progress bar).
+    """
+    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
+        raise ValueError(f"steps must be a positive integer; got steps={steps!r}")
+    scenes = np.asarray(sim.scenes)
+    motion = np.asarray(sim.reset(), dtype=np.float32)
+    state = policy.initial_state(scenes)
+    controls, aux_steps = [], {}
+    for t in range(int(steps)):
+        obs = observation(policy, sim.observe(), motion, sim.raster, sim.k_targets)
+        u, state, aux = policy(obs, state, t, scenes)
+        u = check_controls(u, len(scenes), t, policy)
+        for key in AUX_KEYS:
+            if key in aux and aux[key] is not None:
+                aux_steps.setdefault(key, []).append(np.asarray(aux[key], dtype=np.float64))
+        sim.step(u)
+        motion = u.astype(np.float32)
+        controls.append(u)
+        if on_step is not None:
+            on_step(t)
+    return Drive(np.stack(controls, axis=1),
+                 {k: np.stack(v, axis=1) for k, v in aux_steps.items() if len(v) == steps})
+
+
+class LogReplay:
+    """The chapter-9 log as a :class:`Simulator`: the ego moves by the unicycle, the ados
+    replay their logged boxes on the log's clock.
+
+    ``ds`` a :mod:`minimanc.world` dataset, ``scenes`` the dataset indices of the
+    batch rows (default: all). The ego starts at the logged pose ``ego[:, 0]``
+    with the logged initial speed (:func:`minimanc.inputs.initial_motion`); the
+    goal is the human's final pose; a step is one explicit-Euler unicycle step
+    of ``DT`` (:func:`minimanc.world.unicycle_step`). :meth:`trajectory` gives
+    the poses so far, ``(B, t + 1, 3)``.
+    """
+
+    def __init__(self, ds: Any, scenes: Any = None) -> None:
+        S, self.T = _check_dataset(ds)
+        self.scenes = _scene_index(scenes, S)
+        self.raster = _raster_config(ds)
+        self.k_targets = _k_targets(ds)
+        ego = np.asarray(ds.ego, dtype=np.float64)[self.scenes]
+        self._start, self._goal = ego[:, 0], ego[:, -1]
+        self._motion0 = inputs.initial_motion(ds)[self.scenes]
+        self._maps = [ds.maps[s] for s in self.scenes]
+        self._ado, self._ado_valid = np.asarray(ds.ado), np.asarray(ds.ado_valid)
+        self._poses: list[np.ndarray] = []
+
+    def reset(self) -> np.ndarray:
+        self._poses = [self._start]
+        return self._motion0
+
+    def observe(self) -> SceneState:
+        t = len(self._poses) - 1
+        if t >= self.T:
+            raise ValueError(f"the log has {self.T} steps; no observation at step {t}")
+        return SceneState(self._maps, self._poses[-1], self._ado[self.scenes, t],
+                          self._ado_valid[self.scenes, t], self._goal)
+
+    def step(self, controls: np.ndarray) -> None:
+        self._poses.append(unicycle_step(self._poses[-1], controls, DT))
+
+    def trajectory(self) -> np.ndarray:
+        return np.stack(self._poses, axis=1)
 
 
 def simulate(
@@ -217,8 +388,9 @@ def simulate(
     :data:`BATCH_SIZE` = 8: the world keeps the class grids of 8 maps cached,
     and a larger batch would rebuild every grid at every step); a row's
     result does not depend on the batch it is in.  ``steps`` limits the
-    number of decisions (default ``T − 1``, the whole log).  See the module
-    docstring for what one step does.
+    number of decisions (default ``T − 1``, the whole log).  Each batch is
+    :func:`drive` in a :class:`LogReplay`; see the module docstring for what
+    one step does.
     """
     S_all, T = _check_dataset(ds)
     idx = _scene_index(scenes, S_all)
@@ -228,13 +400,6 @@ def simulate(
     bs = BATCH_SIZE if batch_size is None else int(batch_size)
     if bs < 1:
         raise ValueError(f"batch_size must be a positive integer; got batch_size={batch_size!r}")
-    cfg = _raster_config(ds)
-    k = _k_targets(ds)
-    ego_log = np.asarray(ds.ego, dtype=np.float64)
-    ado = np.asarray(ds.ado)
-    ado_valid = np.asarray(ds.ado_valid)
-    motion0 = inputs.initial_motion(ds)
-    goal_world = ego_log[:, -1]
 
     chunks = [idx[i: i + bs] for i in range(0, len(idx), bs)]
     bar = None
@@ -245,38 +410,11 @@ def simulate(
                    unit="step", leave=False)
     egos, ctrls, auxs = [], [], []
     for chunk in chunks:
-        maps = [ds.maps[s] for s in chunk]
-        pose = ego_log[chunk, 0]
-        motion = motion0[chunk]
-        state = policy.initial_state(chunk)
-        poses, controls = [pose], []
-        aux_steps: dict[str, list] = {}
-        for t in range(n_steps):
-            obs = inputs.from_state(
-                maps, pose, ado[chunk, t], ado_valid[chunk, t], goal_world[chunk], cfg,
-                policy.setting, motion=motion, model=policy.model, k_targets=k,
-                keys=getattr(policy, "keys", None),
-            )
-            u, state, aux = policy(obs, state, t, chunk)
-            u = np.asarray(u, dtype=np.float64)
-            if u.shape != (len(chunk), 2) or not np.all(np.isfinite(u)):
-                raise BadControls(
-                    f"policy {policy.model!r} returned controls of shape {u.shape} "
-                    f"(finite: {bool(np.all(np.isfinite(u)))}) at step {t}; "
-                    f"expected finite ({len(chunk)}, 2)"
-                )
-            for key in AUX_KEYS:
-                if key in aux and aux[key] is not None:
-                    aux_steps.setdefault(key, []).append(np.asarray(aux[key], dtype=np.float64))
-            pose = unicycle_step(pose, u, DT)
-            motion = u.astype(np.float32)
-            poses.append(pose)
-            controls.append(u)
-            if bar is not None:
-                bar.update(1)
-        egos.append(np.stack(poses, axis=1))
-        ctrls.append(np.stack(controls, axis=1))
-        auxs.append({k_: np.stack(v, axis=1) for k_, v in aux_steps.items()})
+        sim = LogReplay(ds, chunk)
+        run = drive(policy, sim, n_steps, None if bar is None else lambda t: bar.update(1))
+        egos.append(sim.trajectory())
+        ctrls.append(run.controls)
+        auxs.append(run.aux)
     if bar is not None:
         bar.close()
     aux_all = {k_: np.concatenate([a[k_] for a in auxs]) for k_ in auxs[0]

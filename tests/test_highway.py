@@ -1,4 +1,4 @@
-"""Tests for chapter 10: the highway-env sandbox (minimanc.highway, minimanc.highway_cli)."""
+"""Tests for chapter 10: the highway-env sandbox (minimanc.highway, minimanc.cli.highway)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 hw = pytest.importorskip("minimanc.highway")
 
-from minimanc import inputs, world  # noqa: E402
+from minimanc import inputs, rollout, world  # noqa: E402
 from minimanc.world.raster import BACKGROUND, DRIVABLE, EGO, VEHICLE  # noqa: E402
 
 # --------------------------------------------------------------------------- optional dependency
@@ -25,8 +25,8 @@ def test_missing_dependency_gives_the_install_command(monkeypatch, capsys):
     with pytest.raises(ImportError, match=r"pip install 'minimanc\[highway\]'"):
         importlib.import_module("minimanc.highway")
     # the CLI plugin stays importable, registers its commands, and reports the missing piece
-    monkeypatch.delitem(sys.modules, "minimanc.highway_cli", raising=False)
-    cli = importlib.import_module("minimanc.highway_cli")
+    monkeypatch.delitem(sys.modules, "minimanc.cli.highway", raising=False)
+    cli = importlib.import_module("minimanc.cli.highway")
     from minimanc.cli import build_parser
 
     args = build_parser().parse_args(["highway", "collect", "--episodes", "2"])
@@ -380,3 +380,38 @@ def test_bad_input_is_rejected():
         hw.collect("roundabout", n_episodes=0)
     with pytest.raises(ValueError, match="scenario"):
         hw.collect(["roundabout", "merge"], n_episodes=1)
+
+
+class _NoImage(_Replay):
+    """A replaying policy that names its keys: the closed loop draws no BEV for it."""
+
+    keys = ("lane_target", "motion")
+
+    def __call__(self, obs, state, t, scenes):
+        assert set(obs) == {"lane_target", "motion"}
+        return self.controls[scenes, t], state, {}
+
+
+def test_highway_closed_loop_honours_keys_and_checks_controls():
+    experts, _ = hw.expert_episodes("roundabout", 1, seed=hw.EVAL_SEED, steps=4,
+                                    record_bev=False)
+    controls = np.stack([ep.controls for ep in experts])
+    res = hw.closed_loop(_NoImage(controls), "roundabout", experts)
+    ref = hw.closed_loop(_Replay(controls), "roundabout", experts)
+    assert np.array_equal(res.episodes[0].poses, ref.episodes[0].poses)
+    with pytest.raises(rollout.BadControls, match="step 0"):
+        hw.closed_loop(_Replay(controls * np.nan), "roundabout", experts)
+    with pytest.raises(rollout.BadControls, match="step 0"):
+        hw.run_episode("roundabout", 0, lambda o: np.array([np.inf, 0.0]), steps=3)
+
+
+def test_highway_sim_is_a_simulator_of_one_or_more_rows():
+    sim = hw.HighwaySim("roundabout", [0, 1], 3)
+    motion = sim.reset()
+    scene = sim.observe()
+    assert motion.shape == (2, 2) and motion.dtype == np.float32 and np.all(motion[:, 1] == 0)
+    assert scene.pose.shape == (2, 3) and scene.ado.shape[0] == 2 and len(scene.maps) == 2
+    assert np.array_equal(scene.goal, scene.pose)  # no goal given: the start pose
+    sim.step(np.array([[8.0, 0.0], [8.0, 0.0]]))
+    eps = sim.finish()
+    assert [ep.steps for ep in eps] == [1, 1] and eps[0].seed == 0

@@ -205,3 +205,71 @@ def test_a_policy_may_name_its_observation_keys(ds):
     with pytest.raises(ValueError, match="keys"):
         inputs.from_state(ds.maps[0], ds.ego[:1, 0], ds.ado[:1, 0], ds.ado_valid[:1, 0],
                           ds.ego[:1, -1], motion=np.zeros((1, 2)), keys=("bev", "speed"))
+
+
+class _ToySim:
+    """A minimal Simulator: a batch of egos on an empty straight road, no ados."""
+
+    def __init__(self, ds, n):
+        self.scenes = np.arange(n)
+        self.raster = world.RasterConfig(size=32)
+        self.k_targets = None
+        self.maps = [ds.maps[0]] * n
+        self.steps = []
+
+    def reset(self):
+        self.pose = np.zeros((len(self.scenes), 3))
+        return np.full((len(self.scenes), 2), [3.0, 0.0], np.float32)
+
+    def observe(self):
+        B = len(self.scenes)
+        return rollout.SceneState(self.maps, self.pose, np.zeros((B, 1, 5)),
+                                  np.zeros((B, 1), bool), self.pose + [10.0, 0.0, 0.0])
+
+    def step(self, controls):
+        self.steps.append(controls)
+        self.pose = self.pose + np.c_[controls[:, :1] * 0.5, np.zeros((len(controls), 2))]
+
+
+class _Echo:
+    """Asks for the motion only and drives at its previous speed + 1."""
+
+    model = None
+    setting = "paper"
+    keys = ("motion",)
+
+    def initial_state(self, scenes):
+        return 0
+
+    def __call__(self, obs, state, t, scenes):
+        assert set(obs) == {"motion"}
+        return obs["motion"] + [1.0, 0.0], state + 1, {}
+
+
+def test_drive_runs_any_simulator_and_carries_motion_and_state(ds):
+    sim = _ToySim(ds, 2)
+    run = rollout.drive(_Echo(), sim, 4)
+    assert run.controls.shape == (2, 4, 2) and run.aux == {}
+    assert np.array_equal(run.controls[0, :, 0], [4.0, 5.0, 6.0, 7.0])
+    assert len(sim.steps) == 4 and np.allclose(sim.pose[:, 0], 0.5 * (4 + 5 + 6 + 7))
+    with pytest.raises(ValueError, match="steps"):
+        rollout.drive(_Echo(), sim, 0)
+
+
+def test_drive_in_log_replay_is_simulate(ds):
+    policy = rollout.FixedGainsPolicy()
+    sim = rollout.LogReplay(ds, [1, 3])
+    run = rollout.drive(policy, sim, 5)
+    ref = rollout.simulate(policy, ds, scenes=[1, 3], steps=5, progress=False)
+    assert np.array_equal(sim.trajectory(), ref.ego)
+    assert np.array_equal(run.controls, ref.controls)
+    assert np.array_equal(run.aux["alpha"], ref.aux["alpha"])
+
+
+def test_check_controls_names_the_policy_and_the_step():
+    u = rollout.check_controls([[1, 2]], 1, 0)
+    assert u.dtype == np.float64 and u.shape == (1, 2)
+    with pytest.raises(rollout.BadControls, match="step 3"):
+        rollout.check_controls([[np.nan, 0.0]], 1, 3, rollout.FixedGainsPolicy())
+    with pytest.raises(rollout.BadControls, match=r"shape \(2,\)"):
+        rollout.check_controls([1.0, 0.0], 1, 0)

@@ -110,7 +110,14 @@ from minimanc.highway.env import (
 from minimanc.highway.env import (
     RoundaboutSandbox as RoundaboutSandbox,
 )
-from minimanc.highway.episodes import Episode, replay_error, run_episode
+from minimanc.highway.episodes import (
+    Episode,
+    FunctionPolicy,
+    HighwaySim,
+    PlainPolicy,
+    replay_error,
+    run_episode,
+)
 from minimanc.highway.episodes import PolicyFn as PolicyFn
 from minimanc.highway.evaluate import (
     ClosedLoopResult,
@@ -148,6 +155,9 @@ __all__ = [
     "Episode",
     "run_episode",
     "replay_error",
+    "HighwaySim",
+    "FunctionPolicy",
+    "PlainPolicy",
     "expert_episodes",
     "to_dataset",
     "collect",

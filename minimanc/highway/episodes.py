@@ -28,6 +28,7 @@ from minimanc.highway.env import (
 )
 from minimanc.highway.mapping import RouteTracker, road_map
 from minimanc.highway.render import render_frame
+from minimanc.rollout import SceneState, check_controls, drive, observation
 from minimanc.world.geometry import DT, goal_in_ego_frame, wrap_angle
 from minimanc.world.maps import K_TARGETS, Map, lane_targets
 from minimanc.world.raster import RasterConfig, rasterize
@@ -172,6 +173,121 @@ class EpisodeRun:
         return ep
 
 
+class HighwaySim:
+    """highway-env as a :class:`minimanc.rollout.Simulator`: one env per row, in lock-step.
+
+    Row ``i`` is the episode ``env.reset(seed=seeds[i])`` of ``scenario``
+    (``steps`` the env's duration) recorded by an :class:`EpisodeRun`;
+    ``goals (B, 3)`` the goal world poses (a row's ``None``: its start pose);
+    ``raster`` the :class:`RasterConfig` of the policy's BEV (default ``cfg``,
+    the one the episode's BEV is recorded with), ``k_targets`` its lane-target
+    points. The ego's motion at the start is ``[speed, 0]``; controls go
+    through :class:`ActionAdapter`. :meth:`finish` closes the envs and returns
+    the :class:`Episode` of each row.
+    """
+
+    def __init__(self, scenario: str, seeds: Any, steps: int, goals: Any = None,
+                 cfg: RasterConfig | None = None, max_ado: int = MAX_ADO,
+                 record_bev: bool = False, render: bool = False, config: dict | None = None,
+                 raster: RasterConfig | None = None, k_targets: int | None = K_TARGETS) -> None:
+        check_scenario(scenario)
+        self.seeds = [int(s) for s in np.atleast_1d(seeds)]
+        if len(self.seeds) == 0:
+            raise ValueError(f"seeds must hold at least one seed; got seeds={seeds!r}")
+        self.goals = [None] * len(self.seeds) if goals is None else list(goals)
+        if len(self.goals) != len(self.seeds):
+            raise ValueError(f"goals must have {len(self.seeds)} entries; got {len(self.goals)}")
+        self.scenario, self.steps = scenario, int(steps)
+        self.cfg = cfg or RasterConfig()
+        self.raster = raster or self.cfg
+        self.k_targets = k_targets
+        self.scenes = np.arange(len(self.seeds))
+        self._run_args = (max_ado, record_bev, render, config)
+        self.runs: list[EpisodeRun] = []
+
+    def reset(self) -> np.ndarray:
+        max_ado, record_bev, render, config = self._run_args
+        self.runs = [EpisodeRun(self.scenario, seed, self.steps, False, self.cfg, max_ado,
+                                record_bev, render, config, None, goal)
+                     for seed, goal in zip(self.seeds, self.goals)]
+        self.goal = np.stack([r.rec["poses"][0] if r.goal is None else r.goal
+                              for r in self.runs])
+        return np.array([[r.rec["speeds"][0], 0.0] for r in self.runs], dtype=np.float32)
+
+    def observe(self) -> SceneState:
+        obs = [r.obs for r in self.runs]
+        return SceneState([o["map"] for o in obs], np.stack([o["pose"] for o in obs]),
+                          np.stack([o["ado"] for o in obs]),
+                          np.stack([o["ado_valid"] for o in obs]), self.goal)
+
+    def step(self, controls: np.ndarray) -> None:
+        for r, u in zip(self.runs, controls):
+            r.step(u)
+
+    def finish(self) -> list[Episode]:
+        return [r.finish() for r in self.runs]
+
+
+class FunctionPolicy:
+    """A :data:`PolicyFn` as a :class:`minimanc.rollout.Policy` in a one-row :class:`HighwaySim`.
+
+    It asks :func:`minimanc.rollout.drive` for no observation key and hands
+    ``fn`` the observation of :func:`run_episode` read from the episode being
+    recorded: ``bev`` (uint8), ``goal``, ``lane_target`` and ``motion`` (the
+    previous command, at ``t = 0`` ``[speed, 0]``) in float64.
+    """
+
+    model = None
+    setting = "paper"
+    keys: tuple[str, ...] = ()
+
+    def __init__(self, fn: PolicyFn, sim: HighwaySim) -> None:
+        self.fn, self.sim = fn, sim
+
+    def initial_state(self, scenes: np.ndarray) -> None:
+        return None
+
+    def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
+                 ) -> tuple[np.ndarray, Any, dict]:
+        run = self.sim.runs[0]
+        o, rec = run.obs, run.rec
+        bev = rec["bev"][-1] if run.record_bev else rasterize(
+            o["map"], o["pose"], o["ado"], o["ado_valid"], run.cfg)
+        motion = rec["commands"][-1] if rec["commands"] else np.array([rec["speeds"][0], 0.0])
+        full = {**o, "bev": bev, "t": t, "goal": goal_in_ego_frame(self.sim.goal[0], o["pose"]),
+                "lane_target": rec["targets"][-1], "motion": np.array(motion, dtype=np.float64)}
+        return np.asarray(self.fn(full), dtype=np.float64).reshape(1, -1), state, {}
+
+
+class PlainPolicy:
+    """A chapter-9 policy for one ego as a :data:`PolicyFn` (made by ``plain_policy``).
+
+    :func:`run_episode` drives ``policy`` itself (:func:`minimanc.rollout.drive`
+    in a one-row :class:`HighwaySim` with this ``goal``, raster ``cfg`` and
+    ``k_targets``); calling it with :func:`run_episode`'s observation builds the
+    same observation (:func:`minimanc.rollout.observation`) and carries the
+    policy's state, restarting it at ``t = 0``.
+    """
+
+    def __init__(self, policy: Any, goal: np.ndarray, cfg: RasterConfig | None = None) -> None:
+        self.policy = policy
+        self.goal = np.asarray(goal, dtype=np.float64).reshape(3)
+        self.cfg = cfg or RasterConfig()
+        self.k_targets = getattr(getattr(policy, "cfg", None), "k_targets", K_TARGETS)
+        self.state = policy.initial_state(np.arange(1))
+
+    def __call__(self, obs: dict) -> np.ndarray:
+        t = int(obs["t"])
+        if t == 0:
+            self.state = self.policy.initial_state(np.arange(1))
+        scene = SceneState([obs["map"]], obs["pose"][None], obs["ado"][None],
+                           obs["ado_valid"][None], self.goal[None])
+        o = observation(self.policy, scene, np.asarray(obs["motion"], np.float32)[None],
+                        self.cfg, self.k_targets)
+        u, self.state, _ = self.policy(o, self.state, t, np.arange(1))
+        return check_controls(u, 1, t, self.policy)[0]
+
+
 def run_episode(
     scenario: str,
     seed: int,
@@ -199,33 +315,31 @@ def run_episode(
     command) — and its ``[speed, yaw rate]`` goes through
     :class:`ActionAdapter`. The episode runs to the end even after a crash
     (highway-env then brakes the ego to a stop). ``render=True`` keeps
-    highway-env's frames in ``Episode.frames``.
+    highway-env's frames in ``Episode.frames``. A policy is driven by
+    :func:`minimanc.rollout.drive` in a one-row :class:`HighwaySim` (a
+    chapter-9 policy wrapped by :func:`minimanc.highway.plain_policy` directly,
+    with the observation of :func:`minimanc.highway.closed_loop`).
     """
     check_scenario(scenario)
     check_steps(steps)
     if not (callable(policy) or policy == "expert"):
         raise ValueError(f"policy must be 'expert' or a callable, got {policy!r}")
     cfg = cfg or RasterConfig()
-    expert = policy == "expert"
-    run = EpisodeRun(scenario, seed, int(steps), expert, cfg, max_ado, record_bev, render, config,
-               expert_speed, goal)
-    goal_w = run.rec["poses"][0] if goal is None else np.asarray(goal, dtype=np.float64)
-    motion = np.array([run.rec["speeds"][0], 0.0])
-    for t in range(int(steps)):
-        if expert:
+    if policy == "expert":
+        run = EpisodeRun(scenario, seed, int(steps), True, cfg, max_ado, record_bev, render,
+                         config, expert_speed, goal)
+        for _ in range(int(steps)):
             run.step(None)
-            continue
-        o = run.obs
-        bev = run.rec["bev"][-1] if record_bev else rasterize(
-            o["map"], o["pose"], o["ado"], o["ado_valid"], cfg)
-        obs = {**o, "bev": bev, "t": t, "goal": goal_in_ego_frame(goal_w, o["pose"]),
-               "lane_target": run.rec["targets"][-1], "motion": motion.copy()}
-        controls = np.asarray(policy(obs), dtype=np.float64).reshape(2)
-        if not np.all(np.isfinite(controls)):
-            raise ValueError(f"policy returned non-finite controls {controls!r} at step {t}")
-        run.step(controls)
-        motion = controls
-    return run.finish()
+        return run.finish()
+    if isinstance(policy, PlainPolicy):  # a chapter-9 policy: drive it directly
+        sim = HighwaySim(scenario, [seed], int(steps), [policy.goal], cfg, max_ado, record_bev,
+                         render, config, raster=policy.cfg, k_targets=policy.k_targets)
+        drive(policy.policy, sim, int(steps))
+    else:
+        sim = HighwaySim(scenario, [seed], int(steps), [goal], cfg, max_ado, record_bev, render,
+                         config)
+        drive(FunctionPolicy(policy, sim), sim, int(steps))
+    return sim.finish()[0]
 
 
 def check_steps(steps: Any) -> int:

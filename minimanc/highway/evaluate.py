@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 
 from minimanc.highway.env import DEFAULT_STEPS, MAX_ADO, POLICY_FREQUENCY, check_scenario
-from minimanc.highway.episodes import Episode, EpisodeRun, PolicyFn, run_episode
+from minimanc.highway.episodes import Episode, HighwaySim, PlainPolicy, PolicyFn, run_episode
 from minimanc.highway.render import save_gif, save_png
-from minimanc.world.maps import K_TARGETS
+from minimanc.rollout import drive
 from minimanc.world.raster import RasterConfig
 
 
@@ -91,8 +91,6 @@ def closed_loop(
     :class:`ActionAdapter`. The result's experts are cut to the same ``T``
     states.
     """
-    from minimanc import inputs
-
     check_scenario(scenario)
     if len(experts) == 0:
         raise ValueError("experts must hold at least one expert episode, got 0")
@@ -101,39 +99,19 @@ def closed_loop(
     T = experts[0].steps
     if any(ep.steps != T for ep in experts):
         raise ValueError("experts must all have the same number of steps")
-    cfg = cfg or RasterConfig()
     t0 = time.perf_counter()
-    goals = np.stack([ep.poses[T - 1] for ep in experts])
-    runs = [EpisodeRun(scenario, ep.seed, T, False, cfg, max_ado, record_bev, False, None, None,
-                 goals[i]) for i, ep in enumerate(experts)]
-    scenes = np.arange(len(runs))
-    state = policy.initial_state(scenes)
-    motion = np.array([[r.rec["speeds"][0], 0.0] for r in runs], dtype=np.float32)
+    sim = HighwaySim(scenario, [ep.seed for ep in experts], T,
+                     [ep.poses[T - 1] for ep in experts], cfg, max_ado, record_bev,
+                     k_targets=experts[0].lane_target.shape[1])
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(total=T - 1, desc=f"{scenario} {policy.model}", leave=False)
-    for t in range(T - 1):
-        obs = inputs.from_state(
-            [r.obs["map"] for r in runs], np.stack([r.obs["pose"] for r in runs]),
-            np.stack([r.obs["ado"] for r in runs]), np.stack([r.obs["ado_valid"] for r in runs]),
-            goals, cfg, policy.setting, motion=motion, model=policy.model,
-            k_targets=experts[0].lane_target.shape[1],
-        )
-        u, state, _ = policy(obs, state, t, scenes)
-        u = np.asarray(u, dtype=np.float64)
-        if u.shape != (len(runs), 2) or not np.all(np.isfinite(u)):
-            raise ValueError(f"policy returned controls of shape {u.shape} "
-                             f"(finite: {bool(np.all(np.isfinite(u)))}) at step {t}")
-        for r, ui in zip(runs, u):
-            r.step(ui)
-        motion = u.astype(np.float32)
-        if bar is not None:
-            bar.update(1)
+    drive(policy, sim, T - 1, None if bar is None else lambda t: bar.update(1))
     if bar is not None:
         bar.close()
-    episodes = [r.finish() for r in runs]
+    episodes = sim.finish()
     cut = [dataclasses.replace(
         ep, poses=ep.poses[:T], speeds=ep.speeds[:T], ado=ep.ado[:T], ado_valid=ep.ado_valid[:T],
         lane_target=ep.lane_target[:T], commands=ep.commands[:T - 1], actions=ep.actions[:T - 1],
@@ -147,28 +125,11 @@ def plain_policy(policy: Any, goal: np.ndarray, cfg: RasterConfig | None = None)
     """Wrap a chapter-9 policy (e.g. :class:`minimanc.rollout.ModelPolicy`) as a
     :data:`PolicyFn` for :func:`run_episode` / :func:`render_episode` (one ego).
 
-    Each call builds the observation with :func:`minimanc.inputs.from_state`
-    exactly as :func:`closed_loop` does (``goal`` a world pose, ``cfg`` the
-    raster of the model) and carries the policy's recurrent state.
+    The observation is built with :func:`minimanc.inputs.from_state` exactly
+    as :func:`closed_loop` does (``goal`` a world pose, ``cfg`` the raster of
+    the model) and the policy's recurrent state is carried (:class:`PlainPolicy`).
     """
-    from minimanc import inputs
-
-    cfg = cfg or RasterConfig()
-    g = np.asarray(goal, dtype=np.float64).reshape(1, 3)
-    k = getattr(getattr(policy, "cfg", None), "k_targets", K_TARGETS)
-    carry = {"state": policy.initial_state(np.arange(1))}
-
-    def drive(obs: dict) -> np.ndarray:
-        if obs["t"] == 0:
-            carry["state"] = policy.initial_state(np.arange(1))
-        o = inputs.from_state([obs["map"]], obs["pose"][None], obs["ado"][None],
-                              obs["ado_valid"][None], g, cfg, policy.setting,
-                              motion=np.asarray(obs["motion"], np.float32)[None],
-                              model=policy.model, k_targets=k)
-        u, carry["state"], _ = policy(o, carry["state"], int(obs["t"]), np.arange(1))
-        return np.asarray(u, dtype=np.float64)[0]
-
-    return drive
+    return PlainPolicy(policy, goal, cfg)
 
 
 def expert_result(scenario: str, experts: Sequence[Episode]) -> ClosedLoopResult:
