@@ -1,0 +1,106 @@
+"""Chapter 3 — learned gains of eq. (10): network logits ↔ gains, and the ζ penalty.
+
+Learned gains (:func:`gains_from_logits`) pass network outputs through a
+sigmoid into the boxes :data:`~minimanc.dmp.params.ALPHA_RANGE` ×
+:data:`~minimanc.dmp.params.BETA_RANGE`; :func:`logits_from_gains` inverts it;
+:func:`zeta_penalty` is the auxiliary loss the paper suggests against ζ ≈ 0
+(eq. 13).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from minimanc.checks import check_finite, check_positive, first_bad
+from minimanc.dmp.attractor import damping_ratio
+from minimanc.dmp.params import ALPHA_RANGE, BETA_RANGE
+
+__all__ = [
+    "gains_from_logits",
+    "logits_from_gains",
+    "zeta_penalty",
+]
+
+# --------------------------------------------------------------------------- learned gains
+
+
+def _sigmoid(z: Any, xp: Any) -> Any:
+    """Overflow-free logistic function, ``½ (1 + tanh(z / 2))``."""
+    return 0.5 * (1.0 + xp.tanh(0.5 * z))
+
+
+def _check_range(name: str, rng: Any) -> tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in rng)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a pair (low, high), got {name}={rng!r}") from exc
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo < hi):
+        raise ValueError(f"{name} must satisfy 0 < low < high (finite), got {name}={rng!r}")
+    return lo, hi
+
+
+def gains_from_logits(
+    z_alpha: Any,
+    z_beta: Any = None,
+    xp: Any = np,
+    alpha_range: tuple[float, float] = ALPHA_RANGE,
+    beta_range: tuple[float, float] = BETA_RANGE,
+    critically_damped: bool = False,
+) -> tuple[Any, Any]:
+    """Map unconstrained network outputs to DMP gains (eq. 10) through a sigmoid.
+
+    ``α = α_lo + (α_hi − α_lo) σ(z_α)`` and likewise β, with the ranges
+    :data:`ALPHA_RANGE`, :data:`BETA_RANGE` by default: both gains are > 0, so
+    ζ > 0 (the paper's argument), and ζ ≥ ½ √(α_lo/β_hi) ≈ 0.16; the default
+    integrator at :data:`DT` is stable on the whole box. With
+    ``critically_damped=True``, ``β = α/4`` (ζ = 1) and ``z_beta`` is ignored
+    (pass ``None``). Returns ``(alpha, beta)`` shaped like the logits.
+    Custom ranges are not checked for discrete stability: use
+    :func:`max_stable_alpha`.
+    """
+    a_lo, a_hi = _check_range("alpha_range", alpha_range)
+    b_lo, b_hi = _check_range("beta_range", beta_range)
+    alpha = a_lo + (a_hi - a_lo) * _sigmoid(z_alpha, xp)
+    if critically_damped:
+        return alpha, alpha / 4.0
+    if z_beta is None:
+        raise ValueError("z_beta=None is only allowed with critically_damped=True")
+    return alpha, b_lo + (b_hi - b_lo) * _sigmoid(z_beta, xp)
+
+
+def logits_from_gains(
+    alpha: Any,
+    beta: Any,
+    alpha_range: tuple[float, float] = ALPHA_RANGE,
+    beta_range: tuple[float, float] = BETA_RANGE,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of :func:`gains_from_logits` (plain NumPy), e.g. to initialise a bias.
+
+    The gains must lie strictly inside their ranges.
+    """
+    out = []
+    for name, value, rng in (("alpha", alpha, alpha_range), ("beta", beta, beta_range)):
+        lo, hi = _check_range(f"{name}_range", rng)
+        v = check_finite(name, value)
+        bad = (v <= lo) | (v >= hi)
+        if bad.any():
+            raise ValueError(
+                f"{name} must lie strictly inside {name}_range={rng!r}, "
+                f"got {name}={first_bad(v, bad)!r}"
+            )
+        p = (v - lo) / (hi - lo)
+        out.append(np.log(p) - np.log1p(-p))
+    return out[0], out[1]
+
+
+def zeta_penalty(alpha: Any, beta: Any, xp: Any = np, zeta_min: float = 0.5) -> Any:
+    """Auxiliary loss against ζ ≈ 0 (paper, after eq. 13): ``mean(max(ζ_min − ζ, 0)²)``.
+
+    Zero while every ζ = ½ √(α/β) ≥ ``zeta_min``; grows quadratically below
+    (continuous gradient). Add ``λ · zeta_penalty(α, β, xp)`` to the BC loss.
+    """
+    zm = float(check_positive("zeta_min", zeta_min))
+    zeta = damping_ratio(alpha, beta, xp=xp)
+    return xp.mean(xp.maximum(zm - zeta, 0.0) ** 2)
