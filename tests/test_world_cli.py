@@ -8,8 +8,8 @@ import pytest
 from PIL import Image
 
 from minimanc import world
+from minimanc.cli import common as wcli
 from minimanc.cli import main
-from minimanc.world import cli as wcli
 
 
 def test_data_generate_and_show(tmp_path, capsys):

@@ -1,7 +1,7 @@
-"""Chapter 7 — command line: ``minimanc data generate`` and ``minimanc data show``.
+"""Chapter 7 — ``minimanc data generate`` and ``minimanc data show`` (:mod:`minimanc.world`).
 
-``register(subparsers)`` adds the ``data`` command to the main parser of
-:mod:`minimanc.cli`; each subcommand sets ``func(args) -> int``.
+``register(subparsers)`` adds the ``data`` command to the parser of :mod:`minimanc.cli`;
+each subcommand sets ``func(args) -> int``.
 """
 
 from __future__ import annotations
@@ -9,65 +9,17 @@ from __future__ import annotations
 import argparse
 import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
+from minimanc.cli.common import check_int, check_out_dir, load_data
 from minimanc.errors import UsageError
+
+__all__ = ["DISK_MARGIN", "cmd_generate", "cmd_show", "default_file", "register"]
 
 DISK_MARGIN = 1.2
 """``data generate`` refuses to start unless the disk has this times the estimated size free."""
-
-
-# --------------------------------------------------------------------------- argument checks
-# shared by the command modules (minimanc.highway_cli, minimanc.studies): each raises
-# UsageError, which `minimanc` prints as one line on stderr with exit code 2
-
-
-def check_int(value: Any, option: str, minimum: int) -> int:
-    """``value`` if it is an integer ``>= minimum``, else :class:`UsageError` naming ``option``."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise UsageError(f"{option} must be an integer >= {minimum}, got {value!r}")
-    return value
-
-
-def check_out_dir(path: str | Path, option: str = "--out") -> Path:
-    """Create the directory ``path`` if needed and check that a file can be written in it."""
-    out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"{option} {out}: exists and is not a directory")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise UsageError(f"{option} {out}: cannot create the directory ({e.strerror or e})") from e
-    try:
-        with tempfile.TemporaryFile(dir=out):
-            pass
-    except OSError as e:
-        raise UsageError(f"{option} {out}: directory is not writable ({e.strerror or e})") from e
-    return out
-
-
-def check_out_file(path: str | Path, option: str = "--out") -> Path:
-    """Check that the file ``path`` can be written (its directory is created if needed)."""
-    target = Path(path)
-    if target.is_dir():
-        raise UsageError(f"{option} {target}: is a directory, expected a file name")
-    check_out_dir(target.parent, option=f"{option} {target}: its directory")
-    return target
-
-
-def load_data(path: str | Path, option: str = "--data") -> Any:
-    """``world.load(path)``; a missing or unusable file is a :class:`UsageError`."""
-    from minimanc import world
-
-    try:
-        return world.load(path)
-    except FileNotFoundError as e:
-        raise UsageError(f"{option} {path}: no such file") from e
-    except (world.DatasetFileError, OSError) as e:
-        raise UsageError(f"{option} {e}") from e
 
 
 def default_file(out: str | Path, n_scenes: int, seed: int) -> Path:
@@ -83,6 +35,7 @@ def _raster(size: Any, option: str = "--size") -> Any:
 
 
 def cmd_generate(args: argparse.Namespace) -> int:
+    """Generate scenes straight to a file, after checking the arguments and the free disk."""
     from minimanc import world
 
     check_int(args.scenes, "--scenes", 1)
@@ -119,6 +72,7 @@ def cmd_generate(args: argparse.Namespace) -> int:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
+    """Write a raster gallery, a scene animation and a map plot of one scene."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -156,7 +110,7 @@ def cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(subparsers) -> None:
+def register(subparsers: Any) -> None:
     """Add ``data generate`` and ``data show`` to an argparse sub-parser collection."""
     p = subparsers.add_parser("data", help="generate and inspect the BEV driving dataset")
     sub = p.add_subparsers(dest="data_command", required=True)
@@ -180,18 +134,3 @@ def register(subparsers) -> None:
     s.add_argument("--scene", type=int, default=None, help="scene to animate")
     s.set_defaults(func=cmd_show)
 
-
-def main(argv: list[str] | None = None) -> int:
-    """Stand-alone entry point: ``python -m minimanc.world.cli data generate ...``."""
-    parser = argparse.ArgumentParser(prog="minimanc")
-    register(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(argv)
-    try:
-        return int(args.func(args))
-    except UsageError as exc:
-        print(f"minimanc data: error: {exc}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

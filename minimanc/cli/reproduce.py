@@ -1,54 +1,25 @@
-"""Chapter 9 — :func:`reproduce` (every study of a configuration, written to ``table1.md``,
-``results.json`` and ``figures/``) and the ``minimanc reproduce`` command (:func:`register`,
-found by :mod:`minimanc.cli`)."""
+"""Chapter 9 — ``minimanc reproduce``: the paper's Table I, studies and figures
+(:func:`minimanc.studies.reproduce`)."""
 
 from __future__ import annotations
 
 import argparse
 import time
-from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from minimanc.studies.config import PRESETS, StudyConfig
-from minimanc.studies.figures import write_figures
-from minimanc.studies.jobs import write_json
-from minimanc.studies.report import json_safe, table_markdown
-from minimanc.studies.runner import Study
+from minimanc.cli.common import add_engine_option, check_int, check_out_dir
+from minimanc.studies import PRESETS, reproduce, table_markdown
+
+__all__ = ["cmd_reproduce", "register"]
 
 
-def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers: int = 1,
-              progress: bool = True, figures: bool = True,
-              log: Callable[[str], None] | None = None) -> dict:
-    """Run every study of ``config`` and write ``table1.md``, ``results.json`` and
-    ``figures/`` under ``out``. Returns the results dict (also with ``"files"``)."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    study = Study(config, out, engine=engine, workers=workers, progress=progress, log=log)
-    try:
-        results = study.run()
-        files = {"table1": str(out / "table1.md"), "results": str(out / "results.json")}
-        if figures:
-            t0 = time.perf_counter()
-            paths = write_figures(study, results, out / "figures")
-            study.timing["figures"] = time.perf_counter() - t0
-            results["timing_s"]["figures"] = round(study.timing["figures"], 1)
-            files["figures"] = [str(p) for p in paths]
-    finally:
-        study.close()
-    results["files"] = files
-    (out / "table1.md").write_text(table_markdown(results))
-    write_json(out / "results.json", json_safe(results))
-    return results
-
-
-def _cmd_reproduce(args: argparse.Namespace) -> int:
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    """Run a preset's studies, print Table I and the findings, and list the files written."""
     import matplotlib
 
     matplotlib.use("Agg")
-    from minimanc.world.cli import check_int, check_out_dir
-
     preset = args.preset or ("quick" if args.quick else "full")
     config = PRESETS[preset]
     if args.seeds is not None:
@@ -78,7 +49,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: Any) -> None:
-    """Add ``minimanc reproduce`` to the ``minimanc`` command (called by :mod:`minimanc.cli`)."""
+    """Add ``minimanc reproduce`` to the ``minimanc`` parser."""
     p = subparsers.add_parser(
         "reproduce",
         help="train every model, run the closed loop, write Table I, the studies and figures",
@@ -89,8 +60,7 @@ def register(subparsers: Any) -> None:
                    help="small data, few epochs, one seed (about 10 minutes on 2 cores)")
     p.add_argument("--preset", choices=sorted(PRESETS), default=None,
                    help="a named configuration (overrides --quick)")
-    p.add_argument("--engine", choices=["jax", "numpy"], default="jax",
-                   help="autodiff engine for training and the closed loop (default jax)")
+    add_engine_option(p)
     p.add_argument("--out", default=None,
                    help="output directory (default minimanc_results/<preset>)")
     p.add_argument("--seeds", type=int, default=None, help="number of training seeds")
@@ -98,4 +68,4 @@ def register(subparsers: Any) -> None:
                    help="processes running closed-loop rollouts while training (0 = inline)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument("--verbose", action="store_true", help="one line per training")
-    p.set_defaults(func=_cmd_reproduce)
+    p.set_defaults(func=cmd_reproduce)

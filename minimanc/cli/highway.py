@@ -1,4 +1,5 @@
-"""Chapter 10 — the ``minimanc highway`` command: collect, train, eval, render.
+"""Chapter 10 — the ``minimanc highway`` command (:mod:`minimanc.highway`): collect, train,
+eval, render.
 
 ::
 
@@ -24,13 +25,23 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
-import math
 import sys
 from pathlib import Path
 from typing import Any
 
+from minimanc.cli.common import (
+    add_engine_option,
+    check_choices,
+    check_int,
+    check_out_dir,
+    check_out_file,
+    check_positive,
+    load_data,
+)
 from minimanc.errors import UsageError
-from minimanc.world.cli import check_int, check_out_dir, check_out_file, load_data
+from minimanc.inputs import SETTINGS
+
+__all__ = ["SCENARIO_NAMES", "cmd_collect", "cmd_eval", "cmd_render", "cmd_train", "register"]
 
 SCENARIO_NAMES = ("roundabout", "intersection", "highway-fast")
 """The sandbox scenarios (``minimanc.highway.SCENARIOS``), listed here so that the
@@ -51,11 +62,6 @@ def _check_episode_args(args: argparse.Namespace) -> None:
         if hasattr(args, option):
             check_int(getattr(args, option), f"--{option}", 1)
     check_int(args.seed, "--seed", 0)
-
-
-def _check_lr(lr: Any) -> None:
-    if lr is not None and not (math.isfinite(lr) and lr > 0):
-        raise UsageError(f"--lr must be a positive finite number, got {lr!r}")
 
 
 def cmd_collect(args: argparse.Namespace) -> int:
@@ -85,12 +91,10 @@ def cmd_train(args: argparse.Namespace) -> int:
     for option in ("epochs", "batch_size"):
         if getattr(args, option) is not None:
             check_int(getattr(args, option), "--" + option.replace("_", "-"), 1)
-    _check_lr(args.lr)
+    if args.lr is not None:
+        check_positive(args.lr, "--lr")
     check_int(args.seed, "--seed", 0)
-    unknown = [m for m in args.models if m not in models.MODEL_NAMES]
-    if unknown:
-        raise UsageError(f"--models: unknown model(s) {', '.join(unknown)}; choose from "
-                         f"{', '.join(models.MODEL_NAMES)}")
+    check_choices(args.models, "--models", models.MODEL_NAMES, what="model(s)")
     given = {"epochs": args.epochs, "batch_size": args.batch_size, "lr": args.lr}
     try:
         tc = train.TrainConfig(seed=args.seed, **{k: v for k, v in given.items() if v is not None})
@@ -203,12 +207,12 @@ def register(subparsers: Any) -> None:
     t = sub.add_parser("train", help="behaviour cloning on collected demonstrations")
     t.add_argument("--data", required=True, help="file written by `minimanc highway collect`")
     t.add_argument("--models", nargs="+", default=["manc", "cnn"])
-    t.add_argument("--setting", default="paper", choices=["paper", "parity"])
+    t.add_argument("--setting", default="paper", choices=SETTINGS)
     t.add_argument("--epochs", type=int, default=None, help="default: train.TrainConfig's")
     t.add_argument("--batch-size", type=int, default=None, help="default: train.TrainConfig's")
     t.add_argument("--lr", type=float, default=None, help="default: train.TrainConfig's")
     t.add_argument("--seed", type=int, default=0)
-    t.add_argument("--engine", default="jax", choices=["jax", "numpy"])
+    add_engine_option(t, "training")
     t.add_argument("--out", default="highway_runs")
     t.add_argument("--resume", action="store_true")
     t.add_argument("--quiet", action="store_true")
@@ -221,7 +225,7 @@ def register(subparsers: Any) -> None:
     e.add_argument("--episodes", type=int, default=10)
     e.add_argument("--seed", type=int, default=100_000, help="first env seed (evaluation)")
     e.add_argument("--steps", type=int, default=24)
-    e.add_argument("--engine", default="jax", choices=["jax", "numpy"])
+    add_engine_option(e, "the closed loop")
     e.add_argument("--out", default=None, help="write the metrics as JSON")
     e.set_defaults(func=cmd_eval)
 
@@ -230,6 +234,6 @@ def register(subparsers: Any) -> None:
     r.add_argument("--seed", type=int, default=100_000)
     r.add_argument("--steps", type=int, default=24)
     r.add_argument("--checkpoint", default=None, help="drive with this model (default: expert)")
-    r.add_argument("--engine", default="jax", choices=["jax", "numpy"])
+    add_engine_option(r, "the closed loop")
     r.add_argument("--out", default="highway_frames")
     r.set_defaults(func=cmd_render)

@@ -1,0 +1,78 @@
+"""The ``minimanc`` command (chapter 0): one module per command group.
+
+* :mod:`~minimanc.cli.info` — ``minimanc info`` (and :data:`CHAPTERS`, the chapter map);
+* :mod:`~minimanc.cli.exercises` — ``minimanc exercises build|convert|run`` and ``grade``;
+* :mod:`~minimanc.cli.data` — ``minimanc data generate|show`` (chapter 7);
+* :mod:`~minimanc.cli.reproduce` — ``minimanc reproduce`` (chapter 9);
+* :mod:`~minimanc.cli.highway` — ``minimanc highway collect|train|eval|render`` (chapter 10);
+* :mod:`~minimanc.cli.common` — the argument validators and the project root they share.
+
+Each module has ``register(subparsers)``; choices come from the library's registries
+(:data:`minimanc.engine.ENGINES`, :data:`minimanc.inputs.SETTINGS`,
+:data:`minimanc.models.MODEL_NAMES`), never retyped. A command raises
+:class:`~minimanc.errors.UsageError` for bad input, which :func:`main` prints as one line
+on stderr with exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import sys
+
+from minimanc import __version__
+from minimanc.cli.info import CHAPTERS
+from minimanc.errors import EXIT_USAGE, UsageError
+
+__all__ = ["CHAPTERS", "CORE", "PLUGINS", "build_parser", "main"]
+
+CORE = ("minimanc.cli.info", "minimanc.cli.exercises")
+"""Command modules of chapter 0, always registered."""
+
+PLUGINS = {
+    "minimanc.cli.data": "minimanc.world",
+    "minimanc.cli.reproduce": "minimanc.studies",
+    "minimanc.cli.highway": "minimanc.highway",
+}
+"""Command module -> the chapter package it drives. A command is registered only when its
+chapter's package is part of this build (found without importing it, so a missing optional
+dependency such as highway-env is reported when the command runs, not here)."""
+
+
+def _chapter_present(package: str) -> bool:
+    try:
+        return importlib.util.find_spec(package) is not None
+    except ModuleNotFoundError:  # a parent package is missing
+        return False
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``minimanc`` parser with every available command group registered."""
+    parser = argparse.ArgumentParser(
+        prog="minimanc", description="minimanc: the MANC course and library."
+    )
+    parser.add_argument("--version", action="version", version=f"minimanc {__version__}")
+    sub = parser.add_subparsers(dest="command")
+    chapters = [name for name, package in PLUGINS.items() if _chapter_present(package)]
+    for name in (*CORE, *chapters):
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``minimanc argv``; returns the exit code (2 for a :class:`UsageError`)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 0
+    try:
+        return int(args.func(args) or 0)
+    except UsageError as exc:
+        print(f"minimanc {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":
+    sys.exit(main())

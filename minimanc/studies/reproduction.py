@@ -1,0 +1,43 @@
+"""Chapter 9 — :func:`reproduce`: every study of a configuration, written to ``table1.md``,
+``results.json`` and ``figures/`` (the ``minimanc reproduce`` command is
+:mod:`minimanc.cli.reproduce`)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from minimanc.studies.config import StudyConfig
+from minimanc.studies.figures import write_figures
+from minimanc.studies.jobs import write_json
+from minimanc.studies.report import json_safe, table_markdown
+from minimanc.studies.runner import Study
+
+__all__ = ["reproduce"]
+
+
+def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers: int = 1,
+              progress: bool = True, figures: bool = True,
+              log: Callable[[str], None] | None = None) -> dict:
+    """Run every study of ``config`` and write ``table1.md``, ``results.json`` and
+    ``figures/`` under ``out``. Returns the results dict (also with ``"files"``)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    study = Study(config, out, engine=engine, workers=workers, progress=progress, log=log)
+    try:
+        results = study.run()
+        files = {"table1": str(out / "table1.md"), "results": str(out / "results.json")}
+        if figures:
+            t0 = time.perf_counter()
+            paths = write_figures(study, results, out / "figures")
+            study.timing["figures"] = time.perf_counter() - t0
+            results["timing_s"]["figures"] = round(study.timing["figures"], 1)
+            files["figures"] = [str(p) for p in paths]
+    finally:
+        study.close()
+    results["files"] = files
+    (out / "table1.md").write_text(table_markdown(results))
+    write_json(out / "results.json", json_safe(results))
+    return results
+

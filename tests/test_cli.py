@@ -1,0 +1,132 @@
+"""Chapter 0 — the ``minimanc`` command as a package: one module per command group, choices
+from the library's registries, one set of argument validators (minimanc.cli.common)."""
+
+from __future__ import annotations
+
+import math
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from minimanc import cli, inputs
+from minimanc.cli import common
+from minimanc.engine import ENGINES
+from minimanc.errors import UsageError
+
+ROOT = Path(__file__).resolve().parent.parent
+
+ENGINE_COMMANDS = [
+    ["reproduce"],
+    ["highway", "train", "--data", "x.npz"],
+    ["highway", "eval"],
+    ["highway", "render"],
+]
+
+
+@pytest.mark.parametrize("argv", ENGINE_COMMANDS)
+def test_engine_choices_are_the_engine_registry(argv, capsys):
+    parser = cli.build_parser()
+    for name in ENGINES:
+        assert parser.parse_args([*argv, "--engine", name]).engine == name
+    with pytest.raises(SystemExit) as exc:
+        parser.parse_args([*argv, "--engine", "torch"])
+    assert exc.value.code == 2 and "invalid choice: 'torch'" in capsys.readouterr().err
+
+
+def test_setting_choices_are_the_settings_registry():
+    parser = cli.build_parser()
+    for setting in inputs.SETTINGS:
+        args = parser.parse_args(["highway", "train", "--data", "x.npz", "--setting", setting])
+        assert args.setting == setting
+
+
+def test_the_commands_do_not_retype_the_engine_names():
+    pattern = re.compile(r"""["']jax["']\s*,\s*["']numpy["']|["']numpy["']\s*,\s*["']jax["']""")
+    commands = [p for p in sorted((ROOT / "minimanc").rglob("*.py"))
+                if "add_argument(" in p.read_text()]
+    assert len(commands) >= 4
+    typed = [str(p.relative_to(ROOT)) for p in commands if pattern.search(p.read_text())]
+    assert not typed, f"engine names retyped instead of minimanc.engine.ENGINES: {typed}"
+
+
+def test_every_command_lives_in_the_cli_package():
+    parser = cli.build_parser()
+    for argv in (["info"], ["exercises", "build"], ["grade", "nb.ipynb"],
+                 ["data", "generate"], ["reproduce"], ["highway", "collect"]):
+        func = parser.parse_args(argv).func
+        assert func.__module__.startswith("minimanc.cli."), (argv, func.__module__)
+    for old in ("minimanc.highway_cli", "minimanc.world.cli", "minimanc.studies.cli"):
+        with pytest.raises(ModuleNotFoundError):
+            __import__(old)
+
+
+def test_a_command_whose_chapter_is_missing_is_left_out(monkeypatch, capsys):
+    monkeypatch.setitem(cli.PLUGINS, "minimanc.cli.data", "minimanc.no_such_chapter")
+    parser = cli.build_parser()
+    assert parser.parse_args(["reproduce"]).command == "reproduce"
+    with pytest.raises(SystemExit):
+        parser.parse_args(["data", "generate"])
+    assert "invalid choice: 'data'" in capsys.readouterr().err
+
+
+def test_the_chapter_map_is_importable_from_the_command_package():
+    assert cli.CHAPTERS[0][0] == "00" and len(cli.CHAPTERS) == 11
+
+
+@pytest.mark.parametrize("argv,expected", [
+    (["exercises", "run", "missing.ipynb", "--timeout", "0"],
+     "minimanc exercises: error: --timeout must be an integer >= 1, got 0"),
+    (["grade", "missing.ipynb", "--timeout", "-1"],
+     "minimanc grade: error: --timeout must be an integer >= 1, got -1"),
+])
+def test_timeouts_are_checked_with_the_shared_validator(argv, expected, capsys):
+    assert cli.main(argv) == 2
+    assert capsys.readouterr().err.strip() == expected
+
+
+def test_python_dash_m_runs_the_command():
+    out = subprocess.run([sys.executable, "-m", "minimanc", "data", "generate", "--scenes",
+                          "-3"], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert out.returncode == 2
+    assert out.stderr.strip() == "minimanc data: error: --scenes must be an integer >= 1, got -3"
+
+
+# --------------------------------------------------------------------------- validators
+
+
+@given(st.integers(min_value=-5, max_value=5), st.integers(min_value=-50, max_value=50))
+def test_check_int_accepts_exactly_the_integers_from_the_minimum(minimum, value):
+    if value >= minimum:
+        assert common.check_int(value, "--n", minimum) == value
+    else:
+        with pytest.raises(UsageError, match=rf"^--n must be an integer >= {minimum}, got "):
+            common.check_int(value, "--n", minimum)
+
+
+@pytest.mark.parametrize("value", [True, 2.0, "3", None])
+def test_check_int_refuses_what_is_not_an_int(value):
+    with pytest.raises(UsageError, match="--n must be an integer >= 0"):
+        common.check_int(value, "--n", 0)
+
+
+@given(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10, 10),
+                 st.booleans(), st.none(), st.text(max_size=3)))
+def test_check_positive_accepts_exactly_the_positive_finite_numbers(value):
+    good = (not isinstance(value, bool) and isinstance(value, int | float)
+            and math.isfinite(value) and value > 0)
+    if good:
+        assert common.check_positive(value, "--lr") == value
+    else:
+        with pytest.raises(UsageError, match=r"^--lr must be a positive finite number, got "):
+            common.check_positive(value, "--lr")
+
+
+def test_check_choices_names_the_unknown_and_the_choices():
+    assert common.check_choices(["a"], "--models", ("a", "b")) == ["a"]
+    with pytest.raises(UsageError, match=r"^--models: unknown model\(s\) c, d; choose from a, b$"):
+        common.check_choices(["a", "c", "d"], "--models", ("a", "b"), what="model(s)")
