@@ -12,6 +12,8 @@ attribute           "numpy"                             "jax"
 ``grad``            :func:`minimanc.autodiff.grad`      ``jax.grad``
 ``value_and_grad``  :func:`minimanc.autodiff.value_and_grad`  ``jax.value_and_grad``
 ``jit``             identity                            ``jax.jit``
+``scan``            :func:`minimanc.autodiff.core.scan`  ``jax.lax.scan``
+``device_put``      identity                            arrays of a pytree to JAX
 ``nn``              :mod:`minimanc.autodiff.nn`         the functions below
 ==================  ==================================  ===========================
 
@@ -37,7 +39,16 @@ ENGINES = ("numpy", "jax")
 
 
 class Engine:
-    """An autodiff engine: ``name``, ``xp``, ``grad``, ``value_and_grad``, ``jit``, ``nn``."""
+    """An autodiff engine: ``name``, ``xp``, ``grad``, ``value_and_grad``, ``jit``, ``scan``,
+    ``device_put``, ``nn``.
+
+    ``scan(f, init, xs, length=None) -> (carry, ys)`` is ``jax.lax.scan``'s loop
+    (``carry, y_i = f(carry, xs[i])``, the ``y_i`` stacked); differentiable with
+    respect to ``init``, ``xs`` and the traced values ``f`` closes over. On the
+    NumPy engine the whole loop is one node of the tape. ``device_put(tree)``
+    returns the pytree with its arrays in the engine's own array type (once, before
+    a training loop), unchanged on NumPy.
+    """
 
     def __init__(
         self,
@@ -47,12 +58,16 @@ class Engine:
         value_and_grad: Callable,
         jit: Callable,
         nn_loader: Callable[[], Any],
+        scan: Callable,
+        device_put: Callable[[Any], Any],
     ) -> None:
         self.name = name
         self.xp = xp
         self.grad = grad
         self.value_and_grad = value_and_grad
         self.jit = jit
+        self.scan = scan
+        self.device_put = device_put
         self._nn_loader = nn_loader
         self._nn = None
 
@@ -76,6 +91,7 @@ def _identity_jit(fun: Callable | None = None, **kwargs) -> Callable:
 
 def _numpy_engine() -> Engine:
     from minimanc import autodiff
+    from minimanc.autodiff import core
 
     return Engine(
         name="numpy",
@@ -84,6 +100,8 @@ def _numpy_engine() -> Engine:
         value_and_grad=autodiff.value_and_grad,
         jit=_identity_jit,
         nn_loader=lambda: importlib.import_module("minimanc.autodiff.nn"),
+        scan=core.scan,
+        device_put=lambda tree: tree,
     )
 
 
@@ -166,6 +184,8 @@ def _jax_engine() -> Engine:
         value_and_grad=jax.value_and_grad,
         jit=_jax_jit(jax),
         nn_loader=lambda: _jax_nn(jax),
+        scan=jax.lax.scan,
+        device_put=lambda tree: jax.tree_util.tree_map(jax.numpy.asarray, tree),
     )
 
 

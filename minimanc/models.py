@@ -497,18 +497,6 @@ def _encode(name: str, params: dict, obs: dict, cfg: ModelConfig, eng: Any) -> d
     return enc
 
 
-def _take(enc: dict, i: int, length: int) -> dict:
-    """Rows of time step ``i`` from an encoding of ``length × B`` flattened frames."""
-    out = {}
-    for k, v in enc.items():
-        if v is None:
-            out[k] = None
-            continue
-        B = v.shape[0] // length
-        out[k] = v[i * B:(i + 1) * B]
-    return out
-
-
 def _head(name: str, params: dict, enc: dict, state: dict, cfg: ModelConfig,
           eng: Any) -> tuple[Any, dict, dict]:
     """One time step of the recurrent part and the head."""
@@ -586,8 +574,8 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
     """Run ``L`` steps on time-major observations ``(L, B, ...)``: ``(controls (L, B, 2), state)``.
 
     Equal to ``L`` calls of :func:`step` (tested), but the backbone runs once
-    on all ``L·B`` frames. On JAX the time loop is one ``jax.lax.scan``
-    (compiled once instead of unrolled ``L`` times; equal to the loop, tested).
+    on all ``L·B`` frames, and the time loop is one ``eng.scan`` on both engines
+    (on JAX compiled once instead of unrolled ``L`` times; on NumPy one tape node).
     Used to train the recurrent models on truncated
     back-propagation-through-time windows. With ``feedback_motion`` (DMP
     models), the DMP's initial velocities at step ``i > 0`` are the model's
@@ -607,33 +595,8 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
     enc = _encode(name, params, flat, cfg, eng)
     enc.pop("features")
     feedback = feedback_motion and name in DMP_MODELS
-    if eng.name == "jax":
-        return _scan_heads(name, params, enc, state, cfg, eng, L, feedback, return_aux)
-    outs, auxs = [], []
-    for i in range(L):
-        enc_i = _take(enc, i, L)
-        if feedback and i > 0:
-            enc_i["motion"] = outs[-1]
-        controls, state, aux = _head(name, params, enc_i, state, cfg, eng)
-        outs.append(controls)
-        auxs.append(aux)
-    if not return_aux:
-        return xp.stack(outs, axis=0), state
-    stacked = {k: xp.stack([a[k] for a in auxs], axis=0) for k in auxs[0]}
-    return xp.stack(outs, axis=0), state, stacked
-
-
-def _scan_heads(name: str, params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any,
-                L: int, feedback: bool, return_aux: bool) -> tuple:
-    """The time loop of :func:`sequence` as one ``jax.lax.scan``: the same steps as the
-    Python loop, but compiled once instead of unrolled ``L`` times (a 40-step window
-    compiles in seconds instead of a minute)."""
-    import jax
-
-    xp = eng.xp
     none_keys = [k for k, v in enc.items() if v is None]
-    xs = {k: xp.reshape(v, (L, v.shape[0] // L) + tuple(v.shape[1:]))
-          for k, v in enc.items() if v is not None}
+    xs = {k: xp.reshape(v, (L, B) + tuple(v.shape[1:])) for k, v in enc.items() if v is not None}
 
     def body(carry: tuple, x: dict) -> tuple:
         st, prev, i = carry
@@ -646,10 +609,9 @@ def _scan_heads(name: str, params: dict, enc: dict, state: dict, cfg: ModelConfi
         new_st = {k: v.astype(st[k].dtype) for k, v in new_st.items()}
         return (new_st, controls, i + 1), (controls, aux if return_aux else {})
 
-    B = next(iter(xs.values())).shape[1]
     dtype = params["backbone"]["convs"][0]["w"].dtype
     prev0 = xp.zeros((B, 2), dtype=dtype)
-    (state, _, _), (outs, auxs) = jax.lax.scan(body, (dict(state), prev0, 0), xs)
+    (state, _, _), (outs, auxs) = eng.scan(body, (dict(state), prev0, 0), xs)
     if not return_aux:
         return outs, state
     return outs, state, auxs

@@ -680,11 +680,7 @@ def fit(
             std = ck["control_std"]
 
     step_fn = make_step(name, cfg, tc, eng, 1.0 / std)
-    if eng.name == "jax":
-        import jax
-
-        params = jax.tree_util.tree_map(lambda a: jax.numpy.asarray(a), params)
-        opt_state = jax.tree_util.tree_map(lambda a: jax.numpy.asarray(a), opt_state)
+    params, opt_state = eng.device_put(params), eng.device_put(opt_state)
 
     bar = None
     for epoch in range(start_epoch, tc.epochs):

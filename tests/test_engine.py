@@ -176,3 +176,106 @@ def test_numpy_engine_float32_network_gives_float32_gradients():
         targets.astype(np.float64), get_engine("jax"))
     for k in params:
         np.testing.assert_allclose(g[k], ref[k], rtol=2e-3, atol=2e-5)
+
+
+# --------------------------------------------------------------------------- scan
+def _rnn_loss(params, h0, xs, eng, use_scan=True):
+    """A pytree carry ({"h", "n"}, an integer counter) and a pytree y, params closed over."""
+    xp = eng.xp
+
+    def f(carry, x):
+        h = xp.tanh(carry["h"] @ params["W"] + x["u"] * params["b"])
+        h = xp.where(carry["n"] > 0, h, h * 0.5)
+        return {"h": h, "n": carry["n"] + 1}, {"s": xp.sum(h * h, axis=-1), "h": h}
+
+    carry = {"h": h0, "n": 0}
+    if use_scan:
+        carry, ys = eng.scan(f, carry, {"u": xs})
+    else:
+        outs = []
+        for i in range(xs.shape[0]):
+            carry, y = f(carry, {"u": xs[i]})
+            outs.append(y)
+        ys = {k: xp.stack([y[k] for y in outs]) for k in outs[0]}
+    return xp.sum(carry["h"] ** 3) + xp.sum(ys["s"] * ys["s"]) + xp.mean(ys["h"])
+
+
+@settings(max_examples=15, deadline=None)
+@given(L=st.integers(1, 6), B=st.integers(1, 3), H=st.integers(1, 4), seed=st.integers(0, 999))
+def test_scan_equals_the_loop_and_lax_scan_with_gradients(L, B, H, seed):
+    rng = np.random.default_rng(seed)
+    params = {"W": rng.normal(size=(H, H)) * 0.7, "b": rng.normal(size=H)}
+    h0, xs = rng.normal(size=(B, H)), rng.normal(size=(L, B, H))
+    eng, jeng = get_engine("numpy"), get_engine("jax")
+    args = (0, 1, 2)
+    v_scan, g_scan = eng.value_and_grad(_rnn_loss, args)(params, h0, xs, eng)
+    v_loop, g_loop = eng.value_and_grad(_rnn_loss, args)(params, h0, xs, eng, False)
+    v_jax, g_jax = jeng.value_and_grad(_rnn_loss, args)(params, h0, xs, jeng)
+    np.testing.assert_allclose(v_scan, v_loop, rtol=1e-12)
+    np.testing.assert_allclose(v_scan, float(v_jax), rtol=1e-10)
+    for ours, loop, jx in zip(g_scan, g_loop, g_jax):
+        for a, b, c in zip(*(autodiff.tree_flatten(t)[0] for t in (ours, loop, jx))):
+            np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12)
+            np.testing.assert_allclose(a, np.asarray(c), rtol=1e-8, atol=1e-10)
+
+
+def test_scan_is_one_node_of_the_tape():
+    eng = get_engine("numpy")
+    seen = []
+
+    def loss(w, xs):
+        carry, ys = eng.scan(lambda c, x: (anp.sin(c * w + x), c * w), anp.zeros(3), xs)
+        seen.append(carry)
+        return anp.sum(carry) + anp.sum(ys)
+
+    eng.grad(loss)(np.ones(3), np.ones((50, 3)))
+    nodes = autodiff.core.toposort(seen[0])
+    names = [b.primitive_name for b in nodes]
+    assert names.count("_scan_node") == 1 and len(nodes) <= 5  # select, scan, w, xs
+
+
+def test_scan_without_tracing_and_with_length():
+    eng = get_engine("numpy")
+    carry, ys = eng.scan(lambda c, _: (c + 1.0, c * 2.0), np.float64(0.0), None, length=4)
+    assert float(carry) == 4.0 and ys.tolist() == [0.0, 2.0, 4.0, 6.0]
+    carry, ys = get_engine("jax").scan(lambda c, _: (c + 1.0, c * 2.0), 0.0, None, length=4)
+    assert float(carry) == 4.0 and np.asarray(ys).tolist() == [0.0, 2.0, 4.0, 6.0]
+
+
+def test_scan_float32_stays_float32():
+    eng = get_engine("numpy")
+    w = np.float32([0.5, -1.0])
+    xs = np.ones((4, 2), np.float32)
+
+    def loss(w, h0, xs):
+        h, ys = eng.scan(lambda h, x: (anp.tanh(h * w + x), h * h), h0, xs)
+        assert h.value.dtype == np.float32 and ys.value.dtype == np.float32
+        return anp.sum(h) + anp.sum(ys)
+
+    g = eng.grad(loss, (0, 1, 2))(w, np.zeros(2, np.float32), xs)
+    assert all(x.dtype == np.float32 for x in g)
+
+
+def test_scan_bad_arguments():
+    eng = get_engine("numpy")
+    with pytest.raises(TypeError, match="shape and dtype"):
+        eng.scan(lambda c, x: (c.astype(np.float32), x), np.zeros(2), np.zeros((3, 2)))
+    with pytest.raises(TypeError, match="structure of init"):
+        eng.scan(lambda c, x: ((c, c), x), np.zeros(2), np.zeros((3, 2)))
+    with pytest.raises(TypeError, match="pair"):
+        eng.scan(lambda c, x: c, np.zeros(2), np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="different leading lengths"):
+        eng.scan(lambda c, x: (c, x), np.zeros(2), {"a": np.zeros((3, 2)), "b": np.zeros(4)})
+    with pytest.raises(ValueError, match="length="):
+        eng.scan(lambda c, x: (c, x), np.zeros(2), None)
+    with pytest.raises(ValueError, match="length=0"):
+        eng.scan(lambda c, x: (c, x), np.zeros(2), None, length=0)
+    with pytest.raises(ValueError, match="length=2 but xs"):
+        eng.scan(lambda c, x: (c, x), np.zeros(2), np.zeros((3, 2)), length=2)
+
+
+def test_device_put():
+    tree = {"a": np.ones(2), "b": [np.zeros(3)]}
+    assert get_engine("numpy").device_put(tree) is tree
+    out = get_engine("jax").device_put(tree)
+    assert isinstance(out["b"][0], jax.Array)

@@ -59,7 +59,14 @@ __all__ = [
     "value_and_grad",
     "tree_flatten",
     "tree_unflatten",
+    "scan",
 ]
+
+# The tapes of the scan steps being traced, innermost last: {id(box): box} of the boxes
+# made during the step (see :func:`scan`).
+_FRAMES: list[dict[int, Box]] = []
+# How many calls of value_and_grad are running: scan traces its steps only inside one.
+_ACTIVE = [0]
 
 
 # ---------------------------------------------------------------------------
@@ -233,13 +240,17 @@ def primitive(fun: Callable) -> Callable:
             raw = tuple(_unbox(a) for a in args)
             if traced.fwd is not None:  # custom (fwd, bwd) pair, see defvjp_fwd
                 ans, res = traced.fwd(*raw, **kwargs)
-                return Box(ans, parents, traced, (), None, res)
-            if traced.vjps is None:
+                box = Box(ans, parents, traced, (), None, res)
+            elif traced.vjps is None:
                 raise NotImplementedError(
                     f"VJP of primitive '{name}' is not defined: register one with "
                     f"defvjp({name}, ...) or defvjp_fwd({name}, fwd, bwd)"
                 )
-            return Box(fun(*raw, **kwargs), parents, traced, raw, kwargs)
+            else:
+                box = Box(fun(*raw, **kwargs), parents, traced, raw, kwargs)
+            if _FRAMES:  # inside a scan step: the box belongs to that step's tape
+                _FRAMES[-1][id(box)] = box
+            return box
         except ValueError as err:
             msg = str(err)
             if msg.startswith(f"{name}:"):
@@ -372,8 +383,11 @@ def parent_cotangents(box: Box, g: np.ndarray):
     the cotangent ``g`` of ``box``: one application of the chain rule (a VJP), its
     shape checked and its dtype that of the parent (float32 stays float32)."""
     for argnum, parent, ct in _raw_cotangents(box, g):
-        ct = np.asarray(ct)
         pval = parent._value
+        if isinstance(pval, _Outputs):  # a scan's outputs: one cotangent (or None) each
+            yield argnum, parent, ct
+            continue
+        ct = np.asarray(ct)
         if ct.shape != np.shape(pval):
             raise ValueError(
                 f"VJP of '{_name(box._prim)}' returned a cotangent of shape {ct.shape} "
@@ -406,8 +420,15 @@ def backward(end: Box, g: np.ndarray,
             if on_edge is not None:
                 on_edge(box, argnum, parent, ct)
             key = id(parent)
-            cotangents[key] = ct if key not in cotangents else cotangents[key] + ct
+            cotangents[key] = ct if key not in cotangents else _add(cotangents[key], ct)
     return leaves
+
+
+def _add(a, b):
+    """Sum two cotangents; those of a scan's outputs are tuples with ``None`` for zero."""
+    if isinstance(a, tuple):
+        return tuple(y if x is None else x if y is None else x + y for x, y in zip(a, b))
+    return a + b
 
 
 # ---------------------------------------------------------------------------
@@ -529,7 +550,11 @@ def value_and_grad(
             boxes = [Box(a) for a in arrays]
             per_arg.append((boxes, rebuild, leaves))
             args[n] = rebuild(boxes)
-        out = fun(*args, **kwargs)
+        _ACTIVE[0] += 1
+        try:
+            out = fun(*args, **kwargs)
+        finally:
+            _ACTIVE[0] -= 1
         if has_aux:
             if not (isinstance(out, tuple | list) and len(out) == 2):
                 raise ValueError("has_aux=True requires the function to return (value, aux)")
@@ -585,3 +610,230 @@ def grad(fun: Callable, argnums: int | Sequence[int] = 0, has_aux: bool = False)
 def _strip_boxes(tree):
     leaves, _, rebuild = tree_flatten(tree)
     return rebuild([_unbox(leaf) for leaf in leaves])
+
+
+# ---------------------------------------------------------------------------
+# scan: a loop that is one node of the tape
+# ---------------------------------------------------------------------------
+class _Outputs(tuple):
+    """The value of a scan node: its output leaves (final carry leaves, then stacked ys)."""
+
+
+@primitive
+def _select(outs, k):
+    """Output ``k`` of a scan node."""
+    return outs[k]
+
+
+def _select_fwd(outs, k):
+    return outs[k], (k, len(outs))
+
+
+def _select_bwd(g, res):
+    k, n = res
+    return tuple(g if j == k else None for j in range(n)), None
+
+
+defvjp_fwd(_select, _select_fwd, _select_bwd)
+
+
+@primitive
+def _scan_node(*args):
+    """The tape node of one :func:`scan` (built by :func:`scan`, never called)."""
+    raise NotImplementedError("_scan_node is built by scan")  # pragma: no cover
+
+
+def _is_float(value) -> bool:
+    return np.issubdtype(np.result_type(value), np.floating)
+
+
+def _scan_length(xs_vals: list, xs_paths: list[str], length: int | None) -> int:
+    lengths = {}
+    for v, p in zip(xs_vals, xs_paths):
+        if np.ndim(v) == 0:
+            raise ValueError(f"scan: every leaf of xs needs a leading (time) axis; xs{p} is "
+                             f"a scalar of shape {np.shape(v)}")
+        lengths[p] = np.shape(v)[0]
+    if len(set(lengths.values())) > 1:
+        raise ValueError(f"scan: the leaves of xs have different leading lengths {lengths}")
+    if length is not None and (not isinstance(length, numbers.Integral)
+                               or isinstance(length, bool) or length < 1):
+        raise ValueError(f"scan: length must be a positive integer, got length={length!r}")
+    if lengths:
+        n = next(iter(lengths.values()))
+        if length is not None and length != n:
+            raise ValueError(f"scan: length={length} but xs has leading length {n}")
+        if n < 1:
+            raise ValueError("scan: xs has leading length 0; scan needs at least one step")
+        return n
+    if length is None:
+        raise ValueError("scan: xs has no arrays, so pass length=<number of steps>")
+    return int(length)
+
+
+def _check_carry(new, paths: list[str], new_paths: list[str], ref: list) -> None:
+    if new_paths != paths:
+        raise TypeError(f"scan: f must return a carry with the structure of init: init has "
+                        f"leaves {paths}, f returned {new_paths}")
+    for p, a, b in zip(paths, ref, new):
+        vb = _unbox(b)
+        if np.shape(a) != np.shape(vb) or np.result_type(a) != np.result_type(vb):
+            raise TypeError(
+                f"scan: the carry must keep its shape and dtype; at init{p} it has shape "
+                f"{np.shape(a)} and dtype {np.result_type(a)} but f returned shape "
+                f"{np.shape(vb)} and dtype {np.result_type(vb)} (cast it with .astype)")
+
+
+def _split_step_output(out) -> tuple:
+    if not (isinstance(out, tuple | list) and len(out) == 2):
+        raise TypeError(f"scan: f(carry, x) must return a pair (new_carry, y), got "
+                        f"{type(out).__name__}")
+    return out
+
+
+def _stack_ys(per_step: list[list]) -> list:
+    return [np.stack([np.asarray(step[j]) for step in per_step])
+            for j in range(len(per_step[0]))]
+
+
+def scan(f: Callable, init, xs, length: int | None = None) -> tuple:
+    """``jax.lax.scan`` for this engine: ``(carry, ys)`` of the loop ::
+
+        carry = init
+        for i in range(L):
+            carry, y_i = f(carry, xs[i])      # xs[i]: every leaf of xs at index i
+        ys = stack of the y_i along a new leading axis
+
+    ``init``, ``xs`` and ``y`` are pytrees; the carry keeps its structure, shapes
+    and dtypes (a ``TypeError`` otherwise), and ``L`` is the leading length of
+    ``xs``' leaves (or ``length`` when ``xs`` is ``None``). Inside
+    :func:`grad` the loop is **one node** of the tape: each step runs on a small
+    tape of its own whose inputs are fresh leaves for the carry and ``x``; the
+    node's VJP runs the steps' tapes in reverse order, passing the carry's
+    cotangent from step to step, and sums what each step sends to traced
+    values that ``f`` closes over (parameters). Derivatives with respect to
+    ``init``, ``xs`` and closed-over values are those of the unrolled loop.
+    """
+    init_leaves, init_paths, init_rebuild = tree_flatten(init)
+    xs_leaves, xs_paths, xs_rebuild = tree_flatten(xs)
+    init_vals = [np.asarray(_unbox(v)) for v in init_leaves]
+    xs_vals = [np.asarray(_unbox(v)) for v in xs_leaves]
+    n = _scan_length(xs_vals, xs_paths, length)
+    traced = _ACTIVE[0] > 0 or any(isinstance(v, Box) for v in init_leaves + xs_leaves)
+    if not traced:
+        return _scan_plain(f, init_rebuild, init_paths, init_vals, xs_rebuild, xs_vals, n)
+    carry_vals = init_vals
+    steps, ys_steps, y_rebuild = [], [], None
+    for i in range(n):
+        c_in = [Box(v) if _is_float(v) else v for v in carry_vals]
+        x_in = [Box(v[i]) if _is_float(v) else v[i] for v in xs_vals]
+        frame: dict[int, Box] = {}
+        _FRAMES.append(frame)
+        try:
+            c_out, y = _split_step_output(f(init_rebuild(c_in), xs_rebuild(x_in)))
+        finally:
+            _FRAMES.pop()
+        c_leaves, c_paths, _ = tree_flatten(c_out)
+        _check_carry(c_leaves, init_paths, c_paths, init_vals)
+        y_leaves, _, y_rebuild = tree_flatten(y)
+        outs = [b for b in c_leaves + y_leaves if isinstance(b, Box)]
+        order = _step_order(outs, frame)
+        steps.append((frame, c_in, x_in, c_leaves, y_leaves, order))
+        carry_vals = [np.asarray(_unbox(v)) for v in c_leaves]
+        ys_steps.append([_unbox(v) for v in y_leaves])
+    ys_vals = _stack_ys(ys_steps)
+    step_leaves = {id(b) for s in steps for b in s[1] + s[2] if isinstance(b, Box)}
+    parents = [(j, b) for j, b in enumerate(init_leaves) if isinstance(b, Box)]
+    parents += [(len(init_leaves) + j, b) for j, b in enumerate(xs_leaves) if isinstance(b, Box)]
+    outer: dict[int, Box] = {}
+    for frame, *_, order in steps:
+        for b in order:
+            if id(b) not in frame and id(b) not in step_leaves:
+                outer.setdefault(id(b), b)
+    base = len(init_leaves) + len(xs_leaves)
+    parents += [(base + k, b) for k, b in enumerate(outer.values())]
+    out_vals = carry_vals + ys_vals
+    if not parents:  # nothing traced reaches the loop
+        return init_rebuild(carry_vals), y_rebuild(ys_vals)
+    res = (steps, len(carry_vals), init_vals, xs_vals, [b._value for b in outer.values()],
+           list(outer), len(init_leaves), len(xs_leaves))
+    node = Box(_Outputs(out_vals), tuple(parents), _scan_node, (), None, res)
+    if _FRAMES:
+        _FRAMES[-1][id(node)] = node
+    outs = [_select(node, k) if _is_float(v) else v for k, v in enumerate(out_vals)]
+    nc = len(carry_vals)
+    return init_rebuild(outs[:nc]), y_rebuild(outs[nc:])
+
+
+def _step_order(outs: list[Box], frame: dict[int, Box]) -> list[Box]:
+    """The boxes of one scan step's tape reachable from its outputs, each before its
+    parents; boxes made outside the step (its inputs, closed-over values) end the walk."""
+    def parents_of(b):
+        if isinstance(b, _Outputs):
+            return b
+        return [p for _, p in b._parents] if id(b) in frame else ()
+
+    return toposort(_Outputs(outs), parents_of)[1:]
+
+
+def _scan_plain(f, init_rebuild, init_paths, init_vals, xs_rebuild, xs_vals, n) -> tuple:
+    """The loop of :func:`scan` on plain values (nothing traced)."""
+    carry, ys_steps, y_rebuild = init_rebuild(init_vals), [], None
+    for i in range(n):
+        carry, y = _split_step_output(f(carry, xs_rebuild([v[i] for v in xs_vals])))
+        c_leaves, c_paths, _ = tree_flatten(carry)
+        _check_carry(c_leaves, init_paths, c_paths, init_vals)
+        y_leaves, _, y_rebuild = tree_flatten(y)
+        ys_steps.append(y_leaves)
+    return carry, y_rebuild(_stack_ys(ys_steps))
+
+
+def _accumulate(cts: dict, key: int, ct) -> None:
+    cts[key] = ct if key not in cts else cts[key] + ct
+
+
+def _scan_bwd(g: tuple, res: tuple) -> tuple:
+    """VJP of a scan node: the steps' tapes in reverse, the carry's cotangent passed back."""
+    steps, nc, init_vals, xs_vals, outer_vals, outer_ids, n_init, n_xs = res
+    g_carry = list(g[:nc])
+    g_ys = g[nc:]
+    x_cts = [None] * n_xs
+    outer_cts: dict[int, np.ndarray] = {}
+    outer_set = set(outer_ids)
+    for i in range(len(steps) - 1, -1, -1):
+        frame, c_in, x_in, c_out, y_out, order = steps[i]
+        cts: dict[int, Any] = {}
+        for b, ct in zip(c_out, g_carry):
+            if isinstance(b, Box) and ct is not None:
+                _accumulate(cts, id(b), ct)
+        for b, gy in zip(y_out, g_ys):
+            if isinstance(b, Box) and gy is not None:
+                _accumulate(cts, id(b), gy[i])
+        boundary: dict[int, Any] = {}
+        for box in order:
+            ct = cts.pop(id(box), None)
+            if ct is None:
+                continue
+            if id(box) not in frame:  # a fresh input of this step or a closed-over value
+                boundary[id(box)] = ct
+                continue
+            for _, parent, pct in parent_cotangents(box, ct):
+                key = id(parent)
+                cts[key] = pct if key not in cts else _add(cts[key], pct)
+        g_carry = [boundary.get(id(b)) if isinstance(b, Box) else None for b in c_in]
+        for j, b in enumerate(x_in):
+            if isinstance(b, Box) and id(b) in boundary:
+                if x_cts[j] is None:
+                    x_cts[j] = np.zeros_like(xs_vals[j])
+                x_cts[j][i] += boundary[id(b)]
+        for key, ct in boundary.items():
+            if key in outer_set:
+                _accumulate(outer_cts, key, ct)
+    cts_init = [np.zeros_like(v) if ct is None else ct for v, ct in zip(init_vals, g_carry)]
+    cts_xs = [np.zeros_like(v) if ct is None else ct for v, ct in zip(xs_vals, x_cts)]
+    cts_outer = [outer_cts.get(k, None) for k in outer_ids]
+    cts_outer = [np.zeros_like(v) if ct is None else ct for v, ct in zip(outer_vals, cts_outer)]
+    return tuple(cts_init + cts_xs + cts_outer)
+
+
+defvjp_fwd(_scan_node, lambda *args: (None, None), _scan_bwd)
