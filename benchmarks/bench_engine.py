@@ -99,13 +99,7 @@ def main(args: argparse.Namespace) -> None:
         for name in ("numpy", "jax"):
             eng = get_engine(name)
             step = make_step(eng)
-            if name == "jax":
-                import jax.numpy as jnp
-
-                data = (jnp.asarray(x), jnp.asarray(y))
-                p0 = optim.tree_map(jnp.asarray, params)
-            else:
-                data, p0 = (x, y), params
+            data, p0 = eng.device_put((x, y)), eng.device_put(params)
             state = optim.adam_init(p0)
             t0 = time.perf_counter()
             out = step(p0, state, *data)  # warm-up (JAX compiles here)

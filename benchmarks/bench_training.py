@@ -13,8 +13,10 @@ Prints figures, asserts nothing:
    min), then its open-loop validation loss on the 200 validation scenes.
 
     python benchmarks/bench_training.py [--quick] [--rounds 5] [--steps 5] [--batch 64]
+                                        [--steps-only]
 
-``--quick``: fewer rounds and a one-epoch training on 100 scenes. The data come
+``--quick``: fewer rounds and a one-epoch training on 100 scenes; ``--steps-only``:
+part 1 alone. The data come
 from :func:`minimanc.world.generate_splits` with ``cache=True`` (generated once,
 several minutes; then loaded in seconds).
 """
@@ -119,12 +121,16 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--rounds", type=int, default=None)
     ap.add_argument("--steps", type=int, default=5)
     ap.add_argument("--batch", type=int, default=64)
+    ap.add_argument("--steps-only", action="store_true",
+                    help="only the train-step comparison (part 1)")
     args = ap.parse_args(argv)
     rounds = args.rounds or (2 if args.quick else 5)
     train_ds, val_ds = world.generate_splits(650, 200, seed=0, cache=True, progress=True)
     cfg = models.ModelConfig()
     print(f"data: {train_ds}")
     bench_steps(train_ds, cfg, args.batch, rounds, args.steps)
+    if args.steps_only:
+        return
     bench_latency(train_ds, cfg, 100 if args.quick else 500)
     bench_training(train_ds, val_ds, cfg, args.quick)
 

@@ -227,7 +227,7 @@ def primitive(fun: Callable) -> Callable:
 
     @functools.wraps(fun)
     def traced(*args, **kwargs):
-        parents = tuple((i, a) for i, a in enumerate(args) if isinstance(a, Box))
+        parents = [(i, a) for i, a in enumerate(args) if isinstance(a, Box)]
         try:
             if not parents:
                 return fun(*args, **kwargs)
@@ -237,17 +237,17 @@ def primitive(fun: Callable) -> Callable:
                         f"{name}: keyword argument {key!r} is traced; pass differentiable "
                         "values positionally"
                     )
-            raw = tuple(_unbox(a) for a in args)
+            raw = [a._value if isinstance(a, Box) else a for a in args]
             if traced.fwd is not None:  # custom (fwd, bwd) pair, see defvjp_fwd
                 ans, res = traced.fwd(*raw, **kwargs)
-                box = Box(ans, parents, traced, (), None, res)
+                box = Box(ans, tuple(parents), traced, (), None, res)
             elif traced.vjps is None:
                 raise NotImplementedError(
                     f"VJP of primitive '{name}' is not defined: register one with "
                     f"defvjp({name}, ...) or defvjp_fwd({name}, fwd, bwd)"
                 )
             else:
-                box = Box(fun(*raw, **kwargs), parents, traced, raw, kwargs)
+                box = Box(fun(*raw, **kwargs), tuple(parents), traced, raw, kwargs)
             if _FRAMES:  # inside a scan step: the box belongs to that step's tape
                 _FRAMES[-1][id(box)] = box
             return box
@@ -303,7 +303,11 @@ def unbroadcast(target, g: np.ndarray) -> np.ndarray:
     one; the VJP of a copy is a sum, so we sum over exactly those axes. When
     ``target`` is a floating-point array the result keeps its dtype.
     """
-    if isinstance(target, tuple):
+    if type(target) is np.ndarray and type(g) is np.ndarray:
+        if g.shape == target.shape and (g.dtype == target.dtype or target.dtype.kind != "f"):
+            return g  # the common case: nothing was broadcast
+        shape, dtype = target.shape, target.dtype
+    elif isinstance(target, tuple):
         shape, dtype = target, None
     else:
         shape, dtype = np.shape(target), np.result_type(target)
@@ -317,7 +321,7 @@ def unbroadcast(target, g: np.ndarray) -> np.ndarray:
             g = g.sum(axis=axes, keepdims=True)
         if g.shape != shape:  # target was larger than g: broadcast the cotangent
             g = np.broadcast_to(g, shape)
-    if dtype is not None and np.issubdtype(dtype, np.floating) and g.dtype != dtype:
+    if dtype is not None and dtype.kind == "f" and g.dtype != dtype:
         g = g.astype(dtype)
     return g
 
@@ -356,47 +360,57 @@ def toposort(end, parents_of: Callable[[Any], Sequence] | None = None) -> list:
     return order
 
 
-def _raw_cotangents(box: Box, g: np.ndarray):
-    """Yield ``(argnum, parent, cotangent)`` for each traced parent of ``box``."""
-    prim, name = box._prim, _name(box._prim)
+def _raw_cotangents(box: Box, g: np.ndarray) -> list:
+    """``(argnum, parent, cotangent)`` for each traced parent of ``box``."""
+    prim = box._prim
     if prim.bwd is not None:
         cts = prim.bwd(g, box._res)
         if not isinstance(cts, tuple | list):
             cts = (cts,)
+        out = []
         for argnum, parent in box._parents:
             ct = cts[argnum] if argnum < len(cts) else None
             if ct is None:
-                raise NotImplementedError(f"{name}: argument {argnum} is not differentiable")
-            yield argnum, parent, ct
-        return
+                raise NotImplementedError(
+                    f"{_name(prim)}: argument {argnum} is not differentiable")
+            out.append((argnum, parent, ct))
+        return out
+    vjps, out = prim.vjps, []
     for argnum, parent in box._parents:
-        vjp = prim.vjps[argnum] if argnum < len(prim.vjps) else None
+        vjp = vjps[argnum] if argnum < len(vjps) else None
         if vjp is None:
             raise NotImplementedError(
-                f"VJP of primitive '{name}' with respect to argument {argnum} is not defined"
+                f"VJP of primitive '{_name(prim)}' with respect to argument {argnum} is not "
+                "defined"
             )
-        yield argnum, parent, vjp(g, box._value, *box._args, **box._kwargs)
+        out.append((argnum, parent, vjp(g, box._value, *box._args, **box._kwargs)))
+    return out
 
 
-def parent_cotangents(box: Box, g: np.ndarray):
-    """Yield ``(argnum, parent, cotangent)`` for each traced parent of ``box``, given
-    the cotangent ``g`` of ``box``: one application of the chain rule (a VJP), its
-    shape checked and its dtype that of the parent (float32 stays float32)."""
-    for argnum, parent, ct in _raw_cotangents(box, g):
+def parent_cotangents(box: Box, g: np.ndarray) -> list:
+    """``(argnum, parent, cotangent)`` for each traced parent of ``box``, given the
+    cotangent ``g`` of ``box``: one application of the chain rule (a VJP), its shape
+    checked and its dtype that of the parent (float32 stays float32)."""
+    out = _raw_cotangents(box, g)
+    for k, (argnum, parent, ct) in enumerate(out):
         pval = parent._value
         if isinstance(pval, _Outputs):  # a scan's outputs: one cotangent (or None) each
-            yield argnum, parent, ct
             continue
-        ct = np.asarray(ct)
-        if ct.shape != np.shape(pval):
+        if type(ct) is not np.ndarray:
+            ct = np.asarray(ct)
+        if type(pval) is np.ndarray:
+            pshape, pdtype = pval.shape, pval.dtype
+        else:
+            pshape, pdtype = np.shape(pval), np.result_type(pval)
+        if ct.shape != pshape:
             raise ValueError(
                 f"VJP of '{_name(box._prim)}' returned a cotangent of shape {ct.shape} "
-                f"for an argument of shape {np.shape(pval)}"
+                f"for an argument of shape {pshape}"
             )
-        pdtype = np.result_type(pval)
-        if ct.dtype != pdtype and np.issubdtype(pdtype, np.floating):
+        if ct.dtype != pdtype and pdtype.kind == "f":
             ct = ct.astype(pdtype)
-        yield argnum, parent, ct
+        out[k] = (argnum, parent, ct)
+    return out
 
 
 def backward(end: Box, g: np.ndarray,

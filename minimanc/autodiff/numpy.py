@@ -729,6 +729,8 @@ result_type = _nondiff(np.result_type)
 # Operators and methods of traced values (so model code reads like NumPy)
 # ---------------------------------------------------------------------------
 def _method(fun):
+    if isinstance(fun, types.FunctionType):  # binds as a method itself: one call less
+        return fun
     return lambda self, *args, **kwargs: fun(self, *args, **kwargs)
 
 
