@@ -750,18 +750,17 @@ def scan(f: Callable, init, xs, length: int | None = None) -> tuple:
         c_leaves, c_paths, _ = tree_flatten(c_out)
         _check_carry(c_leaves, init_paths, c_paths, init_vals)
         y_leaves, _, y_rebuild = tree_flatten(y)
-        outs = [b for b in c_leaves + y_leaves if isinstance(b, Box)]
-        order = _step_order(outs, frame)
-        steps.append((frame, c_in, x_in, c_leaves, y_leaves, order))
+        steps.append((frame, c_in, x_in, c_leaves, y_leaves))
         carry_vals = [np.asarray(_unbox(v)) for v in c_leaves]
         ys_steps.append([_unbox(v) for v in y_leaves])
     ys_vals = _stack_ys(ys_steps)
     step_leaves = {id(b) for s in steps for b in s[1] + s[2] if isinstance(b, Box)}
     parents = [(j, b) for j, b in enumerate(init_leaves) if isinstance(b, Box)]
     parents += [(len(init_leaves) + j, b) for j, b in enumerate(xs_leaves) if isinstance(b, Box)]
-    outer: dict[int, Box] = {}
-    for frame, *_, order in steps:
-        for b in order:
+    outer: dict[int, Box] = {}  # traced values made outside the loop that f uses
+    for frame, _, _, c_leaves, y_leaves in steps:
+        used = [p for b in frame.values() for _, p in b._parents]
+        for b in used + [b for b in c_leaves + y_leaves if isinstance(b, Box)]:
             if id(b) not in frame and id(b) not in step_leaves:
                 outer.setdefault(id(b), b)
     base = len(init_leaves) + len(xs_leaves)
@@ -777,17 +776,6 @@ def scan(f: Callable, init, xs, length: int | None = None) -> tuple:
     outs = [_select(node, k) if _is_float(v) else v for k, v in enumerate(out_vals)]
     nc = len(carry_vals)
     return init_rebuild(outs[:nc]), y_rebuild(outs[nc:])
-
-
-def _step_order(outs: list[Box], frame: dict[int, Box]) -> list[Box]:
-    """The boxes of one scan step's tape reachable from its outputs, each before its
-    parents; boxes made outside the step (its inputs, closed-over values) end the walk."""
-    def parents_of(b):
-        if isinstance(b, _Outputs):
-            return b
-        return [p for _, p in b._parents] if id(b) in frame else ()
-
-    return toposort(_Outputs(outs), parents_of)[1:]
 
 
 def _scan_plain(f, init_rebuild, init_paths, init_vals, xs_rebuild, xs_vals, n) -> tuple:
@@ -815,25 +803,23 @@ def _scan_bwd(g: tuple, res: tuple) -> tuple:
     outer_cts: dict[int, np.ndarray] = {}
     outer_set = set(outer_ids)
     for i in range(len(steps) - 1, -1, -1):
-        frame, c_in, x_in, c_out, y_out, order = steps[i]
+        frame, c_in, x_in, c_out, y_out = steps[i]
+        # cts: boxes of this step's tape; boundary: its fresh inputs and closed-over values
         cts: dict[int, Any] = {}
-        for b, ct in zip(c_out, g_carry):
-            if isinstance(b, Box) and ct is not None:
-                _accumulate(cts, id(b), ct)
-        for b, gy in zip(y_out, g_ys):
-            if isinstance(b, Box) and gy is not None:
-                _accumulate(cts, id(b), gy[i])
         boundary: dict[int, Any] = {}
-        for box in order:
+        for b, ct in zip(c_out + y_out, g_carry + [None if gy is None else gy[i]
+                                                   for gy in g_ys]):
+            if isinstance(b, Box) and ct is not None:
+                _accumulate(cts if id(b) in frame else boundary, id(b), ct)
+        # the order the boxes were made in is topological: walk it backwards
+        for box in reversed(list(frame.values())):
             ct = cts.pop(id(box), None)
             if ct is None:
                 continue
-            if id(box) not in frame:  # a fresh input of this step or a closed-over value
-                boundary[id(box)] = ct
-                continue
             for _, parent, pct in parent_cotangents(box, ct):
                 key = id(parent)
-                cts[key] = pct if key not in cts else _add(cts[key], pct)
+                into = cts if key in frame else boundary
+                into[key] = pct if key not in into else _add(into[key], pct)
         g_carry = [boundary.get(id(b)) if isinstance(b, Box) else None for b in c_in]
         for j, b in enumerate(x_in):
             if isinstance(b, Box) and id(b) in boundary:
