@@ -279,3 +279,29 @@ def test_device_put():
     assert get_engine("numpy").device_put(tree) is tree
     out = get_engine("jax").device_put(tree)
     assert isinstance(out["b"][0], jax.Array)
+
+
+def test_scan_nested_and_closed_over_computed_values_match_jax():
+    """A scan inside a scan's step, closing over a value computed from the parameters."""
+    rng = np.random.default_rng(3)
+    w, xs = rng.normal(size=3), rng.normal(size=(4, 2, 3))
+
+    def loss(w, xs, eng):
+        xp = eng.xp
+        w2 = xp.sin(w) * 2.0  # traced, made outside both loops
+
+        def inner(c, x):
+            return c * w2 + x, xp.sum(c)
+
+        def outer(c, x):
+            c2, ys = eng.scan(inner, c, x)
+            return xp.tanh(c2), ys * w[0]
+
+        c, ys = eng.scan(outer, xp.zeros(3) + w, xs)
+        return xp.sum(c * c) + xp.sum(ys ** 2)
+
+    ours = get_engine("numpy").value_and_grad(loss, (0, 1))(w, xs, get_engine("numpy"))
+    ref = get_engine("jax").value_and_grad(loss, (0, 1))(w, xs, get_engine("jax"))
+    np.testing.assert_allclose(ours[0], float(ref[0]), rtol=1e-12)
+    for a, b in zip(ours[1], ref[1]):
+        np.testing.assert_allclose(a, np.asarray(b), rtol=1e-10, atol=1e-12)
