@@ -461,7 +461,7 @@ class ModelPolicy:
             aux = {k: v for k, v in aux.items() if k in AUX_KEYS}
             return u, new_state, aux
 
-        self._step = eng.jit(_fn) if eng.name == "jax" else _fn
+        self._step = eng.jit(_fn)  # the identity on the NumPy engine
 
     def initial_state(self, scenes: np.ndarray) -> dict:
         from minimanc import models
