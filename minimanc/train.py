@@ -76,6 +76,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import inputs, models, optim
+from minimanc.engine import ENGINES
 from minimanc.tree import leaves as tree_leaves
 from minimanc.world.dataset import describe_non_finite, first_non_finite, remove_temp_files
 
@@ -593,7 +594,7 @@ def _get_engine(engine: Any) -> Any:
         return _engine(engine)
     if hasattr(engine, "xp") and hasattr(engine, "value_and_grad"):
         return engine
-    raise ValueError(f"engine must be 'numpy', 'jax' or an engine object, got engine={engine!r}")
+    raise ValueError(f"engine must be one of {ENGINES} or an engine object, got engine={engine!r}")
 
 
 def _kept(ck_path: Path | None, saved_epoch: int | None) -> str:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.util
+import os
 import sys
 
 from minimanc import __version__
@@ -72,6 +73,9 @@ def main(argv: list[str] | None = None) -> int:
     except UsageError as exc:
         print(f"minimanc {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except BrokenPipeError:  # `minimanc info | head`: the reader left, nothing to report
+        sys.stdout = open(os.devnull, "w")  # no flush error at exit
+        return 0
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from minimanc import metrics
+from minimanc.engine import ENGINES
 from minimanc.studies.config import Run, StudyConfig, canonical_setting
 from minimanc.studies.jobs import Done, enable_jax_cache, evaluate_job, read_json, write_json
 from minimanc.studies.report import findings
@@ -31,8 +32,8 @@ class Study:
                  log: Callable[[str], None] | None = None) -> None:
         if not isinstance(config, StudyConfig):
             raise ValueError(f"config must be a StudyConfig; got config={config!r}")
-        if engine not in ("jax", "numpy"):
-            raise ValueError(f"engine must be 'jax' or 'numpy'; got engine={engine!r}")
+        if engine not in ENGINES:
+            raise ValueError(f"engine must be one of {ENGINES}; got engine={engine!r}")
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
             raise ValueError(f"workers must be an integer >= 0; got workers={workers!r}")
         self.config = config
