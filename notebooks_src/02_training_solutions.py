@@ -468,9 +468,11 @@ assert np.allclose(dz8.sum(axis=1), 0), "each row of (softmax - onehot) sums to 
 # With the library's versions (so this runs even with unfinished exercises):
 # eq. 7 as a model — two convolutions, global average pooling, a linear layer
 # — fitted with Adam to predict the mean colour of random images. The loss
-# must fall by two orders of magnitude.
+# must fall by two orders of magnitude. (150 Adam steps of a non-convex network:
+# the printed losses depend on the CPU's summation order, so this cell is checked
+# by its assert, not by its digits.)
 
-# %%
+# %% tags=["nbval-ignore-output"]
 images = rng.random((64, 12, 12, 3))
 targets = images.mean(axis=(1, 2))
 params = {"c1": layers.init_conv(rng, 3, 3, 3, 8), "c2": layers.init_conv(rng, 3, 3, 8, 8),
