@@ -102,8 +102,14 @@ The dropped series terms are of relative size ``‖u‖²/3 < 1e-24``."""
 class QuaternionRollout(NamedTuple):
     """Result of :func:`quaternion_rollout`; time is the leading axis.
 
-    ``q`` (steps + 1, ..., 4) and ``eta`` (steps + 1, ..., 3) include the initial
-    state; ``deta`` (steps, ..., 3) is the mean angular acceleration of each step.
+    Attributes
+    ----------
+    q : array, shape (steps + 1, ..., 4)
+        Orientations, the initial one included.
+    eta : array, shape (steps + 1, ..., 3)
+        Angular velocities η (world frame, rad/s), the initial one included.
+    deta : array, shape (steps, ..., 3)
+        Mean angular acceleration ``(η_{k+1} − η_k) / dt`` of each step.
     """
 
     q: Any
@@ -115,10 +121,23 @@ class QuaternionRollout(NamedTuple):
 
 
 def unit_tolerance(dtype: Any = np.float64) -> float:
-    """Largest ``|‖q‖ − 1|`` accepted (and normalised away) where a unit quaternion is
-    expected: ``float_tolerance(dtype, 4)`` (:func:`minimanc.checks.float_tolerance`),
-    about 7e-15 in float64 and 3.8e-6 in float32 — a few roundings of the four
-    squares, while a norm further from 1 is a bug, not rounding."""
+    """Largest ``|‖q‖ − 1|`` accepted where a unit quaternion is expected.
+
+    It is ``float_tolerance(dtype, 4)`` (:func:`minimanc.checks.float_tolerance`):
+    a few roundings of the four squares, ≈ 7e-15 in float64 and ≈ 3.8e-6 in
+    float32.  A norm further from 1 is a bug, not rounding; a norm within it is
+    normalised away.
+
+    Parameters
+    ----------
+    dtype : NumPy dtype, optional (default: float64)
+        Precision of the quaternion's values.
+
+    Returns
+    -------
+    tol : float
+        The accepted deviation of the norm from 1.
+    """
     return float_tolerance(dtype, 4)
 
 
@@ -176,14 +195,51 @@ def _parts(q: Any) -> tuple[Any, Any, Any, Any]:
 
 
 def identity(shape: tuple[int, ...] = (), xp: Any = np) -> Any:
-    """The identity rotation ``(1, 0, 0, 0)``, broadcast to ``shape + (4,)``."""
+    """The identity rotation ``(1, 0, 0, 0)``, broadcast to ``shape + (4,)``.
+
+    Parameters
+    ----------
+    shape : tuple of int, optional (default: ())
+        Batch shape.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    q : array, shape (*shape, 4)
+        Identity quaternions.
+    """
     return xp.zeros(tuple(shape) + (4,)) + xp.asarray([1.0, 0.0, 0.0, 0.0])
 
 
 def multiply(p: Any, q: Any, xp: Any = np) -> Any:
-    """Quaternion (Hamilton) product ``p * q`` of eq. (3); broadcasts; not commutative.
+    """Quaternion (Hamilton) product ``p * q`` of eq. (3); not commutative.
 
-    As rotations, ``p * q`` applies ``q`` first, then ``p``.
+    ``(v1 + u1)(v2 + u2) = (v1 v2 − u1·u2) + (v1 u2 + v2 u1 + u1 × u2)``.  As
+    rotations, ``p * q`` applies ``q`` first, then ``p``.  Plain algebra: the
+    inputs need not be unit quaternions.
+
+    Parameters
+    ----------
+    p : array-like, shape (..., 4)
+        Left factor ``(w, x, y, z)``.
+    q : array-like, shape (..., 4)
+        Right factor; its batch shape broadcasts with ``p``'s.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    pq : array, shape (..., 4)
+        The product, over the broadcast batch shape.
+
+    Raises
+    ------
+    TypeError
+        If ``p`` or ``q`` is not real numbers (concrete input).
+    ValueError
+        If the last axis is not 4, an entry is not finite, or the batch shapes
+        do not broadcast.
     """
     p, q = _check_last("p", p, 4), _check_last("q", q, 4)
     check_broadcast(("p", p, 1), ("q", q, 1))
@@ -205,7 +261,27 @@ def _multiply(p: Any, q: Any, xp: Any) -> Any:
 
 
 def conjugate(q: Any, xp: Any = np) -> Any:
-    """``q̄ = v − u`` (the inverse of a unit quaternion)."""
+    """Conjugate ``q̄ = v − u``: the inverse of a unit quaternion (eq. 2).
+
+    Parameters
+    ----------
+    q : array-like, shape (..., 4)
+        Quaternions ``(w, x, y, z)``, not necessarily unit.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    q_bar : array, shape (..., 4)
+        ``(w, −x, −y, −z)``.
+
+    Raises
+    ------
+    TypeError
+        If ``q`` is not real numbers (concrete input).
+    ValueError
+        If the last axis is not 4 or an entry is not finite.
+    """
     return _conjugate(_check_last("q", q, 4), xp)
 
 
@@ -215,7 +291,28 @@ def _conjugate(q: Any, xp: Any) -> Any:
 
 
 def normalize(q: Any, xp: Any = np) -> Any:
-    """``q / ‖q‖`` for any non-zero ``q``; the zero quaternion raises ValueError (concrete)."""
+    """``q / ‖q‖`` for any non-zero ``q``.
+
+    Parameters
+    ----------
+    q : array-like, shape (..., 4)
+        Non-zero quaternions.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    q_unit : array, shape (..., 4)
+        Unit quaternions.
+
+    Raises
+    ------
+    TypeError
+        If ``q`` is not real numbers (concrete input).
+    ValueError
+        If the last axis is not 4, an entry is not finite, or (concrete input)
+        ``q`` contains the zero quaternion.
+    """
     q = _check_last("q", q, 4)
     if not is_traced(q) and np.any(np.linalg.norm(q, axis=-1) == 0):
         raise ValueError("q contains the zero quaternion, which cannot be normalised")
@@ -239,12 +336,31 @@ def _log(q: Any, xp: Any) -> Any:
 
 
 def log(q: Any, xp: Any = np) -> Any:
-    """Logarithmic map of eq. (4): ``S³ → R³``, the half-angle vector ``θ/2 · n``.
+    """Logarithmic map of eq. (4), ``S³ → R³``: the half-angle vector ``θ/2 · n``.
 
     Computed as ``atan2(‖u‖, w) u/‖u‖`` (accurate near the identity and near
-    ±π, unlike ``arccos(w)``), with ``0`` at ``u = 0, w > 0``. The result has
-    norm in ``[0, π]``; no sign flip is made (see the module notes). At
-    ``q = −1`` the map is undefined: ValueError on concrete input.
+    ±π, unlike ``arccos(w)``), with ``0`` at ``u = 0, w > 0``.  No sign flip is
+    made (see the module notes); the Jacobian at the identity is ``I``.
+
+    Parameters
+    ----------
+    q : array-like, shape (..., 4)
+        Unit quaternions (normalised after the check of :func:`unit_tolerance`).
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    omega : array, shape (..., 3)
+        ``log q``, of norm in ``[0, π]``.
+
+    Raises
+    ------
+    TypeError
+        If ``q`` is not real numbers (concrete input).
+    ValueError
+        If the last axis is not 4, an entry is not finite, ``q`` is zero or not
+        of unit norm, or (concrete input) ``q = −1``, where the map is undefined.
     """
     q = _check_unit("q", q)
     if not is_traced(q):
@@ -259,11 +375,30 @@ def log(q: Any, xp: Any = np) -> Any:
 
 
 def exp(omega: Any, xp: Any = np) -> Any:
-    """Exponential map of eq. (6): ``R³ → S³``, ``cos‖ω‖ + sin‖ω‖ ω/‖ω‖`` (1 at ω = 0).
+    """Exponential map of eq. (6), ``R³ → S³``: ``cos‖ω‖ + sin‖ω‖ ω/‖ω‖`` (1 at ω = 0).
 
-    Defined for every ω; inverse of :func:`log` only for ‖ω‖ < π (see the
-    module notes). Uses the series ``1 − ‖ω‖²/2`` and ``1 − ‖ω‖²/6`` at ω = 0
-    so the gradient there is finite (``∂q/∂ω = [0; I]``).
+    Defined for every ω; the inverse of :func:`log` only for ‖ω‖ < π (see the
+    module notes).  The series ``1 − ‖ω‖²/2`` and ``1 − ‖ω‖²/6`` are used at
+    ω = 0, so the gradient there is finite: ``∂q/∂ω = [0; I]``.
+
+    Parameters
+    ----------
+    omega : array-like, shape (..., 3)
+        Half-angle vectors.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    q : array, shape (..., 4)
+        Unit quaternions ``Exp(ω)``.
+
+    Raises
+    ------
+    TypeError
+        If ``omega`` is not real numbers (concrete input).
+    ValueError
+        If the last axis is not 3 or an entry is not finite.
     """
     return _exp(_check_last("omega", omega, 3), xp)
 
@@ -281,10 +416,35 @@ def _exp(omega: Any, xp: Any) -> Any:
 
 
 def integrate(q: Any, eta: Any, dt: Any, tau: Any = 1.0, xp: Any = np) -> Any:
-    """One step of eq. (5): ``Exp(dt/2 · η/τ) * q``, renormalised.
+    """One step of eq. (5): ``q(t + dt) = Exp(dt/2 · η/τ) * q(t)``, renormalised.
 
-    ``η`` (..., 3) is the angular velocity in the world frame (rad/s); for
-    constant η the result is exact: ``exp(t η / 2) * q`` after time ``t``.
+    For constant η the result is exact: ``exp(t η / 2) * q`` after time ``t``.
+
+    Parameters
+    ----------
+    q : array-like, shape (..., 4)
+        Unit quaternions at time ``t``.
+    eta : array-like, shape (..., 3)
+        Angular velocity η in the world frame (rad/s); broadcasts with ``q``.
+    dt : float or array-like
+        Time step δt > 0 (s).
+    tau : float or array-like, optional (default: 1.0)
+        Time constant τ > 0.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    q_next : array, shape (..., 4)
+        Unit quaternions at time ``t + dt``.
+
+    Raises
+    ------
+    TypeError
+        If an argument is not real numbers (concrete input).
+    ValueError
+        If ``q`` is not a unit quaternion, a shape is wrong, the batch shapes do
+        not broadcast, a value is not finite, or ``dt`` or ``tau`` is not > 0.
     """
     q = _check_unit("q", q)
     eta = _check_last("eta", eta, 3)
@@ -309,10 +469,32 @@ def orientation_error(g: Any, q: Any, xp: Any = np) -> Any:
     """Rotation vector from ``q`` to ``g``: ``2 log(g * q̄)`` (eq. 2), the shorter way round.
 
     ``g * q̄`` is flipped to its ``w ≥ 0`` representative first, so the angle
-    ``‖error‖`` lies in ``[0, π]`` and the error for ``g`` and ``−g`` agree. For
+    ``‖error‖`` lies in ``[0, π]`` and the errors for ``g`` and ``−g`` agree.  For
     rotations about z it equals the yaw difference wrapped into ``(−π, π]``
     (exactly at ±π both directions are equally short; the rounding of
-    ``w ≈ 0`` picks one). Expressed in the world frame.
+    ``w ≈ 0`` picks one).
+
+    Parameters
+    ----------
+    g : array-like, shape (..., 4)
+        Goal orientations (unit quaternions).
+    q : array-like, shape (..., 4)
+        Current orientations (unit quaternions); broadcasts with ``g``.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    error : array, shape (..., 3)
+        Axis × angle in the world frame, angle in ``[0, π]``.
+
+    Raises
+    ------
+    TypeError
+        If ``g`` or ``q`` is not real numbers (concrete input).
+    ValueError
+        If either is not a unit quaternion of shape ``(..., 4)``, is not finite,
+        or the batch shapes do not broadcast.
     """
     g = _unit(_check_unit("g", g), xp)
     q = _unit(_check_unit("q", q), xp)
@@ -328,10 +510,30 @@ def _error(g: Any, q: Any, xp: Any) -> Any:
 
 
 def from_axis_angle(axis: Any, angle: Any, xp: Any = np) -> Any:
-    """Rotation by ``angle`` (rad, shape ``(...)``) about ``axis`` (..., 3; normalised).
+    """Rotation by ``angle`` about ``axis``: ``(cos θ/2, sin θ/2 · n)`` with ``n = axis/‖axis‖``.
 
-    A zero axis, or a non-finite axis or angle, raises ValueError naming it;
-    the batch shapes of ``axis[..., 0]`` and ``angle`` must broadcast.
+    Parameters
+    ----------
+    axis : array-like, shape (..., 3)
+        Rotation axes, any non-zero length (normalised here).
+    angle : float or array-like, shape (...)
+        Angles θ (rad), counter-clockwise about ``axis``; the batch shapes of
+        ``axis[..., 0]`` and ``angle`` broadcast.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    q : array, shape (..., 4)
+        Unit quaternions.
+
+    Raises
+    ------
+    TypeError
+        If ``axis`` or ``angle`` is not real numbers (concrete input).
+    ValueError
+        If ``axis`` is not of shape ``(..., 3)``, contains a zero vector, a value
+        is not finite, or the batch shapes do not broadcast.
     """
     axis = _check_last("axis", axis, 3)
     angle = _check_angle("angle", angle)
@@ -345,21 +547,82 @@ def from_axis_angle(axis: Any, angle: Any, xp: Any = np) -> Any:
 
 
 def to_rotation_vector(q: Any, xp: Any = np) -> Any:
-    """Axis × angle (..., 3) with angle in ``[0, π]``: ``2 log`` of the ``w ≥ 0`` representative."""
+    """Axis × angle, angle in ``[0, π]``: ``2 log`` of the ``w ≥ 0`` representative.
+
+    Parameters
+    ----------
+    q : array-like, shape (..., 4)
+        Unit quaternions.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    v : array, shape (..., 3)
+        Rotation vectors (the rotation by ``‖v‖`` about ``v/‖v‖``).
+
+    Raises
+    ------
+    TypeError
+        If ``q`` is not real numbers (concrete input).
+    ValueError
+        If ``q`` is not a unit quaternion of shape ``(..., 4)`` or is not finite.
+    """
     q = _unit(_check_unit("q", q), xp)
     return 2.0 * _log(_shortest(q, xp), xp)
 
 
 def from_rotation_vector(v: Any, xp: Any = np) -> Any:
-    """Inverse of :func:`to_rotation_vector`: ``exp(v / 2)``."""
+    """Inverse of :func:`to_rotation_vector`: ``exp(v / 2)`` (eq. 6).
+
+    Parameters
+    ----------
+    v : array-like, shape (..., 3)
+        Rotation vectors (axis × angle, rad).
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    q : array, shape (..., 4)
+        Unit quaternions.
+
+    Raises
+    ------
+    TypeError
+        If ``v`` is not real numbers (concrete input).
+    ValueError
+        If the last axis is not 3 or an entry is not finite.
+    """
     v = _check_last("v", v, 3)
     return exp(0.5 * v, xp=xp)
 
 
 def to_axis_angle(q: Any, xp: Any = np) -> tuple[Any, Any]:
-    """``(axis (..., 3), angle (...))`` with angle in ``[0, π]`` (the shorter way round).
+    """Axis and angle of a rotation, the shorter way round (angle in ``[0, π]``).
 
-    At the identity the axis is undefined; ``(1, 0, 0)`` is returned (angle 0).
+    At the identity the axis is undefined; ``(1, 0, 0)`` is returned with angle 0.
+
+    Parameters
+    ----------
+    q : array-like, shape (..., 4)
+        Unit quaternions.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    axis : array, shape (..., 3)
+        Unit rotation axes.
+    angle : array, shape (...)
+        Angles in ``[0, π]`` (rad).
+
+    Raises
+    ------
+    TypeError
+        If ``q`` is not real numbers (concrete input).
+    ValueError
+        If ``q`` is not a unit quaternion of shape ``(..., 4)`` or is not finite.
     """
     v = to_rotation_vector(q, xp=xp)
     n2 = xp.sum(v * v, axis=-1)
@@ -372,9 +635,26 @@ def to_axis_angle(q: Any, xp: Any = np) -> tuple[Any, Any]:
 
 
 def from_yaw(psi: Any, xp: Any = np) -> Any:
-    """Rotation by ``psi`` (rad) about +z, counter-clockwise: ``(cos ψ/2, 0, 0, sin ψ/2)``.
+    """Rotation by ``psi`` about +z, counter-clockwise: ``(cos ψ/2, 0, 0, sin ψ/2)``.
 
-    A non-finite (or non-numeric) concrete ``psi`` raises ValueError (TypeError).
+    Parameters
+    ----------
+    psi : float or array-like, shape (...)
+        Yaw angles ψ (rad).
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    q : array, shape (..., 4)
+        Unit quaternions.
+
+    Raises
+    ------
+    TypeError
+        If ``psi`` is not real numbers (concrete input).
+    ValueError
+        If ``psi`` is not finite (concrete input).
     """
     psi = _check_angle("psi", psi)
     half = 0.5 * xp.asarray(psi)
@@ -383,9 +663,29 @@ def from_yaw(psi: Any, xp: Any = np) -> Any:
 
 
 def to_yaw(q: Any, xp: Any = np) -> Any:
-    """Heading in ``(−π, π]``: the direction of the rotated x axis in the xy plane (ZYX yaw).
+    """Heading: the direction of the rotated x axis in the xy plane (ZYX yaw).
 
-    ``atan2(2(wz + xy), 1 − 2(y² + z²))``; for yaw-only ``q`` it inverts :func:`from_yaw`.
+    ``atan2(2(wz + xy), 1 − 2(y² + z²))``; for yaw-only ``q`` it inverts
+    :func:`from_yaw`.
+
+    Parameters
+    ----------
+    q : array-like, shape (..., 4)
+        Unit quaternions.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    psi : array, shape (...)
+        Yaw angles in ``(−π, π]`` (rad).
+
+    Raises
+    ------
+    TypeError
+        If ``q`` is not real numbers (concrete input).
+    ValueError
+        If ``q`` is not a unit quaternion of shape ``(..., 4)`` or is not finite.
     """
     q = _unit(_check_unit("q", q), xp)
     w, x, y, z = _parts(q)
@@ -393,7 +693,27 @@ def to_yaw(q: Any, xp: Any = np) -> Any:
 
 
 def to_matrix(q: Any, xp: Any = np) -> Any:
-    """Rotation matrix (..., 3, 3) of a unit quaternion (``R v = rotate(q, v)``)."""
+    """Rotation matrix of a unit quaternion: ``R v = rotate(q, v)``.
+
+    Parameters
+    ----------
+    q : array-like, shape (..., 4)
+        Unit quaternions.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    R : array, shape (..., 3, 3)
+        Orthogonal matrices with determinant 1.
+
+    Raises
+    ------
+    TypeError
+        If ``q`` is not real numbers (concrete input).
+    ValueError
+        If ``q`` is not a unit quaternion of shape ``(..., 4)`` or is not finite.
+    """
     q = _unit(_check_unit("q", q), xp)
     w, x, y, z = _parts(q)
     rows = [
@@ -405,7 +725,31 @@ def to_matrix(q: Any, xp: Any = np) -> Any:
 
 
 def rotate(q: Any, v: Any, xp: Any = np) -> Any:
-    """Rotate vectors ``v`` (..., 3) by ``q``: ``q v q̄`` as ``v + 2w (u × v) + 2 u × (u × v)``."""
+    """Rotate vectors by ``q`` (active): ``q v q̄``, as ``v + 2w (u × v) + 2 u × (u × v)``.
+
+    Parameters
+    ----------
+    q : array-like, shape (..., 4)
+        Unit quaternions.
+    v : array-like, shape (..., 3)
+        Vectors; the batch shape broadcasts with ``q``'s.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    v_rotated : array, shape (..., 3)
+        The rotated vectors.
+
+    Raises
+    ------
+    TypeError
+        If ``q`` or ``v`` is not real numbers (concrete input).
+    ValueError
+        If ``q`` is not a unit quaternion of shape ``(..., 4)``, ``v`` is not of
+        shape ``(..., 3)``, a value is not finite, or the batch shapes do not
+        broadcast.
+    """
     q = _unit(_check_unit("q", q), xp)
     v = _check_last("v", v, 3)
     check_broadcast(("q", q, 1), ("v", v, 1))
@@ -459,21 +803,59 @@ def quaternion_step(
     ``η̇ = α (β · orientation_error(g_q, q) − η)`` and ``q̇ = ½ η * q``, with
     ``h = dt / substeps`` and per sub-step
 
-    * ``"semi_implicit"`` (default): ``η ← η + h η̇``, then ``q ← Exp(h/2 η) * q``;
+    * ``"semi_implicit"``: ``η ← η + h η̇``, then ``q ← Exp(h/2 η) * q`` (eq. 5);
     * ``"euler"``: ``q ← Exp(h/2 η) * q`` with the old η, then ``η ← η + h η̇``.
 
-    The error is taken the shorter way round (``w ≥ 0``), so the attractor
-    turns through less than π. Gains broadcast against ``(..., 1)``; they may
-    be the linear DMP's. Returns ``(q_next, eta_next, deta)`` with
-    ``deta = (eta_next − eta) / dt``. For yaw-only motion this is exactly the
-    1-D DMP of :func:`minimanc.dmp.step` on the wrapped yaw error.
+    The error is taken the shorter way round (``w ≥ 0``), so the attractor turns
+    through less than π.  For yaw-only motion this is exactly the 1-D DMP of
+    :func:`minimanc.dmp.step` on the wrapped yaw error.  Near the goal the error
+    is the rotation vector and the map linearises to the 1-D DMP's step, per
+    axis, so :func:`minimanc.dmp.check_step_stability` applies unchanged.
 
-    Gains are checked as in :func:`minimanc.dmp.step` (concrete values only:
-    α > 0, β ≥ 0, finite, real).  Near the goal the error is the rotation
-    vector and the map linearises to the 1-D DMP's step, per axis, so
-    :func:`minimanc.dmp.check_step_stability` applies unchanged: a step with
-    spectral radius > 1 raises ValueError unless ``allow_unstable=True``
-    (then a ``RuntimeWarning``).  ``q``, ``eta`` and ``g_q`` must broadcast.
+    Parameters
+    ----------
+    q : array-like, shape (..., 4)
+        Current orientations (unit quaternions).
+    eta : array-like, shape (..., 3)
+        Current angular velocities η (world frame, rad/s).
+    g_q : array-like, shape (..., 4)
+        Goal orientations (unit quaternions); ``q``, ``eta`` and ``g_q`` broadcast.
+    alpha : float or array-like, shape (..., 1)
+        Gain α > 0; the linear DMP's gains may be passed as they are.
+    beta : float or array-like, shape (..., 1)
+        Gain β ≥ 0.
+    dt : float, optional (default: ``dmp.DT``)
+        Step length (s).
+    method : {"semi_implicit", "euler"}, optional (default: ``dmp.DEFAULT_METHOD``)
+        Integration scheme of each sub-step.
+    substeps : int, optional (default: ``dmp.DEFAULT_SUBSTEPS``)
+        Sub-steps per step, ≥ 1.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+    allow_unstable : bool, optional (default: False)
+        Accept a step whose linearisation has spectral radius > 1 (with a
+        ``RuntimeWarning``) instead of raising.
+
+    Returns
+    -------
+    q_next : array, shape (..., 4)
+        Orientations after ``dt``.
+    eta_next : array, shape (..., 3)
+        Angular velocities after ``dt``.
+    deta : array, shape (..., 3)
+        Mean angular acceleration ``(eta_next − eta) / dt``.
+
+    Raises
+    ------
+    TypeError
+        If a gain or quaternion is not real numbers, or ``allow_unstable`` is
+        not a bool.
+    ValueError
+        If ``method`` is unknown, ``substeps`` is not an integer ≥ 1, ``dt`` is
+        invalid, a quaternion is not of unit norm, a shape is wrong, the batch
+        shapes do not broadcast, the gains are out of range (concrete values:
+        α > 0, β ≥ 0, finite), or the step is unstable and ``allow_unstable``
+        is False.
     """
     method = _check_q_method(method)
     substeps = check_int("substeps", substeps, 1)
@@ -517,12 +899,54 @@ def quaternion_rollout(
     xp: Any = np,
     allow_unstable: bool = False,
 ) -> QuaternionRollout:
-    """Roll the quaternion DMP out for ``steps`` steps (see :func:`quaternion_step`).
+    """Roll the quaternion DMP (eqs. 2, 5, 10) out for ``steps`` steps of :func:`quaternion_step`.
 
-    ``q0`` (..., 4), ``eta0`` (..., 3), goal ``g_q`` (..., 4). Names in
-    ``per_step`` (from ``("g_q", "alpha", "beta")``) carry a leading time axis
-    of length ``steps``. Returns a :class:`QuaternionRollout`.  Gains and the
-    stability of the step are checked once, as in :func:`quaternion_step`.
+    Gains and the stability of the step are checked once, as in
+    :func:`quaternion_step`.
+
+    Parameters
+    ----------
+    q0 : array-like, shape (..., 4)
+        Initial orientations (unit quaternions).
+    eta0 : array-like, shape (..., 3)
+        Initial angular velocities (world frame, rad/s).
+    g_q : array-like, shape (..., 4), or (steps, ..., 4) if listed in ``per_step``
+        Goal orientations (unit quaternions).
+    alpha : float or array-like, shape (..., 1), or (steps, ..., 1) if in ``per_step``
+        Gain α > 0.
+    beta : float or array-like, shape (..., 1), or (steps, ..., 1) if in ``per_step``
+        Gain β ≥ 0.
+    dt : float, optional (default: ``dmp.DT``)
+        Step length (s).
+    steps : int, optional (default: 40)
+        Number of steps, ≥ 0.
+    method : {"semi_implicit", "euler"}, optional (default: ``dmp.DEFAULT_METHOD``)
+        Integration scheme of each sub-step.
+    substeps : int, optional (default: ``dmp.DEFAULT_SUBSTEPS``)
+        Sub-steps per step, ≥ 1.
+    per_step : tuple of str, optional (default: ())
+        Names among ``("g_q", "alpha", "beta")`` that carry a leading time axis
+        of length ``steps``.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+    allow_unstable : bool, optional (default: False)
+        Accept an unstable step (with a ``RuntimeWarning``) instead of raising.
+
+    Returns
+    -------
+    rollout : QuaternionRollout
+        ``q`` (steps + 1, ..., 4), ``eta`` (steps + 1, ..., 3) and ``deta``
+        (steps, ..., 3).
+
+    Raises
+    ------
+    TypeError
+        If a gain or quaternion is not real numbers, or ``allow_unstable`` is
+        not a bool.
+    ValueError
+        If ``per_step`` names anything else, an argument listed in it has no
+        leading axis of length ``steps``, ``steps`` or ``substeps`` is not an
+        integer in range, or for any reason :func:`quaternion_step` raises.
     """
     method = _check_q_method(method)
     substeps = check_int("substeps", substeps, 1)
