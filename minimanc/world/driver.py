@@ -26,6 +26,7 @@ then draws the scene again from the next sub-seed.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -182,63 +183,127 @@ def project_on_path(path: Path, s_prev: float, pose: np.ndarray) -> float:
     return float(s[0])
 
 
+class SceneRun:
+    """One scene of the world, simulated step by step: the ego among the IDM ados.
+
+    ``SceneRun(m, rng)`` draws the human style and the traffic and places the
+    ego and the ados exactly as :func:`simulate_scene` does (it *is* the setup
+    of :func:`simulate_scene`, which is ``SceneRun`` stepped ``T`` times by
+    :meth:`human_step`). A step is split in two so that another controller
+    can drive the ego: :meth:`perceive` (junction arrival stamps at step
+    :attr:`t`, then every vehicle's binding constraint,
+    :meth:`~minimanc.world.traffic.Traffic.perceive`), then :meth:`advance`
+    with the ego's controls (the ego moves by one unicycle step, the ados by
+    their IDM accelerations, new ados arrive through :attr:`spawner`).
+
+    :attr:`spawner` is called with the run after the ados have moved; the
+    default draws the Poisson arrivals of :meth:`Traffic.spawn` around the ego.
+    """
+
+    def __init__(self, m: Map, rng: np.random.Generator, dt: float = DT,
+                 max_ados: int = MAX_ADOS) -> None:
+        self.m, self.rng, self.dt, self.max_ados = m, rng, dt, max_ados
+        style = random_style(rng)
+        density = float(rng.uniform(1 / 70.0, 1 / 18.0))  # ados per metre of lane
+        spawn_rate = float(rng.uniform(0.02, 0.12))  # arrivals per second per entry lane
+        traffic = Traffic(m, rng, dt, density, max_ados, spawn_rate)
+        path = Path.from_lanes(m, m.route)
+        ego = Vehicle(pid=traffic.bank.add(path), s=m.start_s, v=0.0, length=EGO_LENGTH,
+                      width=EGO_WIDTH, v0=style.v0, T=style.T, a_max=style.a_max, b=style.b,
+                      s0=style.s0, a_lat=style.a_lat, gap_crit=style.gap_crit, is_ego=True)
+        xy, h = path.pose(ego.s)
+        lat0 = float(rng.normal(0.0, 0.5 * style.lat_sigma))
+        xy = xy + lat0 * np.array([-np.sin(h), np.cos(h)])
+        pose = np.array([xy[0], xy[1], float(wrap_angle(h + rng.normal(0.0, 0.01)))])
+        ego.xy, ego.yaw = pose[:2].copy(), float(pose[2])
+        traffic.vehicles.append(ego)
+        traffic.populate(pose[:2], ego_keepout=14.0)
+        # initial speed: sometimes from rest, else near the (curve-limited) desired speed
+        per = traffic.perceive()
+        v_des = min(style.v0, float(per["v_curve"][0]))
+        ego.v = 0.0 if rng.random() < 0.12 else float(v_des * rng.uniform(0.55, 1.0))
+        if rng.random() < 0.8:
+            traffic.add_cut_in(ego, style.v0)
+        # do not start closer to a leader than the style tolerates
+        per = traffic.perceive()
+        if np.isfinite(per["gap"][0]):
+            ego.v = float(min(ego.v, max((per["gap"][0] - style.s0) / style.T, 0.0),
+                              per["v_lead"][0] + 2.0))
+        self.style, self.density = style, density
+        self.traffic, self.path, self.ego, self.pose = traffic, path, ego, pose
+        self.driver = HumanDriver(m, style, rng, dt)
+        self.t = 0
+        self.kinds: list[str] = []
+        self.spawner: Callable[[SceneRun], None] = SceneRun.spawn_arrivals
+
+    def spawn_arrivals(self) -> None:
+        """The default :attr:`spawner`: Poisson arrivals at the entries near the ego."""
+        self.traffic.spawn(self.pose[:2])
+
+    def ado_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        """The ado slots now: boxes ``(max_ados, 5)`` (zeros when unused) and valid flags."""
+        boxes = np.zeros((self.max_ados, 5))
+        valid = np.zeros(self.max_ados, dtype=bool)
+        ados = self.traffic.vehicles[1:]
+        if ados:
+            boxes[:len(ados)] = [(v.xy[0], v.xy[1], v.yaw, v.length, v.width) for v in ados]
+            valid[:len(ados)] = [v.active for v in ados]
+        return boxes, valid
+
+    def perceive(self) -> dict[str, np.ndarray]:
+        """Stamp the junction arrivals of step :attr:`t`, then every vehicle's constraint."""
+        self.traffic.update_stamps(self.t)
+        return self.traffic.perceive()
+
+    def human_controls(self, per: dict[str, np.ndarray]) -> tuple[float, float, float]:
+        """The human's ``(speed, yaw rate, acceleration)`` now (:meth:`HumanDriver.act`)."""
+        gap, stop = float(per["gap"][0]), float(per["stop"][0])
+        v_cmd, omega, a = self.driver.act(self.ego, self.path, self.pose, gap,
+                                          float(per["v_lead"][0]), stop,
+                                          float(per["a_curve"][0]))
+        binding = "yield" if stop < gap else ("leader" if gap < np.inf else "")
+        self.kinds.append(binding if (a < -0.3 or (binding == "yield" and v_cmd < 0.5)) else "")
+        return v_cmd, omega, a
+
+    def advance(self, per: dict[str, np.ndarray], v_cmd: float, omega: float) -> None:
+        """Move everything by one step: the ego with ``[v_cmd, omega]``, the ados by their IDM."""
+        acc = self.traffic.ado_accelerations(per)
+        pose = unicycle_step(self.pose, np.array([v_cmd, omega]), self.dt)
+        ego = self.ego
+        ego.xy, ego.yaw, ego.v = pose[:2].copy(), float(pose[2]), v_cmd
+        ego.s = project_on_path(self.path, ego.s, pose)
+        self.pose = pose
+        self.traffic.step_ados(acc, ego)
+        self.spawner(self)
+        self.t += 1
+
+    def human_step(self) -> tuple[float, float]:
+        """One step with the human driving; returns its controls ``(speed, yaw rate)``."""
+        per = self.perceive()
+        v_cmd, omega, _ = self.human_controls(per)
+        self.advance(per, v_cmd, omega)
+        return v_cmd, omega
+
+
 def simulate_scene(m: Map, rng: np.random.Generator, T: int = T_STEPS, dt: float = DT,
                    max_ados: int = MAX_ADOS) -> SceneLog:
     """Simulate one scene on map ``m``: the human ego among IDM ados. See the module doc."""
-    style = random_style(rng)
-    density = float(rng.uniform(1 / 70.0, 1 / 18.0))  # ados per metre of lane
-    spawn_rate = float(rng.uniform(0.02, 0.12))  # arrivals per second per entry lane
-    traffic = Traffic(m, rng, dt, density, max_ados, spawn_rate)
-    path = Path.from_lanes(m, m.route)
-    ego = Vehicle(pid=traffic.bank.add(path), s=m.start_s, v=0.0, length=EGO_LENGTH,
-                  width=EGO_WIDTH, v0=style.v0, T=style.T, a_max=style.a_max, b=style.b,
-                  s0=style.s0, a_lat=style.a_lat, gap_crit=style.gap_crit, is_ego=True)
-    xy, h = path.pose(ego.s)
-    lat0 = float(rng.normal(0.0, 0.5 * style.lat_sigma))
-    xy = xy + lat0 * np.array([-np.sin(h), np.cos(h)])
-    pose = np.array([xy[0], xy[1], float(wrap_angle(h + rng.normal(0.0, 0.01)))])
-    ego.xy, ego.yaw = pose[:2].copy(), float(pose[2])
-    traffic.vehicles.append(ego)
-    traffic.populate(pose[:2], ego_keepout=14.0)
-    # initial speed: sometimes from rest, else near the (curve-limited) desired speed
-    per = traffic.perceive()
-    v_des = min(style.v0, float(per["v_curve"][0]))
-    ego.v = 0.0 if rng.random() < 0.12 else float(v_des * rng.uniform(0.55, 1.0))
-    if rng.random() < 0.8:
-        traffic.add_cut_in(ego, style.v0)
-    # do not start closer to a leader than the style tolerates
-    per = traffic.perceive()
-    if np.isfinite(per["gap"][0]):
-        ego.v = float(min(ego.v, max((per["gap"][0] - style.s0) / style.T, 0.0),
-                          per["v_lead"][0] + 2.0))
-    driver = HumanDriver(m, style, rng, dt)
-
+    run = SceneRun(m, rng, dt, max_ados)
     ego_log = np.zeros((T, 3))
     ctl_log = np.zeros((T, 2))
     ado_log = np.zeros((T, max_ados, 5))
     val_log = np.zeros((T, max_ados), dtype=bool)
-    kinds = []
     for t in range(T):
-        traffic.update_stamps(t)
-        per = traffic.perceive()
-        ego_log[t] = pose
-        ados = traffic.vehicles[1:]
-        if ados:
-            ado_log[t, :len(ados)] = [(v.xy[0], v.xy[1], v.yaw, v.length, v.width) for v in ados]
-            val_log[t, :len(ados)] = [v.active for v in ados]
-        gap, stop = float(per["gap"][0]), float(per["stop"][0])
-        v_cmd, omega, a = driver.act(ego, path, pose, gap, float(per["v_lead"][0]), stop,
-                                     float(per["a_curve"][0]))
-        binding = "yield" if stop < gap else ("leader" if gap < np.inf else "")
-        kinds.append(binding if (a < -0.3 or (binding == "yield" and v_cmd < 0.5)) else "")
-        acc = traffic.ado_accelerations(per)
-        ctl_log[t] = (v_cmd, omega)
-        pose = unicycle_step(pose, np.array([v_cmd, omega]), dt)
-        ego.xy, ego.yaw, ego.v = pose[:2].copy(), float(pose[2]), v_cmd
-        ego.s = project_on_path(path, ego.s, pose)
-        traffic.step_ados(acc, ego)
-        traffic.spawn(pose[:2])
-    tags = {
+        ego_log[t] = run.pose
+        ado_log[t], val_log[t] = run.ado_boxes()
+        ctl_log[t] = run.human_step()
+    return SceneLog(ego_log, ctl_log, run.pose, ado_log, val_log, scene_tags(run, ctl_log))
+
+
+def scene_tags(run: SceneRun, controls: np.ndarray) -> dict:
+    """The tags of a scene simulated by ``run`` with the human's ``controls (T, 2)``."""
+    m, kinds, traffic = run.m, run.kinds, run.traffic
+    return {
         "kind": m.kind,
         "has_junction": bool(m.has_junction),
         "has_roundabout": bool(m.has_roundabout),
@@ -246,12 +311,11 @@ def simulate_scene(m: Map, rng: np.random.Generator, T: int = T_STEPS, dt: float
         "turn": _route_turn(m),
         "yield_steps": int(sum(k == "yield" for k in kinds)),
         "follow_steps": int(sum(k == "leader" for k in kinds)),
-        "stopped_steps": int(np.sum(ctl_log[:, 0] < 0.3)),
+        "stopped_steps": int(np.sum(controls[:, 0] < 0.3)),
         "n_ados": int(len(traffic.vehicles) - 1),
-        "density": density,
-        "style": asdict(style),
+        "density": run.density,
+        "style": asdict(run.style),
     }
-    return SceneLog(ego_log, ctl_log, pose, ado_log, val_log, tags)
 
 
 def _route_turn(m: Map) -> str:

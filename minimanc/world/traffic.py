@@ -116,6 +116,8 @@ class Traffic:
         self.sources = [ln.id for ln in m.lanes if ln.kind == "road" and not ln.predecessors]
         self.cut_in_done = False
         self.going: set = set()  # (i, j, lane_i, lane_j) where i accepted a gap and goes
+        self.scripted_walks: dict[int, list[int]] | None = None  # see own_lane_walk
+        self.walk_log: dict[int, list[int]] | None = None
 
     def path(self, veh: Vehicle) -> Path:
         return self.bank.paths[veh.pid]
@@ -447,12 +449,28 @@ class Traffic:
         ok = (np.abs(lat) < 2.2) & (s > veh.s) & (s < path.s[w][-1] - 0.5)
         return float(gaps[ok].min()) if ok.any() else np.inf
 
+    def own_lane_walk(self, veh: Vehicle, lid: int) -> list[int]:
+        """The lanes ``veh`` follows from lane ``lid`` when it gives up a cut-in.
+
+        A random walk (:func:`random_lane_walk`), unless :attr:`scripted_walks`
+        holds one for ``veh``'s index in :attr:`vehicles` (a replay of another
+        run); each walk taken is written to :attr:`walk_log` when that is a dict.
+        """
+        k = next(i for i, v in enumerate(self.vehicles) if v is veh)
+        if self.scripted_walks is not None and k in self.scripted_walks:
+            ids = list(self.scripted_walks[k])
+        else:
+            ids = random_lane_walk(self.m, self.rng, lid, 450.0)
+        if self.walk_log is not None:
+            self.walk_log[k] = list(ids)
+        return ids
+
     def _to_own_lane(self, veh: Vehicle) -> None:
         """Give up a cut-in: continue on the adjacent lane's own path."""
         lid = veh.cut_in["lane"]
         lane = self.m.lanes[lid]
         i = int(np.argmin(np.sum((lane.points - veh.xy) ** 2, axis=1)))
-        ids = random_lane_walk(self.m, self.rng, lid, 450.0)
+        ids = self.own_lane_walk(veh, lid)
         veh.pid = self.bank.add(Path.from_lanes(self.m, ids))
         veh.s = float(lane.s[i])
         veh.offset = veh.offset_rate = 0.0
