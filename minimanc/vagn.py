@@ -5,8 +5,9 @@ hidden states ("q-states").  Its state is a distribution ``q_t`` over the
 q-states and its transitions are *generated* from the visual predicates
 ``p ∈ R^M`` produced by the predicate extractor of chapter 6 (eq. 7):
 
-* eq. 8:  ``W^p = Σ_i p_i W_i``            (``W`` has shape ``(M, N, N)``)
-* eq. 9:  ``q_t = colsoftmax(ReLU(W^p)) · q_{t-1}``
+* eq. 8:  ``W^p = Σ_i p_i W_i``  (``W`` has shape ``(M, N, N)``; :func:`combined_weights`)
+* eq. 9:  ``q_t = colsoftmax(ReLU(W^p)) · q_{t-1}``  (:func:`transition_matrix`,
+  :func:`step`, :func:`rollout`)
 
 Conventions used throughout this module
 ---------------------------------------
@@ -32,7 +33,7 @@ entry of a column is ``1 / (1 + Σ_{r≠i} e^{R_rj})`` with ``R = ReLU(W^p)``;
 the automaton graph is always complete and "impossible" transitions can only
 be read off by thresholding (see :func:`plot_automaton`'s ``min_prob``).  (In
 float64 an entry underflows to 0.0 only when its column's logits differ by
-more than about 745.)
+more than ``−ln`` of the smallest subnormal, ≈ 745.)
 """
 
 from __future__ import annotations
@@ -41,12 +42,19 @@ from typing import Any
 
 import numpy as np
 
-from minimanc.checks import check_distribution, check_real, check_stochastic_columns, is_concrete
+from minimanc.checks import (
+    check_distribution,
+    check_int,
+    check_real,
+    check_stochastic_columns,
+    is_concrete,
+)
 
 __all__ = [
     "check_weights",
     "check_state",
     "init_vagn",
+    "combined_weights",
     "transition_matrix",
     "step",
     "rollout",
@@ -64,10 +72,29 @@ __all__ = [
 # input checks (concrete NumPy values only)
 # ---------------------------------------------------------------------------
 def check_weights(W: Any) -> tuple[int, int]:
-    """``(M, N)`` for transition weights ``W`` of shape ``(M, N, N)`` (eq. 8).
+    """Validate transition weights ``W`` (eq. 8) and return ``(M, N)``.
 
-    The shape is checked on every value; concrete ``W`` must also be finite.
-    ValueError otherwise.  Shared with :mod:`minimanc.cam`.
+    The shape is checked on every value (also traced ones); concrete ``W`` must
+    also be finite.  Shared with :mod:`minimanc.cam`.
+
+    Parameters
+    ----------
+    W : array-like, shape (M, N, N)
+        One ``N × N`` weight matrix ``W_i`` per predicate.
+
+    Returns
+    -------
+    M : int
+        Number of predicates.
+    N : int
+        Number of q-states.
+
+    Raises
+    ------
+    TypeError
+        If concrete ``W`` is not real numbers.
+    ValueError
+        If ``W`` is not of shape ``(M, N, N)``, or concrete ``W`` is not finite.
     """
     shape = tuple(np.shape(W)) if is_concrete(W) else tuple(W.shape)
     if len(shape) != 3 or shape[1] != shape[2]:
@@ -78,12 +105,28 @@ def check_weights(W: Any) -> tuple[int, int]:
 
 
 def check_state(q: Any, n_states: int, name: str = "q") -> None:
-    """``q`` (..., N): distributions over the ``N`` q-states (ValueError otherwise).
+    """Validate ``q``: distributions over the ``N`` q-states along the last axis.
 
-    For concrete ``q`` the sums must be one within
-    :func:`minimanc.checks.float_tolerance` of ``q``'s own precision and ``N``
-    terms (about 1e-6 · N/2 in float32, 2e-15 · N/2 in float64); see
-    :func:`minimanc.checks.check_distribution`.
+    The shape is checked on every value; concrete ``q`` must also be finite,
+    non-negative and sum to one within ``float_tolerance(value_dtype(q), N)``
+    (:func:`minimanc.checks.float_tolerance`: ``TOLERANCE_FACTOR · eps · N`` of
+    ``q``'s own precision).  See :func:`minimanc.checks.check_distribution`.
+
+    Parameters
+    ----------
+    q : array-like, shape (..., N)
+        Distributions to check.
+    n_states : int
+        Number of q-states ``N``.
+    name : str, optional (default: "q")
+        Name of the argument in error messages.
+
+    Raises
+    ------
+    TypeError
+        If concrete ``q`` is not real numbers.
+    ValueError
+        If the last axis is not ``N``, or concrete ``q`` is not a distribution.
     """
     check_distribution(name, q, n_states, what="q-states")
 
@@ -119,52 +162,131 @@ def init_vagn(
     scale: float = 0.5,
     mean: float = 0.0,
 ) -> np.ndarray:
-    """Transition weights ``W`` of shape ``(M, N, N)`` (eq. 8), entries ``N(mean, scale²)``.
+    """Transition weights ``W`` of eq. 8, entries drawn from ``N(mean, scale²)``.
 
     With ``mean = 0`` about half of every ``W^p`` starts in ReLU's dead zone,
-    where it receives no gradient.  When the predicates are non-negative a
-    small positive ``mean`` (e.g. 0.5 with ``scale`` 0.1) starts every entry
-    active and lets training decide which transitions to switch off; chapter
-    5's tutorial shows the difference.
+    where it receives no gradient.  When the predicates are non-negative a small
+    positive ``mean`` (e.g. 0.5 with ``scale`` 0.1) starts every entry active and
+    lets training decide which transitions to switch off; chapter 5's tutorial
+    shows the difference.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of randomness.
+    n_predicates : int
+        Number of predicates ``M`` ≥ 1.
+    n_states : int
+        Number of q-states ``N`` ≥ 1.
+    scale : float, optional (default: 0.5)
+        Standard deviation of the entries, ≥ 0.
+    mean : float, optional (default: 0.0)
+        Mean of the entries.
+
+    Returns
+    -------
+    W : array, shape (M, N, N)
+        Transition weights, float64.
+
+    Raises
+    ------
+    ValueError
+        If ``rng`` is not a ``numpy.random.Generator``, ``n_predicates`` or
+        ``n_states`` is not an integer ≥ 1, ``scale`` is negative or not finite,
+        or ``mean`` is not finite.
     """
     if not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng must be a numpy.random.Generator; got rng = {rng!r}")
-    if int(n_predicates) != n_predicates or n_predicates < 1:
-        raise ValueError(f"n_predicates must be a positive integer; got {n_predicates!r}")
-    if int(n_states) != n_states or n_states < 1:
-        raise ValueError(f"n_states must be a positive integer; got {n_states!r}")
+    M = check_int("n_predicates", n_predicates, 1)
+    N = check_int("n_states", n_states, 1)
     if not np.isfinite(scale) or scale < 0:
         raise ValueError(f"scale must be finite and >= 0; got scale = {scale!r}")
     if not np.isfinite(mean):
         raise ValueError(f"mean must be finite; got mean = {mean!r}")
-    M, N = int(n_predicates), int(n_states)
     return mean + scale * rng.standard_normal((M, N, N))
 
 
 def uniform_state(n_states: int) -> np.ndarray:
-    """Algorithm 1's ``UniformInit()``: ``q' = (1/N, …, 1/N)``."""
-    if int(n_states) != n_states or n_states < 1:
-        raise ValueError(f"n_states must be a positive integer; got {n_states!r}")
-    return np.full(int(n_states), 1.0 / int(n_states))
+    """Algorithm 1's ``UniformInit()``: ``q' = (1/N, …, 1/N)``.
+
+    Parameters
+    ----------
+    n_states : int
+        Number of q-states ``N`` ≥ 1.
+
+    Returns
+    -------
+    q : array, shape (N,)
+        The uniform distribution.
+
+    Raises
+    ------
+    ValueError
+        If ``n_states`` is not an integer ≥ 1.
+    """
+    n_states = check_int("n_states", n_states, 1)
+    return np.full(n_states, 1.0 / n_states)
 
 
 def random_state(
     rng: np.random.Generator, n_states: int, size: int | tuple[int, ...] | None = None
 ) -> np.ndarray:
-    """Algorithm 1's ``RandomInit()``: ``q'`` drawn uniformly from the simplex
-    (a flat Dirichlet), shape ``(*size, N)``."""
+    """Algorithm 1's ``RandomInit()``: ``q'`` uniform on the simplex (a flat Dirichlet).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of randomness.
+    n_states : int
+        Number of q-states ``N`` ≥ 1.
+    size : int or tuple of int, optional (default: None)
+        Batch shape; ``None`` draws one distribution.
+
+    Returns
+    -------
+    q : array, shape (*size, N)
+        Distributions over the q-states.
+
+    Raises
+    ------
+    ValueError
+        If ``rng`` is not a ``numpy.random.Generator`` or ``n_states`` is not an
+        integer ≥ 1.
+    """
     if not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng must be a numpy.random.Generator; got rng = {rng!r}")
-    if int(n_states) != n_states or n_states < 1:
-        raise ValueError(f"n_states must be a positive integer; got {n_states!r}")
-    return rng.dirichlet(np.ones(int(n_states)), size=size)
+    n_states = check_int("n_states", n_states, 1)
+    return rng.dirichlet(np.ones(n_states), size=size)
 
 
 # ---------------------------------------------------------------------------
 # the model (eqs. 8-9)
 # ---------------------------------------------------------------------------
 def combined_weights(p: Any, W: Any, xp: Any = np) -> Any:
-    """Eq. 8: ``W^p = Σ_i p_i W_i`` — ``p`` (..., M), ``W`` (M, N, N) → (..., N, N)."""
+    """Eq. 8: the predicate-weighted sum ``W^p = Σ_i p_i W_i``.
+
+    Parameters
+    ----------
+    p : array-like, shape (..., M)
+        Predicates.
+    W : array-like, shape (M, N, N)
+        Transition weights.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    Wp : array, shape (..., N, N)
+        Combined weights, before the ReLU and the softmax of eq. 9.
+
+    Raises
+    ------
+    TypeError
+        If concrete ``p`` or ``W`` is not real numbers.
+    ValueError
+        If a shape is wrong (``p``'s last axis must be ``M = W.shape[0]``) or a
+        concrete value is not finite.
+    """
     M, N = check_weights(W)
     _check_p(p, M)
     p = xp.asarray(p)
@@ -176,10 +298,30 @@ def combined_weights(p: Any, W: Any, xp: Any = np) -> Any:
 def transition_matrix(p: Any, W: Any, xp: Any = np) -> Any:
     """Eqs. 8–9: ``T = colsoftmax(ReLU(Σ_i p_i W_i))``.
 
-    ``p`` of shape ``(..., M)`` and ``W`` of shape ``(M, N, N)`` give ``T`` of
-    shape ``(..., N, N)`` with ``T[..., i, j] = P(next = i | current = j)``;
-    every column sums to one.  The softmax subtracts the column maximum first,
-    so it never overflows (the shift cancels, also in the gradient).
+    Every column sums to one: ``T[..., i, j] = P(next = i | current = j)``.  The
+    softmax subtracts the column maximum first, so it never overflows (the shift
+    cancels, also in the gradient).
+
+    Parameters
+    ----------
+    p : array-like, shape (..., M)
+        Predicates.
+    W : array-like, shape (M, N, N)
+        Transition weights.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    T : array, shape (..., N, N)
+        Column-stochastic transition matrices with strictly positive entries.
+
+    Raises
+    ------
+    TypeError
+        If concrete ``p`` or ``W`` is not real numbers.
+    ValueError
+        If a shape is wrong or a concrete value is not finite.
     """
     A = combined_weights(p, W, xp=xp)  # eq. 8
     R = xp.maximum(A, 0.0)  # ReLU
@@ -189,15 +331,37 @@ def transition_matrix(p: Any, W: Any, xp: Any = np) -> Any:
 
 
 def step(q: Any, p: Any, W: Any, xp: Any = np) -> Any:
-    """Eq. 9: one vAGN update ``q_t = T(p) q_{t-1}``; ``q`` (..., N), ``p`` (..., M).
+    """Eq. 9: one vAGN update ``q_t = T(p) q_{t-1}``, renormalised.
 
-    The result is renormalised, ``q_t / Σ_i q_t[i]``.  In exact arithmetic this
-    is the identity — every column of ``T`` sums to one, so ``Σ q_t = Σ q_{t-1}
-    = 1`` — and it changes no gradient with respect to ``p`` or ``W``; in
-    floating point it removes the rounding drift of the sum, so ``q`` fed back
-    step after step (thousands of float32 steps) stays a distribution to the
-    precision of its dtype.  The concrete input ``q`` is checked with the
-    tolerance of its own dtype (:func:`check_state`).
+    The result is divided by its sum.  In exact arithmetic this is the identity
+    (every column of ``T`` sums to one, so ``Σ q_t = Σ q_{t-1} = 1``) and it
+    changes no gradient with respect to ``p`` or ``W``; in floating point it
+    removes the rounding drift of the sum, so ``q`` fed back step after step
+    stays a distribution to the precision of its dtype.
+
+    Parameters
+    ----------
+    q : array-like, shape (..., N)
+        Previous distributions ``q_{t-1}`` (checked with :func:`check_state`).
+    p : array-like, shape (..., M)
+        Predicates; the batch shapes of ``q`` and ``p`` broadcast.
+    W : array-like, shape (M, N, N)
+        Transition weights.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    q_next : array, shape (..., N)
+        Distributions ``q_t``.
+
+    Raises
+    ------
+    TypeError
+        If a concrete argument is not real numbers.
+    ValueError
+        If a shape is wrong, a concrete value is not finite, or concrete ``q``
+        is not a distribution.
     """
     M, N = check_weights(W)
     check_state(q, N)
@@ -207,11 +371,34 @@ def step(q: Any, p: Any, W: Any, xp: Any = np) -> Any:
 
 
 def rollout(q0: Any, ps: Any, W: Any, xp: Any = np) -> Any:
-    """Run eq. 9 over a predicate sequence ``ps`` of shape ``(T, ..., M)``.
+    """Run eq. 9 over a predicate sequence (time-major).
 
-    Returns the stacked distributions ``(T + 1, ..., N)``: index 0 is ``q0``,
-    index ``t`` is the state after consuming ``ps[t - 1]``.  Each step is
-    renormalised as in :func:`step` (the identity in exact arithmetic).
+    Each step is renormalised as in :func:`step`.
+
+    Parameters
+    ----------
+    q0 : array-like, shape (..., N)
+        Initial distributions.
+    ps : array-like, shape (T, ..., M)
+        Predicates of each step.
+    W : array-like, shape (M, N, N)
+        Transition weights.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    qs : array, shape (T + 1, ..., N)
+        ``qs[0]`` is ``q0`` (broadcast to the batch shape), ``qs[t]`` the
+        distribution after consuming ``ps[t - 1]``.
+
+    Raises
+    ------
+    TypeError
+        If a concrete argument is not real numbers.
+    ValueError
+        If ``ps`` is not of shape ``(T, ..., M)``, another shape is wrong, a
+        concrete value is not finite, or ``q0`` is not a distribution.
     """
     M, N = check_weights(W)
     check_state(q0, N, name="q0")
@@ -237,19 +424,53 @@ def rollout(q0: Any, ps: Any, W: Any, xp: Any = np) -> Any:
 # analysis (plain NumPy, no gradients)
 # ---------------------------------------------------------------------------
 def min_transition_probability(p: Any, W: Any) -> float:
-    """The smallest entry of ``T(p)``; always > 0 (a ReLU zero is ``e^0 = 1``)."""
+    """The smallest entry of ``T(p)``: always > 0, since a ReLU zero becomes ``e^0 = 1``.
+
+    Parameters
+    ----------
+    p : array-like, shape (..., M)
+        Predicates.
+    W : array-like, shape (M, N, N)
+        Transition weights.
+
+    Returns
+    -------
+    p_min : float
+        ``min T(p)`` over every batch entry, row and column.
+
+    Raises
+    ------
+    ValueError
+        If a shape is wrong or a value is not finite.
+    """
     return float(np.min(transition_matrix(np.asarray(p, float), np.asarray(W, float))))
 
 
 def stationary_distribution(T: Any) -> np.ndarray:
-    """The distribution ``π`` with ``T π = π`` for a column-stochastic ``T`` (N, N).
+    """The distribution ``π`` with ``T π = π`` for a column-stochastic ``T``.
 
     vAGN matrices have strictly positive entries, so by Perron–Frobenius ``π``
-    is unique, strictly positive, and ``T^k q → π`` for every start ``q``.  It
-    is what the automaton settles to while the predicates stay constant.
-    Solved as the least-squares system ``[T − I; 1ᵀ] π = [0; 1]``; a ``T``
-    with NaN or ±inf entries, or one that is not column-stochastic, raises
-    ValueError before any linear algebra runs.
+    is unique, strictly positive, and ``T^k q → π`` for every start ``q``: it is
+    what the automaton settles to while the predicates stay constant.  Solved as
+    the least-squares system ``[T − I; 1ᵀ] π = [0; 1]``.
+
+    Parameters
+    ----------
+    T : array-like, shape (N, N)
+        Column-stochastic transition matrix (e.g. from :func:`transition_matrix`).
+
+    Returns
+    -------
+    pi : array, shape (N,)
+        The stationary distribution.
+
+    Raises
+    ------
+    TypeError
+        If ``T`` is not real numbers.
+    ValueError
+        If ``T`` is not of shape ``(N, N)``, has NaN or ±inf entries, or is not
+        column-stochastic (checked before any linear algebra runs).
     """
     T = _check_T(T)
     if T.ndim != 2:
@@ -264,7 +485,23 @@ def stationary_distribution(T: Any) -> np.ndarray:
 
 
 def most_likely_states(qs: Any) -> np.ndarray:
-    """Per-step most probable q-state: ``argmax_i q_t[i]`` for ``qs`` (..., N)."""
+    """Per-step most probable q-state: ``argmax_i q_t[i]``.
+
+    Parameters
+    ----------
+    qs : array-like, shape (..., N)
+        Distributions over the q-states (e.g. from :func:`rollout`).
+
+    Returns
+    -------
+    states : array of int, shape (...)
+        Index of the most probable q-state of each distribution.
+
+    Raises
+    ------
+    ValueError
+        If ``qs`` is a scalar.
+    """
     qs = np.asarray(qs, dtype=float)
     if qs.ndim < 1:
         raise ValueError(f"qs must have shape (..., N); got qs with shape {qs.shape}")
@@ -274,13 +511,32 @@ def most_likely_states(qs: Any) -> np.ndarray:
 def most_likely_path(q0: Any, Ts: Any) -> tuple[np.ndarray, float]:
     """Viterbi: the single most probable state *sequence* ``s_0 … s_T``.
 
-    Maximises ``log q0[s_0] + Σ_t log Ts[t-1][s_t, s_{t-1}]`` over paths, for
-    transition matrices ``Ts`` of shape ``(T, N, N)`` (e.g. from
-    ``transition_matrix(ps, W)``).  Returns ``(path of length T + 1, log
-    probability)``.  The per-step argmax of the marginals
-    (:func:`most_likely_states`) need not be a likely path — compare both.
-    ``Ts`` must be finite and column-stochastic and ``q0`` a distribution
-    (ValueError otherwise, so a NaN never yields a path with ``log p = nan``).
+    Maximises ``log q0[s_0] + Σ_t log Ts[t-1][s_t, s_{t-1}]`` over paths.  The
+    per-step argmax of the marginals (:func:`most_likely_states`) need not be a
+    likely path — compare both.
+
+    Parameters
+    ----------
+    q0 : array-like, shape (N,)
+        Initial distribution.
+    Ts : array-like, shape (T, N, N)
+        Column-stochastic transition matrices, e.g. ``transition_matrix(ps, W)``.
+
+    Returns
+    -------
+    path : array of int, shape (T + 1,)
+        The most probable q-state at each time.
+    logp : float
+        Its log probability.
+
+    Raises
+    ------
+    TypeError
+        If ``q0`` or ``Ts`` is not real numbers.
+    ValueError
+        If ``Ts`` is not of shape ``(T, N, N)``, not finite or not
+        column-stochastic, or ``q0`` is not a distribution of shape ``(N,)`` (so
+        a NaN never yields a path with ``log p = nan``).
     """
     Ts = _check_T(Ts, name="Ts")
     if Ts.ndim != 3:
@@ -317,13 +573,42 @@ def plot_automaton(
     show_probs: bool = True,
     max_width: float = 8.0,
 ) -> Any:
-    """Draw the automaton of a transition matrix ``T`` (N, N).
+    """Draw the automaton of a transition matrix ``T``.
 
-    Nodes are the q-states on a circle (shaded by ``q`` if given: darker =
-    more probable, as in the paper's q-distribution plots); the arrow ``j → i``
-    has width ``max_width · T[i, j]``; self-loops are drawn as small rings.
-    Edges with ``T[i, j] < min_prob`` are hidden — the only way to get a sparse
-    picture, since vAGN never produces exact zeros.  Returns the axes.
+    Nodes are the q-states on a circle (shaded by ``q`` if given: darker = more
+    probable, as in the paper's q-distribution plots); the arrow ``j → i`` has
+    width ``max_width · T[i, j]``; self-loops are drawn as small rings.
+
+    Parameters
+    ----------
+    T : array-like, shape (N, N)
+        Column-stochastic transition matrix.
+    ax : matplotlib Axes, optional (default: None)
+        Axes to draw on; a new 4 × 4 inch figure when None.
+    labels : list of str, optional (default: None)
+        ``N`` node labels; ``q_0 … q_{N-1}`` when None.
+    q : array-like, shape (N,), optional (default: None)
+        Distribution shading the nodes.
+    min_prob : float, optional (default: 0.0)
+        Edges with ``T[i, j] < min_prob`` are hidden — the only way to get a
+        sparse picture, since vAGN never produces exact zeros.
+    show_probs : bool, optional (default: True)
+        Label each edge with its probability.
+    max_width : float, optional (default: 8.0)
+        Line width of an edge of probability 1.
+
+    Returns
+    -------
+    ax : matplotlib Axes
+        The axes drawn on.
+
+    Raises
+    ------
+    TypeError
+        If ``T`` or ``q`` is not real numbers.
+    ValueError
+        If ``T`` is not a column-stochastic ``(N, N)`` matrix, ``labels`` does not
+        have ``N`` entries, or ``q`` is not a distribution over ``N`` states.
     """
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, FancyArrowPatch
@@ -399,9 +684,37 @@ def plot_q_heatmap(
     cmap: str = "Blues",
     colorbar: bool = True,
 ) -> Any:
-    """Heat map of the q-distribution over time: ``qs`` (T, N) → rows = q-states,
-    columns = time steps, colour = probability in [0, 1] (darker = more probable,
-    as in the paper's execution traces).  Returns the axes."""
+    """Heat map of the q-distribution over time, as in the paper's execution traces.
+
+    Rows are q-states, columns time steps, colour the probability in [0, 1]
+    (darker = more probable).
+
+    Parameters
+    ----------
+    qs : array-like, shape (T, N)
+        Distributions over time.
+    ax : matplotlib Axes, optional (default: None)
+        Axes to draw on; a new figure when None.
+    labels : list of str, optional (default: None)
+        ``N`` row labels; ``q_0 … q_{N-1}`` when None.
+    cmap : str, optional (default: "Blues")
+        Matplotlib colormap name.
+    colorbar : bool, optional (default: True)
+        Add a colour bar.
+
+    Returns
+    -------
+    ax : matplotlib Axes
+        The axes drawn on.
+
+    Raises
+    ------
+    TypeError
+        If ``qs`` is not real numbers.
+    ValueError
+        If ``qs`` is not of shape ``(T, N)`` or not distributions, or ``labels``
+        does not have ``N`` entries.
+    """
     import matplotlib.pyplot as plt
 
     shape = np.shape(qs)

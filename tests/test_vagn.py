@@ -270,6 +270,23 @@ def test_most_likely_path_matches_brute_force(prob):
 
 
 # --------------------------------------------------------------------- bad input
+@pytest.mark.parametrize("bad", [0, -1, 3.0, 2.5, True, None, "3"])
+@pytest.mark.parametrize(
+    "name,call",
+    [
+        ("n_predicates", lambda n: vagn.init_vagn(np.random.default_rng(0), n, 2)),
+        ("n_states", lambda n: vagn.init_vagn(np.random.default_rng(0), 2, n)),
+        ("n_states", lambda n: vagn.uniform_state(n)),
+        ("n_states", lambda n: vagn.random_state(np.random.default_rng(0), n)),
+    ],
+)
+def test_sizes_must_be_integers_at_least_one(name, call, bad):
+    """A size that is not an ``int`` >= 1 (a float such as 3.0, a bool, None) is refused."""
+    with pytest.raises(ValueError, match=rf"{name} must be an integer >= 1, got {name}="):
+        call(bad)
+    assert call(np.int64(3)).shape[-1] in (2, 3)  # NumPy integers are integers
+
+
 def test_bad_inputs_raise_value_errors_naming_the_problem():
     rng = np.random.default_rng(8)
     W = vagn.init_vagn(rng, 3, 4)
