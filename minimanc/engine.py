@@ -12,7 +12,8 @@ attribute           "numpy"                             "jax"
 ``grad``            :func:`minimanc.autodiff.grad`      ``jax.grad``
 ``value_and_grad``  :func:`minimanc.autodiff.value_and_grad`  ``jax.value_and_grad``
 ``jit``             identity                            ``jax.jit``
-``scan``            :func:`minimanc.autodiff.core.scan`  ``jax.lax.scan``
+``scan``            :func:`minimanc.autodiff.scan`        ``jax.lax.scan``
+``custom_vjp``      :class:`minimanc.autodiff.custom_vjp`  ``jax.custom_vjp``
 ``device_put``      identity                            arrays of a pytree to JAX
 ``nn``              :mod:`minimanc.autodiff.nn`         the functions below
 ==================  ==================================  ===========================
@@ -22,32 +23,40 @@ conv2d(x, w, b=None, stride=1, padding=0), global_avg_pool(x)`` with NHWC images
 and HWIO kernels; ``conv2d`` zero-pads ``padding`` pixels on each side and its
 output has spatial size ``(H + 2p - k) // s + 1``. ``get_engine("jax")`` turns on
 ``jax_enable_x64`` so that float64 runs agree with the NumPy engine to 1e-6.
+
+Library code that receives only an array namespace ``xp`` (the DMP step of eq. 10)
+finds its engine with :func:`engine_of`, e.g. to use ``engine_of(xp).custom_vjp``.
 """
 
 from __future__ import annotations
 
 import functools
 import importlib
+import sys
 import types
 from collections.abc import Callable
 from numbers import Integral
 from typing import Any
 
-__all__ = ["ENGINES", "Engine", "get_engine"]
+import numpy as np
+
+__all__ = ["ENGINES", "Engine", "engine_of", "get_engine"]
 
 ENGINES = ("numpy", "jax")
 
 
 class Engine:
     """An autodiff engine: ``name``, ``xp``, ``grad``, ``value_and_grad``, ``jit``, ``scan``,
-    ``device_put``, ``nn``.
+    ``custom_vjp``, ``device_put``, ``nn``.
 
     ``scan(f, init, xs, length=None) -> (carry, ys)`` is ``jax.lax.scan``'s loop
     (``carry, y_i = f(carry, xs[i])``, the ``y_i`` stacked); differentiable with
     respect to ``init``, ``xs`` and the traced values ``f`` closes over. On the
     NumPy engine the whole loop is one node of the tape. ``device_put(tree)``
     returns the pytree with its arrays in the engine's own array type (once, before
-    a training loop), unchanged on NumPy.
+    a training loop), unchanged on NumPy. ``custom_vjp(fun, nondiff_argnums)`` with
+    ``.defvjp(fwd, bwd)`` is ``jax.custom_vjp``'s API: a function with a hand-written
+    VJP (on NumPy, one node of the tape per call).
     """
 
     def __init__(
@@ -60,6 +69,7 @@ class Engine:
         nn_loader: Callable[[], Any],
         scan: Callable,
         device_put: Callable[[Any], Any],
+        custom_vjp: Callable,
     ) -> None:
         self.name = name
         self.xp = xp
@@ -68,6 +78,7 @@ class Engine:
         self.jit = jit
         self.scan = scan
         self.device_put = device_put
+        self.custom_vjp = custom_vjp
         self._nn_loader = nn_loader
         self._nn = None
 
@@ -102,6 +113,7 @@ def _numpy_engine() -> Engine:
         nn_loader=lambda: importlib.import_module("minimanc.autodiff.nn"),
         scan=core.scan,
         device_put=lambda tree: tree,
+        custom_vjp=core.custom_vjp,
     )
 
 
@@ -186,6 +198,7 @@ def _jax_engine() -> Engine:
         nn_loader=lambda: _jax_nn(jax),
         scan=jax.lax.scan,
         device_put=lambda tree: jax.tree_util.tree_map(jax.numpy.asarray, tree),
+        custom_vjp=jax.custom_vjp,
     )
 
 
@@ -198,3 +211,20 @@ def get_engine(name: str = "numpy") -> Engine:
         return _jax_engine()
     raise ValueError(f"unknown engine name={name!r}; choose one of {', '.join(ENGINES)}")
 
+
+def engine_of(xp: Any) -> Engine | None:
+    """The engine whose array namespace is ``xp``, or ``None`` for another namespace.
+
+    Plain ``numpy`` gives the NumPy engine (its functions also run on plain arrays
+    of any kind, JAX's included: with nothing traced they only call the function).
+
+    >>> import numpy as np
+    >>> engine_of(np).name
+    'numpy'
+    """
+    if xp is np or xp is get_engine("numpy").xp:
+        return get_engine("numpy")
+    jnp = sys.modules.get("jax.numpy")
+    if jnp is not None and xp is jnp:
+        return get_engine("jax")
+    return None

@@ -1,0 +1,97 @@
+"""Chapter 1 — :class:`custom_vjp`: a function with a hand-written VJP (``jax.custom_vjp``'s API).
+
+A long chain of small operations (the sub-steps of one DMP step, eq. 10) costs one
+tape node per operation. Written as one function with its own VJP it is **one**
+node: the forward runs on plain arrays and keeps what the backward needs, the
+backward is written by hand. The contract is ``jax.custom_vjp``'s, so the same
+three functions serve both engines (:attr:`minimanc.engine.Engine.custom_vjp`)::
+
+    f = custom_vjp(fun, nondiff_argnums=(2,))
+    f.defvjp(fwd, bwd)
+    # fwd(*args) -> (out, residuals);  bwd(*nondiff_args, residuals, g) -> cotangents
+
+``out`` is an array or a tuple of arrays; ``bwd`` receives the output cotangent
+``g`` in the same structure (zeros for outputs that were not used) and returns a
+tuple with one cotangent per differentiable argument (the positional arguments
+not listed in ``nondiff_argnums``), each of that argument's shape.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+
+import numpy as np
+
+from minimanc.autodiff.boxes import FRAMES, Box, unbox
+from minimanc.autodiff.primitives import Outputs, primitive, select
+
+__all__ = ["custom_vjp"]
+
+
+class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
+    """``fun`` with the VJP registered by :meth:`defvjp`; one tape node per call.
+
+    With no traced positional argument the call is simply ``fun(*args)`` (any
+    array type passes through, JAX's included). Otherwise ``fwd`` runs on the
+    plain values and the result is boxed once; the backward pass calls ``bwd``.
+    Positional arguments only; those in ``nondiff_argnums`` are static (an
+    integer, a string, a concrete float) and must not be traced.
+    """
+
+    def __init__(self, fun: Callable, nondiff_argnums: tuple[int, ...] = ()) -> None:
+        self.fun = fun
+        self.nondiff_argnums = tuple(nondiff_argnums)
+        self.fwd: Callable | None = None
+        self.bwd: Callable | None = None
+        functools.update_wrapper(self, fun)
+        self._node = primitive(fun)
+        self._node.bwd = self._node_bwd
+
+    def defvjp(self, fwd: Callable, bwd: Callable) -> None:
+        """Register ``fwd(*args) -> (out, residuals)`` and ``bwd(*nondiff, residuals, g)``."""
+        self.fwd, self.bwd = fwd, bwd
+
+    def __call__(self, *args, **kwargs):
+        if kwargs:
+            raise TypeError(f"{self.__name__}: a custom_vjp function takes positional "
+                            f"arguments only, got keywords {sorted(kwargs)}")
+        parents = [(i, a) for i, a in enumerate(args) if isinstance(a, Box)]
+        if not parents:
+            return self.fun(*args)
+        if self.fwd is None:
+            raise NotImplementedError(f"{self.__name__}: register its VJP with .defvjp(fwd, bwd)")
+        nondiff = self.nondiff_argnums
+        for i, _ in parents:
+            if i in nondiff:
+                raise TypeError(f"{self.__name__}: argument {i} is traced but listed in "
+                                f"nondiff_argnums={nondiff}")
+        raw = [unbox(a) for a in args]
+        out, res = self.fwd(*raw)
+        multi = isinstance(out, tuple | list)
+        value = Outputs(out) if multi else out
+        shapes = [(np.shape(o), np.result_type(o)) for o in out] if multi else None
+        node = Box(value, tuple(parents), self._node, (), None,
+                   (tuple(raw[i] for i in nondiff), res, shapes, len(args)))
+        if FRAMES:
+            FRAMES[-1][id(node)] = node
+        if not multi:
+            return node
+        return type(out)(select(node, k) for k in range(len(out)))
+
+    def _node_bwd(self, g, node_res) -> tuple:
+        """Cotangents of every positional argument (``None`` for the static ones)."""
+        nondiff_vals, res, shapes, n_args = node_res
+        if shapes is not None:  # a tuple of outputs: unused ones have a None cotangent
+            g = tuple(np.zeros(s, dtype=d) if gk is None else gk
+                      for gk, (s, d) in zip(g, shapes))
+        cts = self.bwd(*nondiff_vals, res, g)
+        if not isinstance(cts, tuple | list):
+            raise TypeError(f"{self.__name__}: bwd must return a tuple of cotangents, got "
+                            f"{type(cts).__name__}")
+        n_diff = n_args - len(self.nondiff_argnums)
+        if len(cts) != n_diff:
+            raise TypeError(f"{self.__name__}: bwd returned {len(cts)} cotangents for "
+                            f"{n_diff} differentiable arguments")
+        it = iter(cts)
+        return tuple(None if i in self.nondiff_argnums else next(it) for i in range(n_args))
