@@ -183,10 +183,21 @@ def check_positive(name: str, value: Any) -> np.ndarray:
     return arr
 
 
-def check_int(name: str, value: Any, minimum: int) -> int:
-    """An integer ``>= minimum`` (not a bool, not a float like 2.5) or ValueError naming it."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {name}={value!r}")
+def check_int(name: str, value: Any, minimum: int, maximum: int | None = None) -> int:
+    """An integer ``>= minimum`` (and ``<= maximum`` if given) or ValueError naming it.
+
+    Python and NumPy integers pass and are returned as ``int``; bools, floats
+    (even 2.0), strings and ``None`` do not.
+    """
+    if maximum is not None and maximum < minimum:
+        raise ValueError(f"check_int({name!r}): maximum {maximum} < minimum {minimum}")
+    ok = not isinstance(value, bool) and isinstance(value, numbers.Integral) and value >= minimum
+    if maximum is None:
+        if not ok:
+            raise ValueError(f"{name} must be an integer >= {minimum}, got {name}={value!r}")
+    elif not (ok and value <= maximum):
+        raise ValueError(f"{name} must be an integer in [{minimum}, {maximum}], "
+                         f"got {name}={value!r}")
     return int(value)
 
 

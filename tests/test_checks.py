@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -85,6 +87,27 @@ def test_check_positive_and_int():
     for bad in (0, 2.5, True, "3"):
         with pytest.raises(ValueError, match=f"n must be an integer >= 1, got n={bad!r}"):
             checks.check_int("n", bad, 1)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(-5, 5), st.integers(0, 6),
+       st.one_of(st.integers(-20, 20), st.integers(-20, 20).map(np.int64),
+                 st.floats(-20, 20), st.booleans(), st.just("3"), st.none()))
+def test_check_int_with_a_maximum_accepts_exactly_the_integers_in_range(lo, width, value):
+    hi = lo + width
+    is_int = isinstance(value, int | np.integer) and not isinstance(value, bool)
+    if is_int and lo <= value <= hi:
+        out = checks.check_int("k", value, lo, hi)
+        assert out == value and type(out) is int
+    else:
+        with pytest.raises(ValueError, match=rf"^k must be an integer in \[{lo}, {hi}\], "
+                                             rf"got k={re.escape(repr(value))}$"):
+            checks.check_int("k", value, lo, hi)
+
+
+def test_check_int_refuses_an_empty_range():
+    with pytest.raises(ValueError, match=r"check_int\('k'\): maximum 0 < minimum 1"):
+        checks.check_int("k", 1, 1, 0)
 
 
 @pytest.mark.parametrize("name", ["numpy", "jax"])

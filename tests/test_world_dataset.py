@@ -9,6 +9,7 @@ import pytest
 
 from minimanc import world
 from minimanc.world import dataset as dsmod
+from minimanc.world import datawriter, fileformat, generation
 
 N = 40
 
@@ -194,7 +195,7 @@ def test_corrupt_truncated_and_wrong_version_files(ds, tmp_path, monkeypatch):
     with pytest.raises(world.DatasetFileError, match="checksum"):
         world.load(altered)
     # wrong version
-    monkeypatch.setattr(dsmod, "FILE_FORMAT_VERSION", 999)
+    monkeypatch.setattr(datawriter, "FILE_FORMAT_VERSION", 999)
     old = world.save(small, tmp_path / "v999.npz")
     monkeypatch.undo()
     with pytest.raises(world.DatasetFileError, match="v999.npz.*version 999"):
@@ -278,7 +279,7 @@ def test_missing_meta_key_names_the_file_and_the_key(ds, tmp_path, monkeypatch):
 
     def drop(h):
         del h["meta"]["tags"]
-        h["sha256"] = dsmod._header_sha(h)
+        h["sha256"] = fileformat.header_sha256(h)
     bad = _edit_header(good, tmp_path / "notags.npz", drop)
     with pytest.raises(world.DatasetFileError, match=r"notags\.npz.*'tags' missing"):
         world.load(bad)
@@ -316,8 +317,7 @@ def test_non_finite_data_is_refused_naming_scene_and_step(ds, tmp_path, monkeypa
         world.save(small, tmp_path / "nan.npz")
     assert not list(tmp_path.iterdir())  # nothing written
     # a file holding one (written before this check existed) is refused at load
-    monkeypatch.setattr(dsmod, "first_non_finite", lambda *a, **k: None)
-    monkeypatch.setattr(dsmod, "check_finite", lambda *a, **k: None)
+    monkeypatch.setattr(datawriter, "check_finite", lambda *a, **k: None)
     path = world.save(small, tmp_path / "nan.npz", shard_scenes=1)
     monkeypatch.undo()
     with pytest.raises(world.DatasetFileError,
@@ -358,13 +358,13 @@ def test_generate_file_failure_leaves_nothing_and_stale_temps_are_cleaned(tmp_pa
         p.write_bytes(b"partial")
     other = tmp_path / "other.npz.x.tmp"  # another file's temp: not ours to remove
     other.write_bytes(b"")
-    real = dsmod.generate_scene
+    real = generation.generate_scene
 
     def boom(seed, index, *a, **k):
         if index == 3:
             raise RuntimeError("simulated crash in scene 3")
         return real(seed, index, *a, **k)
-    monkeypatch.setattr(dsmod, "generate_scene", boom)
+    monkeypatch.setattr(generation, "generate_scene", boom)
     with pytest.raises(RuntimeError, match="scene 3"):
         world.generate_file(target, 5, seed=1, workers=1, shard_scenes=2)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["other.npz.x.tmp"]

@@ -13,7 +13,10 @@ package makes its own data:
 * :mod:`~minimanc.world.raster` — the ego-centric, heading-up BEV raster
   with the nuScenes devkit colours;
 * :mod:`~minimanc.world.dataset` — generate / split / save / load (sharded,
-  checksummed files; :func:`generate_file` streams any number of scenes to disk);
+  checksummed files; :func:`generate_file` streams any number of scenes to disk),
+  gathering :mod:`~minimanc.world.fileformat` (the format), :mod:`~minimanc.world.scenes`
+  (the :class:`Dataset`), :mod:`~minimanc.world.datawriter`,
+  :mod:`~minimanc.world.datareader` and :mod:`~minimanc.world.generation`;
 * :mod:`~minimanc.world.geometry` — frames and the unicycle (``DT = 0.5`` s).
 
 >>> from minimanc import world
@@ -29,6 +32,7 @@ from minimanc.world.dataset import (
     DatasetWriter,
     Estimate,
     check_finite,
+    draw_scene,
     estimate,
     file_content_hash,
     generate,
@@ -84,12 +88,11 @@ from minimanc.world.traffic import idm_acceleration
 __all__ = [
     "DT", "Dataset", "DatasetFileError", "DatasetWriter", "EGO_LENGTH", "EGO_WIDTH", "Estimate",
     "FILE_FORMAT_VERSION", "FORMAT_VERSION", "HumanStyle", "K_TARGETS", "Lane", "MAX_ADOS", "Map",
-    "RasterConfig",
-    "TARGET_SPACING", "T_STEPS", "box_corners", "box_mask", "boxes_overlap", "build_map",
-    "check_finite", "check_scene", "controls_from_poses", "estimate", "file_content_hash",
-    "from_ego_frame", "generate", "generate_file", "generate_scene", "generate_splits",
-    "goal_in_ego_frame", "hue_colours", "idm_acceleration", "lane_targets", "load",
-    "project_to_route", "random_map", "random_recipe", "random_style", "rasterize",
+    "RasterConfig", "TARGET_SPACING", "T_STEPS", "box_corners", "box_mask", "boxes_overlap",
+    "build_map", "check_finite", "check_scene", "controls_from_poses", "draw_scene", "estimate",
+    "file_content_hash", "from_ego_frame", "generate", "generate_file", "generate_scene",
+    "generate_splits", "goal_in_ego_frame", "hue_colours", "idm_acceleration", "lane_targets",
+    "load", "project_to_route", "random_map", "random_recipe", "random_style", "rasterize",
     "rasterize_batch", "rasterize_goal", "read_meta", "save", "simulate_scene", "to_ego_frame",
     "unicycle_step", "wrap_angle",
 ]
