@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import layers, vagn
+from minimanc.checks import check_int
 
 __all__ = [
     "paper_cmap",
@@ -66,9 +67,17 @@ __all__ = [
 
 @functools.cache
 def paper_cmap() -> Any:
-    """The colormap of the paper's saliency figures: high → low = yellow → red → cyan
-    → magenta. Built on first use, so that the math of this module (and every module
-    importing it) does not import matplotlib; also available as ``cam.PAPER_CMAP``."""
+    """The colormap of the paper's saliency figures: high → low = yellow → red → cyan → magenta.
+
+    Built on first use, so that the math of this module (and every module
+    importing it) does not import matplotlib; also available as
+    ``cam.PAPER_CMAP``.
+
+    Returns
+    -------
+    cmap : matplotlib.colors.LinearSegmentedColormap
+        256 colours, low → high: magenta, cyan, red, yellow.
+    """
     from matplotlib.colors import LinearSegmentedColormap
 
     # low → high: magenta → cyan → red → yellow
@@ -94,33 +103,73 @@ def init_extractor(
     kernel_size: int = 3,
     dtype: Any = np.float64,
 ) -> dict:
-    """Parameters of eq. 7: ``{"convs": [{"w": HWIO, "b"}, …], "head": {"w": (K, M), "b": (M,)}}``.
+    """Parameters of the predicate extractor of eq. 7.
 
-    ``channels`` lists the output channels of each convolution; the last one
-    is ``K``, the number of feature maps that CAM combines.  Convolutions are
-    He-normal and the head Glorot-uniform (:mod:`minimanc.layers`).
+    Convolutions are He-normal and the head Glorot-uniform
+    (:mod:`minimanc.layers`).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of randomness.
+    in_channels : int, optional (default: 3)
+        Channels ``C`` of the input images, ≥ 1.
+    n_predicates : int, optional (default: 4)
+        Number of predicates ``M``, ≥ 1.
+    channels : sequence of int, optional (default: (8, 16))
+        Output channels of each convolution (at least one); the last one is
+        ``K``, the number of feature maps that CAM combines.
+    kernel_size : int, optional (default: 3)
+        Height and width of every kernel, ≥ 1.
+    dtype : NumPy float dtype, optional (default: float64)
+        Precision of the parameters.
+
+    Returns
+    -------
+    params : dict
+        ``{"convs": [{"w": (k, k, c_in, c_out) HWIO, "b": (c_out,)}, ...],
+        "head": {"w": (K, M), "b": (M,)}}``.
+
+    Raises
+    ------
+    ValueError
+        If ``rng`` is not a ``numpy.random.Generator``, a size is not an integer
+        ≥ 1, ``channels`` is empty, or ``dtype`` is not a float type.
     """
     if not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng must be a numpy.random.Generator; got rng = {rng!r}")
-    for name, v in (("in_channels", in_channels), ("n_predicates", n_predicates),
-                    ("kernel_size", kernel_size)):
-        if int(v) != v or v < 1:
-            raise ValueError(f"{name} must be a positive integer; got {name} = {v!r}")
+    c_in = check_int("in_channels", in_channels, 1)
+    n_predicates = check_int("n_predicates", n_predicates, 1)
+    k = check_int("kernel_size", kernel_size, 1)
     channels = tuple(channels)
-    if len(channels) == 0 or any(int(c) != c or c < 1 for c in channels):
-        raise ValueError(f"channels must be a non-empty list of positive integers; got {channels}")
-    k, convs, c_in = int(kernel_size), [], int(in_channels)
+    if len(channels) == 0:
+        raise ValueError(f"channels must list at least one convolution; got channels={channels}")
+    channels = tuple(check_int(f"channels[{i}]", c, 1) for i, c in enumerate(channels))
+    convs = []
     for c in channels:
-        convs.append(layers.init_conv(rng, k, k, c_in, int(c), dtype=dtype))
-        c_in = int(c)
-    return {"convs": convs, "head": layers.init_dense(rng, c_in, int(n_predicates), dtype=dtype)}
+        convs.append(layers.init_conv(rng, k, k, c_in, c, dtype=dtype))
+        c_in = c
+    return {"convs": convs, "head": layers.init_dense(rng, c_in, n_predicates, dtype=dtype)}
 
 
 # ---------------------------------------------------------------------------
 # eq. 7
 # ---------------------------------------------------------------------------
 def global_average_pool(features: Any, xp: Any = np) -> Any:
-    """Global average pooling: ``(..., H, W, K) → (..., K)``, the mean over H and W."""
+    """Global average pooling of eq. 7: the mean over the two spatial axes.
+
+    Parameters
+    ----------
+    features : array-like, shape (..., H, W, K)
+        Feature maps, channels-last.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    pooled : array, shape (..., K)
+        One average per feature map.
+    """
     return xp.mean(xp.mean(features, axis=-2), axis=-2)
 
 
@@ -140,15 +189,43 @@ def predicate_extractor(
 ) -> Any:
     """Eq. 7: ``p^v = Linear(GAP(ConvEncoder(X)))`` as a pure function.
 
-    ``images`` is NHWC, ``uint8`` (scaled to [0, 1]) or float; ``nn`` is an
-    engine's ``nn`` namespace (``engine("numpy").nn`` / ``engine("jax").nn``)
-    and ``xp`` the matching array namespace.  Every convolution is followed by
-    ``activation`` ("relu" or "silu"); ``strides`` defaults to 1 for the
-    first layer and 2 for the others; ``padding`` (pixels of zeros on each
-    side) defaults to ``kernel_size // 2``, which keeps the size at stride 1.
-    Returns ``p`` of shape ``(B, M)``, or ``(p, features)`` with ``features``
-    of shape ``(B, H', W', K)`` when ``return_features`` (the input of
-    :func:`class_activation_maps`).
+    Every convolution is followed by ``activation``.
+
+    Parameters
+    ----------
+    params : dict
+        Parameters from :func:`init_extractor` (plain or traced arrays).
+    images : array-like, shape (B, H, W, C)
+        NHWC images, ``uint8`` (scaled to [0, 1]) or float.
+    nn : namespace
+        An engine's neural-net primitives (``engine("numpy").nn`` /
+        ``engine("jax").nn``).
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+    return_features : bool, optional (default: False)
+        Also return the last convolution's features (the input of
+        :func:`class_activation_maps`).
+    strides : sequence of int, optional (default: None)
+        One stride per convolution; None is 1 for the first layer and 2 for the
+        others.
+    padding : int, optional (default: None)
+        Pixels of zeros on each side; None is ``kernel_size // 2``, which keeps
+        the size at stride 1.
+    activation : {"relu", "silu"}, optional (default: "relu")
+        Nonlinearity after each convolution.
+
+    Returns
+    -------
+    p : array, shape (B, M)
+        Predicates ``p^v``.
+    features : array, shape (B, H', W', K)
+        Returned as ``(p, features)`` only when ``return_features``.
+
+    Raises
+    ------
+    ValueError
+        If ``strides`` does not have one entry per convolution, ``activation``
+        is unknown, or ``images`` is not NHWC with the first kernel's ``C``.
     """
     convs = params["convs"]
     n = len(convs)
@@ -179,12 +256,31 @@ def predicate_extractor(
 # CAM and Grad-CAM
 # ---------------------------------------------------------------------------
 def class_activation_maps(features: Any, weights: Any, xp: Any = np, layout: str = "KM") -> Any:
-    """CAM (Zhou et al. 2016): ``M_i(x, y) = Σ_k W_ki f_k(x, y)``.
+    """CAM (Zhou et al. 2016) of eq. 7's head: ``M_i(x, y) = Σ_k W_ki f_k(x, y)``.
 
-    ``features`` (..., H, W, K) channels-last; ``weights`` the linear head's
-    ``(K, M)`` (our layout, ``p = gap(f) @ w + b``) or ``(M, K)`` with
-    ``layout="MK"``.  Returns ``(..., M, H, W)``.  The bias is not part of the
-    map: ``mean_xy M_i = p_i − b_i``.
+    The bias is not part of the map: ``mean_xy M_i = p_i − b_i``.
+
+    Parameters
+    ----------
+    features : array-like, shape (..., H, W, K)
+        Last convolution's features, channels-last.
+    weights : array-like, shape (K, M), or (M, K) with ``layout="MK"``
+        The linear head's weight (ours: ``p = gap(f) @ w + b``).
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+    layout : {"KM", "MK"}, optional (default: "KM")
+        Axis order of ``weights``; "MK" is PyTorch's ``Linear.weight``.
+
+    Returns
+    -------
+    maps : array, shape (..., M, H, W)
+        One map per predicate, channels-first.
+
+    Raises
+    ------
+    ValueError
+        If ``layout`` is unknown, ``features`` has fewer than 3 axes, ``weights``
+        is not 2-D, or the ``K`` of ``weights`` and ``features`` differ.
     """
     if layout not in ("KM", "MK"):
         raise ValueError(f"layout must be 'KM' or 'MK'; got layout = {layout!r}")
@@ -225,11 +321,33 @@ def _interp_matrix(n_out: int, n_in: int, mode: str) -> np.ndarray:
 
 
 def upsample(maps: Any, size: tuple[int, int] | int, mode: str = "bilinear", xp: Any = np) -> Any:
-    """Resize maps ``(..., h, w)`` to ``size = (H, W)`` (bilinear or nearest).
+    """Resize maps to ``size`` by bilinear or nearest interpolation (half-pixel centres).
 
     Implemented as ``R_h @ maps @ R_wᵀ`` with fixed interpolation matrices, so
     it is linear (an upsampled CAM is still the weighted sum of upsampled
     feature maps) and differentiable on both engines.
+
+    Parameters
+    ----------
+    maps : array-like, shape (..., h, w)
+        Maps to resize.
+    size : int or (int, int)
+        Output ``(H, W)``; an int is used for both.
+    mode : {"bilinear", "nearest"}, optional (default: "bilinear")
+        Interpolation.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    resized : array, shape (..., H, W)
+        The resized maps.
+
+    Raises
+    ------
+    ValueError
+        If ``mode`` is unknown, ``size`` is not two positive integers, or
+        ``maps`` has fewer than 2 axes.
     """
     if mode not in ("bilinear", "nearest"):
         raise ValueError(f"mode must be 'bilinear' or 'nearest'; got mode = {mode!r}")
@@ -247,10 +365,24 @@ def upsample(maps: Any, size: tuple[int, int] | int, mode: str = "bilinear", xp:
 
 
 def minmax_normalize(maps: Any, axis: tuple[int, ...] = (-2, -1), xp: Any = np) -> Any:
-    """Min–max normalise each map to [0, 1] over ``axis``: ``(s − min) / (max − min)``.
+    """Min–max normalise each map to [0, 1]: ``(s − min) / (max − min)`` over ``axis``.
 
-    A constant map (max = min) carries no ranking and becomes all zeros
-    instead of 0/0.  This is the normalisation behind every overlay.
+    A constant map (max = min) carries no ranking and becomes all zeros instead
+    of 0/0.  This is the normalisation behind every overlay.
+
+    Parameters
+    ----------
+    maps : array-like, shape (..., H, W)
+        Maps to normalise.
+    axis : tuple of int, optional (default: (-2, -1))
+        Axes over which each map's minimum and maximum are taken.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    normalised : array, shape (..., H, W)
+        Maps in [0, 1], the shape of ``maps``.
     """
     lo, hi = maps, maps
     for a in sorted((a % maps.ndim for a in axis), reverse=True):
@@ -264,10 +396,28 @@ def minmax_normalize(maps: Any, axis: tuple[int, ...] = (-2, -1), xp: Any = np) 
 def grad_cam(features: Any, grads: Any, xp: Any = np) -> Any:
     """Grad-CAM (Selvaraju et al. 2017): ``ReLU(Σ_k α_k f_k)`` with ``α_k = mean_xy ∂y/∂f_k``.
 
-    ``features`` and ``grads`` (the gradient of one score ``y`` with respect
-    to ``features``) are ``(..., H, W, K)``; returns ``(..., H, W)``.  For
-    conv → GAP → linear, ``α_k = W_k / (H W)``, so Grad-CAM equals the CAM
-    after ReLU up to a positive factor — equal after min–max normalisation.
+    For conv → GAP → linear (eq. 7), ``α_k = W_k / (H W)``, so Grad-CAM equals
+    the CAM after ReLU up to a positive factor — equal after min–max
+    normalisation.
+
+    Parameters
+    ----------
+    features : array-like, shape (..., H, W, K)
+        Last convolution's features.
+    grads : array-like, shape (..., H, W, K)
+        Gradient of one score ``y`` with respect to ``features``.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    cam : array, shape (..., H, W)
+        Non-negative class activation map.
+
+    Raises
+    ------
+    ValueError
+        If ``grads`` and ``features`` differ in shape.
     """
     if tuple(features.shape) != tuple(grads.shape):
         raise ValueError(
@@ -285,15 +435,38 @@ def grad_cam(features: Any, grads: Any, xp: Any = np) -> Any:
 def vagn_jacobian(
     q_prev: Any, p: Any, W: Any, grad: Callable | None = None, xp: Any = np
 ) -> Any:
-    """``J[..., j, i] = ∂q_j/∂p_i`` for one vAGN step ``q = T(p) q_prev`` (eq. 9).
+    """Jacobian ``J[..., j, i] = ∂q_j/∂p_i`` of one vAGN step ``q = T(p) q_prev`` (eqs. 8–9).
 
     With ``grad=None`` the closed form (NumPy) is used: with ``A = Σ p_i W_i``,
     ``T = colsoftmax(ReLU(A))`` and ``G_i = 1[A > 0] ⊙ W_i``,
-    ``J_ji = Σ_c q_prev[c] T_jc (G_i[j, c] − Σ_r T_rc G_i[r, c])``.
-    Given an engine's ``grad`` (and its ``xp``) the Jacobian is instead
-    computed by reverse mode, one pass per q-state: batch rows are
-    independent, so the gradient of ``Σ_batch q_j`` gives every row's
-    ``∂q_j/∂p`` at once.  Returns shape ``(..., N, M)``.
+    ``J_ji = Σ_c q_prev[c] T_jc (G_i[j, c] − Σ_r T_rc G_i[r, c])``.  Given an
+    engine's ``grad`` (and its ``xp``) the Jacobian is instead computed by
+    reverse mode, one pass per q-state: batch rows are independent, so the
+    gradient of ``Σ_batch q_j`` gives every row's ``∂q_j/∂p`` at once.
+
+    Parameters
+    ----------
+    q_prev : array-like, shape (..., N)
+        Previous q-distributions.
+    p : array-like, shape (..., M)
+        Predicates.
+    W : array-like, shape (M, N, N)
+        vAGN transition weights.
+    grad : callable, optional (default: None)
+        An engine's ``grad``; None uses the closed form.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    J : array, shape (..., N, M)
+        ``∂q_j/∂p_i`` at ``(q_prev, p)``.
+
+    Raises
+    ------
+    ValueError
+        If ``W`` is not of shape ``(M, N, N)``, or (closed form) ``q_prev`` is
+        not a distribution over ``N`` states.
     """
     M, N = vagn.check_weights(W)
     if grad is not None:
@@ -319,12 +492,29 @@ def vagn_jacobian(
 
 
 def q_state_saliency(cams: Any, jacobian: Any, xp: Any = np) -> Any:
-    """Per-q-state saliency ``S_j(x, y) = Σ_i J_ji M_i(x, y)``.
+    """Per-q-state saliency ``S_j(x, y) = Σ_i J_ji M_i(x, y)`` (Figures 3–4).
 
-    ``cams`` (..., M, H, W) and ``jacobian`` (..., N, M) give (..., N, H, W).
+    See the module docstring for why this is the gradient × feature attribution
+    of ``q_j`` at the last conv layer (scaled by H·W).
 
-    See the module docstring for why this is the gradient × feature
-    attribution of ``q_j`` at the last conv layer (scaled by H·W).
+    Parameters
+    ----------
+    cams : array-like, shape (..., M, H, W)
+        Class activation maps from :func:`class_activation_maps`.
+    jacobian : array-like, shape (..., N, M)
+        ``∂q/∂p`` from :func:`vagn_jacobian`.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+
+    Returns
+    -------
+    saliency : array, shape (..., N, H, W)
+        One map per q-state.
+
+    Raises
+    ------
+    ValueError
+        If the shapes are wrong or disagree on ``M``.
     """
     cshape, jshape = tuple(cams.shape), tuple(jacobian.shape)
     if len(cshape) < 3 or len(jshape) < 2 or jshape[-1] != cshape[-3]:
@@ -352,18 +542,49 @@ def explain(
 ) -> dict:
     """Everything behind one frame of the paper's execution traces, as NumPy arrays.
 
-    Runs eq. 7 and one vAGN step (eq. 9) on ``images`` (B, H, W, C) with
-    plain (not traced) ``params``, ``q_prev`` (N,) or (B, N) and ``W``, and
-    returns a dict with ``p`` (B, M), ``q`` (B, N), ``cams`` (B, M, H, W),
-    ``jacobian`` (B, N, M) and ``saliency`` (B, N, H, W); maps are upsampled
-    to the input size unless ``upsample_to_input`` is False.
+    Runs eq. 7 and one vAGN step (eq. 9) and forms CAMs, the vAGN Jacobian and
+    the per-q-state saliency.  CAMs are only defined up to a map that is the
+    same in every image: adding ``B_i(x, y)`` to ``M_i`` and ``−mean(B_i)`` to
+    ``b_i`` gives the same predictor.  Objects present in every image (the ego
+    vehicle of a BEV) can therefore carry arbitrary CAM mass; a data-set
+    baseline (``baseline_cams``) removes it.
 
-    ``baseline_cams`` (M, h, w) at feature resolution, e.g. the mean CAM over
-    the training images, is subtracted from the CAMs before the saliency is
-    formed.  CAMs are only defined up to a map that is the same in every
-    image: adding ``B_i(x, y)`` to ``M_i`` and ``−mean(B_i)`` to ``b_i`` gives
-    the same predictor.  Objects present in every image (the ego vehicle of a
-    BEV) can therefore carry arbitrary CAM mass; a data-set baseline removes it.
+    Parameters
+    ----------
+    params : dict
+        Plain (not traced) extractor parameters from :func:`init_extractor`.
+    images : array-like, shape (B, H, W, C)
+        NHWC images.
+    q_prev : array-like, shape (N,) or (B, N)
+        Previous q-distributions.
+    W : array-like, shape (M, N, N)
+        vAGN transition weights.
+    nn : namespace
+        An engine's neural-net primitives.
+    xp : module, optional (default: numpy)
+        Array namespace: ``numpy``, or an engine's ``xp`` to differentiate.
+    strides : sequence of int, optional (default: None)
+        As in :func:`predicate_extractor`.
+    activation : {"relu", "silu"}, optional (default: "relu")
+        As in :func:`predicate_extractor`.
+    upsample_to_input : bool, optional (default: True)
+        Upsample ``cams`` and ``saliency`` to ``(H, W)``; else they stay at
+        feature resolution ``(h, w)``.
+    baseline_cams : array-like, shape (M, h, w), optional (default: None)
+        Subtracted from the CAMs before the saliency is formed, e.g. the mean
+        CAM over the training images.
+
+    Returns
+    -------
+    frame : dict
+        ``p`` (B, M), ``q`` (B, N), ``cams`` (B, M, H, W), ``jacobian``
+        (B, N, M) and ``saliency`` (B, N, H, W).
+
+    Raises
+    ------
+    ValueError
+        If ``baseline_cams`` does not have shape ``(M, h, w)``, or any input is
+        refused by :func:`predicate_extractor` or :func:`minimanc.vagn.step`.
     """
     p, f = predicate_extractor(params, images, nn, xp=xp, return_features=True,
                                strides=strides, activation=activation)
@@ -387,7 +608,23 @@ def explain(
 
 
 def peak_location(maps: Any) -> np.ndarray:
-    """Row and column of the maximum of each map: (..., H, W) → (..., 2) integers."""
+    """Row and column of the maximum of each map.
+
+    Parameters
+    ----------
+    maps : array-like, shape (..., H, W)
+        Maps.
+
+    Returns
+    -------
+    peaks : array of int, shape (..., 2)
+        ``(row, column)`` of each map's first maximum.
+
+    Raises
+    ------
+    ValueError
+        If ``maps`` has fewer than 2 axes.
+    """
     maps = np.asarray(maps)
     if maps.ndim < 2:
         raise ValueError(f"maps must have shape (..., H, W); got shape {maps.shape}")
@@ -412,10 +649,32 @@ def _as_rgb_float(image: Any) -> np.ndarray:
 
 
 def blend(image: Any, saliency: Any, alpha: float = 0.5, cmap: Any = None) -> np.ndarray:
-    """The overlay as data: ``(1 − α)·image + α·cmap(minmax(saliency))``, RGB floats (H, W, 3).
+    """The overlay as data: ``(1 − α)·image + α·cmap(minmax(saliency))``.
 
-    ``saliency`` (h, w) is min–max normalised and, if smaller than the image,
-    bilinearly upsampled to it first.
+    ``saliency`` is min–max normalised and, if its size differs from the
+    image's, bilinearly resized to it first.
+
+    Parameters
+    ----------
+    image : array-like, shape (H, W), (H, W, 1) or (H, W, 3)
+        ``uint8`` or float image in [0, 1].
+    saliency : array-like, shape (h, w)
+        Saliency map.
+    alpha : float, optional (default: 0.5)
+        Weight of the colours, in [0, 1].
+    cmap : matplotlib colormap, optional (default: None)
+        None is :func:`paper_cmap`.
+
+    Returns
+    -------
+    rgb : array, shape (H, W, 3)
+        RGB floats in [0, 1].
+
+    Raises
+    ------
+    ValueError
+        If ``alpha`` is outside [0, 1], or ``image`` or ``saliency`` has the
+        wrong shape.
     """
     if not 0.0 <= alpha <= 1.0:
         raise ValueError(f"alpha must be in [0, 1]; got alpha = {alpha!r}")
@@ -438,8 +697,33 @@ def overlay(
     cmap: Any = None,
     title: str | None = None,
 ) -> Any:
-    """Draw :func:`blend` on ``ax``: the BEV image with its min–max-normalised
-    saliency in the paper's colours (high → low: yellow, red, cyan, magenta)."""
+    """Draw :func:`blend` on ``ax``: the BEV image with its saliency in the paper's colours.
+
+    Parameters
+    ----------
+    image : array-like, shape (H, W), (H, W, 1) or (H, W, 3)
+        ``uint8`` or float image in [0, 1].
+    saliency : array-like, shape (h, w)
+        Saliency map (min–max normalised here).
+    ax : matplotlib Axes, optional (default: None)
+        Axes to draw on; a new figure when None.
+    alpha : float, optional (default: 0.5)
+        Weight of the colours, in [0, 1].
+    cmap : matplotlib colormap, optional (default: None)
+        None is :func:`paper_cmap` (high → low: yellow, red, cyan, magenta).
+    title : str, optional (default: None)
+        Axes title.
+
+    Returns
+    -------
+    ax : matplotlib Axes
+        The axes drawn on.
+
+    Raises
+    ------
+    ValueError
+        As :func:`blend`.
+    """
     import matplotlib.pyplot as plt
 
     rgb = blend(image, saliency, alpha=alpha, cmap=cmap)
@@ -461,9 +745,36 @@ def plot_q_saliency(
     alpha: float = 0.5,
     labels: Sequence[str] | None = None,
 ) -> Any:
-    """Figures 3–4 style panel: the BEV image, then one overlay per q-state
-    titled with its name (``labels``, default ``q_j``) and probability.
-    ``saliency`` (N, H, W), ``q`` (N,).  Returns the axes."""
+    """Figures 3–4 style panel: the BEV image, then one overlay per q-state.
+
+    Each overlay is titled with its q-state's name and probability.
+
+    Parameters
+    ----------
+    image : array-like, shape (H, W), (H, W, 1) or (H, W, 3)
+        The BEV input.
+    saliency : array-like, shape (N, H, W)
+        Per-q-state saliency (e.g. ``explain(...)["saliency"][b]``).
+    q : array-like, shape (N,)
+        q-distribution shown in the titles.
+    axes : sequence of matplotlib Axes, optional (default: None)
+        ``N + 1`` axes; a new row of them when None.
+    alpha : float, optional (default: 0.5)
+        Weight of the colours, in [0, 1].
+    labels : sequence of str, optional (default: None)
+        ``N`` q-state names; ``q_0 … q_{N-1}`` when None.
+
+    Returns
+    -------
+    axes : array of matplotlib Axes, shape (N + 1,)
+        The axes drawn on.
+
+    Raises
+    ------
+    ValueError
+        If ``saliency`` is not ``(N, H, W)``, ``q`` not ``(N,)``, or ``labels``
+        does not have ``N`` entries.
+    """
     import matplotlib.pyplot as plt
 
     saliency = np.asarray(saliency, dtype=float)

@@ -103,6 +103,22 @@ def test_extractor_bad_input():
         cam.init_extractor(np.random.default_rng(0), channels=())
 
 
+@pytest.mark.parametrize("bad", [0, 3.0, True, None])
+@pytest.mark.parametrize(
+    "name,kwargs",
+    [
+        ("in_channels", lambda v: {"in_channels": v}),
+        ("n_predicates", lambda v: {"n_predicates": v}),
+        ("kernel_size", lambda v: {"kernel_size": v}),
+        (r"channels\[1\]", lambda v: {"channels": (8, v)}),
+    ],
+)
+def test_extractor_sizes_must_be_integers_at_least_one(name, kwargs, bad):
+    """A size that is not an ``int`` >= 1 (a float such as 3.0, a bool, None) is refused."""
+    with pytest.raises(ValueError, match=rf"{name} must be an integer >= 1, got {name}="):
+        cam.init_extractor(np.random.default_rng(0), **kwargs(bad))
+
+
 # --------------------------------------------------------------------- CAM
 @settings(max_examples=30, deadline=None)
 @given(st.integers(0, 2**31 - 1), st.integers(1, 4), st.integers(1, 5), st.integers(1, 6))
