@@ -2,9 +2,10 @@
 
 :func:`expert_episodes` records collision-free expert episodes,
 :func:`to_dataset` assembles them into a :class:`minimanc.world.Dataset`
-(maps as explicit recipes, so ``world.save`` / ``world.load`` and
-``minimanc.train`` work unchanged) and :func:`collect` does both for
-several scenarios.
+with the world's one builder (:meth:`minimanc.world.Dataset.build`, metadata
+from :func:`minimanc.world.fileformat.empty_meta`, maps as explicit recipes),
+so ``world.save`` / ``world.load`` and ``minimanc.train`` work unchanged, and
+:func:`collect` does both for several scenarios.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from minimanc.checks import check_int
 from minimanc.highway.env import (
     DEFAULT_STEPS,
     ENV_IDS,
@@ -21,8 +23,10 @@ from minimanc.highway.env import (
     check_scenario,
 )
 from minimanc.highway.episodes import Episode, check_steps, run_episode
+from minimanc.world.fileformat import append_scenes, empty_meta
 from minimanc.world.geometry import goal_in_ego_frame
 from minimanc.world.raster import RasterConfig, rasterize
+from minimanc.world.scenes import Dataset
 
 EVAL_SEED = 100_000
 """First env seed of evaluation episodes (training demonstrations start at 0)."""
@@ -48,8 +52,7 @@ def expert_episodes(
     """
     check_scenario(scenario)
     check_steps(steps)
-    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-        raise ValueError(f"n must be a positive integer, got {n!r}")
+    n = check_int("n", n, 1)
     limit = 3 * int(n) + 10 if max_tries is None else int(max_tries)
     out: list[Episode] = []
     tries = 0
@@ -77,7 +80,7 @@ def expert_episodes(
 
 
 def to_dataset(episodes: Sequence[Episode], cfg: RasterConfig | None = None,
-               seed: int = 0, attempts: Sequence[int] | None = None):
+               seed: int = 0, attempts: Sequence[int] | None = None) -> Dataset:
     """Chapter-7 :class:`minimanc.world.Dataset` from expert episodes of equal length.
 
     An episode of ``T`` actions gives one scene of ``T`` steps: ``ego`` the
@@ -89,8 +92,6 @@ def to_dataset(episodes: Sequence[Episode], cfg: RasterConfig | None = None,
     ``meta["tags"]`` records the scenario, env id and seed, destination and
     expert speed per scene.
     """
-    from minimanc.world import dataset as wds
-
     cfg = cfg or RasterConfig()
     if len(episodes) == 0:
         raise ValueError("episodes must hold at least one episode, got 0")
@@ -101,24 +102,23 @@ def to_dataset(episodes: Sequence[Episode], cfg: RasterConfig | None = None,
     if len(As) != 1:
         raise ValueError(f"episodes must all have the same number of ado rows, got {sorted(As)}")
     T = lengths.pop()
-    cols: dict[str, list] = {f: [] for f in wds.ARRAY_FIELDS}
+    scenes = []
     for ep in episodes:
         ego = ep.poses[:T]
         bev = ep.bev[:T] if ep.bev is not None and ep.bev.shape[1:] == cfg.shape else None
         if bev is None:
             bev = np.stack([rasterize(ep.map, ep.poses[t], ep.ado[t], ep.ado_valid[t], cfg)
                             for t in range(T)])
-        cols["bev"].append(bev)
-        cols["ego"].append(ego.astype(np.float32))
-        cols["controls"].append(ep.controls[:T].astype(np.float32))
-        cols["goal"].append(goal_in_ego_frame(np.broadcast_to(ego[-1], ego.shape), ego)
-                            .astype(np.float32))
-        cols["lane_target"].append(ep.lane_target[:T].astype(np.float32))
-        cols["ado"].append(ep.ado[:T].astype(np.float32))
-        cols["ado_valid"].append(ep.ado_valid[:T])
-        cols["goal_bev"].append(rasterize(ep.map, ego[-1], None, None, cfg))
-    arrays = {f: np.stack(v) for f, v in cols.items()}
-    wds.check_finite(arrays, "demonstrations")
+        scenes.append({
+            "bev": bev,
+            "ego": ego.astype(np.float32),
+            "controls": ep.controls[:T].astype(np.float32),
+            "goal": goal_in_ego_frame(np.broadcast_to(ego[-1], ego.shape), ego).astype(np.float32),
+            "lane_target": ep.lane_target[:T].astype(np.float32),
+            "ado": ep.ado[:T].astype(np.float32),
+            "ado_valid": ep.ado_valid[:T],
+            "goal_bev": rasterize(ep.map, ego[-1], None, None, cfg),
+        })
     tags = [{
         "kind": ep.map.kind, "source": "highway-env", "scenario": ep.scenario,
         "env_id": ENV_IDS[ep.scenario], "env_seed": ep.seed, "destination": ep.destination,
@@ -126,12 +126,12 @@ def to_dataset(episodes: Sequence[Episode], cfg: RasterConfig | None = None,
         "has_junction": ep.map.kind == "intersection",
         "has_roundabout": ep.map.kind == "roundabout",
     } for ep in episodes]
-    meta = wds.empty_meta(seed, cfg)
-    wds.append_scenes(meta, [ep.map.recipe for ep in episodes], tags,
-                      [1] * len(episodes) if attempts is None else attempts,
-                      [ep.seed for ep in episodes])  # scene_index: the env seeds
+    meta = empty_meta(seed, cfg)
+    append_scenes(meta, [ep.map.recipe for ep in episodes], tags,
+                  [1] * len(episodes) if attempts is None else attempts,
+                  [ep.seed for ep in episodes])  # scene_index: the env seeds
     meta["source"] = "highway-env"
-    return wds.Dataset(**arrays, maps=[ep.map for ep in episodes], meta=meta)
+    return Dataset.build(scenes, meta, maps=[ep.map for ep in episodes], what="demonstrations")
 
 
 def collect(
@@ -142,7 +142,7 @@ def collect(
     cfg: RasterConfig | None = None,
     max_ado: int = MAX_ADO,
     progress: bool = False,
-):
+) -> Dataset:
     """Expert demonstrations in the chapter-7 format: ``n_episodes`` per scenario.
 
     Episodes come from :func:`expert_episodes` (env seeds from ``seed``,
@@ -151,9 +151,7 @@ def collect(
     Save with :func:`minimanc.world.save`; :func:`minimanc.world.load` reads
     it back (its maps are explicit recipes, see :func:`explicit_map`).
     """
-    if isinstance(n_episodes, bool) or not isinstance(n_episodes, int | np.integer) \
-            or n_episodes < 1:
-        raise ValueError(f"n_episodes must be a positive integer, got {n_episodes!r}")
+    n_episodes = check_int("n_episodes", n_episodes, 1)
     names = [scenarios] if isinstance(scenarios, str) else list(scenarios)
     if not names:
         raise ValueError("scenarios must name at least one scenario, got none")

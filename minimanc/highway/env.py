@@ -21,6 +21,7 @@ from highway_env.envs.highway_env import HighwayEnvFast
 from highway_env.envs.intersection_env import ConnectedLaneIntersectionEnv
 from highway_env.envs.roundabout_env import ConnectedLaneRoundaboutEnv
 
+from minimanc.checks import check_int
 from minimanc.world.geometry import DT, wrap_angle
 
 POLICY_FREQUENCY = 2
@@ -161,8 +162,7 @@ def make_env(
     The env is the highway-env object itself (``env.unwrapped is env``).
     """
     check_scenario(scenario)
-    if int(steps) < 1:
-        raise ValueError(f"steps must be >= 1, got {steps!r}")
+    steps = check_int("steps", steps, 1)
     cfg = {
         "action": {"type": "ContinuousAction"},
         "policy_frequency": POLICY_FREQUENCY,
@@ -203,8 +203,7 @@ def ado_boxes(env, max_ado: int = MAX_ADO) -> tuple[np.ndarray, np.ndarray]:
     Each row is ``[x, y, yaw, length, width]`` (chapter-7 ``ado`` layout),
     nearest first; unused rows are zero and invalid.
     """
-    if int(max_ado) < 0:
-        raise ValueError(f"max_ado must be >= 0, got {max_ado!r}")
+    max_ado = check_int("max_ado", max_ado, 0)
     u = env.unwrapped
     ego = u.vehicle
     others = [v for v in u.road.vehicles if v is not ego]

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from minimanc.checks import check_int
 from minimanc.highway.control import EXPERT_SPEEDS, ActionAdapter, install_expert
 from minimanc.highway.env import (
     DEFAULT_STEPS,
@@ -344,9 +345,7 @@ def run_episode(
 
 def check_steps(steps: Any) -> int:
     """``steps`` as an int if it is an integer >= 2, else ``ValueError``."""
-    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 2:
-        raise ValueError(f"steps must be an integer >= 2, got {steps!r}")
-    return int(steps)
+    return check_int("steps", steps, 2)
 
 
 def replay_error(episode: Episode) -> float:

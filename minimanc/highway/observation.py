@@ -14,6 +14,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from minimanc.checks import check_int
 from minimanc.highway.env import MAX_ADO, ado_boxes, ego_pose
 from minimanc.highway.mapping import road_map
 from minimanc.world.maps import Map
@@ -35,9 +36,7 @@ class BEVObservation(gym.ObservationWrapper):
     def __init__(self, env, cfg: RasterConfig | None = None, max_ado: int = MAX_ADO) -> None:
         super().__init__(env)
         self.cfg = cfg or RasterConfig()
-        if int(max_ado) < 0:
-            raise ValueError(f"max_ado must be >= 0, got {max_ado!r}")
-        self.max_ado = int(max_ado)
+        self.max_ado = check_int("max_ado", max_ado, 0)
         self.observation_space = spaces.Box(0, 255, self.cfg.shape, dtype=np.uint8)
         self.map: Map | None = None
 

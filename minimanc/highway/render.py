@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from minimanc.checks import check_int
+
 
 def render_frame(env) -> np.ndarray:
     """highway-env's own top-down frame ``(H, W, 3)`` uint8, rendered headless.
@@ -36,8 +38,7 @@ def save_png(frame: np.ndarray, path: str | Path, scale: int = 1) -> Path:
 
     f = _check_frame(frame)
     img = Image.fromarray(f)
-    if int(scale) < 1:
-        raise ValueError(f"scale must be >= 1, got {scale!r}")
+    scale = check_int("scale", scale, 1)
     if scale > 1:
         img = img.resize((f.shape[1] * scale, f.shape[0] * scale), Image.NEAREST)
     path = Path(path)
@@ -54,8 +55,7 @@ def save_gif(frames: Sequence[np.ndarray], path: str | Path, fps: float = 2.0,
         raise ValueError("frames must hold at least one frame, got 0")
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"fps must be positive, got {fps!r}")
-    if int(scale) < 1:
-        raise ValueError(f"scale must be >= 1, got {scale!r}")
+    scale = check_int("scale", scale, 1)
     imgs = []
     for fr in frames:
         f = _check_frame(fr)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from minimanc.checks import check_int
 from minimanc.world.geometry import to_ego_frame
 from minimanc.world.lanes import (
     CLASS_CROSSING,
@@ -248,8 +249,7 @@ def lane_targets(
     pose = np.asarray(ego_pose, dtype=np.float64)
     if pose.ndim not in (1, 2) or pose.shape[-1] != 3 or not np.all(np.isfinite(pose)):
         raise ValueError(f"ego_pose must be finite with shape (3,) or (N, 3), got {pose.shape}")
-    if int(k) < 1:
-        raise ValueError(f"k must be >= 1, got {k!r}")
+    k = check_int("k", k, 1)
     if not spacing > 0:
         raise ValueError(f"spacing must be positive, got {spacing!r}")
     P = pose.reshape(-1, 3)

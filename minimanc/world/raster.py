@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from minimanc.checks import check_int
 from minimanc.world.geometry import EGO_LENGTH, EGO_WIDTH, wrap_angle
 from minimanc.world.maps import (
     CLASS_CROSSING,
@@ -78,8 +79,7 @@ class RasterConfig:
     ego_width: float = EGO_WIDTH
 
     def __post_init__(self) -> None:
-        if not isinstance(self.size, int | np.integer) or self.size < 8:
-            raise ValueError(f"size must be an integer >= 8, got {self.size!r}")
+        check_int("size", self.size, 8)
         for name in ("metres_ahead", "metres_side", "ego_length", "ego_width",
                      "lane_width_m"):
             v = getattr(self, name)
