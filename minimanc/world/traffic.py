@@ -34,6 +34,8 @@ change lanes when a few metres ahead of it.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from minimanc.world.car_following import (
@@ -141,16 +143,30 @@ class Traffic:
         L, W = random_vehicle_size(self.rng)
         p = self.ado_params(L, W)
         p.update(extra)
-        key = tuple(lanes)
-        pid = self._pids.get(key)
-        if pid is None:  # vehicles on the same lane sequence share one path
-            pid = self._pids[key] = self.bank.add(Path.from_lanes(self.m, lanes))
+        pid = self.path_id(lanes)
         path = self.bank.paths[pid]
         veh = Vehicle(pid=pid, s=s, v=v, **p)
         xy, h = path.pose(s)
         veh.xy, veh.yaw = xy, h
         self.vehicles.append(veh)
         return veh
+
+    def path_id(self, lanes: list[int]) -> int:
+        """The index in :attr:`bank` of the path along ``lanes`` (added on first use: vehicles
+        on the same lane sequence share one path)."""
+        key = tuple(int(i) for i in lanes)
+        pid = self._pids.get(key)
+        if pid is None:
+            pid = self._pids[key] = self.bank.add(Path.from_lanes(self.m, list(key)))
+        return pid
+
+    def insert(self, veh: Vehicle, lanes: list[int]) -> Vehicle:
+        """Append a copy of ``veh`` (a vehicle of another run of this scene) on the path along
+        ``lanes``, at its arc length, speed and parameters; returns the copy."""
+        new = replace(veh, pid=self.path_id(lanes), xy=np.array(veh.xy, dtype=np.float64),
+                      cut_in=None if veh.cut_in is None else dict(veh.cut_in))
+        self.vehicles.append(new)
+        return new
 
     def place(self, vehicles: list[Vehicle]) -> None:
         """Set ``xy`` and ``yaw`` of path-following vehicles from their ``s`` and offset."""
