@@ -68,6 +68,22 @@ def test_bad_input_raises_value_error(call, match):
         call()
 
 
+@pytest.mark.parametrize("bad", [0, -2, 2.0, True, None])
+@pytest.mark.parametrize(
+    "name,call",
+    [
+        ("n_in", lambda v: layers.init_dense(np.random.default_rng(0), v, 3)),
+        ("c_in", lambda v: layers.init_conv(np.random.default_rng(0), 3, 3, v, 4)),
+        ("n_hidden", lambda v: layers.init_lstm(np.random.default_rng(0), 2, v)),
+        ("batch", lambda v: layers.init_lstm_carry(v, 3)),
+    ],
+)
+def test_sizes_are_checked_by_the_shared_validator(name, call, bad):
+    """Sizes give the message of ``minimanc.checks.check_int``, as in vagn and cam."""
+    with pytest.raises(ValueError, match=rf"^{name} must be an integer >= 1, got {name}="):
+        call(bad)
+
+
 # ---------------------------------------------------------------------------- forward pieces
 def test_dense_flatten_gap():
     rng = np.random.default_rng(2)
@@ -141,6 +157,23 @@ def test_lstm_unrolled_gradient_equals_jax():
     vj, gj = jax.jit(lambda p, xs: JX.value_and_grad(loss)(p, xs, JX))(p, xs)
     assert abs(float(v) - float(vj)) < 1e-12
     assert _max_leaf_diff(g, gj) < 1e-10
+
+
+def test_lstm_cell_default_nn_is_the_engine_of_xp():
+    """With ``nn`` omitted, the primitives come from ``xp``'s engine (JAX's under jax.grad)."""
+    rng = np.random.default_rng(5)
+    p = layers.init_lstm(rng, 3, 4)
+    x = rng.standard_normal((2, 3))
+
+    def loss(params, eng, nn):
+        h, c = layers.lstm_cell(params, layers.init_lstm_carry(2, 4, xp=eng.xp), x,
+                                xp=eng.xp, nn=nn)
+        return eng.xp.sum(h ** 2) + eng.xp.mean(c)
+
+    want = JX.grad(loss)(p, JX, JX.nn)
+    got = JX.grad(loss)(p, JX, None)
+    assert _max_leaf_diff(got, want) == 0.0
+    assert _max_leaf_diff(NP.grad(loss)(p, NP, None), want) < 1e-12
 
 
 # ---------------------------------------------------------------------------- a small CNN
