@@ -63,8 +63,9 @@ drives the gains (eq. 11), the lane target and the current motion are the
 DMP's goal and initial state. In "paper" the LSTM models see history only
 through their recurrent state; in "parity" every model also gets the lane
 target and the current motion as numbers, so any remaining gap is due to
-the architecture, not to information. The table is also data:
-:data:`VISIBLE` and :func:`visible`.
+the architecture, not to information. The table is also data: each model's
+``observes`` in the registry (:mod:`minimanc.models.registry`), read by
+:func:`visible` (and :data:`VISIBLE`, all of them).
 """
 
 from __future__ import annotations
@@ -79,10 +80,8 @@ __all__ = [
     "GOAL_SCALE",
     "KEYS",
     "LANE_SCALE",
-    "MODEL_NAMES",
     "MOTION_SCALE",
     "SETTINGS",
-    "VISIBLE",
     "from_dataset",
     "from_state",
     "initial_motion",
@@ -92,9 +91,6 @@ __all__ = [
     "select",
     "visible",
 ]
-
-MODEL_NAMES: tuple[str, ...] = ("cnn", "cnn_lstm", "rvs_g", "manc", "vagn_only", "dmp_only")
-"""The six controllers of chapter 8 (paper section V: comparison cases and self-ablation)."""
 
 SETTINGS: tuple[str, ...] = ("paper", "parity")
 """Information settings; see the table in the module docstring."""
@@ -111,31 +107,30 @@ LANE_SCALE: float = 40.0
 MOTION_SCALE: tuple[float, float] = (10.0, 0.5)
 """Divisors for ``[speed (m/s), yaw rate (rad/s)]`` before dense layers."""
 
-_STRUCTURED = ("bev", "lane_target", "motion")
-_PAPER_BASE = ("bev", "goal")
-_PARITY_EXTRA = ("lane_target", "motion")
-
-VISIBLE: dict[tuple[str, str], tuple[str, ...]] = {}
-"""``VISIBLE[(model, setting)]``: the observation keys that model receives."""
-for _name in MODEL_NAMES:
-    for _setting in SETTINGS:
-        if _name in ("manc", "dmp_only"):
-            keys: tuple[str, ...] = _STRUCTURED
-        else:
-            keys = _PAPER_BASE + (_PARITY_EXTRA if _setting == "parity" else ())
-            if _name == "rvs_g":
-                keys = keys + ("goal_bev",)
-        VISIBLE[(_name, _setting)] = keys
-del _name, _setting
-
-
 # --------------------------------------------------------------------------- checks
 
 
-def _check_model(name: Any) -> str:
-    if name not in MODEL_NAMES:
-        raise ValueError(f"model must be one of {MODEL_NAMES}, got model={name!r}")
-    return name
+def _spec(model: Any) -> Any:
+    """The registered :class:`~minimanc.models.ModelSpec` of ``model`` (ValueError naming it).
+
+    The registry lives with the models, a layer above this module: it is imported when a
+    model is first looked up, never while this module loads."""
+    from minimanc.models import registry
+
+    return registry.get(model, "model")
+
+
+def __getattr__(name: str) -> Any:
+    """``MODEL_NAMES`` (the registered models) and ``VISIBLE`` (their observation keys),
+    read from the model registry when asked, so a newly registered model appears."""
+    if name in ("MODEL_NAMES", "VISIBLE"):
+        from minimanc.models import registry
+
+        if name == "MODEL_NAMES":
+            return registry.names()
+        return {(s.name, setting): s.observes[setting]
+                for s in registry.specs() for setting in SETTINGS}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def check_setting(setting: Any) -> str:
@@ -147,7 +142,8 @@ def check_setting(setting: Any) -> str:
 
 def visible(model: str, setting: str = "paper") -> tuple[str, ...]:
     """Observation keys ``model`` receives in ``setting`` (the table of the module docstring)."""
-    return VISIBLE[(_check_model(model), check_setting(setting))]
+    spec = _spec(model)
+    return spec.observes[check_setting(setting)]
 
 
 def select(obs: dict, model: str, setting: str = "paper") -> dict:

@@ -33,7 +33,13 @@ Any object with ``model``, ``setting``, ``initial_state(scenes)`` and
 (:class:`Policy`); :class:`ModelPolicy` wraps :func:`minimanc.models.step`.
 The loop itself is :func:`drive`, written once over a :class:`Simulator`
 (reset, observe, step): :class:`LogReplay` is the log above, and
-:class:`minimanc.highway.HighwaySim` is highway-env (chapter 10).
+:class:`minimanc.highway.HighwaySim` is highway-env (chapter 10). The
+open-loop trace of chapter 8 (:func:`replay`) is the same loop in a
+:class:`LogReplay` whose ego follows the log (``follow_log=True``) while the
+model is queried.
+
+The recorded ``aux`` arrays keep the dtype the model computed them in (a
+float32 model's ``q`` stays float32), so their precision is known downstream.
 """
 
 from __future__ import annotations
@@ -46,6 +52,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from minimanc import inputs
+from minimanc.checks import check_int
 from minimanc.world.geometry import DT, unicycle_step
 
 __all__ = [
@@ -64,6 +71,7 @@ __all__ = [
     "ModelPolicy",
     "Rollout",
     "human",
+    "replay",
     "simulate",
     "closed_loop",
     "fixed_gains",
@@ -245,7 +253,10 @@ class Simulator(Protocol):
       ``(B, 3)``, ados ``(B, A, 5)`` and ``(B, A)``, maps, goals ``(B, 3)``);
     * ``step(controls)`` applies ``controls (B, 2)`` float64
       ``[speed, yaw rate]`` for one decision (``DT`` = 0.5 s) and returns
-      ``None``; the simulator keeps whatever trajectory it records.
+      ``None`` — or, when the ego does not move by the policy's controls (a
+      replay that follows the log), the ``(B, 2)`` motion it actually had,
+      which becomes the next ``motion`` input; the simulator keeps whatever
+      trajectory it records.
 
     Implemented by :class:`LogReplay` (the chapter-9 log: ados replay their
     recorded boxes) and :class:`minimanc.highway.HighwaySim` (highway-env,
@@ -265,8 +276,9 @@ class Simulator(Protocol):
 
 @dataclass
 class Drive:
-    """What :func:`drive` returns: ``controls (B, steps, 2)`` applied and, for the keys of
-    :data:`AUX_KEYS` the policy returned at every step, ``aux[key] (B, steps, ...)``."""
+    """What :func:`drive` returns: ``controls (B, steps, 2)`` float64, the policy's controls,
+    and, for the keys of :data:`AUX_KEYS` the policy returned at every step,
+    ``aux[key] (B, steps, ...)`` in the dtype the policy returned."""
 
     controls: np.ndarray
     aux: dict[str, np.ndarray]
@@ -304,13 +316,13 @@ def drive(policy: Policy, sim: Simulator, steps: int,
 
     ``sim.reset()``, then at each step ``t``: observe the scene, build the
     policy's observation from the ego's own state (:func:`observation`, with
-    ``motion`` the policy's previous control, at ``t = 0`` the motion
-    ``reset`` returned), call the policy, check its controls
-    (:func:`check_controls`), carry its state over and ``sim.step`` them.
-    ``on_step(t)`` is called after each step (e.g. a progress bar).
+    ``motion`` the policy's previous control — or the motion ``sim.step``
+    returned, when it returns one — and at ``t = 0`` the motion ``reset``
+    returned), call the policy, check its controls (:func:`check_controls`),
+    carry its state over and ``sim.step`` them. ``on_step(t)`` is called after
+    each step (e.g. a progress bar).
     """
-    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
-        raise ValueError(f"steps must be a positive integer; got steps={steps!r}")
+    steps = check_int("steps", steps, 1)
     scenes = np.asarray(sim.scenes)
     motion = np.asarray(sim.reset(), dtype=np.float32)
     state = policy.initial_state(scenes)
@@ -321,9 +333,9 @@ def drive(policy: Policy, sim: Simulator, steps: int,
         u = check_controls(u, len(scenes), t, policy)
         for key in AUX_KEYS:
             if key in aux and aux[key] is not None:
-                aux_steps.setdefault(key, []).append(np.asarray(aux[key], dtype=np.float64))
-        sim.step(u)
-        motion = u.astype(np.float32)
+                aux_steps.setdefault(key, []).append(np.asarray(aux[key]))
+        moved = sim.step(u)
+        motion = np.asarray(u if moved is None else moved, dtype=np.float32)
         controls.append(u)
         if on_step is not None:
             on_step(t)
@@ -341,10 +353,18 @@ class LogReplay:
     goal is the human's final pose; a step is one explicit-Euler unicycle step
     of ``DT`` (:func:`minimanc.world.unicycle_step`). :meth:`trajectory` gives
     the poses so far, ``(B, t + 1, 3)``.
+
+    With ``follow_log=True`` the ego ignores the controls and moves along its
+    logged poses; ``step`` then returns the logged motion (the human's control,
+    :func:`minimanc.inputs.motion_at`), so the policy sees exactly the log's
+    observations (open loop; :func:`replay`). Such a replay may run all ``T``
+    steps: after the last one the ego stays at its final logged pose.
     """
 
-    def __init__(self, ds: Any, scenes: Any = None) -> None:
+    def __init__(self, ds: Any, scenes: Any = None, follow_log: bool = False) -> None:
         S, self.T = _check_dataset(ds)
+        self.follow_log = bool(follow_log)
+        self._ds = ds
         self.scenes = _scene_index(scenes, S)
         self.raster = _raster_config(ds)
         self.k_targets = _k_targets(ds)
@@ -366,8 +386,15 @@ class LogReplay:
         return SceneState(self._maps, self._poses[-1], self._ado[self.scenes, t],
                           self._ado_valid[self.scenes, t], self._goal)
 
-    def step(self, controls: np.ndarray) -> None:
-        self._poses.append(unicycle_step(self._poses[-1], controls, DT))
+    def step(self, controls: np.ndarray) -> np.ndarray | None:
+        if not self.follow_log:
+            self._poses.append(unicycle_step(self._poses[-1], controls, DT))
+            return None
+        t = len(self._poses) - 1
+        if t + 1 >= self.T:  # the log ends: stay at its last pose
+            return np.asarray(controls, dtype=np.float32)
+        self._poses.append(np.asarray(self._ds.ego, dtype=np.float64)[self.scenes, t + 1])
+        return inputs.motion_at(self._ds, self.scenes, np.full(len(self.scenes), t + 1))
 
     def trajectory(self) -> np.ndarray:
         return np.stack(self._poses, axis=1)
@@ -397,9 +424,7 @@ def simulate(
     n_steps = T - 1 if steps is None else int(steps)
     if not 1 <= n_steps <= T - 1:
         raise ValueError(f"steps must lie in [1, {T - 1}]; got steps={steps!r}")
-    bs = BATCH_SIZE if batch_size is None else int(batch_size)
-    if bs < 1:
-        raise ValueError(f"batch_size must be a positive integer; got batch_size={batch_size!r}")
+    bs = BATCH_SIZE if batch_size is None else check_int("batch_size", batch_size, 1)
 
     chunks = [idx[i: i + bs] for i in range(0, len(idx), bs)]
     bar = None
@@ -430,17 +455,22 @@ class ModelPolicy:
     ``params`` from :func:`minimanc.train.fit`; ``cfg`` its
     :class:`~minimanc.models.ModelConfig` (its ``setting`` decides what the
     model sees); ``eng`` an engine (``"jax"`` jits the step once per batch
-    size).  The recurrent state starts as :func:`minimanc.models.initial_state`
-    with ``q_init`` ("uniform", Algorithm 1's ``UniformInit``, or "random"
-    with ``seed``) and is carried over between steps.
+    size, unless ``jit=False``). The recurrent state starts as
+    :func:`minimanc.models.initial_state` with ``q_init`` ("uniform",
+    Algorithm 1's ``UniformInit``, or "random" with ``seed``: one generator per
+    scene, so that a row does not depend on its batch), or as ``initial`` (the
+    state of one row, repeated for every row) when given, and is carried over
+    between steps. Parameters and observations are cast to ``dtype``; the aux
+    outputs come back in it.
     """
 
     def __init__(self, name: str, params: dict, cfg: Any, eng: Any,
-                 q_init: str = "uniform", seed: int = 0, dtype: Any = np.float32) -> None:
+                 q_init: str = "uniform", seed: int = 0, dtype: Any = np.float32,
+                 initial: dict | None = None, jit: bool = True) -> None:
         from minimanc import models
+        from minimanc.models.forward import cast_tree
 
-        if name not in models.MODEL_NAMES:
-            raise ValueError(f"name must be one of {models.MODEL_NAMES}; got name={name!r}")
+        models.check_name(name)
         if q_init not in ("uniform", "random"):
             raise ValueError(f"q_init must be 'uniform' or 'random'; got q_init={q_init!r}")
         if isinstance(eng, str):
@@ -454,22 +484,25 @@ class ModelPolicy:
         self.q_init = q_init
         self.seed = int(seed)
         self.dtype = dtype
-        self.params = _cast_tree(params, dtype)
+        self.initial = initial
+        self.params = cast_tree(params, dtype)
 
         def _fn(p: dict, obs: dict, state: dict) -> tuple[Any, dict, dict]:
             u, new_state, aux = models.step(name, p, obs, state, cfg, eng)
             aux = {k: v for k, v in aux.items() if k in AUX_KEYS}
             return u, new_state, aux
 
-        self._step = eng.jit(_fn)  # the identity on the NumPy engine
+        self._step = eng.jit(_fn) if jit else _fn  # jit is the identity on the NumPy engine
 
     def initial_state(self, scenes: np.ndarray) -> dict:
         from minimanc import models
 
-        if self.q_init == "uniform" or self.model not in models.VAGN_MODELS:
+        if self.initial is not None:
+            return {k: self.eng.xp.asarray(np.repeat(np.asarray(v), len(scenes), axis=0))
+                    for k, v in self.initial.items()}
+        if self.q_init == "uniform" or models.spec(self.model).family != "vagn":
             return models.initial_state(self.model, len(scenes), self.cfg, xp=self.eng.xp,
                                         dtype=self.dtype)
-        # one generator per scene, so that a row does not depend on its batch
         rows = [np.asarray(models.initial_state(
             self.model, 1, self.cfg, rng=np.random.default_rng([self.seed, int(s)]),
             mode="random", dtype=self.dtype)["q"]) for s in scenes]
@@ -480,19 +513,64 @@ class ModelPolicy:
         obs = {k: np.asarray(v, dtype=self.dtype) for k, v in obs.items()}
         u, state, aux = self._step(self.params, obs, state)
         return (np.asarray(_value(u), dtype=np.float64), state,
-                {k: np.asarray(_value(v), dtype=np.float64) for k, v in aux.items()})
+                {k: np.asarray(_value(v)) for k, v in aux.items()})
 
 
 def _value(x: Any) -> Any:
     return getattr(x, "_value", getattr(x, "value", x))
 
 
-def _cast_tree(tree: Any, dtype: Any) -> Any:
-    if isinstance(tree, dict):
-        return {k: _cast_tree(v, dtype) for k, v in tree.items()}
-    if isinstance(tree, list | tuple):
-        return type(tree)(_cast_tree(v, dtype) for v in tree)
-    return np.asarray(_value(tree), dtype=dtype)
+def replay(name: str, params: dict, ds: Any, scene: int, cfg: Any = None, eng: Any = None,
+           q_mode: str = "uniform") -> dict:
+    """Open-loop trace of one logged scene: :func:`drive` in a :class:`LogReplay` that follows
+    the log, so that the model sees the human's observations step by step while its
+    recurrent state carries over (q for vAGN models).
+
+    Parameters
+    ----------
+    name : str
+        A registered model.
+    params : dict
+        Its parameters; the model runs in their dtype.
+    ds : dataset
+        A :mod:`minimanc.world` dataset.
+    scene : int
+        The scene index.
+    cfg : ModelConfig, optional
+    eng : Engine or str, optional
+        Default: the NumPy engine. The step is not jitted.
+    q_mode : str
+        The initial q of vAGN models: "uniform", or "random" (one ``RandomInit`` draw
+        from ``numpy.random.default_rng(0)``).
+
+    Returns
+    -------
+    dict
+        NumPy arrays over the ``T`` steps, in the parameters' dtype: ``controls``
+        ``(T, 2)`` and, where the model has them, ``q`` ``(T, N)``, ``alpha``/``beta``
+        ``(T, 2)``, ``predicates`` ``(T, M)``; and ``human`` ``(T, 2)`` float64, the
+        logged controls.
+    """
+    from minimanc import engine as _engine
+    from minimanc import models
+    from minimanc.tree import leaves
+
+    name = models.check_name(name)
+    cfg = cfg or models.ModelConfig()
+    eng = _engine(eng) if isinstance(eng, str) else (eng or _engine("numpy"))
+    S, T = _check_dataset(ds)
+    idx = _scene_index(check_int("scene", scene, 0), S)
+    if q_mode not in ("uniform", "random"):
+        raise ValueError(f"q_mode must be 'uniform' or 'random'; got q_mode={q_mode!r}")
+    dtype = np.asarray(_value(leaves(params)[0])).dtype
+    rng = None if q_mode == "uniform" else np.random.default_rng(0)
+    start = models.initial_state(name, 1, cfg, xp=np, rng=rng, mode=q_mode)
+    policy = ModelPolicy(name, params, cfg, eng, dtype=dtype, initial=start, jit=False)
+    run = drive(policy, LogReplay(ds, idx, follow_log=True), T)
+    out = {"controls": run.controls[0].astype(dtype)}
+    out.update({k: v[0] for k, v in run.aux.items()})
+    out["human"] = np.asarray(ds.controls[int(scene)], dtype=np.float64)
+    return out
 
 
 def closed_loop(

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from minimanc import cam, dmp, engine, inputs, models, quaternion, tree
+from minimanc import cam, dmp, engine, inputs, models, quaternion, tree, vagn
 
 B = 3
 CFG = models.ModelConfig(image_size=16, channels=(4, 8), n_predicates=5, n_states=4, hidden=8,
@@ -256,7 +256,7 @@ def test_explain_saliency_identity():
 
     def q_of(z):
         p = 1.0 / (1.0 + eng.xp.exp(-z))
-        return models.vagn.step(q_prev[0], p, params["vagn"]["W"], xp=eng.xp)
+        return vagn.step(q_prev[0], p, params["vagn"]["W"], xp=eng.xp)
 
     J = np.stack([jax.jacrev(q_of)(ex["logits"][i]) for i in range(B)])
     np.testing.assert_allclose(ex["jacobian"], J, rtol=1e-7, atol=1e-10)

@@ -1,0 +1,55 @@
+"""Chapter 8 — the CNN backbone every controller shares and the small layers its heads use.
+
+:func:`backbone`: 3×3 convolutions, stride 2, zero padding 1, then the activation
+(SiLU or ReLU), per layer; with the default channels ``(16, 32, 32)`` a 64×64 BEV
+becomes 8×8×32 features (NHWC).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from minimanc import layers
+
+__all__ = ["activate", "backbone", "dense", "flatten"]
+
+
+def backbone(params: dict, images: Any, cfg: Any, eng: Any) -> Any:
+    """The shared CNN.
+
+    Parameters
+    ----------
+    params : dict
+        ``{"convs": [conv, ...]}`` from :func:`minimanc.models.init`.
+    images : array, shape (B, H, W, 3)
+        BEV rasters in [0, 1].
+    cfg : ModelConfig
+        Its ``activation`` is applied after each convolution.
+    eng : Engine
+        ``minimanc.engine("numpy" | "jax")``.
+
+    Returns
+    -------
+    array, shape (B, h, w, C)
+        ``h = w = cfg.feature_size``, ``C = cfg.channels[-1]``.
+    """
+    act = eng.nn.silu if cfg.activation == "silu" else eng.nn.relu
+    h = images
+    for layer in params["convs"]:
+        h = act(layers.conv2d(layer, h, eng.nn, stride=2, padding=1))
+    return h
+
+
+def dense(p: dict, x: Any, eng: Any) -> Any:
+    """``x @ p["w"] + p["b"]`` on ``eng``'s namespace: ``(B, n_in) → (B, n_out)``."""
+    return layers.dense(p, x, xp=eng.xp)
+
+
+def activate(x: Any, cfg: Any, eng: Any) -> Any:
+    """``cfg.activation`` (SiLU or ReLU) of ``x``."""
+    return eng.nn.silu(x) if cfg.activation == "silu" else eng.nn.relu(x)
+
+
+def flatten(f: Any, xp: Any) -> Any:
+    """``(B, ...) → (B, -1)``."""
+    return xp.reshape(f, (f.shape[0], -1))

@@ -1,0 +1,188 @@
+"""Chapter 8 — the hyper-parameters shared by every controller (:class:`ModelConfig`) and the
+constants of the heads (:data:`CONTROL_SCALE`, :data:`DEFAULT_GAINS`, :func:`gain_logits`)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from minimanc import dmp, inputs
+from minimanc.checks import check_int
+
+__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "ModelConfig", "gain_box_corners", "gain_logits"]
+
+CONTROL_SCALE: tuple[float, float] = (10.0, 0.5)
+"""Output scale of the direct heads: ``controls = o · (10 m/s, 0.5 rad/s)``."""
+
+DEFAULT_GAINS: tuple[float, float, float, float] = (1.0, 0.45, 2.5, 1.15)
+"""Initial ``(α_y, β_y, α_q, β_q)`` of the DMP heads (the bias of the gains FC):
+β_y τ_y ≈ 1 keeps the speed, β_q τ_q ≈ 1 follows the pure-pursuit arc."""
+
+
+def gain_logits(gains: Any) -> np.ndarray:
+    """The logits whose DMP-head gains are ``gains``.
+
+    Parameters
+    ----------
+    gains : array_like, shape (4,)
+        ``(α_y, β_y, α_q, β_q)``, each strictly inside
+        :data:`minimanc.dmp.ALPHA_RANGE` / :data:`minimanc.dmp.BETA_RANGE`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (4,)
+        The inverse of :func:`minimanc.dmp.gains_from_logits` (eq. 10's gain map).
+    """
+    g = np.asarray(gains, dtype=np.float64)
+    if g.shape != (4,) or not np.all(np.isfinite(g)):
+        raise ValueError(f"gains must be four finite numbers (alpha_y, beta_y, alpha_q, "
+                         f"beta_q); got gains={gains!r}")
+    za_y, zb_y = dmp.logits_from_gains(g[0], g[1])
+    za_q, zb_q = dmp.logits_from_gains(g[2], g[3])
+    return np.array([za_y, zb_y, za_q, zb_q], dtype=np.float64)
+
+
+def gain_box_corners(critically_damped: bool = False) -> np.ndarray:
+    """The corners ``(α, β)`` of the box the DMP head's gains live in, shape ``(n, 2)``.
+
+    :data:`minimanc.dmp.ALPHA_RANGE` × :data:`minimanc.dmp.BETA_RANGE` (four corners), or the
+    two ends of ``β = α/4`` when ``critically_damped``. The default integrator's stability
+    condition is monotone in α and β, so a step stable at every corner is stable on the box.
+    """
+    a_lo, a_hi = dmp.ALPHA_RANGE
+    if critically_damped:
+        return np.array([[a_lo, a_lo / 4.0], [a_hi, a_hi / 4.0]])
+    b_lo, b_hi = dmp.BETA_RANGE
+    return np.array([[a, b] for a in (a_lo, a_hi) for b in (b_lo, b_hi)])
+
+
+def _largest_stable_dt(corners: np.ndarray) -> float:
+    """Bisection on :func:`minimanc.dmp.step_stable` over the corners (for the message)."""
+    lo, hi = 0.0, 1.0
+    while bool(np.all(dmp.step_stable(corners[:, 0], corners[:, 1], dt=hi))):
+        lo, hi = hi, 2.0 * hi
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        if bool(np.all(dmp.step_stable(corners[:, 0], corners[:, 1], dt=mid))):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Hyper-parameters shared by all controllers.
+
+    ``n_states`` q-states of vAGN (the paper studies 3–12), ``n_predicates``
+    visual predicates of eq. 7, ``image_size`` of the square BEV, ``setting``
+    ("paper"/"parity", see :mod:`minimanc.inputs`), ``channels`` of the 3×3
+    stride-2 convolutions, ``activation`` ("silu"/"relu"), ``hidden`` units of
+    the FC and LSTM layers (64 as in the paper), ``k_targets`` lane-target
+    points, ``position_lookahead`` (m), ``position_lookahead_time`` (s),
+    ``heading_lookahead`` (m), ``heading_lookahead_time`` (s) and
+    ``heading_horizon`` (s) of the DMP head (:func:`minimanc.models.dmp_head`),
+    ``critically_damped`` (β = α/4, the paper's safe option),
+    ``predicate_activation`` ("sigmoid" or "linear": eq. 7 literally),
+    ``gains_scale`` (initial scale of the gains FC relative to Glorot),
+    ``orientation`` ("yaw": the orientation DMP on the yaw angle, or
+    "quaternion": eq. 2 with unit quaternions — equal results for yaw-only
+    driving), ``vagn_scale`` the std of vAGN's initial weights, ``dt`` the
+    step (s).
+
+    ``dt`` must keep the default DMP integrator (:data:`minimanc.dmp.DEFAULT_METHOD`,
+    :data:`minimanc.dmp.DEFAULT_SUBSTEPS` sub-steps) stable at every corner of the gain
+    box (:func:`gain_box_corners`); otherwise ValueError.
+    """
+
+    n_states: int = 6
+    n_predicates: int = 8
+    image_size: int = 64
+    setting: str = "paper"
+    channels: tuple[int, ...] = (16, 32, 32)
+    activation: str = "silu"
+    hidden: int = 64
+    k_targets: int = 10
+    position_lookahead: float = 4.0
+    position_lookahead_time: float = 2.0
+    heading_lookahead: float = 5.0
+    heading_lookahead_time: float = 1.0
+    heading_horizon: float = 1.0
+    critically_damped: bool = False
+    orientation: str = "yaw"
+    predicate_activation: str = "sigmoid"
+    gains_scale: float = 3.0
+    vagn_scale: float = 4.0
+    dt: float = dmp.DT
+
+    def __post_init__(self) -> None:
+        for name in ("n_states", "n_predicates", "image_size", "hidden", "k_targets"):
+            check_int(name, getattr(self, name), 1)
+        inputs.check_setting(self.setting)
+        ch = tuple(self.channels)
+        if not ch or any(isinstance(c, bool) or not isinstance(c, int | np.integer) or c < 1
+                         for c in ch):
+            raise ValueError(f"channels must be a non-empty tuple of positive integers, "
+                             f"got channels={self.channels!r}")
+        object.__setattr__(self, "channels", tuple(int(c) for c in ch))
+        if self.activation not in ("silu", "relu"):
+            raise ValueError(f"activation must be 'silu' or 'relu', got "
+                             f"activation={self.activation!r}")
+        reach = 4.0 * self.k_targets
+        for name in ("position_lookahead", "heading_lookahead"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and 4.0 <= v <= min(reach, 22.0)):
+                raise ValueError(f"{name} must be in [4, {min(reach, 22.0)}] m (the lane "
+                                 f"target spans 4 .. 4·k_targets m), got {name}={v!r}")
+        for name in ("position_lookahead_time", "heading_lookahead_time", "heading_horizon"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and v >= 0.0 and np.isfinite(v)):
+                raise ValueError(f"{name} must be a finite number >= 0 s, got {name}={v!r}")
+        if not self.heading_horizon > 0.0:
+            raise ValueError(f"heading_horizon must be > 0 s, got "
+                             f"heading_horizon={self.heading_horizon!r}")
+        if self.orientation not in ("yaw", "quaternion"):
+            raise ValueError(f"orientation must be 'yaw' or 'quaternion', got "
+                             f"orientation={self.orientation!r}")
+        if self.predicate_activation not in ("sigmoid", "linear"):
+            raise ValueError(f"predicate_activation must be 'sigmoid' or 'linear', got "
+                             f"predicate_activation={self.predicate_activation!r}")
+        if not (isinstance(self.gains_scale, int | float) and self.gains_scale > 0.0):
+            raise ValueError(f"gains_scale must be > 0, got gains_scale={self.gains_scale!r}")
+        if not self.vagn_scale > 0.0:
+            raise ValueError(f"vagn_scale must be > 0, got vagn_scale={self.vagn_scale!r}")
+        self._check_dt()
+
+    def _check_dt(self) -> None:
+        dt = self.dt
+        if isinstance(dt, bool) or not isinstance(dt, int | float | np.floating) \
+                or not np.isfinite(dt) or not dt > 0.0:
+            raise ValueError(f"dt must be a finite number > 0 s, got dt={dt!r}")
+        corners = gain_box_corners(self.critically_damped)
+        stable = np.asarray(dmp.step_stable(corners[:, 0], corners[:, 1], dt=float(dt)))
+        if np.all(stable):
+            return
+        a, b = corners[int(np.argmin(stable))]
+        rho = float(dmp.spectral_radius(a, b, dt=float(dt)))
+        raise ValueError(
+            f"dt={dt!r} makes the DMP head's integrator ({dmp.DEFAULT_METHOD}, "
+            f"{dmp.DEFAULT_SUBSTEPS} sub-steps) unstable at the gain-box corner alpha={a:g}, "
+            f"beta={b:g} (spectral radius {rho:.4g} > 1; box alpha in {dmp.ALPHA_RANGE}, beta "
+            f"in {dmp.BETA_RANGE}{', beta = alpha/4' if self.critically_damped else ''}); "
+            f"use dt < {_largest_stable_dt(corners):.4g} s")
+
+    @property
+    def feature_size(self) -> int:
+        """Spatial size of the backbone's output (64 → 8 with three stride-2 layers)."""
+        s = self.image_size
+        for _ in self.channels:
+            s = (s + 2 - 3) // 2 + 1
+        return s
+
+    def to_dict(self) -> dict:
+        """A JSON-able dict (for checkpoints)."""
+        d = asdict(self)
+        d["channels"] = list(d["channels"])
+        return d

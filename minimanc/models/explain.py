@@ -1,0 +1,93 @@
+"""Chapter 8 — what a trained controller shows: per-q-state saliency (:func:`explain`, paper
+Figs. 3–4) and the open-loop trace of a logged scene (:func:`replay`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from minimanc import cam, checks, vagn
+from minimanc.models.backbone import backbone
+from minimanc.models.config import ModelConfig
+from minimanc.models.forward import cast_tree
+
+__all__ = ["explain", "replay"]
+
+
+def explain(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = None,
+            eng: Any = None, upsample_to_input: bool = True) -> dict:
+    """Per-q-state saliency of a vAGN model (paper Figs. 3–4), NumPy float64 arrays.
+
+    Runs eq. 7 on ``obs["bev"]`` and one vAGN step (eqs. 8–9) from ``q_prev``.
+    ``q_prev`` is checked as a distribution in its own precision (a float32 model's
+    ``q``, say), then converted to float64 and renormalised.
+
+    Parameters
+    ----------
+    params : dict
+        Parameters of a vAGN model (``manc`` or ``vagn_only``).
+    obs : dict
+        ``bev`` ``(B, H, W, 3)``.
+    q_prev : array, shape (B, N)
+        The q-distribution before the step.
+    cfg : ModelConfig, optional
+    eng : Engine, optional
+        Runs the backbone (default: the NumPy engine).
+    upsample_to_input : bool
+        Upsample the maps to the image size.
+
+    Returns
+    -------
+    dict
+        ``logits`` ``(B, M)`` = ``Linear(GAP(f))``; ``predicates`` ``(B, M)`` (through
+        ``cfg.predicate_activation``); ``q`` ``(B, N)``; ``cams`` ``(B, M, H, W)`` — the
+        class activation maps of the logits (:func:`minimanc.cam.class_activation_maps`;
+        ``mean_xy cams_i = logit_i − b_i``); ``jacobian`` ``(B, N, M)`` = ∂q/∂logits
+        (chain rule through the sigmoid); ``saliency`` ``(B, N, H, W)`` = ``Σ_i J_ji
+        cams_i`` (:func:`minimanc.cam.q_state_saliency`).
+    """
+    from minimanc import engine as _engine
+
+    cfg = cfg or ModelConfig()
+    eng = eng or _engine("numpy")
+    if "vagn" not in params or "predicates" not in params:
+        raise ValueError("explain needs the parameters of a vAGN model (manc or vagn_only); "
+                         f"got params with keys {sorted(params)}")
+    p64 = cast_tree(params, np.float64)
+    bev = np.asarray(obs["bev"], dtype=np.float64)
+    f = np.asarray(cast_tree(backbone(p64["backbone"], bev, cfg, eng), np.float64))
+    w, b = p64["predicates"]["w"], p64["predicates"]["b"]
+    z = f.mean(axis=(1, 2)) @ w + b
+    if cfg.predicate_activation == "sigmoid":
+        p = 0.5 * (1.0 + np.tanh(0.5 * z))
+        dp_dz = p * (1.0 - p)
+    else:
+        p, dp_dz = z, np.ones_like(z)
+    W = p64["vagn"]["W"]
+    q_in = np.asarray(getattr(q_prev, "_value", q_prev))
+    checks.check_distribution("q_prev", q_in, W.shape[-1])
+    q_prev = q_in.astype(np.float64)
+    q_prev = q_prev / q_prev.sum(axis=-1, keepdims=True)
+    q = vagn.step(q_prev, p, W)
+    cams = cam.class_activation_maps(f, w)
+    J = cam.vagn_jacobian(q_prev, p, W) * dp_dz[..., None, :]
+    S = cam.q_state_saliency(cams, J)
+    if upsample_to_input:
+        size = tuple(bev.shape[1:3])
+        cams, S = cam.upsample(cams, size), cam.upsample(S, size)
+    return {"logits": z, "predicates": p, "q": q, "cams": cams, "jacobian": J, "saliency": S}
+
+
+def replay(name: str, params: dict, ds: Any, scene: int, cfg: ModelConfig | None = None,
+           eng: Any = None, q_mode: str = "uniform") -> dict:
+    """Open-loop trace of one logged scene (:func:`minimanc.rollout.replay`).
+
+    The model sees the human's observations step by step and its recurrent state carries
+    over. Returns NumPy arrays over the ``T`` steps, in the parameters' dtype:
+    ``controls`` ``(T, 2)``, ``human`` ``(T, 2)`` (float64) and, where the model has
+    them, ``q`` ``(T, N)``, ``alpha``/``beta`` ``(T, 2)``, ``predicates`` ``(T, M)``.
+    """
+    from minimanc import rollout
+
+    return rollout.replay(name, params, ds, scene, cfg, eng, q_mode=q_mode)

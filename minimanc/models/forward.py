@@ -1,0 +1,287 @@
+"""Chapter 8 — any registered controller as a pure function ``(params, inputs)``: its parameters
+(:func:`init`), its recurrent state (:func:`initial_state`), one control step (:func:`step`) and
+a sequence of steps with one time loop (:func:`sequence`).
+
+Each model is a :class:`~minimanc.models.registry.ModelSpec`; this module runs the part they
+share — the backbone on ``obs["bev"]``, eq. 7's predicates ``σ(Linear(GAP(f)))`` when the model
+has them, the numeric inputs of :func:`minimanc.inputs.numeric_features` — and calls the spec's
+``encode`` and ``head``. Every function takes an engine ``eng`` and uses only ``eng.xp`` /
+``eng.nn`` / ``eng.scan``, so the same code runs on both engines.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from minimanc import inputs, layers, vagn
+from minimanc.checks import check_int
+from minimanc.models import registry
+from minimanc.models.backbone import backbone, dense
+from minimanc.models.config import ModelConfig
+from minimanc.models.registry import ModelSpec, get
+from minimanc.tree import leaves as tree_leaves
+
+__all__ = [
+    "cast_tree",
+    "check_obs",
+    "encode",
+    "init",
+    "initial_state",
+    "param_count",
+    "param_counts",
+    "run_head",
+    "sequence",
+    "step",
+]
+
+
+def cast_tree(tree: Any, dtype: Any) -> Any:
+    """``tree`` with every leaf as a NumPy array of ``dtype`` (dicts, lists, tuples kept)."""
+    if isinstance(tree, dict):
+        return {k: cast_tree(v, dtype) for k, v in tree.items()}
+    if isinstance(tree, list | tuple):
+        return type(tree)(cast_tree(v, dtype) for v in tree)
+    return np.asarray(getattr(tree, "_value", tree), dtype=dtype)
+
+
+def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
+         dtype: Any = np.float64) -> dict:
+    """Initial parameters of model ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A registered model (:data:`minimanc.models.MODEL_NAMES`).
+    rng : numpy.random.Generator
+        Draws the backbone's convolutions first, then the spec's own layers.
+    cfg : ModelConfig, optional
+        Defaults to ``ModelConfig()``.
+    dtype : dtype
+        Of every leaf.
+
+    Returns
+    -------
+    dict
+        A pytree of NumPy arrays: ``"backbone": {"convs": [...]}`` and the spec's layers.
+    """
+    spec = get(name)
+    cfg = cfg or ModelConfig()
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"rng must be a numpy.random.Generator, got rng={rng!r}")
+    convs, c_in = [], 3
+    for c in cfg.channels:
+        convs.append(layers.init_conv(rng, 3, 3, c_in, c))
+        c_in = c
+    params: dict = {"backbone": {"convs": convs}}
+    params.update(spec.init(rng, cfg, inputs.numeric_size(name, cfg.setting, cfg.k_targets)))
+    return cast_tree(params, dtype)
+
+
+def param_count(params: dict) -> int:
+    """Number of scalar parameters in a pytree."""
+    return int(sum(int(np.prod(np.shape(x))) for x in tree_leaves(params)))
+
+
+def param_counts(cfg: ModelConfig | None = None, names: tuple[str, ...] | None = None) -> dict:
+    """``{name: param_count(init(name, ...))}`` for the models ``names`` (default: all)."""
+    cfg = cfg or ModelConfig()
+    chosen = registry.names() if names is None else tuple(names)
+    return {n: param_count(init(n, np.random.default_rng(0), cfg)) for n in chosen}
+
+
+def initial_state(name: str, batch: int, cfg: ModelConfig | None = None, xp: Any = np,
+                  rng: np.random.Generator | None = None, mode: str = "uniform",
+                  dtype: Any = np.float32) -> dict:
+    """The recurrent state at the start of a sequence, for ``batch`` rows.
+
+    Parameters
+    ----------
+    name : str
+        A registered model; its ``family`` decides the state.
+    batch : int
+        Rows ``B``.
+    cfg : ModelConfig, optional
+    xp : module
+        Namespace of the returned arrays.
+    rng : numpy.random.Generator, optional
+        Needed by ``mode="random"``.
+    mode : str
+        "uniform" (Algorithm 1's ``UniformInit``) or "random" (``RandomInit``: flat
+        Dirichlet draws); vAGN models only.
+    dtype : dtype
+
+    Returns
+    -------
+    dict
+        vAGN family: ``{"q": (B, N)}``; LSTM family: ``{"h", "c"}`` zeros ``(B, hidden)``;
+        feed-forward: ``{}``.
+    """
+    spec = get(name)
+    cfg = cfg or ModelConfig()
+    batch = check_int("batch", batch, 1)
+    if mode not in ("uniform", "random"):
+        raise ValueError(f"mode must be 'uniform' or 'random', got mode={mode!r}")
+    if spec.family == "vagn":
+        if mode == "random":
+            if not isinstance(rng, np.random.Generator):
+                raise ValueError(f"mode='random' needs rng=numpy.random.Generator, got rng={rng!r}")
+            q = vagn.random_state(rng, cfg.n_states, size=batch)
+        else:
+            q = np.broadcast_to(vagn.uniform_state(cfg.n_states), (batch, cfg.n_states))
+        return {"q": xp.asarray(np.asarray(q, dtype=dtype))}
+    if spec.family == "lstm":
+        z = np.zeros((batch, cfg.hidden), dtype=dtype)
+        return {"h": xp.asarray(z), "c": xp.asarray(z)}
+    return {}
+
+
+def check_obs(name: str, obs: dict, cfg: ModelConfig, lead: int) -> None:
+    """Keys and shapes of an observation with ``lead`` leading axes before the image axes."""
+    keys = inputs.visible(name, cfg.setting)
+    missing = [k for k in keys if k not in obs]
+    if missing:
+        raise ValueError(f"obs lacks {missing} needed by model {name!r} in setting "
+                         f"{cfg.setting!r}; got keys {sorted(obs)}")
+    shape = tuple(obs["bev"].shape)
+    want = (cfg.image_size, cfg.image_size, 3)
+    if len(shape) != lead + 3 or shape[lead:] != want:
+        raise ValueError(f"obs['bev'] must have shape {('B',) * lead + want} for "
+                         f"image_size={cfg.image_size}, got {shape}")
+    if "lane_target" in keys:
+        lt = tuple(obs["lane_target"].shape)
+        if lt[lead:] != (cfg.k_targets, 2):
+            raise ValueError(f"obs['lane_target'] must end in ({cfg.k_targets}, 2) "
+                             f"(k_targets={cfg.k_targets}), got {lt}")
+
+
+def encode(spec: ModelSpec, params: dict, obs: dict, cfg: ModelConfig, eng: Any) -> dict:
+    """Per-frame computations (no recurrence) of ``spec`` on observations ``(B, ...)``.
+
+    Returns ``features`` ``(B, h, w, C)``, ``predicates`` ``(B, M)`` (eq. 7, when the
+    parameters have a ``"predicates"`` layer) and what the spec's ``encode`` adds.
+    """
+    xp = eng.xp
+    dtype = params["backbone"]["convs"][0]["w"].dtype
+    obs = {k: xp.asarray(v, dtype=dtype) for k, v in obs.items()}
+    f = backbone(params["backbone"], obs["bev"], cfg, eng)
+    enc: dict = {"features": f}
+    if "predicates" in params:
+        gap = xp.mean(xp.mean(f, axis=1), axis=1)  # GAP of eq. 7
+        z = dense(params["predicates"], gap, eng)
+        enc["predicates"] = eng.nn.sigmoid(z) if cfg.predicate_activation == "sigmoid" else z
+    num = inputs.numeric_features(obs, spec.name, cfg.setting, xp=xp)
+    enc.update(spec.encode(params, obs, f, num, cfg, eng))
+    return enc
+
+
+def run_head(spec: ModelSpec, params: dict, enc: dict, state: dict, cfg: ModelConfig,
+             eng: Any) -> tuple[Any, dict, dict]:
+    """One time step of ``spec``'s recurrent part and head; ``aux`` gains ``predicates``."""
+    controls, new_state, aux = spec.head(params, enc, state, cfg, eng)
+    if "predicates" in enc:
+        aux = {"predicates": enc["predicates"], **aux}
+    return controls, new_state, aux
+
+
+def step(name: str, params: dict, obs: dict, state: dict, cfg: ModelConfig | None,
+         eng: Any) -> tuple[Any, dict, dict]:
+    """One control step of model ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A registered model.
+    params : dict
+        From :func:`init` or :func:`minimanc.train.fit`.
+    obs : dict
+        Observations of :mod:`minimanc.inputs`, batched: ``bev`` ``(B, H, W, 3)`` and the
+        other keys the model sees.
+    state : dict
+        From :func:`initial_state` or the previous call.
+    cfg : ModelConfig or None
+    eng : Engine
+
+    Returns
+    -------
+    controls : array, shape (B, 2)
+        ``[speed, yaw rate]``.
+    new_state : dict
+    aux : dict
+        ``predicates`` ``(B, M)`` (models with eq. 7), ``q`` ``(B, N)`` (vAGN models),
+        ``alpha`` and ``beta`` ``(B, 2)`` = (position, orientation) gains (DMP models),
+        and ``features`` ``(B, h, w, C)``.
+    """
+    spec = get(name)
+    cfg = cfg or ModelConfig()
+    check_obs(name, obs, cfg, 1)
+    enc = encode(spec, params, obs, cfg, eng)
+    controls, new_state, aux = run_head(spec, params, enc, state, cfg, eng)
+    aux["features"] = enc["features"]
+    return controls, new_state, aux
+
+
+def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConfig | None,
+             eng: Any, feedback_motion: bool = False, return_aux: bool = False) -> tuple:
+    """Run ``L`` steps on time-major observations.
+
+    Equal to ``L`` calls of :func:`step` (tested), but the backbone runs once on
+    all ``L·B`` frames and the time loop is one ``eng.scan`` on both engines.
+    Used to train the recurrent models on truncated back-propagation-through-time
+    windows.
+
+    Parameters
+    ----------
+    name, params, state, cfg, eng
+        As in :func:`step`.
+    obs_seq : dict
+        Observations ``(L, B, ...)``.
+    feedback_motion : bool
+        DMP models: the DMP's initial velocities at step ``i > 0`` are the model's own
+        controls of step ``i − 1`` instead of ``obs_seq["motion"][i]`` (the DMP
+        integrates its own state, as in closed loop; only step 0 uses the logged motion).
+    return_aux : bool
+        Also return the per-step ``aux`` of :func:`step` stacked along time
+        (``features`` excluded).
+
+    Returns
+    -------
+    controls : array, shape (L, B, 2)
+    state : dict
+        After the last step.
+    aux : dict, only with ``return_aux``
+        Arrays ``(L, B, ...)``.
+    """
+    spec = get(name)
+    cfg = cfg or ModelConfig()
+    check_obs(name, obs_seq, cfg, 2)
+    xp = eng.xp
+    L, B = obs_seq["bev"].shape[:2]
+    seen = inputs.visible(name, cfg.setting)
+    flat = {k: xp.reshape(xp.asarray(v), (L * B,) + tuple(v.shape[2:]))
+            for k, v in obs_seq.items() if k in seen}
+    enc = encode(spec, params, flat, cfg, eng)
+    enc.pop("features")
+    feedback = feedback_motion and spec.dmp
+    none_keys = [k for k, v in enc.items() if v is None]
+    xs = {k: xp.reshape(v, (L, B) + tuple(v.shape[1:])) for k, v in enc.items() if v is not None}
+
+    def body(carry: tuple, x: dict) -> tuple:
+        st, prev, i = carry
+        enc_i = dict(x)
+        enc_i.update({k: None for k in none_keys})
+        if feedback:
+            enc_i["motion"] = xp.where(i > 0, prev, x["motion"])
+        controls, new_st, aux = run_head(spec, params, enc_i, st, cfg, eng)
+        controls = controls.astype(prev.dtype)
+        new_st = {k: v.astype(st[k].dtype) for k, v in new_st.items()}
+        return (new_st, controls, i + 1), (controls, aux if return_aux else {})
+
+    dtype = params["backbone"]["convs"][0]["w"].dtype
+    prev0 = xp.zeros((B, 2), dtype=dtype)
+    (state, _, _), (outs, auxs) = eng.scan(body, (dict(state), prev0, 0), xs)
+    if not return_aux:
+        return outs, state
+    return outs, state, auxs
+

@@ -1,0 +1,185 @@
+"""Chapter 8 — the model registry: one :class:`ModelSpec` per controller.
+
+A spec says everything the rest of the library asks about a model: its
+``name`` and plot ``label``, its ``family`` (what its recurrent state is), what
+it ``observes`` in each information setting (:mod:`minimanc.inputs` reads it),
+the :class:`~minimanc.train.TrainConfig` field that sets its training ``window``,
+whether it ends in the ``dmp`` head of eqs. 10–11, and the three functions that
+make it: ``init`` (its parameters after the shared backbone), ``encode`` (per
+frame, no recurrence) and ``head`` (one time step). Adding a model is one
+:func:`register` call; :data:`minimanc.models.MODEL_NAMES`, the CLI choices, the
+window rule of :mod:`minimanc.train` and the plot labels follow.
+
+The registry lives with the models (it holds their functions) and imports
+only :mod:`minimanc.inputs`, for the observation keys and settings. ``inputs``
+is the lower layer: it looks specs up at call time, never at import, so the
+two modules do not import each other while loading.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+from minimanc import inputs
+
+__all__ = [
+    "FAMILIES",
+    "ModelSpec",
+    "check_name",
+    "get",
+    "names",
+    "observes_goal",
+    "observes_structured",
+    "register",
+    "registered",
+    "specs",
+    "unregister",
+]
+
+FAMILIES: tuple[str, ...] = ("feedforward", "lstm", "vagn")
+"""What a model carries from step to step: nothing, an LSTM's ``(h, c)``, vAGN's ``q``."""
+
+WINDOWS: tuple[str | None, ...] = (None, "seq_len", "dmp_seq_len", "q_seq_len")
+"""The :class:`~minimanc.train.TrainConfig` fields a window rule may name (``None``: 1 step)."""
+
+
+def observes_goal(extra: tuple[str, ...] = ()) -> dict[str, tuple[str, ...]]:
+    """The comparison models' rule: the BEV and the goal pose ("paper"), plus the lane target
+    and the current motion as numbers ("parity"); ``extra`` keys in both."""
+    return {"paper": ("bev", "goal") + extra,
+            "parity": ("bev", "goal", "lane_target", "motion") + extra}
+
+
+def observes_structured() -> dict[str, tuple[str, ...]]:
+    """The DMP models' rule: the BEV, the lane target and the motion in both settings."""
+    keys = ("bev", "lane_target", "motion")
+    return {s: keys for s in inputs.SETTINGS}
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """One controller.
+
+    Parameters
+    ----------
+    name : str
+        The model's name (``models.step(name, ...)``).
+    label : str
+        Its name in tables and figures.
+    family : str
+        One of :data:`FAMILIES`; decides :func:`minimanc.models.initial_state`.
+    observes : mapping
+        ``{setting: keys}`` for every setting of :data:`minimanc.inputs.SETTINGS`; keys
+        from :data:`minimanc.inputs.KEYS`, ``"bev"`` always (the backbone reads it).
+    init : callable
+        ``init(rng, cfg, n_num) -> dict``: the parameters besides ``"backbone"``, drawn
+        from ``rng`` after the backbone's; ``n_num`` is the length of the model's
+        :func:`minimanc.inputs.numeric_features`. A ``"predicates"`` entry (a dense layer
+        ``C → M``) makes the shared encoder compute eq. 7's predicates.
+    encode : callable
+        ``encode(params, enc, obs, cfg, eng) -> dict``: per-frame inputs of the head,
+        added to ``enc`` (which holds ``features`` ``(B, h, w, C)``, ``num`` ``(B, F)``
+        or ``None``, and ``predicates`` ``(B, M)`` when computed). Values are arrays
+        with the batch axis first, or ``None``.
+    head : callable
+        ``head(params, enc, state, cfg, eng) -> (controls (B, 2), new_state, aux)``.
+    window : str or None
+        The :class:`~minimanc.train.TrainConfig` field giving the training window length
+        (``None``: one step).
+    dmp : bool
+        The head is the DMP head of eqs. 10–11 (``aux`` holds ``alpha``, ``beta``; the
+        ``motion`` input is its initial state and may be fed back in training).
+    colour : str
+        Its colour in figures.
+    """
+
+    name: str
+    label: str
+    family: str
+    observes: Mapping[str, tuple[str, ...]]
+    init: Callable[..., dict]
+    encode: Callable[..., dict]
+    head: Callable[..., tuple]
+    window: str | None = None
+    dmp: bool = False
+    colour: str = "#7f7f7f"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ValueError(f"name must be a Python identifier, got name={self.name!r}")
+        if self.family not in FAMILIES:
+            raise ValueError(f"family must be one of {FAMILIES}, got family={self.family!r}")
+        if self.window not in WINDOWS:
+            raise ValueError(f"window must be one of {WINDOWS}, got window={self.window!r}")
+        obs = {}
+        for setting in inputs.SETTINGS:
+            if setting not in self.observes:
+                raise ValueError(f"observes must give the keys of every setting "
+                                 f"{inputs.SETTINGS}, got observes={dict(self.observes)!r}")
+            keys = tuple(self.observes[setting])
+            unknown = [k for k in keys if k not in inputs.KEYS]
+            if unknown or "bev" not in keys:
+                raise ValueError(f"observes[{setting!r}] must hold 'bev' and keys from "
+                                 f"{inputs.KEYS}, got {keys!r}")
+            if self.dmp and not {"lane_target", "motion"} <= set(keys):
+                raise ValueError(f"a dmp model must observe 'lane_target' and 'motion', got "
+                                 f"observes[{setting!r}]={keys!r}")
+            obs[setting] = keys
+        object.__setattr__(self, "observes", obs)
+        for fn in ("init", "encode", "head"):
+            if not callable(getattr(self, fn)):
+                raise TypeError(f"{fn} must be callable, got {fn}={getattr(self, fn)!r}")
+
+
+_SPECS: dict[str, ModelSpec] = {}
+
+
+def register(spec: ModelSpec, replace: bool = False) -> ModelSpec:
+    """Add ``spec`` to the registry (ValueError if its name is taken, unless ``replace``)."""
+    if not isinstance(spec, ModelSpec):
+        raise TypeError(f"spec must be a ModelSpec, got spec={spec!r}")
+    if spec.name in _SPECS and not replace:
+        raise ValueError(f"a model named {spec.name!r} is already registered "
+                         "(pass replace=True to replace it)")
+    _SPECS[spec.name] = spec
+    return spec
+
+
+def unregister(name: str) -> ModelSpec:
+    """Remove model ``name`` from the registry and return its spec."""
+    return _SPECS.pop(check_name(name))
+
+
+@contextmanager
+def registered(spec: ModelSpec) -> Iterator[ModelSpec]:
+    """``with registered(spec):`` the model exists inside the block only."""
+    register(spec)
+    try:
+        yield spec
+    finally:
+        _SPECS.pop(spec.name, None)
+
+
+def names() -> tuple[str, ...]:
+    """The registered model names, in registration order."""
+    return tuple(_SPECS)
+
+
+def specs() -> tuple[ModelSpec, ...]:
+    """The registered specs, in registration order."""
+    return tuple(_SPECS.values())
+
+
+def check_name(name: Any, param: str = "name") -> str:
+    """``name`` if a model of that name is registered, else a ValueError naming ``param``."""
+    if not isinstance(name, str) or name not in _SPECS:
+        raise ValueError(f"{param} must be one of {names()}, got {param}={name!r}")
+    return name
+
+
+def get(name: Any, param: str = "name") -> ModelSpec:
+    """The :class:`ModelSpec` of model ``name`` (ValueError naming ``param`` if unknown)."""
+    return _SPECS[check_name(name, param)]
