@@ -382,6 +382,42 @@ def test_bad_input_is_rejected():
         hw.collect(["roundabout", "merge"], n_episodes=1)
 
 
+
+@pytest.mark.parametrize("call, name, minimum", [
+    (lambda p: hw.make_env("roundabout", steps=2.5), "steps", 1),
+    (lambda p: hw.run_episode("roundabout", 0, "expert", steps=True), "steps", 2),
+    (lambda p: hw.ado_boxes(hw.make_env("roundabout"), 1.5), "max_ado", 0),
+    (lambda p: hw.BEVObservation(hw.make_env("roundabout"), max_ado=2.5), "max_ado", 0),
+    (lambda p: hw.expert_episodes("roundabout", 1.0, steps=2), "n", 1),
+    (lambda p: hw.collect("roundabout", n_episodes=True), "n_episodes", 1),
+    (lambda p: hw.save_png(np.zeros((4, 4, 3), np.uint8), p / "f.png", scale=1.5), "scale", 1),
+    (lambda p: hw.save_gif([np.zeros((4, 4, 3), np.uint8)], p / "f.gif", scale=0), "scale", 1),
+])
+def test_integer_arguments_are_integers_not_truncated_floats(tmp_path, call, name, minimum):
+    """2.5 steps or a 1.5x scale is refused naming the argument, never truncated to 2 or 1."""
+    with pytest.raises(ValueError, match=rf"^{name} must be an integer >= {minimum}, got {name}="):
+        call(tmp_path)
+    assert not list(tmp_path.iterdir())
+
+
+def test_demonstrations_are_built_by_the_world_builder(monkeypatch):
+    """to_dataset goes through world.Dataset.build (one builder, one meta) and keeps its maps."""
+    eps, _ = hw.expert_episodes("highway-fast", 2, seed=0, steps=3)
+    calls = []
+    real = world.Dataset.build.__func__
+    monkeypatch.setattr(world.Dataset, "build",
+                        classmethod(lambda cls, *a, **k: (calls.append(k.get("what")),
+                                                          real(cls, *a, **k))[1]))
+    ds = hw.to_dataset(eps, seed=0)
+    assert calls == ["demonstrations"]
+    assert list(ds.meta)[:8] == list(world.dataset.META_KEYS) and ds.meta["source"] == "highway-env"
+    assert ds.meta["scene_index"] == [ep.seed for ep in eps]
+    assert all(ds.maps[i] is ep.map for i, ep in enumerate(eps))
+    eps[0].speeds[1] = np.nan  # controls[0, 0] is the speed reached at step 1
+    with pytest.raises(ValueError, match=r"^demonstrations holds a non-finite number: "
+                                         r"controls\[scene 0, step 0, 0\] = nan"):
+        hw.to_dataset(eps, seed=0)
+
 class _NoImage(_Replay):
     """A replaying policy that names its keys: the closed loop draws no BEV for it."""
 
