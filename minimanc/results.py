@@ -84,6 +84,19 @@ def _git_commit(root: Path) -> str | None:
     return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
 
 
+def _program(argv0: str) -> str:
+    """``minimanc`` for the console script, ``python <path>`` for a script (relative to the
+    working directory when inside it)."""
+    path = Path(argv0)
+    if path.suffix != ".py":
+        return path.name
+    try:
+        path = path.resolve().relative_to(Path.cwd().resolve())
+    except ValueError:
+        pass
+    return f"python {path.as_posix()}"
+
+
 def provenance(argv: Sequence[str] | None = None) -> dict:
     """Where a result comes from: a JSON-ready dict.
 
@@ -91,7 +104,7 @@ def provenance(argv: Sequence[str] | None = None) -> dict:
     ----------
     argv : sequence of str, optional
         The command line that produced the result (default: ``sys.argv``, its first item
-        shortened to the program's base name).
+        shortened to the program's name, or ``python <path>`` for a script).
 
     Returns
     -------
@@ -101,9 +114,9 @@ def provenance(argv: Sequence[str] | None = None) -> dict:
         :data:`PACKAGES`) and ``commit`` (the git commit of the package's checkout, or
         ``None`` outside one; ``+dirty`` when tracked files had uncommitted changes).
     """
-    args = list(sys.argv if argv is None else argv)
-    if argv is None and args:
-        args[0] = Path(args[0]).name
+    args = [str(a) for a in (sys.argv if argv is None else argv)]
+    program = _program(args[0]) if argv is None and args else shlex.join(args[:1])
+    command = " ".join([program] + ([shlex.join(args[1:])] if args[1:] else []))
     packages = {}
     for dist in PACKAGES:
         try:
@@ -111,7 +124,7 @@ def provenance(argv: Sequence[str] | None = None) -> dict:
         except importlib.metadata.PackageNotFoundError:
             continue
     return {
-        "command": shlex.join(str(a) for a in args),
+        "command": command,
         "date": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(),
         "python": platform.python_version(),
         "platform": platform.platform(),
