@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -86,15 +88,16 @@ def main() -> None:
     print(f"redrawn scenes (off road or collision on the first draw): "
           f"{(att > 1).mean():.1%}, mean attempts {att.mean():.3f}")
     print(f"dataset bev: {ds.bev.nbytes / 1e6:.0f} MB in memory")
-    t0 = time.perf_counter()
-    path = dataset.save(ds, "/tmp/_bench_world.npz")
-    ts = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    dataset.load(path)
-    tl = time.perf_counter() - t0
-    print(f"save {ts:.1f} s, load {tl:.1f} s, file {path.stat().st_size / 1e6:.0f} MB "
-          f"(compression {ds.bev.nbytes / path.stat().st_size:.1f}x on the rasters' size)")
-    path.unlink()
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        path = ds.save(Path(tmp) / "world.npz")
+        ts = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        dataset.load(path)
+        tl = time.perf_counter() - t0
+        size = path.stat().st_size
+    print(f"save {ts:.1f} s, load {tl:.1f} s, file {size / 1e6:.0f} MB "
+          f"(compression {ds.bev.nbytes / size:.1f}x on the rasters' size)")
 
 
 if __name__ == "__main__":
