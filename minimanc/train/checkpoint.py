@@ -1,0 +1,205 @@
+"""Chapter 8 — checkpoints: parameters, optimiser state and the run's configuration written
+atomically to one ``.npz`` (:func:`save`), read back (:func:`load_checkpoint`, :func:`load`), and
+the check that refuses unusable parameters (:func:`bad_params`)."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import zipfile
+import zlib
+from collections.abc import Sequence
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from minimanc import models
+from minimanc.train.config import PARAM_LIMIT, CheckpointError, FitResult, TrainConfig
+
+__all__ = ["bad_params", "flatten_tree", "load", "load_checkpoint", "restore_opt", "save",
+           "to_numpy", "unflatten_tree"]
+
+
+def flatten_tree(tree: Any, prefix: str = "") -> dict[str, np.ndarray]:
+    """``{"a/b/#0/w": array}``: a pytree as flat keys (dicts by sorted key, lists as ``#i``)."""
+    out: dict[str, np.ndarray] = {}
+    if isinstance(tree, dict):
+        for k in sorted(tree):
+            out.update(flatten_tree(tree[k], f"{prefix}{k}/"))
+    elif isinstance(tree, list | tuple):
+        for i, v in enumerate(tree):
+            out.update(flatten_tree(v, f"{prefix}#{i}/"))
+    elif tree is None:
+        pass
+    else:
+        out[prefix[:-1]] = np.asarray(tree)
+    return out
+
+
+def unflatten_tree(flat: dict[str, np.ndarray]) -> Any:
+    """Inverse of :func:`flatten_tree`."""
+    root: dict = {}
+    for key, value in flat.items():
+        parts = key.split("/")
+        node = root
+        for p in parts[:-1]:
+            node = node.setdefault(p, {})
+        node[parts[-1]] = value
+    return _lists(root)
+
+
+def _lists(node: Any) -> Any:
+    if not isinstance(node, dict):
+        return node
+    if node and all(k.startswith("#") for k in node):
+        return [_lists(node[f"#{i}"]) for i in range(len(node))]
+    return {k: _lists(v) for k, v in node.items()}
+
+
+def to_numpy(tree: Any) -> Any:
+    """A copy of ``tree`` with NumPy leaves (from engine arrays)."""
+    if isinstance(tree, dict):
+        return {k: to_numpy(v) for k, v in tree.items()}
+    if isinstance(tree, list | tuple):
+        return type(tree)(to_numpy(v) for v in tree)
+    if tree is None:
+        return None
+    return np.array(tree)
+
+
+def bad_params(params: Any, limit: float = PARAM_LIMIT) -> str | None:
+    """Why ``params`` cannot be kept — a non-finite entry or one above ``limit`` in
+    magnitude, naming the array — or ``None`` when they are fine."""
+    worst, where = 0.0, ""
+    for key, a in flatten_tree(to_numpy(params)).items():
+        a = np.asarray(a)
+        if not np.issubdtype(a.dtype, np.floating) or a.size == 0:
+            continue
+        if not np.all(np.isfinite(a)):
+            return f"non-finite value in {key!r}"
+        m = float(np.max(np.abs(a)))
+        if m > worst:
+            worst, where = m, key
+    if worst > limit:
+        return f"max |param| = {worst:.3g} in {where!r} exceeds {limit:.0e}"
+    return None
+
+
+def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **arrays)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _meta(name: str, cfg: models.ModelConfig, tc: TrainConfig, epoch: int,
+          history: list[float], val_history: list[float], steps: int,
+          std: np.ndarray) -> np.ndarray:
+    meta = {
+        "format": 1,
+        "name": name,
+        "cfg": cfg.to_dict(),
+        "train_cfg": asdict(tc),
+        "epoch": epoch,
+        "history": history,
+        "val_history": val_history,
+        "steps": steps,
+        "control_std": [float(x) for x in std],
+    }
+    return np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
+
+
+def save(path: str | Path, name: str, params: dict, cfg: models.ModelConfig,
+         train_cfg: TrainConfig | None = None, opt_state: Any = None, epoch: int = 0,
+         history: Sequence[float] = (), val_history: Sequence[float] = (), steps: int = 0,
+         std: Any = None) -> Path:
+    """Write parameters (and optionally the optimiser state) atomically to ``path`` (.npz).
+
+    Refuses (``ValueError``) parameters that :func:`bad_params` rejects.
+    """
+    path = Path(path)
+    bad = bad_params(params)
+    if bad is not None:
+        raise ValueError(f"params cannot be saved to {path}: {bad}")
+    arrays = {f"params/{k}": v for k, v in flatten_tree(to_numpy(params)).items()}
+    if opt_state is not None:
+        arrays.update({f"opt/{k}": v for k, v in flatten_tree(to_numpy(opt_state)).items()})
+    std = np.ones(2) if std is None else np.asarray(std, dtype=np.float64)
+    arrays["meta"] = _meta(name, cfg, train_cfg or TrainConfig(), int(epoch), list(history),
+                           list(val_history), int(steps), std)
+    _atomic_savez(path, arrays)
+    return path
+
+
+def load_checkpoint(path: str | Path) -> dict:
+    """Read a file written by :func:`save`: ``name, params, cfg, train_cfg, opt_state,
+    epoch, history, val_history, steps, control_std``.
+
+    A file that cannot be read raises :class:`CheckpointError` naming it.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"no checkpoint at path={str(path)!r}")
+    restart = ("delete it (or train without resume / --resume) to start again from epoch 0")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(bytes(z["meta"]).decode())
+            p = {k[len("params/"):]: z[k] for k in z.files if k.startswith("params/")}
+            o = {k[len("opt/"):]: z[k] for k in z.files if k.startswith("opt/")}
+        cfg_d = dict(meta["cfg"])
+        cfg_d["channels"] = tuple(cfg_d["channels"])
+        out = {
+            "name": meta["name"],
+            "params": unflatten_tree(p),
+            "opt_state": unflatten_tree(o) if o else None,
+            "cfg": models.ModelConfig(**cfg_d),
+            "train_cfg": TrainConfig(**meta["train_cfg"]),
+            "epoch": meta["epoch"],
+            "history": list(meta["history"]),
+            "val_history": list(meta["val_history"]),
+            "steps": meta["steps"],
+            "control_std": np.asarray(meta["control_std"]),
+        }
+    except (zipfile.BadZipFile, zlib.error, EOFError, OSError, KeyError, TypeError, ValueError,
+            UnicodeDecodeError, AttributeError) as e:
+        raise CheckpointError(f"{path}: unreadable checkpoint (truncated or corrupt: "
+                              f"{type(e).__name__}: {e}); {restart}") from e
+    bad = bad_params(out["params"])
+    if bad is not None:
+        raise CheckpointError(f"{path}: checkpoint holds unusable parameters ({bad}); {restart}")
+    return out
+
+
+def load(path: str | Path) -> FitResult:
+    """A :class:`FitResult` from a file written by :func:`save` or by :func:`fit`."""
+    ck = load_checkpoint(path)
+    return FitResult(name=ck["name"], params=ck["params"], history=ck["history"],
+                     cfg=ck["cfg"], train_cfg=ck["train_cfg"], val_history=ck["val_history"],
+                     steps=ck["steps"], control_std=ck["control_std"])
+
+
+def restore_opt(template: Any, loaded: Any) -> Any:
+    """Put loaded optimiser arrays into the structure of ``template`` (tuples, scalars)."""
+    if isinstance(template, dict):
+        return {k: restore_opt(v, loaded[k]) for k, v in template.items()}
+    if isinstance(template, list | tuple):
+        items = [restore_opt(v, loaded[i]) for i, v in enumerate(template)]
+        if hasattr(template, "_fields"):  # NamedTuple
+            return type(template)(*items)
+        return type(template)(items)
+    if template is None:
+        return None
+    if isinstance(template, int | np.integer) and not isinstance(template, bool):
+        return int(np.asarray(loaded))
+    arr = np.asarray(loaded)
+    return arr.astype(np.asarray(template).dtype)

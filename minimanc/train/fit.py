@@ -1,0 +1,306 @@
+"""Chapter 8 — behaviour cloning: :func:`fit` (epochs of Algorithm 1 with checkpoints, resume
+and divergence checks), the open-loop loss :func:`evaluate` and the learning-rate sweep
+:func:`sweep_lr`."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from minimanc import models, optim
+from minimanc.engine import ENGINES
+from minimanc.train.batches import (
+    batches,
+    control_std,
+    dataset_shape,
+    initial_q,
+    make_batch,
+    subset_scenes,
+)
+from minimanc.train.checkpoint import bad_params, load_checkpoint, restore_opt, save, to_numpy
+from minimanc.train.config import CHECKPOINT_NAME, DTYPES, FitResult, TrainConfig, TrainingDiverged
+from minimanc.train.step import loss_fn, make_step
+from minimanc.world.dataset import describe_non_finite, first_non_finite, remove_temp_files
+
+__all__ = ["SweepResult", "cast_floats", "evaluate", "fit", "get_engine", "sweep_lr"]
+
+
+def cast_floats(tree: Any, dtype: Any) -> Any:
+    """``tree`` with its floating-point leaves cast to ``dtype`` (integer leaves kept)."""
+    if isinstance(tree, dict):
+        return {k: cast_floats(v, dtype) for k, v in tree.items()}
+    if isinstance(tree, list | tuple):
+        return type(tree)(cast_floats(v, dtype) for v in tree)
+    arr = np.asarray(tree)
+    return arr.astype(dtype) if np.issubdtype(arr.dtype, np.floating) else arr
+
+
+def get_engine(engine: Any) -> Any:
+    """An engine object from its name (:data:`minimanc.engine.ENGINES`) or itself."""
+    from minimanc import engine as _engine
+
+    if isinstance(engine, str):
+        return _engine(engine)
+    if hasattr(engine, "xp") and hasattr(engine, "value_and_grad"):
+        return engine
+    raise ValueError(f"engine must be one of {ENGINES} or an engine object, got engine={engine!r}")
+
+
+def _kept(ck_path: Path | None, saved_epoch: int | None) -> str:
+    """What a divergence leaves behind, for its message."""
+    if ck_path is None:
+        return "no checkpoint_dir was given"
+    if saved_epoch is None:
+        return "this run wrote no checkpoint"
+    return f"the checkpoint of epoch {saved_epoch} is kept in {ck_path}"
+
+
+def fit(
+    name: str,
+    train_ds: Any,
+    cfg: models.ModelConfig | None = None,
+    train_cfg: TrainConfig | None = None,
+    engine: Any = "jax",
+    checkpoint_dir: str | Path | None = None,
+    resume: bool = False,
+    progress: bool = True,
+    val_ds: Any = None,
+    params: dict | None = None,
+) -> FitResult:
+    """Train model ``name`` by behaviour cloning (Algorithm 1) on ``train_ds``.
+
+    ``cfg``: the model's :class:`~minimanc.models.ModelConfig`;
+    ``train_cfg``: :class:`TrainConfig`; ``engine``: "jax" (jitted) or
+    "numpy"; ``checkpoint_dir``: write ``checkpoint.npz`` every epoch;
+    ``resume``: continue from it (its model and configs must match, except
+    ``epochs`` and ``lr`` which may be changed to extend a run); ``progress``:
+    a tqdm bar with the running loss; ``val_ds``: also record the open-loop
+    validation loss each epoch; ``params``: start from these instead of a
+    fresh initialisation. Returns a :class:`FitResult`.
+    """
+    name = models.check_name(name)
+    cfg = cfg or models.ModelConfig()
+    tc = train_cfg or TrainConfig()
+    if not isinstance(cfg, models.ModelConfig):
+        raise ValueError(f"cfg must be a models.ModelConfig, got cfg={cfg!r}")
+    if not isinstance(tc, TrainConfig):
+        raise ValueError(f"train_cfg must be a train.TrainConfig, got train_cfg={tc!r}")
+    eng = get_engine(engine)
+    dtype = DTYPES[tc.dtype]
+    S, T = dataset_shape(train_ds)
+    H = np.asarray(train_ds.bev[:1, :1]).shape[2]
+    if H != cfg.image_size:
+        raise ValueError(f"cfg.image_size={cfg.image_size} does not match the dataset's "
+                         f"BEV size {H}")
+    for label, data in (("train_ds", train_ds), ("val_ds", val_ds)):
+        found = first_non_finite(data) if data is not None else None
+        if found is not None:
+            raise ValueError(f"{label} holds a non-finite number: {describe_non_finite(found)}; "
+                             "training needs finite data (check how it was made)")
+    scenes = subset_scenes(S, tc.subset, tc.seed)
+    std = control_std(train_ds, scenes) if tc.normalize else np.ones(2)
+    t_start = time.perf_counter()
+
+    ck_path = Path(checkpoint_dir) / CHECKPOINT_NAME if checkpoint_dir is not None else None
+    if ck_path is not None:
+        remove_temp_files(ck_path)  # left by a run that was killed while saving
+    saved_epoch = None  # epoch of the checkpoint at ck_path written or resumed by this run
+    start_epoch, history, val_history, steps = 0, [], [], 0
+    if params is None:
+        params = models.init(name, np.random.default_rng(tc.seed), cfg)
+    params = cast_floats(params, dtype)
+    opt_state = optim.adam_init(params)
+    if resume:
+        if ck_path is None:
+            raise ValueError("resume=True needs a checkpoint_dir")
+        if ck_path.exists():
+            ck = load_checkpoint(ck_path)
+            if ck["name"] != name or ck["cfg"] != cfg:
+                raise ValueError(f"checkpoint at {ck_path.name} is for model {ck['name']!r} "
+                                 f"with {ck['cfg']}, not {name!r} with {cfg}")
+            same = replace(ck["train_cfg"], epochs=tc.epochs, lr=tc.lr)
+            if same != tc:
+                raise ValueError(f"checkpoint was trained with {ck['train_cfg']}; only epochs "
+                                 f"and lr may change on resume, got {tc}")
+            params = cast_floats(ck["params"], dtype)
+            if ck["opt_state"] is not None:
+                opt_state = restore_opt(optim.adam_init(params), ck["opt_state"])
+            start_epoch = saved_epoch = ck["epoch"]
+            history, val_history, steps = ck["history"], ck["val_history"], ck["steps"]
+            std = ck["control_std"]
+
+    step_fn = make_step(name, cfg, tc, eng, 1.0 / std)
+    params, opt_state = eng.device_put(params), eng.device_put(opt_state)
+
+    bar = None
+    for epoch in range(start_epoch, tc.epochs):
+        plan = batches(name, train_ds, scenes, tc, epoch)
+        if tc.max_steps_per_epoch is not None:
+            plan = plan[:tc.max_steps_per_epoch]
+        q_rng = np.random.default_rng([int(tc.seed), int(epoch), 1])
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=len(plan), desc=f"{name} epoch {epoch + 1}/{tc.epochs}",
+                       leave=False)
+        total, count = 0.0, 0
+        pending = None  # the previous step's loss: read after the next step is dispatched,
+        # so that JAX computes while the host prepares the next batch
+        for i in range(len(plan) + 1):
+            if i < len(plan):
+                s_idx, t_idx = plan[i]
+                batch = make_batch(name, train_ds, s_idx, t_idx, cfg, dtype)
+                q0 = initial_q(name, s_idx.shape[1], cfg, tc, q_rng, dtype)
+                if q0 is not None:
+                    batch["q0"] = q0
+                # overflow to inf / nan is caught below (loss) and after the epoch (params)
+                with np.errstate(over="ignore", invalid="ignore"):
+                    params, opt_state, loss_i = step_fn(params, opt_state, batch)
+                steps += 1
+            if pending is not None:
+                loss = float(getattr(pending, "_value", pending))
+                if not math.isfinite(loss):
+                    if bar is not None:
+                        bar.close()
+                    kept = _kept(ck_path, saved_epoch)
+                    raise TrainingDiverged(
+                        f"training {name!r} diverged: loss = {loss} at epoch {epoch + 1}, "
+                        f"step {count + 1} of {len(plan)} (lr={tc.lr}); {kept}. "
+                        "Lower the learning rate or check the data for NaNs."
+                    )
+                total += loss
+                count += 1
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix(loss=f"{total / count:.4f}")
+            pending = loss_i if i < len(plan) else None
+        if bar is not None:
+            bar.close()
+        bad = bad_params(params)
+        if bad is not None:
+            raise TrainingDiverged(
+                f"training {name!r} diverged: after epoch {epoch + 1} (lr={tc.lr}) the "
+                f"parameters are unusable ({bad}); {_kept(ck_path, saved_epoch)}. "
+                "Lower the learning rate."
+            )
+        history.append(total / max(count, 1))
+        if val_ds is not None:
+            val_history.append(evaluate(name, to_numpy(params), val_ds, cfg, eng,
+                                        std=std, q_init=tc.q_init, dtype=dtype))
+        if ck_path is not None:
+            save(ck_path, name, params, cfg, tc, opt_state, epoch + 1, history, val_history,
+                 steps, std)
+            saved_epoch = epoch + 1
+    return FitResult(name=name, params=to_numpy(params), history=list(history), cfg=cfg,
+                     train_cfg=tc, val_history=list(val_history), steps=steps,
+                     seconds=time.perf_counter() - t_start, control_std=np.asarray(std))
+
+
+def evaluate(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = None,
+             engine: Any = "jax", std: Any = None, q_init: str = "uniform",
+             batch_size: int = 256, dtype: Any = np.float32, scenes: Any = None,
+             motion_feedback: bool = True) -> float:
+    """Open-loop loss of Algorithm 1 on a dataset (every sample once, no gradient).
+
+    Feed-forward models and vAGN-only see each step with ``q'`` as in
+    training; LSTM models run each scene from ``t = 0`` with their state
+    carried; the DMP models (MANC, DMP-only) run each scene from ``t = 0``
+    with q carried and, with ``motion_feedback`` (default, as trained), their
+    own speed fed back — the loss they are trained on.
+    ``std`` normalises as in training (``None``: the dataset's own).
+    Open-loop error ranks closed-loop quality poorly (``REFERENCE.md``); it is
+    a cheap check, not the paper's metric.
+    """
+    name = models.check_name(name)
+    cfg = cfg or models.ModelConfig()
+    eng = get_engine(engine)
+    S, T = dataset_shape(ds)
+    scenes = np.arange(S) if scenes is None else np.asarray(scenes)
+    std = control_std(ds, scenes) if std is None else np.asarray(std)
+    inv = (1.0 / std).astype(dtype)
+    params = cast_floats(params, dtype)
+    rng = np.random.default_rng(0)
+    total, n = 0.0, 0
+    spec = models.spec(name)
+    feedback = bool(motion_feedback) and spec.dmp
+    loss_of = eng.jit(lambda p, b: loss_fn(name, p, b, cfg, eng, inv,
+                                           motion_feedback=feedback))
+    tc = TrainConfig(q_init=q_init)
+    if spec.family == "lstm" or spec.dmp:  # whole scenes from t = 0
+        per = max(1, batch_size // T)
+        plan = [(np.broadcast_to(sc, (T, len(sc))), np.broadcast_to(np.arange(T)[:, None],
+                                                                    (T, len(sc))))
+                for sc in (scenes[i:i + per] for i in range(0, len(scenes), per))]
+    else:  # every (scene, time) sample on its own
+        ss, tt = np.repeat(scenes, T), np.tile(np.arange(T), len(scenes))
+        plan = [(ss[None, i:i + batch_size], tt[None, i:i + batch_size])
+                for i in range(0, ss.size, batch_size)]
+    for s_idx, t_idx in plan:
+        batch = make_batch(name, ds, s_idx, t_idx, cfg, dtype)
+        q0 = initial_q(name, s_idx.shape[1], cfg, tc, rng, dtype)
+        if q0 is not None:
+            batch["q0"] = q0
+        loss = loss_of(params, batch)
+        total += float(np.asarray(loss)) * s_idx.size
+        n += s_idx.size
+    return total / n
+
+
+# --------------------------------------------------------------------------- learning-rate sweep
+
+
+@dataclass
+class SweepResult:
+    """What :func:`sweep_lr` returns: ``scores[lr]`` (lower is better), ``best_lr``,
+    and the :class:`FitResult` of every run in ``results[lr]``."""
+
+    scores: dict[float, float]
+    best_lr: float
+    results: dict[float, FitResult]
+
+
+def sweep_lr(
+    name: str,
+    train_ds: Any,
+    val_ds: Any,
+    cfg: models.ModelConfig | None = None,
+    lrs: Sequence[float] = (3e-4, 1e-3, 3e-3),
+    train_cfg: TrainConfig | None = None,
+    engine: Any = "jax",
+    score: Callable[[FitResult], float] | None = None,
+    progress: bool = False,
+) -> SweepResult:
+    """Train ``name`` once per learning rate and pick the best, so every model is tuned alike.
+
+    ``score(result)`` rates a run (lower is better); by default the open-loop
+    validation loss of :func:`evaluate` on ``val_ds``. Pass a closed-loop
+    score (e.g. ADE from :mod:`minimanc.rollout`) for a choice that reflects
+    driving. A diverged run scores ``inf``.
+    """
+    lrs = tuple(float(x) for x in lrs)
+    if not lrs or any(not (math.isfinite(x) and x > 0) for x in lrs):
+        raise ValueError(f"lrs must be positive finite learning rates, got lrs={lrs!r}")
+    cfg = cfg or models.ModelConfig()
+    tc = train_cfg or TrainConfig()
+    scores: dict[float, float] = {}
+    results: dict[float, FitResult] = {}
+    for lr in lrs:
+        try:
+            res = fit(name, train_ds, cfg, replace(tc, lr=lr), engine=engine, progress=progress)
+        except TrainingDiverged:
+            scores[lr] = float("inf")
+            continue
+        results[lr] = res
+        if score is None:
+            scores[lr] = evaluate(name, res.params, val_ds, cfg, engine, std=res.control_std,
+                                  q_init=tc.q_init, dtype=DTYPES[tc.dtype])
+        else:
+            scores[lr] = float(score(res))
+    best = min(scores, key=lambda k: scores[k])
+    return SweepResult(scores=scores, best_lr=best, results=results)

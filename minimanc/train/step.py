@@ -1,0 +1,107 @@
+"""Chapter 8 — Algorithm 1's loss (:func:`loss_fn`) and one optimiser step (:func:`make_step`:
+gradient, global-norm clip, Adam), jitted once per model and configuration."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from minimanc import models, optim
+from minimanc.train.config import DTYPES, TrainConfig
+from minimanc.tree import leaves as tree_leaves
+
+__all__ = ["global_norm", "like", "loss_fn", "make_step", "scale_tree"]
+
+
+def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: Any,
+            inv_std: Any, zeta_weight: float = 0.0, motion_feedback: bool = False) -> Any:
+    """Algorithm 1's loss on a batch of windows: ``mean(((â − a) / σ)²)`` (+ ζ penalty).
+
+    ``batch`` holds observations ``(L, b, ...)``, ``controls (L, b, 2)`` and,
+    for vAGN models, ``q0 (b, N)`` (q'). ``inv_std`` is ``1/σ`` per control;
+    ``motion_feedback`` see :func:`minimanc.models.sequence`.
+    """
+    xp = eng.xp
+    obs = {k: v for k, v in batch.items() if k not in ("controls", "q0")}
+    L, b = batch["controls"].shape[:2]
+    spec = models.spec(name)
+    if spec.family == "vagn":
+        state = {"q": batch["q0"]}
+    else:
+        dtype = params["backbone"]["convs"][0]["w"].dtype
+        state = models.initial_state(name, b, cfg, xp=xp, dtype=dtype)
+    if zeta_weight > 0.0 and spec.dmp:
+        from minimanc import dmp
+
+        pred, _, aux = models.sequence(name, params, obs, state, cfg, eng,
+                                       feedback_motion=motion_feedback, return_aux=True)
+        extra = zeta_weight * dmp.zeta_penalty(aux["alpha"], aux["beta"], xp=xp)
+    else:
+        pred, _ = models.sequence(name, params, obs, state, cfg, eng,
+                                  feedback_motion=motion_feedback)
+        extra = 0.0
+    err = (pred - batch["controls"]) * inv_std
+    return xp.mean(err * err) + extra
+
+
+def global_norm(tree: Any, xp: Any) -> Any:
+    """``sqrt(Σ g²)`` over every leaf of ``tree``."""
+    leaves = tree_leaves(tree)
+    return xp.sqrt(sum(xp.sum(g * g) for g in leaves))
+
+
+def scale_tree(tree: Any, s: Any) -> Any:
+    """Every leaf of ``tree`` times ``s``."""
+    if isinstance(tree, dict):
+        return {k: scale_tree(v, s) for k, v in tree.items()}
+    if isinstance(tree, list | tuple):
+        return type(tree)(scale_tree(v, s) for v in tree)
+    return tree * s
+
+
+def like(tree: Any, template: Any, xp: Any) -> Any:
+    """``tree`` with every array leaf cast to the dtype of the matching ``template`` leaf."""
+    if isinstance(tree, dict):
+        return {k: like(v, template[k], xp) for k, v in tree.items()}
+    if isinstance(tree, list | tuple):
+        items = [like(v, template[i], xp) for i, v in enumerate(tree)]
+        return type(tree)(*items) if hasattr(tree, "_fields") else type(tree)(items)
+    dt = getattr(template, "dtype", None)
+    if dt is None or getattr(tree, "dtype", None) == dt:
+        return tree
+    return xp.asarray(tree, dtype=dt)
+
+
+def make_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any,
+               inv_std: np.ndarray) -> Callable:
+    """The (jitted) training step ``(params, opt_state, batch) → (params, opt_state, loss)``.
+
+    The learning rate and ``1/σ`` enter the jitted function as arguments, not
+    constants: runs that differ only in those (the learning-rate sweep, the
+    data fractions) share one compilation through JAX's persistent cache.
+    """
+    xp = eng.xp
+    dtype = DTYPES[tc.dtype]
+    hyper = {"lr": np.asarray(tc.lr, dtype=dtype),
+             "inv_std": np.asarray(inv_std, dtype=dtype)}
+
+    def objective(params, batch, inv):
+        return loss_fn(name, params, batch, cfg, eng, inv, tc.zeta_weight, tc.motion_feedback)
+
+    vg = eng.value_and_grad(objective)
+
+    def train_step(params, opt_state, batch, hyper):
+        loss, grads = vg(params, batch, hyper["inv_std"])
+        if tc.grad_clip is not None:
+            norm = global_norm(grads, xp)
+            factor = xp.minimum(1.0, tc.grad_clip / (norm + 1e-12))
+            grads = scale_tree(grads, factor)
+        new_params, new_state = optim.adam_update(grads, opt_state, params, lr=hyper["lr"])
+        # keep every leaf's dtype: a float64 scalar must not promote float32 parameters
+        # (under jit that would trigger a new compilation at the next step)
+        return like(new_params, params, xp), like(new_state, opt_state, xp), loss
+
+    step = eng.jit(train_step)
+    return lambda params, opt_state, batch: step(params, opt_state, batch, hyper)
