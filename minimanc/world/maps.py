@@ -101,6 +101,17 @@ def _pieces(rng: np.random.Generator, total: float, curvy: bool, first_straight:
     return pieces
 
 
+def _arm_length(rng: np.random.Generator, k: int, arm_in: int, arm_out: int,
+                start_dist: float) -> float:
+    """Length of arm ``k`` of a junction: the ego's entry arm is long enough for its start,
+    its exit arm for the route ahead, any other arm is drawn from ``rng``."""
+    if k == arm_in:
+        return start_dist + 45.0
+    if k == arm_out:
+        return ROUTE_AHEAD - start_dist + 10.0
+    return float(rng.uniform(90.0, 150.0))
+
+
 def random_recipe(rng: np.random.Generator, kind: str | None = None) -> dict:
     """Draw a map recipe (a JSON-able dict). ``kind`` forces the map kind."""
     if kind is None:
@@ -137,12 +148,7 @@ def random_recipe(rng: np.random.Generator, kind: str | None = None) -> dict:
         arms = []
         for k, a in enumerate(angles):
             main = (round(a / (0.5 * np.pi)) % 2) == 0
-            if k == arm_in:
-                length = start_dist + 45.0
-            elif k == arm_out:
-                length = ROUTE_AHEAD - start_dist + 10.0
-            else:
-                length = float(rng.uniform(90.0, 150.0))
+            length = _arm_length(rng, k, arm_in, arm_out, start_dist)
             arms.append(
                 {
                     "angle": a,
@@ -169,12 +175,7 @@ def random_recipe(rng: np.random.Generator, kind: str | None = None) -> dict:
     arm_out = (arm_in + exits) % n_arms
     arms = []
     for k, a in enumerate(angles):
-        if k == arm_in:
-            length = start_dist + 45.0
-        elif k == arm_out:
-            length = ROUTE_AHEAD - start_dist + 10.0
-        else:
-            length = float(rng.uniform(90.0, 150.0))
+        length = _arm_length(rng, k, arm_in, arm_out, start_dist)
         arms.append(
             {"angle": a, "lanes": 1,
              "pieces": _pieces(rng, length, rng.random() < 0.4, first_straight=25.0)}
