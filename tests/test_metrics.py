@@ -216,7 +216,11 @@ def test_off_road_uses_the_map():
 
 
 def test_evaluate_on_fake_dataset():
-    class Everywhere:
+    class Everywhere:  # drivable everywhere, the route along +x
+        route_points = np.stack([np.arange(-50.0, 200.0), np.zeros(250)], -1)
+        route_heads = np.zeros(250)
+        route_s = np.arange(250.0)
+
         def is_drivable(self, p):
             return np.ones(np.asarray(p).shape[:-1], bool)
 
@@ -226,9 +230,21 @@ def test_evaluate_on_fake_dataset():
     ds = SimpleNamespace(ego=human, ado=ado, ado_valid=np.ones((2, T, 1), bool),
                          maps=[Everywhere(), Everywhere()])
     res = metrics.evaluate(SimpleNamespace(ego=human), ds)
-    assert set(res) == set(metrics.METRICS)
+    assert set(res) == set(metrics.ALL_METRICS)
+    assert metrics.ALL_METRICS[:len(metrics.METRICS)] == metrics.METRICS
     assert res["ade"] == 0.0 and res["goal_distance"] == 0.0
     assert res["close_encounters"] == 0.0 and res["collision_rate"] == 0.0
+    assert res["at_fault_collision_rate"] == 0.0 and res["ttc_rate"] == 0.0
+    assert res["route_progress"] == pytest.approx(1.0)
+    # a rollout that carries its own ados (the reactive protocol) is scored on them
+    hit = ado.copy()
+    hit[0, :, 0, :3] = human[0, :, :3] + [12.0, 0.0, 0.0]
+    hit[0, 5:, 0, :3] = human[0, 5, :3] + [12.0, 0.0, 0.0]  # stops at step 5: rear-ended
+    own = SimpleNamespace(ego=human, ado=hit, ado_valid=ds.ado_valid)
+    res_own = metrics.evaluate(own, ds)
+    assert res_own["collision_rate"] == pytest.approx(50.0)
+    assert res_own["at_fault_collision_rate"] == pytest.approx(50.0)  # a stopped ado ahead
+    assert metrics.evaluate(SimpleNamespace(ego=human, ado=None), ds) == res
     other = human.copy()
     other[0] += [0.0, 4.0, 0.0]
     res2 = metrics.evaluate(SimpleNamespace(ego=other), ds)
@@ -275,3 +291,163 @@ def test_bad_input_raises_value_error_naming_parameter():
         metrics.along_cross_track(ego[0], ego)
     with pytest.raises(ValueError, match="per_seed"):
         metrics.aggregate([])
+
+
+# --------------------------------------------------------------------------- at-fault collisions
+
+
+class TwoLanes:
+    """A straight two-lane road along +x: lane centrelines at y = 0 and y = 3.5, drivable
+    for -1.75 < y < 5.25."""
+
+    def lane_samples(self, spacing):
+        from minimanc.world.lanes import LaneSamples
+
+        x = np.arange(-100.0, 300.0, spacing)
+        pts = np.concatenate([np.stack([x, 0 * x], -1), np.stack([x, 0 * x + 3.5], -1)])
+        return LaneSamples.build(pts, np.zeros(len(pts)), (-100.0, -10.0, 300.0, 10.0))
+
+    def is_drivable(self, p):
+        y = np.asarray(p)[..., 1]
+        return (y > -1.75) & (y < 5.25)
+
+
+def _ado_track(x0, y0, vx, vy=0.0, T=10, size=(4.0, 1.8)):
+    """One ado moving at constant velocity: boxes (1, T, 1, 5), heading along its velocity."""
+    t = np.arange(T) * DT
+    yaw = np.arctan2(vy, vx) if (vx or vy) else 0.0
+    box = np.stack([x0 + vx * t, y0 + vy * t, np.full(T, yaw), np.full(T, size[0]),
+                    np.full(T, size[1])], -1)
+    return box[None, :, None, :], np.ones((1, T, 1), bool)
+
+
+def _kinds(ego, ado, valid, maps=None):
+    return [(e.kind, e.at_fault) for e in metrics.collision_events(ego, ado, valid, maps)]
+
+
+def test_ego_running_into_a_slower_vehicle_ahead_is_at_fault():
+    ego = straight(speed=10.0, T=10)  # x = 0, 5, ..., 45
+    ado, valid = _ado_track(20.0, 0.0, 3.0)
+    assert _kinds(ego, ado, valid) == [("front", True)]
+    assert metrics.at_fault_collisions(ego, ado, valid)[0] == 1.0
+    assert metrics.collisions(ego, ado, valid)[0] == 1.0
+
+
+def test_ego_hitting_a_stopped_vehicle_is_at_fault():
+    ego = straight(speed=8.0, T=10)
+    ado, valid = _ado_track(25.0, 0.5, 0.0)
+    assert _kinds(ego, ado, valid) == [("stopped_ado", True)]
+
+
+def test_vehicle_running_into_a_slower_or_stopped_ego_from_behind_is_not_at_fault():
+    slow = straight(speed=3.0, T=10)
+    ado, valid = _ado_track(-14.0, 0.0, 10.0)
+    assert _kinds(slow, ado, valid) == [("rear", False)]
+    assert metrics.at_fault_collisions(slow, ado, valid)[0] == 0.0
+    stopped = straight(speed=0.0, T=10)
+    assert _kinds(stopped, ado, valid) == [("stopped_ego", False)]
+    assert metrics.collisions(stopped, ado, valid)[0] == 1.0  # a collision, not the ego's
+
+
+def test_ego_drifting_into_a_vehicle_beside_it_is_at_fault_but_not_a_cut_in():
+    # the ego steers left into the neighbour lane, where an ado drives at the same speed
+    u = np.tile([[10.0, 0.0]], (1, 9, 1))
+    u[0, 1, 1], u[0, 3, 1] = 0.35, -0.35  # a lane change to the left
+    ego = drive(np.zeros((1, 3)), u)
+    ado, valid = _ado_track(-0.5, 3.5, 10.0)
+    assert _kinds(ego, ado, valid, [TwoLanes()]) == [("lateral", True)]
+    ev = metrics.collision_events(ego, ado, valid, [TwoLanes()])[0]
+    assert ev.in_lane is False
+    # an ado cutting into the lane of an ego that keeps its lane: not the ego's fault
+    ego2 = straight(speed=10.0, T=10)
+    cut, valid2 = _ado_track(-0.5, 3.5, 10.0, vy=-1.5)
+    assert _kinds(ego2, cut, valid2, [TwoLanes()]) == [("lateral", False)]
+    assert metrics.at_fault_collisions(ego2, cut, valid2, [TwoLanes()])[0] == 0.0
+    # without a map a lateral contact counts as at fault (conservative)
+    assert metrics.at_fault_collisions(ego2, cut, valid2)[0] == 1.0
+
+
+def test_each_ado_counts_once_and_invalid_ados_never():
+    ego = straight(speed=10.0, T=10)
+    a1, v1 = _ado_track(20.0, 0.0, 3.0)
+    a2, v2 = _ado_track(-10.0, 0.0, 12.0)
+    ado, valid = np.concatenate([a1, a2], axis=2), np.concatenate([v1, v2], axis=2)
+    assert metrics.collisions(ego, ado, valid)[0] == 1.0
+    assert sorted(_kinds(ego, ado, valid)) == [("front", True), ("rear", False)]
+    assert [e.ado for e in metrics.collision_events(ego, ado, valid)] == [0, 1]
+    assert metrics.collision_events(ego, ado, ~valid) == []
+    assert metrics.at_fault_collisions(ego, ado, ~valid)[0] == 0.0
+
+
+def test_ego_in_lane_uses_the_lane_centrelines():
+    m = TwoLanes()
+    poses = np.array([[0.0, 0.0, 0.0], [0.0, 0.7, 0.0], [0.0, 1.0, 0.0], [0.0, 3.5, 0.1],
+                      [0.0, 3.5, 2.0], [0.0, 6.0, 0.0]])
+    assert metrics.ego_in_lane(poses, m).tolist() == [True, True, False, True, False, False]
+    assert metrics.IN_LANE == pytest.approx((3.5 - EGO_WIDTH) / 2)
+
+
+# --------------------------------------------------------------------------- time to collision
+
+
+def test_time_to_collision_constructed_cases():
+    ego = straight(speed=10.0, T=6)  # x = 0 ... 25
+    # a stopped ado whose rear is 10.64 m ahead of the ego's front at t = 0: contact at 1.064 s
+    ado, valid = _ado_track(15.0, 0.0, 0.0, T=6)
+    ttc = metrics.time_to_collision(ego, ado, valid, horizon=2.0)
+    assert ttc[0, 0] == pytest.approx(1.1)  # the first 0.1 s sample after contact
+    assert ttc[0, 1] == pytest.approx(0.6)
+    assert np.isinf(metrics.time_to_collision(ego, ado, valid, horizon=1.0)[0, 0])
+    assert ttc[0, 2] == 0.0 or ttc[0, 2] == pytest.approx(0.1)
+    # an ado closing in from behind, a stopped ego, an ado in the next lane: no TTC
+    behind, vb = _ado_track(-14.0, 0.0, 15.0, T=6)  # closes in, still behind at the end
+    assert np.isinf(metrics.time_to_collision(ego, behind, vb, 2.0)).all()
+    still = straight(speed=0.0, T=6)
+    assert np.isinf(metrics.time_to_collision(still, ado, valid, 2.0)).all()
+    side, vs = _ado_track(0.0, 3.5, 10.0, T=6)
+    assert np.isinf(metrics.time_to_collision(ego, side, vs, 2.0)).all()
+    # the rate: share of steps with TTC <= the bound
+    rate = metrics.ttc_rate(ego, ado, valid, threshold=1.0)[0]
+    assert rate == pytest.approx(np.mean(metrics.time_to_collision(ego, ado, valid, 1.0) <= 1.0))
+    assert 0 < rate < 1
+    with pytest.raises(ValueError, match="horizon"):
+        metrics.time_to_collision(ego, ado, valid, horizon=-1.0)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(2.0, 15.0), st.floats(8.0, 40.0), st.floats(0.0, 1.5))
+def test_time_to_collision_matches_the_closing_speed(v, gap, v_ado):
+    """Head-on into a slower ado ahead: TTC is the gap over the closing speed, rounded up to
+    the 0.1 s grid (to within the grid)."""
+    ego = straight(speed=v, T=3)
+    centre = EGO_LENGTH / 2 + gap + 2.0
+    ado, valid = _ado_track(centre, 0.0, v_ado, T=3)
+    ttc = metrics.time_to_collision(ego, ado, valid, horizon=10.0)[0, 0]
+    exact = gap / (v - v_ado) if v - v_ado > 1e-9 else np.inf
+    if exact <= 9.8:
+        assert exact - 1e-9 <= ttc <= exact + 0.1 + 1e-9
+    elif exact > 10.0:
+        assert np.isinf(ttc)
+
+
+# --------------------------------------------------------------------------- route progress
+
+
+def test_route_progress_relative_to_the_human():
+    from minimanc.world.maps import build_map, random_recipe
+
+    m = build_map(random_recipe(np.random.default_rng(0), kind="straight"))
+
+    def on_route(s):
+        xy, h = m.route_pose(np.asarray(s, float))
+        return np.concatenate([xy, h[..., None]], -1)[None]
+
+    human = on_route(np.linspace(10.0, 50.0, 9))
+    half = on_route(np.linspace(10.0, 30.0, 9))
+    assert metrics.route_progress(human, human, [m])[0] == pytest.approx(1.0)
+    assert metrics.route_progress(half, human, [m])[0] == pytest.approx(0.5, abs=1e-6)
+    assert metrics.route_progress(human, half, [m])[0] == pytest.approx(2.0, abs=1e-6)
+    parked = on_route(np.full(9, 10.0))
+    assert metrics.route_progress(half, parked, [m])[0] == 1.0  # nothing to compare with
+    with pytest.raises(ValueError, match="maps"):
+        metrics.route_progress(human, human, [])
