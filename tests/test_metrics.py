@@ -451,3 +451,18 @@ def test_route_progress_relative_to_the_human():
     assert metrics.route_progress(half, parked, [m])[0] == 1.0  # nothing to compare with
     with pytest.raises(ValueError, match="maps"):
         metrics.route_progress(human, human, [])
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-30, 30), st.floats(-6, 6), st.floats(-12, 12), st.floats(-4, 4),
+       st.floats(0.0, 12.0))
+def test_fault_follows_who_was_moving(x0, y0, vx, vy, v_ego):
+    """A stopped ego is never at fault; a moving ego that touches a stopped ado always is."""
+    ado, valid = _ado_track(x0, y0, vx, vy, T=10)
+    still = straight(speed=0.0, T=10)
+    assert all(not e.at_fault and e.kind == "stopped_ego"
+               for e in metrics.collision_events(still, ado, valid, [TwoLanes()]))
+    parked, pv = _ado_track(x0, y0, 0.0, T=10)
+    ego = straight(speed=v_ego, T=10)
+    for e in metrics.collision_events(ego, parked, pv, [TwoLanes()]):
+        assert e.at_fault == (v_ego > metrics.V_STOPPED)
