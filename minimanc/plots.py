@@ -27,9 +27,11 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "MODEL_LABELS",
     "METRIC_LABELS",
-    "MODEL_COLOURS",
+    "REFERENCE_COLOURS",
+    "REFERENCE_LABELS",
+    "model_colour",
+    "model_label",
     "save",
     "plot_table1",
     "plot_sample_efficiency",
@@ -44,18 +46,48 @@ __all__ = [
     "save_gif",
 ]
 
-MODEL_LABELS: dict[str, str] = {
-    "human": "Human",
-    "cnn": "CNN",
-    "cnn_lstm": "CNN-LSTM",
-    "rvs_g": "RvS-G",
-    "manc": "MANC",
-    "vagn_only": "vAGN-only",
-    "dmp_only": "DMP-only",
-    "dmp_prior": "DMP at fixed gains",
-}
-"""Display names of the comparison cases (the paper's Table I and Fig. 8) and of the
-no-learning reference (:func:`minimanc.rollout.fixed_gains`)."""
+REFERENCE_LABELS: dict[str, str] = {"human": "Human", "dmp_prior": "DMP at fixed gains"}
+"""Display names of the rows that are not learned models: the logged human (Table I) and the
+no-learning reference (:func:`minimanc.rollout.fixed_gains`). A model's own display name is
+the ``label`` of its :class:`~minimanc.models.ModelSpec`."""
+
+REFERENCE_COLOURS: dict[str, str] = {"human": "#444444"}
+"""Colours of the rows that are not learned models (a model's is its spec's ``colour``)."""
+
+
+def model_label(name: str) -> str:
+    """Display name of ``name``: its spec's ``label``, a :data:`REFERENCE_LABELS` entry, or
+    ``name`` itself."""
+    from minimanc.models import registry
+
+    if name in registry.names():
+        return registry.get(name).label
+    return REFERENCE_LABELS.get(name, name)
+
+
+def model_colour(name: str, default: str | None = None) -> str | None:
+    """Colour of ``name`` in figures: its spec's ``colour``, a :data:`REFERENCE_COLOURS`
+    entry, or ``default``."""
+    from minimanc.models import registry
+
+    if name in registry.names():
+        return registry.get(name).colour
+    return REFERENCE_COLOURS.get(name, default)
+
+
+def __getattr__(name: str) -> Any:
+    """``MODEL_LABELS`` and ``MODEL_COLOURS``: ``{name: label}`` and ``{name: colour}`` of the
+    registered models and the reference rows, read from the registry when asked."""
+    if name in ("MODEL_LABELS", "MODEL_COLOURS"):
+        from minimanc.models import registry
+
+        if name == "MODEL_LABELS":
+            return {"human": REFERENCE_LABELS["human"],
+                    **{s.name: s.label for s in registry.specs()},
+                    "dmp_prior": REFERENCE_LABELS["dmp_prior"]}
+        return {**REFERENCE_COLOURS, **{s.name: s.colour for s in registry.specs()}}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 METRIC_LABELS: dict[str, str] = {
     "close_encounters": "% close encounters",
@@ -66,16 +98,6 @@ METRIC_LABELS: dict[str, str] = {
     "off_road_rate": "% scenes off road",
 }
 """Axis labels of the metrics of :mod:`minimanc.metrics`."""
-
-MODEL_COLOURS: dict[str, str] = {
-    "human": "#444444",
-    "cnn": "#1f77b4",
-    "cnn_lstm": "#ff7f0e",
-    "rvs_g": "#9467bd",
-    "manc": "#d62728",
-    "vagn_only": "#2ca02c",
-    "dmp_only": "#8c564b",
-}
 
 _TABLE = ("close_encounters", "max_acceleration", "ade", "goal_distance")
 
@@ -94,10 +116,6 @@ def save(fig: Any, path: str | Path, dpi: int = 110) -> Path:
     fig.savefig(path, dpi=dpi, bbox_inches="tight")
     plt.close(fig)
     return path
-
-
-def _label(name: str) -> str:
-    return MODEL_LABELS.get(name, name)
 
 
 def _ms(agg: Mapping[str, Any], metric: str) -> tuple[float, float]:
@@ -140,11 +158,11 @@ def plot_table1(
         for k, setting in enumerate(settings):
             means, stds = zip(*[_ms(table[setting].get(m, {}), metric) for m in models])
             ax.bar(x + (k - (len(settings) - 1) / 2) * width, means, width, yerr=stds,
-                   color=[MODEL_COLOURS.get(m, "grey") for m in models],
+                   color=[model_colour(m, "grey") for m in models],
                    hatch=hatches[k % len(hatches)], edgecolor="black", linewidth=0.5,
                    capsize=2, label=setting)
         ax.set_xticks(x)
-        ax.set_xticklabels([_label(m) for m in models], rotation=40, ha="right")
+        ax.set_xticklabels([model_label(m) for m in models], rotation=40, ha="right")
         ax.set_title(METRIC_LABELS[metric], fontsize=10)
     if len(settings) > 1:
         axes[0].legend(title="setting", fontsize=8)
@@ -164,8 +182,8 @@ def plot_sample_efficiency(study: Mapping[str, Any], metric: str = "ade") -> Any
     fig, ax = plt.subplots(figsize=(4.6, 3.4))
     for name, aggs in study["models"].items():
         m, s = np.array([_ms(a, metric) for a in aggs]).T
-        ax.errorbar(100 * fr, m, yerr=s, marker="o", capsize=3, label=_label(name),
-                    color=MODEL_COLOURS.get(name))
+        ax.errorbar(100 * fr, m, yerr=s, marker="o", capsize=3, label=model_label(name),
+                    color=model_colour(name))
     ax.set_xlabel("training data used (%)")
     ax.set_ylabel(METRIC_LABELS[metric])
     ax.set_xticks(100 * fr)
@@ -183,11 +201,11 @@ def plot_param_counts(counts: Mapping[str, int]) -> Any:
     names = list(counts)
     fig, ax = plt.subplots(figsize=(4.6, 3.0))
     vals = [int(counts[n]) for n in names]
-    bars = ax.bar(range(len(names)), vals, color=[MODEL_COLOURS.get(n, "grey") for n in names])
+    bars = ax.bar(range(len(names)), vals, color=[model_colour(n, "grey") for n in names])
     for b, v in zip(bars, vals):
         ax.text(b.get_x() + b.get_width() / 2, v, f"{v:,}", ha="center", va="bottom", fontsize=8)
     ax.set_xticks(range(len(names)))
-    ax.set_xticklabels([_label(n) for n in names], rotation=30, ha="right")
+    ax.set_xticklabels([model_label(n) for n in names], rotation=30, ha="right")
     ax.set_ylabel("parameters")
     ax.set_title("Model size")
     fig.tight_layout()
@@ -206,7 +224,7 @@ def plot_q_states(study: Mapping[str, Any], metrics: Sequence[str] = _TABLE) -> 
     axes = np.atleast_1d(axes)
     for ax, metric in zip(axes, metrics):
         m, s = np.array([_ms(a, metric) for a in study["results"]]).T
-        ax.errorbar(n, m, yerr=s, marker="o", capsize=3, color=MODEL_COLOURS["manc"])
+        ax.errorbar(n, m, yerr=s, marker="o", capsize=3, color=model_colour("manc"))
         ax.set_xticks(n)
         ax.set_xlabel("number of q-states")
         ax.set_title(METRIC_LABELS[metric], fontsize=10)
@@ -228,9 +246,9 @@ def plot_ablation(study: Mapping[str, Any], metrics: Sequence[str] = _TABLE) -> 
     for ax, metric in zip(axes, metrics):
         m, s = np.array([_ms(study["models"][k], metric) for k in names]).T
         ax.bar(range(len(names)), m, yerr=s, capsize=3,
-               color=[MODEL_COLOURS.get(k, "grey") for k in names])
+               color=[model_colour(k, "grey") for k in names])
         ax.set_xticks(range(len(names)))
-        ax.set_xticklabels([_label(k) for k in names], rotation=30, ha="right")
+        ax.set_xticklabels([model_label(k) for k in names], rotation=30, ha="right")
         ax.set_title(METRIC_LABELS[metric], fontsize=10)
     fig.suptitle("Self-ablation")
     fig.tight_layout()
@@ -282,7 +300,7 @@ def plot_trajectories(
         pts = [human.ego[s, :, :2]]
         for i, (label, traj) in enumerate(rollouts.items()):
             key = label.lower().replace("-", "_")
-            col = MODEL_COLOURS.get(key, colours[i % len(colours)])
+            col = model_colour(key, colours[i % len(colours)])
             ax.plot(*traj.ego[s, :, :2].T, "-", color=col, lw=1.6, label=label)
             pts.append(traj.ego[s, :, :2])
         ax.plot(*human.ego[s, 0, :2], "ko", ms=4)
@@ -467,7 +485,7 @@ def gif_frames(traj: Any, human: Any, ds: Any, scene: int, size: int = 192) -> l
         d.polygon(_to_pixels(hb, pose, chase), outline=(255, 0, 255))
         canvas.paste(right, (bev.shape[1] + 6, pad))
         d = ImageDraw.Draw(canvas)
-        d.text((2, 2), f"{_label(traj.name)}: BEV input", fill="black")
+        d.text((2, 2), f"{model_label(traj.name)}: BEV input", fill="black")
         d.text((bev.shape[1] + 8, 2), f"scene {s}  t = {t * 0.5:4.1f} s  (human: magenta)",
                fill="black")
         if has_q:

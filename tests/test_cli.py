@@ -130,3 +130,25 @@ def test_check_choices_names_the_unknown_and_the_choices():
     assert common.check_choices(["a"], "--models", ("a", "b")) == ["a"]
     with pytest.raises(UsageError, match=r"^--models: unknown model\(s\) c, d; choose from a, b$"):
         common.check_choices(["a", "c", "d"], "--models", ("a", "b"), what="model(s)")
+
+
+def test_reproduce_sets_the_training_window_of_the_dmp_models(monkeypatch, tmp_path, capsys):
+    from minimanc.cli import reproduce as cmd
+
+    seen = {}
+
+    def fake(config, out, **kwargs):
+        seen["config"] = config
+        raise SystemExit(0)
+
+    monkeypatch.setattr(cmd, "reproduce", fake)
+    with pytest.raises(SystemExit):
+        cli.main(["reproduce", "--preset", "tiny", "--out", str(tmp_path / "o"),
+                  "--dmp-seq-len", "8", "--epochs", "2"])
+    assert seen["config"].training.dmp_seq_len == 8 and seen["config"].epochs == 2
+    for argv, option in ((["--dmp-seq-len", "0"], "--dmp-seq-len"), (["--epochs", "-1"],
+                                                                      "--epochs")):
+        code = cli.main(["reproduce", "--preset", "tiny", "--out", str(tmp_path / "p"), *argv])
+        err = capsys.readouterr().err
+        assert code == 2 and f"{option} must be an integer >= 1" in err, err
+        assert len(err.strip().splitlines()) == 1

@@ -311,3 +311,38 @@ def test_sequence_scan_on_jax_equals_the_loop_on_numpy(name, feedback, eng_np, e
         c, _ = models.sequence(name, params, obs, state, cfg, eng_jax)
         np.testing.assert_allclose(np.asarray(c)[0], a[0], rtol=1e-9, atol=1e-9)
         assert np.abs(np.asarray(c)[1:] - a[1:]).max() > 1e-6
+
+
+# --------------------------------------------------------------------------- dt and the gain box
+
+
+def test_model_config_refuses_a_dt_for_which_the_dmp_head_is_unstable():
+    # semi-implicit Euler, 10 sub-steps: stable iff h·α(2 + h·β) < 4 at the corner (20, 5),
+    # i.e. h < (−40 + √3200) / 200, dt < 0.8284 s
+    bound = 10 * (-40.0 + np.sqrt(3200.0)) / 200.0
+    models.ModelConfig(dt=0.5)
+    models.ModelConfig(dt=0.99 * bound)
+    with pytest.raises(ValueError, match=r"dt=0\.9 makes the DMP head's integrator .*unstable"
+                                         r".*alpha=20, beta=5.*use dt < 0\.8284"):
+        models.ModelConfig(dt=0.9)
+    with pytest.raises(ValueError, match="beta = alpha/4"):
+        models.ModelConfig(dt=2.0, critically_damped=True)
+    for bad in (0.0, -0.5, float("nan"), float("inf"), "0.5", True):
+        with pytest.raises(ValueError, match="dt"):
+            models.ModelConfig(dt=bad)
+
+
+@settings(max_examples=40, deadline=None)
+@given(dt=st.floats(0.01, 3.0), ua=st.floats(0.0, 1.0), ub=st.floats(0.0, 1.0),
+       crit=st.booleans())
+def test_an_accepted_dt_keeps_every_gain_of_the_box_stable(dt, ua, ub, crit):
+    """Whatever gains the head's sigmoid produces, the DMP step of an accepted dt contracts."""
+    try:
+        models.ModelConfig(dt=dt, critically_damped=crit)
+    except ValueError:
+        corners = models.config.gain_box_corners(crit)
+        assert max(dmp.spectral_radius(a, b, dt=dt) for a, b in corners) > 1.0
+        return
+    a = dmp.ALPHA_RANGE[0] + ua * (dmp.ALPHA_RANGE[1] - dmp.ALPHA_RANGE[0])
+    b = a / 4.0 if crit else dmp.BETA_RANGE[0] + ub * (dmp.BETA_RANGE[1] - dmp.BETA_RANGE[0])
+    assert dmp.spectral_radius(a, b, dt=dt) < 1.0

@@ -273,3 +273,113 @@ def test_check_controls_names_the_policy_and_the_step():
         rollout.check_controls([[np.nan, 0.0]], 1, 3, rollout.FixedGainsPolicy())
     with pytest.raises(rollout.BadControls, match=r"shape \(2,\)"):
         rollout.check_controls([1.0, 0.0], 1, 0)
+
+
+# --------------------------------------------------------------------------- open loop on drive
+
+
+def _replay_loop(name, params, ds, scene, cfg, eng, q_mode):
+    """The open-loop trace written as its own loop (how models.replay was written before it
+    ran on rollout.drive): the dataset's observations, one models.step per time step."""
+    from minimanc import inputs, models
+
+    rng = None if q_mode == "uniform" else np.random.default_rng(0)
+    state = models.initial_state(name, 1, cfg, xp=eng.xp, rng=rng, mode=q_mode)
+    keep = {"controls": []}
+    for t in range(np.asarray(ds.ego).shape[1]):
+        obs = inputs.from_dataset(ds, scene, t, cfg.setting, model=name)
+        controls, state, aux = models.step(name, params, obs, state, cfg, eng)
+        keep["controls"].append(np.asarray(controls)[0])
+        for k in rollout.AUX_KEYS:
+            if k in aux:
+                keep.setdefault(k, []).append(np.asarray(aux[k])[0])
+    out = {k: np.stack(v) for k, v in keep.items()}
+    out["human"] = np.asarray(ds.controls[scene], dtype=np.float64)
+    return out
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("name,setting,q_mode", [("manc", "paper", "uniform"),
+                                                  ("manc", "paper", "random"),
+                                                  ("vagn_only", "parity", "random"),
+                                                  ("cnn_lstm", "parity", "uniform"),
+                                                  ("rvs_g", "paper", "uniform")])
+def test_replay_is_drive_following_the_log_and_equals_the_step_loop(ds, name, setting, q_mode,
+                                                                     dtype):
+    from minimanc import engine, models
+
+    eng = engine("numpy")
+    cfg = models.ModelConfig(image_size=32, setting=setting, n_states=4, channels=(4, 8))
+    params = models.init(name, np.random.default_rng(1), cfg, dtype=dtype)
+    want = _replay_loop(name, params, ds, 2, cfg, eng, q_mode)
+    got = models.replay(name, params, ds, 2, cfg, eng, q_mode=q_mode)
+    assert set(got) == set(want)
+    for k in want:
+        assert got[k].dtype == want[k].dtype and got[k].shape == want[k].shape, k
+        np.testing.assert_array_equal(got[k], want[k], err_msg=k)
+
+
+def test_log_replay_that_follows_the_log_shows_the_logged_observations(ds):
+    from minimanc import inputs
+
+    class Record:
+        model, setting = "rvs_g", "parity"
+
+        def __init__(self):
+            self.seen = []
+
+        def initial_state(self, scenes):
+            return None
+
+        def __call__(self, obs, state, t, scenes):
+            self.seen.append(obs)
+            return np.full((len(scenes), 2), 99.0), state, {}
+
+    sim = rollout.LogReplay(ds, [1, 3], follow_log=True)
+    pol = Record()
+    run = rollout.drive(pol, sim, ds.n_steps)
+    np.testing.assert_array_equal(sim.trajectory(), np.asarray(ds.ego)[[1, 3]])
+    assert np.all(run.controls == 99.0)  # what the policy said, not what the ego did
+    for t, obs in enumerate(pol.seen):
+        want = inputs.from_dataset(ds, [1, 3], [t, t], "parity", model="rvs_g")
+        assert set(obs) == set(want)
+        for k in want:
+            np.testing.assert_array_equal(obs[k], want[k], err_msg=f"{k} at t={t}")
+
+
+# --------------------------------------------------------------------------- aux dtypes
+
+
+def test_rollout_keeps_the_models_dtype_and_explain_needs_no_dtype_guess(ds, tmp_path,
+                                                                         monkeypatch):
+    """A float32 model's q is recorded as float32 and checked with float32 tolerances; explain
+    takes it as q' directly. With checks.value_dtype reduced to the array's own dtype (no
+    guess that float64 numbers are float32 ones), everything still passes."""
+    from minimanc import checks, models, vagn
+
+    monkeypatch.setattr(checks, "value_dtype", lambda x: np.dtype(
+        np.asarray(x).dtype if np.issubdtype(np.asarray(x).dtype, np.floating) else np.float64))
+    cfg = models.ModelConfig(image_size=32, n_states=5, channels=(4, 8))
+    params = models.init("manc", np.random.default_rng(2), cfg, dtype=np.float32)
+    traj = rollout.closed_loop("manc", params, ds, cfg, "numpy", scenes=[0, 1], steps=5,
+                               progress=False)
+    for k in ("q", "alpha", "beta", "predicates"):
+        assert traj.aux[k].dtype == np.float32, k
+    assert traj.controls.dtype == np.float64 and traj.ego.dtype == np.float64
+    back = rollout.Rollout.load(traj.save(tmp_path / "r.npz"))
+    assert back.aux["q"].dtype == np.float32
+    np.testing.assert_array_equal(back.aux["q"], traj.aux["q"])
+    checks.check_distribution("q", traj.aux["q"], 5)
+    trace = models.replay("manc", params, ds, 1, cfg)  # the logged observations, float32
+    assert trace["q"].dtype == np.float32
+    obs = {"bev": np.asarray(ds.bev[[1], 3], dtype=np.float32) / np.float32(255.0)}
+    q_prev = trace["q"][None, 2]
+    out = models.explain(params, obs, q_prev, cfg)
+    q64 = q_prev.astype(np.float64) / q_prev.astype(np.float64).sum(axis=-1, keepdims=True)
+    np.testing.assert_allclose(out["q"], vagn.step(q64, out["predicates"],
+                                                   np.asarray(params["vagn"]["W"], np.float64)),
+                               rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(out["q"].sum(axis=-1), 1.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(out["q"][0], trace["q"][3], rtol=0, atol=1e-5)  # float32 path
+    with pytest.raises(ValueError, match="q_prev"):
+        models.explain(params, obs, np.full((1, 5), 0.3, dtype=np.float32), cfg)

@@ -204,7 +204,7 @@ def test_a_closed_loop_that_blows_up_scores_inf(tmp_path, monkeypatch):
     from minimanc import models, train, world
 
     # train.save/load refuse non-finite parameters; let them through to reach the closed loop
-    monkeypatch.setattr(train, "bad_params", lambda *a, **k: None)
+    monkeypatch.setattr(train.checkpoint, "bad_params", lambda *a, **k: None)
 
     ds = world.generate(2, seed=5, raster=world.RasterConfig(size=32), workers=1)
     data = world.save(ds, tmp_path / "d.npz")
@@ -298,3 +298,76 @@ def test_reproduce_unwritable_out_is_one_line_exit_2(tmp_path, capsys):
     code = cli.main(["reproduce", "--preset", "tiny", "--out", str(blocker / "sub")])
     err = capsys.readouterr().err
     assert code == 2 and len(err.splitlines()) == 1 and "cannot create the directory" in err
+
+
+# --------------------------------------------------------------------------- the training config
+
+
+def _changed(field, value):
+    """A valid TrainConfig value different from ``value``."""
+    if isinstance(value, bool):
+        return not value
+    if field == "q_init":
+        return "random" if value == "uniform" else "uniform"
+    if field == "dtype":
+        return "float64" if value == "float32" else "float32"
+    if value is None:
+        return 3
+    if isinstance(value, int):
+        return value + 1
+    return value * 0.5 if value else 0.25
+
+
+def test_study_config_holds_a_train_config_and_every_training_field_changes_the_fingerprint():
+    from dataclasses import fields, replace
+
+    from minimanc import train
+
+    base = studies.PRESETS["tiny"]
+    assert isinstance(base.training, train.TrainConfig)
+    seen = set()
+    for f in fields(train.TrainConfig):
+        tc = replace(base.training, **{f.name: _changed(f.name, getattr(base.training, f.name))})
+        other = replace(base, training=tc)
+        assert other.training == tc
+        assert other.fingerprint() != base.fingerprint(), f.name
+        seen.add(other.fingerprint())
+    assert len(seen) == len(fields(train.TrainConfig))
+    # the old keyword style still works, for every field a study used to copy and dmp_seq_len
+    c = studies.StudyConfig(epochs=2, batch_size=8, seq_len=3, dmp_seq_len=5,
+                            max_steps_per_epoch=4)
+    assert (c.epochs, c.batch_size, c.seq_len, c.dmp_seq_len, c.max_steps_per_epoch) == \
+        (2, 8, 3, 5, 4)
+    assert c.training == train.TrainConfig(epochs=2, batch_size=8, seq_len=3, dmp_seq_len=5,
+                                           max_steps_per_epoch=4)
+    assert replace(c, dmp_seq_len=6).training.dmp_seq_len == 6
+    with pytest.raises(ValueError, match="dmp_seq_len"):
+        studies.StudyConfig(dmp_seq_len=0)
+    with pytest.raises(TypeError, match="training"):
+        studies.StudyConfig(training={"epochs": 2})
+    with pytest.raises(TypeError, match="unknown"):
+        studies.StudyConfig(epoch=2)
+
+
+def test_presets_keep_their_training_values():
+    from minimanc import train
+
+    want = {
+        "tiny": train.TrainConfig(epochs=1, batch_size=16, max_steps_per_epoch=2, seq_len=4),
+        "quick": train.TrainConfig(epochs=3, batch_size=64),
+        "full": train.TrainConfig(epochs=4, batch_size=64),
+        "paper": train.TrainConfig(epochs=6, batch_size=64),
+    }
+    for name, tc in want.items():
+        assert studies.PRESETS[name].training == tc, name
+
+
+def test_a_run_trains_with_the_studys_train_config(tmp_path):
+    from dataclasses import replace
+
+    c = replace(studies.PRESETS["tiny"], dmp_seq_len=6, q_seq_len=2)
+    study = studies.Study(c, tmp_path, engine="numpy", workers=0, progress=False)
+    run = studies.Run("manc", "paper", c.n_states, 0.5, 1, 2e-3)
+    tc = study.train_config(run)
+    assert (tc.dmp_seq_len, tc.q_seq_len, tc.lr, tc.seed, tc.subset, tc.epochs) == \
+        (6, 2, 2e-3, 1, 0.5, 1)

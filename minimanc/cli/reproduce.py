@@ -24,6 +24,11 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     config = PRESETS[preset]
     if args.seeds is not None:
         config = replace(config, n_seeds=check_int(args.seeds, "--seeds", 1))
+    training = {field: check_int(value, option, 1) for field, value, option in (
+        ("epochs", args.epochs, "--epochs"), ("dmp_seq_len", args.dmp_seq_len, "--dmp-seq-len"))
+        if value is not None}
+    if training:
+        config = replace(config, training=replace(config.training, **training))
     check_int(args.workers, "--workers", 0)
     out = check_out_dir(Path(args.out) if args.out else Path("minimanc_results") / preset)
     progress = not args.no_progress
@@ -64,6 +69,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("--out", default=None,
                    help="output directory (default minimanc_results/<preset>)")
     p.add_argument("--seeds", type=int, default=None, help="number of training seeds")
+    p.add_argument("--epochs", type=int, default=None,
+                   help="training epochs of every model (default: the preset's)")
+    p.add_argument("--dmp-seq-len", type=int, default=None,
+                   help="training window of the DMP models in steps (default: the preset's, "
+                        "a whole scene)")
     p.add_argument("--workers", type=int, default=1,
                    help="processes running closed-loop rollouts while training (0 = inline)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")

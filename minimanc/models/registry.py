@@ -80,10 +80,11 @@ class ModelSpec:
         :func:`minimanc.inputs.numeric_features`. A ``"predicates"`` entry (a dense layer
         ``C → M``) makes the shared encoder compute eq. 7's predicates.
     encode : callable
-        ``encode(params, enc, obs, cfg, eng) -> dict``: per-frame inputs of the head,
-        added to ``enc`` (which holds ``features`` ``(B, h, w, C)``, ``num`` ``(B, F)``
-        or ``None``, and ``predicates`` ``(B, M)`` when computed). Values are arrays
-        with the batch axis first, or ``None``.
+        ``encode(params, obs, f, num, cfg, eng) -> dict``: the per-frame inputs of the
+        head (no recurrence), from the observations ``obs`` (cast to the parameters'
+        dtype), the backbone's features ``f`` ``(B, h, w, C)`` and the numbers ``num``
+        ``(B, F)`` (or ``None``). Values are arrays with the batch axis first, or
+        ``None``; the head also receives ``predicates`` ``(B, M)`` when computed.
     head : callable
         ``head(params, enc, state, cfg, eng) -> (controls (B, 2), new_state, aux)``.
     window : str or None

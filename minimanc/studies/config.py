@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
 
 import numpy as np
 
-from minimanc import inputs
+from minimanc import inputs, models
+from minimanc.checks import check_int
 
 TABLE_MODELS: tuple[str, ...] = ("cnn", "cnn_lstm", "rvs_g", "manc")
 """The learned comparison cases of Table I, in the paper's order."""
@@ -19,16 +21,26 @@ ABLATION_MODELS: tuple[str, ...] = ("manc", "vagn_only", "dmp_only")
 """The self-ablation of Fig. 8."""
 
 
-@dataclass(frozen=True)
+TRAIN_FIELDS: tuple[str, ...] = ("epochs", "batch_size", "max_steps_per_epoch", "seq_len",
+                                 "dmp_seq_len", "q_seq_len", "motion_feedback", "q_init",
+                                 "normalize", "dtype", "zeta_weight", "grad_clip")
+"""The :class:`~minimanc.train.TrainConfig` fields :class:`StudyConfig` also accepts as
+keywords (and shows as attributes); ``lr``, ``seed`` and ``subset`` are set per :class:`Run`."""
+
+
+@dataclass(frozen=True, init=False)
 class StudyConfig:
     """Sizes and budgets of a study. See :data:`PRESETS` for the named ones.
 
     Data: ``n_train`` / ``n_tune`` / ``n_val`` scenes of one generated set
     (``data_seed``, BEV ``image_size``). Training (the same for every model):
-    ``epochs``, ``batch_size``, ``max_steps_per_epoch`` (``None`` = all),
-    ``seq_len`` (LSTM windows), the learning-rate sweep ``lrs``, ``n_seeds``
-    training seeds. Studies: ``n_states`` of MANC in Table I, ``q_states``,
-    ``fractions``, ``settings``; ``explain_scenes`` scenes get
+    ``training``, a :class:`~minimanc.train.TrainConfig` whose ``lr``, ``seed``
+    and ``subset`` each :class:`Run` replaces (its learning rate from the sweep
+    ``lrs``, one of the ``n_seeds`` training seeds, its data fraction). The
+    fields of :data:`TRAIN_FIELDS` may also be given as keywords
+    (``StudyConfig(epochs=3)``, ``dataclasses.replace(c, dmp_seq_len=8)``) and
+    read as attributes (``c.epochs``). Studies: ``n_states`` of MANC in Table I,
+    ``q_states``, ``fractions``, ``settings``; ``explain_scenes`` scenes get
     explainability figures.
     """
 
@@ -38,10 +50,7 @@ class StudyConfig:
     n_val: int = 200
     image_size: int = 64
     data_seed: int = 0
-    epochs: int = 6
-    batch_size: int = 64
-    max_steps_per_epoch: int | None = None
-    seq_len: int = 8
+    training: Any = None
     lrs: tuple[float, ...] = (1e-3, 3e-3)
     n_seeds: int = 3
     n_states: int = 6
@@ -53,19 +62,35 @@ class StudyConfig:
     sample_models: tuple[str, ...] = TABLE_MODELS
     explain_scenes: int = 3
 
+    def __init__(self, **kwargs: Any) -> None:
+        from minimanc import train
+
+        given = {k: kwargs.pop(k) for k in TRAIN_FIELDS if k in kwargs}
+        unknown = sorted(set(kwargs) - {f.name for f in fields(self)})
+        if unknown:
+            raise TypeError(f"StudyConfig got unknown arguments {unknown}")
+        tc = kwargs.get("training")
+        if tc is None:
+            tc = train.TrainConfig()
+        if not isinstance(tc, train.TrainConfig):
+            raise TypeError(f"training must be a minimanc.train.TrainConfig, got "
+                            f"training={tc!r}")
+        kwargs["training"] = replace(tc, **given) if given else tc
+        for f in fields(self):
+            object.__setattr__(self, f.name, kwargs.get(f.name, f.default))
+        self.__post_init__()
+
+    def __getattr__(self, name: str) -> Any:
+        if name in TRAIN_FIELDS:
+            return getattr(self.training, name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
     def __post_init__(self) -> None:
-        for name in ("n_train", "n_tune", "n_val", "image_size", "epochs", "batch_size",
-                     "seq_len", "n_seeds", "n_states", "explain_scenes"):
-            v = getattr(self, name)
-            low = 0 if name == "explain_scenes" else 1
-            if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < low:
-                raise ValueError(f"{name} must be an integer >= {low}; got {name}={v!r}")
+        for name in ("n_train", "n_tune", "n_val", "image_size", "n_seeds", "n_states",
+                     "explain_scenes"):
+            check_int(name, getattr(self, name), 0 if name == "explain_scenes" else 1)
         if self.n_train < 2:
             raise ValueError(f"n_train must be >= 2; got n_train={self.n_train!r}")
-        m = self.max_steps_per_epoch
-        if m is not None and (isinstance(m, bool) or not isinstance(m, int | np.integer)
-                              or m < 1):
-            raise ValueError(f"max_steps_per_epoch must be None or >= 1; got {m!r}")
         if not self.lrs or any(not (np.isfinite(x) and x > 0) for x in self.lrs):
             raise ValueError(f"lrs must be positive learning rates; got lrs={self.lrs!r}")
         if not self.fractions or any(not 0 < f <= 1 for f in self.fractions):
@@ -77,23 +102,26 @@ class StudyConfig:
                 raise ValueError(f"settings must be from {inputs.SETTINGS}; got {s!r}")
         for group in ("table_models", "ablation_models", "sample_models"):
             for mdl in getattr(self, group):
-                if mdl not in inputs.MODEL_NAMES:
-                    raise ValueError(f"{group} must hold names from {inputs.MODEL_NAMES}; "
+                if mdl not in models.MODEL_NAMES:
+                    raise ValueError(f"{group} must hold names from {models.MODEL_NAMES}; "
                                      f"got {mdl!r}")
+
+    def train_config(self, model: str, lr: float, seed: int, fraction: float) -> Any:
+        """The :class:`~minimanc.train.TrainConfig` of one run: :attr:`training` with its
+        ``lr``, ``seed`` and ``subset`` (``model`` is accepted for per-model rules)."""
+        models.check_name(model, "model")
+        return replace(self.training, lr=lr, seed=seed, subset=fraction)
 
     def fingerprint(self) -> str:
         """Hash of everything that changes data or training (not ``n_seeds`` or the figures).
 
-        Includes the library's defaults of :class:`minimanc.train.TrainConfig`
-        and :class:`minimanc.models.ModelConfig`, so that a cache written by a
+        Holds every field of :attr:`training` and the library's defaults of
+        :class:`minimanc.models.ModelConfig`, so that a cache written by a
         version that trained differently is never reused.
         """
-        from minimanc import models, train
-
         d = asdict(self)
         for k in ("preset", "n_seeds", "explain_scenes"):
             d.pop(k)
-        d["train_defaults"] = asdict(train.TrainConfig())
         d["model_defaults"] = models.ModelConfig().to_dict()
         d["default_gains"] = list(models.DEFAULT_GAINS)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]

@@ -181,19 +181,29 @@ def cell(agg: dict, metric: str, n_seeds: int) -> str:
     return f"{e['mean']:.2f} ± {e['std']:.2f}" if n_seeds > 1 else f"{e['mean']:.2f}"
 
 
+def _training(config: dict, key: str) -> Any:
+    """A training field of a results file's ``config`` (its ``training`` entry, or the flat
+    keys of a file written before the study held a TrainConfig)."""
+    t = config.get("training")
+    if t is None:
+        return config[key]
+    return t[key] if isinstance(t, dict) else getattr(t, key)
+
+
 def table_markdown(results: dict) -> str:
     """``table1.md``: Table I per setting, the studies as tables, and the findings."""
-    from minimanc.plots import MODEL_LABELS
+    from minimanc.plots import model_label
 
     c = results["config"]
     ns = int(c["n_seeds"])
-    lab = lambda m: MODEL_LABELS.get(m, m)  # noqa: E731
+    lab = model_label
     lines = [
         "# Closed-loop results (Table I and the studies of section V)",
         "",
         f"Preset `{c['preset']}`: {c['n_train']} training, {c['n_tune']} tuning and "
         f"{c['n_val']} validation scenes ({c['image_size']}×{c['image_size']} BEV), "
-        f"{c['epochs']} epochs, learning rate from {list(c['lrs'])} by tuning-split ADE, "
+        f"{_training(c, 'epochs')} epochs, learning rate from {list(c['lrs'])} by tuning-split "
+        "ADE, "
         f"{'mean ± std over ' + str(ns) + ' seeds' if ns > 1 else 'one seed'}; "
         f"engine `{results['engine']}`. Lower is better everywhere. Close encounter: an ado "
         f"box within {results['close_gap_m']:g} m of the ego box. Human ADE and goal "

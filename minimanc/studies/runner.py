@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from minimanc import metrics
+from minimanc.checks import check_int
 from minimanc.engine import ENGINES
 from minimanc.studies.config import Run, StudyConfig, canonical_setting
 from minimanc.studies.jobs import Done, enable_jax_cache, evaluate_job, read_json, write_json
@@ -34,8 +35,7 @@ class Study:
             raise ValueError(f"config must be a StudyConfig; got config={config!r}")
         if engine not in ENGINES:
             raise ValueError(f"engine must be one of {ENGINES}; got engine={engine!r}")
-        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
-            raise ValueError(f"workers must be an integer >= 0; got workers={workers!r}")
+        check_int("workers", workers, 0)
         self.config = config
         self.out = Path(out)
         self.engine = engine
@@ -103,12 +103,8 @@ class Study:
                                   setting=run.setting)
 
     def train_config(self, run: Run) -> Any:
-        from minimanc import train
-
-        c = self.config
-        return train.TrainConfig(epochs=c.epochs, batch_size=c.batch_size, lr=run.lr,
-                                 seed=run.seed, subset=run.fraction, seq_len=c.seq_len,
-                                 max_steps_per_epoch=c.max_steps_per_epoch)
+        """The run's :class:`~minimanc.train.TrainConfig` (:meth:`StudyConfig.train_config`)."""
+        return self.config.train_config(run.model, run.lr, run.seed, run.fraction)
 
     def checkpoint(self, run: Run) -> Path:
         from minimanc import train

@@ -1,0 +1,110 @@
+"""Chapter 8 — the model registry: a model is one ModelSpec, and everything follows from it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from minimanc import engine, inputs, layers, models, plots, rollout, train, world
+from minimanc.models import registry
+from minimanc.models.backbone import dense, flatten
+
+
+@pytest.fixture(scope="module")
+def ds():
+    return world.generate(3, seed=0, raster=world.RasterConfig(size=32))
+
+
+def _toy_init(rng, cfg, n_num):
+    flat = cfg.feature_size ** 2 * cfg.channels[-1]
+    return {"out": layers.init_dense(rng, flat + n_num, 2)}
+
+
+def _toy_encode(params, obs, f, num, cfg, eng):
+    return {"pre": eng.xp.concatenate([flatten(f, eng.xp), num], axis=-1)}
+
+
+def _toy_head(params, enc, state, cfg, eng):
+    return dense(params["out"], enc["pre"], eng), dict(state), {}
+
+
+TOY = models.ModelSpec("toy_linear", "Toy", "feedforward", registry.observes_goal(),
+                       _toy_init, _toy_encode, _toy_head, window="seq_len", colour="#000000")
+
+
+def test_a_new_model_is_one_entry_and_runs_through_the_public_api(ds):
+    cfg = models.ModelConfig(image_size=32, channels=(4, 8), setting="parity")
+    eng = engine("numpy")
+    assert "toy_linear" not in models.MODEL_NAMES
+    with models.registered(TOY):
+        assert models.MODEL_NAMES[-1] == "toy_linear" == inputs.MODEL_NAMES[-1]
+        assert "toy_linear" not in models.VAGN_MODELS + models.LSTM_MODELS + models.DMP_MODELS
+        assert inputs.visible("toy_linear", "parity") == ("bev", "goal", "lane_target", "motion")
+        assert inputs.numeric_size("toy_linear", "parity", 10) == 25
+        assert plots.model_label("toy_linear") == "Toy"
+        assert plots.MODEL_LABELS["toy_linear"] == "Toy"
+        assert train.window_len("toy_linear", train.TrainConfig(seq_len=3)) == 3
+
+        params = models.init("toy_linear", np.random.default_rng(0), cfg)
+        assert params["out"]["w"].shape == (8 * 8 * 8 + 25, 2)  # 32 → 16 → 8, 8 channels
+        obs = inputs.from_dataset(ds, [0, 1], [3, 7], "parity", model="toy_linear")
+        u, state, aux = models.step("toy_linear", params, obs, {}, cfg, eng)
+        assert np.asarray(u).shape == (2, 2) and state == {} and "features" in aux
+        seq = inputs.from_dataset(ds, [0, 0, 0], [0, 1, 2], "parity", model="toy_linear")
+        seq = {k: v[:, None] for k, v in seq.items()}  # (L = 3, B = 1, ...)
+        out, _ = models.sequence("toy_linear", params, seq, {}, cfg, eng)
+        one = [np.asarray(models.step("toy_linear", params, {k: v[i] for k, v in seq.items()},
+                                      {}, cfg, eng)[0]) for i in range(3)]
+        np.testing.assert_allclose(np.asarray(out), np.stack(one), rtol=1e-12, atol=1e-12)
+
+        tc = train.TrainConfig(epochs=2, batch_size=6, seq_len=3, dtype="float64", lr=1e-2)
+        res = train.fit("toy_linear", ds, cfg, tc, engine="numpy", progress=False)
+        assert res.steps > 0 and np.all(np.isfinite(res.history))
+        assert res.history[-1] < res.history[0]
+        traj = rollout.closed_loop("toy_linear", res.params, ds, cfg, "numpy", steps=2,
+                                   progress=False)
+        assert traj.ego.shape == (3, 3, 3) and traj.aux == {}
+    assert "toy_linear" not in models.MODEL_NAMES and "toy_linear" not in inputs.MODEL_NAMES
+    with pytest.raises(ValueError, match="name must be one of"):
+        models.init("toy_linear", np.random.default_rng(0), cfg)
+    with pytest.raises(ValueError, match="model must be one of"):
+        inputs.visible("toy_linear")
+
+
+def test_the_families_and_windows_of_the_six_models_come_from_their_specs():
+    assert models.MODEL_NAMES == ("cnn", "cnn_lstm", "rvs_g", "manc", "vagn_only", "dmp_only")
+    assert models.VAGN_MODELS == ("manc", "vagn_only")
+    assert models.LSTM_MODELS == ("cnn_lstm", "rvs_g")
+    assert models.DMP_MODELS == ("manc", "dmp_only")
+    tc = train.TrainConfig(seq_len=5, dmp_seq_len=7, q_seq_len=2)
+    assert {n: train.window_len(n, tc) for n in models.MODEL_NAMES} == {
+        "cnn": 1, "cnn_lstm": 5, "rvs_g": 5, "manc": 7, "vagn_only": 2, "dmp_only": 7}
+    assert [plots.model_label(n) for n in models.MODEL_NAMES] == [
+        "CNN", "CNN-LSTM", "RvS-G", "MANC", "vAGN-only", "DMP-only"]
+    assert plots.model_label("human") == "Human" and plots.model_label("other") == "other"
+
+
+def test_the_registry_refuses_bad_specs():
+    args = (_toy_init, _toy_encode, _toy_head)
+    with pytest.raises(ValueError, match="already registered"):
+        models.register(models.ModelSpec("manc", "M", "vagn", registry.observes_structured(),
+                                         *args, dmp=True))
+    with pytest.raises(ValueError, match="family"):
+        models.ModelSpec("t", "T", "gru", registry.observes_goal(), *args)
+    with pytest.raises(ValueError, match="observes"):
+        models.ModelSpec("t", "T", "feedforward", {"paper": ("bev",)}, *args)
+    with pytest.raises(ValueError, match="'bev'"):
+        models.ModelSpec("t", "T", "feedforward", {"paper": ("goal",), "parity": ("goal",)},
+                         *args)
+    with pytest.raises(ValueError, match="dmp model"):
+        models.ModelSpec("t", "T", "feedforward", registry.observes_goal(), *args, dmp=True)
+    with pytest.raises(ValueError, match="window"):
+        models.ModelSpec("t", "T", "feedforward", registry.observes_goal(), *args, window="L")
+    with pytest.raises(ValueError, match="name"):
+        models.ModelSpec("no spaces", "T", "feedforward", registry.observes_goal(), *args)
+    with pytest.raises(TypeError, match="head"):
+        models.ModelSpec("t", "T", "feedforward", registry.observes_goal(), _toy_init,
+                         _toy_encode, None)
+    with pytest.raises(TypeError, match="ModelSpec"):
+        models.register("toy")
+    assert models.MODEL_NAMES == ("cnn", "cnn_lstm", "rvs_g", "manc", "vagn_only", "dmp_only")
