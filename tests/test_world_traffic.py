@@ -170,3 +170,30 @@ def test_scene_run_steps_are_simulate_scene():
         assert (v, w) == tuple(log.controls[t])
         run.advance(per, v, w)
     np.testing.assert_array_equal(run.pose, log.final_pose)
+
+
+def test_own_lane_walk_replays_a_scripted_walk_and_logs_every_walk():
+    m = world.random_map(np.random.default_rng(2), kind="straight")
+    tr = _traffic(m)
+    veh = _vehicle(tr, [m.route[0]], 10.0, 5.0)
+    tr.walk_log = {}
+    drawn = tr.own_lane_walk(veh, m.route[0])
+    assert drawn[0] == m.route[0] and tr.walk_log == {1: drawn}
+    tr.scripted_walks = {1: [m.route[0]]}
+    state = tr.rng.bit_generator.state
+    assert tr.own_lane_walk(veh, m.route[0]) == [m.route[0]]
+    assert tr.rng.bit_generator.state == state  # a scripted walk draws nothing
+    assert tr.walk_log == {1: [m.route[0]]}
+
+
+def test_insert_copies_a_vehicle_onto_its_lanes():
+    m = world.random_map(np.random.default_rng(2), kind="straight")
+    tr = _traffic(m)
+    veh = _vehicle(tr, [m.route[0]], 10.0, 5.0)
+    other = _traffic(m)
+    new = other.insert(veh, [m.route[0]])
+    assert new is not veh and new.s == veh.s and new.v == veh.v and new.length == veh.length
+    assert other.path(new).lanes == [m.route[0]] and other.vehicles[-1] is new
+    new.xy[0] += 1.0
+    assert veh.xy[0] != new.xy[0]  # its own position array
+    assert other.path_id([m.route[0]]) == new.pid  # one path per lane sequence
