@@ -25,6 +25,7 @@ import numpy as np
 
 from minimanc.autodiff.boxes import FRAMES, Box, unbox
 from minimanc.autodiff.primitives import Outputs, primitive, select
+from minimanc.autodiff.pytrees import tree_flatten
 
 __all__ = ["custom_vjp"]
 
@@ -56,23 +57,33 @@ class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
         if kwargs:
             raise TypeError(f"{self.__name__}: a custom_vjp function takes positional "
                             f"arguments only, got keywords {sorted(kwargs)}")
-        parents = [(i, a) for i, a in enumerate(args) if isinstance(a, Box)]
+        if not any(isinstance(a, Box) or isinstance(a, list | tuple | dict) for a in args):
+            return self.fun(*args)
+        flat = [tree_flatten(a) if isinstance(a, list | tuple | dict) else None for a in args]
+        leaves, owner = [], []  # every leaf of every argument, and its argument's index
+        for i, (a, f) in enumerate(zip(args, flat)):
+            arg_leaves = [a] if f is None else f[0]
+            leaves += arg_leaves
+            owner += [i] * len(arg_leaves)
+        parents = [(k, b) for k, b in enumerate(leaves) if isinstance(b, Box)]
         if not parents:
             return self.fun(*args)
         if self.fwd is None:
             raise NotImplementedError(f"{self.__name__}: register its VJP with .defvjp(fwd, bwd)")
         nondiff = self.nondiff_argnums
-        for i, _ in parents:
-            if i in nondiff:
-                raise TypeError(f"{self.__name__}: argument {i} is traced but listed in "
+        for k, _ in parents:
+            if owner[k] in nondiff:
+                raise TypeError(f"{self.__name__}: argument {owner[k]} is traced but listed in "
                                 f"nondiff_argnums={nondiff}")
-        raw = [unbox(a) for a in args]
+        raw = [unbox(a) if f is None else f[2]([unbox(v) for v in f[0]])
+               for a, f in zip(args, flat)]
         out, res = self.fwd(*raw)
         multi = isinstance(out, tuple | list)
         value = Outputs(out) if multi else out
         shapes = [(np.shape(o), np.result_type(o)) for o in out] if multi else None
+        counts = [owner.count(i) for i in range(len(args))]
         node = Box(value, tuple(parents), self._node, (), None,
-                   (tuple(raw[i] for i in nondiff), res, shapes, len(args)))
+                   (tuple(raw[i] for i in nondiff), res, shapes, counts))
         if FRAMES:
             FRAMES[-1][id(node)] = node
         if not multi:
@@ -80,8 +91,9 @@ class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
         return type(out)(select(node, k) for k in range(len(out)))
 
     def _node_bwd(self, g, node_res) -> tuple:
-        """Cotangents of every positional argument (``None`` for the static ones)."""
-        nondiff_vals, res, shapes, n_args = node_res
+        """Cotangents of every leaf of the arguments (``None`` for the static ones)."""
+        nondiff_vals, res, shapes, counts = node_res
+        n_args = len(counts)
         if shapes is not None:  # a tuple of outputs: unused ones have a None cotangent
             g = tuple(np.zeros(s, dtype=d) if gk is None else gk
                       for gk, (s, d) in zip(g, shapes))
@@ -94,4 +106,14 @@ class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
             raise TypeError(f"{self.__name__}: bwd returned {len(cts)} cotangents for "
                             f"{n_diff} differentiable arguments")
         it = iter(cts)
-        return tuple(None if i in self.nondiff_argnums else next(it) for i in range(n_args))
+        out: list = []
+        for i in range(n_args):
+            if i in self.nondiff_argnums:
+                out += [None] * counts[i]  # a static argument, never traced
+                continue
+            ct = next(it)
+            out += tree_flatten(ct)[0] if isinstance(ct, list | tuple | dict) else [ct]
+        if len(out) != sum(counts):
+            raise TypeError(f"{self.__name__}: bwd returned cotangents whose structure does not "
+                            "match the arguments")
+        return tuple(out)

@@ -103,10 +103,12 @@ def scan(f: Callable, init, xs, length: int | None = None) -> tuple:
     if not traced:
         return _scan_plain(f, init_rebuild, init_paths, init_vals, xs_rebuild, xs_vals, n)
     carry_vals = init_vals
+    xs_traced = [isinstance(v, Box) and _is_float(v._value) for v in xs_leaves]
     steps, ys_steps, y_rebuild = [], [], None
     for i in range(n):
         c_in = [Box(v) if _is_float(v) else v for v in carry_vals]
-        x_in = [Box(v[i]) if _is_float(v) else v[i] for v in xs_vals]
+        # only the slices of traced xs are traced: data stays plain (no tape, no VJP)
+        x_in = [Box(v[i]) if t else v[i] for v, t in zip(xs_vals, xs_traced)]
         frame: dict[int, Box] = {}
         FRAMES.append(frame)
         try:

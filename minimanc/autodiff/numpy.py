@@ -531,6 +531,11 @@ defvjp(ravel, _reshape_back)
 @primitive
 def expand_dims(x, axis):
     """Insert axes of size one at ``axis``."""
+    if isinstance(axis, int) and type(x) is np.ndarray:  # one axis: a reshape, no checks
+        n = x.ndim + 1
+        if -n <= axis < n:
+            a = axis % n
+            return x.reshape(x.shape[:a] + (1,) + x.shape[a:])
     return np.expand_dims(x, axis)
 
 
@@ -669,9 +674,27 @@ def concatenate(arrays, axis=0):
     return _concatenate(*arrays, axis=axis)
 
 
+def _stack_fn(*arrays, axis=0):
+    return np.stack(arrays, axis=axis)
+
+
+def _stack_fwd(*arrays, axis=0):
+    ans = np.stack(arrays, axis=axis)
+    return ans, axis % ans.ndim
+
+
+def _stack_bwd(g, axis):
+    return tuple(np.moveaxis(g, axis, 0))
+
+
+_stack_fn.__name__ = "stack"
+_stack = primitive(_stack_fn)
+defvjp_fwd(_stack, _stack_fwd, _stack_bwd)
+
+
 def stack(arrays, axis=0):
-    """Join a sequence of same-shape arrays along a new axis."""
-    return concatenate([expand_dims(asarray(a), axis) for a in arrays], axis=axis)
+    """Join a sequence of same-shape arrays along a new axis (one traced operation)."""
+    return _stack(*[a if isinstance(a, Box) else asarray(a) for a in arrays], axis=axis)
 
 
 def asarray(x, dtype=None):

@@ -9,6 +9,7 @@ sigmoid into the boxes :data:`~minimanc.dmp.params.ALPHA_RANGE` ×
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
@@ -16,6 +17,7 @@ import numpy as np
 from minimanc.checks import check_finite, check_positive, first_bad
 from minimanc.dmp.attractor import damping_ratio
 from minimanc.dmp.params import ALPHA_RANGE, BETA_RANGE
+from minimanc.engine import engine_of
 
 __all__ = [
     "gains_from_logits",
@@ -26,9 +28,34 @@ __all__ = [
 # --------------------------------------------------------------------------- learned gains
 
 
-def _sigmoid(z: Any, xp: Any) -> Any:
-    """Overflow-free logistic function, ``½ (1 + tanh(z / 2))``."""
-    return 0.5 * (1.0 + xp.tanh(0.5 * z))
+def _squash(z: Any, lo: float, hi: float, xp: Any) -> Any:
+    """``lo + (hi − lo) σ(z)`` with the overflow-free ``σ(z) = ½ (1 + tanh(z / 2))``."""
+    return lo + (hi - lo) * (0.5 * (1.0 + xp.tanh(0.5 * z)))
+
+
+def _squash_fwd(z, lo, hi, xp):
+    t = xp.tanh(0.5 * z)
+    return lo + (hi - lo) * (0.5 * (1.0 + t)), (t, z)
+
+
+def _squash_bwd(lo, hi, xp, res, g):
+    t, z = res
+    ct = g * ((0.25 * (hi - lo)) * (1.0 - t * t))  # d/dz ½(1 + tanh(z/2)) = ¼ (1 − tanh²)
+    dtype = getattr(z, "dtype", None)
+    return (ct if dtype is None or ct.dtype == dtype else ct.astype(dtype),)
+
+
+@functools.cache
+def _squash_for(eng: Any) -> Any:
+    f = eng.custom_vjp(_squash, nondiff_argnums=(1, 2, 3))
+    f.defvjp(_squash_fwd, _squash_bwd)
+    return f
+
+
+def _scaled_sigmoid(z: Any, lo: float, hi: float, xp: Any) -> Any:
+    """:func:`_squash` as one traced operation on the engine of ``xp`` (if it has one)."""
+    eng = engine_of(xp)
+    return _squash(z, lo, hi, xp) if eng is None else _squash_for(eng)(z, lo, hi, xp)
 
 
 def _check_range(name: str, rng: Any) -> tuple[float, float]:
@@ -62,12 +89,12 @@ def gains_from_logits(
     """
     a_lo, a_hi = _check_range("alpha_range", alpha_range)
     b_lo, b_hi = _check_range("beta_range", beta_range)
-    alpha = a_lo + (a_hi - a_lo) * _sigmoid(z_alpha, xp)
+    if not critically_damped and z_beta is None:
+        raise ValueError("z_beta=None is only allowed with critically_damped=True")
+    alpha = _scaled_sigmoid(z_alpha, a_lo, a_hi, xp)
     if critically_damped:
         return alpha, alpha / 4.0
-    if z_beta is None:
-        raise ValueError("z_beta=None is only allowed with critically_damped=True")
-    return alpha, b_lo + (b_hi - b_lo) * _sigmoid(z_beta, xp)
+    return alpha, _scaled_sigmoid(z_beta, b_lo, b_hi, xp)
 
 
 def logits_from_gains(

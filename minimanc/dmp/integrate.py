@@ -21,7 +21,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from minimanc.checks import check_finite_if_concrete, check_int, check_leading_axis, is_traced
-from minimanc.dmp.attractor import acceleration
+from minimanc.dmp.flow import flow, flow_for, force_times
 from minimanc.dmp.forcing import Forcing, canonical_system, check_tau, forcing_of_time
 from minimanc.dmp.params import (
     DEFAULT_METHOD,
@@ -32,6 +32,7 @@ from minimanc.dmp.params import (
     check_method,
 )
 from minimanc.dmp.stability import check_step_stability
+from minimanc.engine import engine_of
 
 __all__ = [
     "Rollout",
@@ -70,44 +71,23 @@ def _warn_negative_gains(alpha: Any, beta: Any, stacklevel: int) -> bool:
 
 
 
-def _substep(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, h: Any, method: str,
-             force: Any = None, t0: float = 0.0):
-    """One sub-step; ``force(t)`` (or None) is the forcing acceleration at local time ``t``."""
-    def f(t):
-        return None if force is None else force(t)
-
-    if method == "euler":
-        a = acceleration(y, dy, goal, alpha, beta, f(t0))
-        return y + h * dy, dy + h * a
-    if method == "semi_implicit":
-        dy_new = dy + h * acceleration(y, dy, goal, alpha, beta, f(t0))
-        return y + h * dy_new, dy_new
-    # classical RK4 on (y, ẏ); the forcing is evaluated at t0, t0 + h/2 and t0 + h
-    f_mid = f(t0 + 0.5 * h)
-    k1y, k1v = dy, acceleration(y, dy, goal, alpha, beta, f(t0))
-    y2, v2 = y + 0.5 * h * k1y, dy + 0.5 * h * k1v
-    k2y, k2v = v2, acceleration(y2, v2, goal, alpha, beta, f_mid)
-    y3, v3 = y + 0.5 * h * k2y, dy + 0.5 * h * k2v
-    k3y, k3v = v3, acceleration(y3, v3, goal, alpha, beta, f_mid)
-    y4, v4 = y + h * k3y, dy + h * k3v
-    k4y, k4v = v4, acceleration(y4, v4, goal, alpha, beta, f(t0 + h))
-    return (
-        y + (h / 6.0) * (k1y + 2.0 * k2y + 2.0 * k3y + k4y),
-        dy + (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
-    )
-
-
-def _step(y, dy, goal, alpha, beta, dt, method, substeps, force=None):
+def _step(y, dy, goal, alpha, beta, dt, method, substeps, force=None, xp=np):
     """One step without checks (the callers validated their arguments once).
 
     ``force(t)``, if given, is the forcing acceleration at time ``t`` ∈ [0, dt]
-    after the start of the step.
+    after the start of the step. With a concrete ``dt`` the sub-steps are one
+    function with a hand-written VJP (:func:`~minimanc.dmp.flow.flow_for`) of the
+    engine of ``xp``; a traced ``dt`` or another namespace takes them one by one.
     """
-    h = dt / substeps
-    y_next, dy_next = y, dy
-    for j in range(substeps):
-        y_next, dy_next = _substep(y_next, dy_next, goal, alpha, beta, h, method, force, j * h)
-    return y_next, dy_next, (dy_next - dy) / dt
+    forces = None
+    if force is not None:
+        forces = [force(t) for t in force_times(dt / substeps, method, substeps)]
+    eng = None if is_traced(dt) else engine_of(xp)
+    if eng is None:
+        return flow(y, dy, goal, alpha, beta, forces, dt, method, substeps)
+    if isinstance(dt, np.ndarray):  # a static argument must be hashable
+        dt = dt[()]
+    return flow_for(eng)(y, dy, goal, alpha, beta, forces, dt, method, substeps)
 
 
 def _check_call(method, substeps, dt, alpha, beta, allow_unstable, stacklevel):
@@ -156,11 +136,10 @@ def step(
     ``RuntimeWarning`` that the continuous system is unstable.  Traced
     gains (inside ``grad``/``jit``) are not checked.
     """
-    del xp  # arithmetic only
     method, substeps = _check_call(method, substeps, dt, alpha, beta, allow_unstable, 2)
     for name, value in (("y", y), ("dy", dy), ("goal", goal)):
         check_finite_if_concrete(name, value)
-    return _step(y, dy, goal, alpha, beta, dt, method, substeps)
+    return _step(y, dy, goal, alpha, beta, dt, method, substeps, xp=xp)
 
 
 def rollout(
@@ -246,7 +225,7 @@ def rollout(
         force = None
         if forcing is not None:
             force = forcing_of_time(forcing, float(x_steps[k]), tau, g_k, y0, gate, xp)
-        y, dy, ddy = _step(y, dy, g_k, a_k, b_k, dt, method, substeps, force)
+        y, dy, ddy = _step(y, dy, g_k, a_k, b_k, dt, method, substeps, force, xp)
         ys.append(y)
         dys.append(dy)
         ddys.append(ddy)

@@ -1,0 +1,235 @@
+"""Chapter 3 — one step of eq. (10) as one differentiable function: the sub-steps and their VJP.
+
+A step of ``dt`` seconds runs ``n`` sub-steps of ``h = dt / n`` of one of the
+integrators of :data:`~minimanc.dmp.params.METHODS` on the state ``(y, ẏ)``
+with the acceleration of eq. (10), ``a = α (β (g − y) − ẏ) + F`` (``F`` the
+forcing acceleration of eq. 1 divided by ``τ``, zero without forcing).
+
+For fixed gains a sub-step is linear in ``(y, ẏ, g, F)``, and the gains enter
+bilinearly, through ``α·(β (g − y) − ẏ)``. The reverse pass therefore runs the
+sub-steps backwards with the transposed linear map, and each evaluation of the
+acceleration at a stage state ``(y_s, ẏ_s)`` with cotangent ``ā`` adds
+
+* ``ā · (β (g − y_s) − ẏ_s)`` to ``ᾱ``, ``ā · α (g − y_s)`` to ``β̄``,
+* ``ā · αβ`` to ``ḡ`` and ``ā`` to the forcing value's cotangent,
+* ``−ā·αβ`` to ``ȳ_s`` and ``−ā·α`` to the stage velocity's.
+
+:data:`flow` is built with an engine's ``custom_vjp`` (``jax.custom_vjp``'s API,
+:attr:`minimanc.engine.Engine.custom_vjp`): on the NumPy engine the whole step is
+one node of the tape instead of ~8 per sub-step, and on JAX the same forward and
+backward are compiled. The forward, backward and sub-step use arithmetic only, so
+they run on NumPy and JAX arrays alike.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+from minimanc.dmp.attractor import acceleration
+
+__all__ = ["flow", "flow_for", "force_times", "substep"]
+
+
+def substep(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, h: float, method: str,
+            f0: Any = None, f_mid: Any = None, f1: Any = None) -> tuple[Any, Any]:
+    """One sub-step of length ``h`` of ``method``; ``f0``, ``f_mid``, ``f1`` are the forcing
+    accelerations at the start, the middle and the end of the sub-step (``None``: none).
+
+    * ``"euler"``: ``y ← y + h ẏ``, ``ẏ ← ẏ + h a(y, ẏ)``;
+    * ``"semi_implicit"``: ``ẏ ← ẏ + h a(y, ẏ)``, then ``y ← y + h ẏ`` (new ẏ);
+    * ``"rk4"``: classical Runge–Kutta on ``(y, ẏ)`` (uses all three forcing values).
+
+    Parameters
+    ----------
+    y, dy : array, shape (..., D)
+        Position and velocity at the start of the sub-step.
+    goal, alpha, beta : array or float
+        Goal and gains of eq. (10), broadcasting against ``y``.
+    h : float
+        Sub-step length in seconds.
+    method : str
+        One of :data:`~minimanc.dmp.params.METHODS`.
+
+    Returns
+    -------
+    y_next, dy_next : array, shape broadcast of the inputs
+    """
+    if method == "euler":
+        a = acceleration(y, dy, goal, alpha, beta, f0)
+        return y + h * dy, dy + h * a
+    if method == "semi_implicit":
+        dy_new = dy + h * acceleration(y, dy, goal, alpha, beta, f0)
+        return y + h * dy_new, dy_new
+    k1y, k1v = dy, acceleration(y, dy, goal, alpha, beta, f0)
+    y2, v2 = y + 0.5 * h * k1y, dy + 0.5 * h * k1v
+    k2y, k2v = v2, acceleration(y2, v2, goal, alpha, beta, f_mid)
+    y3, v3 = y + 0.5 * h * k2y, dy + 0.5 * h * k2v
+    k3y, k3v = v3, acceleration(y3, v3, goal, alpha, beta, f_mid)
+    y4, v4 = y + h * k3y, dy + h * k3v
+    k4y, k4v = v4, acceleration(y4, v4, goal, alpha, beta, f1)
+    return (
+        y + (h / 6.0) * (k1y + 2.0 * k2y + 2.0 * k3y + k4y),
+        dy + (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
+    )
+
+
+def force_times(h: float, method: str, n: int) -> list[float]:
+    """The times in ``[0, n h]`` at which a step evaluates the forcing term, in order.
+
+    ``j h`` for each sub-step ``j < n`` (explicit and semi-implicit Euler); with
+    RK4 ``j h``, ``j h + h/2`` and ``j h + h`` (start, middle and end of each).
+    """
+    if method == "rk4":
+        return [t for j in range(n) for t in (j * h, j * h + 0.5 * h, j * h + h)]
+    return [j * h for j in range(n)]
+
+
+def _forces(forces: Any, method: str, j: int) -> tuple[Any, Any, Any]:
+    """``(f0, f_mid, f1)`` of sub-step ``j`` from the values at :func:`force_times`."""
+    if forces is None:
+        return None, None, None
+    if method == "rk4":
+        return forces[3 * j], forces[3 * j + 1], forces[3 * j + 2]
+    return forces[j], None, None
+
+
+def _flow_plain(y, dy, goal, alpha, beta, forces, dt, method, n):
+    """``n`` sub-steps of :func:`substep` from ``(y, dy)``; ``forces`` as in :func:`_forces`."""
+    h = dt / n
+    y_j, v_j = y, dy
+    for j in range(n):
+        y_j, v_j = substep(y_j, v_j, goal, alpha, beta, h, method, *_forces(forces, method, j))
+    return y_j, v_j, (v_j - dy) / dt
+
+
+def _flow_fwd(y, dy, goal, alpha, beta, forces, dt, method, n):
+    h = dt / n
+    states = []
+    y_j, v_j = y, dy
+    for j in range(n):
+        states.append((y_j, v_j))
+        y_j, v_j = substep(y_j, v_j, goal, alpha, beta, h, method, *_forces(forces, method, j))
+    # the inputs themselves are kept for the shapes and dtypes of their cotangents
+    return (y_j, v_j, (v_j - dy) / dt), (states, y, dy, goal, alpha, beta, forces)
+
+
+def _sum_to(x: Any, g: Any) -> Any:
+    """The cotangent ``g`` summed over the axes along which ``x`` was broadcast."""
+    shape = tuple(getattr(x, "shape", ()))
+    if tuple(g.shape) != shape:
+        extra = g.ndim - len(shape)
+        if extra > 0:
+            g = g.sum(axis=tuple(range(extra)))
+        axes = tuple(i for i, s in enumerate(shape) if s == 1 and g.shape[i] != 1)
+        if axes:
+            g = g.sum(axis=axes, keepdims=True)
+    dtype = getattr(x, "dtype", None)
+    if dtype is not None and g.dtype != dtype:
+        g = g.astype(dtype)
+    return g
+
+
+def _acc_back(ga, ab, alpha, gy, gv):
+    """Cotangents of a stage state from that of the acceleration evaluated there."""
+    return gy - ab * ga, gv - alpha * ga
+
+
+def _flow_bwd(dt, method, n, res, g):
+    states, y0, dy0, goal, alpha, beta, forces = res
+    h = dt / n
+    gy, gv, g_ddy = g
+    g_ddy = g_ddy / dt  # ddy = (ẏ_n − ẏ_0) / dt
+    gv = gv + g_ddy
+    ab = alpha * beta
+    records = []  # (cotangent of an acceleration, its stage position, stage velocity, force k)
+    for j in range(n - 1, -1, -1):
+        y, v = states[j]
+        if method == "semi_implicit":
+            gv = gv + h * gy
+            ga = h * gv
+            records.append((ga, y, v, j))
+            gy, gv = _acc_back(ga, ab, alpha, gy, gv)
+        elif method == "euler":
+            ga = h * gv
+            records.append((ga, y, v, j))
+            gy, gv = _acc_back(ga, ab, alpha, gy, gv + h * gy)
+        else:
+            gy, gv = _rk4_back(gy, gv, y, v, goal, alpha, beta, ab, h, j, forces, records)
+    s_a = s_e = s_v = None  # Σ ā, Σ ā (g − y_s), Σ ā ẏ_s
+    g_forces = [None] * (0 if forces is None else len(forces))
+    for ga, y, v, k in records:
+        e = ga * (goal - y)
+        s_a = ga if s_a is None else s_a + ga
+        s_e = e if s_e is None else s_e + e
+        s_v = ga * v if s_v is None else s_v + ga * v
+        if forces is not None:
+            g_forces[k] = ga if g_forces[k] is None else g_forces[k] + ga
+    g_goal = ab * s_a
+    g_alpha = beta * s_e - s_v
+    g_beta = alpha * s_e
+    g_f = None if forces is None else type(forces)(
+        _sum_to(f, gk) for f, gk in zip(forces, g_forces))
+    return (_sum_to(y0, gy), _sum_to(dy0, gv - g_ddy), _sum_to(goal, g_goal),
+            _sum_to(alpha, g_alpha), _sum_to(beta, g_beta), g_f)
+
+
+def _rk4_back(gy, gv, y, v, goal, alpha, beta, ab, h, j, forces, records):
+    """Reverse of one RK4 sub-step (:func:`substep`), recording its four accelerations."""
+    f0, f_mid, f1 = _forces(forces, method="rk4", j=j)
+    k1v = acceleration(y, v, goal, alpha, beta, f0)
+    v2 = v + 0.5 * h * k1v
+    y2 = y + 0.5 * h * v
+    k2v = acceleration(y2, v2, goal, alpha, beta, f_mid)
+    y3, v3 = y + 0.5 * h * v2, v + 0.5 * h * k2v
+    k3v = acceleration(y3, v3, goal, alpha, beta, f_mid)
+    y4, v4 = y + h * v3, v + h * k3v
+    c1, c2 = h / 6.0, h / 3.0
+    g_v1, g_v2, g_v3, g_v4 = c1 * gy, c2 * gy, c2 * gy, c1 * gy  # y' = y + Σ c_i v_i
+    g_k1, g_k2, g_k3, g_k4 = c1 * gv, c2 * gv, c2 * gv, c1 * gv  # ẏ' = ẏ + Σ c_i k_i
+    gy_out, gv_out = gy, gv
+    # stage 4: k4 = a(y4, v4); y4 = y + h v3, v4 = v + h k3
+    records.append((g_k4, y4, v4, 3 * j + 2))
+    g_y4, g_v4 = _acc_back(g_k4, ab, alpha, 0.0, g_v4)
+    gy_out, g_v3 = gy_out + g_y4, g_v3 + h * g_y4
+    gv_out, g_k3 = gv_out + g_v4, g_k3 + h * g_v4
+    # stage 3: k3 = a(y3, v3); y3 = y + h/2 v2, v3 = v + h/2 k2
+    records.append((g_k3, y3, v3, 3 * j + 1))
+    g_y3, g_v3 = _acc_back(g_k3, ab, alpha, 0.0, g_v3)
+    gy_out, g_v2 = gy_out + g_y3, g_v2 + 0.5 * h * g_y3
+    gv_out, g_k2 = gv_out + g_v3, g_k2 + 0.5 * h * g_v3
+    # stage 2: k2 = a(y2, v2); y2 = y + h/2 v, v2 = v + h/2 k1
+    records.append((g_k2, y2, v2, 3 * j + 1))
+    g_y2, g_v2 = _acc_back(g_k2, ab, alpha, 0.0, g_v2)
+    gy_out, g_v1 = gy_out + g_y2, g_v1 + 0.5 * h * g_y2
+    gv_out, g_k1 = gv_out + g_v2, g_k1 + 0.5 * h * g_v2
+    # stage 1: k1 = a(y, v), v1 = v
+    records.append((g_k1, y, v, 3 * j))
+    gy_out, gv_out = _acc_back(g_k1, ab, alpha, gy_out, gv_out + g_v1)
+    return gy_out, gv_out
+
+
+@functools.cache
+def flow_for(eng: Any) -> Any:
+    """The step's sub-steps as one function with its VJP, built by ``eng.custom_vjp``.
+
+    ``flow_for(eng)(y, dy, goal, alpha, beta, forces, dt, method, n)`` returns
+    ``(y_next, dy_next, ddy)`` after ``n`` sub-steps of length ``h = dt / n``
+    (``dt`` concrete), ``ddy = (dy_next − dy) / dt``;
+    ``forces`` is ``None`` or a list (or tuple) of the forcing accelerations at
+    :func:`force_times`. The arguments broadcast as in :func:`substep`.
+    """
+    f = eng.custom_vjp(_flow_plain, nondiff_argnums=(6, 7, 8))
+    f.defvjp(_flow_fwd, _flow_bwd)
+    return f
+
+
+def flow(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, forces: Any, dt: Any,
+         method: str, n: int) -> tuple[Any, Any, Any]:
+    """:func:`substep` ``n`` times with ``h = dt / n``: ``(y_next, dy_next, ddy)``.
+
+    No custom VJP: any engine differentiates it operation by operation (with a
+    traced ``dt`` too); it is the reference the VJP of :func:`flow_for` is tested
+    against.
+    """
+    return _flow_plain(y, dy, goal, alpha, beta, forces, dt, method, n)
