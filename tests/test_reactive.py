@@ -131,3 +131,12 @@ def test_a_split_regenerates_from_its_scene_index(ds):
     _, val = ds.split(10)
     run = reactive.human(val, scenes=[0, 3])
     np.testing.assert_array_equal(run.ado_valid, val.ado_valid[[0, 3]])
+
+
+def test_simulate_protocol_dispatches_on_agents(ds):
+    rep = reactive.simulate_protocol(Still(), ds, "replay", scenes=[1], progress=False)
+    rea = reactive.simulate_protocol(Still(), ds, "reactive", scenes=[1], progress=False)
+    assert not isinstance(rep, reactive.ReactiveRollout) and rea.agents == "reactive"
+    np.testing.assert_array_equal(rep.ego, rea.ego)  # a still ego does not see the ados
+    with pytest.raises(ValueError, match="agents"):
+        reactive.simulate_protocol(Still(), ds, "ghost", progress=False)

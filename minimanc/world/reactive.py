@@ -64,6 +64,7 @@ __all__ = [
     "record_human",
     "scene_key",
     "scene_stream",
+    "simulate_protocol",
     "simulate_reactive",
     "start_run",
 ]
@@ -467,3 +468,20 @@ def human(ds: Any, scenes: Any = None, progress: bool = False) -> ReactiveRollou
                              desc="reactive closed loop human")
     traj.name = "human"
     return traj
+
+
+def simulate_protocol(policy: Policy, ds: Any, agents: str = "replay", scenes: Any = None,
+                      batch_size: int | None = None, steps: int | None = None,
+                      progress: bool = True, desc: str | None = None) -> Rollout:
+    """Closed loop of ``policy`` on ``ds`` under the protocol ``agents`` (:data:`AGENTS`):
+    ``"replay"`` is :func:`minimanc.rollout.simulate` (the paper's), ``"reactive"`` is
+    :func:`simulate_reactive`; the other arguments are theirs."""
+    if agents == "replay":
+        from minimanc.rollout import simulate
+
+        return simulate(policy, ds, scenes=scenes, batch_size=batch_size, steps=steps,
+                        progress=progress, desc=desc)
+    if agents == "reactive":
+        return simulate_reactive(policy, ds, scenes=scenes, batch_size=batch_size, steps=steps,
+                                 progress=progress, desc=desc)
+    raise ValueError(f"agents must be one of {AGENTS}; got agents={agents!r}")
