@@ -1,0 +1,242 @@
+"""Chapter 9 — the paper's protocol on the log: :class:`LogReplay` (the ego moves by the
+unicycle, the ados replay their logged boxes), :func:`simulate` (a policy on many scenes, in
+batches), :class:`Rollout` (the trajectories and what the model showed) and :func:`human`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from minimanc import inputs
+from minimanc.checks import check_int
+from minimanc.rollout.driver import Policy, SceneState, drive
+from minimanc.world.geometry import DT, unicycle_step
+
+__all__ = ["BATCH_SIZE", "LogReplay", "Rollout", "check_dataset", "human", "k_targets_of",
+           "raster_config", "scene_index", "simulate"]
+
+BATCH_SIZE: int = 8
+"""Default number of scenes driven together (see :func:`simulate`)."""
+
+
+@dataclass
+class Rollout:
+    """A batch of closed-loop (or replayed) trajectories.
+
+    ``ego (S, T, 3)`` world poses with ``ego[:, 0]`` the logged start;
+    ``controls (S, T−1, 2)`` the ``[speed, yaw rate]`` applied from ``t`` to
+    ``t + 1``; ``aux[key] (S, T−1, ...)`` the model outputs at each decision
+    (keys of :data:`AUX_KEYS` the model returned); ``scenes (S,)`` the
+    dataset indices of the rows.
+    """
+
+    name: str
+    setting: str
+    ego: np.ndarray
+    controls: np.ndarray
+    aux: dict[str, np.ndarray] = field(default_factory=dict)
+    scenes: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.ego = np.asarray(self.ego, dtype=np.float64)
+        self.controls = np.asarray(self.controls, dtype=np.float64)
+        if self.ego.ndim != 3 or self.ego.shape[-1] != 3:
+            raise ValueError(f"ego must have shape (S, T, 3); got shape {self.ego.shape}")
+        S, T = self.ego.shape[:2]
+        if self.controls.shape != (S, T - 1, 2):
+            raise ValueError(
+                f"controls must have shape ({S}, {T - 1}, 2); got shape {self.controls.shape}"
+            )
+        if self.scenes is None:
+            self.scenes = np.arange(S)
+        self.scenes = np.asarray(self.scenes, dtype=np.int64)
+        if self.scenes.shape != (S,):
+            raise ValueError(f"scenes must have shape ({S},); got shape {self.scenes.shape}")
+
+    def __len__(self) -> int:
+        return self.ego.shape[0]
+
+    def save(self, path: str | Path) -> Path:
+        """Write to ``path`` (``.npz``), atomically (temporary file, then rename)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".tmp.npz")
+        arrays = {f"aux_{k}": v for k, v in self.aux.items()}
+        np.savez_compressed(tmp, name=np.array(self.name), setting=np.array(self.setting),
+                            ego=self.ego, controls=self.controls, scenes=self.scenes, **arrays)
+        tmp.replace(path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Rollout:
+        """Read a rollout written by :meth:`save`."""
+        with np.load(Path(path), allow_pickle=False) as z:
+            aux = {k[4:]: z[k] for k in z.files if k.startswith("aux_")}
+            return cls(str(z["name"]), str(z["setting"]), z["ego"], z["controls"], aux,
+                       z["scenes"])
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def check_dataset(ds: Any) -> tuple[int, int]:
+    """The dataset's ``(S, T)``, or ValueError naming what it lacks."""
+    for key in ("ego", "controls", "ado", "ado_valid", "maps"):
+        if not hasattr(ds, key):
+            raise ValueError(f"ds must be a minimanc.world dataset with .{key}; got {type(ds)!r}")
+    ego = np.asarray(ds.ego)
+    if ego.ndim != 3 or ego.shape[-1] != 3 or ego.shape[1] < 2:
+        raise ValueError(f"ds.ego must have shape (S, T >= 2, 3); got shape {ego.shape}")
+    return ego.shape[0], ego.shape[1]
+
+
+def scene_index(scenes: Any, S: int) -> np.ndarray:
+    """``scenes`` as dataset indices ``(B,)`` in ``[0, S)`` (default: all)."""
+    if scenes is None:
+        return np.arange(S)
+    idx = np.asarray(scenes)
+    if idx.ndim == 0:
+        idx = idx[None]
+    if idx.ndim != 1 or idx.size == 0 or not np.issubdtype(idx.dtype, np.integer):
+        raise ValueError(f"scenes must be a non-empty 1-D array of integers; got scenes={scenes!r}")
+    if idx.min() < 0 or idx.max() >= S:
+        raise ValueError(f"scenes must lie in [0, {S}); got scenes={scenes!r}")
+    return idx.astype(np.int64)
+
+
+def raster_config(ds: Any) -> Any:
+    """The :class:`minimanc.world.RasterConfig` the dataset was drawn with."""
+    cfg = getattr(ds, "raster", None)
+    if cfg is None:
+        from minimanc import world
+
+        cfg = world.RasterConfig(size=int(np.asarray(ds.bev).shape[2]))
+    return cfg
+
+
+def k_targets_of(ds: Any) -> int | None:
+    """The dataset's number of lane-target points (``None``: unknown)."""
+    lt = getattr(ds, "lane_target", None)
+    return None if lt is None else int(np.asarray(lt).shape[2])
+
+
+def human(ds: Any, scenes: Any = None) -> Rollout:
+    """The logged human ego as a :class:`Rollout` (Table I's "Human" row).
+
+    Its controls are the logged ones from ``t`` to ``t + 1``; replaying them
+    with the unicycle reproduces ``ds.ego`` (the world's logging rule).
+    """
+    S, T = check_dataset(ds)
+    idx = scene_index(scenes, S)
+    ego = np.asarray(ds.ego, dtype=np.float64)[idx]
+    controls = np.asarray(ds.controls, dtype=np.float64)[idx, : T - 1]
+    return Rollout("human", "log", ego, controls, {}, idx)
+
+
+class LogReplay:
+    """The chapter-9 log as a :class:`Simulator`: the ego moves by the unicycle, the ados
+    replay their logged boxes on the log's clock.
+
+    ``ds`` a :mod:`minimanc.world` dataset, ``scenes`` the dataset indices of the
+    batch rows (default: all). The ego starts at the logged pose ``ego[:, 0]``
+    with the logged initial speed (:func:`minimanc.inputs.initial_motion`); the
+    goal is the human's final pose; a step is one explicit-Euler unicycle step
+    of ``DT`` (:func:`minimanc.world.unicycle_step`). :meth:`trajectory` gives
+    the poses so far, ``(B, t + 1, 3)``.
+
+    With ``follow_log=True`` the ego ignores the controls and moves along its
+    logged poses; ``step`` then returns the logged motion (the human's control,
+    :func:`minimanc.inputs.motion_at`), so the policy sees exactly the log's
+    observations (open loop; :func:`replay`). Such a replay may run all ``T``
+    steps: after the last one the ego stays at its final logged pose.
+    """
+
+    def __init__(self, ds: Any, scenes: Any = None, follow_log: bool = False) -> None:
+        S, self.T = check_dataset(ds)
+        self.follow_log = bool(follow_log)
+        self._ds = ds
+        self.scenes = scene_index(scenes, S)
+        self.raster = raster_config(ds)
+        self.k_targets = k_targets_of(ds)
+        ego = np.asarray(ds.ego, dtype=np.float64)[self.scenes]
+        self._start, self._goal = ego[:, 0], ego[:, -1]
+        self._motion0 = inputs.initial_motion(ds)[self.scenes]
+        self._maps = [ds.maps[s] for s in self.scenes]
+        self._ado, self._ado_valid = np.asarray(ds.ado), np.asarray(ds.ado_valid)
+        self._poses: list[np.ndarray] = []
+
+    def reset(self) -> np.ndarray:
+        self._poses = [self._start]
+        return self._motion0
+
+    def observe(self) -> SceneState:
+        t = len(self._poses) - 1
+        if t >= self.T:
+            raise ValueError(f"the log has {self.T} steps; no observation at step {t}")
+        return SceneState(self._maps, self._poses[-1], self._ado[self.scenes, t],
+                          self._ado_valid[self.scenes, t], self._goal)
+
+    def step(self, controls: np.ndarray) -> np.ndarray | None:
+        if not self.follow_log:
+            self._poses.append(unicycle_step(self._poses[-1], controls, DT))
+            return None
+        t = len(self._poses) - 1
+        if t + 1 >= self.T:  # the log ends: stay at its last pose
+            return np.asarray(controls, dtype=np.float32)
+        self._poses.append(np.asarray(self._ds.ego, dtype=np.float64)[self.scenes, t + 1])
+        return inputs.motion_at(self._ds, self.scenes, np.full(len(self.scenes), t + 1))
+
+    def trajectory(self) -> np.ndarray:
+        return np.stack(self._poses, axis=1)
+
+
+def simulate(
+    policy: Policy,
+    ds: Any,
+    scenes: Any = None,
+    batch_size: int | None = None,
+    steps: int | None = None,
+    progress: bool = True,
+    desc: str | None = None,
+) -> Rollout:
+    """Run ``policy`` in closed loop on the scenes ``scenes`` of ``ds`` (default: all).
+
+    Scenes are processed ``batch_size`` at a time (default
+    :data:`BATCH_SIZE` = 8: the world keeps the class grids of 8 maps cached,
+    and a larger batch would rebuild every grid at every step); a row's
+    result does not depend on the batch it is in.  ``steps`` limits the
+    number of decisions (default ``T − 1``, the whole log).  Each batch is
+    :func:`drive` in a :class:`LogReplay`; see the module docstring for what
+    one step does.
+    """
+    S_all, T = check_dataset(ds)
+    idx = scene_index(scenes, S_all)
+    n_steps = T - 1 if steps is None else int(steps)
+    if not 1 <= n_steps <= T - 1:
+        raise ValueError(f"steps must lie in [1, {T - 1}]; got steps={steps!r}")
+    bs = BATCH_SIZE if batch_size is None else check_int("batch_size", batch_size, 1)
+
+    chunks = [idx[i: i + bs] for i in range(0, len(idx), bs)]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(chunks) * n_steps, desc=desc or f"closed loop {policy.model}",
+                   unit="step", leave=False)
+    egos, ctrls, auxs = [], [], []
+    for chunk in chunks:
+        sim = LogReplay(ds, chunk)
+        run = drive(policy, sim, n_steps, None if bar is None else lambda t: bar.update(1))
+        egos.append(sim.trajectory())
+        ctrls.append(run.controls)
+        auxs.append(run.aux)
+    if bar is not None:
+        bar.close()
+    aux_all = {k_: np.concatenate([a[k_] for a in auxs]) for k_ in auxs[0]
+               if all(k_ in a for a in auxs)}
+    name = policy.model or "policy"
+    return Rollout(name, policy.setting, np.concatenate(egos), np.concatenate(ctrls),
+                   aux_all, idx)

@@ -1,0 +1,211 @@
+"""Chapter 9 — the drivers: a trained model (:class:`ModelPolicy`, :func:`closed_loop`, and
+:func:`replay`, its open-loop trace on the log) and the DMP head at constant gains
+(:class:`FixedGainsPolicy`, :func:`fixed_gains`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from minimanc.checks import check_int
+from minimanc.rollout.driver import AUX_KEYS, drive
+from minimanc.rollout.log import LogReplay, Rollout, check_dataset, scene_index, simulate
+
+__all__ = ["FixedGainsPolicy", "ModelPolicy", "closed_loop", "fixed_gains", "replay"]
+
+
+class ModelPolicy:
+    """A :mod:`minimanc.models` controller as a :class:`Policy`.
+
+    ``params`` from :func:`minimanc.train.fit`; ``cfg`` its
+    :class:`~minimanc.models.ModelConfig` (its ``setting`` decides what the
+    model sees); ``eng`` an engine (``"jax"`` jits the step once per batch
+    size, unless ``jit=False``). The recurrent state starts as
+    :func:`minimanc.models.initial_state` with ``q_init`` ("uniform",
+    Algorithm 1's ``UniformInit``, or "random" with ``seed``: one generator per
+    scene, so that a row does not depend on its batch), or as ``initial`` (the
+    state of one row, repeated for every row) when given, and is carried over
+    between steps. Parameters and observations are cast to ``dtype``; the aux
+    outputs come back in it.
+    """
+
+    def __init__(self, name: str, params: dict, cfg: Any, eng: Any,
+                 q_init: str = "uniform", seed: int = 0, dtype: Any = np.float32,
+                 initial: dict | None = None, jit: bool = True) -> None:
+        from minimanc import models
+        from minimanc.models.forward import cast_tree
+
+        models.check_name(name)
+        if q_init not in ("uniform", "random"):
+            raise ValueError(f"q_init must be 'uniform' or 'random'; got q_init={q_init!r}")
+        if isinstance(eng, str):
+            from minimanc import engine
+
+            eng = engine(eng)
+        self.model = name
+        self.setting = cfg.setting
+        self.cfg = cfg
+        self.eng = eng
+        self.q_init = q_init
+        self.seed = int(seed)
+        self.dtype = dtype
+        self.initial = initial
+        self.params = cast_tree(params, dtype)
+
+        def _fn(p: dict, obs: dict, state: dict) -> tuple[Any, dict, dict]:
+            u, new_state, aux = models.step(name, p, obs, state, cfg, eng)
+            aux = {k: v for k, v in aux.items() if k in AUX_KEYS}
+            return u, new_state, aux
+
+        self._step = eng.jit(_fn) if jit else _fn  # jit is the identity on the NumPy engine
+
+    def initial_state(self, scenes: np.ndarray) -> dict:
+        from minimanc import models
+
+        if self.initial is not None:
+            return {k: self.eng.xp.asarray(np.repeat(np.asarray(v), len(scenes), axis=0))
+                    for k, v in self.initial.items()}
+        if self.q_init == "uniform" or models.spec(self.model).family != "vagn":
+            return models.initial_state(self.model, len(scenes), self.cfg, xp=self.eng.xp,
+                                        dtype=self.dtype)
+        rows = [np.asarray(models.initial_state(
+            self.model, 1, self.cfg, rng=np.random.default_rng([self.seed, int(s)]),
+            mode="random", dtype=self.dtype)["q"]) for s in scenes]
+        return {"q": self.eng.xp.asarray(np.concatenate(rows))}
+
+    def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
+                 ) -> tuple[np.ndarray, Any, dict]:
+        obs = {k: np.asarray(v, dtype=self.dtype) for k, v in obs.items()}
+        u, state, aux = self._step(self.params, obs, state)
+        return (np.asarray(_value(u), dtype=np.float64), state,
+                {k: np.asarray(_value(v)) for k, v in aux.items()})
+
+
+def _value(x: Any) -> Any:
+    return getattr(x, "_value", getattr(x, "value", x))
+
+
+def replay(name: str, params: dict, ds: Any, scene: int, cfg: Any = None, eng: Any = None,
+           q_mode: str = "uniform") -> dict:
+    """Open-loop trace of one logged scene: :func:`drive` in a :class:`LogReplay` that follows
+    the log, so that the model sees the human's observations step by step while its
+    recurrent state carries over (q for vAGN models).
+
+    Parameters
+    ----------
+    name : str
+        A registered model.
+    params : dict
+        Its parameters; the model runs in their dtype.
+    ds : dataset
+        A :mod:`minimanc.world` dataset.
+    scene : int
+        The scene index.
+    cfg : ModelConfig, optional
+    eng : Engine or str, optional
+        Default: the NumPy engine. The step is not jitted.
+    q_mode : str
+        The initial q of vAGN models: "uniform", or "random" (one ``RandomInit`` draw
+        from ``numpy.random.default_rng(0)``).
+
+    Returns
+    -------
+    dict
+        NumPy arrays over the ``T`` steps, in the parameters' dtype: ``controls``
+        ``(T, 2)`` and, where the model has them, ``q`` ``(T, N)``, ``alpha``/``beta``
+        ``(T, 2)``, ``predicates`` ``(T, M)``; and ``human`` ``(T, 2)`` float64, the
+        logged controls.
+    """
+    from minimanc import engine as _engine
+    from minimanc import models
+    from minimanc.tree import leaves
+
+    name = models.check_name(name)
+    cfg = cfg or models.ModelConfig()
+    eng = _engine(eng) if isinstance(eng, str) else (eng or _engine("numpy"))
+    S, T = check_dataset(ds)
+    idx = scene_index(check_int("scene", scene, 0), S)
+    if q_mode not in ("uniform", "random"):
+        raise ValueError(f"q_mode must be 'uniform' or 'random'; got q_mode={q_mode!r}")
+    dtype = np.asarray(_value(leaves(params)[0])).dtype
+    rng = None if q_mode == "uniform" else np.random.default_rng(0)
+    start = models.initial_state(name, 1, cfg, xp=np, rng=rng, mode=q_mode)
+    policy = ModelPolicy(name, params, cfg, eng, dtype=dtype, initial=start, jit=False)
+    run = drive(policy, LogReplay(ds, idx, follow_log=True), T)
+    out = {"controls": run.controls[0].astype(dtype)}
+    out.update({k: v[0] for k, v in run.aux.items()})
+    out["human"] = np.asarray(ds.controls[int(scene)], dtype=np.float64)
+    return out
+
+
+def closed_loop(
+    name: str,
+    params: dict,
+    ds: Any,
+    cfg: Any,
+    eng: Any = "jax",
+    setting: str | None = None,
+    scenes: Any = None,
+    batch_size: int | None = None,
+    q_init: str = "uniform",
+    seed: int = 0,
+    steps: int | None = None,
+    progress: bool = True,
+) -> Rollout:
+    """Closed-loop rollout of model ``name`` on the scenes of ``ds`` (see the module docstring).
+
+    ``setting`` overrides ``cfg.setting`` only if they agree (a model trained
+    in one information setting cannot be run in the other: its inputs
+    differ); the rest as in :class:`ModelPolicy` and :func:`simulate`.
+    """
+    if setting is not None and setting != cfg.setting:
+        raise ValueError(
+            f"setting={setting!r} differs from cfg.setting={cfg.setting!r}: a model is run in "
+            "the information setting it was trained in"
+        )
+    policy = ModelPolicy(name, params, cfg, eng, q_init=q_init, seed=seed)
+    return simulate(policy, ds, scenes=scenes, batch_size=batch_size, steps=steps,
+                    progress=progress, desc=f"closed loop {name} ({cfg.setting})")
+
+
+class FixedGainsPolicy:
+    """The DMP head of MANC (:func:`minimanc.models.dmp_head`, eqs. 10–11) at constant gains.
+
+    No CNN, no vAGN: every step makes one DMP step towards the lane target
+    from the current motion with the same ``gains = (α_y, β_y, α_q, β_q)``
+    (default :data:`minimanc.models.DEFAULT_GAINS`, the gains MANC starts
+    training from). It reads only the lane target and its own motion, so no
+    BEV is drawn.
+    """
+
+    model = "dmp_only"
+    setting = "paper"
+    keys = ("lane_target", "motion")
+
+    def __init__(self, cfg: Any = None, gains: Any = None) -> None:
+        from minimanc import models
+
+        self.cfg = cfg or models.ModelConfig()
+        self.logits = models.gain_logits(models.DEFAULT_GAINS if gains is None else gains)
+
+    def initial_state(self, scenes: np.ndarray) -> None:
+        return None
+
+    def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
+                 ) -> tuple[np.ndarray, Any, dict]:
+        from minimanc import models
+
+        logits = np.tile(self.logits, (len(scenes), 1))
+        u, aux = models.dmp_head(logits, np.asarray(obs["lane_target"], np.float64),
+                                 np.asarray(obs["motion"], np.float64), self.cfg)
+        return np.asarray(u), state, {"alpha": aux["alpha"], "beta": aux["beta"]}
+
+
+def fixed_gains(ds: Any, scenes: Any = None, cfg: Any = None, gains: Any = None,
+                progress: bool = False) -> Rollout:
+    """Closed loop of :class:`FixedGainsPolicy` on ``ds`` (the "DMP prior" reference)."""
+    policy = FixedGainsPolicy(cfg, gains)
+    traj = simulate(policy, ds, scenes=scenes, progress=progress, desc="closed loop DMP prior")
+    traj.name = "dmp_prior"
+    return traj
