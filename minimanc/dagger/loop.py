@@ -1,0 +1,321 @@
+"""Chapter 11 — the DAgger loop with checkpoints per round, behaviour cloning at the same
+label budget, and the metric-vs-round figure (see :mod:`minimanc.dagger`)."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from minimanc.checks import check_int
+from minimanc.dagger.aggregate import Collected, collect, concat
+from minimanc.dagger.schedule import Budget, beta_schedule, check_beta, plan_budget
+from minimanc.dagger.teachers import SIMS, Teacher
+from minimanc.rollout import ModelPolicy
+from minimanc.world.scenes import Dataset
+
+__all__ = ["ROUND_FILE", "DaggerResult", "RoundResult", "behaviour_cloning", "dagger",
+           "plot_rounds", "round_dir"]
+
+ROUND_FILE = "round.json"
+"""The file that marks a round as complete (written last, atomically)."""
+
+
+# --------------------------------------------------------------------------- the loop
+
+
+@dataclass
+class RoundResult:
+    """One round: ``round`` (0 = BC), ``beta``, ``scenes`` the pool scenes it added,
+    ``kept`` the ones aggregated, ``labelled`` samples labelled so far (rounds
+    ``0 … round``), ``samples`` in the aggregate it trained on, ``expert_share``,
+    ``refusals``, ``metrics`` of :meth:`Teacher.evaluate`, ``history`` the training
+    losses, ``seconds`` the wall time, ``loaded`` whether it came from a checkpoint."""
+
+    round: int
+    beta: float
+    scenes: list[int]
+    kept: list[int]
+    labelled: int
+    samples: int
+    expert_share: float
+    metrics: dict[str, float]
+    history: list[float]
+    seconds: float
+    refusals: list[str] = field(default_factory=list)
+    loaded: bool = False
+
+    def to_json(self) -> dict:
+        d = asdict(self)
+        d.pop("loaded")
+        return d
+
+
+@dataclass
+class DaggerResult:
+    """What :func:`dagger` returns: the :class:`RoundResult` of every round, the
+    :class:`Budget`, the final parameters and the configuration it ran with."""
+
+    name: str
+    rounds: list[RoundResult]
+    budget: Budget
+    params: dict
+    cfg: Any
+    train_cfg: Any
+    params_per_round: list[dict] = field(default_factory=list)
+
+    def table(self, keys: Sequence[str] = ("ade", "collision_rate")) -> str:
+        """A markdown table: one row per round (β, labelled samples, metrics)."""
+        head = "| round | beta | labelled | samples | " + " | ".join(keys) + " |"
+        rows = [head, "|" + "---|" * (4 + len(keys))]
+        for r in self.rounds:
+            vals = " | ".join(f"{r.metrics[k]:.2f}" if k in r.metrics else "-" for k in keys)
+            rows.append(f"| {r.round} | {r.beta:.3f} | {r.labelled} | {r.samples} | {vals} |")
+        return "\n".join(rows)
+
+
+def round_dir(out: str | os.PathLike, i: int) -> Path:
+    """The folder of round ``i`` under ``out``: ``out/round_<i:03d>``."""
+    return Path(out) / f"round_{check_int('i', i, 0):03d}"
+
+
+def _atomic_json(path: Path, obj: dict) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(obj, indent=1, sort_keys=True))
+    os.replace(tmp, path)
+
+
+def _fingerprint(name: str, teacher: Teacher, budget: Budget, betas: list[float], cfg: Any,
+                 tc: Any, seed: int, engine: str) -> dict:
+    return {"model": name, "sim": teacher.name, "agents": getattr(teacher, "agents", None),
+            "pool": len(teacher.pool), "pool_seed": teacher.pool.meta.get("seed"),
+            "steps": budget.steps,
+            "betas": betas, "cfg": asdict(cfg), "train_cfg": asdict(tc), "seed": int(seed),
+            "engine": engine}
+
+
+def _check_common(name: Any, teacher: Any, engine: Any) -> tuple[str, str]:
+    from minimanc import models
+    from minimanc.engine import ENGINES
+
+    name = models.check_name(name)
+    if getattr(teacher, "name", None) not in SIMS or not hasattr(teacher, "label"):
+        raise ValueError(f"teacher must be a WorldTeacher or HighwayTeacher, got {teacher!r}")
+    eng_name = engine if isinstance(engine, str) else getattr(engine, "name", None)
+    if eng_name not in ENGINES:
+        raise ValueError(f"engine must be one of {ENGINES}, got engine={engine!r}")
+    return name, eng_name
+
+
+def _order(n: int, seed: int) -> np.ndarray:
+    """The pool's scene order of a study: one seeded permutation shared by BC and DAgger."""
+    return np.random.default_rng([int(seed), 11]).permutation(n)
+
+
+def _budget_for(teacher: Teacher, budget: int | Budget, rounds: int) -> Budget:
+    T = teacher.pool.n_steps
+    b = budget if isinstance(budget, Budget) else plan_budget(check_int("budget", budget, 1),
+                                                              T, rounds)
+    if not isinstance(b, Budget) or b.steps != T or b.rounds != rounds:
+        raise ValueError(f"budget plans {b.rounds} rounds of {b.steps}-step scenes; the pool's "
+                         f"scenes have {T} steps and {rounds} rounds are asked")
+    if b.scenes > len(teacher.pool):
+        raise ValueError(f"budget needs {b.scenes} scenes but the pool holds {len(teacher.pool)}")
+    return b
+
+
+def _train(name: str, data: Dataset, cfg: Any, tc: Any, engine: Any, where: Path | None,
+           progress: bool) -> Any:
+    from minimanc import train
+
+    return train.fit(name, data, cfg, tc, engine=engine, checkpoint_dir=where,
+                     resume=where is not None, progress=progress)
+
+
+def _load_round(where: Path, fp: dict) -> tuple[RoundResult, dict] | None:
+    f = where / ROUND_FILE
+    if not f.exists():
+        return None
+    saved = json.loads(f.read_text())
+    if saved.get("fingerprint") != json.loads(json.dumps(fp)):
+        raise ValueError(f"{where} holds a round of another configuration; use another out "
+                         "directory or delete it")
+    from minimanc import train
+
+    res = train.load(where / "checkpoint.npz")
+    r = RoundResult(**saved["result"], loaded=True)
+    return r, res.params
+
+
+def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
+           beta: float | Sequence[float] = 0.5, cfg: Any = None, train_cfg: Any = None,
+           engine: Any = "jax", out: str | os.PathLike | None = None, seed: int = 0,
+           progress: bool = True, evaluate: bool = True,
+           on_round: Callable[[RoundResult], None] | None = None) -> DaggerResult:
+    """DAgger for model ``name`` (any of :data:`minimanc.models.MODEL_NAMES`) with ``teacher``.
+
+    ``budget`` the expert-labelled samples (an int for :func:`plan_budget` over
+    ``rounds``, or a :class:`Budget`); ``rounds ≥ 1`` DAgger rounds after round 0
+    (BC); ``beta`` the ``p`` of :func:`beta_schedule`, or the list of ``rounds + 1``
+    weights itself (``β_0`` must be 1); ``cfg`` / ``train_cfg`` the model's
+    :class:`~minimanc.models.ModelConfig` (default: the pool's image size) and
+    :class:`~minimanc.train.TrainConfig`, used for every round (each trains from the
+    same initialisation on the aggregate); ``engine`` "jax" or "numpy"; ``out`` the
+    checkpoint folder (see the module docstring); ``seed`` the scene order and the
+    mixture's coins (round ``i`` draws from ``default_rng([seed, i])``);
+    ``evaluate`` runs :meth:`Teacher.evaluate` after each round; ``on_round`` is
+    called with each finished round.
+    """
+    from minimanc import models, train
+
+    name, eng_name = _check_common(name, teacher, engine)
+    rounds = check_int("rounds", rounds, 1)
+    if isinstance(beta, Sequence) and not isinstance(beta, str):
+        betas = [check_beta(b, f"beta[{i}]") for i, b in enumerate(beta)]
+        if len(betas) != rounds + 1 or betas[0] != 1.0:
+            raise ValueError(f"beta as a schedule must hold rounds + 1 = {rounds + 1} weights "
+                             f"starting with 1.0 (round 0 is BC), got beta={list(beta)!r}")
+    else:
+        betas = beta_schedule(check_beta(beta), rounds)
+    plan = _budget_for(teacher, budget, rounds)
+    pool = teacher.pool
+    size = int(np.asarray(pool.bev).shape[2])
+    cfg = cfg or models.ModelConfig(image_size=size)
+    tc = train_cfg or train.TrainConfig()
+    seed = check_int("seed", seed, 0)
+    order = _order(len(pool), seed)
+    fp = _fingerprint(name, teacher, plan, betas[:1], cfg, tc, seed, eng_name)
+    results: list[RoundResult] = []
+    per_round: list[dict] = []
+    parts: list[Dataset] = []
+    params = None
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=rounds + 1, desc=f"dagger {name}", unit="round")
+    try:
+        for i in range(rounds + 1):
+            t0 = time.perf_counter()
+            a, b = plan.round_scenes(i)
+            scenes = order[a:b]
+            where = None if out is None else round_dir(out, i)
+            fp_i = {**fp, "betas": betas[:i + 1],
+                    "round_plan": [plan.initial, *plan.per_round[:i]]}
+            loaded = _load_round(where, fp_i) if where is not None else None
+            if where is not None:
+                where.mkdir(parents=True, exist_ok=True)
+            if i == 0:
+                new = pool.subset(np.sort(scenes))
+                col = Collected(new, scenes, np.sort(scenes), int(len(scenes) * plan.steps), 1.0)
+            elif loaded is not None or (where is not None and (where / "data.npz").exists()):
+                from minimanc.world import load
+
+                new = load(where / "data.npz") if (where / "data.npz").exists() else None
+                col = None
+            else:
+                policy = ModelPolicy(name, params, cfg, engine)
+                col = collect(policy, teacher, scenes, betas[i], seed=[seed, i],
+                              progress=progress, tags={"round": i})
+                new = col.data
+                if where is not None and new is not None:
+                    new.save(where / "data.npz")
+            if new is not None:
+                parts.append(new)
+            data = concat(parts)
+            if loaded is not None:
+                r, params = loaded
+            else:
+                fit = _train(name, data, cfg, tc, engine, where, progress)
+                params = fit.params
+                if col is None:  # data collected by a killed run: its stats are in its tags
+                    kept = [] if new is None else [t["dagger"]["pool_scene"] for t in new.tags]
+                    col = Collected(new, scenes, np.asarray(kept), int(len(scenes) * plan.steps),
+                                    float("nan"))
+                m = teacher.evaluate(ModelPolicy(name, params, cfg, engine),
+                                     progress) if evaluate else {}
+                r = RoundResult(i, betas[i], [int(s) for s in scenes],
+                                [int(s) for s in col.kept], plan.labelled(i),
+                                len(data) * plan.steps,
+                                float(col.expert_share), {k: float(v) for k, v in m.items()},
+                                [float(x) for x in fit.history], time.perf_counter() - t0,
+                                list(col.refusals))
+                if where is not None:
+                    _atomic_json(where / ROUND_FILE, {"fingerprint": fp_i, "result": r.to_json()})
+            results.append(r)
+            per_round.append(params)
+            if on_round is not None:
+                on_round(r)
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return DaggerResult(name, results, plan, params, cfg, tc, per_round)
+
+
+def behaviour_cloning(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
+                      cfg: Any = None, train_cfg: Any = None, engine: Any = "jax",
+                      out: str | os.PathLike | None = None, seed: int = 0,
+                      progress: bool = True, evaluate: bool = True) -> RoundResult:
+    """Behaviour cloning with DAgger's budget: trained on the first :attr:`Budget.scenes`
+    demonstrations of the pool's scene order (the scenes :func:`dagger` drives with the
+    same ``budget``, ``rounds`` and ``seed``), so both use :attr:`Budget.used` labelled
+    samples. Checkpointed in ``out/bc`` and loaded from there on a rerun."""
+    from minimanc import models, train
+
+    name, eng_name = _check_common(name, teacher, engine)
+    rounds = check_int("rounds", rounds, 1)
+    plan = _budget_for(teacher, budget, rounds)
+    pool = teacher.pool
+    cfg = cfg or models.ModelConfig(image_size=int(np.asarray(pool.bev).shape[2]))
+    tc = train_cfg or train.TrainConfig()
+    seed = check_int("seed", seed, 0)
+    scenes = _order(len(pool), seed)[:plan.scenes]
+    fp = {**_fingerprint(name, teacher, plan, [1.0], cfg, tc, seed, eng_name), "bc": plan.scenes}
+    where = None if out is None else Path(out) / "bc"
+    loaded = _load_round(where, fp) if where is not None else None
+    if loaded is not None:
+        return loaded[0]
+    if where is not None:
+        where.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    data = pool.subset(np.sort(scenes))
+    fit = _train(name, data, cfg, tc, engine, where, progress)
+    m = teacher.evaluate(ModelPolicy(name, fit.params, cfg, engine), progress) if evaluate else {}
+    r = RoundResult(0, 1.0, [int(s) for s in scenes], sorted(int(s) for s in scenes), plan.used,
+                    plan.used, 1.0, {k: float(v) for k, v in m.items()},
+                    [float(x) for x in fit.history], time.perf_counter() - t0)
+    if where is not None:
+        _atomic_json(where / ROUND_FILE, {"fingerprint": fp, "result": r.to_json()})
+    return r
+
+
+# --------------------------------------------------------------------------- figure
+
+
+def plot_rounds(results: Sequence[DaggerResult], metric: str = "ade",
+                bc: Sequence[RoundResult] = (), ax: Any = None) -> Any:
+    """Metric vs round: one line per DAgger run, BC at the same budget as a dashed line
+    (the mean of ``bc``). Returns the matplotlib axes."""
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(5, 3.2))
+    for res in results:
+        xs = [r.round for r in res.rounds if metric in r.metrics]
+        ys = [r.metrics[metric] for r in res.rounds if metric in r.metrics]
+        ax.plot(xs, ys, marker="o", label=f"DAgger {res.name}")
+    vals = [r.metrics[metric] for r in bc if metric in r.metrics]
+    if vals:
+        ax.axhline(float(np.mean(vals)), ls="--", color="k", label="BC, same budget")
+    ax.set_xlabel("round (0 = behaviour cloning)")
+    ax.set_ylabel(metric)
+    ax.legend(fontsize=8)
+    return ax

@@ -1,0 +1,198 @@
+"""Chapter 11 — the experts DAgger asks: :class:`WorldTeacher` (the world's human driver)
+and :class:`HighwayTeacher` (highway-env's IDM/MOBIL), over the :class:`Teacher` protocol
+(see :mod:`minimanc.dagger`)."""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from typing import Any, Protocol
+
+import numpy as np
+
+from minimanc.rollout import BATCH_SIZE, LogReplay, Simulator
+from minimanc.world.geometry import DT, wrap_angle
+from minimanc.world.scenes import Dataset
+
+__all__ = ["AGENTS", "SIMS", "HighwayTeacher", "Teacher", "WorldTeacher"]
+
+SIMS: tuple[str, ...] = ("world", "highway")
+"""The simulators a :class:`Teacher` exists for."""
+
+
+# --------------------------------------------------------------------------- teachers
+
+
+class Teacher(Protocol):
+    """An expert that can label the states of a simulation a policy drove.
+
+    ``name`` one of :data:`SIMS`; ``pool`` the demonstrations (a
+    :class:`minimanc.world.Dataset` whose scenes can be driven again);
+    ``simulator(scenes)`` a :class:`minimanc.rollout.Simulator` over pool scenes;
+    ``groups(scenes)`` the batches of scenes driven together; ``label(sim, t, prev)``
+    the expert's controls ``(B, 2)`` in the simulator's current state (``prev (B, 2)``
+    the controls applied at ``t − 1``, ``None`` at ``t = 0``) and, per row, ``None`` or
+    why that state cannot be labelled (that row is then NaN); ``evaluate(policy)``
+    closed-loop metrics of a policy (``{}`` without validation scenes).
+    """
+
+    name: str
+    pool: Dataset
+
+    def groups(self, scenes: np.ndarray) -> list[np.ndarray]: ...
+
+    def simulator(self, scenes: np.ndarray) -> Simulator: ...
+
+    def label(self, sim: Any, t: int, prev: np.ndarray | None
+              ) -> tuple[np.ndarray, list[str | None]]: ...
+
+    def evaluate(self, policy: Any, progress: bool = False) -> dict[str, float]: ...
+
+
+AGENTS: tuple[str, ...] = ("replay", "reactive")
+"""The protocols of the world's ados while a policy drives (see :class:`WorldTeacher`)."""
+
+
+class WorldTeacher:
+    """The world's human driver as a :class:`Teacher` (:class:`~minimanc.world.expert.HumanExpert`).
+
+    ``pool`` a dataset made by :func:`minimanc.world.generate` (the demonstrations),
+    ``val`` an optional validation dataset for :meth:`evaluate`, ``agents`` the
+    protocol of the ados while the policy drives and is evaluated: ``"reactive"``
+    (:class:`~minimanc.world.reactive.ReactiveSim`, default) or ``"replay"``
+    (:class:`~minimanc.rollout.LogReplay`, the paper's).
+    """
+
+    name = "world"
+
+    def __init__(self, pool: Dataset, val: Dataset | None = None,
+                 agents: str = "reactive") -> None:
+        from minimanc.world.expert import HumanExpert
+
+        if agents not in AGENTS:
+            raise ValueError(f"agents must be one of {AGENTS}, got agents={agents!r}")
+        if not isinstance(pool, Dataset):
+            raise ValueError(f"pool must be a minimanc.world.Dataset, got {type(pool)!r}")
+        self.pool, self.val, self.agents = pool, val, agents
+        self.expert = HumanExpert(pool)
+
+    def groups(self, scenes: np.ndarray) -> list[np.ndarray]:
+        scenes = np.asarray(scenes, dtype=np.int64)
+        return [scenes[i:i + BATCH_SIZE] for i in range(0, len(scenes), BATCH_SIZE)]
+
+    def simulator(self, scenes: np.ndarray) -> Simulator:
+        if self.agents == "reactive":
+            from minimanc.world.reactive import ReactiveSim
+
+            return ReactiveSim(self.pool, scenes)
+        return LogReplay(self.pool, scenes)
+
+    def label(self, sim: Any, t: int, prev: np.ndarray | None
+              ) -> tuple[np.ndarray, list[str | None]]:
+        state = sim.observe()
+        scenes = np.asarray(sim.scenes)
+        if self.agents == "reactive":
+            speeds = [float(run.ego.v) for run in sim.runs]
+            traffics = [run.traffic for run in sim.runs]
+        else:
+            speeds = ([self.expert.steps(int(s))[0].speed for s in scenes] if prev is None
+                      else [float(v) for v in np.asarray(prev)[:, 0]])
+            traffics = [None] * len(scenes)
+        out = np.full((len(scenes), 2), np.nan)
+        why: list[str | None] = [None] * len(scenes)
+        for b, s in enumerate(scenes):
+            try:
+                out[b] = self.expert(int(s), int(t), state.pose[b], max(speeds[b], 0.0),
+                                     traffics[b])
+            except ValueError as e:  # the driver cannot be asked in this state
+                why[b] = str(e)
+        return out, why
+
+    def evaluate(self, policy: Any, progress: bool = False) -> dict[str, float]:
+        if self.val is None:
+            return {}
+        from minimanc import metrics, rollout
+
+        if self.agents == "reactive":
+            from minimanc.world.reactive import simulate_reactive
+
+            traj = simulate_reactive(policy, self.val, progress=progress)
+        else:
+            traj = rollout.simulate(policy, self.val, progress=progress)
+        return metrics.evaluate(traj, self.val)
+
+
+class HighwayTeacher:
+    """highway-env's IDM/MOBIL expert as a :class:`Teacher`.
+
+    ``pool`` demonstrations from :func:`minimanc.highway.collect` /
+    :func:`~minimanc.highway.to_dataset` (their tags name the scenario, env seed and
+    the expert's desired speed); a scene is driven again from ``env.reset(seed)`` in a
+    :class:`minimanc.highway.HighwaySim` with the demonstration's final pose as goal.
+    A state is labelled by installing the expert (:func:`minimanc.highway.install_expert`,
+    the scene's desired speed) on a deep copy of the env and stepping the copy once: the
+    label is the speed it reaches and its mean yaw rate over the step, the format of
+    :attr:`minimanc.highway.Episode.controls`. ``val`` optional expert episodes
+    (:func:`minimanc.highway.expert_episodes`, one scenario) for :meth:`evaluate`
+    (:func:`minimanc.highway.closed_loop`).
+    """
+
+    name = "highway"
+
+    def __init__(self, pool: Dataset, val: Sequence[Any] | None = None) -> None:
+        from minimanc import highway  # noqa: F401  (a clear ImportError without highway-env)
+
+        if not isinstance(pool, Dataset):
+            raise ValueError(f"pool must be a minimanc.world.Dataset, got {type(pool)!r}")
+        tags = pool.meta.get("tags", [])
+        if not tags or any(t.get("source") != "highway-env" for t in tags):
+            raise ValueError("pool must be highway-env demonstrations (minimanc.highway.collect)")
+        self.pool, self.val = pool, list(val) if val is not None else None
+
+    def groups(self, scenes: np.ndarray) -> list[np.ndarray]:
+        scenes = np.asarray(scenes, dtype=np.int64)
+        out = []
+        for sc in dict.fromkeys(self.pool.tags[int(s)]["scenario"] for s in scenes):
+            same = scenes[[self.pool.tags[int(s)]["scenario"] == sc for s in scenes]]
+            out += [same[i:i + BATCH_SIZE] for i in range(0, len(same), BATCH_SIZE)]
+        return out
+
+    def simulator(self, scenes: np.ndarray) -> Simulator:
+        from minimanc import highway as hw
+
+        tags = [self.pool.tags[int(s)] for s in scenes]
+        if len({t["scenario"] for t in tags}) != 1:
+            raise ValueError("a highway simulator drives scenes of one scenario; use groups()")
+        T = self.pool.n_steps
+        goals = np.asarray(self.pool.ego, dtype=np.float64)[np.asarray(scenes), -1]
+        sim = hw.HighwaySim(tags[0]["scenario"], [t["env_seed"] for t in tags], T, list(goals),
+                            self.pool.raster,
+                            k_targets=int(np.asarray(self.pool.lane_target).shape[2]))
+        sim.scenes = np.asarray(scenes, dtype=np.int64)  # rows are pool scenes
+        return sim
+
+    def label(self, sim: Any, t: int, prev: np.ndarray | None
+              ) -> tuple[np.ndarray, list[str | None]]:
+        from minimanc import highway as hw
+
+        out = np.full((len(sim.runs), 2), np.nan)
+        for b, (run, s) in enumerate(zip(sim.runs, np.asarray(sim.scenes))):
+            env = copy.deepcopy(run.env)
+            yaw0 = float(hw.ego_pose(env)[2])
+            hw.install_expert(env, float(self.pool.tags[int(s)]["expert_speed"]))
+            env.step(None)
+            out[b] = [float(env.unwrapped.vehicle.speed),
+                      float(wrap_angle(float(hw.ego_pose(env)[2]) - yaw0)) / DT]
+            env.close()
+        return out, [None] * len(out)
+
+    def evaluate(self, policy: Any, progress: bool = False) -> dict[str, float]:
+        if not self.val:
+            return {}
+        from minimanc import highway as hw
+
+        res = hw.closed_loop(policy, self.val[0].scenario, self.val, cfg=self.pool.raster,
+                             progress=progress)
+        out = res.metrics
+        out.pop("episodes_per_second", None)  # wall clock, not a property of the policy
+        return out
