@@ -41,15 +41,52 @@ def backbone(params: dict, images: Any, cfg: Any, eng: Any) -> Any:
 
 
 def dense(p: dict, x: Any, eng: Any) -> Any:
-    """``x @ p["w"] + p["b"]`` on ``eng``'s namespace: ``(B, n_in) → (B, n_out)``."""
+    """A dense layer on ``eng``'s namespace.
+
+    Parameters
+    ----------
+    p : dict
+        ``w`` ``(n_in, n_out)``, ``b`` ``(n_out,)``.
+    x : array, shape (B, n_in)
+    eng : Engine
+
+    Returns
+    -------
+    array, shape (B, n_out)
+        ``x @ w + b``.
+    """
     return layers.dense(p, x, xp=eng.xp)
 
 
 def activate(x: Any, cfg: Any, eng: Any) -> Any:
-    """``cfg.activation`` (SiLU or ReLU) of ``x``."""
+    """The configured activation.
+
+    Parameters
+    ----------
+    x : array
+    cfg : ModelConfig
+        Its ``activation``: "silu" or "relu".
+    eng : Engine
+
+    Returns
+    -------
+    array
+        Shaped like ``x``.
+    """
     return eng.nn.silu(x) if cfg.activation == "silu" else eng.nn.relu(x)
 
 
 def flatten(f: Any, xp: Any) -> Any:
-    """``(B, ...) → (B, -1)``."""
+    """Flatten all but the batch axis.
+
+    Parameters
+    ----------
+    f : array, shape (B, ...)
+    xp : module
+        The engine's array namespace.
+
+    Returns
+    -------
+    array, shape (B, F)
+    """
     return xp.reshape(f, (f.shape[0], -1))

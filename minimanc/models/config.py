@@ -34,6 +34,11 @@ def gain_logits(gains: Any) -> np.ndarray:
     -------
     numpy.ndarray, shape (4,)
         The inverse of :func:`minimanc.dmp.gains_from_logits` (eq. 10's gain map).
+
+    Raises
+    ------
+    ValueError
+        If ``gains`` is not four finite numbers (or one lies outside its range).
     """
     g = np.asarray(gains, dtype=np.float64)
     if g.shape != (4,) or not np.all(np.isfinite(g)):
@@ -45,11 +50,21 @@ def gain_logits(gains: Any) -> np.ndarray:
 
 
 def gain_box_corners(critically_damped: bool = False) -> np.ndarray:
-    """The corners ``(α, β)`` of the box the DMP head's gains live in, shape ``(n, 2)``.
+    """The corners ``(α, β)`` of the box the DMP head's gains live in.
 
-    :data:`minimanc.dmp.ALPHA_RANGE` × :data:`minimanc.dmp.BETA_RANGE` (four corners), or the
-    two ends of ``β = α/4`` when ``critically_damped``. The default integrator's stability
-    condition is monotone in α and β, so a step stable at every corner is stable on the box.
+    The default integrator's stability condition is monotone in α and β, so a
+    step stable at every corner is stable on the whole box.
+
+    Parameters
+    ----------
+    critically_damped : bool
+        The head's β is α/4 (:attr:`ModelConfig.critically_damped`).
+
+    Returns
+    -------
+    numpy.ndarray, shape (4, 2) or (2, 2)
+        :data:`minimanc.dmp.ALPHA_RANGE` × :data:`minimanc.dmp.BETA_RANGE`, or the two
+        ends of ``β = α/4``.
     """
     a_lo, a_hi = dmp.ALPHA_RANGE
     if critically_damped:

@@ -46,6 +46,11 @@ def explain(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = None
         ``mean_xy cams_i = logit_i − b_i``); ``jacobian`` ``(B, N, M)`` = ∂q/∂logits
         (chain rule through the sigmoid); ``saliency`` ``(B, N, H, W)`` = ``Σ_i J_ji
         cams_i`` (:func:`minimanc.cam.q_state_saliency`).
+
+    Raises
+    ------
+    ValueError
+        If ``params`` are not a vAGN model's, or ``q_prev`` is not a distribution.
     """
     from minimanc import engine as _engine
 
@@ -83,10 +88,30 @@ def replay(name: str, params: dict, ds: Any, scene: int, cfg: ModelConfig | None
            eng: Any = None, q_mode: str = "uniform") -> dict:
     """Open-loop trace of one logged scene (:func:`minimanc.rollout.replay`).
 
-    The model sees the human's observations step by step and its recurrent state carries
-    over. Returns NumPy arrays over the ``T`` steps, in the parameters' dtype:
-    ``controls`` ``(T, 2)``, ``human`` ``(T, 2)`` (float64) and, where the model has
-    them, ``q`` ``(T, N)``, ``alpha``/``beta`` ``(T, 2)``, ``predicates`` ``(T, M)``.
+    The model sees the human's observations step by step and its recurrent state
+    carries over.
+
+    Parameters
+    ----------
+    name : str
+        A registered model.
+    params : dict
+        Its parameters; it runs in their dtype.
+    ds : dataset
+        A :mod:`minimanc.world` dataset.
+    scene : int
+    cfg : ModelConfig, optional
+    eng : Engine or str, optional
+        Default: the NumPy engine.
+    q_mode : str
+        "uniform" or "random": vAGN models' initial q.
+
+    Returns
+    -------
+    dict
+        NumPy arrays over the ``T`` steps, in the parameters' dtype: ``controls``
+        ``(T, 2)`` and, where the model has them, ``q`` ``(T, N)``, ``alpha``/``beta``
+        ``(T, 2)``, ``predicates`` ``(T, M)``; ``human`` ``(T, 2)`` float64.
     """
     from minimanc import rollout
 

@@ -38,7 +38,19 @@ __all__ = [
 
 
 def cast_tree(tree: Any, dtype: Any) -> Any:
-    """``tree`` with every leaf as a NumPy array of ``dtype`` (dicts, lists, tuples kept)."""
+    """A pytree with NumPy leaves of one dtype.
+
+    Parameters
+    ----------
+    tree : pytree
+        Dicts, lists and tuples of arrays (engine arrays are read through their value).
+    dtype : dtype
+
+    Returns
+    -------
+    pytree
+        The same structure, every leaf ``numpy.asarray(leaf, dtype)``.
+    """
     if isinstance(tree, dict):
         return {k: cast_tree(v, dtype) for k, v in tree.items()}
     if isinstance(tree, list | tuple):
@@ -65,6 +77,11 @@ def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
     -------
     dict
         A pytree of NumPy arrays: ``"backbone": {"convs": [...]}`` and the spec's layers.
+
+    Raises
+    ------
+    ValueError
+        If ``name`` is not registered or ``rng`` is not a Generator.
     """
     spec = get(name)
     cfg = cfg or ModelConfig()
@@ -80,12 +97,33 @@ def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
 
 
 def param_count(params: dict) -> int:
-    """Number of scalar parameters in a pytree."""
+    """Number of scalar parameters.
+
+    Parameters
+    ----------
+    params : pytree
+
+    Returns
+    -------
+    int
+    """
     return int(sum(int(np.prod(np.shape(x))) for x in tree_leaves(params)))
 
 
 def param_counts(cfg: ModelConfig | None = None, names: tuple[str, ...] | None = None) -> dict:
-    """``{name: param_count(init(name, ...))}`` for the models ``names`` (default: all)."""
+    """Parameter counts of several models under one configuration.
+
+    Parameters
+    ----------
+    cfg : ModelConfig, optional
+    names : tuple of str, optional
+        Default: every registered model.
+
+    Returns
+    -------
+    dict
+        ``{name: param_count(init(name, ...))}``.
+    """
     cfg = cfg or ModelConfig()
     chosen = registry.names() if names is None else tuple(names)
     return {n: param_count(init(n, np.random.default_rng(0), cfg)) for n in chosen}
@@ -117,6 +155,12 @@ def initial_state(name: str, batch: int, cfg: ModelConfig | None = None, xp: Any
     dict
         vAGN family: ``{"q": (B, N)}``; LSTM family: ``{"h", "c"}`` zeros ``(B, hidden)``;
         feed-forward: ``{}``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown model, a bad ``batch`` or ``mode``, or ``mode="random"`` without
+        ``rng``.
     """
     spec = get(name)
     cfg = cfg or ModelConfig()
@@ -138,7 +182,23 @@ def initial_state(name: str, batch: int, cfg: ModelConfig | None = None, xp: Any
 
 
 def check_obs(name: str, obs: dict, cfg: ModelConfig, lead: int) -> None:
-    """Keys and shapes of an observation with ``lead`` leading axes before the image axes."""
+    """Check the keys and shapes of an observation.
+
+    Parameters
+    ----------
+    name : str
+        A registered model (its keys in ``cfg.setting`` must be present).
+    obs : dict
+    cfg : ModelConfig
+    lead : int
+        Leading axes before the image axes: 1 for ``(B, ...)``, 2 for ``(L, B, ...)``.
+
+    Raises
+    ------
+    ValueError
+        For a missing key, a BEV not ``(..., image_size, image_size, 3)`` or a lane
+        target not ending in ``(k_targets, 2)``.
+    """
     keys = inputs.visible(name, cfg.setting)
     missing = [k for k in keys if k not in obs]
     if missing:
@@ -157,10 +217,22 @@ def check_obs(name: str, obs: dict, cfg: ModelConfig, lead: int) -> None:
 
 
 def encode(spec: ModelSpec, params: dict, obs: dict, cfg: ModelConfig, eng: Any) -> dict:
-    """Per-frame computations (no recurrence) of ``spec`` on observations ``(B, ...)``.
+    """The per-frame part of a model (no recurrence).
 
-    Returns ``features`` ``(B, h, w, C)``, ``predicates`` ``(B, M)`` (eq. 7, when the
-    parameters have a ``"predicates"`` layer) and what the spec's ``encode`` adds.
+    Parameters
+    ----------
+    spec : ModelSpec
+    params : dict
+    obs : dict
+        Observations ``(B, ...)``; cast to the parameters' dtype.
+    cfg : ModelConfig
+    eng : Engine
+
+    Returns
+    -------
+    dict
+        ``features`` ``(B, h, w, C)``, ``predicates`` ``(B, M)`` (eq. 7, when the
+        parameters have a ``"predicates"`` layer) and what ``spec.encode`` adds.
     """
     xp = eng.xp
     dtype = params["backbone"]["convs"][0]["w"].dtype
@@ -178,7 +250,25 @@ def encode(spec: ModelSpec, params: dict, obs: dict, cfg: ModelConfig, eng: Any)
 
 def run_head(spec: ModelSpec, params: dict, enc: dict, state: dict, cfg: ModelConfig,
              eng: Any) -> tuple[Any, dict, dict]:
-    """One time step of ``spec``'s recurrent part and head; ``aux`` gains ``predicates``."""
+    """One time step of a model's recurrent part and head.
+
+    Parameters
+    ----------
+    spec : ModelSpec
+    params : dict
+    enc : dict
+        From :func:`encode` (one time step).
+    state : dict
+    cfg : ModelConfig
+    eng : Engine
+
+    Returns
+    -------
+    controls : array, shape (B, 2)
+    new_state : dict
+    aux : dict
+        The spec's ``aux`` and, for models with eq. 7, ``predicates`` ``(B, M)``.
+    """
     controls, new_state, aux = spec.head(params, enc, state, cfg, eng)
     if "predicates" in enc:
         aux = {"predicates": enc["predicates"], **aux}

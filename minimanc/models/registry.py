@@ -47,14 +47,31 @@ WINDOWS: tuple[str | None, ...] = (None, "seq_len", "dmp_seq_len", "q_seq_len")
 
 
 def observes_goal(extra: tuple[str, ...] = ()) -> dict[str, tuple[str, ...]]:
-    """The comparison models' rule: the BEV and the goal pose ("paper"), plus the lane target
-    and the current motion as numbers ("parity"); ``extra`` keys in both."""
+    """The comparison models' observation rule.
+
+    Parameters
+    ----------
+    extra : tuple of str
+        Keys seen in both settings besides these (RvS-G: ``("goal_bev",)``).
+
+    Returns
+    -------
+    dict
+        ``{"paper": ("bev", "goal", *extra), "parity": ("bev", "goal", "lane_target",
+        "motion", *extra)}``.
+    """
     return {"paper": ("bev", "goal") + extra,
             "parity": ("bev", "goal", "lane_target", "motion") + extra}
 
 
 def observes_structured() -> dict[str, tuple[str, ...]]:
-    """The DMP models' rule: the BEV, the lane target and the motion in both settings."""
+    """The DMP models' observation rule.
+
+    Returns
+    -------
+    dict
+        ``("bev", "lane_target", "motion")`` in every setting.
+    """
     keys = ("bev", "lane_target", "motion")
     return {s: keys for s in inputs.SETTINGS}
 
@@ -139,7 +156,27 @@ _SPECS: dict[str, ModelSpec] = {}
 
 
 def register(spec: ModelSpec, replace: bool = False) -> ModelSpec:
-    """Add ``spec`` to the registry (ValueError if its name is taken, unless ``replace``)."""
+    """Add a model to the registry.
+
+    Parameters
+    ----------
+    spec : ModelSpec
+        The model.
+    replace : bool
+        Replace a registered model of the same name.
+
+    Returns
+    -------
+    ModelSpec
+        ``spec``.
+
+    Raises
+    ------
+    TypeError
+        If ``spec`` is not a :class:`ModelSpec`.
+    ValueError
+        If its name is taken and not ``replace``.
+    """
     if not isinstance(spec, ModelSpec):
         raise TypeError(f"spec must be a ModelSpec, got spec={spec!r}")
     if spec.name in _SPECS and not replace:
@@ -150,13 +187,35 @@ def register(spec: ModelSpec, replace: bool = False) -> ModelSpec:
 
 
 def unregister(name: str) -> ModelSpec:
-    """Remove model ``name`` from the registry and return its spec."""
+    """Remove a model from the registry.
+
+    Parameters
+    ----------
+    name : str
+        A registered model.
+
+    Returns
+    -------
+    ModelSpec
+        Its spec.
+    """
     return _SPECS.pop(check_name(name))
 
 
 @contextmanager
 def registered(spec: ModelSpec) -> Iterator[ModelSpec]:
-    """``with registered(spec):`` the model exists inside the block only."""
+    """``with registered(spec):`` the model exists inside the block only.
+
+    Parameters
+    ----------
+    spec : ModelSpec
+        The model (its name must be free).
+
+    Returns
+    -------
+    contextmanager
+        Yields ``spec``; removes it on leaving the block.
+    """
     register(spec)
     try:
         yield spec
@@ -165,22 +224,64 @@ def registered(spec: ModelSpec) -> Iterator[ModelSpec]:
 
 
 def names() -> tuple[str, ...]:
-    """The registered model names, in registration order."""
+    """The registered model names.
+
+    Returns
+    -------
+    tuple of str
+        In registration order.
+    """
     return tuple(_SPECS)
 
 
 def specs() -> tuple[ModelSpec, ...]:
-    """The registered specs, in registration order."""
+    """The registered specs.
+
+    Returns
+    -------
+    tuple of ModelSpec
+        In registration order.
+    """
     return tuple(_SPECS.values())
 
 
 def check_name(name: Any, param: str = "name") -> str:
-    """``name`` if a model of that name is registered, else a ValueError naming ``param``."""
+    """A registered model's name.
+
+    Parameters
+    ----------
+    name : str
+        The name to check.
+    param : str
+        The parameter name the error message uses.
+
+    Returns
+    -------
+    str
+        ``name``.
+
+    Raises
+    ------
+    ValueError
+        If no model of that name is registered.
+    """
     if not isinstance(name, str) or name not in _SPECS:
         raise ValueError(f"{param} must be one of {names()}, got {param}={name!r}")
     return name
 
 
 def get(name: Any, param: str = "name") -> ModelSpec:
-    """The :class:`ModelSpec` of model ``name`` (ValueError naming ``param`` if unknown)."""
+    """The spec of a registered model.
+
+    Parameters
+    ----------
+    name : str
+        A registered model.
+    param : str
+        The parameter name an error message uses.
+
+    Returns
+    -------
+    ModelSpec
+    """
     return _SPECS[check_name(name, param)]

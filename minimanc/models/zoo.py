@@ -36,18 +36,51 @@ __all__ = ["BUILTIN", "control_scale", "flat_size", "gains_layer"]
 
 
 def flat_size(cfg: ModelConfig) -> int:
-    """Length of ``flatten(backbone(bev))``: ``feature_size² · channels[-1]``."""
+    """Length of the flattened backbone features.
+
+    Parameters
+    ----------
+    cfg : ModelConfig
+
+    Returns
+    -------
+    int
+        ``feature_size² · channels[-1]``.
+    """
     return cfg.feature_size ** 2 * cfg.channels[-1]
 
 
 def control_scale(eng: Any) -> Any:
-    """:data:`CONTROL_SCALE` as an engine array (float32: it never promotes the output)."""
+    """The direct heads' output scale.
+
+    Parameters
+    ----------
+    eng : Engine
+
+    Returns
+    -------
+    array, shape (2,)
+        :data:`CONTROL_SCALE`, float32 (it never promotes a float32 output).
+    """
     return eng.xp.asarray(np.asarray(CONTROL_SCALE, dtype=np.float32))
 
 
 def gains_layer(rng: np.random.Generator, n_in: int, cfg: ModelConfig) -> dict:
-    """The gains FC ``n_in → 4`` of eq. 11: Glorot × ``cfg.gains_scale``, bias at
-    :data:`DEFAULT_GAINS`."""
+    """The gains FC of eq. 11.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    n_in : int
+        Its inputs: ``N`` (MANC, from q) or ``M`` (DMP-only, from the predicates).
+    cfg : ModelConfig
+        Its ``gains_scale`` multiplies the Glorot weights.
+
+    Returns
+    -------
+    dict
+        ``w`` ``(n_in, 4)``, ``b`` ``(4,)`` = :func:`gain_logits` of :data:`DEFAULT_GAINS`.
+    """
     gains = layers.init_dense(rng, n_in, 4)
     gains["w"] = cfg.gains_scale * np.asarray(gains["w"])
     gains["b"] = gain_logits(DEFAULT_GAINS)

@@ -109,10 +109,25 @@ class Drive:
 
 def observation(policy: Policy, scene: SceneState, motion: np.ndarray, raster: Any = None,
                 k_targets: int | None = None) -> dict:
-    """The observation ``policy`` sees in ``scene`` (:func:`minimanc.inputs.from_state`).
+    """The observation a policy sees in a scene (:func:`minimanc.inputs.from_state`).
 
-    The keys are ``policy.keys`` when the policy names them, else those its
-    ``model`` and ``setting`` see; ``motion (B, 2)`` is its previous control.
+    Parameters
+    ----------
+    policy : Policy
+        Its ``keys`` when it names them, else those its ``model`` and ``setting`` see.
+    scene : SceneState
+        What the simulator shows for ``B`` rows.
+    motion : array, shape (B, 2)
+        The ego's current ``[speed, yaw rate]`` (the policy's previous control).
+    raster : RasterConfig, optional
+        How the BEV is drawn.
+    k_targets : int, optional
+        Lane-target points (default :data:`minimanc.world.maps.K_TARGETS`).
+
+    Returns
+    -------
+    dict
+        Observations ``(B, ...)`` of :mod:`minimanc.inputs`.
     """
     return inputs.from_state(
         scene.maps, scene.pose, scene.ado, scene.ado_valid, scene.goal, raster, policy.setting,
@@ -122,7 +137,29 @@ def observation(policy: Policy, scene: SceneState, motion: np.ndarray, raster: A
 
 
 def check_controls(controls: Any, batch: int, t: int, policy: Any = None) -> np.ndarray:
-    """``controls`` as float64 ``(batch, 2)``, else :class:`BadControls` (shape or NaN/inf)."""
+    """A policy's controls, checked.
+
+    Parameters
+    ----------
+    controls : array_like
+        What the policy returned.
+    batch : int
+        Rows ``B`` expected.
+    t : int
+        The step (for the message).
+    policy : Policy, optional
+        Named in the message by its ``model``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (batch, 2)
+        float64 ``[speed, yaw rate]``.
+
+    Raises
+    ------
+    BadControls
+        For another shape or a NaN / infinite entry.
+    """
     u = np.asarray(controls, dtype=np.float64)
     if u.shape != (batch, 2) or not np.all(np.isfinite(u)):
         raise BadControls(
@@ -142,8 +179,22 @@ def drive(policy: Policy, sim: Simulator, steps: int,
     ``motion`` the policy's previous control — or the motion ``sim.step``
     returned, when it returns one — and at ``t = 0`` the motion ``reset``
     returned), call the policy, check its controls (:func:`check_controls`),
-    carry its state over and ``sim.step`` them. ``on_step(t)`` is called after
-    each step (e.g. a progress bar).
+    carry its state over and ``sim.step`` them.
+
+    Parameters
+    ----------
+    policy : Policy
+    sim : Simulator
+        ``B`` scenes (``sim.scenes``).
+    steps : int
+        Decisions to make (>= 1).
+    on_step : callable, optional
+        ``on_step(t)`` after each step (e.g. a progress bar).
+
+    Returns
+    -------
+    Drive
+        ``controls`` ``(B, steps, 2)`` and the recorded ``aux`` ``(B, steps, ...)``.
     """
     steps = check_int("steps", steps, 1)
     scenes = np.asarray(sim.scenes)

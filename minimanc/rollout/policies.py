@@ -116,6 +116,11 @@ def replay(name: str, params: dict, ds: Any, scene: int, cfg: Any = None, eng: A
         ``(T, 2)`` and, where the model has them, ``q`` ``(T, N)``, ``alpha``/``beta``
         ``(T, 2)``, ``predicates`` ``(T, M)``; and ``human`` ``(T, 2)`` float64, the
         logged controls.
+
+    Raises
+    ------
+    ValueError
+        For an unknown model, scene or ``q_mode``.
     """
     from minimanc import engine as _engine
     from minimanc import models
@@ -153,11 +158,36 @@ def closed_loop(
     steps: int | None = None,
     progress: bool = True,
 ) -> Rollout:
-    """Closed-loop rollout of model ``name`` on the scenes of ``ds`` (see the module docstring).
+    """Closed-loop rollout of a model on the scenes of ``ds`` (:mod:`minimanc.rollout`).
 
-    ``setting`` overrides ``cfg.setting`` only if they agree (a model trained
-    in one information setting cannot be run in the other: its inputs
-    differ); the rest as in :class:`ModelPolicy` and :func:`simulate`.
+    Parameters
+    ----------
+    name : str
+        A registered model.
+    params : dict
+        From :func:`minimanc.train.fit`.
+    ds : dataset
+        A :mod:`minimanc.world` dataset.
+    cfg : ModelConfig
+        The model's configuration.
+    eng : Engine or str
+        Runs the policy (jitted on JAX).
+    setting : str, optional
+        Must agree with ``cfg.setting`` (a model runs in the information setting it
+        was trained in).
+    scenes, batch_size, steps, progress
+        As in :func:`simulate`.
+    q_init, seed
+        As in :class:`ModelPolicy`.
+
+    Returns
+    -------
+    Rollout
+
+    Raises
+    ------
+    ValueError
+        If ``setting`` differs from ``cfg.setting``.
     """
     if setting is not None and setting != cfg.setting:
         raise ValueError(
@@ -204,7 +234,24 @@ class FixedGainsPolicy:
 
 def fixed_gains(ds: Any, scenes: Any = None, cfg: Any = None, gains: Any = None,
                 progress: bool = False) -> Rollout:
-    """Closed loop of :class:`FixedGainsPolicy` on ``ds`` (the "DMP prior" reference)."""
+    """Closed loop of :class:`FixedGainsPolicy` on ``ds`` (the "DMP prior" reference).
+
+    Parameters
+    ----------
+    ds : dataset
+    scenes : array_like, optional
+        Default: all.
+    cfg : ModelConfig, optional
+        The head's look-ahead rules.
+    gains : array_like, shape (4,), optional
+        Default :data:`minimanc.models.DEFAULT_GAINS`.
+    progress : bool
+
+    Returns
+    -------
+    Rollout
+        Named ``"dmp_prior"``.
+    """
     policy = FixedGainsPolicy(cfg, gains)
     traj = simulate(policy, ds, scenes=scenes, progress=progress, desc="closed loop DMP prior")
     traj.name = "dmp_prior"
