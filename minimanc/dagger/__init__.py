@@ -53,6 +53,7 @@ from minimanc.dagger.loop import (
     RoundResult,
     behaviour_cloning,
     dagger,
+    default_config,
     plot_rounds,
     round_dir,
 )
@@ -77,6 +78,7 @@ __all__ = [
     "collect",
     "concat",
     "dagger",
+    "default_config",
     "mix",
     "plan_budget",
     "plot_rounds",

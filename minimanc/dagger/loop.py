@@ -21,7 +21,7 @@ from minimanc.rollout import ModelPolicy
 from minimanc.world.scenes import Dataset
 
 __all__ = ["ROUND_FILE", "DaggerResult", "RoundResult", "behaviour_cloning", "dagger",
-           "plot_rounds", "round_dir"]
+           "default_config", "plot_rounds", "round_dir"]
 
 ROUND_FILE = "round.json"
 """The file that marks a round as complete (written last, atomically)."""
@@ -78,6 +78,15 @@ class DaggerResult:
             vals = " | ".join(f"{r.metrics[k]:.2f}" if k in r.metrics else "-" for k in keys)
             rows.append(f"| {r.round} | {r.beta:.3f} | {r.labelled} | {r.samples} | {vals} |")
         return "\n".join(rows)
+
+
+def default_config(pool: Dataset, **kw: Any) -> Any:
+    """The :class:`~minimanc.models.ModelConfig` that fits ``pool``: its BEV size and
+    lane-target points (``kw`` sets other fields)."""
+    from minimanc import models
+
+    return models.ModelConfig(image_size=int(np.asarray(pool.bev).shape[2]),
+                              k_targets=int(np.asarray(pool.lane_target).shape[2]), **kw)
 
 
 def round_dir(out: str | os.PathLike, i: int) -> Path:
@@ -172,7 +181,7 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
     ``evaluate`` runs :meth:`Teacher.evaluate` after each round; ``on_round`` is
     called with each finished round.
     """
-    from minimanc import models, train
+    from minimanc import train
 
     name, eng_name = _check_common(name, teacher, engine)
     rounds = check_int("rounds", rounds, 1)
@@ -185,8 +194,7 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
         betas = beta_schedule(check_beta(beta), rounds)
     plan = _budget_for(teacher, budget, rounds)
     pool = teacher.pool
-    size = int(np.asarray(pool.bev).shape[2])
-    cfg = cfg or models.ModelConfig(image_size=size)
+    cfg = cfg or default_config(pool)
     tc = train_cfg or train.TrainConfig()
     seed = check_int("seed", seed, 0)
     order = _order(len(pool), seed)
@@ -268,13 +276,13 @@ def behaviour_cloning(name: str, teacher: Teacher, budget: int | Budget, rounds:
     demonstrations of the pool's scene order (the scenes :func:`dagger` drives with the
     same ``budget``, ``rounds`` and ``seed``), so both use :attr:`Budget.used` labelled
     samples. Checkpointed in ``out/bc`` and loaded from there on a rerun."""
-    from minimanc import models, train
+    from minimanc import train
 
     name, eng_name = _check_common(name, teacher, engine)
     rounds = check_int("rounds", rounds, 1)
     plan = _budget_for(teacher, budget, rounds)
     pool = teacher.pool
-    cfg = cfg or models.ModelConfig(image_size=int(np.asarray(pool.bev).shape[2]))
+    cfg = cfg or default_config(pool)
     tc = train_cfg or train.TrainConfig()
     seed = check_int("seed", seed, 0)
     scenes = _order(len(pool), seed)[:plan.scenes]
