@@ -46,6 +46,7 @@ from minimanc.world.scenes import Dataset
 
 __all__ = [
     "MAX_ATTEMPTS", "Estimate", "default_shard_scenes", "draw_scene", "estimate", "generate",
+    "scene_stream",
     "generate_file", "generate_scene", "generate_splits", "scene_nbytes",
 ]
 
@@ -64,12 +65,18 @@ def draw_scene(seed: int, index: int, attempt: int = 0
     attempt is ``meta["attempts"][i] - 1`` and its index
     ``meta["scene_index"][i]``.
     """
+    rng, recipe = scene_stream(seed, index, attempt)
+    return rng, recipe, build_map(recipe)
+
+
+def scene_stream(seed: int, index: int, attempt: int = 0
+                 ) -> tuple[np.random.Generator, dict]:
+    """:func:`draw_scene` without building the map: ``(rng, recipe)``."""
     seed = check_int("seed", seed, 0)
     index = check_int("index", index, 0)
     attempt = check_int("attempt", attempt, 0)
     rng = np.random.default_rng([seed, index, attempt])
-    recipe = random_recipe(rng)
-    return rng, recipe, build_map(recipe)
+    return rng, random_recipe(rng)
 
 
 def generate_scene(seed: int, index: int, cfg: RasterConfig, k_targets: int = K_TARGETS,

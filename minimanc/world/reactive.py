@@ -48,8 +48,9 @@ import numpy as np
 from minimanc import inputs
 from minimanc.rollout import AUX_KEYS, Policy, Rollout, SceneState, drive
 from minimanc.world.driver import SceneRun
+from minimanc.world.generation import scene_stream
 from minimanc.world.geometry import DT
-from minimanc.world.maps import Map, random_recipe
+from minimanc.world.maps import Map
 from minimanc.world.paths import Vehicle
 
 __all__ = [
@@ -78,16 +79,6 @@ SPAWN_CLEARANCE: float = 16.0
 
 
 # --------------------------------------------------------------------------- scene streams
-
-
-def scene_stream(seed: int, index: int, attempt: int) -> tuple[np.random.Generator, dict]:
-    """The random stream of attempt ``attempt`` of scene ``index`` of run ``seed``, after the
-    map recipe was drawn from it, and that recipe: where the scene simulation starts.
-
-    The same stream as :func:`minimanc.world.dataset.generate_scene`'s.
-    """
-    rng = np.random.default_rng([int(seed), int(index), int(attempt)])
-    return rng, random_recipe(rng)
 
 
 @dataclass(frozen=True)
