@@ -159,8 +159,10 @@ def cmd_dagger(args: argparse.Namespace) -> int:
     common = dict(cfg=cfg, train_cfg=tc, engine=args.engine, out=out, seed=args.seed,
                   progress=progress)
     where = args.agents if args.sim == "world" else args.scenario
+    plan = " + ".join(map(str, (budget.initial, *budget.per_round)))
     print(f"minimanc dagger: {args.model} in {args.sim} ({where}), {args.rounds} rounds, "
-          f"beta {args.beta}, budget {budget.used} labelled samples ({budget.initial} + {' + '.join(map(str, budget.per_round))} scenes of {T} steps)")
+          f"beta {args.beta}, budget {budget.used} labelled samples ({plan} scenes of {T} "
+          "steps)")
     try:
         bc = None if args.no_bc else dagger.behaviour_cloning(
             args.model, teacher, budget, args.rounds, **common)
