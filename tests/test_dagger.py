@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from minimanc import dagger, models, rollout, train, world
+from minimanc import dagger, rollout, train, world
 from minimanc.errors import UsageError
 from minimanc.world.expert import HumanExpert
 from minimanc.world.reactive import simulate_reactive
