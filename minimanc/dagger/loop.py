@@ -3,11 +3,12 @@ label budget, and the metric-vs-round figure (see :mod:`minimanc.dagger`)."""
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +37,8 @@ class RoundResult:
     ``kept`` the ones aggregated, ``labelled`` samples labelled so far (rounds
     ``0 … round``), ``samples`` in the aggregate it trained on, ``expert_share``,
     ``refusals``, ``metrics`` of :meth:`Teacher.evaluate`, ``history`` the training
-    losses, ``seconds`` the wall time, ``loaded`` whether it came from a checkpoint."""
+    losses, ``seconds`` the wall time, ``loaded`` whether it came from a checkpoint and
+    ``params`` the trained parameters (not part of :meth:`to_json`)."""
 
     round: int
     beta: float
@@ -50,11 +52,11 @@ class RoundResult:
     seconds: float
     refusals: list[str] = field(default_factory=list)
     loaded: bool = False
+    params: dict | None = field(default=None, repr=False)
 
     def to_json(self) -> dict:
-        d = asdict(self)
-        d.pop("loaded")
-        return d
+        return {f.name: copy.deepcopy(getattr(self, f.name)) for f in fields(self)
+                if f.name not in ("loaded", "params")}
 
 
 @dataclass
@@ -158,7 +160,7 @@ def _load_round(where: Path, fp: dict) -> tuple[RoundResult, dict] | None:
     from minimanc import train
 
     res = train.load(where / "checkpoint.npz")
-    r = RoundResult(**saved["result"], loaded=True)
+    r = RoundResult(**saved["result"], loaded=True, params=res.params)
     return r, res.params
 
 
@@ -256,6 +258,7 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
                                 list(col.refusals))
                 if where is not None:
                     _atomic_json(where / ROUND_FILE, {"fingerprint": fp_i, "result": r.to_json()})
+            r.params = params
             results.append(r)
             per_round.append(params)
             if on_round is not None:
@@ -299,7 +302,8 @@ def behaviour_cloning(name: str, teacher: Teacher, budget: int | Budget, rounds:
     m = teacher.evaluate(ModelPolicy(name, fit.params, cfg, engine), progress) if evaluate else {}
     r = RoundResult(0, 1.0, [int(s) for s in scenes], sorted(int(s) for s in scenes), plan.used,
                     plan.used, 1.0, {k: float(v) for k, v in m.items()},
-                    [float(x) for x in fit.history], time.perf_counter() - t0)
+                    [float(x) for x in fit.history], time.perf_counter() - t0,
+                    params=fit.params)
     if where is not None:
         _atomic_json(where / ROUND_FILE, {"fingerprint": fp, "result": r.to_json()})
     return r
