@@ -13,10 +13,12 @@ Prints figures, asserts nothing:
    min), then its open-loop validation loss on the 200 validation scenes.
 
     python benchmarks/bench_training.py [--quick] [--rounds 5] [--steps 5] [--batch 64]
-                                        [--steps-only]
+                                        [--steps-only] [--threads 1]
 
 ``--quick``: fewer rounds and a one-epoch training on 100 scenes; ``--steps-only``:
-part 1 alone. The data come
+part 1 alone; ``--threads 1`` runs OpenBLAS (NumPy) and XLA (JAX) single-threaded
+(set before NumPy and JAX load, so this script reads it first: on a busy shared
+machine a 2-thread BLAS waits for its second thread). The data come
 from :func:`minimanc.world.generate_splits` with ``cache=True`` (generated once,
 several minutes; then loaded in seconds).
 """
@@ -24,12 +26,36 @@ several minutes; then loaded in seconds).
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
+import sys
 import time
 
-import numpy as np
 
-from minimanc import engine, inputs, models, optim, train, world
+def _parse_args(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="short runs (minutes -> seconds)")
+    ap.add_argument("--rounds", type=int, default=None)
+    ap.add_argument("--steps", type=int, default=5)
+    ap.add_argument("--batch", type=int, default=64)
+    ap.add_argument("--steps-only", action="store_true",
+                    help="only the train-step comparison (part 1)")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="BLAS threads for NumPy; 1 also makes XLA single-threaded")
+    return ap.parse_args(argv)
+
+
+ARGS = _parse_args(sys.argv[1:]) if __name__ == "__main__" else None
+if ARGS is not None and ARGS.threads is not None:
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[var] = str(ARGS.threads)
+    if ARGS.threads == 1:
+        os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen"
+                                   "=false intra_op_parallelism_threads=1").strip()
+
+import numpy as np  # noqa: E402  (after the thread settings)
+
+from minimanc import engine, inputs, models, optim, train, world  # noqa: E402
 
 
 def _batches(name, ds, cfg, tc, n):
@@ -59,23 +85,29 @@ def bench_steps(ds, cfg, batch: int, rounds: int, steps: int) -> None:
         t0 = time.perf_counter()
         params, opt, loss = fn(params, opt, data[0])  # JAX compiles here
         float(loss)
-        state[e] = [fn, params, opt, time.perf_counter() - t0, []]
+        state[e] = [fn, params, opt, time.perf_counter() - t0, [], []]
     for _ in range(rounds):
         for e in ("numpy", "jax"):
-            fn, params, opt, _, times = state[e]
-            t0 = time.perf_counter()
+            fn, params, opt, _, times, cpu = state[e]
+            t0, c0 = time.perf_counter(), time.process_time()
             for b in data:
                 params, opt, loss = fn(params, opt, b)
             float(loss)  # wait for JAX's asynchronous dispatch
             times.append((time.perf_counter() - t0) / len(data))
+            cpu.append((time.process_time() - c0) / len(data))
             state[e][1], state[e][2] = params, opt
     med = {e: statistics.median(state[e][4]) for e in state}
+    med_cpu = {e: statistics.median(state[e][5]) for e in state}
     print(f"MANC train step, batch {batch}x{cfg.image_size}x{cfg.image_size}x3 float32 "
-          f"({rounds} rounds x {steps} steps, medians):")
+          f"({rounds} rounds x {steps} steps, medians; threads: "
+          f"{os.environ.get('OPENBLAS_NUM_THREADS', 'default')}; load average "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs):")
     for e in ("numpy", "jax"):
         print(f"  {e:5s}: {1e3 * med[e]:7.1f} ms/step  {1.0 / med[e]:6.1f} steps/s"
-              f"  (first call {state[e][3]:.1f} s)")
-    print(f"  ratio numpy/jax time: {med['numpy'] / med['jax']:.2f}")
+              f"  (CPU {1e3 * med_cpu[e]:7.1f} ms/step; first call {state[e][3]:.1f} s)")
+    print(f"  ratio numpy/jax time: {med['numpy'] / med['jax']:.2f}  (CPU time: "
+          f"{med_cpu['numpy'] / med_cpu['jax']:.2f}; with --threads 1 CPU time is the work "
+          "done, whatever the other load on the machine)")
 
 
 def bench_latency(ds, cfg, calls: int) -> None:
@@ -115,15 +147,7 @@ def bench_training(train_ds, val_ds, cfg, quick: bool) -> None:
     print(f"  parameters: {models.param_count(res.params)}")
 
 
-def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="short runs (minutes -> seconds)")
-    ap.add_argument("--rounds", type=int, default=None)
-    ap.add_argument("--steps", type=int, default=5)
-    ap.add_argument("--batch", type=int, default=64)
-    ap.add_argument("--steps-only", action="store_true",
-                    help="only the train-step comparison (part 1)")
-    args = ap.parse_args(argv)
+def main(args: argparse.Namespace) -> None:
     rounds = args.rounds or (2 if args.quick else 5)
     train_ds, val_ds = world.generate_splits(650, 200, seed=0, cache=True, progress=True)
     cfg = models.ModelConfig()
@@ -136,4 +160,4 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    main(ARGS)

@@ -82,7 +82,7 @@ class Box:
         self._parents = parents
         self._prim = prim
         self._args = args
-        self._kwargs = kwargs or {}
+        self._kwargs = kwargs
         self._res = res
 
     @property

@@ -64,10 +64,20 @@ __all__ = [
 # Element-wise activations
 # ---------------------------------------------------------------------------
 def _sigmoid_np(x: np.ndarray) -> np.ndarray:
-    """Numerically stable logistic function (no overflow for large ``|x|``)."""
+    """Logistic function ``1 / (1 + exp(-x))`` in one buffer (four passes, no temporaries).
+
+    For ``x → −∞`` ``exp(-x)`` overflows to ``inf`` and the result is exactly 0
+    (the overflow is expected and not reported); both tails keep full relative
+    precision.
+    """
     x = np.asarray(x)
-    z = np.exp(-np.abs(x))
-    return np.where(x >= 0, 1 / (1 + z), z / (1 + z))
+    if x.dtype.kind != "f":
+        x = x.astype(np.float64)
+    t = np.negative(x, out=np.empty_like(x))
+    with np.errstate(over="ignore"):
+        np.exp(t, out=t)
+    t += 1
+    return np.reciprocal(t, out=t)
 
 
 @primitive
@@ -101,7 +111,12 @@ def _silu_fwd(x):
 
 def _silu_bwd(g, res):
     x, s = res
-    return (g * (s * (1 + x * (1 - s))),)
+    d = np.subtract(1, s, dtype=s.dtype)  # d/dx x σ(x) = σ (1 + x (1 − σ)), in place
+    d *= x
+    d += 1
+    d *= s
+    d *= g
+    return (d,)
 
 
 defvjp_fwd(silu, _silu_fwd, _silu_bwd)

@@ -694,6 +694,9 @@ defvjp_fwd(_stack, _stack_fwd, _stack_bwd)
 
 def stack(arrays, axis=0):
     """Join a sequence of same-shape arrays along a new axis (one traced operation)."""
+    arrays = list(arrays)
+    if not builtins.any(isinstance(a, Box) for a in arrays):
+        return np.stack(arrays, axis=axis)
     return _stack(*[a if isinstance(a, Box) else asarray(a) for a in arrays], axis=axis)
 
 

@@ -49,12 +49,13 @@ def primitive(fun: Callable) -> Callable:
         try:
             if not parents:
                 return fun(*args, **kwargs)
-            for key, val in kwargs.items():
-                if isinstance(val, Box):
-                    raise TypeError(
-                        f"{name}: keyword argument {key!r} is traced; pass differentiable "
-                        "values positionally"
-                    )
+            if kwargs:
+                for key, val in kwargs.items():
+                    if isinstance(val, Box):
+                        raise TypeError(
+                            f"{name}: keyword argument {key!r} is traced; pass differentiable "
+                            "values positionally"
+                        )
             raw = [a._value if isinstance(a, Box) else a for a in args]
             if traced.fwd is not None:  # custom (fwd, bwd) pair, see defvjp_fwd
                 ans, res = traced.fwd(*raw, **kwargs)

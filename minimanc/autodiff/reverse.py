@@ -49,56 +49,57 @@ def toposort(end, parents_of: Callable[[Any], Sequence] | None = None) -> list:
     return order
 
 
-def _raw_cotangents(box: Box, g: np.ndarray) -> list:
-    """``(argnum, parent, cotangent)`` for each traced parent of ``box``."""
-    prim = box._prim
-    if prim.bwd is not None:
-        cts = prim.bwd(g, box._res)
-        if not isinstance(cts, tuple | list):
-            cts = (cts,)
-        out = []
-        for argnum, parent in box._parents:
-            ct = cts[argnum] if argnum < len(cts) else None
-            if ct is None:
-                raise NotImplementedError(
-                    f"{prim_name(prim)}: argument {argnum} is not differentiable")
-            out.append((argnum, parent, ct))
-        return out
-    vjps, out = prim.vjps, []
-    for argnum, parent in box._parents:
-        vjp = vjps[argnum] if argnum < len(vjps) else None
-        if vjp is None:
-            raise NotImplementedError(
-                f"VJP of primitive '{prim_name(prim)}' with respect to argument {argnum} is not "
-                "defined"
-            )
-        out.append((argnum, parent, vjp(g, box._value, *box._args, **box._kwargs)))
-    return out
+def _checked(box: Box, parent: Box, ct) -> Any:
+    """``ct`` as an array of the parent's shape and (floating) dtype, or ValueError."""
+    pval = parent._value
+    if type(ct) is np.ndarray and type(pval) is np.ndarray:  # the common case
+        if ct.shape == pval.shape and (ct.dtype == pval.dtype or pval.dtype.kind != "f"):
+            return ct
+        pshape, pdtype = pval.shape, pval.dtype
+    elif isinstance(pval, Outputs):  # a node's outputs: one cotangent (or None) each
+        return ct
+    else:
+        ct = np.asarray(ct)
+        pshape, pdtype = np.shape(pval), np.result_type(pval)
+    if ct.shape != pshape:
+        raise ValueError(
+            f"VJP of '{prim_name(box._prim)}' returned a cotangent of shape {ct.shape} "
+            f"for an argument of shape {pshape}"
+        )
+    if ct.dtype != pdtype and pdtype.kind == "f":
+        ct = ct.astype(pdtype)
+    return ct
 
 
 def parent_cotangents(box: Box, g: np.ndarray) -> list:
     """``(argnum, parent, cotangent)`` for each traced parent of ``box``, given the
     cotangent ``g`` of ``box``: one application of the chain rule (a VJP), its shape
     checked and its dtype that of the parent (float32 stays float32)."""
-    out = _raw_cotangents(box, g)
-    for k, (argnum, parent, ct) in enumerate(out):
-        pval = parent._value
-        if isinstance(pval, Outputs):  # a scan's outputs: one cotangent (or None) each
-            continue
-        if type(ct) is not np.ndarray:
-            ct = np.asarray(ct)
-        if type(pval) is np.ndarray:
-            pshape, pdtype = pval.shape, pval.dtype
-        else:
-            pshape, pdtype = np.shape(pval), np.result_type(pval)
-        if ct.shape != pshape:
-            raise ValueError(
-                f"VJP of '{prim_name(box._prim)}' returned a cotangent of shape {ct.shape} "
-                f"for an argument of shape {pshape}"
+    prim = box._prim
+    out = []
+    if prim.bwd is not None:
+        cts = prim.bwd(g, box._res)
+        if not isinstance(cts, tuple | list):
+            cts = (cts,)
+        n = len(cts)
+        for argnum, parent in box._parents:
+            ct = cts[argnum] if argnum < n else None
+            if ct is None:
+                raise NotImplementedError(
+                    f"{prim_name(prim)}: argument {argnum} is not differentiable")
+            out.append((argnum, parent, _checked(box, parent, ct)))
+        return out
+    vjps, ans, args, kwargs = prim.vjps, box._value, box._args, box._kwargs
+    n = len(vjps)
+    for argnum, parent in box._parents:
+        vjp = vjps[argnum] if argnum < n else None
+        if vjp is None:
+            raise NotImplementedError(
+                f"VJP of primitive '{prim_name(prim)}' with respect to argument {argnum} is not "
+                "defined"
             )
-        if ct.dtype != pdtype and pdtype.kind == "f":
-            ct = ct.astype(pdtype)
-        out[k] = (argnum, parent, ct)
+        ct = vjp(g, ans, *args, **kwargs) if kwargs else vjp(g, ans, *args)
+        out.append((argnum, parent, _checked(box, parent, ct)))
     return out
 
 

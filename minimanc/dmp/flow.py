@@ -28,11 +28,18 @@ from typing import Any
 
 from minimanc.dmp.attractor import acceleration
 
-__all__ = ["flow", "flow_for", "force_times", "substep"]
+__all__ = ["coefficients", "flow", "flow_for", "force_times", "substep"]
+
+
+def coefficients(alpha: Any, beta: Any, h: float) -> tuple[Any, Any]:
+    """``(1 − hα, hαβ)``: with them one Euler update of the velocity under eq. (10) is
+    ``ẏ + h a = (1 − hα) ẏ + hαβ (g − y) + h F``."""
+    return 1.0 - h * alpha, h * (alpha * beta)
 
 
 def substep(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, h: float, method: str,
-            f0: Any = None, f_mid: Any = None, f1: Any = None) -> tuple[Any, Any]:
+            f0: Any = None, f_mid: Any = None, f1: Any = None,
+            coef: tuple[Any, Any] | None = None) -> tuple[Any, Any]:
     """One sub-step of length ``h`` of ``method``; ``f0``, ``f_mid``, ``f1`` are the forcing
     accelerations at the start, the middle and the end of the sub-step (``None``: none).
 
@@ -50,28 +57,34 @@ def substep(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, h: float, method:
         Sub-step length in seconds.
     method : str
         One of :data:`~minimanc.dmp.params.METHODS`.
+    f0, f_mid, f1 : array or None
+        Forcing accelerations (eq. 1 divided by τ) broadcasting against ``y``.
+    coef : tuple, optional
+        :func:`coefficients` of ``(alpha, beta, h)``, computed once per step.
 
     Returns
     -------
     y_next, dy_next : array, shape broadcast of the inputs
     """
+    if method == "rk4":
+        k1y, k1v = dy, acceleration(y, dy, goal, alpha, beta, f0)
+        y2, v2 = y + 0.5 * h * k1y, dy + 0.5 * h * k1v
+        k2y, k2v = v2, acceleration(y2, v2, goal, alpha, beta, f_mid)
+        y3, v3 = y + 0.5 * h * k2y, dy + 0.5 * h * k2v
+        k3y, k3v = v3, acceleration(y3, v3, goal, alpha, beta, f_mid)
+        y4, v4 = y + h * k3y, dy + h * k3v
+        k4y, k4v = v4, acceleration(y4, v4, goal, alpha, beta, f1)
+        return (
+            y + (h / 6.0) * (k1y + 2.0 * k2y + 2.0 * k3y + k4y),
+            dy + (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
+        )
+    p, hab = coefficients(alpha, beta, h) if coef is None else coef
+    dy_new = p * dy + hab * (goal - y)  # ẏ + h α (β (g − y) − ẏ)
+    if f0 is not None:
+        dy_new = dy_new + h * f0
     if method == "euler":
-        a = acceleration(y, dy, goal, alpha, beta, f0)
-        return y + h * dy, dy + h * a
-    if method == "semi_implicit":
-        dy_new = dy + h * acceleration(y, dy, goal, alpha, beta, f0)
-        return y + h * dy_new, dy_new
-    k1y, k1v = dy, acceleration(y, dy, goal, alpha, beta, f0)
-    y2, v2 = y + 0.5 * h * k1y, dy + 0.5 * h * k1v
-    k2y, k2v = v2, acceleration(y2, v2, goal, alpha, beta, f_mid)
-    y3, v3 = y + 0.5 * h * k2y, dy + 0.5 * h * k2v
-    k3y, k3v = v3, acceleration(y3, v3, goal, alpha, beta, f_mid)
-    y4, v4 = y + h * k3y, dy + h * k3v
-    k4y, k4v = v4, acceleration(y4, v4, goal, alpha, beta, f1)
-    return (
-        y + (h / 6.0) * (k1y + 2.0 * k2y + 2.0 * k3y + k4y),
-        dy + (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
-    )
+        return y + h * dy, dy_new
+    return y + h * dy_new, dy_new
 
 
 def force_times(h: float, method: str, n: int) -> list[float]:
@@ -97,21 +110,26 @@ def _forces(forces: Any, method: str, j: int) -> tuple[Any, Any, Any]:
 def _flow_plain(y, dy, goal, alpha, beta, forces, dt, method, n):
     """``n`` sub-steps of :func:`substep` from ``(y, dy)``; ``forces`` as in :func:`_forces`."""
     h = dt / n
+    coef = None if method == "rk4" else coefficients(alpha, beta, h)
     y_j, v_j = y, dy
     for j in range(n):
-        y_j, v_j = substep(y_j, v_j, goal, alpha, beta, h, method, *_forces(forces, method, j))
+        y_j, v_j = substep(y_j, v_j, goal, alpha, beta, h, method, *_forces(forces, method, j),
+                           coef=coef)
     return y_j, v_j, (v_j - dy) / dt
 
 
 def _flow_fwd(y, dy, goal, alpha, beta, forces, dt, method, n):
     h = dt / n
-    states = []
+    coef = None if method == "rk4" else coefficients(alpha, beta, h)
+    ys, vs = [], []
     y_j, v_j = y, dy
     for j in range(n):
-        states.append((y_j, v_j))
-        y_j, v_j = substep(y_j, v_j, goal, alpha, beta, h, method, *_forces(forces, method, j))
+        ys.append(y_j)
+        vs.append(v_j)
+        y_j, v_j = substep(y_j, v_j, goal, alpha, beta, h, method, *_forces(forces, method, j),
+                           coef=coef)
     # the inputs themselves are kept for the shapes and dtypes of their cotangents
-    return (y_j, v_j, (v_j - dy) / dt), (states, y, dy, goal, alpha, beta, forces)
+    return (y_j, v_j, (v_j - dy) / dt), (ys, vs, coef, y, dy, goal, alpha, beta, forces)
 
 
 def _sum_to(x: Any, g: Any) -> Any:
@@ -135,39 +153,54 @@ def _acc_back(ga, ab, alpha, gy, gv):
     return gy - ab * ga, gv - alpha * ga
 
 
+def _moments(ws: list, ys: list, vs: list) -> tuple[Any, Any, Any]:
+    """``(Σ w_k, Σ w_k y_k, Σ w_k v_k)`` (sequential sums: the arrays are small)."""
+    s_a, s_y, s_v = ws[0], ws[0] * ys[0], ws[0] * vs[0]
+    for w, y, v in zip(ws[1:], ys[1:], vs[1:]):
+        s_a = s_a + w
+        s_y = s_y + w * y
+        s_v = s_v + w * v
+    return s_a, s_y, s_v
+
+
 def _flow_bwd(dt, method, n, res, g):
-    states, y0, dy0, goal, alpha, beta, forces = res
+    ys, vs, coef, y0, dy0, goal, alpha, beta, forces = res
     h = dt / n
     gy, gv, g_ddy = g
     g_ddy = g_ddy / dt  # ddy = (ẏ_n − ẏ_0) / dt
     gv = gv + g_ddy
-    ab = alpha * beta
-    records = []  # (cotangent of an acceleration, its stage position, stage velocity, force k)
-    for j in range(n - 1, -1, -1):
-        y, v = states[j]
-        if method == "semi_implicit":
-            gv = gv + h * gy
-            ga = h * gv
-            records.append((ga, y, v, j))
-            gy, gv = _acc_back(ga, ab, alpha, gy, gv)
-        elif method == "euler":
-            ga = h * gv
-            records.append((ga, y, v, j))
-            gy, gv = _acc_back(ga, ab, alpha, gy, gv + h * gy)
-        else:
-            gy, gv = _rk4_back(gy, gv, y, v, goal, alpha, beta, ab, h, j, forces, records)
-    s_a = s_e = s_v = None  # Σ ā, Σ ā (g − y_s), Σ ā ẏ_s
-    g_forces = [None] * (0 if forces is None else len(forces))
-    for ga, y, v, k in records:
-        e = ga * (goal - y)
-        s_a = ga if s_a is None else s_a + ga
-        s_e = e if s_e is None else s_e + e
-        s_v = ga * v if s_v is None else s_v + ga * v
+    g_forces = None if forces is None else [None] * len(forces)
+    if method == "rk4":
+        ab = alpha * beta
+        records = []  # (cotangent of an acceleration, stage position, stage velocity, force k)
+        for j in range(n - 1, -1, -1):
+            gy, gv = _rk4_back(gy, gv, ys[j], vs[j], goal, alpha, beta, ab, h, j, forces,
+                               records)
+        s_a, s_y, s_v = _moments(*[[r[i] for r in records] for i in range(3)])
         if forces is not None:
-            g_forces[k] = ga if g_forces[k] is None else g_forces[k] + ga
-    g_goal = ab * s_a
-    g_alpha = beta * s_e - s_v
-    g_beta = alpha * s_e
+            for ga_k, _, _, k in records:
+                g_forces[k] = ga_k if g_forces[k] is None else g_forces[k] + ga_k
+        g_goal, s_e = ab * s_a, goal * s_a - s_y
+        g_alpha, g_beta = beta * s_e - s_v, alpha * s_e
+    else:
+        # the velocity update ẏ' = p ẏ + hab (g − y) + h F is linear: run its transpose
+        p, hab = coef
+        gvs = [None] * n  # cotangent of each sub-step's new velocity: ā = h · it
+        for j in range(n - 1, -1, -1):
+            if method == "semi_implicit":
+                gv = gv + h * gy  # y' = y + h ẏ'
+                gvs[j] = gv
+                gy, gv = gy - hab * gv, p * gv
+            else:
+                gvs[j] = gv
+                gy, gv = gy - hab * gv, p * gv + h * gy
+        s_a, s_y, s_v = _moments(gvs, ys, vs)
+        if forces is not None:
+            g_forces = [h * gk for gk in gvs]
+        s_e = goal * s_a - s_y  # Σ ā (g − y_j) / h
+        g_goal = hab * s_a
+        g_alpha = h * (beta * s_e - s_v)
+        g_beta = (h * alpha) * s_e
     g_f = None if forces is None else type(forces)(
         _sum_to(f, gk) for f, gk in zip(forces, g_forces))
     return (_sum_to(y0, gy), _sum_to(dy0, gv - g_ddy), _sum_to(goal, g_goal),
