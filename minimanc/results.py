@@ -12,13 +12,12 @@ machine. In the README a quote is a block ::
 
 :func:`check_readme` lists every block whose text differs from its file, and every
 measured-looking number (a decimal, a percentage) written in the results section outside a
-block; :func:`update_readme` rewrites the blocks from their files. ``python -m
-minimanc.results [--update] README.md`` runs them from the command line.
+block; :func:`update_readme` rewrites the blocks from their files. ``minimanc results
+check|update [README.md]`` runs them from the command line (:mod:`minimanc.cli.results`).
 """
 
 from __future__ import annotations
 
-import argparse
 import datetime as _dt
 import importlib.metadata
 import os
@@ -38,7 +37,6 @@ __all__ = [
     "Quote",
     "check_readme",
     "cpu_model",
-    "main",
     "provenance",
     "provenance_markdown",
     "quotes",
@@ -47,7 +45,7 @@ __all__ = [
     "write_text",
 ]
 
-PACKAGES: tuple[str, ...] = ("minimanc", "numpy", "jax", "jaxlib", "optax", "matplotlib",
+PACKAGES: tuple[str, ...] = ("minimanc", "jax", "jaxlib", "optax", "numpy", "matplotlib",
                              "highway-env", "gymnasium", "ray")
 """Distributions whose versions a provenance record lists (those installed)."""
 
@@ -269,7 +267,7 @@ def check_readme(readme: str | Path, root: str | Path | None = None) -> list[str
             continue
         if q.body != want:
             problems.append(f"line {q.begin + 1}: the quote of {q.path}#{q.heading} differs "
-                            "from the file (run python -m minimanc.results --update)")
+                            "from the file (run minimanc results update)")
     lines = text.splitlines()
     inside = set()
     for q in blocks:
@@ -298,27 +296,3 @@ def update_readme(readme: str | Path, root: str | Path | None = None) -> bool:
     if new != text:
         write_text(readme, new)
     return new != text
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m minimanc.results [--update] README.md``: exit 0 when every quote matches,
-    1 with one line per problem otherwise, 2 on a missing file."""
-    ap = argparse.ArgumentParser(prog="python -m minimanc.results",
-                                 description="Check (or --update) the README's quoted results.")
-    ap.add_argument("readme", nargs="?", default="README.md")
-    ap.add_argument("--update", action="store_true", help="rewrite the blocks from the files")
-    args = ap.parse_args(argv)
-    try:
-        if args.update:
-            update_readme(args.readme)
-        problems = check_readme(args.readme)
-    except (OSError, KeyError, ValueError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    for p in problems:
-        print(p, file=sys.stderr)
-    return 1 if problems else 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

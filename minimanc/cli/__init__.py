@@ -5,6 +5,8 @@
 * :mod:`~minimanc.cli.data` — ``minimanc data generate|show`` (chapter 7);
 * :mod:`~minimanc.cli.reproduce` — ``minimanc reproduce`` (chapter 9);
 * :mod:`~minimanc.cli.highway` — ``minimanc highway collect|train|eval|render`` (chapter 10);
+* :mod:`~minimanc.cli.results` — ``minimanc results check|update`` (the README's quoted
+  results, chapter 9);
 * :mod:`~minimanc.cli.common` — the argument validators and the project root they share.
 
 Each module has ``register(subparsers)``; choices come from the library's registries
@@ -35,6 +37,7 @@ PLUGINS = {
     "minimanc.cli.data": "minimanc.world",
     "minimanc.cli.reproduce": "minimanc.studies",
     "minimanc.cli.highway": "minimanc.highway",
+    "minimanc.cli.results": "minimanc.results",
 }
 """Command module -> the chapter package it drives. A command is registered only when its
 chapter's package is part of this build (found without importing it, so a missing optional
