@@ -321,6 +321,10 @@ def test_resume_after_a_kill_during_training_reuses_the_collected_scenes(
     assert (tmp_path / "round_001" / "data.npz").exists()
     assert not (tmp_path / "round_001" / dagger.ROUND_FILE).exists()
     monkeypatch.setattr(train, "fit", real_fit)
+    # the unfinished round's data and checkpoint are not mixed into another configuration
+    with pytest.raises(ValueError, match="round_001 holds a round of another configuration"):
+        dagger.dagger("cnn", teacher, dagger.Budget.fixed(40, 2, 1, 1), rounds=1, beta=0.9,
+                      **kw)
     monkeypatch.setattr(dagger.loop, "collect", lambda *a, **k: pytest.fail("recollected"))
     res = dagger.dagger("cnn", teacher, dagger.Budget.fixed(40, 2, 1, 1), rounds=1, **kw)
     assert [r.loaded for r in res.rounds] == [True, False]

@@ -41,13 +41,17 @@ as ``controls``; as for every dataset, a model's ``motion`` input at ``t`` is th
 ``controls[t − 1]`` (the expert's label, not the control the mixture applied).
 
 **Checkpoints.** With ``out``, round ``i`` lives in ``out/round_<i:03d>/``: the
-collected scenes (``data.npz``), the training checkpoint (``checkpoint.npz``,
-resumable inside the round) and, written last and atomically, ``round.json``; a
-rerun loads every complete round whose configuration matches and continues.
+configuration it belongs to (``fingerprint.json``, written first), the collected
+scenes (``data.npz``), the training checkpoint (``checkpoint.npz``, resumable inside
+the round) and, written last, ``round.json``; every file is written atomically
+(temporary file, then rename). A rerun loads every complete round and resumes an
+unfinished one from its data and checkpoint; a folder of another configuration is a
+``ValueError``, never mixed in.
 """
 
 from minimanc.dagger.aggregate import Collected, MixturePolicy, collect, concat
 from minimanc.dagger.loop import (
+    FINGERPRINT_FILE,
     ROUND_FILE,
     DaggerResult,
     RoundResult,
@@ -62,6 +66,7 @@ from minimanc.dagger.teachers import AGENTS, SIMS, HighwayTeacher, Teacher, Worl
 
 __all__ = [
     "AGENTS",
+    "FINGERPRINT_FILE",
     "ROUND_FILE",
     "SIMS",
     "Budget",

@@ -61,7 +61,8 @@ class MixturePolicy:
     At every step it records the simulator's state, asks the teacher for its labels,
     asks ``policy`` (skipped when ``beta == 1``) and applies :func:`mix` with one
     uniform draw per row from ``rng``. ``policy=None`` is the expert alone (``beta``
-    must then be 1). Rows the teacher cannot label are driven by the policy.
+    must then be 1). A row the teacher cannot label is driven by the policy (it stands
+    still when the policy is not asked, ``beta = 1``); :func:`collect` does not keep it.
     """
 
     def __init__(self, policy: Any, teacher: Teacher, sim: Any, beta: float,

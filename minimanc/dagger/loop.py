@@ -21,7 +21,8 @@ from minimanc.dagger.teachers import SIMS, Teacher
 from minimanc.rollout import ModelPolicy
 from minimanc.world.scenes import Dataset
 
-__all__ = ["ROUND_FILE", "DaggerResult", "RoundResult", "behaviour_cloning", "dagger",
+__all__ = ["FINGERPRINT_FILE", "ROUND_FILE", "DaggerResult", "RoundResult", "behaviour_cloning",
+           "dagger",
            "default_config", "plot_rounds", "round_dir"]
 
 ROUND_FILE = "round.json"
@@ -149,16 +150,31 @@ def _train(name: str, data: Dataset, cfg: Any, tc: Any, engine: Any, where: Path
                      resume=where is not None, progress=progress)
 
 
+FINGERPRINT_FILE = "fingerprint.json"
+"""The configuration a round folder belongs to (written before the round starts)."""
+
+
 def _load_round(where: Path, fp: dict) -> tuple[RoundResult, dict] | None:
+    """The finished round in ``where`` (``None`` if unfinished); claims the folder for ``fp``:
+    a folder started or finished by another configuration is a ``ValueError`` (its data
+    and checkpoint must not be mixed into this run)."""
+    fp = json.loads(json.dumps(fp))
+    claim = where / FINGERPRINT_FILE
     f = where / ROUND_FILE
+    for path in (claim, f):
+        if path.exists():
+            saved = json.loads(path.read_text())
+            if saved.get("fingerprint", saved) != fp:
+                raise ValueError(f"{where} holds a round of another configuration; use another "
+                                 "out directory or delete it")
+    where.mkdir(parents=True, exist_ok=True)
+    if not claim.exists():
+        _atomic_json(claim, fp)
     if not f.exists():
         return None
-    saved = json.loads(f.read_text())
-    if saved.get("fingerprint") != json.loads(json.dumps(fp)):
-        raise ValueError(f"{where} holds a round of another configuration; use another out "
-                         "directory or delete it")
     from minimanc import train
 
+    saved = json.loads(f.read_text())
     res = train.load(where / "checkpoint.npz")
     r = RoundResult(**saved["result"], loaded=True, params=res.params)
     return r, res.params
@@ -219,8 +235,6 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
             fp_i = {**fp, "betas": betas[:i + 1],
                     "round_plan": [plan.initial, *plan.per_round[:i]]}
             loaded = _load_round(where, fp_i) if where is not None else None
-            if where is not None:
-                where.mkdir(parents=True, exist_ok=True)
             if i == 0:
                 new = pool.subset(np.sort(scenes))
                 col = Collected(new, scenes, np.sort(scenes), int(len(scenes) * plan.steps), 1.0)
@@ -294,8 +308,6 @@ def behaviour_cloning(name: str, teacher: Teacher, budget: int | Budget, rounds:
     loaded = _load_round(where, fp) if where is not None else None
     if loaded is not None:
         return loaded[0]
-    if where is not None:
-        where.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     data = pool.subset(np.sort(scenes))
     fit = _train(name, data, cfg, tc, engine, where, progress)
