@@ -22,8 +22,7 @@ from minimanc.rollout import ModelPolicy
 from minimanc.world.scenes import Dataset
 
 __all__ = ["FINGERPRINT_FILE", "ROUND_FILE", "DaggerResult", "RoundResult", "behaviour_cloning",
-           "dagger",
-           "default_config", "plot_rounds", "round_dir"]
+           "dagger", "default_config", "plot_rounds", "round_dir"]
 
 ROUND_FILE = "round.json"
 """The file that marks a round as complete (written last, atomically)."""
