@@ -86,26 +86,10 @@ def is_traced(x: Any) -> bool:
 
 
 def value_dtype(x: Any) -> np.dtype:
-    """The floating-point precision the values of ``x`` carry.
-
-    The dtype of ``x`` for float arrays (float64 for Python floats, integers
-    and booleans, which convert exactly); **float32 for a float64 array whose
-    every entry is a float32 number**, which is what a float32 model's outputs
-    become when they are recorded with ``np.asarray(v, float64)``: their
-    rounding errors are float32 ones, and so must be the tolerance.  A float64
-    array computed in float64 almost never consists of float32 numbers only,
-    except for short exact values (0.5, 0.25, ...), for which either tolerance
-    gives the same verdict.
-    """
+    """The floating-point precision the values of ``x`` carry: the dtype of a float array,
+    float64 for Python floats, integers and booleans (which convert exactly)."""
     dt = np.asarray(x).dtype
-    if not np.issubdtype(dt, np.floating):
-        return np.dtype(np.float64)
-    if dt == np.float64:
-        a = np.asarray(x)
-        with np.errstate(over="ignore", invalid="ignore"):
-            if a.size and np.array_equal(a.astype(np.float32).astype(np.float64), a):
-                return np.dtype(np.float32)
-    return np.dtype(dt)
+    return np.dtype(dt) if np.issubdtype(dt, np.floating) else np.dtype(np.float64)
 
 
 def float_tolerance(dtype: Any, terms: int = 1) -> float:
@@ -281,9 +265,14 @@ def check_distribution(name: str, q: Any, n: int, what: str = "states") -> None:
     off = np.abs(qa.sum(axis=-1) - 1.0)
     if np.any(off > tol):
         worst = float(qa.sum(axis=-1).reshape(-1)[np.argmax(off.reshape(-1))])
+        hint = ""
+        if qa.dtype == np.float64 and np.all(off <= float_tolerance(np.float32, n)):
+            hint = (f" — within float32 precision: if {name} holds float32 values converted "
+                    f"to float64, pass them as float32 or renormalise ({name} / "
+                    f"{name}.sum(-1, keepdims=True))")
         raise ValueError(
             f"{name} must be a probability distribution: entries sum to {worst!r}, "
-            f"not 1 (|sum - 1| = {float(off.max()):.3g} > tolerance {tol:.3g}); "
+            f"not 1 (|sum - 1| = {float(off.max()):.3g} > tolerance {tol:.3g}){hint}; "
             f"got {name} = {qa!r}"
         )
 

@@ -51,10 +51,10 @@ def test_a_normalised_distribution_is_within_its_tolerance(n, dtype, seed):
 # --------------------------------------------------------------------------- value_dtype
 
 
-def test_value_dtype_sees_float32_numbers_stored_as_float64():
+def test_value_dtype_is_the_arrays_own_precision():
     x32 = np.random.default_rng(0).uniform(size=5).astype(np.float32)
     assert checks.value_dtype(x32) == np.float32
-    assert checks.value_dtype(x32.astype(np.float64)) == np.float32
+    assert checks.value_dtype(x32.astype(np.float64)) == np.float64
     assert checks.value_dtype(np.random.default_rng(0).uniform(size=5)) == np.float64
     assert checks.value_dtype(3) == np.float64 and checks.value_dtype([1, 2]) == np.float64
     assert checks.value_dtype(np.array([np.nan, 1e300])) == np.float64
@@ -135,7 +135,8 @@ def test_check_distribution_uses_the_precision_of_the_values():
     q32 = np.full(4, 0.25, dtype=np.float32)
     q32[0] -= np.float32(2e-6)  # 2e-6 < 8 · 4 · eps32 = 3.8e-6
     checks.check_distribution("q", q32, 4)
-    checks.check_distribution("q", q32.astype(np.float64), 4)  # recorded float32 values
+    with pytest.raises(ValueError, match="within float32 precision: if q holds float32"):
+        checks.check_distribution("q", q32.astype(np.float64), 4)  # float64: its precision
     q64 = np.full(4, 0.25)
     q64[0] -= 1e-9
     with pytest.raises(ValueError, match=r"q must be a probability distribution: entries sum "

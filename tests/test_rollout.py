@@ -350,15 +350,12 @@ def test_log_replay_that_follows_the_log_shows_the_logged_observations(ds):
 # --------------------------------------------------------------------------- aux dtypes
 
 
-def test_rollout_keeps_the_models_dtype_and_explain_needs_no_dtype_guess(ds, tmp_path,
-                                                                         monkeypatch):
-    """A float32 model's q is recorded as float32 and checked with float32 tolerances; explain
-    takes it as q' directly. With checks.value_dtype reduced to the array's own dtype (no
-    guess that float64 numbers are float32 ones), everything still passes."""
+def test_rollout_keeps_the_models_dtype_and_explain_needs_no_dtype_guess(ds, tmp_path):
+    """A float32 model's q is recorded as float32 and checked with float32 tolerances
+    (checks.value_dtype is the array's own dtype, no guess); explain takes it as q'
+    directly."""
     from minimanc import checks, models, vagn
 
-    monkeypatch.setattr(checks, "value_dtype", lambda x: np.dtype(
-        np.asarray(x).dtype if np.issubdtype(np.asarray(x).dtype, np.floating) else np.float64))
     cfg = models.ModelConfig(image_size=32, n_states=5, channels=(4, 8))
     params = models.init("manc", np.random.default_rng(2), cfg, dtype=np.float32)
     traj = rollout.closed_loop("manc", params, ds, cfg, "numpy", scenes=[0, 1], steps=5,

@@ -405,16 +405,21 @@ def test_q_tolerance_fits_the_dtype_of_the_input():
         vagn.most_likely_path(q64, vagn.transition_matrix(np.ones((2, 3)), W))
 
 
-def test_float32_values_recorded_as_float64_keep_the_float32_tolerance():
-    # a float32 model's q stored with np.asarray(q, float64) (as rollouts record aux outputs)
+def test_float32_values_converted_to_float64_are_held_to_float64_with_a_hint():
+    # a float32 model's q checked in its own precision; converted to float64 it is a float64
+    # distribution, checked as one, and the error says what probably happened
     rng = np.random.default_rng(14)
     W = vagn.init_vagn(rng, 3, 5).astype(np.float32)
     q = vagn.uniform_state(5).astype(np.float32)
     for _ in range(50):
         q = vagn.step(q, rng.uniform(size=3).astype(np.float32), W)
+    vagn.check_state(q, 5)
     recorded = np.asarray(q, dtype=np.float64)
-    vagn.step(recorded, np.ones(3), W.astype(np.float64))
-    vagn.plot_q_heatmap(recorded[None])
+    if abs(recorded.sum() - 1.0) > 8 * np.finfo(np.float64).eps * 5:
+        with pytest.raises(ValueError, match="float32 values converted to float64"):
+            vagn.step(recorded, np.ones(3), W.astype(np.float64))
+    vagn.step(recorded / recorded.sum(), np.ones(3), W.astype(np.float64))
+    vagn.plot_q_heatmap(q[None])
     plt.close("all")
 
 
