@@ -1,9 +1,12 @@
 """Chapter 1 — ``minimanc.autodiff``: reverse-mode automatic differentiation from scratch.
 
 * :mod:`minimanc.autodiff.core` — boxes, :func:`primitive`, :func:`defvjp`, the
-  backward pass, :func:`grad` and :func:`value_and_grad` (JAX semantics, pytrees);
+  backward pass, :func:`grad` and :func:`value_and_grad` (JAX semantics, pytrees),
+  :func:`scan` and :class:`custom_vjp`, gathered from one module per concept
+  (``boxes``, ``primitives``, ``reverse``, ``pytrees``, ``api``, ``loops``, ``custom``);
 * :mod:`minimanc.autodiff.numpy` — the NumPy-like namespace (``anp``, the ``xp``
-  of ``engine("numpy")``), each primitive with its VJP beside it;
+  of ``engine("numpy")``), each primitive with its VJP beside it (``elementwise``,
+  ``reductions``, ``arrays``; ``dispatch`` makes traced values behave like arrays);
 * :mod:`minimanc.autodiff.check` — central-difference gradient checks;
 * :mod:`minimanc.autodiff.graph` — :func:`computation_graph`, the traced graph of a
   function at a point with the cotangent on each edge (``Graph.draw`` plots it);
@@ -19,16 +22,21 @@ First-order derivatives only (no ``grad(grad(f))``): use the ``jax`` engine for
 higher orders.
 """
 
-from minimanc.autodiff import numpy
+from minimanc.autodiff import (
+    dispatch,  # noqa: F401 - installs the operators of Box
+    numpy,
+)
 from minimanc.autodiff.check import check_grads
 from minimanc.autodiff.core import (
     Box,
     TracerConversionError,
     backward,
+    custom_vjp,
     defvjp,
     defvjp_fwd,
     grad,
     primitive,
+    scan,
     stop_gradient,
     toposort,
     tree_flatten,
@@ -45,11 +53,13 @@ __all__ = [
     "backward",
     "check_grads",
     "computation_graph",
+    "custom_vjp",
     "defvjp",
     "defvjp_fwd",
     "grad",
     "numpy",
     "primitive",
+    "scan",
     "stop_gradient",
     "toposort",
     "tree_flatten",
