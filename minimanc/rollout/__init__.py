@@ -1,4 +1,5 @@
-"""Chapter 9 — the closed loop: the policy drives the ego, the ados replay the log.
+"""Chapter 9 — the closed loop: the policy drives the ego, the ados replay the log
+(the paper's protocol) or react to it.
 
 The paper's evaluation (section V-A): "we control the ego vehicle with our
 learned planner, the ado vehicles move according to the trajectories
@@ -28,6 +29,13 @@ at constant gains and no network at all (eqs. 10–11 with ``FC(q)`` replaced
 by a constant): the structured prior alone, the reference that tells how much
 the learned part adds.
 
+**Two protocols for the ados** (``agents=`` on :func:`simulate`, :func:`closed_loop`,
+:func:`fixed_gains`, :func:`human`; :data:`AGENTS`): ``"replay"`` is the paper's, above;
+``"reactive"`` drives them by the world's own IDM / yielding / gap-acceptance rules,
+reacting to the policy's ego from the logged start (:mod:`minimanc.world.reactive`, as
+nuPlan's reactive agents). A reactive :class:`Rollout` holds the ados it simulated
+(``ado``, ``ado_valid``), and :func:`minimanc.metrics.evaluate` scores it on them.
+
 Any object with ``model``, ``setting``, ``initial_state(scenes)`` and
 ``__call__(obs, state, t, scenes) -> (controls, state, aux)`` can drive
 (:class:`Policy`); :class:`ModelPolicy` wraps :func:`minimanc.models.step`.
@@ -55,16 +63,26 @@ from minimanc.rollout.driver import (
     drive,
     observation,
 )
-from minimanc.rollout.log import BATCH_SIZE, LogReplay, Rollout, human, simulate
+from minimanc.rollout.log import (
+    AGENTS,
+    BATCH_SIZE,
+    LogReplay,
+    Rollout,
+    check_agents,
+    human,
+    simulate,
+)
 from minimanc.rollout.policies import (
     FixedGainsPolicy,
     ModelPolicy,
     closed_loop,
     fixed_gains,
+    open_loop,
     replay,
 )
 
 __all__ = [
+    "AGENTS",
     "AUX_KEYS",
     "BATCH_SIZE",
     "BadControls",
@@ -76,12 +94,14 @@ __all__ = [
     "Rollout",
     "SceneState",
     "Simulator",
+    "check_agents",
     "check_controls",
     "closed_loop",
     "drive",
     "fixed_gains",
     "human",
     "observation",
+    "open_loop",
     "replay",
     "simulate",
 ]

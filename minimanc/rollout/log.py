@@ -15,11 +15,23 @@ from minimanc.checks import check_int
 from minimanc.rollout.driver import Policy, SceneState, drive
 from minimanc.world.geometry import DT, unicycle_step
 
-__all__ = ["BATCH_SIZE", "LogReplay", "Rollout", "check_dataset", "human", "k_targets_of",
-           "raster_config", "scene_index", "simulate"]
+__all__ = ["AGENTS", "BATCH_SIZE", "LogReplay", "Rollout", "check_agents", "check_dataset",
+           "human", "k_targets_of", "raster_config", "scene_index", "simulate"]
 
 BATCH_SIZE: int = 8
 """Default number of scenes driven together (see :func:`simulate`)."""
+
+AGENTS: tuple[str, ...] = ("replay", "reactive")
+"""The closed-loop protocols for the ados: ``"replay"`` from the log (the paper's,
+:class:`LogReplay`) or ``"reactive"`` (:mod:`minimanc.world.reactive`: the world's own
+IDM / yielding / gap-acceptance rules react to the policy's ego)."""
+
+
+def check_agents(agents: Any) -> str:
+    """``agents`` if it is one of :data:`AGENTS`, else ValueError naming it."""
+    if not isinstance(agents, str) or agents not in AGENTS:
+        raise ValueError(f"agents must be one of {AGENTS}; got agents={agents!r}")
+    return agents
 
 
 @dataclass
@@ -30,7 +42,10 @@ class Rollout:
     ``controls (S, T−1, 2)`` the ``[speed, yaw rate]`` applied from ``t`` to
     ``t + 1``; ``aux[key] (S, T−1, ...)`` the model outputs at each decision
     (keys of :data:`AUX_KEYS` the model returned); ``scenes (S,)`` the
-    dataset indices of the rows.
+    dataset indices of the rows.  ``agents`` is the closed-loop protocol of the ados
+    (:data:`AGENTS`); under ``"reactive"`` the rollout holds the ados as they were
+    simulated, ``ado (S, T, A, 5)`` and ``ado_valid (S, T, A)`` (the metrics use them
+    instead of the dataset's log); under ``"replay"`` they are ``None`` (the log's).
     """
 
     name: str
@@ -39,6 +54,9 @@ class Rollout:
     controls: np.ndarray
     aux: dict[str, np.ndarray] = field(default_factory=dict)
     scenes: np.ndarray | None = None
+    ado: np.ndarray | None = None
+    ado_valid: np.ndarray | None = None
+    agents: str = "replay"
 
     def __post_init__(self) -> None:
         self.ego = np.asarray(self.ego, dtype=np.float64)
@@ -55,6 +73,28 @@ class Rollout:
         self.scenes = np.asarray(self.scenes, dtype=np.int64)
         if self.scenes.shape != (S,):
             raise ValueError(f"scenes must have shape ({S},); got shape {self.scenes.shape}")
+        if self.agents not in AGENTS:
+            raise ValueError(f"agents must be one of {AGENTS}; got agents={self.agents!r}")
+        if (self.ado is None) != (self.ado_valid is None):
+            raise ValueError("ado and ado_valid must be given together")
+        if self.ado is not None:
+            self.ado = np.asarray(self.ado, dtype=np.float64)
+            self.ado_valid = np.asarray(self.ado_valid, dtype=bool)
+            if self.ado.ndim != 4 or self.ado.shape[:2] != (S, T) or self.ado.shape[-1] != 5:
+                raise ValueError(f"ado must have shape ({S}, {T}, A, 5); got shape "
+                                 f"{self.ado.shape}")
+            if self.ado_valid.shape != self.ado.shape[:3]:
+                raise ValueError(f"ado_valid must have shape {self.ado.shape[:3]}; got shape "
+                                 f"{self.ado_valid.shape}")
+
+    def subset(self, rows: Any) -> Rollout:
+        """The rows ``rows`` (positions in this rollout, not dataset indices) as a new
+        :class:`Rollout` (a plain one: the ados, aux and protocol are kept)."""
+        idx = np.atleast_1d(np.arange(len(self))[rows])
+        return Rollout(self.name, self.setting, self.ego[idx], self.controls[idx],
+                       {k: v[idx] for k, v in self.aux.items()}, self.scenes[idx],
+                       None if self.ado is None else self.ado[idx],
+                       None if self.ado_valid is None else self.ado_valid[idx], self.agents)
 
     def __len__(self) -> int:
         return self.ego.shape[0]
@@ -65,18 +105,25 @@ class Rollout:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + ".tmp.npz")
         arrays = {f"aux_{k}": v for k, v in self.aux.items()}
+        if self.ado is not None:
+            arrays.update(ado=self.ado, ado_valid=self.ado_valid)
         np.savez_compressed(tmp, name=np.array(self.name), setting=np.array(self.setting),
-                            ego=self.ego, controls=self.controls, scenes=self.scenes, **arrays)
+                            ego=self.ego, controls=self.controls, scenes=self.scenes,
+                            agents=np.array(self.agents), **arrays)
         tmp.replace(path)
         return path
 
     @classmethod
     def load(cls, path: str | Path) -> Rollout:
-        """Read a rollout written by :meth:`save`."""
+        """Read a rollout written by :meth:`save` (or by the reactive rollout's ``save``;
+        a file without ``agents`` is a log replay)."""
         with np.load(Path(path), allow_pickle=False) as z:
             aux = {k[4:]: z[k] for k in z.files if k.startswith("aux_")}
-            return cls(str(z["name"]), str(z["setting"]), z["ego"], z["controls"], aux,
-                       z["scenes"])
+            ado = z["ado"] if "ado" in z.files else None
+            valid = z["ado_valid"] if "ado_valid" in z.files else None
+            agents = str(z["agents"]) if "agents" in z.files else "replay"
+            return Rollout(str(z["name"]), str(z["setting"]), z["ego"], z["controls"], aux,
+                           z["scenes"], ado, valid, agents)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -123,12 +170,19 @@ def k_targets_of(ds: Any) -> int | None:
     return None if lt is None else int(np.asarray(lt).shape[2])
 
 
-def human(ds: Any, scenes: Any = None) -> Rollout:
+def human(ds: Any, scenes: Any = None, agents: str = "replay") -> Rollout:
     """The logged human ego as a :class:`Rollout` (Table I's "Human" row).
 
     Its controls are the logged ones from ``t`` to ``t + 1``; replaying them
-    with the unicycle reproduces ``ds.ego`` (the world's logging rule).
+    with the unicycle reproduces ``ds.ego`` (the world's logging rule).  With
+    ``agents="reactive"`` these controls drive the ego among reactive ados
+    (:func:`minimanc.world.reactive.human`): the same poses, and the ados as the
+    reactive simulation moved them (equal to the log to float32 rounding).
     """
+    if check_agents(agents) == "reactive":
+        from minimanc.world import reactive
+
+        return reactive.human(ds, scenes=scenes)
     S, T = check_dataset(ds)
     idx = scene_index(scenes, S)
     ego = np.asarray(ds.ego, dtype=np.float64)[idx]
@@ -201,6 +255,7 @@ def simulate(
     steps: int | None = None,
     progress: bool = True,
     desc: str | None = None,
+    agents: str = "replay",
 ) -> Rollout:
     """Run ``policy`` in closed loop on the scenes ``scenes`` of ``ds`` (default: all).
 
@@ -210,8 +265,18 @@ def simulate(
     result does not depend on the batch it is in.  ``steps`` limits the
     number of decisions (default ``T − 1``, the whole log).  Each batch is
     :func:`drive` in a :class:`LogReplay`; see the module docstring for what
-    one step does.
+    one step does.  ``agents="reactive"`` drives the ados by the world's rules
+    instead, reacting to the policy's ego
+    (:func:`minimanc.world.reactive.simulate_reactive`, same arguments; the
+    rollout then holds the simulated ados).
     """
+    if check_agents(agents) == "reactive":
+        from minimanc.world import reactive  # imports this module: imported here
+
+        traj = reactive.simulate_reactive(policy, ds, scenes=scenes, batch_size=batch_size,
+                                          steps=steps, progress=progress, desc=desc)
+        return Rollout(traj.name, traj.setting, traj.ego, traj.controls, traj.aux,
+                       traj.scenes, traj.ado, traj.ado_valid, "reactive")
     S_all, T = check_dataset(ds)
     idx = scene_index(scenes, S_all)
     n_steps = T - 1 if steps is None else int(steps)

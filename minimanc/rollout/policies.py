@@ -10,9 +10,17 @@ import numpy as np
 
 from minimanc.checks import check_int
 from minimanc.rollout.driver import AUX_KEYS, drive
-from minimanc.rollout.log import LogReplay, Rollout, check_dataset, scene_index, simulate
+from minimanc.rollout.log import (
+    LogReplay,
+    Rollout,
+    check_agents,
+    check_dataset,
+    scene_index,
+    simulate,
+)
 
-__all__ = ["FixedGainsPolicy", "ModelPolicy", "closed_loop", "fixed_gains", "replay"]
+__all__ = ["FixedGainsPolicy", "ModelPolicy", "closed_loop", "fixed_gains", "open_loop",
+           "replay"]
 
 
 class ModelPolicy:
@@ -144,6 +152,49 @@ def replay(name: str, params: dict, ds: Any, scene: int, cfg: Any = None, eng: A
     return out
 
 
+def open_loop(name: str, params: dict, ds: Any, cfg: Any, eng: Any = "numpy",
+              scenes: Any = None, batch_size: int | None = None) -> dict[str, np.ndarray]:
+    """The open-loop trace of :func:`replay` on many scenes at once: the model sees the
+    logged human's observations at every step (the ego follows the log) while its
+    recurrent state carries over from the uniform initial q.
+
+    Parameters
+    ----------
+    name : str
+        A registered model.
+    params : dict
+        Its parameters.
+    ds : dataset
+        A :mod:`minimanc.world` dataset.
+    cfg : ModelConfig
+        The model's configuration.
+    eng : Engine or str
+        Runs the step (jitted on JAX, once per batch size).
+    scenes : array_like of int, optional
+        Default: all.
+    batch_size : int, optional
+        Scenes driven together (default :data:`BATCH_SIZE`); a row does not depend on
+        its batch.
+
+    Returns
+    -------
+    dict
+        ``controls`` ``(S, T, 2)`` and the model's aux outputs (``q`` ``(S, T, N)``,
+        ``alpha``, ``beta``, ``predicates``) over all ``T`` logged steps, in float32.
+    """
+    from minimanc.rollout.log import BATCH_SIZE
+
+    S, T = check_dataset(ds)
+    idx = scene_index(scenes, S)
+    bs = BATCH_SIZE if batch_size is None else check_int("batch_size", batch_size, 1)
+    policy = ModelPolicy(name, params, cfg, eng)
+    parts = []
+    for i in range(0, len(idx), bs):
+        run = drive(policy, LogReplay(ds, idx[i: i + bs], follow_log=True), T)
+        parts.append({"controls": run.controls, **run.aux})
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
 def closed_loop(
     name: str,
     params: dict,
@@ -157,6 +208,7 @@ def closed_loop(
     seed: int = 0,
     steps: int | None = None,
     progress: bool = True,
+    agents: str = "replay",
 ) -> Rollout:
     """Closed-loop rollout of a model on the scenes of ``ds`` (:mod:`minimanc.rollout`).
 
@@ -179,6 +231,9 @@ def closed_loop(
         As in :func:`simulate`.
     q_init, seed
         As in :class:`ModelPolicy`.
+    agents : str
+        The ados' protocol (:data:`AGENTS`): ``"replay"`` (the log, the paper's) or
+        ``"reactive"`` (the world's rules, reacting to the policy's ego).
 
     Returns
     -------
@@ -187,8 +242,9 @@ def closed_loop(
     Raises
     ------
     ValueError
-        If ``setting`` differs from ``cfg.setting``.
+        If ``setting`` differs from ``cfg.setting``, or for an unknown ``agents``.
     """
+    check_agents(agents)
     if setting is not None and setting != cfg.setting:
         raise ValueError(
             f"setting={setting!r} differs from cfg.setting={cfg.setting!r}: a model is run in "
@@ -196,7 +252,8 @@ def closed_loop(
         )
     policy = ModelPolicy(name, params, cfg, eng, q_init=q_init, seed=seed)
     return simulate(policy, ds, scenes=scenes, batch_size=batch_size, steps=steps,
-                    progress=progress, desc=f"closed loop {name} ({cfg.setting})")
+                    progress=progress, desc=f"closed loop {name} ({cfg.setting}, {agents})",
+                    agents=agents)
 
 
 class FixedGainsPolicy:
@@ -233,7 +290,7 @@ class FixedGainsPolicy:
 
 
 def fixed_gains(ds: Any, scenes: Any = None, cfg: Any = None, gains: Any = None,
-                progress: bool = False) -> Rollout:
+                progress: bool = False, agents: str = "replay") -> Rollout:
     """Closed loop of :class:`FixedGainsPolicy` on ``ds`` (the "DMP prior" reference).
 
     Parameters
@@ -246,13 +303,17 @@ def fixed_gains(ds: Any, scenes: Any = None, cfg: Any = None, gains: Any = None,
     gains : array_like, shape (4,), optional
         Default :data:`minimanc.models.DEFAULT_GAINS`.
     progress : bool
+    agents : str
+        The ados' protocol, as in :func:`closed_loop`.
 
     Returns
     -------
     Rollout
         Named ``"dmp_prior"``.
     """
+    check_agents(agents)
     policy = FixedGainsPolicy(cfg, gains)
-    traj = simulate(policy, ds, scenes=scenes, progress=progress, desc="closed loop DMP prior")
+    traj = simulate(policy, ds, scenes=scenes, progress=progress,
+                    desc=f"closed loop DMP prior ({agents})", agents=agents)
     traj.name = "dmp_prior"
     return traj

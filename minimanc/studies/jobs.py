@@ -1,7 +1,9 @@
 """Chapter 9 — the jobs of a study that run outside :class:`~minimanc.studies.runner.Study`:
 the closed-loop rollout and metrics of one trained run (:func:`evaluate_job`, in a worker
-process or inline), the persistent JAX compilation cache, and the cache's JSON files
-(written atomically, read as ``None`` when broken)."""
+process or inline) under either protocol of the ados, the scoring of a rollout with the
+along-/cross-track split and per scenario family (:func:`score`), the persistent JAX
+compilation cache, and the cache's JSON files (written atomically, read as ``None`` when
+broken)."""
 
 from __future__ import annotations
 
@@ -16,6 +18,76 @@ import numpy as np
 from minimanc import metrics
 
 _WORKER_DATA: dict[str, Any] = {}
+
+TRACK_METRICS: tuple[str, ...] = ("along_track", "cross_track", "along_bias")
+"""ADE split by :func:`minimanc.metrics.along_cross_track`: ``along_track`` = mean over
+scenes and steps of ``|along|`` (m; speed and timing), ``cross_track`` = mean of ``|cross|``
+(m; steering), ``along_bias`` = mean of the signed ``along`` (m; < 0: behind the human)."""
+
+STUDY_METRICS: tuple[str, ...] = metrics.ALL_METRICS + TRACK_METRICS
+"""Every metric a study reports for a rollout (a failed run has them all ``inf``)."""
+
+FAMILIES: tuple[str, ...] = ("free", "junction", "roundabout", "cut_in")
+"""Scenario families, from the world's scene tags: ``free`` = a straight or curved road
+without a cut-in, ``junction`` = an intersection, ``roundabout``, ``cut_in`` = a scene with
+a cut-in (on any map, so it overlaps the others)."""
+
+
+def scene_families(ds: Any) -> dict[str, np.ndarray]:
+    """``{family: (S,) bool}``: which scenes of ``ds`` belong to each of :data:`FAMILIES`
+    (from ``ds.tags``; ValueError when the dataset has none)."""
+    tags = getattr(ds, "tags", None)
+    if tags is None or len(tags) != len(ds.ego):
+        raise ValueError("ds must be a minimanc.world dataset with one tag dict per scene")
+    kind = np.array([t["kind"] for t in tags])
+    cut = np.array([bool(t["has_cut_in"]) for t in tags])
+    return {"free": np.isin(kind, ("straight", "curved")) & ~cut,
+            "junction": kind == "intersection", "roundabout": kind == "roundabout",
+            "cut_in": cut}
+
+
+def failed(error: str | None = None) -> dict:
+    """The scores of a run that could not be evaluated: every :data:`STUDY_METRICS` ``inf``
+    (also per family, so that :func:`minimanc.metrics.aggregate` keeps every key)."""
+    res: dict[str, Any] = {k: float("inf") for k in STUDY_METRICS}
+    res["families"] = {f: {k: float("inf") for k in STUDY_METRICS} for f in FAMILIES}
+    if error is not None:
+        res["error"] = error
+    return res
+
+
+class _Scenes:
+    """The rows ``idx`` of a dataset, as much of it as :func:`minimanc.metrics.evaluate`
+    reads."""
+
+    def __init__(self, ds: Any, idx: np.ndarray) -> None:
+        self.ego = np.asarray(ds.ego)[idx]
+        self.ado = np.asarray(ds.ado)[idx]
+        self.ado_valid = np.asarray(ds.ado_valid)[idx]
+        self.maps = [ds.maps[int(i)] for i in idx]
+
+
+def _scores(traj: Any, ds: Any) -> dict[str, float]:
+    res = metrics.evaluate(traj, ds)
+    along, cross = metrics.along_cross_track(traj.ego, ds.ego)
+    res.update(along_track=float(np.abs(along).mean()), cross_track=float(np.abs(cross).mean()),
+               along_bias=float(along.mean()))
+    return res
+
+
+def score(traj: Any, ds: Any) -> dict:
+    """Every metric of the rollout ``traj`` on ``ds`` (its rows are ``ds``'s scenes in
+    order): :func:`minimanc.metrics.evaluate`, the along-/cross-track split
+    (:data:`TRACK_METRICS`), and ``"families"``: the same for the scenes of each of
+    :data:`FAMILIES` present (with ``n_scenes``)."""
+    res: dict[str, Any] = _scores(traj, ds)
+    fams = {}
+    for fam, mask in scene_families(ds).items():
+        idx = np.flatnonzero(mask)
+        if idx.size:
+            fams[fam] = {**_scores(traj.subset(idx), _Scenes(ds, idx)), "n_scenes": int(idx.size)}
+    res["families"] = fams
+    return res
 
 
 def _load_split(data_path: str, lo: int, hi: int) -> Any:
@@ -48,7 +120,11 @@ def enable_jax_cache(directory: str | Path) -> None:
 
 
 def evaluate_job(job: dict) -> dict:
-    """Closed-loop rollout + metrics of one trained run (runs in a worker or inline)."""
+    """Closed-loop rollout + :func:`score` of one trained run (runs in a worker or inline).
+
+    ``job``: ``data`` (the dataset file), ``lo``/``hi`` (the split's rows), ``checkpoint``,
+    ``engine``, ``rollout`` and ``metrics`` (the files written), optionally ``agents``
+    (the protocol, default ``"replay"``) and ``jax_cache``."""
     from minimanc import engine, rollout, train
 
     if job["engine"] == "jax" and job.get("jax_cache"):
@@ -57,15 +133,14 @@ def evaluate_job(job: dict) -> dict:
     fit = train.load(job["checkpoint"])
     try:
         traj = rollout.closed_loop(fit.name, fit.params, ds, fit.cfg, engine(job["engine"]),
-                                   progress=False)
+                                   progress=False, agents=job.get("agents", "replay"))
     except rollout.BadControls as exc:  # a model whose closed loop blows up scores inf
-        res = {k: float("inf") for k in metrics.METRICS}
-        res["error"] = str(exc)
+        res = failed(str(exc))
         write_json(job["metrics"], res)
         np.savez(job["rollout"], error=np.array(str(exc)))
         return res
     traj.save(job["rollout"])
-    res = metrics.evaluate(traj, ds)
+    res = score(traj, ds)
     write_json(job["metrics"], res)
     return res
 

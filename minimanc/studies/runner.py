@@ -1,7 +1,8 @@
 """Chapter 9 — :class:`Study`: trains, rolls out and evaluates every run of the paper's
-studies (Table I, sample efficiency, q-states, self-ablation, parameter counts), with the
-cache under the output directory, the pool of rollout workers and the learning-rate
-sweeps on the tuning split."""
+studies (Table I under both protocols of the ados, per scenario family, sample efficiency,
+q-states, self-ablation, parameter counts, and whether vAGN's q-states are driving modes),
+with the cache under the output directory, the pool of rollout workers and the
+learning-rate sweeps on the tuning split."""
 
 from __future__ import annotations
 
@@ -16,7 +17,17 @@ from minimanc import metrics
 from minimanc.checks import check_int
 from minimanc.engine import ENGINES
 from minimanc.studies.config import Run, StudyConfig, canonical_setting
-from minimanc.studies.jobs import Done, enable_jax_cache, evaluate_job, read_json, write_json
+from minimanc.studies.jobs import (
+    FAMILIES,
+    STUDY_METRICS,
+    Done,
+    enable_jax_cache,
+    evaluate_job,
+    failed,
+    read_json,
+    score,
+    write_json,
+)
 from minimanc.studies.report import findings
 
 
@@ -26,16 +37,26 @@ class Study:
     ``engine`` trains and drives ("jax" or "numpy"); ``workers`` processes do
     the closed-loop rollouts while the main process trains (0: inline);
     ``progress`` shows tqdm bars; ``log`` receives one line per event.
+    ``agents`` are the protocols of the ados Table I is reported under
+    (:data:`minimanc.rollout.AGENTS`, default both); the first one also tunes the
+    learning rates and scores the other studies.
     """
 
     def __init__(self, config: StudyConfig, out: str | Path, engine: str = "jax",
                  workers: int = 1, progress: bool = True,
-                 log: Callable[[str], None] | None = None) -> None:
+                 log: Callable[[str], None] | None = None,
+                 agents: Sequence[str] = ("replay", "reactive")) -> None:
+        from minimanc.rollout import check_agents
+
         if not isinstance(config, StudyConfig):
             raise ValueError(f"config must be a StudyConfig; got config={config!r}")
         if engine not in ENGINES:
             raise ValueError(f"engine must be one of {ENGINES}; got engine={engine!r}")
         check_int("workers", workers, 0)
+        if isinstance(agents, str) or len(agents) == 0 or len(set(agents)) != len(agents):
+            raise ValueError("agents must be a non-empty sequence of distinct protocols; got "
+                             f"agents={agents!r}")
+        self.agents = tuple(check_agents(a) for a in agents)
         self.config = config
         self.out = Path(out)
         self.engine = engine
@@ -53,6 +74,7 @@ class Study:
         self._sweeps: dict[str, dict] = {}
         self.timing: dict[str, float] = {}
         self._bar: Any = None
+        self._references: dict[str, dict] = {}
 
     # ----------------------------------------------------------------- data
 
@@ -153,35 +175,48 @@ class Study:
 
     # ----------------------------------------------------------------- evaluation
 
-    def _paths(self, run: Run, split: str) -> tuple[Path, Path]:
+    @property
+    def primary(self) -> str:
+        """The protocol that tunes the learning rates and scores the other studies."""
+        return self.agents[0]
+
+    def _paths(self, run: Run, split: str, agents: str = "replay") -> tuple[Path, Path]:
         base = self.cache / "rollouts"
-        return base / f"{run.key}-{split}.npz", base / f"{run.key}-{split}.json"
+        tail = "" if agents == "replay" else f"-{agents}"
+        return (base / f"{run.key}-{split}{tail}.npz",
+                base / f"{run.key}-{split}{tail}.json")
 
-    def submit(self, run: Run, split: str = "val") -> Any:
-        """Train ``run`` if needed and start its closed-loop evaluation on ``split``.
+    def submit(self, run: Run, split: str = "val", agents: str | None = None) -> Any:
+        """Train ``run`` if needed and start its closed-loop evaluation on ``split`` under
+        the protocol ``agents`` (default :attr:`primary`).
 
-        Returns a future-like object whose ``result()`` is the metrics dict.
+        Returns a future-like object whose ``result()`` is the metrics dict
+        (:func:`minimanc.studies.jobs.score`).
         """
-        key = f"{run.key}-{split}"
+        agents = self.primary if agents is None else agents
+        key = f"{run.key}-{split}-{agents}"
         if key in self._futures:
             return self._futures[key]
-        roll_path, met_path = self._paths(run, split)
+        roll_path, met_path = self._paths(run, split, agents)
         cached = read_json(met_path) if met_path.exists() and roll_path.exists() else None
         if met_path.exists() and roll_path.exists() and not isinstance(cached, dict):
             self.discard(met_path, "not a JSON object")
+        if isinstance(cached, dict) and not (
+                "families" in cached and all(k in cached for k in STUDY_METRICS)):
+            cached = None  # scored by an older version: evaluate again
         if isinstance(cached, dict):
             fut: Any = Done(cached)
         else:
             ck = self.fit(run)
             if self._diverged(run):
-                fut = Done({k: float("inf") for k in metrics.METRICS})
+                fut = Done(failed("training diverged"))
             else:
                 self.datasets()
                 lo, hi = self._bounds(split)
                 job = {"data": str(self.data_path), "lo": lo, "hi": hi,
                        "checkpoint": str(ck), "engine": self.engine,
                        "rollout": str(roll_path), "metrics": str(met_path),
-                       "jax_cache": str(self.jax_cache)}
+                       "jax_cache": str(self.jax_cache), "agents": agents}
                 if self.workers > 0:
                     fut = self._executor().submit(evaluate_job, job)
                 else:
@@ -202,16 +237,19 @@ class Study:
                                              mp_context=mp.get_context("spawn"))
         return self._pool
 
-    def result(self, run: Run, split: str = "val") -> dict:
-        """Metrics of ``run`` on ``split`` (trains and evaluates if needed; waits)."""
-        return self.submit(run, split).result()
+    def result(self, run: Run, split: str = "val", agents: str | None = None) -> dict:
+        """Metrics of ``run`` on ``split`` under ``agents`` (trains and evaluates if needed;
+        waits)."""
+        return self.submit(run, split, agents).result()
 
-    def rollout(self, run: Run, split: str = "val") -> Any:
-        """The saved :class:`minimanc.rollout.Rollout` of ``run`` on ``split``."""
+    def rollout(self, run: Run, split: str = "val", agents: str | None = None) -> Any:
+        """The saved :class:`minimanc.rollout.Rollout` of ``run`` on ``split`` under
+        ``agents`` (default :attr:`primary`)."""
         from minimanc import rollout
 
-        self.result(run, split)
-        return rollout.Rollout.load(self._paths(run, split)[0])
+        agents = self.primary if agents is None else agents
+        self.result(run, split, agents)
+        return rollout.Rollout.load(self._paths(run, split, agents)[0])
 
     def close(self) -> None:
         """Shut the worker processes down."""
@@ -232,7 +270,7 @@ class Study:
             self._lr[key] = float(c.lrs[0])
             return self._lr[key]
         runs = [Run(model, setting, c.n_states, 1.0, 0, float(lr)) for lr in c.lrs]
-        futs = [self.submit(r, "tune") for r in runs]
+        futs = [self.submit(r, "tune", self.primary) for r in runs]
         scores = {float(r.lr): float(f.result()["ade"]) for r, f in zip(runs, futs)}
         best = min(scores, key=lambda k: (scores[k], k))
         self._sweeps[f"{model}-{setting}"] = {"tune_ade": {f"{k:g}": v for k, v in
@@ -249,7 +287,8 @@ class Study:
         for model, setting in pairs:
             setting = canonical_setting(model, setting)
             for lr in c.lrs:
-                self.submit(Run(model, setting, c.n_states, 1.0, 0, float(lr)), "tune")
+                self.submit(Run(model, setting, c.n_states, 1.0, 0, float(lr)), "tune",
+                            self.primary)
 
     # ----------------------------------------------------------------- studies
 
@@ -261,50 +300,151 @@ class Study:
         lr = self.lr(model, setting)
         return [Run(model, setting, n, float(fraction), s, lr) for s in self.config.seeds]
 
-    def _aggregate(self, runs: list[Run]) -> dict:
-        futs = [self.submit(r) for r in runs]
+    def _aggregate(self, runs: list[Run], agents: str | None = None) -> dict:
+        futs = [self.submit(r, agents=agents) for r in runs]
         return metrics.aggregate([f.result() for f in futs])
 
-    def _submit_all(self, runs: list[Run]) -> None:
+    def _aggregate_families(self, runs: list[Run], agents: str | None = None) -> dict:
+        res = [self.submit(r, agents=agents).result() for r in runs]
+        return families_of(res)
+
+    def _submit_all(self, runs: list[Run], agents: str | None = None) -> None:
         for r in runs:
-            self.submit(r)
+            self.submit(r, agents=agents)
 
     def _tick(self) -> None:
         if self._bar is not None:
             self._bar.update(1)
 
-    def human(self) -> dict:
-        """Metrics of the logged human on the validation split (the "Human" row)."""
-        from minimanc import rollout
+    def _reference(self, name: str, agents: str) -> dict:
+        """The scores of a driver without learning on the validation split (cached in memory)."""
+        from minimanc import models, rollout
 
-        _, _, val = self.datasets()
-        res = metrics.evaluate(rollout.human(val), val)
-        return metrics.aggregate([res])
+        key = f"{name}-val-{agents}"
+        if key not in self._references:
+            _, _, val = self.datasets()
+            t0 = time.perf_counter()
+            if name == "human":
+                traj = rollout.human(val, agents=agents)
+            else:
+                cfg = models.ModelConfig(n_states=self.config.n_states,
+                                         image_size=self.config.image_size)
+                traj = rollout.fixed_gains(val, cfg=cfg, agents=agents)
+            self._references[key] = score(traj, val)
+            self.timing["references"] = (self.timing.get("references", 0.0)
+                                         + time.perf_counter() - t0)
+        return self._references[key]
 
-    def references(self) -> dict:
+    def human(self, agents: str | None = None) -> dict:
+        """Metrics of the logged human on the validation split (the "Human" row) under
+        ``agents`` (default :attr:`primary`): the log itself, or the human's logged controls
+        among reactive ados."""
+        return metrics.aggregate([self._reference("human", agents or self.primary)])
+
+    def references(self, agents: str | None = None) -> dict:
         """``{"dmp_prior": aggregate}``: policies without learning, on the validation split.
 
         ``dmp_prior`` is MANC's DMP head at its initial constant gains
         (:func:`minimanc.rollout.fixed_gains`): what the structure alone does,
         the bar the learned gains must clear.
         """
-        from minimanc import models, rollout
-
-        _, _, val = self.datasets()
-        cfg = models.ModelConfig(n_states=self.config.n_states,
-                                 image_size=self.config.image_size)
-        res = metrics.evaluate(rollout.fixed_gains(val, cfg=cfg), val)
-        return {"dmp_prior": metrics.aggregate([res])}
+        return {"dmp_prior": metrics.aggregate([self._reference("dmp_prior",
+                                                                agents or self.primary)])}
 
     def table1(self) -> dict:
-        """``{setting: {model: aggregate}}`` with ``"human"`` first (Table I)."""
+        """``{agents: {setting: {model: aggregate}}}`` (Table I under each protocol), with
+        the rows ``"human"`` and ``"dmp_prior"`` (the DMP head at fixed gains) first."""
         c = self.config
-        for s in c.settings:
-            for m in c.table_models:
-                self._submit_all(self.runs(m, s))
-        human = self.human()
-        return {s: {"human": human, **{m: self._aggregate(self.runs(m, s))
-                                       for m in c.table_models}} for s in c.settings}
+        for a in self.agents:
+            for s in c.settings:
+                for m in c.table_models:
+                    self._submit_all(self.runs(m, s), a)
+        out = {}
+        for a in self.agents:
+            fixed = {"human": self.human(a), "dmp_prior": self.references(a)["dmp_prior"]}
+            out[a] = {s: {**fixed, **{m: self._aggregate(self.runs(m, s), a)
+                                      for m in c.table_models}} for s in c.settings}
+        return out
+
+    def families(self) -> dict:
+        """``{agents: {setting: {model: {family: aggregate}}}}``: Table I's rows per scenario
+        family (:data:`minimanc.studies.jobs.FAMILIES`; a family with no validation scene
+        is left out)."""
+        c = self.config
+        out: dict = {}
+        for a in self.agents:
+            fixed = {m: families_of([self._reference(m, a)]) for m in ("human", "dmp_prior")}
+            out[a] = {s: {**fixed, **{m: self._aggregate_families(self.runs(m, s), a)
+                                      for m in c.table_models}} for s in c.settings}
+        return out
+
+    def vagn_models(self) -> list[str]:
+        """The study's models with a vAGN (their q-states are measured by :meth:`modes`)."""
+        from minimanc import models
+
+        c = self.config
+        names = dict.fromkeys([*c.table_models, *c.ablation_models, *c.sample_models])
+        return [m for m in names if models.spec(m).family == "vagn"]
+
+    def human_modes(self) -> Any:
+        """The human's mode at each step of every validation scene
+        (:func:`minimanc.modes.human_modes`, ``(S, T)``), cached next to the dataset."""
+        import numpy as np
+
+        from minimanc import modes
+
+        path = self.data_path.with_name(self.data_path.stem + "-val-modes.npy")
+        _, _, val = self.datasets()
+        if path.exists():
+            try:
+                labels = np.load(path, allow_pickle=False)
+                if labels.shape == np.asarray(val.ego).shape[:2]:
+                    return labels
+            except (OSError, ValueError):
+                pass
+            self.discard(path, "not the validation split's mode labels")
+        labels = modes.human_modes(val)
+        tmp = path.with_name(path.stem + ".tmp.npy")
+        np.save(tmp, labels)
+        tmp.replace(path)
+        return labels
+
+    def modes(self, setting: str = "paper") -> dict:
+        """Are vAGN's q-states driving modes? For each model of :meth:`vagn_models` and
+        seed, the open-loop q over the validation scenes (:func:`minimanc.rollout.open_loop`:
+        the model sees the human's observations) against the human's modes
+        (:meth:`human_modes`) by :func:`minimanc.modes.mode_information`, aggregated over
+        seeds: ``{"setting", "mode_counts", "models": {model: aggregate}}``."""
+        import numpy as np
+
+        from minimanc import engine, modes, rollout, train
+
+        labels = self.human_modes()
+        counts = np.bincount(labels.ravel(), minlength=len(modes.MODES))
+        out: dict = {"setting": setting,
+                     "mode_counts": {m: int(n) for m, n in zip(modes.MODES, counts)},
+                     "models": {}}
+        _, _, val = self.datasets()
+        t0 = time.perf_counter()
+        for m in self.vagn_models():
+            per_seed = []
+            for run in self.runs(m, setting):
+                path = self.cache / "modes" / f"{run.key}-val.json"
+                cached = read_json(path) if path.exists() else None
+                if not isinstance(cached, dict) or "mi_bits" not in cached:
+                    ck = self.fit(run)
+                    if self._diverged(run):
+                        continue
+                    fit = train.load(ck)
+                    q = rollout.open_loop(fit.name, fit.params, val, fit.cfg,
+                                          engine(self.engine))["q"]
+                    cached = modes.mode_information(q, labels)
+                    write_json(path, cached)
+                per_seed.append(cached)
+            if per_seed:
+                out["models"][m] = metrics.aggregate(per_seed)
+        self.timing["modes"] = self.timing.get("modes", 0.0) + time.perf_counter() - t0
+        return out
 
     def sample_efficiency(self, setting: str = "paper") -> dict:
         """``{"setting", "fractions", "models": {model: [aggregate per fraction]}}`` (Fig. 5a)."""
@@ -312,7 +452,7 @@ class Study:
         for m in c.sample_models:
             for f in c.fractions:
                 self._submit_all(self.runs(m, setting, fraction=f))
-        return {"setting": setting, "fractions": list(c.fractions),
+        return {"setting": setting, "agents": self.primary, "fractions": list(c.fractions),
                 "models": {m: [self._aggregate(self.runs(m, setting, fraction=f))
                                for f in c.fractions] for m in c.sample_models}}
 
@@ -321,7 +461,8 @@ class Study:
         c = self.config
         for n in c.q_states:
             self._submit_all(self.runs("manc", setting, n_states=n))
-        return {"setting": setting, "n_states": [int(n) for n in c.q_states],
+        return {"setting": setting, "agents": self.primary,
+                "n_states": [int(n) for n in c.q_states],
                 "results": [self._aggregate(self.runs("manc", setting, n_states=n))
                             for n in c.q_states]}
 
@@ -330,7 +471,7 @@ class Study:
         c = self.config
         for m in c.ablation_models:
             self._submit_all(self.runs(m, setting))
-        return {"setting": setting,
+        return {"setting": setting, "agents": self.primary,
                 "models": {m: self._aggregate(self.runs(m, setting))
                            for m in c.ablation_models}}
 
@@ -346,17 +487,18 @@ class Study:
         return out
 
     def n_runs(self) -> int:
-        """Number of closed-loop evaluations (tuning and validation) of the whole study,
-        one per training (for the progress bar)."""
+        """Number of closed-loop evaluations (tuning and validation, each protocol) of the
+        whole study (for the progress bar)."""
         c = self.config
         keys = set()
         for m, s in self._sweep_pairs():
             for lr in (c.lrs if len(c.lrs) > 1 else ()):
                 keys.add((m, canonical_setting(m, s), c.n_states, 1.0, 0, lr))
-        for s in c.settings:
-            for m in c.table_models:
-                keys.update((m, canonical_setting(m, s), c.n_states, 1.0, sd, None)
-                            for sd in c.seeds)
+        for a in self.agents:
+            for s in c.settings:
+                for m in c.table_models:
+                    keys.update((m, canonical_setting(m, s), c.n_states, 1.0, sd,
+                                 None if a == self.primary else a) for sd in c.seeds)
         for m in c.sample_models:
             for f in c.fractions:
                 keys.update((m, "paper", c.n_states, f, sd, None) for sd in c.seeds)
@@ -399,12 +541,14 @@ class Study:
                 "n_scenes": {"train": self.config.n_train, "tune": self.config.n_tune,
                              "val": self.config.n_val},
                 "close_gap_m": metrics.CLOSE_GAP,
+                "agents": list(self.agents),
                 "table1": self.table1(),
+                "families": self.families(),
                 "sample_efficiency": self.sample_efficiency(),
                 "q_states": self.q_states(),
                 "ablation": self.ablation(),
                 "param_counts": self.param_counts(),
-                "references": self.references(),
+                "modes": self.modes(),
             }
         finally:
             if bar is not None:
@@ -421,3 +565,10 @@ class Study:
         """The run whose rollouts the explainability figures show: MANC, paper, seed 0."""
         c = self.config
         return Run("manc", "paper", c.n_states, 1.0, 0, self.lr("manc", "paper"))
+
+
+def families_of(per_seed: Sequence[dict]) -> dict:
+    """``{family: aggregate}`` over the seeds' :func:`minimanc.studies.jobs.score` dicts (the
+    families every seed has, in the order of :data:`minimanc.studies.jobs.FAMILIES`)."""
+    return {f: metrics.aggregate([r["families"][f] for r in per_seed]) for f in FAMILIES
+            if all(f in r.get("families", {}) for r in per_seed)}
