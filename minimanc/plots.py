@@ -4,14 +4,16 @@ Two families:
 
 * **study plots** drawn from the ``results`` dict that :mod:`minimanc.studies`
   writes to ``results.json`` — :func:`plot_table1` (Table I as bars, both
-  information settings), :func:`plot_sample_efficiency` (Fig. 5a),
+  information settings, one protocol of the ados), :func:`plot_families` (one metric per
+  scenario family), :func:`plot_sample_efficiency` (Fig. 5a),
   :func:`plot_param_counts` (Fig. 5b), :func:`plot_q_states` (Fig. 7),
   :func:`plot_ablation` (Fig. 8);
 * **explainability** drawn from a :class:`minimanc.rollout.Rollout` —
   :func:`plot_explain_trace` (Fig. 4: DMP α/β over time, the q-distribution,
   controls against the human's, BEV frames), :func:`plot_saliency_steps`
   (Fig. 3: per-q-state saliency overlays via :mod:`minimanc.cam`),
-  :func:`plot_trajectories` (policy against human in the world frame) and
+  :func:`plot_trajectories` (policy against human in the world frame),
+  :func:`plot_speeds` (speed over time, policies against the human) and
   :func:`save_gif` (a closed-loop rollout as an animated GIF, via Pillow).
 
 Every function returns the matplotlib ``Figure`` (or the GIF's path) and
@@ -34,6 +36,8 @@ __all__ = [
     "model_label",
     "save",
     "plot_table1",
+    "plot_families",
+    "plot_speeds",
     "plot_sample_efficiency",
     "plot_param_counts",
     "plot_q_states",
@@ -96,6 +100,12 @@ METRIC_LABELS: dict[str, str] = {
     "goal_distance": "goal distance (m)",
     "collision_rate": "% scenes with a collision",
     "off_road_rate": "% scenes off road",
+    "at_fault_collision_rate": "% scenes with an at-fault collision",
+    "ttc_rate": "% steps with TTC < 1 s",
+    "route_progress": "route progress (human = 1)",
+    "along_track": "along-track error (m)",
+    "cross_track": "cross-track error (m)",
+    "along_bias": "along-track bias (m, < 0: behind)",
 }
 """Axis labels of the metrics of :mod:`minimanc.metrics`."""
 
@@ -167,6 +177,82 @@ def plot_table1(
     if len(settings) > 1:
         axes[0].legend(title="setting", fontsize=8)
     fig.suptitle("Closed-loop performance (Table I); lower is better")
+    fig.tight_layout()
+    return fig
+
+
+FAMILY_METRICS: tuple[str, ...] = ("ade", "along_track", "cross_track",
+                                    "at_fault_collision_rate")
+"""The panels of :func:`plot_families`: the ADE, its split, and at-fault collisions."""
+
+
+def plot_families(
+    families: Mapping[str, Mapping[str, Mapping[str, Any]]],
+    metrics: Sequence[str] = FAMILY_METRICS,
+    title: str = "",
+) -> Any:
+    """Table I's rows per scenario family: one panel per metric, one bar group per family,
+    one bar per model.
+
+    ``families[model][family]`` is an aggregate (:func:`minimanc.metrics.aggregate`), as
+    in ``results["families"][agents][setting]``; error bars are the std over seeds.
+    """
+    _check_metrics(metrics)
+    if not families:
+        raise ValueError("families must hold at least one model; got an empty mapping")
+    plt = _plt()
+    models = list(families)
+    fams = list(dict.fromkeys(f for m in models for f in families[m]))
+    fig, axes = plt.subplots(1, len(metrics), figsize=(3.8 * len(metrics), 3.4))
+    axes = np.atleast_1d(axes)
+    width = 0.8 / len(models)
+    x = np.arange(len(fams))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for ax, metric in zip(axes, metrics):
+        for k, m in enumerate(models):
+            means, stds = zip(*[_ms(families[m].get(f, {}), metric) for f in fams])
+            ax.bar(x + (k - (len(models) - 1) / 2) * width, means, width, yerr=stds,
+                   color=model_colour(m, colours[k % len(colours)]), edgecolor="black",
+                   linewidth=0.5, capsize=2, label=model_label(m))
+        ax.set_xticks(x)
+        ax.set_xticklabels([f.replace("_", "-") for f in fams])
+        ax.set_title(METRIC_LABELS[metric], fontsize=10)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(title or "Per scenario family; lower is better")
+    fig.tight_layout()
+    return fig
+
+
+def plot_speeds(rollouts: Mapping[str, Any], human: Any, scenes: Sequence[int],
+                dt: float = 0.5) -> Any:
+    """Speed over time of each rollout against the human's, one row per model, one column
+    per scene (the speed is the applied control ``controls[..., 0]``, m/s).
+
+    ``rollouts`` maps a model name to a :class:`minimanc.rollout.Rollout`; ``human`` is
+    :func:`minimanc.rollout.human` on the same scenes.
+    """
+    plt = _plt()
+    scenes = [_check_scene(human, s) for s in scenes]
+    if not scenes or not rollouts:
+        raise ValueError("plot_speeds needs at least one rollout and one scene; got "
+                         f"{len(rollouts)} rollouts and scenes={list(scenes)!r}")
+    fig, axes = plt.subplots(len(rollouts), len(scenes), squeeze=False, sharex=True,
+                             figsize=(3.6 * len(scenes), 2.2 * len(rollouts) + 0.6))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    t = np.arange(human.controls.shape[1]) * dt
+    for i, (name, traj) in enumerate(rollouts.items()):
+        col = model_colour(name, colours[i % len(colours)])
+        for j, s in enumerate(scenes):
+            ax = axes[i, j]
+            ax.plot(t, human.controls[s, :, 0], "k--", lw=1.3, label="Human")
+            ax.plot(t, traj.controls[s, :, 0], "-", color=col, lw=1.5, label=model_label(name))
+            if i == 0:
+                ax.set_title(f"scene {s}", fontsize=10)
+            if j == 0:
+                ax.set_ylabel(f"{model_label(name)}\nspeed (m/s)", fontsize=9)
+            if i == len(rollouts) - 1:
+                ax.set_xlabel("time (s)")
+    axes[0, 0].legend(fontsize=8)
     fig.tight_layout()
     return fig
 

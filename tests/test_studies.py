@@ -22,16 +22,22 @@ def row(ce, acc, ade, goal):
                collision_rate=0.0, off_road_rate=0.0)
 
 
-def fake_results(manc_ade=1.0, q_ades=(3.0, 2.0, 1.5, 1.0)):
+def tables(manc_ade, prior=True):
     human = row(2.0, 3.0, 0.0, 0.0)
-    table = {
-        "paper": {"human": human, "cnn": row(1.0, 5.0, 4.0, 9.0),
+    fixed = {"human": human, **({"dmp_prior": row(3.0, 2.0, 2.5, 6.0)} if prior else {})}
+    return {
+        "paper": {**fixed, "cnn": row(1.0, 5.0, 4.0, 9.0),
                   "cnn_lstm": row(5.0, 6.0, 3.0, 8.0), "rvs_g": row(9.0, 1.0, 2.0, 7.0),
                   "manc": row(2.5, 3.2, manc_ade, 3.0)},
-        "parity": {"human": human, "cnn": row(1.0, 5.0, 1.5, 4.0),
+        "parity": {**fixed, "cnn": row(1.0, 5.0, 1.5, 4.0),
                    "cnn_lstm": row(5.0, 6.0, 2.5, 5.0), "rvs_g": row(9.0, 1.0, 2.5, 6.0),
                    "manc": row(2.5, 3.2, manc_ade, 3.0)},
     }
+
+
+def fake_results(manc_ade=1.0, q_ades=(3.0, 2.0, 1.5, 1.0), reactive_manc_ade=None):
+    table = {"replay": tables(manc_ade),
+             "reactive": tables(manc_ade if reactive_manc_ade is None else reactive_manc_ade)}
     return {
         "config": {**studies.PRESETS["quick"].__dict__, "lrs": [1e-3, 3e-3], "n_seeds": 3},
         "engine": "jax",
@@ -48,7 +54,6 @@ def fake_results(manc_ade=1.0, q_ades=(3.0, 2.0, 1.5, 1.0)):
         "param_counts": {"paper": {"cnn": 100_000, "cnn_lstm": 120_000, "rvs_g": 200_000,
                                    "manc": 20_000, "vagn_only": 25_000, "dmp_only": 19_000}},
         "lr": {"manc-paper": 1e-3},
-        "references": {"dmp_prior": row(3.0, 2.0, 2.5, 6.0)},
     }
 
 
@@ -58,11 +63,13 @@ def by_id(found):
 
 def test_findings_follow_the_numbers():
     f = by_id(studies.findings(fake_results()))
-    assert f["manc_best_ade_paper"]["holds"] is True
-    assert f["manc_best_goal_distance_paper"]["holds"] is True
-    assert f["manc_best_ade_parity"]["holds"] is True
-    assert f["manc_near_human_close_encounters_paper"]["holds"] is True
-    assert f["manc_near_human_max_acceleration_paper"]["holds"] is True
+    for agents in ("replay", "reactive"):
+        assert f[f"manc_best_ade_paper_{agents}"]["holds"] is True
+        assert f[f"manc_best_goal_distance_paper_{agents}"]["holds"] is True
+        assert f[f"manc_best_ade_parity_{agents}"]["holds"] is True
+        assert f[f"manc_near_human_close_encounters_paper_{agents}"]["holds"] is True
+        assert f[f"manc_near_human_max_acceleration_paper_{agents}"]["holds"] is True
+        assert f"{agents} agents" in f[f"manc_best_ade_paper_{agents}"]["claim"]
     assert f["q_states_ade"]["holds"] is True and "monotone" in f["q_states_ade"]["detail"]
     assert f["ablation_dmp_only_aggressive"]["holds"] is True
     assert f["ablation_vagn_only_safer"]["holds"] is True
@@ -70,46 +77,123 @@ def test_findings_follow_the_numbers():
     assert f["sample_efficiency"]["holds"] is True
     assert f["param_counts"]["holds"] is True
     # parity lowers cnn's ADE but not rvs_g's: the claim does not hold, the text says why
-    assert f["parity_helps_baselines"]["holds"] is False
-    assert "rvs_g 2.00 → 2.50" in f["parity_helps_baselines"]["detail"]
+    assert f["parity_helps_baselines_replay"]["holds"] is False
+    assert "rvs_g 2.00 → 2.50" in f["parity_helps_baselines_replay"]["detail"]
 
 
 def test_findings_report_failures_with_numbers():
     f = by_id(studies.findings(fake_results(manc_ade=2.9, q_ades=(1.0, 2.0, 1.5, 3.0))))
-    ade = f["manc_best_ade_paper"]
+    ade = f["manc_best_ade_paper_replay"]
     assert ade["holds"] is False and "manc 2.90" in ade["detail"] and "best is rvs_g" in ade[
         "detail"]
     assert f["q_states_ade"]["holds"] is False
     assert "not monotone" in f["q_states_ade"]["detail"]
     # parity: cnn 1.50 beats manc 2.90
-    assert f["manc_best_ade_parity"]["holds"] is False
-    assert "best is cnn" in f["manc_best_ade_parity"]["detail"]
+    assert f["manc_best_ade_parity_replay"]["holds"] is False
+    assert "best is cnn" in f["manc_best_ade_parity_replay"]["detail"]
 
 
 def test_findings_compare_manc_with_its_fixed_gain_prior():
-    f = by_id(studies.findings(fake_results(manc_ade=1.0)))["learning_beats_prior"]
+    f = by_id(studies.findings(fake_results(manc_ade=1.0)))["learning_beats_prior_replay"]
     assert f["holds"] is True and "MANC 1.00" in f["detail"] and "fixed gains 2.50" in f["detail"]
-    f = by_id(studies.findings(fake_results(manc_ade=2.9)))["learning_beats_prior"]
+    f = by_id(studies.findings(fake_results(manc_ade=2.9)))["learning_beats_prior_reactive"]
     assert f["holds"] is False
     res = fake_results()
-    del res["references"]
-    assert "learning_beats_prior" not in by_id(studies.findings(res))
+    res["table1"] = {a: tables(1.0, prior=False) for a in ("replay", "reactive")}
+    assert not any(k.startswith("learning_beats_prior") for k in by_id(studies.findings(res)))
 
 
 def test_findings_mention_seed_noise():
     res = fake_results(manc_ade=1.95)  # rvs_g 2.00: difference 0.05 < 0.1 + 0.1
-    d = by_id(studies.findings(res))["manc_best_ade_paper"]["detail"]
+    d = by_id(studies.findings(res))["manc_best_ade_paper_replay"]["detail"]
     assert "within the seed spread" in d
+
+
+def test_findings_say_when_a_claim_holds_under_one_protocol_only():
+    # MANC best under replay (1.0 < rvs_g 2.0), not under reactive (2.9 > rvs_g 2.0)
+    f = by_id(studies.findings(fake_results(manc_ade=1.0, reactive_manc_ade=2.9)))
+    rep_, rea = f["manc_best_ade_paper_replay"], f["manc_best_ade_paper_reactive"]
+    assert rep_["holds"] is True and rea["holds"] is False
+    for x in (rep_, rea):
+        assert "holds under replay agents and not under reactive" in x["detail"], x["detail"]
+    # a claim that agrees under both protocols gets no such note
+    assert "the protocol decides" not in f["manc_best_goal_distance_paper_replay"]["detail"]
+
+
+def test_findings_on_a_results_file_without_protocols_read_it_as_replay():
+    res = fake_results()
+    res["table1"] = tables(1.0, prior=False)
+    res["references"] = {"dmp_prior": row(3.0, 2.0, 2.5, 6.0)}
+    f = by_id(studies.findings(res))
+    assert f["manc_best_ade_paper_replay"]["holds"] is True
+    assert f["learning_beats_prior_replay"]["holds"] is True
+    assert not any(k.endswith("_reactive") for k in f)
+    assert "agents `replay`" in studies.table_markdown({**res, "findings": list(f.values())})
+
+
+def track(along, cross, bias=-1.0):
+    return agg(along_track=along, cross_track=cross, along_bias=bias)
+
+
+def test_findings_tell_where_the_error_comes_from():
+    res = fake_results()
+    for t in res["table1"]["replay"].values():
+        for m in t:
+            t[m] = {**t[m], **track(0.0 if m == "human" else 5.0, 1.0)}
+    f = by_id(studies.findings(res))
+    e = f["error_is_along_track_paper_replay"]
+    assert e["holds"] is True and "manc 5.00 / 1.00 (bias -1.00)" in e["detail"]
+    assert "error_is_along_track_paper_reactive" not in f  # no split in that table
+    res["table1"]["replay"]["paper"]["cnn"].update(track(0.5, 2.0))
+    assert by_id(studies.findings(res))["error_is_along_track_paper_replay"]["holds"] is False
+
+
+def mode_agg(mi, shuffled, p95):
+    return agg(mi_bits=mi, shuffled_mi_bits=shuffled, shuffled_mi_p95=p95,
+               mode_entropy_bits=1.5, q_change=0.4, switch_rate=0.66, states_used=3,
+               excess_bits=mi - shuffled, p_value=0.01)
+
+
+def test_the_explainability_claim_is_decided_by_the_mode_information():
+    res = fake_results()
+    res["modes"] = {"setting": "paper", "mode_counts": {"free": 30, "follow": 10},
+                    "models": {"manc": mode_agg(0.30, 0.05, 0.10),
+                               "vagn_only": mode_agg(0.08, 0.05, 0.07)}}
+    f = by_id(studies.findings(res))
+    m, v = f["vagn_modes_manc"], f["vagn_modes_vagn_only"]
+    assert m["holds"] is True and "carries 0.300 bits" in m["detail"]
+    assert "shuffled-scene baseline 0.050" in m["detail"] and "claim holds" in m["detail"]
+    # above the 95th percentile but only 0.03 bits above the baseline's mean: not a mode
+    assert v["holds"] is False and "does not hold" in v["detail"]
+    md = studies.table_markdown({**res, "findings": list(f.values())})
+    assert "Are vAGN's q-states driving modes?" in md and "free 75 %" in md
+    assert "| MANC | 0.30 ± 0.10 | 0.05 ± 0.10 |" in md and "| 66.00 ± 10.00 % |" in md
+
+
+def test_reactive_human_with_an_at_fault_collision_is_reported():
+    res = fake_results()
+    for t in res["table1"]["reactive"].values():
+        t["human"] = {**t["human"], **agg(at_fault_collision_rate=0.0, collision_rate=0.0)}
+    assert by_id(studies.findings(res))["reactive_human_no_at_fault"]["holds"] is True
+    res["table1"]["reactive"]["paper"]["human"].update(agg(at_fault_collision_rate=4.0))
+    f = by_id(studies.findings(res))["reactive_human_no_at_fault"]
+    assert f["holds"] is False and "4.00 %" in f["detail"]
 
 
 def test_table_markdown_contains_every_section():
     res = fake_results()
     res["findings"] = studies.findings(res)
+    res["families"] = {"replay": {"paper": {"manc": {
+        "free": {**row(1.0, 1.0, 4.0, 2.0), "n_scenes": {"mean": 7.0, "std": 0.0}}}}}}
     md = studies.table_markdown(res)
-    for text in ("setting `paper`", "setting `parity`", "| MANC | 2.50 ± 0.10",
+    for text in ("setting `paper`, agents `replay`", "setting `parity`, agents `replay`",
+                 "setting `paper`, agents `reactive`", "| MANC | 2.50 ± 0.10",
                  "| Human | 2.00 |", "Sample efficiency", "q-states", "Self-ablation",
                  "Parameters", "holds", "does NOT hold", "| 20,000 |",
-                 "| DMP at fixed gains | 3.00 | 2.00 | 2.50 |"):
+                 "| DMP at fixed gains | 3.00 | 2.00 | 2.50 |", "% at fault", "along-track (m)",
+                 "cross-track (m)", "% TTC < 1 s", "route progress",
+                 "## Per scenario family — setting `paper`, agents `replay`",
+                 "| MANC | free road | 7 | 1.00 ± 0.10 |"):
         assert text in md, text
 
 
@@ -157,21 +241,43 @@ def test_reproduce_tiny_writes_everything(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "table1.md" in printed and "results.json" in printed
     res = json.loads((out / "results.json").read_text())
-    assert set(res["table1"]) == {"paper", "parity"}
-    assert set(res["table1"]["paper"]) == {"human", "cnn", "cnn_lstm", "rvs_g", "manc"}
-    assert res["table1"]["paper"]["human"]["ade"]["mean"] == 0.0
-    # MANC sees the same in both settings: the same run, the same numbers
-    assert res["table1"]["paper"]["manc"] == res["table1"]["parity"]["manc"]
+    assert "agents replay and reactive" in printed and "agents `reactive`" in printed
+    assert res["agents"] == ["replay", "reactive"] and set(res["table1"]) == set(res["agents"])
+    for agents, t1 in res["table1"].items():
+        assert set(t1) == {"paper", "parity"}
+        assert set(t1["paper"]) == {"human", "dmp_prior", "cnn", "cnn_lstm", "rvs_g", "manc"}
+        human = t1["paper"]["human"]
+        # the log itself, or its controls integrated again among reactive ados (float32 log)
+        assert human["ade"]["mean"] < 1e-4 and human["along_track"]["mean"] < 1e-4
+        assert human["at_fault_collision_rate"]["mean"] == 0.0
+        assert t1["paper"]["dmp_prior"]["ade"]["mean"] > 0.0
+        # MANC sees the same in both settings: the same run, the same numbers
+        assert t1["paper"]["manc"] == t1["parity"]["manc"]
+        for m, row_ in t1["paper"].items():
+            assert set(jobs.STUDY_METRICS) <= set(row_), (agents, m)
+            # the split is a rotation of the displacement: each part is at most the ADE
+            assert row_["along_track"]["mean"] <= row_["ade"]["mean"] + 1e-9
+            assert row_["cross_track"]["mean"] <= row_["ade"]["mean"] + 1e-9
+        fams = res["families"][agents]["paper"]
+        assert set(fams) == set(t1["paper"])
+        assert all(set(f) <= set(jobs.FAMILIES) and f for f in fams.values())
+    assert res["table1"]["replay"]["paper"]["human"]["ade"]["mean"] == 0.0
     assert [len(v) for v in res["sample_efficiency"]["models"].values()] == [2] * 4
     assert res["q_states"]["n_states"] == [3, 6]
     assert set(res["ablation"]["models"]) == {"manc", "vagn_only", "dmp_only"}
-    assert res["references"]["dmp_prior"]["ade"]["mean"] > 0.0
+    assert res["ablation"]["agents"] == "replay"
+    assert set(res["modes"]["models"]) == {"manc", "vagn_only"}
+    assert sum(res["modes"]["mode_counts"].values()) == 2 * 40  # 2 validation scenes, 40 steps
     for f in res["findings"]:
         assert f["holds"] in (True, False, None) and f["detail"]
+    ids = {f["id"] for f in res["findings"]}
+    assert {"vagn_modes_manc", "vagn_modes_vagn_only", "reactive_human_no_at_fault"} <= ids
     md = (out / "table1.md").read_text()
-    assert "Table I" in md and "MANC" in md
+    assert "Table I" in md and "MANC" in md and "Per scenario family" in md
     figs = {p.name for p in (out / "figures").iterdir()}
-    for name in ("table1.png", "sample_efficiency.png", "param_counts.png", "q_states.png",
+    for name in ("table1_replay.png", "table1_reactive.png", "families_replay.png",
+                 "families_reactive.png", "speeds_replay.png", "sample_efficiency.png",
+                 "param_counts.png", "q_states.png",
                  "ablation.png", "trajectories.png", "rollout.gif"):
         assert name in figs, name
     assert any(n.startswith("explain_scene") for n in figs)
@@ -186,8 +292,77 @@ def test_reproduce_tiny_writes_everything(tmp_path, capsys):
                           progress=False)
     study.run()
     assert len(study._futures) == study.n_runs()  # the progress bar's total is exact
-    assert np.isclose(res2["table1"]["paper"]["cnn"]["ade"]["mean"],
-                      res["table1"]["paper"]["cnn"]["ade"]["mean"])
+    assert np.isclose(res2["table1"]["reactive"]["paper"]["cnn"]["ade"]["mean"],
+                      res["table1"]["reactive"]["paper"]["cnn"]["ade"]["mean"])
+    assert res2["modes"] == res["modes"]  # the mode labels and the MI come from the cache
+
+
+def test_study_agents_choose_the_protocols_and_their_files(tmp_path):
+    tiny = studies.PRESETS["tiny"]
+    both = studies.Study(tiny, tmp_path, engine="numpy", workers=0)
+    replay = studies.Study(tiny, tmp_path, engine="numpy", workers=0, agents=("replay",))
+    assert both.agents == ("replay", "reactive") and both.primary == "replay"
+    run = _tiny_run(both)
+    assert both._paths(run, "val", "replay") != both._paths(run, "val", "reactive")
+    # two protocols: Table I's validation runs once more each, nothing else changes
+    c = tiny
+    n_table = len({(m, studies.canonical_setting(m, s)) for s in c.settings
+                   for m in c.table_models}) * c.n_seeds
+    assert both.n_runs() == replay.n_runs() + n_table
+    for bad in ("reactive", (), ("replay", "replay"), ("replay", "ideal")):
+        with pytest.raises(ValueError, match="agents"):
+            studies.Study(tiny, tmp_path, engine="numpy", agents=bad)
+
+
+def test_cli_agents_option():
+    from minimanc import cli
+
+    parser = cli.build_parser()
+    assert parser.parse_args(["reproduce"]).agents == "both"
+    assert parser.parse_args(["reproduce", "--agents", "reactive"]).agents == "reactive"
+    with pytest.raises(SystemExit):
+        parser.parse_args(["reproduce", "--agents", "ideal"])
+
+
+def test_scene_families_follow_the_tags():
+    tags = [{"kind": "straight", "has_cut_in": False}, {"kind": "curved", "has_cut_in": True},
+            {"kind": "intersection", "has_cut_in": True}, {"kind": "roundabout",
+                                                           "has_cut_in": False}]
+
+    class DS:
+        ego = np.zeros((4, 2, 3))
+
+    DS.tags = tags
+    fam = jobs.scene_families(DS)
+    assert list(fam) == list(jobs.FAMILIES)
+    assert fam["free"].tolist() == [True, False, False, False]
+    assert fam["junction"].tolist() == [False, False, True, False]
+    assert fam["roundabout"].tolist() == [False, False, False, True]
+    assert fam["cut_in"].tolist() == [False, True, True, False]
+    DS.tags = None
+    with pytest.raises(ValueError, match="tag"):
+        jobs.scene_families(DS)
+
+
+def test_score_splits_the_error_and_scores_each_family_on_its_scenes():
+    from minimanc import rollout, world
+
+    ds = world.generate(6, seed=11, raster=world.RasterConfig(size=32), workers=1)
+    traj = rollout.fixed_gains(ds)
+    res = jobs.score(traj, ds)
+    assert set(jobs.STUDY_METRICS) <= set(res)
+    along, cross = metrics.along_cross_track(traj.ego, ds.ego)
+    assert np.isclose(res["along_track"], np.abs(along).mean())
+    assert np.isclose(res["cross_track"], np.abs(cross).mean())
+    fam = jobs.scene_families(ds)
+    for name, f in res["families"].items():
+        idx = np.flatnonzero(fam[name])
+        assert f["n_scenes"] == idx.size > 0
+        one = metrics.evaluate(traj.subset(idx), ds.subset(idx))
+        for k, v in one.items():
+            assert np.isclose(f[k], v), (name, k)
+    absent = [n for n in jobs.FAMILIES if not fam[n].any()]
+    assert all(n not in res["families"] for n in absent)
 
 
 def test_run_files_are_distinct_per_lr_seed_and_split(tmp_path):
@@ -219,6 +394,12 @@ def test_a_closed_loop_that_blows_up_scores_inf(tmp_path, monkeypatch):
     agg = metrics.aggregate([res])
     assert "error" not in agg and agg["ade"]["mean"] == float("inf")
     assert "diverged" in report.cell(agg, "ade", 1)
+    # every metric of the study is there (aggregate keeps only the keys of every seed)
+    assert set(agg) == set(jobs.STUDY_METRICS)
+    assert set(res["families"]) == set(jobs.FAMILIES)
+    from minimanc.studies.runner import families_of
+
+    assert set(families_of([res])["free"]) == set(jobs.STUDY_METRICS)
 
 
 # --------------------------------------------------------------------------- cache recovery

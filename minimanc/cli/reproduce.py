@@ -30,16 +30,17 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     if training:
         config = replace(config, training=replace(config.training, **training))
     check_int(args.workers, "--workers", 0)
+    agents = ("replay", "reactive") if args.agents == "both" else (args.agents,)
     out = check_out_dir(Path(args.out) if args.out else Path("minimanc_results") / preset)
     progress = not args.no_progress
     t0 = time.perf_counter()
     print(f"minimanc reproduce: preset {preset}, engine {args.engine}, {config.n_seeds} "
-          f"seed(s), output {out}")
+          f"seed(s), agents {' and '.join(agents)}, output {out}")
     log = (lambda msg: print(msg, flush=True)) if args.verbose else None
     results = reproduce(config, out, engine=args.engine, workers=args.workers,
-                        progress=progress, log=log)
+                        progress=progress, log=log, agents=agents)
     dt = time.perf_counter() - t0
-    print(table_markdown(results).split("## Sample efficiency")[0].rstrip())
+    print(table_markdown(results).split("## Per scenario family")[0].rstrip())
     print()
     for f in results["findings"]:
         mark = {True: "holds", False: "does NOT hold", None: "n/a"}[f["holds"]]
@@ -74,6 +75,10 @@ def register(subparsers: Any) -> None:
     p.add_argument("--dmp-seq-len", type=int, default=None,
                    help="training window of the DMP models in steps (default: the preset's, "
                         "a whole scene)")
+    p.add_argument("--agents", choices=("replay", "reactive", "both"), default="both",
+                   help="the other vehicles in closed loop: replayed from the log (the paper's "
+                        "protocol), reactive to the policy's ego, or Table I under both "
+                        "(default)")
     p.add_argument("--workers", type=int, default=1,
                    help="processes running closed-loop rollouts while training (0 = inline)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")

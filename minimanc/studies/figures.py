@@ -1,5 +1,6 @@
-"""Chapter 9 — the figures of a finished study (Table I, Fig. 5a/5b, 7, 8 as PNGs) and the
-explainability figures of the MANC run, on validation scenes chosen by rule
+"""Chapter 9 — the figures of a finished study (Table I per protocol of the ados, per
+scenario family, Fig. 5a/5b, 7, 8 as PNGs), the speed of every model against the human's,
+and the explainability figures of the MANC run, on validation scenes chosen by rule
 (:func:`pick_scenes`, :func:`saliency_steps`)."""
 
 from __future__ import annotations
@@ -16,8 +17,15 @@ def write_figures(study: Study, results: dict, figdir: Path) -> list[Path]:
     """Every PNG (and the GIF) of a finished study; returns the paths."""
     from minimanc import plots
 
-    paths = [
-        plots.save(plots.plot_table1(results["table1"]), figdir / "table1.png"),
+    paths = []
+    for agents, t1 in results["table1"].items():
+        paths.append(plots.save(plots.plot_table1(t1), figdir / f"table1_{agents}.png"))
+    for agents, by_setting in results.get("families", {}).items():
+        setting = "paper" if "paper" in by_setting else next(iter(by_setting))
+        title = f"Per scenario family ({agents} agents, setting {setting}); lower is better"
+        paths.append(plots.save(plots.plot_families(by_setting[setting], title=title),
+                                figdir / f"families_{agents}.png"))
+    paths += [
         plots.save(plots.plot_sample_efficiency(results["sample_efficiency"]),
                    figdir / "sample_efficiency.png"),
         plots.save(plots.plot_param_counts(results["param_counts"]["paper"]),
@@ -25,8 +33,28 @@ def write_figures(study: Study, results: dict, figdir: Path) -> list[Path]:
         plots.save(plots.plot_q_states(results["q_states"]), figdir / "q_states.png"),
         plots.save(plots.plot_ablation(results["ablation"]), figdir / "ablation.png"),
     ]
+    paths += write_speeds(study, figdir)
     paths += write_explanations(study, figdir)
     return paths
+
+
+def write_speeds(study: Study, figdir: Path, k: int = 3) -> list[Path]:
+    """Speed over time, each Table I model (paper setting, seed 0, primary protocol)
+    against the human, on ``k`` scenes picked by :func:`pick_scenes`."""
+    from minimanc import plots, rollout
+
+    c = study.config
+    _, _, val = study.datasets()
+    trajs = {}
+    for m in c.table_models:
+        run = study.runs(m, "paper")[0]
+        if "error" not in study.result(run):
+            trajs[m] = study.rollout(run)
+    if not trajs:
+        return []
+    scenes = pick_scenes(val, next(iter(trajs.values())), min(k, len(val)))
+    fig = plots.plot_speeds(trajs, rollout.human(val), scenes)
+    return [plots.save(fig, figdir / f"speeds_{study.primary}.png")]
 
 
 def write_explanations(study: Study, figdir: Path) -> list[Path]:

@@ -5,7 +5,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from minimanc.studies.config import StudyConfig
@@ -19,12 +19,16 @@ __all__ = ["reproduce"]
 
 def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers: int = 1,
               progress: bool = True, figures: bool = True,
-              log: Callable[[str], None] | None = None) -> dict:
+              log: Callable[[str], None] | None = None,
+              agents: Sequence[str] = ("replay", "reactive")) -> dict:
     """Run every study of ``config`` and write ``table1.md``, ``results.json`` and
-    ``figures/`` under ``out``. Returns the results dict (also with ``"files"``)."""
+    ``figures/`` under ``out``; Table I under each protocol of ``agents``
+    (:class:`~minimanc.studies.runner.Study`). Returns the results dict (also with
+    ``"files"``)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    study = Study(config, out, engine=engine, workers=workers, progress=progress, log=log)
+    study = Study(config, out, engine=engine, workers=workers, progress=progress, log=log,
+                  agents=agents)
     try:
         results = study.run()
         files = {"table1": str(out / "table1.md"), "results": str(out / "results.json")}
