@@ -380,3 +380,104 @@ def test_rollout_keeps_the_models_dtype_and_explain_needs_no_dtype_guess(ds, tmp
     np.testing.assert_allclose(out["q"][0], trace["q"][3], rtol=0, atol=1e-5)  # float32 path
     with pytest.raises(ValueError, match="q_prev"):
         models.explain(params, obs, np.full((1, 5), 0.3, dtype=np.float32), cfg)
+
+
+# --------------------------------------------------------------------------- protocols
+
+
+def test_human_under_reactive_agents_is_the_log_without_collisions(ds):
+    h = rollout.human(ds, agents="reactive")
+    assert h.agents == "reactive" and h.name == "human" and h.ado is not None
+    assert np.allclose(h.ego, ds.ego, atol=1e-4)  # the float32 log's controls, integrated again
+    res = metrics.evaluate(h, ds)
+    assert res["collision_rate"] == 0.0 and res["at_fault_collision_rate"] == 0.0
+    log = rollout.human(ds)
+    assert log.agents == "replay" and log.ado is None
+
+
+def test_agents_choose_the_protocol_of_every_closed_loop(ds):
+    from minimanc import engine, models
+
+    kw = dict(scenes=[0, 3], progress=False)
+    rep = rollout.fixed_gains(ds, **kw)
+    rea = rollout.fixed_gains(ds, agents="reactive", **kw)
+    assert rep.agents == "replay" and rep.ado is None
+    assert rea.agents == "reactive" and rea.name == "dmp_prior"
+    T = ds.ego.shape[1]
+    assert rea.ado.shape[:2] == (2, T) and rea.ado_valid.shape == rea.ado.shape[:3]
+    # the ados start where the log has them; from then on they react to this ego
+    assert np.allclose(np.where(rea.ado_valid[:, 0, :, None], rea.ado[:, 0], 0),
+                       np.where(ds.ado_valid[[0, 3], 0, :, None], ds.ado[[0, 3], 0], 0),
+                       atol=1e-4)
+    # the metrics score a reactive rollout on its own ados, not on the log's
+    sub = ds.subset([0, 3])
+    assert metrics.evaluate(rea, sub)["collision_rate"] <= 100.0
+    cfg = models.ModelConfig(image_size=32, n_states=3)
+    params = models.init("manc", np.random.default_rng(0), cfg)
+    a = rollout.closed_loop("manc", params, ds, cfg, engine("numpy"), steps=3,
+                            agents="reactive", **kw)
+    assert a.agents == "reactive" and a.ado.shape[1] == 4 and a.aux["q"].shape[:2] == (2, 3)
+    b = rollout.closed_loop("manc", params, ds, cfg, engine("numpy"), steps=3, **kw)
+    assert b.ado is None
+
+
+def test_bad_agents_are_refused_by_name(ds):
+    from minimanc import engine, models
+
+    cfg = models.ModelConfig(image_size=32)
+    params = models.init("cnn", np.random.default_rng(0), cfg)
+    calls = [lambda: rollout.simulate(Logged(ds), ds, progress=False, agents="ideal"),
+             lambda: rollout.fixed_gains(ds, agents="ideal"),
+             lambda: rollout.human(ds, agents="ideal"),
+             lambda: rollout.closed_loop("cnn", params, ds, cfg, engine("numpy"),
+                                         agents="ideal"),
+             lambda: rollout.Rollout("x", "paper", np.zeros((1, 2, 3)), np.zeros((1, 1, 2)),
+                                     agents="ideal")]
+    for call in calls:
+        with pytest.raises(ValueError, match="agents must be one of"):
+            call()
+    with pytest.raises(ValueError, match="together"):
+        rollout.Rollout("x", "paper", np.zeros((1, 2, 3)), np.zeros((1, 1, 2)),
+                        ado=np.zeros((1, 2, 4, 5)))
+    with pytest.raises(ValueError, match="ado must have shape"):
+        rollout.Rollout("x", "paper", np.zeros((1, 2, 3)), np.zeros((1, 1, 2)),
+                        ado=np.zeros((1, 3, 4, 5)), ado_valid=np.zeros((1, 3, 4), bool))
+
+
+def test_a_reactive_rollout_saves_its_ados_and_an_old_file_loads_as_replay(ds, tmp_path):
+    rea = rollout.fixed_gains(ds, scenes=[1, 2], agents="reactive")
+    back = rollout.Rollout.load(rea.save(tmp_path / "r.npz"))
+    assert back.agents == "reactive"
+    assert np.array_equal(back.ado, rea.ado) and np.array_equal(back.ado_valid, rea.ado_valid)
+    assert metrics.evaluate(back, ds.subset([1, 2])) == metrics.evaluate(rea, ds.subset([1, 2]))
+    # a file written before the protocols existed: no agents, no ados
+    old = tmp_path / "old.npz"
+    np.savez(old, name=np.array("x"), setting=np.array("paper"), ego=rea.ego,
+             controls=rea.controls, scenes=rea.scenes)
+    back = rollout.Rollout.load(old)
+    assert back.agents == "replay" and back.ado is None
+
+
+def test_rollout_subset_keeps_rows_aux_and_ados(ds):
+    rea = rollout.fixed_gains(ds, scenes=[0, 1, 4], agents="reactive")
+    sub = rea.subset([2, 0])
+    assert sub.scenes.tolist() == [4, 0] and sub.agents == "reactive"
+    assert np.array_equal(sub.ego, rea.ego[[2, 0]]) and np.array_equal(sub.ado, rea.ado[[2, 0]])
+    assert np.array_equal(sub.aux["alpha"], rea.aux["alpha"][[2, 0]])
+
+
+def test_open_loop_is_replay_on_many_scenes(ds):
+    from minimanc import engine, models
+    from minimanc.models.forward import cast_tree
+
+    cfg = models.ModelConfig(image_size=32, n_states=3)
+    params = models.init("manc", np.random.default_rng(2), cfg)
+    params32 = cast_tree(params, np.float32)  # open_loop runs in float32, replay in params'
+    many = rollout.open_loop("manc", params, ds, cfg, engine("numpy"), scenes=[1, 3, 4],
+                             batch_size=2)
+    T = ds.ego.shape[1]
+    assert many["q"].shape == (3, T, 3) and many["controls"].shape == (3, T, 2)
+    for row, s in enumerate([1, 3, 4]):
+        one = rollout.replay("manc", params32, ds, s, cfg)
+        assert np.allclose(many["q"][row], one["q"], atol=1e-5)
+        assert np.allclose(many["controls"][row], one["controls"], atol=1e-4)
