@@ -75,7 +75,7 @@ def test_a_command_whose_chapter_is_missing_is_left_out(monkeypatch, capsys):
 
 
 def test_the_chapter_map_is_importable_from_the_command_package():
-    assert cli.CHAPTERS[0][0] == "00" and len(cli.CHAPTERS) == 11
+    assert cli.CHAPTERS[0][0] == "00" and len(cli.CHAPTERS) == 12
 
 
 @pytest.mark.parametrize("argv,expected", [

@@ -5,6 +5,7 @@
 * :mod:`~minimanc.cli.data` — ``minimanc data generate|show`` (chapter 7);
 * :mod:`~minimanc.cli.reproduce` — ``minimanc reproduce`` (chapter 9);
 * :mod:`~minimanc.cli.highway` — ``minimanc highway collect|train|eval|render`` (chapter 10);
+* :mod:`~minimanc.cli.dagger` — ``minimanc dagger`` (chapter 11);
 * :mod:`~minimanc.cli.results` — ``minimanc results check|update`` (the README's quoted
   results, chapter 9);
 * :mod:`~minimanc.cli.common` — the argument validators and the project root they share.
@@ -38,6 +39,7 @@ PLUGINS = {
     "minimanc.cli.reproduce": "minimanc.studies",
     "minimanc.cli.highway": "minimanc.highway",
     "minimanc.cli.results": "minimanc.results",
+    "minimanc.cli.dagger": "minimanc.dagger",
 }
 """Command module -> the chapter package it drives. A command is registered only when its
 chapter's package is part of this build (found without importing it, so a missing optional

@@ -24,6 +24,7 @@ CHAPTERS = [
     ("08", "manc", "the assembled controller — minimanc.models"),
     ("09", "behavior_cloning", "training, closed loop, the paper's studies"),
     ("10", "highway_sandbox", "the controller in highway-env — minimanc.highway"),
+    ("11", "dagger", "behaviour cloning's drift and DAgger — minimanc.dagger"),
 ]
 """(number, name, what it builds) of every chapter, in order."""
 
