@@ -890,3 +890,23 @@ def test_numpy_functions_give_our_gradient_and_jax_s(x, seed):
     ref = jax.grad(lambda x: jnp.sum(jnp.exp(x) * w) + jnp.mean(w * jnp.tanh(x))
                    + jnp.max(jnp.sin(x)))(x)
     np.testing.assert_allclose(g, np.asarray(ref), rtol=1e-9, atol=1e-12)
+
+
+def test_stack_is_one_traced_operation_and_expand_dims_accepts_every_axis():
+    seen = []
+
+    def f(x):
+        s = anp.stack([x, 2.0 * x, np.ones(3)], axis=-1)  # traced, traced, plain
+        seen.append(s)
+        return anp.sum(s * np.arange(9.0).reshape(3, 3))
+
+    g = grad(f)(np.ones(3))
+    np.testing.assert_allclose(g, np.arange(9.0).reshape(3, 3)[:, 0]
+                               + 2.0 * np.arange(9.0).reshape(3, 3)[:, 1])
+    assert seen[0].primitive_name == "stack"
+    assert [p.primitive_name for _, p in seen[0].parents] == [None, "multiply"]
+    x = np.zeros((2, 3))
+    for axis in (-3, -2, -1, 0, 1, 2):
+        assert anp.expand_dims(x, axis).shape == np.expand_dims(x, axis).shape
+    with pytest.raises(ValueError, match="expand_dims"):
+        grad(lambda v: anp.sum(anp.expand_dims(v, 3)))(x)
