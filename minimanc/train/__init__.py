@@ -55,7 +55,8 @@ Algorithm 1 of the paper, for every controller of :mod:`minimanc.models`::
 
 Modules: :mod:`~minimanc.train.config`, :mod:`~minimanc.train.batches`,
 :mod:`~minimanc.train.step` (loss and optimiser step),
-:mod:`~minimanc.train.checkpoint`, :mod:`~minimanc.train.fit`.
+:mod:`~minimanc.train.checkpoint`, :mod:`~minimanc.train.fit`, :mod:`~minimanc.train.many`
+(several seeds or learning rates of one configuration in one vmapped step).
 """
 
 from __future__ import annotations
@@ -82,6 +83,7 @@ from minimanc.train.config import (
     TrainingDiverged,
 )
 from minimanc.train.fit import SweepResult, evaluate, fit, sweep_lr
+from minimanc.train.many import fit_many, fit_seeds
 from minimanc.train.step import loss_fn, make_step
 
 __all__ = [
@@ -99,6 +101,8 @@ __all__ = [
     "dataset_shape",
     "evaluate",
     "fit",
+    "fit_many",
+    "fit_seeds",
     "initial_q",
     "load",
     "load_checkpoint",

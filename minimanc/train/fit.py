@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +28,9 @@ from minimanc.train.config import CHECKPOINT_NAME, DTYPES, FitResult, TrainConfi
 from minimanc.train.step import loss_fn, make_step
 from minimanc.world.dataset import describe_non_finite, first_non_finite, remove_temp_files
 
-__all__ = ["SweepResult", "cast_floats", "evaluate", "fit", "get_engine", "sweep_lr"]
+__all__ = ["RunState", "SweepResult", "cast_floats", "check_fit_args", "diverged_loss", "end_epoch",
+           "epoch_plan", "evaluate", "fit", "get_engine", "result_of", "start_run", "step_batch",
+           "sweep_lr"]
 
 
 def cast_floats(tree: Any, dtype: Any) -> Any:
@@ -61,6 +63,156 @@ def _kept(ck_path: Path | None, saved_epoch: int | None) -> str:
     return f"the checkpoint of epoch {saved_epoch} is kept in {ck_path}"
 
 
+@dataclass
+class RunState:
+    """One training run between epochs: what :func:`start_run` prepares and
+    :func:`end_epoch` updates (shared by :func:`fit` and :func:`minimanc.train.fit_many`).
+
+    ``scenes`` (its training subset), ``std`` (the loss normalisation), ``params`` and
+    ``opt_state`` (NumPy or engine arrays), ``start_epoch`` (0, or the resumed
+    checkpoint's), ``history`` / ``val_history`` / ``steps`` so far, ``ck_path`` (``None``
+    without a ``checkpoint_dir``) and ``saved_epoch`` (epoch of the checkpoint this run
+    wrote or resumed, else ``None``).
+    """
+
+    name: str
+    cfg: models.ModelConfig
+    tc: TrainConfig
+    scenes: np.ndarray
+    std: np.ndarray
+    params: Any
+    opt_state: Any
+    start_epoch: int = 0
+    history: list = field(default_factory=list)
+    val_history: list = field(default_factory=list)
+    steps: int = 0
+    ck_path: Path | None = None
+    saved_epoch: int | None = None
+
+
+def check_fit_args(name: str, train_ds: Any, cfg: models.ModelConfig | None,
+                   train_cfg: TrainConfig | None, val_ds: Any = None
+                   ) -> tuple[str, models.ModelConfig, TrainConfig]:
+    """``(name, cfg, train_cfg)`` of :func:`fit` checked against each other and the data
+    (defaults filled in); a ``ValueError`` naming the argument otherwise."""
+    name = models.check_name(name)
+    cfg = cfg or models.ModelConfig()
+    tc = train_cfg or TrainConfig()
+    if not isinstance(cfg, models.ModelConfig):
+        raise ValueError(f"cfg must be a models.ModelConfig, got cfg={cfg!r}")
+    if not isinstance(tc, TrainConfig):
+        raise ValueError(f"train_cfg must be a train.TrainConfig, got train_cfg={tc!r}")
+    dataset_shape(train_ds)
+    H = np.asarray(train_ds.bev[:1, :1]).shape[2]
+    if H != cfg.image_size:
+        raise ValueError(f"cfg.image_size={cfg.image_size} does not match the dataset's "
+                         f"BEV size {H}")
+    for label, data in (("train_ds", train_ds), ("val_ds", val_ds)):
+        found = first_non_finite(data) if data is not None else None
+        if found is not None:
+            raise ValueError(f"{label} holds a non-finite number: {describe_non_finite(found)}; "
+                             "training needs finite data (check how it was made)")
+    return name, cfg, tc
+
+
+def start_run(name: str, train_ds: Any, cfg: models.ModelConfig, tc: TrainConfig,
+              checkpoint_dir: str | Path | None = None, resume: bool = False,
+              params: dict | None = None) -> RunState:
+    """The :class:`RunState` of a run before its first epoch: the subset, the
+    normalisation and fresh (or given) parameters cast to ``tc.dtype``, or, with
+    ``resume``, the state of the checkpoint in ``checkpoint_dir`` (whose model and
+    configuration must match, except ``epochs`` and ``lr``)."""
+    dtype = DTYPES[tc.dtype]
+    S, _ = dataset_shape(train_ds)
+    scenes = subset_scenes(S, tc.subset, tc.seed)
+    std = control_std(train_ds, scenes) if tc.normalize else np.ones(2)
+    ck_path = Path(checkpoint_dir) / CHECKPOINT_NAME if checkpoint_dir is not None else None
+    if ck_path is not None:
+        remove_temp_files(ck_path)  # left by a run that was killed while saving
+    if params is None:
+        params = models.init(name, np.random.default_rng(tc.seed), cfg)
+    params = cast_floats(params, dtype)
+    st = RunState(name, cfg, tc, scenes, std, params, optim.adam_init(params), ck_path=ck_path)
+    if resume:
+        if ck_path is None:
+            raise ValueError("resume=True needs a checkpoint_dir")
+        if ck_path.exists():
+            ck = load_checkpoint(ck_path)
+            if ck["name"] != name or ck["cfg"] != cfg:
+                raise ValueError(f"checkpoint at {ck_path.name} is for model {ck['name']!r} "
+                                 f"with {ck['cfg']}, not {name!r} with {cfg}")
+            same = replace(ck["train_cfg"], epochs=tc.epochs, lr=tc.lr)
+            if same != tc:
+                raise ValueError(f"checkpoint was trained with {ck['train_cfg']}; only epochs "
+                                 f"and lr may change on resume, got {tc}")
+            st.params = cast_floats(ck["params"], dtype)
+            if ck["opt_state"] is not None:
+                st.opt_state = restore_opt(optim.adam_init(st.params), ck["opt_state"])
+            st.start_epoch = st.saved_epoch = ck["epoch"]
+            st.history, st.val_history, st.steps = ck["history"], ck["val_history"], ck["steps"]
+            st.std = ck["control_std"]
+    return st
+
+
+def diverged_loss(st: RunState, loss: float, epoch: int, step: int, n_steps: int
+                  ) -> TrainingDiverged:
+    """The :class:`TrainingDiverged` of a non-finite ``loss`` at ``step`` of ``epoch``."""
+    return TrainingDiverged(
+        f"training {st.name!r} diverged: loss = {loss} at epoch {epoch + 1}, "
+        f"step {step} of {n_steps} (lr={st.tc.lr}, seed={st.tc.seed}); "
+        f"{_kept(st.ck_path, st.saved_epoch)}. "
+        "Lower the learning rate or check the data for NaNs."
+    )
+
+
+def end_epoch(st: RunState, epoch: int, mean_loss: float, eng: Any, val_ds: Any = None) -> None:
+    """After ``epoch``: refuse unusable parameters (:class:`TrainingDiverged`, the last
+    good checkpoint kept), record the mean loss (and the validation loss), write the
+    checkpoint."""
+    bad = bad_params(st.params)
+    if bad is not None:
+        raise TrainingDiverged(
+            f"training {st.name!r} diverged: after epoch {epoch + 1} (lr={st.tc.lr}, "
+            f"seed={st.tc.seed}) the parameters are unusable ({bad}); "
+            f"{_kept(st.ck_path, st.saved_epoch)}. Lower the learning rate."
+        )
+    st.history.append(mean_loss)
+    if val_ds is not None:
+        st.val_history.append(evaluate(st.name, to_numpy(st.params), val_ds, st.cfg, eng,
+                                       std=st.std, q_init=st.tc.q_init,
+                                       dtype=DTYPES[st.tc.dtype]))
+    if st.ck_path is not None:
+        save(st.ck_path, st.name, st.params, st.cfg, st.tc, st.opt_state, epoch + 1,
+             st.history, st.val_history, st.steps, st.std)
+        st.saved_epoch = epoch + 1
+
+
+def result_of(st: RunState, seconds: float) -> FitResult:
+    """The :class:`FitResult` of a finished run."""
+    return FitResult(name=st.name, params=to_numpy(st.params), history=list(st.history),
+                     cfg=st.cfg, train_cfg=st.tc, val_history=list(st.val_history),
+                     steps=st.steps, seconds=seconds, control_std=np.asarray(st.std))
+
+
+def epoch_plan(st: RunState, train_ds: Any, epoch: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The minibatches of ``epoch`` (:func:`batches`, cut at ``max_steps_per_epoch``)."""
+    plan = batches(st.name, train_ds, st.scenes, st.tc, epoch)
+    if st.tc.max_steps_per_epoch is not None:
+        plan = plan[:st.tc.max_steps_per_epoch]
+    return plan
+
+
+def step_batch(st: RunState, train_ds: Any, s_idx: np.ndarray, t_idx: np.ndarray,
+               q_rng: np.random.Generator) -> dict:
+    """The batch of one step: observations and controls, and Algorithm 1's q' (vAGN)."""
+    dtype = DTYPES[st.tc.dtype]
+    batch = make_batch(st.name, train_ds, s_idx, t_idx, st.cfg, dtype)
+    q0 = initial_q(st.name, s_idx.shape[1], st.cfg, st.tc, q_rng, dtype)
+    if q0 is not None:
+        batch["q0"] = q0
+    return batch
+
+
 def fit(
     name: str,
     train_ds: Any,
@@ -82,67 +234,20 @@ def fit(
     ``epochs`` and ``lr`` which may be changed to extend a run); ``progress``:
     a tqdm bar with the running loss; ``val_ds``: also record the open-loop
     validation loss each epoch; ``params``: start from these instead of a
-    fresh initialisation. Returns a :class:`FitResult`.
+    fresh initialisation. Returns a :class:`FitResult`. Several seeds or
+    learning rates of one configuration train faster together:
+    :func:`minimanc.train.fit_many`.
     """
-    name = models.check_name(name)
-    cfg = cfg or models.ModelConfig()
-    tc = train_cfg or TrainConfig()
-    if not isinstance(cfg, models.ModelConfig):
-        raise ValueError(f"cfg must be a models.ModelConfig, got cfg={cfg!r}")
-    if not isinstance(tc, TrainConfig):
-        raise ValueError(f"train_cfg must be a train.TrainConfig, got train_cfg={tc!r}")
+    name, cfg, tc = check_fit_args(name, train_ds, cfg, train_cfg, val_ds)
     eng = get_engine(engine)
-    dtype = DTYPES[tc.dtype]
-    S, T = dataset_shape(train_ds)
-    H = np.asarray(train_ds.bev[:1, :1]).shape[2]
-    if H != cfg.image_size:
-        raise ValueError(f"cfg.image_size={cfg.image_size} does not match the dataset's "
-                         f"BEV size {H}")
-    for label, data in (("train_ds", train_ds), ("val_ds", val_ds)):
-        found = first_non_finite(data) if data is not None else None
-        if found is not None:
-            raise ValueError(f"{label} holds a non-finite number: {describe_non_finite(found)}; "
-                             "training needs finite data (check how it was made)")
-    scenes = subset_scenes(S, tc.subset, tc.seed)
-    std = control_std(train_ds, scenes) if tc.normalize else np.ones(2)
     t_start = time.perf_counter()
-
-    ck_path = Path(checkpoint_dir) / CHECKPOINT_NAME if checkpoint_dir is not None else None
-    if ck_path is not None:
-        remove_temp_files(ck_path)  # left by a run that was killed while saving
-    saved_epoch = None  # epoch of the checkpoint at ck_path written or resumed by this run
-    start_epoch, history, val_history, steps = 0, [], [], 0
-    if params is None:
-        params = models.init(name, np.random.default_rng(tc.seed), cfg)
-    params = cast_floats(params, dtype)
-    opt_state = optim.adam_init(params)
-    if resume:
-        if ck_path is None:
-            raise ValueError("resume=True needs a checkpoint_dir")
-        if ck_path.exists():
-            ck = load_checkpoint(ck_path)
-            if ck["name"] != name or ck["cfg"] != cfg:
-                raise ValueError(f"checkpoint at {ck_path.name} is for model {ck['name']!r} "
-                                 f"with {ck['cfg']}, not {name!r} with {cfg}")
-            same = replace(ck["train_cfg"], epochs=tc.epochs, lr=tc.lr)
-            if same != tc:
-                raise ValueError(f"checkpoint was trained with {ck['train_cfg']}; only epochs "
-                                 f"and lr may change on resume, got {tc}")
-            params = cast_floats(ck["params"], dtype)
-            if ck["opt_state"] is not None:
-                opt_state = restore_opt(optim.adam_init(params), ck["opt_state"])
-            start_epoch = saved_epoch = ck["epoch"]
-            history, val_history, steps = ck["history"], ck["val_history"], ck["steps"]
-            std = ck["control_std"]
-
-    step_fn = make_step(name, cfg, tc, eng, 1.0 / std)
-    params, opt_state = eng.device_put(params), eng.device_put(opt_state)
+    st = start_run(name, train_ds, cfg, tc, checkpoint_dir, resume, params)
+    step_fn = make_step(name, cfg, tc, eng, 1.0 / st.std)
+    st.params, st.opt_state = eng.device_put(st.params), eng.device_put(st.opt_state)
 
     bar = None
-    for epoch in range(start_epoch, tc.epochs):
-        plan = batches(name, train_ds, scenes, tc, epoch)
-        if tc.max_steps_per_epoch is not None:
-            plan = plan[:tc.max_steps_per_epoch]
+    for epoch in range(st.start_epoch, tc.epochs):
+        plan = epoch_plan(st, train_ds, epoch)
         q_rng = np.random.default_rng([int(tc.seed), int(epoch), 1])
         if progress:
             from tqdm import tqdm
@@ -154,26 +259,17 @@ def fit(
         # so that JAX computes while the host prepares the next batch
         for i in range(len(plan) + 1):
             if i < len(plan):
-                s_idx, t_idx = plan[i]
-                batch = make_batch(name, train_ds, s_idx, t_idx, cfg, dtype)
-                q0 = initial_q(name, s_idx.shape[1], cfg, tc, q_rng, dtype)
-                if q0 is not None:
-                    batch["q0"] = q0
+                batch = step_batch(st, train_ds, *plan[i], q_rng)
                 # overflow to inf / nan is caught below (loss) and after the epoch (params)
                 with np.errstate(over="ignore", invalid="ignore"):
-                    params, opt_state, loss_i = step_fn(params, opt_state, batch)
-                steps += 1
+                    st.params, st.opt_state, loss_i = step_fn(st.params, st.opt_state, batch)
+                st.steps += 1
             if pending is not None:
                 loss = float(getattr(pending, "_value", pending))
                 if not math.isfinite(loss):
                     if bar is not None:
                         bar.close()
-                    kept = _kept(ck_path, saved_epoch)
-                    raise TrainingDiverged(
-                        f"training {name!r} diverged: loss = {loss} at epoch {epoch + 1}, "
-                        f"step {count + 1} of {len(plan)} (lr={tc.lr}); {kept}. "
-                        "Lower the learning rate or check the data for NaNs."
-                    )
+                    raise diverged_loss(st, loss, epoch, count + 1, len(plan))
                 total += loss
                 count += 1
                 if bar is not None:
@@ -182,24 +278,8 @@ def fit(
             pending = loss_i if i < len(plan) else None
         if bar is not None:
             bar.close()
-        bad = bad_params(params)
-        if bad is not None:
-            raise TrainingDiverged(
-                f"training {name!r} diverged: after epoch {epoch + 1} (lr={tc.lr}) the "
-                f"parameters are unusable ({bad}); {_kept(ck_path, saved_epoch)}. "
-                "Lower the learning rate."
-            )
-        history.append(total / max(count, 1))
-        if val_ds is not None:
-            val_history.append(evaluate(name, to_numpy(params), val_ds, cfg, eng,
-                                        std=std, q_init=tc.q_init, dtype=dtype))
-        if ck_path is not None:
-            save(ck_path, name, params, cfg, tc, opt_state, epoch + 1, history, val_history,
-                 steps, std)
-            saved_epoch = epoch + 1
-    return FitResult(name=name, params=to_numpy(params), history=list(history), cfg=cfg,
-                     train_cfg=tc, val_history=list(val_history), steps=steps,
-                     seconds=time.perf_counter() - t_start, control_std=np.asarray(std))
+        end_epoch(st, epoch, total / max(count, 1), eng, val_ds)
+    return result_of(st, time.perf_counter() - t_start)
 
 
 def evaluate(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = None,

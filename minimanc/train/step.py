@@ -12,7 +12,8 @@ from minimanc import models, optim
 from minimanc.train.config import DTYPES, TrainConfig
 from minimanc.tree import leaves as tree_leaves
 
-__all__ = ["global_norm", "like", "loss_fn", "make_step", "scale_tree"]
+__all__ = ["global_norm", "hyper_args", "like", "loss_fn", "make_step", "scale_tree",
+           "train_step_fn"]
 
 
 def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: Any,
@@ -74,18 +75,18 @@ def like(tree: Any, template: Any, xp: Any) -> Any:
     return xp.asarray(tree, dtype=dt)
 
 
-def make_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any,
-               inv_std: np.ndarray) -> Callable:
-    """The (jitted) training step ``(params, opt_state, batch) → (params, opt_state, loss)``.
-
-    The learning rate and ``1/σ`` enter the jitted function as arguments, not
-    constants: runs that differ only in those (the learning-rate sweep, the
-    data fractions) share one compilation through JAX's persistent cache.
-    """
-    xp = eng.xp
+def hyper_args(tc: TrainConfig, inv_std: Any) -> dict:
+    """The arguments of a training step that vary between runs of one compiled step:
+    ``{"lr", "inv_std"}`` in ``tc.dtype``."""
     dtype = DTYPES[tc.dtype]
-    hyper = {"lr": np.asarray(tc.lr, dtype=dtype),
-             "inv_std": np.asarray(inv_std, dtype=dtype)}
+    return {"lr": np.asarray(tc.lr, dtype=dtype), "inv_std": np.asarray(inv_std, dtype=dtype)}
+
+
+def train_step_fn(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any) -> Callable:
+    """The un-jitted training step ``(params, opt_state, batch, hyper) → (params, opt_state,
+    loss)``: Algorithm 1's loss (:func:`loss_fn`), its gradient, the global-norm clip and
+    one Adam step, with ``hyper`` from :func:`hyper_args`."""
+    xp = eng.xp
 
     def objective(params, batch, inv):
         return loss_fn(name, params, batch, cfg, eng, inv, tc.zeta_weight, tc.motion_feedback)
@@ -103,5 +104,17 @@ def make_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any,
         # (under jit that would trigger a new compilation at the next step)
         return like(new_params, params, xp), like(new_state, opt_state, xp), loss
 
-    step = eng.jit(train_step)
+    return train_step
+
+
+def make_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any,
+               inv_std: np.ndarray) -> Callable:
+    """The (jitted) training step ``(params, opt_state, batch) → (params, opt_state, loss)``.
+
+    The learning rate and ``1/σ`` enter the jitted function as arguments, not
+    constants: runs that differ only in those (the learning-rate sweep, the
+    data fractions) share one compilation through JAX's persistent cache.
+    """
+    hyper = hyper_args(tc, inv_std)
+    step = eng.jit(train_step_fn(name, cfg, tc, eng))
     return lambda params, opt_state, batch: step(params, opt_state, batch, hyper)
