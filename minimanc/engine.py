@@ -35,10 +35,11 @@ import importlib
 import sys
 import types
 from collections.abc import Callable
-from numbers import Integral
 from typing import Any
 
 import numpy as np
+
+from minimanc.checks import check_int
 
 __all__ = ["ENGINES", "Engine", "engine_of", "get_engine"]
 
@@ -118,10 +119,8 @@ def _numpy_engine() -> Engine:
 
 
 def _check_conv_args(stride, padding) -> None:
-    if not isinstance(stride, Integral) or isinstance(stride, bool) or stride < 1:
-        raise ValueError(f"stride must be a positive integer, got stride={stride!r}")
-    if not isinstance(padding, Integral) or isinstance(padding, bool) or padding < 0:
-        raise ValueError(f"padding must be a non-negative integer, got padding={padding!r}")
+    check_int("stride", stride, 1)
+    check_int("padding", padding, 0)
 
 
 def _jax_nn(jax: Any) -> types.SimpleNamespace:

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from minimanc.autodiff.core import Box, backward, toposort
+from minimanc.checks import check_int
 
 __all__ = ["Node", "Edge", "Graph", "computation_graph"]
 
@@ -97,8 +98,7 @@ class Graph:
 
     def lines(self, digits: int = 4) -> list[str]:
         """One line per edge, ``parent -> child (arg k)  cotangent``, rounded to ``digits``."""
-        if isinstance(digits, bool) or not isinstance(digits, int) or digits < 0:
-            raise ValueError(f"digits must be a non-negative integer, got digits={digits!r}")
+        digits = check_int("digits", digits, 0)
         label = {n.index: f"{n.name}#{n.index}" for n in self.nodes}
         width = max(len(s) for s in label.values())
         out = []

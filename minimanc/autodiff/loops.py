@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import numbers
 from collections.abc import Callable
 from typing import Any
 
@@ -13,6 +12,7 @@ from minimanc.autodiff.boxes import FRAMES, TRACING, Box, unbox
 from minimanc.autodiff.primitives import Outputs, defvjp_fwd, primitive, select
 from minimanc.autodiff.pytrees import tree_flatten
 from minimanc.autodiff.reverse import add_cotangents, parent_cotangents
+from minimanc.checks import check_int
 
 __all__ = ["scan"]
 
@@ -36,9 +36,11 @@ def _scan_length(xs_vals: list, xs_paths: list[str], length: int | None) -> int:
         lengths[p] = np.shape(v)[0]
     if len(set(lengths.values())) > 1:
         raise ValueError(f"scan: the leaves of xs have different leading lengths {lengths}")
-    if length is not None and (not isinstance(length, numbers.Integral)
-                               or isinstance(length, bool) or length < 1):
-        raise ValueError(f"scan: length must be a positive integer, got length={length!r}")
+    if length is not None:
+        try:
+            length = check_int("length", length, 1)
+        except ValueError as err:
+            raise ValueError(f"scan: {err}") from None
     if lengths:
         n = next(iter(lengths.values()))
         if length is not None and length != n:

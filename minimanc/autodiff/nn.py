@@ -46,6 +46,7 @@ import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
 from minimanc.autodiff.core import Box, defvjp, defvjp_fwd, primitive
+from minimanc.checks import check_int
 
 __all__ = [
     "relu",
@@ -480,10 +481,8 @@ def conv2d(x, w, b=None, stride: int = 1, padding: int = 0):
         ``(N, Ho, Wo, O)`` with ``Ho = (H + 2 padding - kh) // stride + 1`` (same for W):
         ``out[n, i, j, o] = b[o] + Σ_{p,q,c} xpad[n, s i + p, s j + q, c] w[p, q, c, o]``.
     """
-    if isinstance(stride, bool) or not isinstance(stride, Integral) or stride < 1:
-        raise ValueError(f"stride must be an integer >= 1, got stride={stride!r}")
-    if isinstance(padding, bool) or not isinstance(padding, Integral) or padding < 0:
-        raise ValueError(f"padding must be an integer >= 0, got padding={padding!r}")
+    stride = check_int("stride", stride, 1)
+    padding = check_int("padding", padding, 0)
     # an untraced x (the input images) needs no cotangent: the backward pass then
     # skips the dcol GEMM and the col2im, the most expensive part for 3-channel inputs
     kw = {"stride": int(stride), "padding": int(padding), "need_dx": isinstance(x, Box)}

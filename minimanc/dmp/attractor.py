@@ -37,6 +37,11 @@ def eigenvalues(alpha: Any, beta: Any) -> np.ndarray:
     ``broadcast(α, β).shape + (2,)``: ``(−α + √(α² − 4αβ))/2`` then
     ``(−α − √(α² − 4αβ))/2`` (for complex pairs, the one with positive
     imaginary part first).
+
+    Parameters
+    ----------
+    alpha, beta : array or float
+        Finite real gains (broadcast).
     """
     a = check_finite("alpha", alpha)
     b = check_finite("beta", beta)
@@ -51,6 +56,18 @@ def damping_ratio(alpha: Any, beta: Any, xp: Any = np) -> Any:
     Defined when ``αβ > 0``: both gains positive gives ζ > 0 (stable); both
     negative gives the paper's ζ < 0 (unstable). ``αβ ≤ 0`` raises ValueError
     (no natural frequency). Differentiable through ``xp``.
+
+    Parameters
+    ----------
+    alpha, beta : array or float
+        Gains with ``αβ > 0`` (broadcast); traced values are not checked.
+    xp : module
+        Array namespace (``numpy``, ``eng.xp``).
+
+    Returns
+    -------
+    array, shape broadcast(alpha, beta).shape
+        ζ of eq. (13).
     """
     if not is_traced(alpha) and not is_traced(beta):
         a = check_finite("alpha", alpha)
@@ -87,6 +104,15 @@ def classify(alpha: Any, beta: Any) -> Any:
     Outside the band, the sign of ``α − 4β`` decides.
 
     Scalars give a ``str``; arrays give an array of strings.
+
+    Parameters
+    ----------
+    alpha, beta : array or float
+        Finite real gains (broadcast).
+
+    Returns
+    -------
+    str or ndarray of str, shape broadcast(alpha, beta).shape
     """
     a = check_finite("alpha", alpha)
     b = check_finite("beta", beta)
@@ -112,6 +138,22 @@ def acceleration(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, force: Any =
 
     With ``force = f / τ`` and the gain ``α / τ`` this is eq. (1),
     ``τ ÿ = α (β (g − y) − ẏ) + f`` (what :func:`rollout` passes). Broadcasts.
+
+    Parameters
+    ----------
+    y, dy : array, shape (..., D)
+        Position and velocity.
+    goal : array, shape (..., D) or broadcastable
+        The attractor ``g``.
+    alpha, beta : array or float
+        Gains, e.g. shape ``(..., 1)`` per sample.
+    force : array or None
+        Extra acceleration (eq. 1's ``f / τ``).
+
+    Returns
+    -------
+    array, shape broadcast of the inputs
+        ``ÿ``.
     """
     acc = alpha * (beta * (goal - y) - dy)
     return acc if force is None else acc + force

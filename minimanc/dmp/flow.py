@@ -33,7 +33,19 @@ __all__ = ["coefficients", "flow", "flow_for", "force_times", "substep"]
 
 def coefficients(alpha: Any, beta: Any, h: float) -> tuple[Any, Any]:
     """``(1 − hα, hαβ)``: with them one Euler update of the velocity under eq. (10) is
-    ``ẏ + h a = (1 − hα) ẏ + hαβ (g − y) + h F``."""
+    ``ẏ + h a = (1 − hα) ẏ + hαβ (g − y) + h F``.
+
+    Parameters
+    ----------
+    alpha, beta : array or float
+        Gains of eq. (10).
+    h : float
+        Sub-step length in seconds.
+
+    Returns
+    -------
+    p, hab : array, shape broadcast(alpha, beta).shape
+    """
     return 1.0 - h * alpha, h * (alpha * beta)
 
 
@@ -92,6 +104,20 @@ def force_times(h: float, method: str, n: int) -> list[float]:
 
     ``j h`` for each sub-step ``j < n`` (explicit and semi-implicit Euler); with
     RK4 ``j h``, ``j h + h/2`` and ``j h + h`` (start, middle and end of each).
+
+    Parameters
+    ----------
+    h : float
+        Sub-step length in seconds.
+    method : str
+        One of :data:`~minimanc.dmp.params.METHODS`.
+    n : int
+        Sub-steps per step.
+
+    Returns
+    -------
+    list of float
+        ``n`` times (``3 n`` with RK4).
     """
     if method == "rk4":
         return [t for j in range(n) for t in (j * h, j * h + 0.5 * h, j * h + h)]
@@ -264,5 +290,24 @@ def flow(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, forces: Any, dt: Any
     No custom VJP: any engine differentiates it operation by operation (with a
     traced ``dt`` too); it is the reference the VJP of :func:`flow_for` is tested
     against.
+
+    Parameters
+    ----------
+    y, dy : array, shape (..., D)
+        State at the start of the step.
+    goal, alpha, beta : array or float
+        Goal and gains of eq. (10), broadcasting against ``y``.
+    forces : list of array or None
+        Forcing accelerations at :func:`force_times` (``None``: eq. 10 alone).
+    dt : float
+        Step length in seconds (may be traced).
+    method : str
+        One of :data:`~minimanc.dmp.params.METHODS`.
+    n : int
+        Sub-steps per step.
+
+    Returns
+    -------
+    y_next, dy_next, ddy : array, shape broadcast of the inputs
     """
     return _flow_plain(y, dy, goal, alpha, beta, forces, dt, method, n)

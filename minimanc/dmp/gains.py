@@ -86,6 +86,21 @@ def gains_from_logits(
     (pass ``None``). Returns ``(alpha, beta)`` shaped like the logits.
     Custom ranges are not checked for discrete stability: use
     :func:`max_stable_alpha`.
+
+    Parameters
+    ----------
+    z_alpha, z_beta : array, shape (..., 1) typically
+        Network outputs; ``z_beta`` is ignored (pass ``None``) when critically damped.
+    xp : module
+        Array namespace; on an engine's namespace each gain is one traced operation.
+    alpha_range, beta_range : (float, float)
+        Boxes ``0 < low < high``.
+    critically_damped : bool
+        Tie β to α/4.
+
+    Returns
+    -------
+    alpha, beta : array, shaped like the logits
     """
     a_lo, a_hi = _check_range("alpha_range", alpha_range)
     b_lo, b_hi = _check_range("beta_range", beta_range)
@@ -106,6 +121,17 @@ def logits_from_gains(
     """Inverse of :func:`gains_from_logits` (plain NumPy), e.g. to initialise a bias.
 
     The gains must lie strictly inside their ranges.
+
+    Parameters
+    ----------
+    alpha, beta : array or float
+        Gains strictly inside ``alpha_range`` and ``beta_range``.
+    alpha_range, beta_range : (float, float)
+        The boxes of :func:`gains_from_logits`.
+
+    Returns
+    -------
+    z_alpha, z_beta : ndarray, shaped like the gains
     """
     out = []
     for name, value, rng in (("alpha", alpha, alpha_range), ("beta", beta, beta_range)):
@@ -127,6 +153,20 @@ def zeta_penalty(alpha: Any, beta: Any, xp: Any = np, zeta_min: float = 0.5) -> 
 
     Zero while every ζ = ½ √(α/β) ≥ ``zeta_min``; grows quadratically below
     (continuous gradient). Add ``λ · zeta_penalty(α, β, xp)`` to the BC loss.
+
+    Parameters
+    ----------
+    alpha, beta : array
+        Gains of any shape (``αβ > 0``).
+    xp : module
+        Array namespace.
+    zeta_min : float
+        The ζ below which the penalty grows (> 0).
+
+    Returns
+    -------
+    array, shape ()
+        The mean squared shortfall.
     """
     zm = float(check_positive("zeta_min", zeta_min))
     zeta = damping_ratio(alpha, beta, xp=xp)

@@ -123,8 +123,8 @@ def step(
     any batch in front; scalar gains or gains of shape ``(..., 1)`` per sample).
     Returns ``(y_next, dy_next, ddy)`` with ``ddy = (dy_next − dy) / dt`` the
     mean acceleration over the step (for ``"euler"`` with one sub-step this is
-    eq. (10) evaluated at the start). ``xp`` is accepted for uniformity: only
-    arithmetic is used, so any engine's arrays pass through.
+    eq. (10) evaluated at the start). Only arithmetic is used, so any engine's
+    arrays pass through.
 
     Concrete gains are checked (:func:`check_gains`: α > 0, β ≥ 0, finite,
     real) and so is the step itself (:func:`check_step_stability`): a step
@@ -135,6 +135,32 @@ def step(
     opt-in lets α ≤ 0 or β < 0 run (the paper's ζ < 0, eq. 13), with a
     ``RuntimeWarning`` that the continuous system is unstable.  Traced
     gains (inside ``grad``/``jit``) are not checked.
+
+    On an engine's namespace ``xp`` the sub-steps are one differentiable
+    function with a hand-written VJP (:func:`~minimanc.dmp.flow.flow_for`).
+
+    Parameters
+    ----------
+    y, dy : array, shape (..., D)
+        Position and velocity at the start of the step.
+    goal : array, shape (..., D) or broadcastable
+        The goal ``g`` of eq. (10).
+    alpha, beta : array or float
+        Gains, scalars or shape ``(..., 1)`` per sample.
+    dt : float
+        Step length in seconds (concrete, or traced inside ``grad``).
+    method : str
+        Integrator, one of :data:`~minimanc.dmp.params.METHODS`.
+    substeps : int
+        Sub-steps per step (an integer >= 1).
+    xp : module
+        Array namespace (``numpy``, ``eng.xp``).
+    allow_unstable : bool
+        Run an unstable step (or negative gains) with a ``RuntimeWarning``.
+
+    Returns
+    -------
+    y_next, dy_next, ddy : array, shape broadcast of the inputs
     """
     method, substeps = _check_call(method, substeps, dt, alpha, beta, allow_unstable, 2)
     for name, value in (("y", y), ("dy", dy), ("goal", goal)):
@@ -189,6 +215,33 @@ def rollout(
     ``gate=False`` drops the factor ``x`` from ``f`` (a forcing term that never
     fades: the rollout settles away from the goal). Without ``forcing``, ``tau``
     still scales eq. (1)'s left-hand side.
+
+    Parameters
+    ----------
+    y0, dy0 : array, shape (..., D)
+        Initial position and velocity.
+    goal, alpha, beta : array or float
+        As in :func:`step`; with a leading axis of length ``steps`` when named
+        in ``per_step``.
+    dt : float
+        Step length in seconds.
+    steps : int
+        Number of steps (an integer >= 0).
+    method, substeps, xp, allow_unstable
+        As in :func:`step`.
+    per_step : iterable of str
+        Subset of ``("goal", "alpha", "beta")`` that change every step.
+    forcing : Forcing or None
+        The forcing term of eq. (1) (:func:`fit_forcing_weights`).
+    tau : float
+        Temporal scaling τ of eq. (1) (concrete, > 0).
+    gate : bool
+        Multiply the forcing term by the phase ``x``.
+
+    Returns
+    -------
+    Rollout
+        ``y``, ``dy`` of shape ``(steps + 1, ...)``, ``ddy`` of shape ``(steps, ...)``.
     """
     method = check_method(method)
     substeps = check_int("substeps", substeps, 1)

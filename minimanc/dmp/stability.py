@@ -100,6 +100,22 @@ def step_matrix(
     For gains α, β > 0 (arrays broadcast), shape ``(..., 2, 2)``. The DMP is
     linear, so ``[y_{k+1} − g, ẏ_{k+1}] = step_matrix(...) @ [y_k − g, ẏ_k]``
     exactly (tested against :func:`step`).
+
+    Parameters
+    ----------
+    alpha, beta : array or float
+        Gains of eq. (10) (α > 0, β > 0), broadcasting against each other.
+    dt : float
+        Step length in seconds (default :data:`~minimanc.dmp.params.DT`).
+    method : str
+        Integrator, one of :data:`~minimanc.dmp.params.METHODS`.
+    substeps : int
+        Sub-steps of ``h = dt / substeps`` per step (an integer >= 1).
+
+    Returns
+    -------
+    ndarray, shape broadcast(alpha, beta).shape + (2, 2)
+        The matrix acting on ``[y − g, ẏ]``.
     """
     a, b, dt, method, substeps = _check_step_args(alpha, beta, dt, method, substeps)
     return np.linalg.matrix_power(_substep_matrix(a, b, dt / substeps, method), substeps)
@@ -118,6 +134,22 @@ def spectral_radius(
     eigenvalues, see ``_substep_eigs``). Example: α = 25,
     β = α/4, ``dt = 0.5``, ``"euler"``, one sub-step gives ρ = 5.25 (diverges)
     although ζ = 1.
+
+    Parameters
+    ----------
+    alpha, beta : array or float
+        Gains of eq. (10) (α > 0, β > 0), broadcasting against each other.
+    dt : float
+        Step length in seconds (default :data:`~minimanc.dmp.params.DT`).
+    method : str
+        Integrator, one of :data:`~minimanc.dmp.params.METHODS`.
+    substeps : int
+        Sub-steps of ``h = dt / substeps`` per step (an integer >= 1).
+
+    Returns
+    -------
+    float or ndarray, shape broadcast(alpha, beta).shape
+        ρ of each step matrix (a float for scalar gains).
     """
     a, b, dt, method, substeps = _check_step_args(alpha, beta, dt, method, substeps)
     eig = _substep_eigs(a, b, dt / substeps, method)
@@ -189,6 +221,21 @@ def step_stable(
       oscillates forever without decaying (ρ = 1, "marginal");
     * ``"semi_implicit"``: stable iff ``hα (2 + hβ) < 4``;
     * ``"rk4"``: ``ρ < 1`` evaluated from its stability polynomial.
+
+    Parameters
+    ----------
+    alpha, beta : array or float
+        Gains of eq. (10) (α > 0, β > 0), broadcasting against each other.
+    dt : float
+        Step length in seconds (default :data:`~minimanc.dmp.params.DT`).
+    method : str
+        Integrator, one of :data:`~minimanc.dmp.params.METHODS`.
+    substeps : int
+        Sub-steps of ``h = dt / substeps`` per step (an integer >= 1).
+
+    Returns
+    -------
+    bool or ndarray of bool, shape broadcast(alpha, beta).shape
     """
     a, b, dt, method, substeps = _check_step_args(alpha, beta, dt, method, substeps)
     return _maybe_scalar(_stable(a, b, dt / substeps, method))
@@ -240,6 +287,22 @@ def max_stable_alpha(
 
     The bound itself is not stable (ρ = 1 there): :func:`step_stable` is
     ``False`` at ``α = max_stable_alpha``.
+
+    Parameters
+    ----------
+    beta : float
+        The spring gain β > 0.
+    dt : float
+        Step length in seconds.
+    method : str
+        One of :data:`~minimanc.dmp.params.METHODS`.
+    substeps : int
+        Sub-steps per step (an integer >= 1).
+
+    Returns
+    -------
+    float
+        The supremum of the stable α (0 when none is stable).
     """
     b = float(check_positive("beta", beta))
     d = float(check_positive("dt", dt))
@@ -271,6 +334,26 @@ def check_step_stability(
     (:func:`max_stable_alpha`); with ``allow_unstable=True`` it emits one
     ``RuntimeWarning`` instead.  The cost is a few vectorised operations on
     the gains; the stable bound is computed only when reporting.
+
+    Parameters
+    ----------
+    alpha, beta : array or float
+        Gains of eq. (10) (α > 0, β > 0), broadcasting against each other.
+    dt : float
+        Step length in seconds (default :data:`~minimanc.dmp.params.DT`).
+    method : str
+        Integrator, one of :data:`~minimanc.dmp.params.METHODS`.
+    substeps : int
+        Sub-steps of ``h = dt / substeps`` per step (an integer >= 1).
+    allow_unstable : bool
+        Run an unstable step with a ``RuntimeWarning`` instead of raising.
+    stacklevel : int
+        Of that warning (2: the caller's line).
+
+    Raises
+    ------
+    ValueError
+        When ρ > 1 and ``allow_unstable`` is False, stating ρ and the stable α.
     """
     a = np.asarray(alpha, dtype=float)
     b = np.asarray(beta, dtype=float)
