@@ -120,9 +120,10 @@ assert np.allclose(gb, g.sum(axis=0))
 # plain NumPy result, and returns a new box that remembers the primitive, its
 # arguments and its **parents** — in a tuple, so the order is fixed.
 #
-# The code of `primitive` is a dozen lines (open `minimanc/autodiff/core.py`);
-# each VJP sits right next to its forward definition in
-# `minimanc/autodiff/numpy.py`, e.g.
+# The code of `primitive` is a dozen lines (open `minimanc/autodiff/primitives.py`;
+# `minimanc.autodiff.core` gathers the engine's pieces, one module each); each VJP
+# sits right next to its forward definition in the modules behind
+# `minimanc/autodiff/numpy.py` (here `elementwise.py`), e.g.
 #
 # ```python
 # multiply = primitive(np.multiply)

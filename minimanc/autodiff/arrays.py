@@ -123,13 +123,21 @@ def moveaxis(x, source, destination):
 defvjp(moveaxis, lambda g, ans, x, src, dst: np.moveaxis(g, dst, src))
 
 
-@primitive
-def astype(x, dtype):
-    """``x`` converted to ``dtype`` (the cotangent is converted back)."""
+def _astype_fn(x, dtype):
     return np.asarray(x).astype(dtype)
 
 
-defvjp(astype, lambda g, ans, x, dtype: np.asarray(g).astype(np.result_type(x)))
+_astype_fn.__name__ = "astype"
+_astype = primitive(_astype_fn)
+defvjp(_astype, lambda g, ans, x, dtype: np.asarray(g).astype(np.result_type(x)))
+
+
+def astype(x, dtype):
+    """``x`` converted to ``dtype`` (the cotangent is converted back); a traced value that
+    already has that dtype is returned as it is (no new node on the tape)."""
+    if isinstance(x, Box) and x._value.dtype == np.dtype(dtype):
+        return x
+    return _astype(x, dtype)
 
 
 def _pad_fn(x, pad_width, mode="constant", constant_values=0):

@@ -189,7 +189,12 @@ def _scan_bwd(g: tuple, res: tuple) -> tuple:
             for _, parent, pct in parent_cotangents(box, ct):
                 key = id(parent)
                 into = cts if key in frame else boundary
-                into[key] = pct if key not in into else add_cotangents(into[key], pct)
+                prev = into.get(key)
+                if prev is None:
+                    into[key] = pct
+                else:
+                    into[key] = (prev + pct if type(prev) is np.ndarray
+                                 else add_cotangents(prev, pct))
         g_carry = [boundary.get(id(b)) if isinstance(b, Box) else None for b in c_in]
         for j, b in enumerate(x_in):
             if isinstance(b, Box) and id(b) in boundary:

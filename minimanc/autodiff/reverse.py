@@ -124,7 +124,12 @@ def backward(end: Box, g: np.ndarray,
             if on_edge is not None:
                 on_edge(box, argnum, parent, ct)
             key = id(parent)
-            cotangents[key] = ct if key not in cotangents else add_cotangents(cotangents[key], ct)
+            prev = cotangents.get(key)
+            if prev is None:
+                cotangents[key] = ct
+            else:
+                cotangents[key] = (prev + ct if type(prev) is np.ndarray
+                                   else add_cotangents(prev, ct))
     return leaves
 
 
