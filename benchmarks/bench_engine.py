@@ -107,16 +107,17 @@ def main(args: argparse.Namespace) -> None:
             first = time.perf_counter() - t0
             variants.append({"name": name, "dtype": np.dtype(dtype).name, "step": step,
                              "carry": out[:2], "data": data, "first": first, "times": [],
-                             "loss0": float(out[2])})
+                             "cpu": [], "loss0": float(out[2])})
 
     for _ in range(args.rounds):
         for v in variants:
             params, state = v["carry"]
             for _ in range(args.steps):
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 params, state, loss = v["step"](params, state, *v["data"])
                 _block((params, loss))
                 v["times"].append(time.perf_counter() - t0)
+                v["cpu"].append(time.process_time() - c0)
             v["carry"] = (params, state)
             v["loss"] = float(loss)
 
@@ -125,15 +126,18 @@ def main(args: argparse.Namespace) -> None:
           f"{args.steps} steps, interleaved; threads: "
           f"{'default' if args.threads is None else args.threads}; load average "
           f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
-    med = {}
+    med, med_cpu = {}, {}
     for v in variants:
         m = statistics.median(v["times"]) * 1e3
         med[(v["name"], v["dtype"])] = m
+        med_cpu[(v["name"], v["dtype"])] = statistics.median(v["cpu"]) * 1e3
         print(f"  {v['name']:5s} {v['dtype']:7s}  median {m:7.1f} ms   min "
-              f"{min(v['times']) * 1e3:7.1f} ms   first call {v['first'] * 1e3:7.0f} ms   "
+              f"{min(v['times']) * 1e3:7.1f} ms   CPU {med_cpu[(v['name'], v['dtype'])]:7.1f} ms"
+              f"   first call {v['first'] * 1e3:7.0f} ms   "
               f"loss {v['loss0']:.6f} -> {v['loss']:.6f}")
     for dt in ("float32", "float64"):
-        print(f"  ratio numpy/jax {dt}: {med[('numpy', dt)] / med[('jax', dt)]:.2f}")
+        print(f"  ratio numpy/jax {dt}: {med[('numpy', dt)] / med[('jax', dt)]:.2f}  (CPU time "
+              f"{med_cpu[('numpy', dt)] / med_cpu[('jax', dt)]:.2f})")
     l64 = [v["loss0"] for v in variants if v["dtype"] == "float64"]
     print(f"  float64 first-step loss, numpy - jax: {l64[0] - l64[1]:.2e}")
 
