@@ -13,7 +13,8 @@ Two families:
   controls against the human's, BEV frames), :func:`plot_saliency_steps`
   (Fig. 3: per-q-state saliency overlays via :mod:`minimanc.cam`),
   :func:`plot_trajectories` (policy against human in the world frame),
-  :func:`plot_speeds` (speed over time, policies against the human) and
+  :func:`plot_speeds` (speed over time, policies against the human),
+  :func:`plot_q_modes` (q over time above the human's driving mode) and
   :func:`save_gif` (a closed-loop rollout as an animated GIF, via Pillow).
 
 Every function returns the matplotlib ``Figure`` (or the GIF's path) and
@@ -38,6 +39,7 @@ __all__ = [
     "plot_table1",
     "plot_families",
     "plot_speeds",
+    "plot_q_modes",
     "plot_sample_efficiency",
     "plot_param_counts",
     "plot_q_states",
@@ -253,6 +255,45 @@ def plot_speeds(rollouts: Mapping[str, Any], human: Any, scenes: Sequence[int],
             if i == len(rollouts) - 1:
                 ax.set_xlabel("time (s)")
     axes[0, 0].legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_q_modes(q: Any, modes: Any, title: str = "", dt: float = 0.5) -> Any:
+    """One scene's q-distribution over time (top) above the human's mode at each step
+    (bottom): if the q-states were driving modes, q's bands would change where the modes do.
+
+    ``q (T, N)`` (e.g. :func:`minimanc.rollout.open_loop`), ``modes (T,)`` integer labels
+    of :data:`minimanc.modes.MODES` (:func:`minimanc.modes.human_modes`).
+    """
+    from minimanc.modes import MODES
+
+    q = np.asarray(q, dtype=np.float64)
+    labels = np.asarray(modes)
+    if q.ndim != 2 or labels.shape != q.shape[:1]:
+        raise ValueError(f"q must have shape (T, N) and modes (T,); got {q.shape} and "
+                         f"{labels.shape}")
+    plt = _plt()
+    T, N = q.shape
+    fig, (a, b) = plt.subplots(2, 1, figsize=(7, 3.6), sharex=True,
+                               gridspec_kw={"height_ratios": [N, 2]})
+    extent = (0, T * dt, N - 0.5, -0.5)
+    a.imshow(q.T, aspect="auto", cmap="viridis", vmin=0, vmax=1, extent=extent,
+             interpolation="nearest")
+    a.plot((np.arange(T) + 0.5) * dt, q.argmax(axis=1), "w.", ms=4, label="argmax q")
+    a.set_ylabel("q-state")
+    a.set_title(title or "q over time and the human's mode", fontsize=10)
+    a.legend(fontsize=7, loc="upper right")
+    b.imshow(labels[None], aspect="auto", cmap="tab10", vmin=0, vmax=9,
+             extent=(0, T * dt, 0.5, -0.5), interpolation="nearest")
+    b.set_yticks([])
+    present = sorted(set(labels.tolist()))
+    cmap = plt.get_cmap("tab10")
+    handles = [plt.Rectangle((0, 0), 1, 1, color=cmap(k)) for k in present]
+    b.legend(handles, [MODES[k] for k in present], fontsize=7, ncol=len(present),
+             loc="upper center", bbox_to_anchor=(0.5, -0.6))
+    b.set_xlabel("time (s)")
+    b.set_ylabel("human")
     fig.tight_layout()
     return fig
 

@@ -282,6 +282,7 @@ def test_reproduce_tiny_writes_everything(tmp_path, capsys):
         assert name in figs, name
     assert any(n.startswith("explain_scene") for n in figs)
     assert any(n.startswith("saliency_scene") for n in figs)
+    assert any(n.startswith("q_modes_scene") for n in figs)
     # a re-run reuses every cached model and rollout
     mtimes = {p: p.stat().st_mtime for p in (out / "cache").rglob("*.npz")}
     assert mtimes
@@ -322,6 +323,17 @@ def test_cli_agents_option():
     assert parser.parse_args(["reproduce", "--agents", "reactive"]).agents == "reactive"
     with pytest.raises(SystemExit):
         parser.parse_args(["reproduce", "--agents", "ideal"])
+
+
+def test_new_plots_refuse_bad_input():
+    from minimanc import plots
+
+    with pytest.raises(ValueError, match="q must have shape"):
+        plots.plot_q_modes(np.zeros((5, 3)), np.zeros(4, int))
+    with pytest.raises(ValueError, match="families"):
+        plots.plot_families({})
+    with pytest.raises(ValueError, match="metrics"):
+        plots.plot_families({"manc": {}}, metrics=("speed",))
 
 
 def test_scene_families_follow_the_tags():

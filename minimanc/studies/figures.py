@@ -58,8 +58,9 @@ def write_speeds(study: Study, figdir: Path, k: int = 3) -> list[Path]:
 
 
 def write_explanations(study: Study, figdir: Path) -> list[Path]:
-    """Explainability figures for a few validation scenes of the MANC run (paper, seed 0)."""
-    from minimanc import plots, rollout, train
+    """Explainability figures for a few validation scenes of the MANC run (paper, seed 0):
+    the closed-loop trace and saliency, a GIF, and the open-loop q above the human's mode."""
+    from minimanc import engine, plots, rollout, train
 
     c = study.config
     if c.explain_scenes == 0:
@@ -83,6 +84,13 @@ def write_explanations(study: Study, figdir: Path) -> list[Path]:
             plots.plot_saliency_steps(fit.params, fit.cfg, traj, val, s, steps),
             figdir / f"saliency_scene{s:03d}.png"))
     paths.append(plots.save_gif(traj, human, val, scenes[0], figdir / "rollout.gif"))
+    labels = study.human_modes()
+    q = rollout.open_loop(fit.name, fit.params, val, fit.cfg, engine(study.engine),
+                          scenes=scenes)["q"]
+    for k, s in enumerate(scenes):
+        title = f"MANC open loop, scene {s} ({val.maps[s].kind}): q and the human's mode"
+        paths.append(plots.save(plots.plot_q_modes(q[k], labels[s], title),
+                                figdir / f"q_modes_scene{s:03d}.png"))
     return paths
 
 
