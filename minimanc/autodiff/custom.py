@@ -57,15 +57,21 @@ class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
         if kwargs:
             raise TypeError(f"{self.__name__}: a custom_vjp function takes positional "
                             f"arguments only, got keywords {sorted(kwargs)}")
-        if not any(isinstance(a, Box) or isinstance(a, list | tuple | dict) for a in args):
-            return self.fun(*args)
-        flat = [tree_flatten(a) if isinstance(a, list | tuple | dict) else None for a in args]
-        leaves, owner = [], []  # every leaf of every argument, and its argument's index
-        for i, (a, f) in enumerate(zip(args, flat)):
-            arg_leaves = [a] if f is None else f[0]
-            leaves += arg_leaves
-            owner += [i] * len(arg_leaves)
-        parents = [(k, b) for k, b in enumerate(leaves) if isinstance(b, Box)]
+        if not any(isinstance(a, list | tuple | dict) for a in args):  # flat arguments
+            parents = [(k, a) for k, a in enumerate(args) if isinstance(a, Box)]
+            if not parents:
+                return self.fun(*args)
+            flat, owner, counts = None, range(len(args)), [1] * len(args)
+        else:
+            flat = [tree_flatten(a) if isinstance(a, list | tuple | dict) else None
+                    for a in args]
+            leaves, owner = [], []  # every leaf of every argument, and its argument's index
+            for i, (a, f) in enumerate(zip(args, flat)):
+                arg_leaves = [a] if f is None else f[0]
+                leaves += arg_leaves
+                owner += [i] * len(arg_leaves)
+            counts = [owner.count(i) for i in range(len(args))]
+            parents = [(k, b) for k, b in enumerate(leaves) if isinstance(b, Box)]
         if not parents:
             return self.fun(*args)
         if self.fwd is None:
@@ -75,13 +81,17 @@ class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
             if owner[k] in nondiff:
                 raise TypeError(f"{self.__name__}: argument {owner[k]} is traced but listed in "
                                 f"nondiff_argnums={nondiff}")
-        raw = [unbox(a) if f is None else f[2]([unbox(v) for v in f[0]])
-               for a, f in zip(args, flat)]
+        if flat is None:
+            raw = [unbox(a) for a in args]
+        else:
+            raw = [unbox(a) if f is None else f[2]([unbox(v) for v in f[0]])
+                   for a, f in zip(args, flat)]
         out, res = self.fwd(*raw)
         multi = isinstance(out, tuple | list)
         value = Outputs(out) if multi else out
-        shapes = [(np.shape(o), np.result_type(o)) for o in out] if multi else None
-        counts = [owner.count(i) for i in range(len(args))]
+        shapes = None if not multi else [
+            (o.shape, o.dtype) if type(o) is np.ndarray else (np.shape(o), np.result_type(o))
+            for o in out]
         node = Box(value, tuple(parents), self._node, (), None,
                    (tuple(raw[i] for i in nondiff), res, shapes, counts))
         if FRAMES:

@@ -62,6 +62,8 @@ def check_method(method: Any) -> str:
 
 def check_dt(dt: Any) -> None:
     """A concrete ``dt`` must be a finite scalar > 0 (ValueError naming it); traced passes."""
+    if type(dt) is float and 0.0 < dt < float("inf"):  # the common case, checked at once
+        return
     if not is_traced(dt):
         arr = check_positive("dt", dt)
         if arr.ndim:
