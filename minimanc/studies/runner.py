@@ -1,8 +1,10 @@
 """Chapter 9 — :class:`Study`: trains, rolls out and evaluates every run of the paper's
 studies (Table I under both protocols of the ados, per scenario family, sample efficiency,
 q-states, self-ablation, parameter counts, and whether vAGN's q-states are driving modes),
-with the cache under the output directory, the pool of rollout workers and the
-learning-rate sweeps on the tuning split."""
+with the cache under the output directory, the learning-rate sweeps on the tuning split,
+and the executor the jobs run on (:mod:`minimanc.studies.executors`: this machine's
+pool of rollout workers, or Ray tasks). The seeds (and a sweep's learning rates) of one
+configuration train together (:func:`minimanc.train.fit_many`)."""
 
 from __future__ import annotations
 
@@ -17,18 +19,29 @@ from minimanc import metrics
 from minimanc.checks import check_int
 from minimanc.engine import ENGINES
 from minimanc.studies.config import Run, StudyConfig, canonical_setting
+from minimanc.studies.executors import (
+    EXECUTORS,
+    Done,
+    evaluate_trained,
+    executor,
+    train_job,
+    train_runs,
+)
 from minimanc.studies.jobs import (
     FAMILIES,
     STUDY_METRICS,
-    Done,
     enable_jax_cache,
-    evaluate_job,
     failed,
     read_json,
     score,
     write_json,
 )
 from minimanc.studies.report import findings
+
+THREAD_ENV: tuple[str, ...] = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                               "XLA_FLAGS", "JAX_PLATFORMS")
+"""Environment variables a Ray worker inherits from the driver (so that a task computes as
+a local job would)."""
 
 
 class Study:
@@ -40,12 +53,20 @@ class Study:
     ``agents`` are the protocols of the ados Table I is reported under
     (:data:`minimanc.rollout.AGENTS`, default both); the first one also tunes the
     learning rates and scores the other studies.
+    ``executor``: ``"local"`` (training in this process, rollouts in ``workers``
+    processes) or ``"ray"`` (trainings and rollouts as Ray tasks: the cluster at
+    ``ray_address`` or ``RAY_ADDRESS``, else a local Ray with ``workers`` CPUs; the
+    output directory must be on a file system every node sees). ``seeds_together``:
+    train the runs of one configuration in one vmapped step (results equal to training
+    them one by one, to float32 rounding).
     """
 
     def __init__(self, config: StudyConfig, out: str | Path, engine: str = "jax",
                  workers: int = 1, progress: bool = True,
                  log: Callable[[str], None] | None = None,
-                 agents: Sequence[str] = ("replay", "reactive")) -> None:
+                 agents: Sequence[str] = ("replay", "reactive"),
+                 executor: str = "local", ray_address: str | None = None,
+                 seeds_together: bool = True) -> None:
         from minimanc.rollout import check_agents
 
         if not isinstance(config, StudyConfig):
@@ -53,6 +74,11 @@ class Study:
         if engine not in ENGINES:
             raise ValueError(f"engine must be one of {ENGINES}; got engine={engine!r}")
         check_int("workers", workers, 0)
+        if executor not in EXECUTORS:
+            raise ValueError(f"executor must be one of {EXECUTORS}; got executor={executor!r}")
+        if ray_address is not None and executor != "ray":
+            raise ValueError(f"ray_address is only for executor='ray'; got "
+                             f"ray_address={ray_address!r} with executor={executor!r}")
         if isinstance(agents, str) or len(agents) == 0 or len(set(agents)) != len(agents):
             raise ValueError("agents must be a non-empty sequence of distinct protocols; got "
                              f"agents={agents!r}")
@@ -68,7 +94,11 @@ class Study:
         if engine == "jax":
             enable_jax_cache(self.jax_cache)
         self._data: tuple[Any, Any, Any] | None = None
+        self.executor = executor
+        self.ray_address = ray_address
+        self.seeds_together = bool(seeds_together)
         self._pool: Any = None
+        self._trained: dict[str, tuple[Any, int]] = {}
         self._futures: dict[str, Any] = {}
         self._lr: dict[tuple[str, str], float] = {}
         self._sweeps: dict[str, dict] = {}
@@ -134,34 +164,65 @@ class Study:
         return self.cache / "models" / run.key / train.CHECKPOINT_NAME
 
     def fit(self, run: Run) -> Path:
-        """Train ``run`` (or resume / reuse its checkpoint). Returns the checkpoint path."""
+        """Train ``run`` (or resume / reuse its checkpoint) and wait for it. Returns the
+        checkpoint path."""
+        fut, k = self.train_group([run])[run.key]
+        return Path(fut.result()[k])
+
+    def _complete(self, run: Run) -> bool:
+        """Whether ``run``'s checkpoint holds every epoch (or the run diverged)."""
         from minimanc import train
 
         path = self.checkpoint(run)
         if self._diverged(run):
-            return path  # scored as inf; delete diverged.json to train it again
-        if path.exists():
-            try:
-                ck = train.load_checkpoint(path)
-            except train.CheckpointError as exc:
-                # the cache is derived data: drop the broken entry and train the run again
-                self.discard(path, str(exc))
-            else:
-                if ck["epoch"] >= self.config.epochs:
-                    return path
-        train_ds, _, _ = self.datasets()
-        t0 = time.perf_counter()
+            return True  # scored as inf; delete diverged.json to train it again
+        if not path.exists():
+            return False
         try:
-            train.fit(run.model, train_ds, self.model_config(run), self.train_config(run),
-                      engine=self.engine, checkpoint_dir=path.parent, resume=True,
-                      progress=self.progress)
-        except train.TrainingDiverged as exc:
-            self.log(f"train: {run.key} diverged ({exc}); scored as inf")
-            write_json(path.parent / "diverged.json", {"error": str(exc)})
-        dt = time.perf_counter() - t0
-        self.timing["train"] = self.timing.get("train", 0.0) + dt
-        self.log(f"train: {run.key} in {dt:.1f} s")
-        return path
+            return train.load_checkpoint(path)["epoch"] >= self.config.epochs
+        except train.CheckpointError as exc:
+            # the cache is derived data: drop the broken entry and train the run again
+            self.discard(path, str(exc))
+            return False
+
+    def train_group(self, runs: Sequence[Run]) -> dict[str, tuple[Any, int]]:
+        """Start training ``runs``: those of one configuration (model, setting, q-states,
+        fraction) that are not trained yet train together (one job per configuration, or
+        per run without ``seeds_together``). Returns ``{run.key: (future, index)}``: the
+        job's ``result()[index]`` is the run's checkpoint path."""
+        groups: dict[tuple, list[Run]] = {}
+        for r in runs:
+            if r.key in self._trained:
+                continue
+            if self._complete(r):
+                self._trained[r.key] = (Done([str(self.checkpoint(r))]), 0)
+                continue
+            g = (r.model, r.setting, r.n_states, r.fraction)
+            groups.setdefault(g if self.seeds_together else (r.key,), []).append(r)
+        train_ds = self.datasets()[0] if groups else None
+        for group in groups.values():
+            first = group[0]
+            job = {"model": first.model, "data": str(self.data_path), "lo": 0,
+                   "hi": self.config.n_train, "cfg": self.model_config(first),
+                   "train_cfgs": [self.train_config(r) for r in group],
+                   "checkpoints": [str(self.checkpoint(r)) for r in group],
+                   "engine": self.engine, "jax_cache": str(self.jax_cache)}
+            keys = ", ".join(r.key for r in group)
+            if self.executor == "ray":
+                fut = self._executor().submit(train_job, job)
+                self.log(f"train: {keys} submitted")
+            else:
+                t0 = time.perf_counter()
+                fut = Done(train_runs(train_ds, {**job, "progress": self.progress}))
+                dt = time.perf_counter() - t0
+                self.timing["train"] = self.timing.get("train", 0.0) + dt
+                self.log(f"train: {keys} in {dt:.1f} s")
+                for r in group:
+                    if self._diverged(r):
+                        self.log(f"train: {r.key} diverged; scored as inf")
+            for k, r in enumerate(group):
+                self._trained[r.key] = (fut, k)
+        return {r.key: self._trained[r.key] for r in runs}
 
     def _diverged(self, run: Run) -> bool:
         return (self.checkpoint(run).parent / "diverged.json").exists()
@@ -207,34 +268,34 @@ class Study:
         if isinstance(cached, dict):
             fut: Any = Done(cached)
         else:
-            ck = self.fit(run)
-            if self._diverged(run):
+            trained, k = self.train_group([run])[run.key]
+            self.datasets()
+            lo, hi = self._bounds(split)
+            job = {"data": str(self.data_path), "lo": lo, "hi": hi, "engine": self.engine,
+                   "rollout": str(roll_path), "metrics": str(met_path),
+                   "jax_cache": str(self.jax_cache), "agents": agents}
+            if self.executor == "ray":  # runs once its training task has finished
+                fut = self._executor().submit(evaluate_trained, trained, k, job)
+            elif self._diverged(run):
                 fut = Done(failed("training diverged"))
+            elif self.workers > 0:
+                fut = self._executor().submit(evaluate_trained, trained.result(), k, job)
             else:
-                self.datasets()
-                lo, hi = self._bounds(split)
-                job = {"data": str(self.data_path), "lo": lo, "hi": hi,
-                       "checkpoint": str(ck), "engine": self.engine,
-                       "rollout": str(roll_path), "metrics": str(met_path),
-                       "jax_cache": str(self.jax_cache), "agents": agents}
-                if self.workers > 0:
-                    fut = self._executor().submit(evaluate_job, job)
-                else:
-                    t0 = time.perf_counter()
-                    fut = Done(evaluate_job(job))
-                    self.timing["rollout"] = (self.timing.get("rollout", 0.0)
-                                              + time.perf_counter() - t0)
+                t0 = time.perf_counter()
+                fut = Done(evaluate_trained(trained.result(), k, job))
+                self.timing["rollout"] = (self.timing.get("rollout", 0.0)
+                                          + time.perf_counter() - t0)
         self._futures[key] = fut
         self._tick()
         return fut
 
     def _executor(self) -> Any:
+        """The :mod:`~minimanc.studies.executors` executor of the jobs (made on first use)."""
         if self._pool is None:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor
+            import os
 
-            self._pool = ProcessPoolExecutor(max_workers=self.workers,
-                                             mp_context=mp.get_context("spawn"))
+            env = {k: os.environ[k] for k in THREAD_ENV if k in os.environ}
+            self._pool = executor(self.executor, self.workers, self.ray_address, env=env)
         return self._pool
 
     def result(self, run: Run, split: str = "val", agents: str | None = None) -> dict:
@@ -252,9 +313,9 @@ class Study:
         return rollout.Rollout.load(self._paths(run, split, agents)[0])
 
     def close(self) -> None:
-        """Shut the worker processes down."""
+        """Shut the worker processes down (and a local Ray this study started)."""
         if self._pool is not None:
-            self._pool.shutdown(wait=True)
+            self._pool.shutdown()
             self._pool = None
 
     # ----------------------------------------------------------------- tuning
@@ -286,9 +347,10 @@ class Study:
             return
         for model, setting in pairs:
             setting = canonical_setting(model, setting)
-            for lr in c.lrs:
-                self.submit(Run(model, setting, c.n_states, 1.0, 0, float(lr)), "tune",
-                            self.primary)
+            runs = [Run(model, setting, c.n_states, 1.0, 0, float(lr)) for lr in c.lrs]
+            self.train_group(runs)
+            for r in runs:
+                self.submit(r, "tune", self.primary)
 
     # ----------------------------------------------------------------- studies
 
@@ -309,6 +371,7 @@ class Study:
         return families_of(res)
 
     def _submit_all(self, runs: list[Run], agents: str | None = None) -> None:
+        self.train_group(runs)
         for r in runs:
             self.submit(r, agents=agents)
 

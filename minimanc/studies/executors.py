@@ -1,0 +1,249 @@
+"""Chapter 9 — where a study's jobs run: :class:`LocalExecutor` (this machine: a pool of
+worker processes, or inline) or :class:`RayExecutor` (Ray tasks, on a local Ray or a
+cluster), behind one interface, ``submit(fn, *args) → future`` with ``future.result()``.
+
+The study is a grid of independent (model, setting, seed, data fraction, q-states)
+trainings and closed-loop evaluations. An argument of ``submit`` may be a future of the
+same executor: the job then starts once that one has finished, on its result (Ray passes
+the object reference, so the cluster's scheduler orders them; the local executor waits
+for it). Every job writes its result under the study's output directory (checkpoints,
+rollouts, metrics), so a rerun after a lost worker, or a killed driver, resumes where it
+stopped; on a cluster that directory must be on a file system every node sees.
+
+    ex = executor("ray", workers=2)            # RAY_ADDRESS or a local ray.init(num_cpus=2)
+    fut = ex.submit(pow, 2, 10)
+    fut.result()                                # 1024
+    ex.shutdown()
+
+Ray is an optional dependency (``pip install 'minimanc[ray]'``).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from typing import Any
+
+from minimanc.checks import check_int
+from minimanc.errors import UsageError
+
+__all__ = ["EXECUTORS", "Done", "LocalExecutor", "RayExecutor", "RayFuture", "evaluate_trained",
+           "executor", "load_scenes", "train_job", "train_runs"]
+
+EXECUTORS = ("local", "ray")
+"""The executors :func:`executor` builds."""
+
+RAY_MISSING = ("--executor ray needs Ray, which is not installed: pip install 'minimanc[ray]' "
+               "(or pip install 'ray>=2.9')")
+
+
+class Done:
+    """A finished future (a job run inline)."""
+
+    def __init__(self, value: Any) -> None:
+        self._value = value
+
+    def result(self) -> Any:
+        return self._value
+
+    def done(self) -> bool:
+        return True
+
+
+def _resolved(args: tuple) -> tuple:
+    return tuple(a.result() if hasattr(a, "result") and hasattr(a, "done") else a for a in args)
+
+
+class LocalExecutor:
+    """Jobs on this machine: ``workers`` spawned processes (``0``: inline, in the caller).
+
+    A future among the arguments is waited for in the caller before the job starts.
+    """
+
+    name = "local"
+
+    def __init__(self, workers: int = 1) -> None:
+        self.workers = check_int("workers", workers, 0)
+        self._pool: Any = None
+
+    def submit(self, fn: Callable, *args: Any) -> Any:
+        """Start ``fn(*args)``; returns a future (``result()``, ``done()``)."""
+        args = _resolved(args)
+        if self.workers == 0:
+            return Done(fn(*args))
+        if self._pool is None:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(max_workers=self.workers,
+                                             mp_context=mp.get_context("spawn"))
+        return self._pool.submit(fn, *args)
+
+    def shutdown(self) -> None:
+        """Wait for the running jobs and stop the worker processes."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
+
+
+class RayFuture:
+    """A Ray task's result: ``result()`` is ``ray.get`` of its object reference ``ref``."""
+
+    def __init__(self, ref: Any) -> None:
+        self.ref = ref
+
+    def result(self) -> Any:
+        import ray
+
+        return ray.get(self.ref)
+
+    def done(self) -> bool:
+        import ray
+
+        ready, _ = ray.wait([self.ref], timeout=0)
+        return bool(ready)
+
+
+class RayExecutor:
+    """Jobs as Ray tasks. Joins the cluster at ``address`` (or the ``RAY_ADDRESS``
+    environment variable: ``"auto"`` or ``"ray://head:10001"``); with neither, starts a
+    local Ray with ``workers`` CPUs. A task that loses its worker is retried
+    (``max_retries``) by Ray; every job of a study resumes from its files.
+
+    ``env`` are environment variables for the workers (e.g. the thread counts of the
+    driver, so that a task computes what it would compute locally).
+    """
+
+    name = "ray"
+
+    def __init__(self, workers: int = 2, address: str | None = None, max_retries: int = 3,
+                 env: dict[str, str] | None = None) -> None:
+        try:
+            import ray
+        except ImportError as exc:
+            raise UsageError(RAY_MISSING) from exc
+        self.workers = check_int("workers", workers, 1)
+        self.max_retries = check_int("max_retries", max_retries, 0)
+        self.address = address or os.environ.get("RAY_ADDRESS") or None
+        self._started = False
+        self._remote: dict[Callable, Any] = {}
+        if not ray.is_initialized():
+            runtime_env = {"env_vars": dict(env)} if env else None
+            if self.address:
+                ray.init(address=self.address, runtime_env=runtime_env,
+                         log_to_driver=False)
+            else:
+                ray.init(num_cpus=self.workers, include_dashboard=False,
+                         runtime_env=runtime_env, log_to_driver=False)
+                self._started = True
+
+    def submit(self, fn: Callable, *args: Any) -> RayFuture:
+        """Start ``fn(*args)`` as a Ray task (one CPU); a :class:`RayFuture` among ``args`` is
+        passed as its object reference, so the task runs after it, on its value."""
+        import ray
+
+        task = self._remote.get(fn)
+        if task is None:
+            task = ray.remote(num_cpus=1, max_retries=self.max_retries)(fn)
+            self._remote[fn] = task
+        refs = tuple(a.ref if isinstance(a, RayFuture) else a for a in args)
+        return RayFuture(task.remote(*refs))
+
+    def shutdown(self) -> None:
+        """Disconnect; a Ray this executor started is stopped."""
+        import ray
+
+        if self._started and ray.is_initialized():
+            ray.shutdown()
+        self._started = False
+
+
+def executor(kind: str = "local", workers: int = 1, address: str | None = None,
+             env: dict[str, str] | None = None) -> LocalExecutor | RayExecutor:
+    """The executor called ``kind`` (:data:`EXECUTORS`): ``"local"`` with ``workers``
+    processes (0: inline), or ``"ray"`` (``address``, else ``RAY_ADDRESS``, else a local Ray
+    with ``max(workers, 1)`` CPUs; ``env`` for its workers). Without Ray installed,
+    ``"ray"`` raises :class:`~minimanc.errors.UsageError` saying how to install it."""
+    if kind not in EXECUTORS:
+        raise ValueError(f"executor must be one of {EXECUTORS}; got executor={kind!r}")
+    if kind == "local":
+        if address is not None:
+            raise ValueError(f"ray_address is only for the ray executor; got "
+                             f"ray_address={address!r} with executor='local'")
+        return LocalExecutor(workers)
+    return RayExecutor(max(int(check_int("workers", workers, 0)), 1), address, env=env)
+
+
+_DATA: dict[str, Any] = {}
+
+
+def load_scenes(data: str, lo: int, hi: int) -> Any:
+    """Scenes ``lo:hi`` of the dataset file ``data`` (loaded once per worker process)."""
+    from minimanc import world
+
+    if data not in _DATA:
+        _DATA.clear()
+        _DATA[data] = world.load(data)
+    key = f"{data}[{lo}:{hi}]"
+    if key not in _DATA:
+        _DATA[key] = _DATA[data].subset(slice(lo, hi))
+    return _DATA[key]
+
+
+def train_job(job: dict) -> list[str]:
+    """:func:`train_runs` on the training scenes ``job["lo"]:job["hi"]`` of the dataset file
+    ``job["data"]`` (what a worker runs)."""
+    return train_runs(load_scenes(job["data"], job["lo"], job["hi"]), job)
+
+
+def train_runs(ds: Any, job: dict) -> list[str]:
+    """Train the runs of one configuration of a study on ``ds`` together
+    (:func:`minimanc.train.fit_many`, each resuming its own checkpoint) and return their
+    checkpoint paths; a diverged run leaves ``diverged.json`` beside its checkpoint.
+
+    ``job``: ``{"model", "cfg"`` (:class:`~minimanc.models.ModelConfig`), ``"train_cfgs"``
+    (one :class:`~minimanc.train.TrainConfig` per run, differing in ``seed`` and ``lr``),
+    ``"checkpoints"`` (one path per run), ``"engine", "jax_cache"}`` and optionally
+    ``"progress"``; for :func:`train_job` also ``"data", "lo", "hi"``.
+    """
+    from pathlib import Path
+
+    from minimanc import train
+    from minimanc.studies.jobs import enable_jax_cache, write_json
+
+    if job["engine"] == "jax" and job.get("jax_cache"):
+        enable_jax_cache(job["jax_cache"])
+    paths = [Path(p) for p in job["checkpoints"]]
+    todo = []
+    for k, (path, tc) in enumerate(zip(paths, job["train_cfgs"])):
+        if (path.parent / "diverged.json").exists():
+            continue
+        if path.exists():
+            try:
+                if train.load_checkpoint(path)["epoch"] >= tc.epochs:
+                    continue
+            except train.CheckpointError:
+                path.unlink(missing_ok=True)  # derived data: train it again
+        todo.append(k)
+    if todo:
+        out = train.fit_many(job["model"], ds, job["cfg"], [job["train_cfgs"][k] for k in todo],
+                             engine=job["engine"], checkpoint_dirs=[paths[k].parent for k in todo],
+                             resume=True, progress=job.get("progress", False), errors="return")
+        for k, res in zip(todo, out):
+            if isinstance(res, train.TrainingDiverged):
+                write_json(paths[k].parent / "diverged.json", {"error": str(res)})
+    return [str(p) for p in paths]
+
+
+def evaluate_trained(checkpoints: list[str], index: int, job: dict) -> dict:
+    """:func:`minimanc.studies.jobs.evaluate_job` of ``job`` with the checkpoint
+    ``checkpoints[index]`` (the result of :func:`train_job`); a diverged run scores
+    :func:`minimanc.studies.jobs.failed`."""
+    from pathlib import Path
+
+    from minimanc.studies.jobs import evaluate_job, failed
+
+    checkpoint = checkpoints[index]
+    if (Path(checkpoint).parent / "diverged.json").exists():
+        return failed("training diverged")
+    return evaluate_job({**job, "checkpoint": checkpoint})
