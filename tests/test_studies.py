@@ -363,6 +363,10 @@ def test_score_splits_the_error_and_scores_each_family_on_its_scenes():
     traj = rollout.fixed_gains(ds)
     res = jobs.score(traj, ds)
     assert set(jobs.STUDY_METRICS) <= set(res)
+    # per scene, then averaged: the numbers of metrics.evaluate, under either protocol
+    for t in (traj, rollout.fixed_gains(ds, agents="reactive")):
+        got, want = jobs.score(t, ds), metrics.evaluate(t, ds)
+        assert all(np.isclose(got[k], want[k], rtol=1e-12, atol=1e-12) for k in want), want
     along, cross = metrics.along_cross_track(traj.ego, ds.ego)
     assert np.isclose(res["along_track"], np.abs(along).mean())
     assert np.isclose(res["cross_track"], np.abs(cross).mean())

@@ -56,36 +56,48 @@ def failed(error: str | None = None) -> dict:
     return res
 
 
-class _Scenes:
-    """The rows ``idx`` of a dataset, as much of it as :func:`minimanc.metrics.evaluate`
-    reads."""
-
-    def __init__(self, ds: Any, idx: np.ndarray) -> None:
-        self.ego = np.asarray(ds.ego)[idx]
-        self.ado = np.asarray(ds.ado)[idx]
-        self.ado_valid = np.asarray(ds.ado_valid)[idx]
-        self.maps = [ds.maps[int(i)] for i in idx]
-
-
-def _scores(traj: Any, ds: Any) -> dict[str, float]:
-    res = metrics.evaluate(traj, ds)
-    along, cross = metrics.along_cross_track(traj.ego, ds.ego)
-    res.update(along_track=float(np.abs(along).mean()), cross_track=float(np.abs(cross).mean()),
-               along_bias=float(along.mean()))
-    return res
+def scene_scores(traj: Any, ds: Any) -> dict[str, np.ndarray]:
+    """Every metric of :data:`STUDY_METRICS` per scene, ``{metric: (S,)}``, in the units of
+    :func:`minimanc.metrics.evaluate` (whose values are their means over the scenes): the
+    per-scene functions of :mod:`minimanc.metrics`, on the rollout's own ados when it has
+    them (the reactive protocol), else on the dataset's log."""
+    ego = np.asarray(traj.ego, dtype=np.float64)
+    human = np.asarray(ds.ego, dtype=np.float64)
+    if ego.shape != human.shape:
+        raise ValueError(f"traj.ego must have the dataset's shape {human.shape}; got {ego.shape}")
+    ado, valid = ds.ado, ds.ado_valid
+    if getattr(traj, "ado", None) is not None:
+        ado, valid = traj.ado, traj.ado_valid
+    along, cross = metrics.along_cross_track(ego, human)
+    return {
+        "close_encounters": 100.0 * metrics.close_encounters(ego, ado, valid, metrics.CLOSE_GAP),
+        "max_acceleration": metrics.max_acceleration(ego),
+        "ade": metrics.ade(ego, human),
+        "goal_distance": metrics.goal_distance(ego, human[:, -1]),
+        "collision_rate": 100.0 * metrics.collisions(ego, ado, valid),
+        "off_road_rate": 100.0 * metrics.off_road(ego, ds.maps),
+        "at_fault_collision_rate": 100.0 * metrics.at_fault_collisions(ego, ado, valid, ds.maps),
+        "ttc_rate": 100.0 * metrics.ttc_rate(ego, ado, valid),
+        "route_progress": metrics.route_progress(ego, human, ds.maps),
+        "along_track": np.abs(along).mean(axis=1),
+        "cross_track": np.abs(cross).mean(axis=1),
+        "along_bias": along.mean(axis=1),
+    }
 
 
 def score(traj: Any, ds: Any) -> dict:
     """Every metric of the rollout ``traj`` on ``ds`` (its rows are ``ds``'s scenes in
-    order): :func:`minimanc.metrics.evaluate`, the along-/cross-track split
-    (:data:`TRACK_METRICS`), and ``"families"``: the same for the scenes of each of
-    :data:`FAMILIES` present (with ``n_scenes``)."""
-    res: dict[str, Any] = _scores(traj, ds)
+    order), averaged over the scenes (:func:`scene_scores`; the same numbers as
+    :func:`minimanc.metrics.evaluate`, and :data:`TRACK_METRICS`), and ``"families"``:
+    the same averages over the scenes of each of :data:`FAMILIES` present (with
+    ``n_scenes``)."""
+    per = scene_scores(traj, ds)
+    res: dict[str, Any] = {k: float(v.mean()) for k, v in per.items()}
     fams = {}
     for fam, mask in scene_families(ds).items():
-        idx = np.flatnonzero(mask)
-        if idx.size:
-            fams[fam] = {**_scores(traj.subset(idx), _Scenes(ds, idx)), "n_scenes": int(idx.size)}
+        if mask.any():
+            fams[fam] = {**{k: float(v[mask].mean()) for k, v in per.items()},
+                         "n_scenes": int(mask.sum())}
     res["families"] = fams
     return res
 
