@@ -152,3 +152,19 @@ def test_reproduce_sets_the_training_window_of_the_dmp_models(monkeypatch, tmp_p
         err = capsys.readouterr().err
         assert code == 2 and f"{option} must be an integer >= 1" in err, err
         assert len(err.strip().splitlines()) == 1
+
+
+def test_reproduce_passes_the_protocols_of_the_ados(monkeypatch, tmp_path):
+    from minimanc.cli import reproduce as cmd
+
+    seen = []
+
+    def fake(config, out, **kwargs):
+        seen.append(kwargs["agents"])
+        raise SystemExit(0)
+
+    monkeypatch.setattr(cmd, "reproduce", fake)
+    for argv in ([], ["--agents", "both"], ["--agents", "replay"], ["--agents", "reactive"]):
+        with pytest.raises(SystemExit):
+            cli.main(["reproduce", "--preset", "tiny", "--out", str(tmp_path / "o"), *argv])
+    assert seen == [("replay", "reactive"), ("replay", "reactive"), ("replay",), ("reactive",)]
