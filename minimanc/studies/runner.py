@@ -3,8 +3,8 @@ studies (Table I under both protocols of the ados, per scenario family, sample e
 q-states, self-ablation, parameter counts, and whether vAGN's q-states are driving modes),
 with the cache under the output directory, the learning-rate sweeps on the tuning split,
 and the executor the jobs run on (:mod:`minimanc.studies.executors`: this machine's
-pool of rollout workers, or Ray tasks). The seeds (and a sweep's learning rates) of one
-configuration train together (:func:`minimanc.train.fit_many`)."""
+pool of rollout workers, or Ray tasks); optionally the seeds (and a sweep's learning
+rates) of one configuration train together (:func:`minimanc.train.fit_many`)."""
 
 from __future__ import annotations
 
@@ -57,8 +57,11 @@ class Study:
     processes) or ``"ray"`` (trainings and rollouts as Ray tasks: the cluster at
     ``ray_address`` or ``RAY_ADDRESS``, else a local Ray with ``workers`` CPUs; the
     output directory must be on a file system every node sees). ``seeds_together``:
-    train the runs of one configuration in one vmapped step (results equal to training
-    them one by one, to float32 rounding).
+    train the runs of one configuration in one vmapped step
+    (:func:`minimanc.train.fit_many`; results equal to training them one by one, to
+    float32 rounding). Off by default: on XLA's CPU backend a convolution vmapped over
+    per-run kernels becomes a grouped convolution, slower than the separate ones
+    (``benchmarks/bench_study.py --seeds-together``).
     """
 
     def __init__(self, config: StudyConfig, out: str | Path, engine: str = "jax",
@@ -66,7 +69,7 @@ class Study:
                  log: Callable[[str], None] | None = None,
                  agents: Sequence[str] = ("replay", "reactive"),
                  executor: str = "local", ray_address: str | None = None,
-                 seeds_together: bool = True) -> None:
+                 seeds_together: bool = False) -> None:
         from minimanc.rollout import check_agents
 
         if not isinstance(config, StudyConfig):

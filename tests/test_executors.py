@@ -1,0 +1,138 @@
+"""Tests for minimanc.studies.executors: the local and Ray executors behind one interface,
+the clear error without Ray, and the ``tiny`` study on a local Ray giving the local
+executor's ``results.json`` to the last digit (and resuming from its cache)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import types
+from pathlib import Path
+
+import pytest
+
+from minimanc.errors import UsageError
+from minimanc.studies import PRESETS, executors
+from minimanc.studies.report import json_safe
+from minimanc.studies.runner import Study
+
+try:
+    import ray  # noqa: F401
+
+    HAVE_RAY = True
+except ImportError:
+    HAVE_RAY = False
+needs_ray = pytest.mark.skipif(not HAVE_RAY, reason="ray is not installed: "
+                               "pip install 'minimanc[ray]' (CI installs it)")
+
+
+def add(a, b):
+    return a + b
+
+
+def die_once(marker: str, value: int) -> int:
+    """Kills its worker process the first time (a lost worker), returns ``value`` after."""
+    if not os.path.exists(marker):
+        Path(marker).write_text("died")
+        os._exit(1)
+    return value
+
+
+def test_local_executor_inline_and_pool():
+    for workers in (0, 1):
+        ex = executors.executor("local", workers)
+        try:
+            first = ex.submit(add, 2, 3)
+            # a future among the arguments is the job's input, once finished
+            assert ex.submit(add, first, 10).result() == 15
+        finally:
+            ex.shutdown()
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match="executor must be one of .*'dask'"):
+        executors.executor("dask")
+    with pytest.raises(ValueError, match="ray_address is only for the ray executor"):
+        executors.executor("local", 1, address="auto")
+    with pytest.raises(ValueError, match="workers"):
+        executors.executor("local", -1)
+    with pytest.raises(ValueError, match="executor must be one of"):
+        Study(PRESETS["tiny"], "unused", executor="slurm")
+    with pytest.raises(ValueError, match="ray_address is only for executor='ray'"):
+        Study(PRESETS["tiny"], "unused", ray_address="auto")
+
+
+def test_ray_missing_is_one_clear_line(monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray → ImportError
+    with pytest.raises(UsageError) as info:
+        executors.executor("ray", 2)
+    msg = str(info.value)
+    assert "\n" not in msg and "--executor ray" in msg and "minimanc[ray]" in msg
+
+
+def test_ray_address_from_argument_or_environment(monkeypatch):
+    """``address`` wins, then ``RAY_ADDRESS``; with neither a local Ray of ``workers`` CPUs."""
+    calls = []
+    fake = types.SimpleNamespace(is_initialized=lambda: False,
+                                 init=lambda **kw: calls.append(kw), shutdown=lambda: None)
+    monkeypatch.setitem(sys.modules, "ray", fake)
+    monkeypatch.setenv("RAY_ADDRESS", "ray://head:10001")
+    executors.executor("ray", 2, address="auto")
+    executors.executor("ray", 2)
+    monkeypatch.delenv("RAY_ADDRESS")
+    executors.executor("ray", 3, env={"OMP_NUM_THREADS": "1"})
+    assert calls[0]["address"] == "auto"
+    assert calls[1]["address"] == "ray://head:10001"
+    assert "address" not in calls[2] and calls[2]["num_cpus"] == 3
+    assert calls[2]["runtime_env"] == {"env_vars": {"OMP_NUM_THREADS": "1"}}
+
+
+@needs_ray
+def test_ray_futures_chain_and_a_lost_worker_is_retried(tmp_path):
+    import ray.cloudpickle
+
+    # the workers cannot import this test module: ship its functions by value
+    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    ex = executors.executor("ray", 2)
+    try:
+        first = ex.submit(add, 2, 3)
+        assert ex.submit(add, first, 10).result() == 15  # runs after `first`, on its value
+        assert ex.submit(die_once, str(tmp_path / "marker"), 7).result() == 7
+        assert (tmp_path / "marker").exists()
+    finally:
+        ex.shutdown()
+
+
+def run_tiny(out: Path, executor: str, log: list | None = None) -> str:
+    """The ``tiny`` study under ``out``; its results.json text without the wall times."""
+    study = Study(PRESETS["tiny"], out, workers=2 if executor == "ray" else 1, progress=False,
+                  executor=executor, log=None if log is None else log.append)
+    try:
+        res = study.run()
+    finally:
+        study.close()
+    res.pop("timing_s")
+    return json.dumps(json_safe(res), indent=1, sort_keys=True)
+
+
+@needs_ray
+def test_tiny_study_on_ray_equals_local(tmp_path):
+    """Same results.json to the last digit on a local Ray (2 CPUs) as on the local executor;
+    a rerun after lost results recomputes only those and gives the same file again."""
+    local = run_tiny(tmp_path / "local", "local")
+    shutil.copytree(tmp_path / "local" / "data", tmp_path / "ray" / "data")  # same scenes
+    on_ray = run_tiny(tmp_path / "ray", "ray")
+    assert on_ray == local
+    # lose one run's checkpoint and its validation metrics: the rerun trains and evaluates
+    # that run only, from the cache of everything else
+    cache = next((tmp_path / "ray" / "cache").glob("*-jax"))
+    lost = sorted((cache / "models").iterdir())[0]
+    shutil.rmtree(lost)
+    for f in (cache / "rollouts").glob(f"{lost.name}-*"):
+        f.unlink()
+    log: list[str] = []
+    assert run_tiny(tmp_path / "ray", "ray", log) == local
+    trained = [line for line in log if line.startswith("train:")]
+    assert trained == [f"train: {lost.name} submitted"]
