@@ -69,6 +69,8 @@ def test_ray_missing_is_one_clear_line(monkeypatch):
     with pytest.raises(UsageError) as info:
         executors.executor("ray", 2)
     msg = str(info.value)
+    with pytest.raises(UsageError, match="--executor ray needs Ray"):
+        Study(PRESETS["tiny"], "unused", executor="ray")  # before any work
     assert "\n" not in msg and "--executor ray" in msg and "minimanc[ray]" in msg
 
 

@@ -27,14 +27,23 @@ from typing import Any
 from minimanc.checks import check_int
 from minimanc.errors import UsageError
 
-__all__ = ["EXECUTORS", "Done", "LocalExecutor", "RayExecutor", "RayFuture", "evaluate_trained",
-           "executor", "load_scenes", "train_job", "train_runs"]
+__all__ = ["EXECUTORS", "RAY_MISSING", "Done", "LocalExecutor", "RayExecutor", "RayFuture",
+           "check_ray", "evaluate_trained", "executor", "load_scenes", "train_job", "train_runs"]
 
 EXECUTORS = ("local", "ray")
 """The executors :func:`executor` builds."""
 
 RAY_MISSING = ("--executor ray needs Ray, which is not installed: pip install 'minimanc[ray]' "
                "(or pip install 'ray>=2.9')")
+
+
+def check_ray() -> None:
+    """Raise :class:`~minimanc.errors.UsageError` (one line: how to install it) unless Ray
+    can be imported."""
+    try:
+        import ray  # noqa: F401
+    except ImportError as exc:
+        raise UsageError(RAY_MISSING) from exc
 
 
 class Done:
@@ -118,10 +127,9 @@ class RayExecutor:
 
     def __init__(self, workers: int = 2, address: str | None = None, max_retries: int = 3,
                  env: dict[str, str] | None = None) -> None:
-        try:
-            import ray
-        except ImportError as exc:
-            raise UsageError(RAY_MISSING) from exc
+        check_ray()
+        import ray
+
         self.workers = check_int("workers", workers, 1)
         self.max_retries = check_int("max_retries", max_retries, 0)
         self.address = address or os.environ.get("RAY_ADDRESS") or None

@@ -22,6 +22,7 @@ from minimanc.studies.config import Run, StudyConfig, canonical_setting
 from minimanc.studies.executors import (
     EXECUTORS,
     Done,
+    check_ray,
     evaluate_trained,
     executor,
     train_job,
@@ -79,6 +80,8 @@ class Study:
         check_int("workers", workers, 0)
         if executor not in EXECUTORS:
             raise ValueError(f"executor must be one of {EXECUTORS}; got executor={executor!r}")
+        if executor == "ray":
+            check_ray()  # before any work: the one-line UsageError saying how to install it
         if ray_address is not None and executor != "ray":
             raise ValueError(f"ray_address is only for executor='ray'; got "
                              f"ray_address={ray_address!r} with executor={executor!r}")

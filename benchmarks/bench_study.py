@@ -1,0 +1,134 @@
+"""Chapter 9 benchmark: what ``minimanc reproduce --preset paper`` costs, from measured pieces.
+
+Counts the trainings and closed-loop rollouts of a preset (:func:`plan`), times one
+training epoch of every model at the preset's data size and one closed loop on its
+validation scenes, and extrapolates the study's wall time (training is serial in the
+main process; rollouts overlap with it in ``--workers`` processes). With
+``--seeds-together`` it also times :func:`minimanc.train.fit_seeds` (the preset's seeds
+of one configuration trained as one vmapped step).
+
+    python benchmarks/bench_study.py [--preset paper] [--models cnn,manc] [--val 200]
+
+Prints figures and ratios; never asserts timings. The machine is shared: repeat, or
+compare ratios measured in the same run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from collections import Counter
+from dataclasses import replace
+
+import numpy as np
+
+from minimanc import models, rollout, train, world
+from minimanc.studies.config import PRESETS, StudyConfig, canonical_setting
+
+
+def plan(c: StudyConfig, agents: int = 2) -> dict:
+    """Trainings and rollouts of a study: ``{"train": Counter((model, fraction) → n),
+    "rollouts": {"tune": n, "val": n}}`` (a sweep run at seed 0 and full data that wins the
+    sweep is the Table I run of seed 0: counted once). Table I's runs are driven once more
+    per protocol of the ados beyond the first (``agents``)."""
+    pairs = [(m, s) for s in c.settings for m in c.table_models]
+    pairs += [(m, "paper") for m in c.ablation_models + c.sample_models]
+    sweep = {(m, canonical_setting(m, s), c.n_states, 1.0, 0, lr)
+             for m, s in pairs for lr in (c.lrs if len(c.lrs) > 1 else ())}
+    main: set = set()
+
+    def add(m: str, s: str, n: int, f: float) -> None:
+        main.update((m, canonical_setting(m, s), n, f, sd, "best") for sd in c.seeds)
+
+    for s in c.settings:
+        for m in c.table_models:
+            add(m, s, c.n_states, 1.0)
+    for m in c.sample_models:
+        for f in c.fractions:
+            add(m, "paper", c.n_states, f)
+    for n in c.q_states:
+        add("manc", "paper", int(n), 1.0)
+    for m in c.ablation_models:
+        add(m, "paper", c.n_states, 1.0)
+    shared = {r for r in main if r[4] == 0 and r[3] == 1.0 and r[2] == c.n_states} if sweep \
+        else set()
+    trains = Counter((r[0], r[3]) for r in (main - shared) | sweep)
+    table = {(m, canonical_setting(m, s), sd) for s in c.settings for m in c.table_models
+             for sd in c.seeds}
+    return {"train": trains, "rollouts": {"tune": len(sweep),
+                                          "val": len(main) + (agents - 1) * len(table)}}
+
+
+def timed(f, *a, **k):
+    t0 = time.perf_counter()
+    out = f(*a, **k)
+    return out, time.perf_counter() - t0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--preset", default="paper", choices=sorted(PRESETS))
+    ap.add_argument("--models", default="cnn,cnn_lstm,rvs_g,manc,vagn_only,dmp_only")
+    ap.add_argument("--val", type=int, default=None, help="validation scenes driven "
+                    "(default: the preset's n_val)")
+    ap.add_argument("--seeds-together", action="store_true",
+                    help="also time fit_seeds on the preset's seeds")
+    ap.add_argument("--no-rollout", action="store_true")
+    args = ap.parse_args()
+    c = PRESETS[args.preset]
+    p = plan(c)
+    print(f"preset {args.preset}: {sum(p['train'].values())} trainings, rollouts {p['rollouts']}")
+    n_val = args.val or c.n_val
+    train_ds, val_ds = world.generate_splits(c.n_train, c.n_val, seed=c.data_seed,
+                                             raster=world.RasterConfig(size=c.image_size),
+                                             cache=True, progress=False)
+    val = val_ds.subset(slice(0, n_val))
+    names = args.models.split(",")
+    rows = []
+    for name in names:
+        cfg = models.ModelConfig(n_states=c.n_states, image_size=c.image_size)
+        tc = replace(c.training, epochs=1, lr=1e-3)
+        warm, t_warm = timed(train.fit, name, train_ds, cfg, replace(tc, max_steps_per_epoch=2),
+                             engine="jax", progress=False)
+        res, t_epoch = timed(train.fit, name, train_ds, cfg, tc, engine="jax", progress=False)
+        line = {"model": name, "steps": res.steps, "compile_s": t_warm, "epoch_s": t_epoch}
+        if args.seeds_together:
+            _, t_seeds = timed(train.fit_seeds, name, train_ds, cfg, tc, c.seeds,
+                               engine="jax", progress=False)
+            line["seeds_s"] = t_seeds
+        if not args.no_rollout:
+            _, t_roll = timed(rollout.closed_loop, name, res.params, val, cfg, "jax",
+                              progress=False)
+            line["rollout_s"] = t_roll * c.n_val / n_val
+        rows.append(line)
+        print("  ".join(f"{k}={v:.1f}" if isinstance(v, float) else f"{k}={v}"
+                        for k, v in line.items()), flush=True)
+    by = {r["model"]: r for r in rows}
+    print("\n| component | count | s each | total s |\n|---|---|---|---|")
+    total_train = total_seeds = 0.0
+    for (m, f), n in sorted(p["train"].items()):
+        if m not in by:
+            continue
+        each = c.epochs * by[m]["epoch_s"] * f
+        total_train += n * each
+        print(f"| train {m} f={f:g} ({c.epochs} epochs) | {n} | {each:.0f} | {n * each:.0f} |")
+        if "seeds_s" in by[m]:
+            total_seeds += n / len(c.seeds) * c.epochs * by[m]["seeds_s"] * f
+    n_roll = sum(p["rollouts"].values())
+    roll_each = float(np.mean([r["rollout_s"] for r in rows if "rollout_s" in r] or [math.nan]))
+    tune_each = roll_each * c.n_tune / c.n_val
+    roll_total = p["rollouts"]["val"] * roll_each + p["rollouts"]["tune"] * tune_each
+    print(f"| rollout val ({c.n_val} scenes) | {p['rollouts']['val']} | {roll_each:.0f} | "
+          f"{p['rollouts']['val'] * roll_each:.0f} |")
+    print(f"| rollout tune ({c.n_tune} scenes) | {p['rollouts']['tune']} | {tune_each:.0f} | "
+          f"{p['rollouts']['tune'] * tune_each:.0f} |")
+    print(f"\ntraining {total_train / 60:.0f} min, rollouts {roll_total / 60:.0f} min "
+          f"(serial sum {(total_train + roll_total) / 60:.0f} min; {n_roll} rollouts)")
+    if total_seeds:
+        print(f"seeds trained together: training {total_seeds / 60:.0f} min "
+              f"({total_train / total_seeds:.2f}x)")
+
+
+if __name__ == "__main__":
+    main()
