@@ -57,7 +57,7 @@ REFERENCE_LABELS: dict[str, str] = {"human": "Human", "dmp_prior": "DMP at fixed
 no-learning reference (:func:`minimanc.rollout.fixed_gains`). A model's own display name is
 the ``label`` of its :class:`~minimanc.models.ModelSpec`."""
 
-REFERENCE_COLOURS: dict[str, str] = {"human": "#444444"}
+REFERENCE_COLOURS: dict[str, str] = {"human": "#444444", "dmp_prior": "#a0a0a0"}
 """Colours of the rows that are not learned models (a model's is its spec's ``colour``)."""
 
 
