@@ -40,7 +40,8 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     results = reproduce(config, out, engine=args.engine, workers=args.workers,
                         progress=progress, log=log, agents=agents)
     dt = time.perf_counter() - t0
-    print(table_markdown(results).split("## Per scenario family")[0].rstrip())
+    md = table_markdown(results)
+    print(md.split("## Per scenario family")[0].split("## Sample efficiency")[0].rstrip())
     print()
     for f in results["findings"]:
         mark = {True: "holds", False: "does NOT hold", None: "n/a"}[f["holds"]]
