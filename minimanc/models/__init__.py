@@ -50,7 +50,7 @@ from typing import Any
 from minimanc.models import registry
 from minimanc.models.backbone import backbone
 from minimanc.models.config import CONTROL_SCALE, DEFAULT_GAINS, ModelConfig, gain_logits
-from minimanc.models.dmp_head import dmp_head, lane_point
+from minimanc.models.dmp_head import dmp_head, lane_point, lane_points
 from minimanc.models.explain import explain, replay
 from minimanc.models.forward import (
     init,
@@ -81,6 +81,7 @@ __all__ = [
     "init",
     "initial_state",
     "lane_point",
+    "lane_points",
     "param_count",
     "param_counts",
     "register",

@@ -52,7 +52,7 @@ import numpy as np
 from minimanc import dmp, quaternion
 from minimanc.models.config import ModelConfig
 
-__all__ = ["dmp_head", "lane_point"]
+__all__ = ["dmp_head", "lane_point", "lane_points"]
 
 
 def lane_point(lane_target: Any, dist: Any, xp: Any = np, spacing: float = 4.0) -> Any:
@@ -76,11 +76,33 @@ def lane_point(lane_target: Any, dist: Any, xp: Any = np, spacing: float = 4.0) 
     -------
     array, shape (B, 2)
     """
+    return lane_points(lane_target, xp.expand_dims(dist, -1), xp, spacing)[:, 0]
+
+
+def lane_points(lane_target: Any, dist: Any, xp: Any = np, spacing: float = 4.0) -> Any:
+    """:func:`lane_point` at several distances at once: ``dist (B, J)`` → ``(B, J, 2)``.
+
+    Parameters
+    ----------
+    lane_target : array, shape (B, K, 2)
+        The points at ``spacing · (1 … K)`` m of route, ego frame.
+    dist : array, shape (B, J)
+        Distances in ``[spacing, K · spacing]`` m.
+    xp : module
+        The engine's array namespace.
+    spacing : float
+        Metres between lane-target points.
+
+    Returns
+    -------
+    array, shape (B, J, 2)
+        ``[b, j]`` is the lane point ``dist[b, j]`` metres ahead (hat-function weights,
+        one matrix product).
+    """
     K = lane_target.shape[1]
-    idx = xp.asarray(np.arange(1, K + 1, dtype=np.float32))
-    u = xp.expand_dims(dist, -1) / spacing
-    w = xp.maximum(1.0 - xp.abs(u - idx), 0.0)
-    return xp.sum(lane_target * xp.expand_dims(w, -1), axis=1)
+    idx = np.arange(1, K + 1, dtype=np.float32)
+    w = xp.maximum(1.0 - xp.abs(xp.expand_dims(dist, -1) / spacing - idx), 0.0)  # (B, J, K)
+    return w @ lane_target
 
 
 def dmp_head(logits: Any, lane_target: Any, motion: Any, cfg: ModelConfig,
@@ -112,43 +134,47 @@ def dmp_head(logits: Any, lane_target: Any, motion: Any, cfg: ModelConfig,
     K = cfg.k_targets
     lt = xp.asarray(lane_target)
     mot = xp.asarray(motion)
-    v0, w0 = mot[:, 0], mot[:, 1]
+    v0, w0 = mot[:, 0:1], mot[:, 1:2]  # (B, 1) each
     crit = cfg.critically_damped
-    a_y, b_y = dmp.gains_from_logits(logits[:, 0:1], None if crit else logits[:, 1:2], xp=xp,
-                                     critically_damped=crit)
-    a_q, b_q = dmp.gains_from_logits(logits[:, 2:3], None if crit else logits[:, 3:4], xp=xp,
-                                     critically_damped=crit)
-    zero = xp.zeros_like(v0)
-    # position DMP towards the lane point about tau_y seconds ahead
-    L_y = xp.clip(cfg.position_lookahead + cfg.position_lookahead_time * v0, 4.0, 4.0 * K)
-    g = lane_point(lt, L_y, xp)
-    y0 = xp.stack([zero, zero], axis=-1)
-    dy0 = xp.stack([v0, zero], axis=-1)
-    y1, _, _ = dmp.step(y0, dy0, g, a_y, b_y, dt=cfg.dt, xp=xp)
-    speed = y1[:, 0] / cfg.dt
-    # orientation goal: the heading after tau_q seconds on the pure-pursuit arc
+    # both DMPs' gains at once: columns (position, orientation)
+    alpha, beta = dmp.gains_from_logits(logits[:, 0::2], None if crit else logits[:, 1::2],
+                                        xp=xp, critically_damped=crit)
+    # the look-ahead distances of the position goal (tau_y seconds ahead) and of the
+    # pure-pursuit point, one (B, 2) array; both points from one interpolation
     top = min(22.0, 4.0 * K)
-    L_q = xp.clip(cfg.heading_lookahead + cfg.heading_lookahead_time * v0,
-                  cfg.heading_lookahead, top)
-    p = lane_point(lt, L_q, xp)
-    kappa = 2.0 * p[:, 1] / xp.maximum(p[:, 0] * p[:, 0] + p[:, 1] * p[:, 1], 1e-6)
+    near = np.array([cfg.position_lookahead, cfg.heading_lookahead], dtype=np.float32)
+    per_speed = np.array([cfg.position_lookahead_time, cfg.heading_lookahead_time],
+                         dtype=np.float32)
+    lo = np.array([4.0, cfg.heading_lookahead], dtype=np.float32)
+    hi = np.array([4.0 * K, top], dtype=np.float32)
+    dist = xp.clip(near + per_speed * v0, lo, hi)
+    points = lane_points(lt, dist, xp)  # (B, 2, 2): [goal g, pursuit point p]
+    g, p = points[:, 0], points[:, 1]
+    # orientation goal: the heading after tau_q seconds on the pure-pursuit arc
+    kappa = 2.0 * p[:, 1:2] / xp.maximum(xp.sum(p * p, axis=-1, keepdims=True), 1e-6)
     half_pi = float(np.pi / 2)
-    psi_g = xp.clip(kappa * v0 * cfg.heading_horizon, -half_pi, half_pi)
+    psi_g = xp.clip(kappa * v0 * cfg.heading_horizon, -half_pi, half_pi)  # (B, 1)
+    zero = xp.zeros_like(v0)
     if cfg.orientation == "quaternion":
-        q0 = xp.stack([zero + 1.0, zero, zero, zero], axis=-1)  # identity, in v0's dtype
-        eta0 = xp.stack([zero, zero, w0], axis=-1)
-        g_q = quaternion.from_yaw(psi_g, xp=xp)
-        q1, _, _ = quaternion.quaternion_step(q0, eta0, g_q, a_q, b_q, dt=cfg.dt, xp=xp)
-        yaw_rate = quaternion.to_yaw(q1, xp=xp) / cfg.dt
-    else:  # the same quaternion DMP written on the yaw angle (exact for yaw-only motion)
-        psi1, _, _ = dmp.step(xp.expand_dims(zero, -1), xp.expand_dims(w0, -1),
-                              xp.expand_dims(psi_g, -1), a_q, b_q, dt=cfg.dt, xp=xp)
-        yaw_rate = psi1[:, 0] / cfg.dt
-    controls = xp.stack([speed, yaw_rate], axis=-1)
-    aux = {
-        "alpha": xp.concatenate([a_y, a_q], axis=-1),
-        "beta": xp.concatenate([b_y, b_q], axis=-1),
-        "g": g,
-        "psi_g": psi_g,
-    }
+        y1, _, _ = dmp.step(xp.zeros_like(g), xp.concatenate([v0, zero], axis=-1), g,
+                            alpha[:, 0:1], beta[:, 0:1], dt=cfg.dt, xp=xp)
+        z = zero[:, 0]
+        q0 = xp.stack([z + 1.0, z, z, z], axis=-1)  # identity, in v0's dtype
+        eta0 = xp.stack([z, z, w0[:, 0]], axis=-1)
+        g_q = quaternion.from_yaw(psi_g[:, 0], xp=xp)
+        q1, _, _ = quaternion.quaternion_step(q0, eta0, g_q, alpha[:, 1:2], beta[:, 1:2],
+                                              dt=cfg.dt, xp=xp)
+        psi1 = xp.expand_dims(quaternion.to_yaw(q1, xp=xp), -1)
+        controls = xp.concatenate([y1[:, 0:1], psi1], axis=-1) / cfg.dt
+    else:
+        # the quaternion DMP written on the yaw angle (exact for yaw-only motion) is a
+        # 1-D DMP; the position DMP (x, y) and it are one diagonal DMP on (x, y, psi)
+        # with gains (a_y, a_y, a_q), (b_y, b_y, b_q): one step of the three coordinates
+        cols = [0, 0, 1]
+        goal = xp.concatenate([g, psi_g], axis=-1)
+        r1, _, _ = dmp.step(xp.zeros_like(goal), xp.concatenate([v0, zero, w0], axis=-1),
+                            goal, alpha[:, cols], beta[:, cols], dt=cfg.dt, xp=xp)
+        controls = r1[:, 0::2] / cfg.dt
+    # speed = forward displacement over the step, yaw rate = mean over the step
+    aux = {"alpha": alpha, "beta": beta, "g": g, "psi_g": psi_g[:, 0]}
     return controls, aux
