@@ -241,6 +241,12 @@ def test_reproduce_tiny_writes_everything(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "table1.md" in printed and "results.json" in printed
     res = json.loads((out / "results.json").read_text())
+    assert res["provenance"]["command"] == ("minimanc reproduce --preset tiny --engine numpy "
+                                            f"--out {out} --workers 0 --no-progress")
+    assert res["provenance"]["packages"]["numpy"] and res["wall_time_s"] > 0
+    table = (out / "table1.md").read_text()
+    assert table.rstrip().splitlines()[-1].startswith("- wall time: ")
+    assert "- command: `minimanc reproduce --preset tiny" in table
     assert "agents replay and reactive" in printed and "agents `reactive`" in printed
     assert res["agents"] == ["replay", "reactive"] and set(res["table1"]) == set(res["agents"])
     for agents, t1 in res["table1"].items():

@@ -70,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run ``minimanc argv``; returns the exit code (2 for a :class:`UsageError`)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.command_line = ["minimanc", *(sys.argv[1:] if argv is None else argv)]
     if not getattr(args, "func", None):
         parser.print_help()
         return 0

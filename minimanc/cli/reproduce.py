@@ -38,6 +38,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
           f"seed(s), agents {' and '.join(agents)}, output {out}")
     log = (lambda msg: print(msg, flush=True)) if args.verbose else None
     results = reproduce(config, out, engine=args.engine, workers=args.workers,
+                        command=getattr(args, "command_line", None),
                         progress=progress, log=log, agents=agents)
     dt = time.perf_counter() - t0
     md = table_markdown(results)

@@ -441,6 +441,10 @@ def table_markdown(results: dict) -> str:
         mark = {True: "holds", False: "does NOT hold", None: "not tested"}[f["holds"]]
         lines.append(f"- **{f['claim']}** — {mark}. {f['detail']}.")
     lines.append("")
+    if results.get("provenance"):
+        from minimanc.results import provenance_markdown
+
+        lines.append(provenance_markdown(results["provenance"], results.get("wall_time_s")))
     return "\n".join(lines)
 
 

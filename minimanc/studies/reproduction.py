@@ -8,6 +8,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from minimanc.results import provenance, write_text
 from minimanc.studies.config import StudyConfig
 from minimanc.studies.figures import write_figures
 from minimanc.studies.jobs import write_json
@@ -20,11 +21,15 @@ __all__ = ["reproduce"]
 def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers: int = 1,
               progress: bool = True, figures: bool = True,
               log: Callable[[str], None] | None = None,
-              agents: Sequence[str] = ("replay", "reactive")) -> dict:
+              agents: Sequence[str] = ("replay", "reactive"),
+              command: Sequence[str] | None = None) -> dict:
     """Run every study of ``config`` and write ``table1.md``, ``results.json`` and
     ``figures/`` under ``out``; Table I under each protocol of ``agents``
     (:class:`~minimanc.studies.runner.Study`). Returns the results dict (also with
-    ``"files"``)."""
+    ``"files"``, the run's ``"provenance"`` (:func:`minimanc.results.provenance` of
+    ``command``, the command line; default ``sys.argv``) and
+    ``"wall_time_s"``, which ``table1.md`` ends with)."""
+    started = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     study = Study(config, out, engine=engine, workers=workers, progress=progress, log=log,
@@ -41,7 +46,9 @@ def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers
     finally:
         study.close()
     results["files"] = files
-    (out / "table1.md").write_text(table_markdown(results))
+    results["provenance"] = provenance(command)
+    results["wall_time_s"] = round(time.perf_counter() - started, 1)
+    write_text(out / "table1.md", table_markdown(results))
     write_json(out / "results.json", json_safe(results))
     return results
 
