@@ -10,9 +10,12 @@ for it). Every job writes its result under the study's output directory (checkpo
 rollouts, metrics), so a rerun after a lost worker, or a killed driver, resumes where it
 stopped; on a cluster that directory must be on a file system every node sees.
 
+    def power(a, b):
+        return a ** b
+
     ex = executor("ray", workers=2)            # RAY_ADDRESS or a local ray.init(num_cpus=2)
-    fut = ex.submit(pow, 2, 10)
-    fut.result()                                # 1024
+    fut = ex.submit(power, 2, 10)              # fn: a Python function (not a builtin)
+    ex.submit(power, fut, 2).result()          # 1048576: runs after fut, on its value
     ex.shutdown()
 
 Ray is an optional dependency (``pip install 'minimanc[ray]'``).
@@ -21,6 +24,7 @@ Ray is an optional dependency (``pip install 'minimanc[ray]'``).
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -137,13 +141,17 @@ class RayExecutor:
         self._remote: dict[Callable, Any] = {}
         if not ray.is_initialized():
             runtime_env = {"env_vars": dict(env)} if env else None
-            if self.address:
-                ray.init(address=self.address, runtime_env=runtime_env,
-                         log_to_driver=False)
-            else:
-                ray.init(num_cpus=self.workers, include_dashboard=False,
-                         runtime_env=runtime_env, log_to_driver=False)
-                self._started = True
+            with warnings.catch_warnings():
+                # Ray starts its processes by fork + exec, which is safe beside JAX's threads
+                warnings.filterwarnings("ignore", message=r"os\.fork\(\) was called",
+                                        category=RuntimeWarning)
+                if self.address:
+                    ray.init(address=self.address, runtime_env=runtime_env,
+                             log_to_driver=False)
+                else:
+                    ray.init(num_cpus=self.workers, include_dashboard=False,
+                             runtime_env=runtime_env, log_to_driver=False)
+                    self._started = True
 
     def submit(self, fn: Callable, *args: Any) -> RayFuture:
         """Start ``fn(*args)`` as a Ray task (one CPU); a :class:`RayFuture` among ``args`` is
