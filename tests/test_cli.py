@@ -168,3 +168,24 @@ def test_reproduce_passes_the_protocols_of_the_ados(monkeypatch, tmp_path):
         with pytest.raises(SystemExit):
             cli.main(["reproduce", "--preset", "tiny", "--out", str(tmp_path / "o"), *argv])
     assert seen == [("replay", "reactive"), ("replay", "reactive"), ("replay",), ("reactive",)]
+
+
+def test_reproduce_passes_the_executor_and_refuses_an_address_without_ray(monkeypatch, tmp_path,
+                                                                          capsys):
+    from minimanc.cli import reproduce as cmd
+
+    seen = []
+
+    def fake(config, out, **kwargs):
+        seen.append((kwargs["executor"], kwargs["ray_address"]))
+        raise SystemExit(0)
+
+    monkeypatch.setattr(cmd, "reproduce", fake)
+    for argv in ([], ["--executor", "ray"], ["--executor", "ray", "--ray-address", "auto"]):
+        with pytest.raises(SystemExit):
+            cli.main(["reproduce", "--preset", "tiny", "--out", str(tmp_path / "o"), *argv])
+    assert seen == [("local", None), ("ray", None), ("ray", "auto")]
+    code = cli.main(["reproduce", "--preset", "tiny", "--out", str(tmp_path / "o"),
+                     "--ray-address", "auto"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--ray-address is for --executor ray" in err[0]

@@ -10,7 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from minimanc.cli.common import add_engine_option, check_int, check_out_dir
+from minimanc.errors import UsageError
 from minimanc.studies import PRESETS, reproduce, table_markdown
+from minimanc.studies.executors import EXECUTORS
 
 __all__ = ["cmd_reproduce", "register"]
 
@@ -30,6 +32,8 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     if training:
         config = replace(config, training=replace(config.training, **training))
     check_int(args.workers, "--workers", 0)
+    if args.ray_address is not None and args.executor != "ray":
+        raise UsageError(f"--ray-address is for --executor ray; got --executor {args.executor}")
     agents = ("replay", "reactive") if args.agents == "both" else (args.agents,)
     out = check_out_dir(Path(args.out) if args.out else Path("minimanc_results") / preset)
     progress = not args.no_progress
@@ -39,6 +43,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     log = (lambda msg: print(msg, flush=True)) if args.verbose else None
     results = reproduce(config, out, engine=args.engine, workers=args.workers,
                         command=getattr(args, "command_line", None),
+                        executor=args.executor, ray_address=args.ray_address,
                         progress=progress, log=log, agents=agents)
     dt = time.perf_counter() - t0
     md = table_markdown(results)
@@ -83,6 +88,12 @@ def register(subparsers: Any) -> None:
                         "(default)")
     p.add_argument("--workers", type=int, default=1,
                    help="processes running closed-loop rollouts while training (0 = inline)")
+    p.add_argument("--executor", choices=EXECUTORS, default="local",
+                   help="where the trainings and evaluations run: this machine's process "
+                        "pool, or Ray tasks (install minimanc[ray]; default local)")
+    p.add_argument("--ray-address", default=None,
+                   help="a Ray cluster to join (default: the RAY_ADDRESS environment "
+                        "variable, else a local Ray with --workers CPUs)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument("--verbose", action="store_true", help="one line per training")
     p.set_defaults(func=cmd_reproduce)

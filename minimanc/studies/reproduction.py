@@ -22,18 +22,20 @@ def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers
               progress: bool = True, figures: bool = True,
               log: Callable[[str], None] | None = None,
               agents: Sequence[str] = ("replay", "reactive"),
-              command: Sequence[str] | None = None) -> dict:
+              command: Sequence[str] | None = None, executor: str = "local",
+              ray_address: str | None = None) -> dict:
     """Run every study of ``config`` and write ``table1.md``, ``results.json`` and
     ``figures/`` under ``out``; Table I under each protocol of ``agents``
     (:class:`~minimanc.studies.runner.Study`). Returns the results dict (also with
     ``"files"``, the run's ``"provenance"`` (:func:`minimanc.results.provenance` of
     ``command``, the command line; default ``sys.argv``) and
-    ``"wall_time_s"``, which ``table1.md`` ends with)."""
+    ``"wall_time_s"``, which ``table1.md`` ends with). ``executor`` ("local" or "ray") and
+    ``ray_address`` choose where the trainings run (:mod:`minimanc.studies.executors`)."""
     started = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     study = Study(config, out, engine=engine, workers=workers, progress=progress, log=log,
-                  agents=agents)
+                  agents=agents, executor=executor, ray_address=ray_address)
     try:
         results = study.run()
         files = {"table1": str(out / "table1.md"), "results": str(out / "results.json")}
