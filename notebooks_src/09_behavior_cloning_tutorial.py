@@ -471,7 +471,7 @@ assert (workdir / "table1.md").exists() and (workdir / "results.json").exists()
 # From a shell:
 #
 # ```bash
-# minimanc reproduce --quick            # ≈ 10 min on 2 cores: every study, one seed
+# minimanc reproduce --quick            # every study, one seed (minutes on 2 cores)
 # minimanc reproduce                    # the "full" preset: three seeds, larger data
 # minimanc reproduce --engine numpy     # the same with our own autodiff engine
 # minimanc reproduce --agents replay    # only the paper's protocol (default: both)
@@ -490,31 +490,14 @@ assert (workdir / "table1.md").exists() and (workdir / "results.json").exists()
 # data; each gets its own learning rate from the same sweep, chosen by
 # closed-loop ADE on the tuning scenes (never on the validation scenes).
 #
-# ## 9. What the full study found
-# `minimanc reproduce` (preset `full`: 96 training and 48 validation scenes,
-# 4 epochs, 3 seeds; 22.8 min on 2 cores) measured, mean ± std over seeds,
-# in the paper setting:
-#
-# | model | % close enc. | max \|a\| (m/s²) | ADE (m) | goal dist. (m) |
-# |---|---|---|---|---|
-# | Human | 0.4 | 1.6 | 0.0 | 0.0 |
-# | CNN | 9.5 ± 0.6 | 5.3 ± 0.3 | 14.3 ± 0.6 | 22.5 ± 0.3 |
-# | CNN-LSTM | 9.2 ± 0.5 | 2.4 ± 0.1 | 15.3 ± 1.3 | 24.9 ± 1.4 |
-# | RvS-G | 11.8 ± 1.6 | 2.1 ± 0.3 | 19.0 ± 1.8 | 33.9 ± 4.5 |
-# | MANC | 8.2 ± 1.0 | 1.2 ± 0.3 | 15.6 ± 3.1 | 32.4 ± 5.3 |
-# | DMP head at fixed gains | 8.6 | 1.8 | 13.9 | 31.1 |
-#
-# **Reproduced:** MANC's close encounters and maximum acceleration are the
-# closest to the human's; more q-states lower the ADE overall (3 → 16.5 m,
-# 12 → 13.9 m, not monotone); with 25 % of the data MANC has the lowest ADE
-# (17.0 m against 17.8–23.4 m); MANC is 90–99 % smaller.
-# **Not reproduced:** MANC is second on ADE (the CNN's 14.3 m is within the
-# seed spread) and fourth on goal distance, and it does not beat its own DMP
-# head at fixed gains (13.9 m); in the parity setting the CNN improves to
-# 13.3 m. DMP-only is the gentlest model, not the most aggressive. The gap is
-# speed, not steering: MANC's open-loop speed is unbiased, but in closed loop
-# it has to accelerate by itself, and the equilibrium speed of its position
-# DMP is very sensitive to β_y. The README keeps these numbers up to date.
+# ## 9. What the measured studies found
+# The tables of a finished run are in its `table1.md`; the project's measured runs are
+# committed under `results/` (each file ends with its provenance: the command, the date,
+# the package versions and the machine) and the README quotes them, so that no number
+# is typed by hand. `python -m pytest tests/test_results.py` fails when a number in the
+# README differs from its file. Read there what reproduces of the paper and what does
+# not: the findings are the same sentences section 7 printed, generated from the
+# numbers of the committed run.
 
 # %% [markdown]
 # ## Paper vs. this course
