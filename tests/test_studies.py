@@ -574,3 +574,28 @@ def test_a_run_trains_with_the_studys_train_config(tmp_path):
     tc = study.train_config(run)
     assert (tc.dmp_seq_len, tc.q_seq_len, tc.lr, tc.seed, tc.subset, tc.epochs) == \
         (6, 2, 2e-3, 1, 0.5, 1)
+
+
+def test_reproduce_with_dagger_adds_the_table_and_the_figures(tmp_path, capsys):
+    from minimanc import cli
+
+    out = tmp_path / "run"
+    code = cli.main(["reproduce", "--preset", "tiny", "--engine", "numpy", "--out", str(out),
+                     "--workers", "0", "--no-progress", "--agents", "replay", "--dagger"])
+    assert code == 0
+    res = json.loads((out / "results.json").read_text())
+    dg = res["dagger"]
+    assert dg["agents"] == "replay" and dg["rounds"] == 3 and set(dg["models"]) == {"manc", "cnn"}
+    for m in dg["models"].values():
+        assert len(m["by_round"]) == 4
+        # DAgger's last round is the table's DAgger row; both methods see the same labels
+        assert m["dagger"] == m["by_round"][-1]
+        assert np.isfinite(m["bc"]["ade"]["mean"]) and np.isfinite(m["dagger"]["ade"]["mean"])
+    table = (out / "table1.md").read_text()
+    assert "## BC against DAgger at equal labels (agents `replay`)" in table
+    assert f"{dg['labelled']} expert-labelled samples for both methods" in table
+    assert (out / "figures" / "dagger_ade.png").exists()
+    # a rerun loads every round from the checkpoints: the same numbers
+    assert cli.main(["reproduce", "--preset", "tiny", "--engine", "numpy", "--out", str(out),
+                     "--workers", "0", "--no-progress", "--agents", "replay", "--dagger"]) == 0
+    assert json.loads((out / "results.json").read_text())["dagger"] == dg

@@ -44,6 +44,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     results = reproduce(config, out, engine=args.engine, workers=args.workers,
                         command=getattr(args, "command_line", None),
                         executor=args.executor, ray_address=args.ray_address,
+                        dagger=args.dagger,
                         progress=progress, log=log, agents=agents)
     dt = time.perf_counter() - t0
     md = table_markdown(results)
@@ -94,6 +95,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--ray-address", default=None,
                    help="a Ray cluster to join (default: the RAY_ADDRESS environment "
                         "variable, else a local Ray with --workers CPUs)")
+    p.add_argument("--dagger", action="store_true",
+                   help="also behaviour cloning against DAgger at equal labels, MANC and the "
+                        "CNN (chapter 11)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument("--verbose", action="store_true", help="one line per training")
     p.set_defaults(func=cmd_reproduce)

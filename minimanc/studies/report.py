@@ -433,6 +433,10 @@ def table_markdown(results: dict) -> str:
         lines += ["## Learning rates (best closed-loop ADE on the tuning split)", ""]
         lines += [f"- {k}: {v:g}" for k, v in results["lr"].items()]
         lines.append("")
+    if results.get("dagger"):
+        from minimanc.studies.dagger_study import dagger_markdown
+
+        lines += dagger_markdown(results["dagger"], ns, lab)
     lines += ["## The paper's claims, checked", ""]
     if ns == 1:
         lines += ["With one seed the seed-to-seed spread is unknown: small differences below "

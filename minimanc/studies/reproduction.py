@@ -10,6 +10,7 @@ from pathlib import Path
 
 from minimanc.results import provenance, write_text
 from minimanc.studies.config import StudyConfig
+from minimanc.studies.dagger_study import dagger_figures, run_dagger
 from minimanc.studies.figures import write_figures
 from minimanc.studies.jobs import write_json
 from minimanc.studies.report import json_safe, table_markdown
@@ -23,14 +24,16 @@ def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers
               log: Callable[[str], None] | None = None,
               agents: Sequence[str] = ("replay", "reactive"),
               command: Sequence[str] | None = None, executor: str = "local",
-              ray_address: str | None = None) -> dict:
+              ray_address: str | None = None, dagger: bool = False) -> dict:
     """Run every study of ``config`` and write ``table1.md``, ``results.json`` and
     ``figures/`` under ``out``; Table I under each protocol of ``agents``
     (:class:`~minimanc.studies.runner.Study`). Returns the results dict (also with
     ``"files"``, the run's ``"provenance"`` (:func:`minimanc.results.provenance` of
     ``command``, the command line; default ``sys.argv``) and
     ``"wall_time_s"``, which ``table1.md`` ends with). ``executor`` ("local" or "ray") and
-    ``ray_address`` choose where the trainings run (:mod:`minimanc.studies.executors`)."""
+    ``ray_address`` choose where the trainings run (:mod:`minimanc.studies.executors`);
+    ``dagger`` adds behaviour cloning against DAgger for MANC and the CNN
+    (:mod:`minimanc.studies.dagger_study`, ``results["dagger"]``)."""
     started = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -38,12 +41,18 @@ def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers
                   agents=agents, executor=executor, ray_address=ray_address)
     try:
         results = study.run()
+        if dagger:
+            t0 = time.perf_counter()
+            results["dagger"] = run_dagger(study)
+            results["timing_s"]["dagger"] = round(time.perf_counter() - t0, 1)
         files = {"table1": str(out / "table1.md"), "results": str(out / "results.json")}
         if figures:
             t0 = time.perf_counter()
             paths = write_figures(study, results, out / "figures")
             study.timing["figures"] = time.perf_counter() - t0
             results["timing_s"]["figures"] = round(study.timing["figures"], 1)
+            if dagger:
+                paths += dagger_figures(results["dagger"], out / "figures")
             files["figures"] = [str(p) for p in paths]
     finally:
         study.close()
