@@ -115,15 +115,15 @@ class Rollout:
 
     @classmethod
     def load(cls, path: str | Path) -> Rollout:
-        """Read a rollout written by :meth:`save` (or by the reactive rollout's ``save``;
-        a file without ``agents`` is a log replay)."""
+        """Read a rollout written by :meth:`save` (a file without ``agents`` is a log
+        replay), as an instance of ``cls``."""
         with np.load(Path(path), allow_pickle=False) as z:
             aux = {k[4:]: z[k] for k in z.files if k.startswith("aux_")}
             ado = z["ado"] if "ado" in z.files else None
             valid = z["ado_valid"] if "ado_valid" in z.files else None
             agents = str(z["agents"]) if "agents" in z.files else "replay"
-            return Rollout(str(z["name"]), str(z["setting"]), z["ego"], z["controls"], aux,
-                           z["scenes"], ado, valid, agents)
+            return cls(str(z["name"]), str(z["setting"]), z["ego"], z["controls"], aux,
+                       z["scenes"], ado, valid, agents)
 
 
 # --------------------------------------------------------------------------- helpers

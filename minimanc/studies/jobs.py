@@ -179,16 +179,3 @@ def read_json(path: Path) -> Any:
         return json.loads(path.read_text())
     except (OSError, ValueError, UnicodeDecodeError):
         return None
-
-
-class Done:
-    """A finished future (inline evaluation)."""
-
-    def __init__(self, value: Any) -> None:
-        self._value = value
-
-    def result(self) -> Any:
-        return self._value
-
-    def done(self) -> bool:
-        return True

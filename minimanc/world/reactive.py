@@ -40,7 +40,6 @@ import copy
 import json
 from collections import OrderedDict
 from dataclasses import dataclass, field
-from pathlib import Path as FilePath
 from typing import Any
 
 import numpy as np
@@ -334,50 +333,17 @@ class ReactiveSim:
 
 @dataclass
 class ReactiveRollout(Rollout):
-    """A :class:`minimanc.rollout.Rollout` with the ados as they were simulated.
+    """A :class:`minimanc.rollout.Rollout` of the ``"reactive"`` protocol: it must hold the
+    ados as they were simulated, ``ado (S, T, A, 5)`` and ``ado_valid (S, T, A)`` on the
+    rollout's clock (:func:`minimanc.metrics.evaluate` uses them instead of the dataset's
+    log). Saved and loaded as every rollout (:meth:`~minimanc.rollout.Rollout.save`)."""
 
-    ``ado (S, T, A, 5)`` and ``ado_valid (S, T, A)`` on the rollout's clock
-    (:func:`minimanc.metrics.evaluate` uses them instead of the dataset's log);
-    ``agents`` the protocol, ``"reactive"``.
-    """
-
-    ado: np.ndarray | None = None
-    ado_valid: np.ndarray | None = None
     agents: str = field(default="reactive")
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        S, T = self.ego.shape[:2]
-        if self.ado is None or self.ado_valid is None:
+        if self.ado is None:
             raise ValueError("ado and ado_valid are required for a ReactiveRollout")
-        self.ado = np.asarray(self.ado, dtype=np.float64)
-        self.ado_valid = np.asarray(self.ado_valid, dtype=bool)
-        if self.ado.ndim != 4 or self.ado.shape[:2] != (S, T) or self.ado.shape[-1] != 5:
-            raise ValueError(f"ado must have shape ({S}, {T}, A, 5); got {self.ado.shape}")
-        if self.ado_valid.shape != self.ado.shape[:3]:
-            raise ValueError(f"ado_valid must have shape {self.ado.shape[:3]}; got "
-                             f"{self.ado_valid.shape}")
-
-    def save(self, path: str | FilePath) -> FilePath:
-        """Write to ``path`` (``.npz``), atomically, with the ados."""
-        path = FilePath(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp.npz")
-        arrays = {f"aux_{k}": v for k, v in self.aux.items()}
-        np.savez_compressed(tmp, name=np.array(self.name), setting=np.array(self.setting),
-                            ego=self.ego, controls=self.controls, scenes=self.scenes,
-                            ado=self.ado, ado_valid=self.ado_valid,
-                            agents=np.array(self.agents), **arrays)
-        tmp.replace(path)
-        return path
-
-    @classmethod
-    def load(cls, path: str | FilePath) -> ReactiveRollout:
-        """Read a rollout written by :meth:`save`."""
-        with np.load(FilePath(path), allow_pickle=False) as z:
-            aux = {k[4:]: z[k] for k in z.files if k.startswith("aux_")}
-            return cls(str(z["name"]), str(z["setting"]), z["ego"], z["controls"], aux,
-                       z["scenes"], z["ado"], z["ado_valid"], str(z["agents"]))
 
 
 def simulate_reactive(
