@@ -271,15 +271,12 @@ def simulate(
     rollout then holds the simulated ados).
     """
     if check_agents(agents) == "reactive":
-        from minimanc.world import reactive  # imports this module: imported here
-
-        traj = reactive.simulate_reactive(policy, ds, scenes=scenes, batch_size=batch_size,
-                                          steps=steps, progress=progress, desc=desc)
-        return Rollout(traj.name, traj.setting, traj.ego, traj.controls, traj.aux,
-                       traj.scenes, traj.ado, traj.ado_valid, "reactive")
+        from minimanc.world.reactive import ReactiveSim as make_sim  # imports this module
+    else:
+        make_sim = LogReplay
     S_all, T = check_dataset(ds)
     idx = scene_index(scenes, S_all)
-    n_steps = T - 1 if steps is None else int(steps)
+    n_steps = T - 1 if steps is None else check_int("steps", steps, 1)
     if not 1 <= n_steps <= T - 1:
         raise ValueError(f"steps must lie in [1, {T - 1}]; got steps={steps!r}")
     bs = BATCH_SIZE if batch_size is None else check_int("batch_size", batch_size, 1)
@@ -289,19 +286,25 @@ def simulate(
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(chunks) * n_steps, desc=desc or f"closed loop {policy.model}",
+        what = "reactive closed loop" if agents == "reactive" else "closed loop"
+        bar = tqdm(total=len(chunks) * n_steps, desc=desc or f"{what} {policy.model}",
                    unit="step", leave=False)
-    egos, ctrls, auxs = [], [], []
+    egos, ctrls, auxs, ados, valids = [], [], [], [], []
     for chunk in chunks:
-        sim = LogReplay(ds, chunk)
+        sim = make_sim(ds, chunk)
         run = drive(policy, sim, n_steps, None if bar is None else lambda t: bar.update(1))
         egos.append(sim.trajectory())
         ctrls.append(run.controls)
         auxs.append(run.aux)
+        if agents == "reactive":  # the ados as they were simulated
+            a, v = sim.ado_trajectory()
+            ados.append(a)
+            valids.append(v)
     if bar is not None:
         bar.close()
     aux_all = {k_: np.concatenate([a[k_] for a in auxs]) for k_ in auxs[0]
                if all(k_ in a for a in auxs)}
     name = policy.model or "policy"
     return Rollout(name, policy.setting, np.concatenate(egos), np.concatenate(ctrls),
-                   aux_all, idx)
+                   aux_all, idx, np.concatenate(ados) if ados else None,
+                   np.concatenate(valids) if valids else None, agents)

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import inputs
-from minimanc.rollout import AUX_KEYS, Policy, Rollout, SceneState, drive
+from minimanc.rollout import Policy, Rollout, SceneState
 from minimanc.world.driver import SceneRun
 from minimanc.world.generation import scene_stream
 from minimanc.world.geometry import DT
@@ -357,46 +357,16 @@ def simulate_reactive(
 ) -> ReactiveRollout:
     """Run ``policy`` in closed loop among reactive ados on the scenes ``scenes`` of ``ds``.
 
-    The reactive counterpart of :func:`minimanc.rollout.simulate` (same arguments,
-    same batching: ``batch_size`` scenes at a time, default
-    :data:`minimanc.rollout.BATCH_SIZE`; a row's result does not depend on its batch),
-    each batch :func:`minimanc.rollout.drive` in a :class:`ReactiveSim`.
+    :func:`minimanc.rollout.simulate` with ``agents="reactive"`` (the same batching loop,
+    each batch :func:`minimanc.rollout.drive` in a :class:`ReactiveSim`), as a
+    :class:`ReactiveRollout`.
     """
-    from minimanc.rollout import BATCH_SIZE
+    from minimanc.rollout import simulate
 
-    S_all, T = _check_ds(ds)
-    idx = _scenes(scenes, S_all)
-    n_steps = T - 1 if steps is None else steps
-    if (isinstance(n_steps, bool) or not isinstance(n_steps, int | np.integer)
-            or not 1 <= n_steps <= T - 1):
-        raise ValueError(f"steps must be an integer in [1, {T - 1}]; got steps={steps!r}")
-    bs = BATCH_SIZE if batch_size is None else batch_size
-    if isinstance(bs, bool) or not isinstance(bs, int | np.integer) or bs < 1:
-        raise ValueError(f"batch_size must be a positive integer; got batch_size={batch_size!r}")
-    chunks = [idx[i: i + bs] for i in range(0, len(idx), bs)]
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(chunks) * int(n_steps), unit="step", leave=False,
-                   desc=desc or f"reactive closed loop {policy.model}")
-    egos, ctrls, auxs, ados, valids = [], [], [], [], []
-    for chunk in chunks:
-        sim = ReactiveSim(ds, chunk)
-        run = drive(policy, sim, int(n_steps), None if bar is None else lambda t: bar.update(1))
-        egos.append(sim.trajectory())
-        a, v = sim.ado_trajectory()
-        ados.append(a)
-        valids.append(v)
-        ctrls.append(run.controls)
-        auxs.append(run.aux)
-    if bar is not None:
-        bar.close()
-    aux_all = {k: np.concatenate([a[k] for a in auxs]) for k in AUX_KEYS
-               if all(k in a for a in auxs)}
-    return ReactiveRollout(policy.model or "policy", policy.setting, np.concatenate(egos),
-                           np.concatenate(ctrls), aux_all, idx, np.concatenate(ados),
-                           np.concatenate(valids))
+    traj = simulate(policy, ds, scenes=scenes, batch_size=batch_size, steps=steps,
+                    progress=progress, desc=desc, agents="reactive")
+    return ReactiveRollout(traj.name, traj.setting, traj.ego, traj.controls, traj.aux,
+                           traj.scenes, traj.ado, traj.ado_valid)
 
 
 class LoggedControls:
