@@ -46,12 +46,10 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 ARGS = _parse_args(sys.argv[1:]) if __name__ == "__main__" else None
-if ARGS is not None and ARGS.threads is not None:
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[var] = str(ARGS.threads)
-    if ARGS.threads == 1:
-        os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen"
-                                   "=false intra_op_parallelism_threads=1").strip()
+if ARGS is not None:
+    from threads import set_threads  # benchmarks/threads.py, beside this script
+
+    set_threads(ARGS.threads)
 
 import numpy as np  # noqa: E402  (after the thread settings)
 
