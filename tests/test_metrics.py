@@ -466,3 +466,74 @@ def test_fault_follows_who_was_moving(x0, y0, vx, vy, v_ego):
     ego = straight(speed=v_ego, T=10)
     for e in metrics.collision_events(ego, parked, pv, [TwoLanes()]):
         assert e.at_fault == (v_ego > metrics.V_STOPPED)
+
+
+# --------------------------------------------------------------------------- the package
+
+
+def test_package_reexports_every_public_name_from_the_module_that_owns_it():
+    """``minimanc.metrics`` is a package of one concept per module; its API is as before."""
+    import importlib
+    import inspect
+
+    owners = {"boxes", "trajectory", "safety", "table"}
+    assert hasattr(metrics, "__path__")  # a package, not one long module
+    for name in metrics.__all__:
+        obj = getattr(metrics, name)
+        if inspect.isfunction(obj) or inspect.isclass(obj):
+            module = obj.__module__
+        else:  # a constant: the submodule whose ``__all__`` lists it
+            module = next(f"minimanc.metrics.{m}" for m in sorted(owners)
+                          if name in importlib.import_module(f"minimanc.metrics.{m}").__all__)
+        package, owner = module.rsplit(".", 1)
+        assert package == "minimanc.metrics" and owner in owners, (name, module)
+        assert getattr(importlib.import_module(module), name) is obj, name
+    # reachable by attribute as before, outside ``__all__``
+    assert (metrics.DT, metrics.TTC_STEP) == (0.5, 0.1)
+    assert (metrics.EGO_LENGTH, metrics.EGO_WIDTH) == (EGO_LENGTH, EGO_WIDTH)
+    assert len(set(metrics.__all__)) == len(metrics.__all__)
+
+
+def test_input_checks_are_public_and_name_the_parameter():
+    from minimanc.metrics import boxes
+
+    ego = straight()
+    assert boxes.check_poses(ego.tolist()).dtype == np.float64
+    for bad, match in [(ego[0], "ego must have shape"), (ego[:, :0], "at least one step"),
+                       (ego * np.nan, "ego must be finite")]:
+        with pytest.raises(ValueError, match=match):
+            boxes.check_poses(bad)
+    with pytest.raises(ValueError, match="ds.ego must be finite"):
+        boxes.check_poses(ego + np.inf, "ds.ego")
+    with pytest.raises(ValueError, match="ego and human must have the same shape"):
+        boxes.check_ego_and_human(ego, ego[:, :-1])
+    with pytest.raises(ValueError, match="ado_valid must have shape"):
+        boxes.check_ados(np.zeros((1, 10, 2, 5)), np.ones((1, 10, 1), bool), ego)
+    for dt in (0.0, -0.5, np.inf, np.nan):
+        with pytest.raises(ValueError, match="dt must be a positive finite number"):
+            boxes.check_dt(dt)
+    assert boxes.check_dt(np.float32(0.5)) == 0.5
+
+
+@given(st.integers(0, 4), st.integers(0, 4))
+def test_every_metric_with_maps_refuses_the_wrong_number_alike(n_maps, n_scenes):
+    """One check, one message, in off_road, route_progress and collision_events."""
+    from minimanc.metrics import boxes
+
+    maps = [TwoLanes()] * n_maps
+    if n_maps == n_scenes:
+        assert boxes.check_maps(maps, n_scenes) is maps
+        return
+    message = f"maps must hold one map per scene ({n_scenes}); got {n_maps}"
+    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        boxes.check_maps(maps, n_scenes)
+    if n_scenes == 0:
+        return
+    ego = np.repeat(straight(), n_scenes, axis=0)
+    ado, valid = np.zeros((n_scenes, 10, 1, 5)), np.zeros((n_scenes, 10, 1), bool)
+    for call in (lambda: metrics.off_road(ego, maps),
+                 lambda: metrics.route_progress(ego, ego, maps),
+                 lambda: metrics.collision_events(ego, ado, valid, maps)):
+        with pytest.raises(ValueError) as info:
+            call()
+        assert str(info.value) == message
