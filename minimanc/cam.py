@@ -33,11 +33,13 @@ gradient, so ``J`` (and ``S``) only see the predicates that are active.
 
 Differentiable functions take ``xp`` (and the extractor the engine's ``nn``);
 they use only the operations listed in CONTRIBUTING.md.
+
+The display helpers ``paper_cmap``, ``PAPER_CMAP``, ``blend``, ``overlay`` and
+``plot_q_saliency`` live in :mod:`minimanc.viz.saliency`, forwarded from there on first use.
 """
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -45,9 +47,9 @@ import numpy as np
 
 from minimanc import layers, vagn
 from minimanc.checks import check_int
+from minimanc.viz.forward import forwarder
 
 __all__ = [
-    "paper_cmap",
     "init_extractor",
     "predicate_extractor",
     "global_average_pool",
@@ -59,42 +61,16 @@ __all__ = [
     "q_state_saliency",
     "explain",
     "peak_location",
-    "blend",
-    "overlay",
-    "plot_q_saliency",
 ]
 
 
-@functools.cache
-def paper_cmap() -> Any:
-    """The colormap of the paper's saliency figures: high → low = yellow → red → cyan → magenta.
-
-    Built on first use, so that the math of this module (and every module
-    importing it) does not import matplotlib; also available as
-    ``cam.PAPER_CMAP``.
-
-    Returns
-    -------
-    cmap : matplotlib.colors.LinearSegmentedColormap
-        256 colours, low → high: magenta, cyan, red, yellow.
-    """
-    from matplotlib.colors import LinearSegmentedColormap
-
-    # low → high: magenta → cyan → red → yellow
-    return LinearSegmentedColormap.from_list(
-        "manc_paper", ["#ff00ff", "#00ffff", "#ff0000", "#ffff00"], N=256
-    )
+# the display helpers, defined in minimanc.viz.saliency and imported on first access
+_SHOWN = dict.fromkeys(("paper_cmap", "PAPER_CMAP", "blend", "overlay", "plot_q_saliency"),
+                       "minimanc.viz.saliency")
+__getattr__, __dir__ = forwarder(__name__, globals(), _SHOWN)
 
 
-def __getattr__(name: str) -> Any:
-    if name == "PAPER_CMAP":  # the colormap, built on first access (see paper_cmap)
-        return paper_cmap()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-# ---------------------------------------------------------------------------
-# parameters
-# ---------------------------------------------------------------------------
+# ------------------------------------------------------------------ parameters
 def init_extractor(
     rng: np.random.Generator,
     in_channels: int = 3,
@@ -152,9 +128,7 @@ def init_extractor(
     return {"convs": convs, "head": layers.init_dense(rng, c_in, n_predicates, dtype=dtype)}
 
 
-# ---------------------------------------------------------------------------
-# eq. 7
-# ---------------------------------------------------------------------------
+# ----------------------------------------------------------------------- eq. 7
 def global_average_pool(features: Any, xp: Any = np) -> Any:
     """Global average pooling of eq. 7: the mean over the two spatial axes.
 
@@ -171,10 +145,6 @@ def global_average_pool(features: Any, xp: Any = np) -> Any:
         One average per feature map.
     """
     return xp.mean(xp.mean(features, axis=-2), axis=-2)
-
-
-def _default_strides(n_layers: int) -> tuple[int, ...]:
-    return (1,) + (2,) * (n_layers - 1)
 
 
 def predicate_extractor(
@@ -229,7 +199,7 @@ def predicate_extractor(
     """
     convs = params["convs"]
     n = len(convs)
-    strides = _default_strides(n) if strides is None else tuple(strides)
+    strides = (1,) + (2,) * (n - 1) if strides is None else tuple(strides)
     if len(strides) != n:
         raise ValueError(f"strides must have one entry per conv layer ({n}); got {strides}")
     if activation not in ("relu", "silu"):
@@ -252,9 +222,7 @@ def predicate_extractor(
     return (p, h) if return_features else p
 
 
-# ---------------------------------------------------------------------------
-# CAM and Grad-CAM
-# ---------------------------------------------------------------------------
+# ------------------------------------------------------------ CAM and Grad-CAM
 def class_activation_maps(features: Any, weights: Any, xp: Any = np, layout: str = "KM") -> Any:
     """CAM (Zhou et al. 2016) of eq. 7's head: ``M_i(x, y) = Σ_k W_ki f_k(x, y)``.
 
@@ -429,9 +397,7 @@ def grad_cam(features: Any, grads: Any, xp: Any = np) -> Any:
                       0.0)
 
 
-# ---------------------------------------------------------------------------
-# per-q-state saliency (Figures 3-4)
-# ---------------------------------------------------------------------------
+# ------------------------------------------ per-q-state saliency (Figures 3-4)
 def vagn_jacobian(
     q_prev: Any, p: Any, W: Any, grad: Callable | None = None, xp: Any = np
 ) -> Any:
@@ -630,172 +596,3 @@ def peak_location(maps: Any) -> np.ndarray:
         raise ValueError(f"maps must have shape (..., H, W); got shape {maps.shape}")
     flat = maps.reshape(maps.shape[:-2] + (-1,)).argmax(axis=-1)
     return np.stack(np.unravel_index(flat, maps.shape[-2:]), axis=-1)
-
-
-# ---------------------------------------------------------------------------
-# figures
-# ---------------------------------------------------------------------------
-def _as_rgb_float(image: Any) -> np.ndarray:
-    img = np.asarray(image)
-    if img.ndim == 2:
-        img = np.repeat(img[..., None], 3, axis=-1)
-    if img.ndim != 3 or img.shape[-1] not in (1, 3):
-        raise ValueError(f"image must be (H, W), (H, W, 1) or (H, W, 3); got shape {img.shape}")
-    if img.shape[-1] == 1:
-        img = np.repeat(img, 3, axis=-1)
-    if img.dtype == np.uint8:
-        return img.astype(float) / 255.0
-    return np.clip(img.astype(float), 0.0, 1.0)
-
-
-def blend(image: Any, saliency: Any, alpha: float = 0.5, cmap: Any = None) -> np.ndarray:
-    """The overlay as data: ``(1 − α)·image + α·cmap(minmax(saliency))``.
-
-    ``saliency`` is min–max normalised and, if its size differs from the
-    image's, bilinearly resized to it first.
-
-    Parameters
-    ----------
-    image : array-like, shape (H, W), (H, W, 1) or (H, W, 3)
-        ``uint8`` or float image in [0, 1].
-    saliency : array-like, shape (h, w)
-        Saliency map.
-    alpha : float, optional (default: 0.5)
-        Weight of the colours, in [0, 1].
-    cmap : matplotlib colormap, optional (default: None)
-        None is :func:`paper_cmap`.
-
-    Returns
-    -------
-    rgb : array, shape (H, W, 3)
-        RGB floats in [0, 1].
-
-    Raises
-    ------
-    ValueError
-        If ``alpha`` is outside [0, 1], or ``image`` or ``saliency`` has the
-        wrong shape.
-    """
-    if not 0.0 <= alpha <= 1.0:
-        raise ValueError(f"alpha must be in [0, 1]; got alpha = {alpha!r}")
-    img = _as_rgb_float(image)
-    s = np.asarray(saliency, dtype=float)
-    if s.ndim != 2:
-        raise ValueError(f"saliency must have shape (h, w); got shape {s.shape}")
-    if s.shape != img.shape[:2]:
-        s = upsample(s, img.shape[:2])
-    s = minmax_normalize(s)
-    colours = np.asarray((cmap or paper_cmap())(s))[..., :3]
-    return (1.0 - alpha) * img + alpha * colours
-
-
-def overlay(
-    image: Any,
-    saliency: Any,
-    ax: Any = None,
-    alpha: float = 0.5,
-    cmap: Any = None,
-    title: str | None = None,
-) -> Any:
-    """Draw :func:`blend` on ``ax``: the BEV image with its saliency in the paper's colours.
-
-    Parameters
-    ----------
-    image : array-like, shape (H, W), (H, W, 1) or (H, W, 3)
-        ``uint8`` or float image in [0, 1].
-    saliency : array-like, shape (h, w)
-        Saliency map (min–max normalised here).
-    ax : matplotlib Axes, optional (default: None)
-        Axes to draw on; a new figure when None.
-    alpha : float, optional (default: 0.5)
-        Weight of the colours, in [0, 1].
-    cmap : matplotlib colormap, optional (default: None)
-        None is :func:`paper_cmap` (high → low: yellow, red, cyan, magenta).
-    title : str, optional (default: None)
-        Axes title.
-
-    Returns
-    -------
-    ax : matplotlib Axes
-        The axes drawn on.
-
-    Raises
-    ------
-    ValueError
-        As :func:`blend`.
-    """
-    import matplotlib.pyplot as plt
-
-    rgb = blend(image, saliency, alpha=alpha, cmap=cmap)
-    if ax is None:
-        _, ax = plt.subplots(figsize=(3, 3))
-    ax.imshow(rgb, interpolation="nearest")
-    if title is not None:
-        ax.set_title(title)
-    ax.set_xticks([])
-    ax.set_yticks([])
-    return ax
-
-
-def plot_q_saliency(
-    image: Any,
-    saliency: Any,
-    q: Any,
-    axes: Any = None,
-    alpha: float = 0.5,
-    labels: Sequence[str] | None = None,
-) -> Any:
-    """Figures 3–4 style panel: the BEV image, then one overlay per q-state.
-
-    Each overlay is titled with its q-state's name and probability.
-
-    Parameters
-    ----------
-    image : array-like, shape (H, W), (H, W, 1) or (H, W, 3)
-        The BEV input.
-    saliency : array-like, shape (N, H, W)
-        Per-q-state saliency (e.g. ``explain(...)["saliency"][b]``).
-    q : array-like, shape (N,)
-        q-distribution shown in the titles.
-    axes : sequence of matplotlib Axes, optional (default: None)
-        ``N + 1`` axes; a new row of them when None.
-    alpha : float, optional (default: 0.5)
-        Weight of the colours, in [0, 1].
-    labels : sequence of str, optional (default: None)
-        ``N`` q-state names; ``q_0 … q_{N-1}`` when None.
-
-    Returns
-    -------
-    axes : array of matplotlib Axes, shape (N + 1,)
-        The axes drawn on.
-
-    Raises
-    ------
-    ValueError
-        If ``saliency`` is not ``(N, H, W)``, ``q`` not ``(N,)``, or ``labels``
-        does not have ``N`` entries.
-    """
-    import matplotlib.pyplot as plt
-
-    saliency = np.asarray(saliency, dtype=float)
-    q = np.asarray(q, dtype=float)
-    if saliency.ndim != 3 or q.shape != (saliency.shape[0],):
-        raise ValueError(
-            f"saliency must be (N, H, W) and q (N,); got saliency {saliency.shape}, q {q.shape}"
-        )
-    N = saliency.shape[0]
-    if labels is None:
-        labels = [f"$q_{{{j}}}$" for j in range(N)]
-    if len(labels) != N:
-        raise ValueError(f"labels must have N = {N} entries; got {len(labels)}")
-    if axes is None:
-        _, axes = plt.subplots(1, N + 1, figsize=(2.4 * (N + 1), 2.6))
-    axes = np.ravel(axes)
-    axes[0].imshow(_as_rgb_float(image), interpolation="nearest")
-    axes[0].set_title("BEV input")
-    axes[0].set_xticks([])
-    axes[0].set_yticks([])
-    for j in range(N):
-        overlay(image, saliency[j], ax=axes[j + 1], alpha=alpha,
-                title=f"{labels[j]}: P = {q[j]:.2f}")
-    return axes

@@ -1,17 +1,13 @@
-"""Tests for minimanc.cam (chapter 6): eq. 7, CAM, Grad-CAM, per-q-state saliency, overlays."""
+"""Tests for minimanc.cam (chapter 6): eq. 7, CAM, Grad-CAM, per-q-state saliency."""
 
 from __future__ import annotations
 
-import matplotlib
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
-from hypothesis import given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
-
-from minimanc import cam, engine, vagn  # noqa: E402
+from minimanc import cam, engine, vagn
 from minimanc.autodiff.check import numerical_grad
 
 ENGINES = ["numpy", "jax"]
@@ -303,38 +299,6 @@ def test_explain_baseline_is_subtracted_before_the_saliency():
 def test_q_state_saliency_bad_input():
     with pytest.raises(ValueError, match="must agree on M"):
         cam.q_state_saliency(np.ones((3, 4, 4)), np.ones((2, 5)))
-
-
-# --------------------------------------------------------------------- plots
-def test_paper_cmap_ranks_yellow_red_cyan_magenta():
-    c = cam.PAPER_CMAP
-    np.testing.assert_allclose(c(1.0)[:3], [1, 1, 0])  # high: yellow
-    np.testing.assert_allclose(c(2 / 3)[:3], [1, 0, 0], atol=0.01)  # red
-    np.testing.assert_allclose(c(1 / 3)[:3], [0, 1, 1], atol=0.01)  # cyan
-    np.testing.assert_allclose(c(0.0)[:3], [1, 0, 1])  # low: magenta
-
-
-def test_blend_and_overlay():
-    rng = np.random.default_rng(8)
-    img = rng.integers(0, 256, (8, 8, 3), dtype=np.uint8)
-    sal = rng.standard_normal((4, 4))
-    np.testing.assert_allclose(cam.blend(img, sal, alpha=0.0), img / 255.0)
-    full = cam.blend(img, sal, alpha=1.0)
-    up = cam.minmax_normalize(cam.upsample(sal, 8))
-    np.testing.assert_allclose(full, cam.PAPER_CMAP(up)[..., :3])
-    r, c = cam.peak_location(up)
-    np.testing.assert_allclose(full[r, c], [1, 1, 0])  # the peak is drawn yellow
-    fig, ax = plt.subplots()
-    cam.overlay(img, sal, ax=ax, alpha=0.4)
-    np.testing.assert_allclose(ax.images[0].get_array(), cam.blend(img, sal, alpha=0.4))
-    plt.close(fig)
-    axes = cam.plot_q_saliency(img, rng.standard_normal((3, 8, 8)), np.array([0.2, 0.3, 0.5]))
-    assert len(axes) == 4 and axes[3].get_title() == "$q_{2}$: P = 0.50"
-    plt.close("all")
-    with pytest.raises(ValueError, match="alpha"):
-        cam.blend(img, sal, alpha=1.5)
-    with pytest.raises(ValueError, match="saliency must have shape"):
-        cam.blend(img, np.ones((2, 4, 4)))
 
 
 def test_peak_location():

@@ -1,4 +1,4 @@
-"""Tests for minimanc.vagn (chapter 5): eqs. 8-9, rollouts, analysis, figures."""
+"""Tests for minimanc.vagn (chapter 5): eqs. 8-9, rollouts, analysis (figures: test_viz.py)."""
 
 from __future__ import annotations
 
@@ -328,38 +328,6 @@ def test_traced_inputs_skip_value_checks_but_keep_shape_checks():
     # ... but its shape still is
     with pytest.raises(ValueError, match="p must have shape"):
         vagn.step(jnp.ones(3) / 3, jnp.ones(4), W, xp=jnp)
-
-
-# --------------------------------------------------------------------- figures
-def test_plot_automaton_edge_widths_follow_probabilities():
-    from matplotlib.patches import Circle, FancyArrowPatch
-
-    T = np.array([[0.7, 0.2, 0.1], [0.2, 0.6, 0.05], [0.1, 0.2, 0.85]])
-    fig, ax = plt.subplots()
-    vagn.plot_automaton(T, ax=ax, max_width=10.0, q=np.array([0.2, 0.3, 0.5]))
-    arrows = [p for p in ax.patches if isinstance(p, FancyArrowPatch)]
-    rings = [p for p in ax.patches if isinstance(p, Circle) and not p.get_fill()]
-    assert len(arrows) == 6 and len(rings) == 3
-    widths = sorted(a.get_linewidth() for a in arrows)
-    expected = sorted(10.0 * T[i, j] for i in range(3) for j in range(3) if i != j)
-    np.testing.assert_allclose(widths, expected)
-    plt.close(fig)
-    fig, ax = plt.subplots()
-    vagn.plot_automaton(T, ax=ax, min_prob=0.15)
-    arrows = [p for p in ax.patches if isinstance(p, FancyArrowPatch)]
-    assert len(arrows) == 3  # 0.2, 0.2, 0.2 survive; 0.1, 0.1, 0.05 are hidden
-    plt.close(fig)
-
-
-def test_plot_q_heatmap_shows_the_distribution():
-    qs = vagn.rollout(vagn.uniform_state(3), np.random.default_rng(0).random((10, 2)),
-                      vagn.init_vagn(np.random.default_rng(1), 2, 3))
-    fig, ax = plt.subplots()
-    vagn.plot_q_heatmap(qs, ax=ax)
-    np.testing.assert_allclose(ax.images[0].get_array(), qs.T)
-    plt.close(fig)
-    with pytest.raises(ValueError, match="qs must be a probability distribution"):
-        vagn.plot_q_heatmap(qs * 2)
 
 
 # --------------------------------------------------------------------- dtype-scaled tolerance

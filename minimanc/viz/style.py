@@ -1,0 +1,147 @@
+"""What every figure shares (chapters 5, 6 and 9): display names and colours, axes, saving.
+
+* the names and colours of the models (read from :mod:`minimanc.models`' registry) and of the
+  reference rows, and the axis labels of the metrics of :mod:`minimanc.metrics`;
+* :func:`pyplot` (``matplotlib.pyplot``, imported on first use), :func:`save`;
+* :func:`state_labels` (the ``q_0 … q_{N-1}`` of every q-state figure) and
+  :func:`clear_ticks`.
+
+``MODEL_LABELS`` and ``MODEL_COLOURS`` are read from the registry when asked (module
+``__getattr__``), so a model registered later appears in them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "METRIC_LABELS",
+    "REFERENCE_COLOURS",
+    "REFERENCE_LABELS",
+    "check_metrics",
+    "clear_ticks",
+    "model_colour",
+    "model_label",
+    "pyplot",
+    "save",
+    "state_labels",
+]
+
+REFERENCE_LABELS: dict[str, str] = {"human": "Human", "dmp_prior": "DMP at fixed gains"}
+"""Display names of the rows that are not learned models: the logged human (Table I) and the
+no-learning reference (:func:`minimanc.rollout.fixed_gains`). A model's own display name is
+the ``label`` of its :class:`~minimanc.models.ModelSpec`."""
+
+REFERENCE_COLOURS: dict[str, str] = {"human": "#444444", "dmp_prior": "#a0a0a0"}
+"""Colours of the rows that are not learned models (a model's is its spec's ``colour``)."""
+
+
+def model_label(name: str) -> str:
+    """Display name of ``name``: its spec's ``label``, a :data:`REFERENCE_LABELS` entry, or
+    ``name`` itself."""
+    from minimanc.models import registry
+
+    if name in registry.names():
+        return registry.get(name).label
+    return REFERENCE_LABELS.get(name, name)
+
+
+def model_colour(name: str, default: str | None = None) -> str | None:
+    """Colour of ``name`` in figures: its spec's ``colour``, a :data:`REFERENCE_COLOURS`
+    entry, or ``default``."""
+    from minimanc.models import registry
+
+    if name in registry.names():
+        return registry.get(name).colour
+    return REFERENCE_COLOURS.get(name, default)
+
+
+def __getattr__(name: str) -> Any:
+    """``MODEL_LABELS`` and ``MODEL_COLOURS``: ``{name: label}`` and ``{name: colour}`` of the
+    registered models and the reference rows, read from the registry when asked."""
+    if name in ("MODEL_LABELS", "MODEL_COLOURS"):
+        from minimanc.models import registry
+
+        if name == "MODEL_LABELS":
+            return {"human": REFERENCE_LABELS["human"],
+                    **{s.name: s.label for s in registry.specs()},
+                    "dmp_prior": REFERENCE_LABELS["dmp_prior"]}
+        return {**REFERENCE_COLOURS, **{s.name: s.colour for s in registry.specs()}}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+METRIC_LABELS: dict[str, str] = {
+    "close_encounters": "% close encounters",
+    "max_acceleration": "max |acceleration| (m/s²)",
+    "ade": "ADE to human (m)",
+    "goal_distance": "goal distance (m)",
+    "collision_rate": "% scenes with a collision",
+    "off_road_rate": "% scenes off road",
+    "at_fault_collision_rate": "% scenes with an at-fault collision",
+    "ttc_rate": "% steps with TTC < 1 s",
+    "route_progress": "route progress (human = 1)",
+    "along_track": "along-track error (m)",
+    "cross_track": "cross-track error (m)",
+    "along_bias": "along-track bias (m, < 0: behind)",
+}
+"""Axis labels of the metrics of :mod:`minimanc.metrics`."""
+
+
+def check_metrics(metrics: Sequence[str]) -> None:
+    """Refuse a metric name that has no :data:`METRIC_LABELS` entry (``ValueError``)."""
+    for m in metrics:
+        if m not in METRIC_LABELS:
+            raise ValueError(f"metrics must be names from {sorted(METRIC_LABELS)}; got {m!r}")
+
+
+def pyplot() -> Any:
+    """``matplotlib.pyplot``, imported when the first figure is drawn."""
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save(fig: Any, path: str | Path, dpi: int = 110) -> Path:
+    """Write ``fig`` to ``path`` (PNG, parents created) and close it. Returns the path."""
+    plt = pyplot()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def state_labels(labels: Sequence[str] | None, n_states: int) -> Sequence[str]:
+    """The ``N`` names of the q-states: ``labels``, or ``$q_0$ … $q_{N-1}$`` when None.
+
+    Parameters
+    ----------
+    labels : sequence of str or None
+        Names given by the caller.
+    n_states : int
+        Number of q-states ``N``.
+
+    Returns
+    -------
+    labels : sequence of str
+        ``N`` names.
+
+    Raises
+    ------
+    ValueError
+        If ``labels`` does not have ``N`` entries.
+    """
+    if labels is None:
+        return [f"$q_{{{i}}}$" for i in range(n_states)]
+    if len(labels) != n_states:
+        raise ValueError(f"labels must have N = {n_states} entries; got {len(labels)}")
+    return labels
+
+
+def clear_ticks(ax: Any) -> Any:
+    """Remove the x and y ticks of ``ax`` (images); returns ``ax``."""
+    ax.set_xticks([])
+    ax.set_yticks([])
+    return ax
