@@ -1,22 +1,138 @@
 """Pytrees: the nested dicts and lists that hold a model's parameters (chapter 2).
 
-A pytree is an array, or a dict / list / tuple of pytrees. Dict entries are
-visited in sorted key order, so every function here sees the leaves in one
-order whatever the insertion order was (the order :mod:`minimanc.optim` and
-the checkpoints of :mod:`minimanc.train` rely on).
+A pytree is an array (any leaf), or a dict / list / tuple (named tuples included) of
+pytrees; ``None`` is an empty subtree, as in JAX and :func:`minimanc.autodiff.tree_flatten`.
+:func:`leaves` visits dict entries in sorted key order, so it sees the leaves in one
+order whatever the insertion order was (the order :mod:`minimanc.optim` and the
+checkpoints of :mod:`minimanc.train` rely on); :func:`map` and :func:`cast_floats`
+rebuild dicts in their own key order. :func:`flatten` / :func:`unflatten` give a
+tree as flat ``"a/b/#0/w"`` keys, the layout of a checkpoint file.
 """
 
 from __future__ import annotations
 
+import builtins
+from collections.abc import Callable
 from typing import Any
 
-__all__ = ["leaves"]
+import numpy as np
+
+__all__ = ["cast_floats", "flatten", "leaves", "map", "unflatten"]
 
 
 def leaves(tree: Any) -> list:
-    """The arrays of ``tree`` in a fixed order: dicts by sorted key, lists and tuples in order."""
+    """The leaves of ``tree`` in a fixed order: dicts by sorted key, lists and tuples in order."""
+    if tree is None:
+        return []
     if isinstance(tree, dict):
         return [x for k in sorted(tree) for x in leaves(tree[k])]
     if isinstance(tree, list | tuple):
         return [x for v in tree for x in leaves(v)]
     return [tree]
+
+
+def _children(node: Any, keys: list, seq: bool, i: int, where: str) -> list:
+    """The entries ``keys`` of ``node`` (tree ``i + 1`` of :func:`map`, at ``where``), checked
+    to match the first tree's node there: a sequence when ``seq``, else a dict."""
+    if seq:
+        ok = isinstance(node, list | tuple) and len(node) == len(keys)
+        want = f"a list or tuple of {len(keys)}"
+    else:
+        ok = isinstance(node, dict) and set(node) == set(keys)
+        want = f"a dict with keys {sorted(builtins.map(str, keys))}"
+    if not ok:
+        got = (f"a dict with keys {sorted(builtins.map(str, node))}" if isinstance(node, dict)
+               else f"a {type(node).__name__} of {len(node)}" if isinstance(node, list | tuple)
+               else f"a {type(node).__name__} leaf")
+        raise ValueError(f"map: trees differ in structure at {where or 'the root'}: tree "
+                         f"{i + 1} is {got}, the first tree is {want}")
+    return [node[k] for k in keys]
+
+
+def map(f: Callable[..., Any], tree: Any, *rest: Any) -> Any:
+    """``tree`` with every leaf ``x`` replaced by ``f(x, *matching leaves of rest)``.
+
+    Parameters
+    ----------
+    f : callable
+        Called once per leaf of ``tree``, never on ``None`` (an empty subtree, kept).
+    tree : pytree
+        Gives the structure of the result: dicts (rebuilt as plain dicts, in ``tree``'s key
+        order), lists, tuples and named tuples (rebuilt as their own type).
+    *rest : pytree
+        Trees with ``tree``'s structure down to its leaves (a list may stand for a tuple);
+        at a leaf of ``tree`` their whole subtree is passed to ``f``.
+
+    Returns
+    -------
+    pytree
+
+    Raises
+    ------
+    ValueError
+        When a tree of ``rest`` differs from ``tree`` in structure, naming where.
+    """
+    return _map(f, tree, rest, "")
+
+
+def _map(f: Callable[..., Any], tree: Any, rest: tuple, where: str) -> Any:
+    if tree is None:
+        return None
+    if isinstance(tree, dict):
+        keys = list(tree)
+        subs = [_children(r, keys, False, i, where) for i, r in enumerate(rest)]
+        return {k: _map(f, tree[k], tuple(s[j] for s in subs), f"{where}[{k!r}]")
+                for j, k in enumerate(keys)}
+    if isinstance(tree, list | tuple):
+        idx = list(range(len(tree)))
+        subs = [_children(r, idx, True, i, where) for i, r in enumerate(rest)]
+        items = [_map(f, v, tuple(s[j] for s in subs), f"{where}[{j}]")
+                 for j, v in enumerate(tree)]
+        return type(tree)(*items) if hasattr(tree, "_fields") else type(tree)(items)
+    return f(tree, *rest)
+
+
+def _cast_float(x: Any, dtype: Any) -> np.ndarray:
+    arr = np.asarray(x)
+    return arr.astype(dtype) if np.issubdtype(arr.dtype, np.floating) else arr
+
+
+def cast_floats(tree: Any, dtype: Any) -> Any:
+    """``tree`` with NumPy leaves: the floating-point ones cast to ``dtype``, the others
+    (integers, booleans) kept as they are (``numpy.asarray`` of the leaf)."""
+    return map(lambda x: _cast_float(x, dtype), tree)
+
+
+def flatten(tree: Any, prefix: str = "") -> dict[str, np.ndarray]:
+    """``{"a/b/#0/w": array}``: a pytree as flat keys (dicts by sorted key, list and tuple
+    entries as ``#i``), each leaf ``numpy.asarray``; ``None`` subtrees have no key."""
+    out: dict[str, np.ndarray] = {}
+    if isinstance(tree, dict):
+        for k in sorted(tree):
+            out.update(flatten(tree[k], f"{prefix}{k}/"))
+    elif isinstance(tree, list | tuple):
+        for i, v in enumerate(tree):
+            out.update(flatten(v, f"{prefix}#{i}/"))
+    elif tree is not None:
+        out[prefix[:-1]] = np.asarray(tree)
+    return out
+
+
+def unflatten(flat: dict[str, Any]) -> Any:
+    """Inverse of :func:`flatten` (tuples come back as lists)."""
+    root: dict = {}
+    for key, value in flat.items():
+        parts = key.split("/")
+        node = root
+        for p in parts[:-1]:
+            node = node.setdefault(p, {})
+        node[parts[-1]] = value
+    return _lists(root)
+
+
+def _lists(node: Any) -> Any:
+    if not isinstance(node, dict):
+        return node
+    if node and all(k.startswith("#") for k in node):
+        return [_lists(node[f"#{i}"]) for i in range(len(node))]
+    return {k: _lists(v) for k, v in node.items()}

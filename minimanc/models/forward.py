@@ -22,6 +22,7 @@ from minimanc.models.backbone import backbone, dense
 from minimanc.models.config import ModelConfig
 from minimanc.models.registry import ModelSpec, get
 from minimanc.tree import leaves as tree_leaves
+from minimanc.tree import map as tree_map
 
 __all__ = [
     "cast_tree",
@@ -51,11 +52,7 @@ def cast_tree(tree: Any, dtype: Any) -> Any:
     pytree
         The same structure, every leaf ``numpy.asarray(leaf, dtype)``.
     """
-    if isinstance(tree, dict):
-        return {k: cast_tree(v, dtype) for k, v in tree.items()}
-    if isinstance(tree, list | tuple):
-        return type(tree)(cast_tree(v, dtype) for v in tree)
-    return np.asarray(getattr(tree, "_value", tree), dtype=dtype)
+    return tree_map(lambda x: np.asarray(getattr(x, "_value", x), dtype=dtype), tree)
 
 
 def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,

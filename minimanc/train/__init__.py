@@ -82,7 +82,7 @@ from minimanc.train.config import (
     TrainConfig,
     TrainingDiverged,
 )
-from minimanc.train.fit import SweepResult, evaluate, fit, sweep_lr
+from minimanc.train.fit import SweepResult, cast_floats, evaluate, fit, sweep_lr
 from minimanc.train.many import fit_many, fit_seeds
 from minimanc.train.step import loss_fn, make_step
 
@@ -97,6 +97,7 @@ __all__ = [
     "TrainingDiverged",
     "bad_params",
     "batches",
+    "cast_floats",
     "control_std",
     "dataset_shape",
     "evaluate",

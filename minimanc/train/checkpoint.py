@@ -18,56 +18,17 @@ import numpy as np
 
 from minimanc import models
 from minimanc.train.config import PARAM_LIMIT, CheckpointError, FitResult, TrainConfig
+from minimanc.tree import flatten as flatten_tree
+from minimanc.tree import map as tree_map
+from minimanc.tree import unflatten as unflatten_tree
 
 __all__ = ["bad_params", "flatten_tree", "load", "load_checkpoint", "restore_opt", "save",
            "to_numpy", "unflatten_tree"]
 
 
-def flatten_tree(tree: Any, prefix: str = "") -> dict[str, np.ndarray]:
-    """``{"a/b/#0/w": array}``: a pytree as flat keys (dicts by sorted key, lists as ``#i``)."""
-    out: dict[str, np.ndarray] = {}
-    if isinstance(tree, dict):
-        for k in sorted(tree):
-            out.update(flatten_tree(tree[k], f"{prefix}{k}/"))
-    elif isinstance(tree, list | tuple):
-        for i, v in enumerate(tree):
-            out.update(flatten_tree(v, f"{prefix}#{i}/"))
-    elif tree is None:
-        pass
-    else:
-        out[prefix[:-1]] = np.asarray(tree)
-    return out
-
-
-def unflatten_tree(flat: dict[str, np.ndarray]) -> Any:
-    """Inverse of :func:`flatten_tree`."""
-    root: dict = {}
-    for key, value in flat.items():
-        parts = key.split("/")
-        node = root
-        for p in parts[:-1]:
-            node = node.setdefault(p, {})
-        node[parts[-1]] = value
-    return _lists(root)
-
-
-def _lists(node: Any) -> Any:
-    if not isinstance(node, dict):
-        return node
-    if node and all(k.startswith("#") for k in node):
-        return [_lists(node[f"#{i}"]) for i in range(len(node))]
-    return {k: _lists(v) for k, v in node.items()}
-
-
 def to_numpy(tree: Any) -> Any:
     """A copy of ``tree`` with NumPy leaves (from engine arrays)."""
-    if isinstance(tree, dict):
-        return {k: to_numpy(v) for k, v in tree.items()}
-    if isinstance(tree, list | tuple):
-        return type(tree)(to_numpy(v) for v in tree)
-    if tree is None:
-        return None
-    return np.array(tree)
+    return tree_map(np.array, tree)
 
 
 def bad_params(params: Any, limit: float = PARAM_LIMIT) -> str | None:
@@ -190,16 +151,9 @@ def load(path: str | Path) -> FitResult:
 
 def restore_opt(template: Any, loaded: Any) -> Any:
     """Put loaded optimiser arrays into the structure of ``template`` (tuples, scalars)."""
-    if isinstance(template, dict):
-        return {k: restore_opt(v, loaded[k]) for k, v in template.items()}
-    if isinstance(template, list | tuple):
-        items = [restore_opt(v, loaded[i]) for i, v in enumerate(template)]
-        if hasattr(template, "_fields"):  # NamedTuple
-            return type(template)(*items)
-        return type(template)(items)
-    if template is None:
-        return None
-    if isinstance(template, int | np.integer) and not isinstance(template, bool):
-        return int(np.asarray(loaded))
-    arr = np.asarray(loaded)
-    return arr.astype(np.asarray(template).dtype)
+    def restore(t: Any, x: Any) -> Any:
+        if isinstance(t, int | np.integer) and not isinstance(t, bool):
+            return int(np.asarray(x))
+        return np.asarray(x).astype(np.asarray(t).dtype)
+
+    return tree_map(restore, template, loaded)

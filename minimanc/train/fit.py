@@ -26,21 +26,12 @@ from minimanc.train.batches import (
 from minimanc.train.checkpoint import bad_params, load_checkpoint, restore_opt, save, to_numpy
 from minimanc.train.config import CHECKPOINT_NAME, DTYPES, FitResult, TrainConfig, TrainingDiverged
 from minimanc.train.step import loss_fn, make_step
+from minimanc.tree import cast_floats
 from minimanc.world.dataset import describe_non_finite, first_non_finite, remove_temp_files
 
 __all__ = ["RunState", "SweepResult", "cast_floats", "check_fit_args", "diverged_loss", "end_epoch",
            "epoch_plan", "evaluate", "fit", "get_engine", "result_of", "start_run", "step_batch",
            "sweep_lr"]
-
-
-def cast_floats(tree: Any, dtype: Any) -> Any:
-    """``tree`` with its floating-point leaves cast to ``dtype`` (integer leaves kept)."""
-    if isinstance(tree, dict):
-        return {k: cast_floats(v, dtype) for k, v in tree.items()}
-    if isinstance(tree, list | tuple):
-        return type(tree)(cast_floats(v, dtype) for v in tree)
-    arr = np.asarray(tree)
-    return arr.astype(dtype) if np.issubdtype(arr.dtype, np.floating) else arr
 
 
 def get_engine(engine: Any) -> Any:

@@ -40,6 +40,7 @@ from minimanc.train.fit import (
     step_batch,
 )
 from minimanc.train.step import hyper_args, train_step_fn
+from minimanc.tree import map as tree_map
 
 __all__ = ["fit_many", "fit_seeds"]
 
@@ -59,15 +60,11 @@ def _check_together(tcs: Sequence[TrainConfig]) -> None:
 
 
 def _stack(trees: Sequence[Any]) -> Any:
-    import jax
-
-    return jax.tree_util.tree_map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *trees)
+    return tree_map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *trees)
 
 
 def _unstack(tree: Any, k: int) -> Any:
-    import jax
-
-    return jax.tree_util.tree_map(lambda x: np.array(x[k]), tree)
+    return tree_map(lambda x: np.array(x[k]), tree)
 
 
 def _many_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any) -> Any:
@@ -85,8 +82,7 @@ def _many_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any) ->
             mask = jnp.reshape(active, (-1,) + (1,) * (jnp.ndim(new) - 1))
             return jnp.where(mask, new, old)
 
-        return (jax.tree_util.tree_map(keep, new_p, params),
-                jax.tree_util.tree_map(keep, new_o, opt), loss)
+        return tree_map(keep, new_p, params), tree_map(keep, new_o, opt), loss
 
     return jax.jit(many)
 

@@ -11,6 +11,7 @@ import numpy as np
 from minimanc import models, optim
 from minimanc.train.config import DTYPES, TrainConfig
 from minimanc.tree import leaves as tree_leaves
+from minimanc.tree import map as tree_map
 
 __all__ = ["global_norm", "hyper_args", "like", "loss_fn", "make_step", "scale_tree",
            "train_step_fn"]
@@ -55,24 +56,18 @@ def global_norm(tree: Any, xp: Any) -> Any:
 
 def scale_tree(tree: Any, s: Any) -> Any:
     """Every leaf of ``tree`` times ``s``."""
-    if isinstance(tree, dict):
-        return {k: scale_tree(v, s) for k, v in tree.items()}
-    if isinstance(tree, list | tuple):
-        return type(tree)(scale_tree(v, s) for v in tree)
-    return tree * s
+    return tree_map(lambda x: x * s, tree)
 
 
 def like(tree: Any, template: Any, xp: Any) -> Any:
     """``tree`` with every array leaf cast to the dtype of the matching ``template`` leaf."""
-    if isinstance(tree, dict):
-        return {k: like(v, template[k], xp) for k, v in tree.items()}
-    if isinstance(tree, list | tuple):
-        items = [like(v, template[i], xp) for i, v in enumerate(tree)]
-        return type(tree)(*items) if hasattr(tree, "_fields") else type(tree)(items)
-    dt = getattr(template, "dtype", None)
-    if dt is None or getattr(tree, "dtype", None) == dt:
-        return tree
-    return xp.asarray(tree, dtype=dt)
+    def cast(x: Any, t: Any) -> Any:
+        dt = getattr(t, "dtype", None)
+        if dt is None or getattr(x, "dtype", None) == dt:
+            return x
+        return xp.asarray(x, dtype=dt)
+
+    return tree_map(cast, tree, template)
 
 
 def hyper_args(tc: TrainConfig, inv_std: Any) -> dict:
