@@ -40,28 +40,32 @@ def _ms(agg: Mapping[str, Any], metric: str) -> tuple[float, float]:
 
 
 def _grouped_bars(
-    axes: Any,
-    metrics: Sequence[str],
     aggs: Mapping[str, Mapping[str, Mapping[str, Any]]],
-    groups: Sequence[str],
-    bar_style: Callable[[int, str], dict],
-    ticklabels: Sequence[str],
+    metrics: Sequence[str],
+    panel_width: float,
+    bar_style: Callable[[int, str, list[str]], dict],
+    label: Callable[[str], str],
     **tick_kw: Any,
-) -> None:
-    """One panel per metric: a bar group per entry of ``groups`` (named ``ticklabels``), in it
-    one bar per series (``aggs[series][group]`` an aggregate, error bar its std);
-    ``bar_style(k, series)`` gives the series' colour, hatch and label."""
+) -> tuple[Any, np.ndarray]:
+    """A figure with one panel per metric: a bar group per inner key of ``aggs`` (in order of
+    appearance, ticks named ``label(group)``), in it one bar per outer key (``aggs[series]
+    [group]`` an aggregate, error bar its std); ``bar_style(k, series, groups)`` gives the
+    series' colour, hatch and label. Returns the figure and its axes."""
     series = list(aggs)
+    groups = list(dict.fromkeys(g for name in series for g in aggs[name]))
+    fig, axes = pyplot().subplots(1, len(metrics), figsize=(panel_width * len(metrics), 3.4))
+    axes = np.atleast_1d(axes)
     width = 0.8 / len(series)
     x = np.arange(len(groups))
     for ax, metric in zip(axes, metrics):
         for k, name in enumerate(series):
             means, stds = zip(*[_ms(aggs[name].get(g, {}), metric) for g in groups])
             ax.bar(x + (k - (len(series) - 1) / 2) * width, means, width, yerr=stds,
-                   edgecolor="black", linewidth=0.5, capsize=2, **bar_style(k, name))
+                   edgecolor="black", linewidth=0.5, capsize=2, **bar_style(k, name, groups))
         ax.set_xticks(x)
-        ax.set_xticklabels(ticklabels, **tick_kw)
+        ax.set_xticklabels([label(g) for g in groups], **tick_kw)
         ax.set_title(METRIC_LABELS[metric], fontsize=10)
+    return fig, axes
 
 
 def plot_table1(
@@ -76,17 +80,12 @@ def plot_table1(
     check_metrics(metrics)
     if not table:
         raise ValueError("table must hold at least one setting; got an empty mapping")
-    plt = pyplot()
-    settings = list(table)
-    models = list(dict.fromkeys(m for s in settings for m in table[s]))
-    fig, axes = plt.subplots(1, len(metrics), figsize=(3.6 * len(metrics), 3.4))
-    axes = np.atleast_1d(axes)
     hatches = ["", "//", "..", "xx"]
-    _grouped_bars(axes, metrics, table, models, lambda k, setting: {
+    fig, axes = _grouped_bars(table, metrics, 3.6, lambda k, setting, models: {
         "color": [model_colour(m, "grey") for m in models],
         "hatch": hatches[k % len(hatches)], "label": setting},
-        [model_label(m) for m in models], rotation=40, ha="right")
-    if len(settings) > 1:
+        model_label, rotation=40, ha="right")
+    if len(table) > 1:
         axes[0].legend(title="setting", fontsize=8)
     fig.suptitle("Closed-loop performance (Table I); lower is better")
     fig.tight_layout()
@@ -112,20 +111,14 @@ def plot_families(
     check_metrics(metrics)
     if not families:
         raise ValueError("families must hold at least one model; got an empty mapping")
-    plt = pyplot()
-    models = list(families)
-    fams = list(dict.fromkeys(f for m in models for f in families[m]))
-    fig, axes = plt.subplots(1, len(metrics), figsize=(3.8 * len(metrics), 3.4))
-    axes = np.atleast_1d(axes)
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    _grouped_bars(axes, metrics, families, fams, lambda k, m: {
+    colours = pyplot().rcParams["axes.prop_cycle"].by_key()["color"]
+    fig, axes = _grouped_bars(families, metrics, 3.8, lambda k, m, fams: {
         "color": model_colour(m, colours[k % len(colours)]), "label": model_label(m)},
-        [f.replace("_", "-") for f in fams])
+        lambda f: f.replace("_", "-"))
     axes[0].legend(fontsize=7)
     fig.suptitle(title or "Per scenario family; lower is better")
     fig.tight_layout()
     return fig
-
 
 
 def plot_sample_efficiency(study: Mapping[str, Any], metric: str = "ade") -> Any:
