@@ -31,10 +31,12 @@ __all__ = [
     "check_distribution",
     "check_finite",
     "check_finite_if_concrete",
+    "check_float_dtype",
     "check_int",
     "check_leading_axis",
     "check_positive",
     "check_real",
+    "check_rng",
     "check_stochastic_columns",
     "first_bad",
     "float_tolerance",
@@ -302,3 +304,23 @@ def check_stochastic_columns(name: str, T: Any) -> np.ndarray:
             f"{float(Ta.min()):.3g}"
         )
     return Ta
+
+
+# --------------------------------------------------------------------------- other arguments
+
+
+def check_rng(name: str, rng: Any) -> np.random.Generator:
+    """``rng`` if it is a ``numpy.random.Generator`` (``default_rng(seed)``), else ValueError
+    naming it: a seed or the legacy ``RandomState`` would draw other numbers silently."""
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"{name} must be a numpy.random.Generator, got {name}={rng!r}")
+    return rng
+
+
+def check_float_dtype(name: str, dtype: Any) -> np.dtype:
+    """``numpy.dtype(dtype)`` if it is a floating-point type, else ValueError naming it
+    (``TypeError`` from NumPy when ``dtype`` is no dtype at all)."""
+    dt = np.dtype(dtype)
+    if not np.issubdtype(dt, np.floating):
+        raise ValueError(f"{name} must be a floating-point type, got {name}={dtype!r}")
+    return dt

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc.checks import check_int
+from minimanc.checks import check_float_dtype, check_int, check_rng
 
 __all__ = [
     "init_dense",
@@ -38,20 +38,8 @@ __all__ = [
 
 
 # ---------------------------------------------------------------------------
-# Checks and defaults
+# Defaults
 # ---------------------------------------------------------------------------
-def _check_rng(rng: Any) -> None:
-    if not isinstance(rng, np.random.Generator):
-        raise ValueError(f"rng must be a numpy.random.Generator, got rng={rng!r}")
-
-
-def _check_float_dtype(dtype: Any) -> np.dtype:
-    dt = np.dtype(dtype)
-    if not np.issubdtype(dt, np.floating):
-        raise ValueError(f"dtype must be a floating-point type, got dtype={dtype!r}")
-    return dt
-
-
 def _default_nn(nn: Any, xp: Any = np) -> Any:
     """``nn`` if given, else the primitives of the engine that ``xp`` belongs to.
 
@@ -102,9 +90,9 @@ def init_dense(rng: np.random.Generator, n_in: int, n_out: int,
         If ``rng`` is not a ``numpy.random.Generator``, a size is not an integer
         ≥ 1, or ``dtype`` is not a float type.
     """
-    _check_rng(rng)
+    check_rng("rng", rng)
     n_in, n_out = check_int("n_in", n_in, 1), check_int("n_out", n_out, 1)
-    dt = _check_float_dtype(dtype)
+    dt = check_float_dtype("dtype", dtype)
     return {
         "w": _glorot_uniform(rng, n_in, n_out, (n_in, n_out), dt),
         "b": np.zeros(n_out, dtype=dt),
@@ -144,10 +132,10 @@ def init_conv(rng: np.random.Generator, kh: int, kw: int, c_in: int, c_out: int,
         If ``rng`` is not a ``numpy.random.Generator``, a size is not an integer
         ≥ 1, or ``dtype`` is not a float type.
     """
-    _check_rng(rng)
+    check_rng("rng", rng)
     kh, kw = check_int("kh", kh, 1), check_int("kw", kw, 1)
     c_in, c_out = check_int("c_in", c_in, 1), check_int("c_out", c_out, 1)
-    dt = _check_float_dtype(dtype)
+    dt = check_float_dtype("dtype", dtype)
     std = np.sqrt(2.0 / (kh * kw * c_in))
     return {
         "w": (std * rng.standard_normal((kh, kw, c_in, c_out))).astype(dt),
@@ -184,9 +172,9 @@ def init_lstm(rng: np.random.Generator, n_in: int, n_hidden: int,
         If ``rng`` is not a ``numpy.random.Generator``, a size is not an integer
         ≥ 1, or ``dtype`` is not a float type.
     """
-    _check_rng(rng)
+    check_rng("rng", rng)
     n_in, n_hidden = check_int("n_in", n_in, 1), check_int("n_hidden", n_hidden, 1)
-    dt = _check_float_dtype(dtype)
+    dt = check_float_dtype("dtype", dtype)
     h = n_hidden
     b = np.zeros(4 * h, dtype=dt)
     b[h:2 * h] = 1
@@ -225,7 +213,7 @@ def init_lstm_carry(batch: int, n_hidden: int, dtype: Any = np.float64,
         If a size is not an integer ≥ 1 or ``dtype`` is not a float type.
     """
     batch, n_hidden = check_int("batch", batch, 1), check_int("n_hidden", n_hidden, 1)
-    dt = _check_float_dtype(dtype)
+    dt = check_float_dtype("dtype", dtype)
     return xp.zeros((batch, n_hidden), dtype=dt), xp.zeros((batch, n_hidden), dtype=dt)
 
 

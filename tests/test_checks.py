@@ -187,3 +187,25 @@ def test_check_leading_axis():
     with pytest.raises(ValueError, match=r"g is per step, so its leading axis must have "
                                          r"length 4; got g with shape \(3, 2\)"):
         checks.check_leading_axis("g", x32, 4, "is per step")
+
+
+# --------------------------------------------------------------------------- rng and dtype
+
+
+def test_check_rng_accepts_a_generator_and_names_anything_else():
+    rng = np.random.default_rng(0)
+    assert checks.check_rng("rng", rng) is rng
+    for bad in (0, None, np.random.RandomState(0)):
+        with pytest.raises(ValueError, match=r"gen must be a numpy.random.Generator, got gen="):
+            checks.check_rng("gen", bad)
+
+
+@given(st.sampled_from([np.float16, np.float32, np.float64, "float32", float]))
+def test_check_float_dtype_returns_the_dtype(dtype):
+    assert checks.check_float_dtype("dtype", dtype) == np.dtype(dtype)
+
+
+@pytest.mark.parametrize("bad", [np.int32, "int64", bool, np.complex128])
+def test_check_float_dtype_refuses_other_types(bad):
+    with pytest.raises(ValueError, match="dt must be a floating-point type, got dt="):
+        checks.check_float_dtype("dt", bad)

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import inputs, layers, vagn
-from minimanc.checks import check_int
+from minimanc.checks import check_int, check_rng
 from minimanc.models import registry
 from minimanc.models.backbone import backbone, dense
 from minimanc.models.config import ModelConfig
@@ -82,8 +82,7 @@ def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
     """
     spec = get(name)
     cfg = cfg or ModelConfig()
-    if not isinstance(rng, np.random.Generator):
-        raise ValueError(f"rng must be a numpy.random.Generator, got rng={rng!r}")
+    check_rng("rng", rng)
     convs, c_in = [], 3
     for c in cfg.channels:
         convs.append(layers.init_conv(rng, 3, 3, c_in, c))
