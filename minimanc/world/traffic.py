@@ -95,6 +95,11 @@ WIN_POINTS = 44
 """Corridor samples per vehicle: from just behind it to ~85 m ahead."""
 
 
+def _fields(vehicles: list[Vehicle], *names: str) -> tuple[np.ndarray, ...]:
+    """One array per attribute name, over ``vehicles`` in order."""
+    return tuple(np.array([getattr(v, n) for v in vehicles]) for n in names)
+
+
 class Traffic:
     """All vehicles of a scene and the rules that move them (the ego included).
 
@@ -172,11 +177,8 @@ class Traffic:
         """Set ``xy`` and ``yaw`` of path-following vehicles from their ``s`` and offset."""
         if not vehicles:
             return
-        pid = np.array([v.pid for v in vehicles])
-        s = np.array([v.s for v in vehicles])
-        off = np.array([v.offset for v in vehicles])
-        rate = np.array([v.offset_rate for v in vehicles])
-        speed = np.maximum(np.array([v.v for v in vehicles]), 1.0)
+        pid, s, off, rate, speed = _fields(vehicles, "pid", "s", "offset", "offset_rate", "v")
+        speed = np.maximum(speed, 1.0)
         xy, h, _ = self.bank.query(pid, s)
         xy = xy + off[:, None] * np.stack([-np.sin(h), np.cos(h)], axis=1)
         yaw = wrap_angle(h + np.arctan2(rate, speed))
@@ -238,10 +240,7 @@ class Traffic:
     # ------------------------------------------------------------------ perception
     def snapshot(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Boxes ``(N, 5)``, speeds ``(N,)`` and active flags of all vehicles (ego first)."""
-        boxes = np.array([v.box for v in self.vehicles])
-        speeds = np.array([v.v for v in self.vehicles])
-        active = np.array([v.active for v in self.vehicles])
-        return boxes, speeds, active
+        return _fields(self.vehicles, "box", "v", "active")
 
     def perceive(self) -> dict[str, np.ndarray]:
         """Every vehicle's binding constraint (vectorised corridors + junction conflicts).
@@ -258,13 +257,8 @@ class Traffic:
         n = len(vs)
         act = [i for i, v in enumerate(vs) if v.active]
         sub = [vs[i] for i in act]
-        boxes = np.array([v.box for v in sub])
-        speeds = np.array([v.v for v in sub])
-        pid = np.array([v.pid for v in sub])
-        s = np.array([v.s for v in sub])
-        L = np.array([v.length for v in sub])
-        W = np.array([v.width for v in sub])
-        off = np.array([v.offset for v in sub])
+        boxes, speeds, pid, s, L, W, off = _fields(sub, "box", "v", "pid", "s", "length", "width",
+                                                   "offset")
         win, wh, ws, wk, inside = self.bank.window(pid, s, WIN_POINTS, WIN_STRIDE)
         if np.any(off != 0.0):
             win = win + off[:, None, None] * np.stack([-np.sin(wh), np.cos(wh)], axis=-1)
@@ -393,12 +387,7 @@ class Traffic:
         curve braking.
         """
         vs = self.vehicles
-        v = np.array([x.v for x in vs])
-        a_max = np.array([x.a_max for x in vs])
-        v0 = np.array([x.v0 for x in vs])
-        b = np.array([x.b for x in vs])
-        s0 = np.array([x.s0 for x in vs])
-        T = np.array([x.T for x in vs])
+        v, a_max, v0, b, s0, T = _fields(vs, "v", "a_max", "v0", "b", "s0", "T")
         a = acc_acceleration(v, v0, per["gap"], per["v_lead"], a_max, b, s0, T)
         a_stop = acc_acceleration(v, v0, per["stop"], 0.0, a_max, b, s0, T)
         return np.clip(np.minimum(np.minimum(a, a_stop), per["a_curve"]), -B_MAX, a_max)
