@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from minimanc.checks import check_int
 from minimanc.world.driver import HumanDriver, project_on_path
 from minimanc.world.geometry import wrap_angle
 from minimanc.world.maps import LANE_WIDTH, project_to_route
@@ -70,9 +71,7 @@ class HumanExpert:
     def __init__(self, ds: Any, cache: int = 64) -> None:
         self.ds = ds
         self._S, self._T = np.asarray(ds.ego).shape[:2]
-        if isinstance(cache, bool) or not isinstance(cache, int) or cache < 1:
-            raise ValueError(f"cache must be a positive integer; got cache={cache!r}")
-        self._cache_size = cache
+        self._cache_size = check_int("cache", cache, 1)
         self._runs: dict[int, list[DriverStep]] = {}
 
     # ------------------------------------------------------------------ the human's run
