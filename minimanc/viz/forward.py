@@ -38,6 +38,11 @@ def forwarder(
         ``targets``.
     dir_ : callable
         The module's ``__dir__``.
+
+    Raises
+    ------
+    AttributeError
+        From ``getattr_``, for a name that is not in ``targets``.
     """
     targets = dict(targets)
 

@@ -39,8 +39,18 @@ REFERENCE_COLOURS: dict[str, str] = {"human": "#444444", "dmp_prior": "#a0a0a0"}
 
 
 def model_label(name: str) -> str:
-    """Display name of ``name``: its spec's ``label``, a :data:`REFERENCE_LABELS` entry, or
-    ``name`` itself."""
+    """Display name of a model or reference row.
+
+    Parameters
+    ----------
+    name : str
+        A registered model's name, or a key of :data:`REFERENCE_LABELS`.
+
+    Returns
+    -------
+    label : str
+        The model spec's ``label``, the :data:`REFERENCE_LABELS` entry, or ``name`` itself.
+    """
     from minimanc.models import registry
 
     if name in registry.names():
@@ -49,8 +59,20 @@ def model_label(name: str) -> str:
 
 
 def model_colour(name: str, default: str | None = None) -> str | None:
-    """Colour of ``name`` in figures: its spec's ``colour``, a :data:`REFERENCE_COLOURS`
-    entry, or ``default``."""
+    """Colour of a model or reference row in figures.
+
+    Parameters
+    ----------
+    name : str
+        A registered model's name, or a key of :data:`REFERENCE_COLOURS`.
+    default : str, optional (default: None)
+        Returned for any other name.
+
+    Returns
+    -------
+    colour : str or None
+        The model spec's ``colour``, the :data:`REFERENCE_COLOURS` entry, or ``default``.
+    """
     from minimanc.models import registry
 
     if name in registry.names():
@@ -90,21 +112,53 @@ METRIC_LABELS: dict[str, str] = {
 
 
 def check_metrics(metrics: Sequence[str]) -> None:
-    """Refuse a metric name that has no :data:`METRIC_LABELS` entry (``ValueError``)."""
+    """Refuse a metric name that has no :data:`METRIC_LABELS` entry.
+
+    Parameters
+    ----------
+    metrics : sequence of str
+        Metric names of :mod:`minimanc.metrics`.
+
+    Raises
+    ------
+    ValueError
+        Naming the first unknown metric.
+    """
     for m in metrics:
         if m not in METRIC_LABELS:
             raise ValueError(f"metrics must be names from {sorted(METRIC_LABELS)}; got {m!r}")
 
 
 def pyplot() -> Any:
-    """``matplotlib.pyplot``, imported when the first figure is drawn."""
+    """``matplotlib.pyplot``, imported when the first figure is drawn.
+
+    Returns
+    -------
+    plt : module
+        ``matplotlib.pyplot``.
+    """
     import matplotlib.pyplot as plt
 
     return plt
 
 
 def save(fig: Any, path: str | Path, dpi: int = 110) -> Path:
-    """Write ``fig`` to ``path`` (PNG, parents created) and close it. Returns the path."""
+    """Write ``fig`` to ``path`` as PNG (parent folders created) and close it.
+
+    Parameters
+    ----------
+    fig : matplotlib Figure
+        The figure; closed afterwards.
+    path : str or Path
+        Where to write it.
+    dpi : int, optional (default: 110)
+        Resolution.
+
+    Returns
+    -------
+    path : Path
+        ``path``.
+    """
     plt = pyplot()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -141,7 +195,18 @@ def state_labels(labels: Sequence[str] | None, n_states: int) -> Sequence[str]:
 
 
 def clear_ticks(ax: Any) -> Any:
-    """Remove the x and y ticks of ``ax`` (images); returns ``ax``."""
+    """Remove the x and y ticks of ``ax`` (for images).
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+        The axes.
+
+    Returns
+    -------
+    ax : matplotlib Axes
+        ``ax``, without ticks.
+    """
     ax.set_xticks([])
     ax.set_yticks([])
     return ax
