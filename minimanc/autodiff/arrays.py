@@ -37,6 +37,8 @@ def contains_box(x) -> bool:
 # Shapes, indexing, joining
 # ---------------------------------------------------------------------------
 def _reshape_back(g, ans, x, *args, **kwargs):
+    if type(g) is np.ndarray and type(x) is np.ndarray:
+        return g.reshape(x.shape)
     return np.reshape(g, np.shape(x))
 
 
@@ -158,13 +160,13 @@ defvjp(pad, _pad_vjp)
 
 def _is_basic_index(idx) -> bool:
     """True for ints, slices, None and Ellipsis (no element can be selected twice)."""
-    items = idx if isinstance(idx, tuple) else (idx,)
-    return builtins.all(
-        i is None or i is Ellipsis or isinstance(i, slice | int | np.integer) and not isinstance(
-            i, bool
-        )
-        for i in items
-    )
+    for i in idx if isinstance(idx, tuple) else (idx,):
+        kind = type(i)
+        if kind is slice or kind is int or i is None or i is Ellipsis:
+            continue
+        if not isinstance(i, slice | int | np.integer) or isinstance(i, bool):
+            return False
+    return True
 
 
 def _getitem_fn(x, idx):
@@ -172,7 +174,10 @@ def _getitem_fn(x, idx):
 
 
 def _getitem_vjp(g, ans, x, idx):
-    out = np.zeros(np.shape(x), dtype=np.result_type(g))
+    if type(x) is np.ndarray and type(g) is np.ndarray:
+        out = np.zeros(x.shape, dtype=g.dtype)
+    else:
+        out = np.zeros(np.shape(x), dtype=np.result_type(g))
     if _is_basic_index(idx):
         out[idx] = g
     else:  # fancy indexing may pick an element several times: scatter-add
@@ -191,12 +196,17 @@ def _concatenate_fn(*arrays, axis=0):
 
 def _concatenate_fwd(*arrays, axis=0):
     ans = np.concatenate(arrays, axis=axis)
-    return ans, (np.cumsum([np.shape(a)[axis] for a in arrays])[:-1], axis)
+    return ans, ([np.shape(a)[axis] for a in arrays], axis % ans.ndim)
 
 
 def _concatenate_bwd(g, res):
-    splits, axis = res
-    return tuple(np.split(g, splits, axis=axis))
+    sizes, axis = res
+    lead = (slice(None),) * axis
+    parts, start = [], 0
+    for n in sizes:  # the pieces np.split would give, as views of g
+        parts.append(g[lead + (slice(start, start + n),)])
+        start += n
+    return tuple(parts)
 
 
 _concatenate_fn.__name__ = "concatenate"

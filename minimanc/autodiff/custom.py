@@ -57,7 +57,13 @@ class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
         if kwargs:
             raise TypeError(f"{self.__name__}: a custom_vjp function takes positional "
                             f"arguments only, got keywords {sorted(kwargs)}")
-        if not any(isinstance(a, list | tuple | dict) for a in args):  # flat arguments
+        for a in args:
+            if isinstance(a, list | tuple | dict):
+                nested = True
+                break
+        else:
+            nested = False
+        if not nested:  # flat arguments
             parents = [(k, a) for k, a in enumerate(args) if isinstance(a, Box)]
             if not parents:
                 return self.fun(*args)
@@ -123,12 +129,16 @@ class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
                             f"{n_diff} differentiable arguments")
         it = iter(cts)
         out: list = []
+        nondiff = self.nondiff_argnums
         for i in range(n_args):
-            if i in self.nondiff_argnums:
+            if nondiff and i in nondiff:
                 out += [None] * counts[i]  # a static argument, never traced
                 continue
             ct = next(it)
-            out += tree_flatten(ct)[0] if isinstance(ct, list | tuple | dict) else [ct]
+            if isinstance(ct, list | tuple | dict):
+                out += tree_flatten(ct)[0]
+            else:
+                out.append(ct)
         if len(out) != sum(counts):
             raise TypeError(f"{self.__name__}: bwd returned cotangents whose structure does not "
                             "match the arguments")

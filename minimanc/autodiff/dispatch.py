@@ -118,9 +118,14 @@ def _shape_arg(shape):
 
 
 def _box_getitem(self, idx):
-    if isinstance(idx, tuple):
-        idx = tuple(unbox(i) for i in idx)
-    return getitem(self, unbox(idx))
+    if type(idx) is tuple:
+        for i in idx:
+            if isinstance(i, Box):
+                idx = tuple(unbox(i) for i in idx)
+                break
+    elif isinstance(idx, tuple | Box):
+        idx = tuple(unbox(i) for i in idx) if isinstance(idx, tuple) else idx._value
+    return getitem(self, idx)
 
 
 def _box_len(self):
@@ -129,6 +134,18 @@ def _box_len(self):
 
 def _box_iter(self):
     return (self[i] for i in range(len(self._value)))
+
+
+def _attr(name: str, fun):
+    """The property ``name`` of the value: read off an array directly, else ``fun(value)``."""
+
+    def get(self):
+        value = self._value
+        if type(value) is np.ndarray:
+            return getattr(value, name)
+        return fun(value)
+
+    return get
 
 
 def _comparison(fun):
@@ -150,10 +167,10 @@ _BOX_METHODS = {
     "__gt__": _comparison(np.greater), "__ge__": _comparison(np.greater_equal),
     "__eq__": _comparison(np.equal), "__ne__": _comparison(np.not_equal),
     "__hash__": None,
-    "shape": property(lambda self: np.shape(self._value)),
-    "ndim": property(lambda self: np.ndim(self._value)),
-    "size": property(lambda self: np.size(self._value)),
-    "dtype": property(lambda self: np.result_type(self._value)),
+    "shape": property(_attr("shape", np.shape)),
+    "ndim": property(_attr("ndim", np.ndim)),
+    "size": property(_attr("size", np.size)),
+    "dtype": property(_attr("dtype", np.result_type)),
     "T": property(lambda self: transpose(self)),
     "sum": _method(sum), "mean": _method(mean), "max": _method(max), "min": _method(min),
     "var": _method(var), "std": _method(std), "cumsum": _method(cumsum),
@@ -265,6 +282,10 @@ _UFUNC_DEFAULTS = {"where": True, "casting": "same_kind", "order": "K", "dtype":
 
 def _box_array_ufunc(self, ufunc, method, *inputs, **kwargs):
     """``np.exp(x)``, ``ndarray * x``, ``np.add.reduce(x)`` → our primitive (or a clear error)."""
+    if method == "__call__" and not kwargs:  # the common case: ndarray * x, np.exp(x)
+        ours = _UFUNCS.get(ufunc)
+        if ours is not None:
+            return ours(*inputs)
     display = _np_name(ufunc) + ("" if method == "__call__" else f".{method}")
     out = kwargs.pop("out", None)
     if method == "at" or (out is not None and builtins.any(o is not None for o in out)):

@@ -78,7 +78,10 @@ defvjp(
 
 def _balanced(first, second, g):
     """Weight 1 where ``first`` wins, 1/2 on ties, 0 elsewhere (JAX's convention)."""
-    w = np.where(first > second, 1.0, np.where(first == second, 0.5, 0.0))
+    tie = np.equal(first, second)
+    if not tie.any():  # no ties (the common case): the weight is the comparison itself
+        return g * np.greater(first, second)
+    w = np.where(first > second, 1.0, np.where(tie, 0.5, 0.0))
     return g * w.astype(g.dtype, copy=False)
 
 

@@ -129,10 +129,16 @@ def scan(f: Callable, init, xs, length: int | None = None) -> tuple:
     parents += [(len(init_leaves) + j, b) for j, b in enumerate(xs_leaves) if isinstance(b, Box)]
     outer: dict[int, Box] = {}  # traced values made outside the loop that f uses
     for frame, _, _, c_leaves, y_leaves in steps:
-        used = [p for b in frame.values() for _, p in b._parents]
-        for b in used + [b for b in c_leaves + y_leaves if isinstance(b, Box)]:
-            if id(b) not in frame and id(b) not in step_leaves:
-                outer.setdefault(id(b), b)
+        for box in frame.values():
+            for _, b in box._parents:
+                key = id(b)
+                if key not in frame and key not in step_leaves and key not in outer:
+                    outer[key] = b
+        for b in c_leaves + y_leaves:
+            if isinstance(b, Box):
+                key = id(b)
+                if key not in frame and key not in step_leaves and key not in outer:
+                    outer[key] = b
     base = len(init_leaves) + len(xs_leaves)
     parents += [(base + k, b) for k, b in enumerate(outer.values())]
     out_vals = carry_vals + ys_vals
@@ -182,19 +188,19 @@ def _scan_bwd(g: tuple, res: tuple) -> tuple:
             if isinstance(b, Box) and ct is not None:
                 _accumulate(cts if id(b) in frame else boundary, id(b), ct)
         # the order the boxes were made in is topological: walk it backwards
-        for box in reversed(list(frame.values())):
-            ct = cts.pop(id(box), None)
+        for key in reversed(frame):
+            ct = cts.pop(key, None)
             if ct is None:
                 continue
-            for _, parent, pct in parent_cotangents(box, ct):
-                key = id(parent)
-                into = cts if key in frame else boundary
-                prev = into.get(key)
+            for _, parent, pct in parent_cotangents(frame[key], ct):
+                pkey = id(parent)
+                into = cts if pkey in frame else boundary
+                prev = into.get(pkey)
                 if prev is None:
-                    into[key] = pct
+                    into[pkey] = pct
                 else:
-                    into[key] = (prev + pct if type(prev) is np.ndarray
-                                 else add_cotangents(prev, pct))
+                    into[pkey] = (prev + pct if type(prev) is np.ndarray
+                                  else add_cotangents(prev, pct))
         g_carry = [boundary.get(id(b)) if isinstance(b, Box) else None for b in c_in]
         for j, b in enumerate(x_in):
             if isinstance(b, Box) and id(b) in boundary:

@@ -170,7 +170,8 @@ dtype, finfo, iinfo, ndarray = np.dtype, np.finfo, np.iinfo, np.ndarray
 # Linear algebra
 # ---------------------------------------------------------------------------
 def _check_aligned(name, x, y):
-    sx, sy = np.shape(x), np.shape(y)
+    sx = x.shape if type(x) is np.ndarray else np.shape(x)
+    sy = y.shape if type(y) is np.ndarray else np.shape(y)
     if len(sx) >= 1 and len(sy) >= 1:
         kx, ky = sx[-1], sy[-2] if len(sy) >= 2 else sy[0]
         if kx != ky:
@@ -201,12 +202,22 @@ def _matmul_promoted(g, x, y):
     return g, x, y
 
 
+def _matrices(g, x, y) -> bool:
+    """Both operands (and the cotangent) arrays of at least two dimensions: no promotion."""
+    return (type(x) is np.ndarray and type(y) is np.ndarray and type(g) is np.ndarray
+            and x.ndim >= 2 and y.ndim >= 2)
+
+
 def _matmul_vjp_x(g, ans, x, y):
+    if _matrices(g, x, y):
+        return unbroadcast(x, g @ y.swapaxes(-1, -2))
     g2, x2, y2 = _matmul_promoted(g, x, y)
     return unbroadcast(x2.shape, g2 @ np.swapaxes(y2, -1, -2)).reshape(np.shape(x))
 
 
 def _matmul_vjp_y(g, ans, x, y):
+    if _matrices(g, x, y):
+        return unbroadcast(y, x.swapaxes(-1, -2) @ g)
     g2, x2, y2 = _matmul_promoted(g, x, y)
     return unbroadcast(y2.shape, np.swapaxes(x2, -1, -2) @ g2).reshape(np.shape(y))
 

@@ -45,9 +45,15 @@ def primitive(fun: Callable) -> Callable:
 
     @functools.wraps(fun)
     def traced(*args, **kwargs):
-        parents = [(i, a) for i, a in enumerate(args) if isinstance(a, Box)]
+        parents = None
+        for i, a in enumerate(args):
+            if isinstance(a, Box):
+                if parents is None:
+                    parents, raw = [], list(args)
+                parents.append((i, a))
+                raw[i] = a._value
         try:
-            if not parents:
+            if parents is None:
                 return fun(*args, **kwargs)
             if kwargs:
                 for key, val in kwargs.items():
@@ -56,17 +62,20 @@ def primitive(fun: Callable) -> Callable:
                             f"{name}: keyword argument {key!r} is traced; pass differentiable "
                             "values positionally"
                         )
-            raw = [a._value if isinstance(a, Box) else a for a in args]
-            if traced.fwd is not None:  # custom (fwd, bwd) pair, see defvjp_fwd
-                ans, res = traced.fwd(*raw, **kwargs)
+                if traced.fwd is not None:  # custom (fwd, bwd) pair, see defvjp_fwd
+                    ans, res = traced.fwd(*raw, **kwargs)
+                    box = Box(ans, tuple(parents), traced, (), None, res)
+                elif traced.vjps is None:
+                    raise _no_vjp(name)
+                else:
+                    box = Box(fun(*raw, **kwargs), tuple(parents), traced, raw, kwargs)
+            elif traced.fwd is not None:
+                ans, res = traced.fwd(*raw)
                 box = Box(ans, tuple(parents), traced, (), None, res)
             elif traced.vjps is None:
-                raise NotImplementedError(
-                    f"VJP of primitive '{name}' is not defined: register one with "
-                    f"defvjp({name}, ...) or defvjp_fwd({name}, fwd, bwd)"
-                )
+                raise _no_vjp(name)
             else:
-                box = Box(fun(*raw, **kwargs), tuple(parents), traced, raw, kwargs)
+                box = Box(fun(*raw), tuple(parents), traced, raw, None)
             if FRAMES:  # inside a scan step: the box belongs to that step's tape
                 FRAMES[-1][id(box)] = box
             return box
@@ -81,6 +90,13 @@ def primitive(fun: Callable) -> Callable:
     traced.fwd = None
     traced.bwd = None
     return traced
+
+
+def _no_vjp(name: str) -> NotImplementedError:
+    return NotImplementedError(
+        f"VJP of primitive '{name}' is not defined: register one with "
+        f"defvjp({name}, ...) or defvjp_fwd({name}, fwd, bwd)"
+    )
 
 
 def defvjp(prim: Callable, *vjps: Callable | None) -> None:

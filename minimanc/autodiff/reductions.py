@@ -31,29 +31,57 @@ def _expand(g, axis, keepdims):
     return g if keepdims or axis is None else np.expand_dims(g, axis)
 
 
+def _keep_shape(shape: tuple, axis) -> tuple | None:
+    """``shape`` with the axes ``axis`` (an int or a tuple) set to 1; ``None`` if an axis is
+    out of range (then :func:`numpy.expand_dims` reports it)."""
+    nd = len(shape)
+    axes = (axis,) if isinstance(axis, int) else axis
+    out = list(shape)
+    for a in axes:
+        if not (isinstance(a, int) and -nd <= a < nd):
+            return None
+        out[a] = 1
+    return tuple(out)
+
+
+def _spread(g, x, axis, keepdims):
+    """The cotangent ``g`` of a reduction of ``x`` over ``axis``, copied back to ``x``'s shape."""
+    shape = x.shape if type(x) is np.ndarray else np.shape(x)
+    if type(g) is np.ndarray:
+        if not keepdims and axis is not None:
+            kept = _keep_shape(shape, axis)
+            g = np.expand_dims(g, axis) if kept is None else g.reshape(kept)
+        out = np.empty(shape, dtype=g.dtype)
+        out[...] = g
+        return out
+    return np.broadcast_to(_expand(g, axis, keepdims), shape)
+
+
 @primitive
 def sum(x, axis=None, keepdims=False, dtype=None):  # noqa: A001
     """Sum over ``axis`` (all axes by default)."""
+    if type(x) is np.ndarray:  # the method skips np.sum's dispatch, same computation
+        return x.sum(axis=_axis(axis), keepdims=keepdims, dtype=dtype)
     return np.sum(x, axis=_axis(axis), keepdims=keepdims, dtype=dtype)
 
 
 defvjp(
     sum,
-    lambda g, ans, x, axis=None, keepdims=False, dtype=None: np.broadcast_to(
-        _expand(g, _axis(axis), keepdims), np.shape(x)
-    ),
+    lambda g, ans, x, axis=None, keepdims=False, dtype=None: _spread(g, x, _axis(axis), keepdims),
 )
 
 
 @primitive
 def mean(x, axis=None, keepdims=False, dtype=None):
     """Mean over ``axis`` (all axes by default)."""
+    if type(x) is np.ndarray:
+        return x.mean(axis=_axis(axis), keepdims=keepdims, dtype=dtype)
     return np.mean(x, axis=_axis(axis), keepdims=keepdims, dtype=dtype)
 
 
 def _mean_vjp(g, ans, x, axis=None, keepdims=False, dtype=None):
     count = np.size(x) // builtins.max(np.size(ans), 1)
-    return np.broadcast_to(_expand(g, _axis(axis), keepdims) / count, np.shape(x))
+    return _spread(g / count, x, _axis(axis), keepdims)
 
 
 defvjp(mean, _mean_vjp)
@@ -62,6 +90,14 @@ defvjp(mean, _mean_vjp)
 def _chooser_vjp(g, ans, x, axis=None, keepdims=False):
     """The gradient goes to the arg-max (arg-min) elements, shared equally on ties."""
     axis = _axis(axis)
+    if type(x) is np.ndarray and type(g) is np.ndarray and type(ans) is np.ndarray:
+        if axis is None or keepdims:
+            hit = x == ans
+            return g * hit / hit.sum(axis=axis, keepdims=True).astype(g.dtype)
+        kept = _keep_shape(x.shape, axis)
+        if kept is not None:
+            hit = x == ans.reshape(kept)
+            return g.reshape(kept) * hit / hit.sum(axis=axis, keepdims=True).astype(g.dtype)
     hit = x == _expand(ans, axis, keepdims)
     share = np.sum(hit, axis=axis, keepdims=True).astype(g.dtype)
     return _expand(g, axis, keepdims) * hit / share
