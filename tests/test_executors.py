@@ -8,6 +8,7 @@ import json
 import os
 import shutil
 import sys
+import time
 import types
 from pathlib import Path
 
@@ -15,6 +16,7 @@ import pytest
 
 from minimanc.errors import UsageError
 from minimanc.studies import PRESETS, executors
+from minimanc.studies.config import plan
 from minimanc.studies.report import json_safe
 from minimanc.studies.runner import Study
 
@@ -30,6 +32,11 @@ needs_ray = pytest.mark.skipif(not HAVE_RAY, reason="ray is not installed: "
 
 def add(a, b):
     return a + b
+
+
+def sleep_then(seconds: float, value: int) -> int:
+    time.sleep(seconds)
+    return value
 
 
 def die_once(marker: str, value: int) -> int:
@@ -107,9 +114,9 @@ def test_ray_futures_chain_and_a_lost_worker_is_retried(tmp_path):
         ex.shutdown()
 
 
-def run_tiny(out: Path, executor: str, log: list | None = None) -> str:
+def run_tiny(out: Path, executor: str, log: list | None = None, workers: int = 2) -> str:
     """The ``tiny`` study under ``out``; its results.json text without the wall times."""
-    study = Study(PRESETS["tiny"], out, workers=2 if executor == "ray" else 1, progress=False,
+    study = Study(PRESETS["tiny"], out, workers=workers, progress=False,
                   executor=executor, log=None if log is None else log.append)
     try:
         res = study.run()
@@ -117,6 +124,34 @@ def run_tiny(out: Path, executor: str, log: list | None = None) -> str:
         study.close()
     res.pop("timing_s")
     return json.dumps(json_safe(res), indent=1, sort_keys=True)
+
+
+def test_tiny_study_in_worker_processes_equals_inline(tmp_path):
+    """Trainings and evaluations as jobs of two worker processes (queued as soon as their
+    inputs are known) give the inline run's results.json to the last digit."""
+    inline = run_tiny(tmp_path / "inline", "local", workers=0)
+    shutil.copytree(tmp_path / "inline" / "data", tmp_path / "pool" / "data")
+    log: list[str] = []
+    assert run_tiny(tmp_path / "pool", "local", log, workers=2) == inline
+    assert sum(line.startswith("train:") and line.endswith("submitted") for line in log) == \
+        sum(plan(PRESETS["tiny"])["train"].values())
+
+
+def test_local_executor_waits_for_futures_without_blocking(tmp_path):
+    """A job on an unfinished future is queued once that one finishes; ``submit`` returns at
+    once, and the error of the future it waits for is the job's error."""
+    ex = executors.executor("local", 2)
+    try:
+        slow = ex.submit(sleep_then, 1.0, 3)
+        t0 = time.perf_counter()
+        chained = ex.submit(add, slow, 4)
+        assert time.perf_counter() - t0 < 0.5 and not chained.done()
+        assert chained.result() == 7
+        bad = ex.submit(add, ex.submit(add, "a", 1), 2)
+        with pytest.raises(TypeError):
+            bad.result()
+    finally:
+        ex.shutdown()
 
 
 @needs_ray

@@ -31,7 +31,8 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         if value is not None}
     if training:
         config = replace(config, training=replace(config.training, **training))
-    check_int(args.workers, "--workers", 0)
+    if args.workers is not None:
+        check_int(args.workers, "--workers", 0)
     if args.ray_address is not None and args.executor != "ray":
         raise UsageError(f"--ray-address is for --executor ray; got --executor {args.executor}")
     agents = ("replay", "reactive") if args.agents == "both" else (args.agents,)
@@ -87,8 +88,9 @@ def register(subparsers: Any) -> None:
                    help="the other vehicles in closed loop: replayed from the log (the paper's "
                         "protocol), reactive to the policy's ego, or Table I under both "
                         "(default)")
-    p.add_argument("--workers", type=int, default=1,
-                   help="processes running closed-loop rollouts while training (0 = inline)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="processes running the trainings and closed-loop evaluations "
+                        "(default: one per CPU; 0 = everything in this process)")
     p.add_argument("--executor", choices=EXECUTORS, default="local",
                    help="where the trainings and evaluations run: this machine's process "
                         "pool, or Ray tasks (install minimanc[ray]; default local)")

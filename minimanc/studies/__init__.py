@@ -37,8 +37,8 @@ cannot be read (a checkpoint or data file truncated by a killed run, a file
 of an older format, a broken metrics file) is deleted with a note on stderr
 and recomputed, so a re-run always recovers.  A run that diverged is recorded
 (``diverged.json``) and scored as infinite without training it again.
-Closed-loop rollouts can run in worker
-processes while the main process trains (:attr:`Study.workers`).
+Trainings and closed-loop evaluations run in worker processes, one per CPU by
+default (:attr:`Study.workers`), or as Ray tasks.
 
 The findings (:func:`findings`) are generated from the numbers: each of the
 paper's claims is checked and reported as holding or not, with the values.

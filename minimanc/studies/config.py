@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections import Counter
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
@@ -181,3 +182,39 @@ def canonical_setting(model: str, setting: str) -> str:
     if inputs.visible(model, "paper") == inputs.visible(model, setting):
         return "paper"
     return setting
+
+
+def plan(c: StudyConfig, agents: int = 2) -> dict:
+    """What a study of ``c`` computes: ``{"train": Counter((model, fraction) → number of
+    trainings), "rollouts": {"tune": n, "val": n}}`` (closed-loop evaluations). A sweep run
+    at seed 0 and full data that wins its sweep is the Table I run of seed 0: it is
+    counted once. Table I's runs are driven once more per protocol of the ados beyond the
+    first (``agents`` protocols in all)."""
+    pairs = [(m, s) for s in c.settings for m in c.table_models]
+    pairs += [(m, "paper") for m in c.ablation_models + c.sample_models]
+    sweep = {(m, canonical_setting(m, s), c.n_states, 1.0, 0, lr)
+             for m, s in pairs for lr in (c.lrs if len(c.lrs) > 1 else ())}
+    main: set = set()
+
+    def add(m: str, s: str, n: int, f: float) -> None:
+        main.update((m, canonical_setting(m, s), n, f, sd, "best") for sd in c.seeds)
+
+    for s in c.settings:
+        for m in c.table_models:
+            add(m, s, c.n_states, 1.0)
+    for m in c.sample_models:
+        for f in c.fractions:
+            add(m, "paper", c.n_states, f)
+    for n in c.q_states:
+        add("manc", "paper", int(n), 1.0)
+    for m in c.ablation_models:
+        add(m, "paper", c.n_states, 1.0)
+    tuned = {(r[0], r[1]) for r in sweep}
+    shared = {r for r in main if r[4] == 0 and r[3] == 1.0 and r[2] == c.n_states
+              and (r[0], r[1]) in tuned}
+    trains = Counter((r[0], r[3]) for r in (main - shared) | sweep)
+    table = {(m, canonical_setting(m, s), sd) for s in c.settings for m in c.table_models
+             for sd in c.seeds}
+    return {"train": trains, "rollouts": {"tune": len(sweep),
+                                          "val": len(main) + (agents - 1) * len(table)}}
+

@@ -32,13 +32,23 @@ from minimanc.checks import check_int
 from minimanc.errors import UsageError
 
 __all__ = ["EXECUTORS", "RAY_MISSING", "Done", "LocalExecutor", "RayExecutor", "RayFuture",
-           "check_ray", "evaluate_trained", "executor", "load_scenes", "train_job", "train_runs"]
+           "check_ray", "evaluate_trained", "executor", "is_future", "load_scenes", "train_job",
+           "train_runs", "usable_cpus"]
 
 EXECUTORS = ("local", "ray")
 """The executors :func:`executor` builds."""
 
 RAY_MISSING = ("--executor ray needs Ray, which is not installed: pip install 'minimanc[ray]' "
                "(or pip install 'ray>=2.9')")
+
+
+def usable_cpus() -> int:
+    """The number of CPUs this process may run on (its affinity mask where the system has
+    one, else ``os.cpu_count()``; at least 1): the default number of workers."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except AttributeError:  # macOS, Windows
+        return max(os.cpu_count() or 1, 1)
 
 
 def check_ray() -> None:
@@ -62,15 +72,25 @@ class Done:
     def done(self) -> bool:
         return True
 
+    def add_done_callback(self, fn: Callable[[Any], None]) -> None:
+        fn(self)
+
+
+def is_future(a: Any) -> bool:
+    """Whether ``a`` is a future of an executor (it has ``result`` and ``done``)."""
+    return hasattr(a, "result") and hasattr(a, "done")
+
 
 def _resolved(args: tuple) -> tuple:
-    return tuple(a.result() if hasattr(a, "result") and hasattr(a, "done") else a for a in args)
+    return tuple(a.result() if is_future(a) else a for a in args)
 
 
 class LocalExecutor:
     """Jobs on this machine: ``workers`` spawned processes (``0``: inline, in the caller).
 
-    A future among the arguments is waited for in the caller before the job starts.
+    A job whose arguments hold unfinished futures is queued once they have finished (a
+    thread of the caller waits for them), so ``submit`` never blocks while a worker could
+    be busy; an error of a future it waited for becomes the job's error.
     """
 
     name = "local"
@@ -80,17 +100,35 @@ class LocalExecutor:
         self._pool: Any = None
 
     def submit(self, fn: Callable, *args: Any) -> Any:
-        """Start ``fn(*args)``; returns a future (``result()``, ``done()``)."""
-        args = _resolved(args)
+        """Start ``fn(*args)``; returns a future (``result()``, ``done()``,
+        ``add_done_callback``)."""
         if self.workers == 0:
-            return Done(fn(*args))
+            return Done(fn(*_resolved(args)))
+        pool = self._ensure_pool()
+        if all(a.done() for a in args if is_future(a)):
+            return pool.submit(fn, *_resolved(args))
+        import threading
+        from concurrent.futures import Future
+
+        out: Future = Future()
+
+        def start_when_ready() -> None:
+            try:
+                out.set_result(pool.submit(fn, *_resolved(args)).result())
+            except BaseException as exc:  # noqa: BLE001 - handed to whoever waits for `out`
+                out.set_exception(exc)
+
+        threading.Thread(target=start_when_ready, daemon=True).start()
+        return out
+
+    def _ensure_pool(self) -> Any:
         if self._pool is None:
             import multiprocessing as mp
             from concurrent.futures import ProcessPoolExecutor
 
             self._pool = ProcessPoolExecutor(max_workers=self.workers,
                                              mp_context=mp.get_context("spawn"))
-        return self._pool.submit(fn, *args)
+        return self._pool
 
     def shutdown(self) -> None:
         """Wait for the running jobs and stop the worker processes."""
@@ -115,6 +153,10 @@ class RayFuture:
 
         ready, _ = ray.wait([self.ref], timeout=0)
         return bool(ready)
+
+    def add_done_callback(self, fn: Callable[[Any], None]) -> None:
+        """Call ``fn(self)`` once the task has finished (in a thread of Ray's)."""
+        self.ref.future().add_done_callback(lambda _: fn(self))
 
 
 class RayExecutor:

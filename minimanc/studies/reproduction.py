@@ -19,7 +19,7 @@ from minimanc.studies.runner import Study
 __all__ = ["reproduce"]
 
 
-def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers: int = 1,
+def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers: int | None = None,
               progress: bool = True, figures: bool = True,
               log: Callable[[str], None] | None = None,
               agents: Sequence[str] = ("replay", "reactive"),

@@ -2,8 +2,8 @@
 studies (Table I under both protocols of the ados, per scenario family, sample efficiency,
 q-states, self-ablation, parameter counts, and whether vAGN's q-states are driving modes),
 with the cache under the output directory, the learning-rate sweeps on the tuning split,
-and the executor the jobs run on (:mod:`minimanc.studies.executors`: this machine's
-pool of rollout workers, or Ray tasks); optionally the seeds (and a sweep's learning
+and the executor the jobs run on (:mod:`minimanc.studies.executors`: a pool of worker
+processes on this machine, or Ray tasks); optionally the seeds (and a sweep's learning
 rates) of one configuration train together (:func:`minimanc.train.fit_many`)."""
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from typing import Any
 from minimanc import metrics
 from minimanc.checks import check_int
 from minimanc.engine import ENGINES
-from minimanc.studies.config import Run, StudyConfig, canonical_setting
+from minimanc.studies.config import Run, StudyConfig, canonical_setting, plan
 from minimanc.studies.executors import (
     EXECUTORS,
     Done,
@@ -27,6 +27,7 @@ from minimanc.studies.executors import (
     executor,
     train_job,
     train_runs,
+    usable_cpus,
 )
 from minimanc.studies.jobs import (
     FAMILIES,
@@ -48,16 +49,18 @@ a local job would)."""
 class Study:
     """Runs the studies of one :class:`StudyConfig` under ``out`` (see :mod:`minimanc.studies`).
 
-    ``engine`` trains and drives ("jax" or "numpy"); ``workers`` processes do
-    the closed-loop rollouts while the main process trains (0: inline);
+    ``engine`` trains and drives ("jax" or "numpy"); ``workers`` processes run the
+    trainings and closed-loop evaluations, every job queued as soon as what it needs is
+    known (0: everything inline in this process, one after the other; ``None``: one per
+    CPU this process may use, :func:`minimanc.studies.executors.usable_cpus`);
     ``progress`` shows tqdm bars; ``log`` receives one line per event.
     ``agents`` are the protocols of the ados Table I is reported under
     (:data:`minimanc.rollout.AGENTS`, default both); the first one also tunes the
     learning rates and scores the other studies.
-    ``executor``: ``"local"`` (training in this process, rollouts in ``workers``
-    processes) or ``"ray"`` (trainings and rollouts as Ray tasks: the cluster at
-    ``ray_address`` or ``RAY_ADDRESS``, else a local Ray with ``workers`` CPUs; the
-    output directory must be on a file system every node sees). ``seeds_together``:
+    ``executor``: ``"local"`` (this machine's ``workers`` processes) or ``"ray"``
+    (trainings and rollouts as Ray tasks: the cluster at ``ray_address`` or
+    ``RAY_ADDRESS``, else a local Ray with ``workers`` CPUs; the output directory must be
+    on a file system every node sees). ``seeds_together``:
     train the runs of one configuration in one vmapped step
     (:func:`minimanc.train.fit_many`; results equal to training them one by one, to
     float32 rounding). Off by default: on XLA's CPU backend a convolution vmapped over
@@ -66,7 +69,7 @@ class Study:
     """
 
     def __init__(self, config: StudyConfig, out: str | Path, engine: str = "jax",
-                 workers: int = 1, progress: bool = True,
+                 workers: int | None = None, progress: bool = True,
                  log: Callable[[str], None] | None = None,
                  agents: Sequence[str] = ("replay", "reactive"),
                  executor: str = "local", ray_address: str | None = None,
@@ -77,7 +80,7 @@ class Study:
             raise ValueError(f"config must be a StudyConfig; got config={config!r}")
         if engine not in ENGINES:
             raise ValueError(f"engine must be one of {ENGINES}; got engine={engine!r}")
-        check_int("workers", workers, 0)
+        workers = usable_cpus() if workers is None else check_int("workers", workers, 0)
         if executor not in EXECUTORS:
             raise ValueError(f"executor must be one of {EXECUTORS}; got executor={executor!r}")
         if executor == "ray":
@@ -110,6 +113,7 @@ class Study:
         self._sweeps: dict[str, dict] = {}
         self.timing: dict[str, float] = {}
         self._bar: Any = None
+        self._train_bar: Any = None
         self._references: dict[str, dict] = {}
 
     # ----------------------------------------------------------------- data
@@ -214,7 +218,7 @@ class Study:
                    "checkpoints": [str(self.checkpoint(r)) for r in group],
                    "engine": self.engine, "jax_cache": str(self.jax_cache)}
             keys = ", ".join(r.key for r in group)
-            if self.executor == "ray":
+            if self.pooled:
                 fut = self._executor().submit(train_job, job)
                 self.log(f"train: {keys} submitted")
             else:
@@ -228,6 +232,8 @@ class Study:
                         self.log(f"train: {r.key} diverged; scored as inf")
             for k, r in enumerate(group):
                 self._trained[r.key] = (fut, k)
+            n_runs = len(group)
+            fut.add_done_callback(lambda _, n=n_runs: self._tick_training(n))
         return {r.key: self._trained[r.key] for r in runs}
 
     def _diverged(self, run: Run) -> bool:
@@ -280,19 +286,17 @@ class Study:
             job = {"data": str(self.data_path), "lo": lo, "hi": hi, "engine": self.engine,
                    "rollout": str(roll_path), "metrics": str(met_path),
                    "jax_cache": str(self.jax_cache), "agents": agents}
-            if self.executor == "ray":  # runs once its training task has finished
+            if self.pooled:  # runs once its training job has finished
                 fut = self._executor().submit(evaluate_trained, trained, k, job)
             elif self._diverged(run):
                 fut = Done(failed("training diverged"))
-            elif self.workers > 0:
-                fut = self._executor().submit(evaluate_trained, trained.result(), k, job)
             else:
                 t0 = time.perf_counter()
                 fut = Done(evaluate_trained(trained.result(), k, job))
                 self.timing["rollout"] = (self.timing.get("rollout", 0.0)
                                           + time.perf_counter() - t0)
         self._futures[key] = fut
-        self._tick()
+        fut.add_done_callback(self._tick)
         return fut
 
     def _executor(self) -> Any:
@@ -381,9 +385,21 @@ class Study:
         for r in runs:
             self.submit(r, agents=agents)
 
-    def _tick(self) -> None:
+    def _tick(self, _future: Any = None) -> None:
+        """One evaluation finished: advance its progress bar."""
         if self._bar is not None:
             self._bar.update(1)
+
+    def _tick_training(self, n: int) -> None:
+        """``n`` trainings finished: advance their progress bar."""
+        if self._train_bar is not None:
+            self._train_bar.update(n)
+
+    @property
+    def pooled(self) -> bool:
+        """Whether trainings and evaluations run as jobs of the executor (Ray, or a local
+        pool of ``workers`` processes) rather than in this process."""
+        return self.executor == "ray" or self.workers > 0
 
     def _reference(self, name: str, agents: str) -> dict:
         """The scores of a driver without learning on the validation split (cached in memory)."""
@@ -557,25 +573,12 @@ class Study:
 
     def n_runs(self) -> int:
         """Number of closed-loop evaluations (tuning and validation, each protocol) of the
-        whole study (for the progress bar)."""
-        c = self.config
-        keys = set()
-        for m, s in self._sweep_pairs():
-            for lr in (c.lrs if len(c.lrs) > 1 else ()):
-                keys.add((m, canonical_setting(m, s), c.n_states, 1.0, 0, lr))
-        for a in self.agents:
-            for s in c.settings:
-                for m in c.table_models:
-                    keys.update((m, canonical_setting(m, s), c.n_states, 1.0, sd,
-                                 None if a == self.primary else a) for sd in c.seeds)
-        for m in c.sample_models:
-            for f in c.fractions:
-                keys.update((m, "paper", c.n_states, f, sd, None) for sd in c.seeds)
-        for n in c.q_states:
-            keys.update(("manc", "paper", n, 1.0, sd, None) for sd in c.seeds)
-        for m in c.ablation_models:
-            keys.update((m, "paper", c.n_states, 1.0, sd, None) for sd in c.seeds)
-        return len(keys)
+        whole study (for the progress bar; :func:`minimanc.studies.config.plan`)."""
+        return sum(plan(self.config, len(self.agents))["rollouts"].values())
+
+    def n_trainings(self) -> int:
+        """Number of trainings of the whole study (:func:`minimanc.studies.config.plan`)."""
+        return sum(plan(self.config, len(self.agents))["train"].values())
 
     def _sweep_pairs(self) -> list[tuple[str, str]]:
         c = self.config
@@ -590,20 +593,45 @@ class Study:
                 out.append(k)
         return out
 
+    def submit_studies(self) -> None:
+        """Queue every training and evaluation of Table I and the studies before waiting for
+        any (each configuration once its learning rate is tuned), so the executor's
+        workers never wait for this process to ask for the next one."""
+        c = self.config
+        for a in self.agents:
+            for s in c.settings:
+                for m in c.table_models:
+                    self._submit_all(self.runs(m, s), a)
+        for m in c.sample_models:
+            for f in c.fractions:
+                self._submit_all(self.runs(m, "paper", fraction=f))
+        for n in c.q_states:
+            self._submit_all(self.runs("manc", "paper", n_states=n))
+        for m in c.ablation_models:
+            self._submit_all(self.runs(m, "paper"))
+
     # ----------------------------------------------------------------- everything
 
     def run(self) -> dict:
         """Every study; returns the ``results`` dict written to ``results.json``."""
         t0 = time.perf_counter()
         self.datasets()
-        bar = None
-        if self.progress:
+        bar = train_bar = None
+        if self.progress and self.pooled:
+            from tqdm import tqdm
+
+            train_bar = tqdm(total=self.n_trainings(), desc="reproduce: trainings",
+                             unit="run", position=0)
+            bar = tqdm(total=self.n_runs(), desc="reproduce: evaluations", unit="run",
+                       position=1)
+        elif self.progress:
             from tqdm import tqdm
 
             bar = tqdm(total=self.n_runs(), desc="reproduce: runs", unit="run")
-        self._bar = bar
+        self._bar, self._train_bar = bar, train_bar
         try:
             self.start_sweeps(self._sweep_pairs())
+            self.submit_studies()
             results = {
                 "config": asdict(self.config),
                 "engine": self.engine,
@@ -620,9 +648,10 @@ class Study:
                 "modes": self.modes(),
             }
         finally:
-            if bar is not None:
-                bar.close()
-            self._bar = None
+            for b in (train_bar, bar):
+                if b is not None:
+                    b.close()
+            self._bar = self._train_bar = None
         results["lr"] = {f"{m}-{s}": lr for (m, s), lr in sorted(self._lr.items())}
         results["sweeps"] = self._sweeps
         results["findings"] = findings(results)
