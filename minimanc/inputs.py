@@ -81,6 +81,7 @@ __all__ = [
     "KEYS",
     "LANE_SCALE",
     "MOTION_SCALE",
+    "PER_SCENE_KEYS",
     "SETTINGS",
     "from_dataset",
     "from_state",
@@ -97,6 +98,10 @@ SETTINGS: tuple[str, ...] = ("paper", "parity")
 
 KEYS: tuple[str, ...] = ("bev", "goal", "lane_target", "motion", "goal_bev")
 """All observation keys."""
+
+PER_SCENE_KEYS: tuple[str, ...] = ("goal_bev",)
+"""Observation keys that are the same at every step of a scene (the map at the goal
+pose): :func:`minimanc.models.sequence` encodes them once per window."""
 
 GOAL_SCALE: tuple[float, float, float] = (50.0, 50.0, float(np.pi))
 """Divisors for the goal ``[x (m), y (m), yaw (rad)]`` before dense layers."""

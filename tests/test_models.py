@@ -22,7 +22,8 @@ def _obs(rng, cfg=CFG, lead=(B,)):
         "goal": rng.normal(size=lead + (3,)) * 20,
         "lane_target": straight + rng.normal(0, 0.5, lead + (cfg.k_targets, 2)),
         "motion": np.stack([rng.uniform(0, 12, lead), rng.normal(0, 0.1, lead)], -1),
-        "goal_bev": rng.random(lead + (s, s, 3)),
+        # a scene's raster: the same at every step of a window (lead (L, B))
+        "goal_bev": np.broadcast_to(rng.random(lead[-1:] + (s, s, 3)), lead + (s, s, 3)).copy(),
     }
 
 
@@ -100,6 +101,19 @@ def test_sequence_equals_repeated_steps(name, eng_np):
         np.testing.assert_allclose(seq[t], out, rtol=1e-12, atol=1e-12)
     for k in state:
         np.testing.assert_allclose(final[k], state[k], rtol=1e-12)
+
+
+def test_sequence_encodes_the_goal_raster_once_per_window_and_refuses_one_that_changes(eng_np):
+    """RvS-G's goal raster is a scene's: ``sequence`` runs the backbone on it once per
+    window (equal to the steps, above); a raster that changes over the window is refused."""
+    rng = np.random.default_rng(3)
+    params = models.init("rvs_g", rng, CFG)
+    obs = inputs.select(_obs(rng, CFG, lead=(3, B)), "rvs_g")
+    state = models.initial_state("rvs_g", B, CFG, dtype=np.float64)
+    models.sequence("rvs_g", params, obs, state, CFG, eng_np)
+    obs["goal_bev"][2, 0, 0, 0, 0] += 0.5
+    with pytest.raises(ValueError, match=r"obs_seq\['goal_bev'\] must be the same at every step"):
+        models.sequence("rvs_g", params, obs, state, CFG, eng_np)
 
 
 @pytest.mark.parametrize("name", models.DMP_MODELS)

@@ -11,6 +11,7 @@ has them, the numeric inputs of :func:`minimanc.inputs.numeric_features` — and
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -27,6 +28,7 @@ from minimanc.tree import map as tree_map
 __all__ = [
     "cast_tree",
     "check_obs",
+    "check_per_scene",
     "encode",
     "init",
     "initial_state",
@@ -212,6 +214,19 @@ def check_obs(name: str, obs: dict, cfg: ModelConfig, lead: int) -> None:
                              f"(k_targets={cfg.k_targets}), got {lt}")
 
 
+def check_per_scene(obs_seq: dict, seen: Sequence[str]) -> list[str]:
+    """The keys of :data:`minimanc.inputs.PER_SCENE_KEYS` among ``seen`` in the time-major
+    ``obs_seq``; ValueError if one of them, given as a NumPy array, differs between steps
+    (a traced array is not inspected: the training batches repeat one scene's raster)."""
+    keys = [k for k in inputs.PER_SCENE_KEYS if k in seen and k in obs_seq]
+    for k in keys:
+        v = obs_seq[k]
+        if isinstance(v, np.ndarray) and not (v == v[:1]).all():
+            raise ValueError(f"obs_seq[{k!r}] must be the same at every step of a window (it "
+                             f"is a scene's, not a step's); got one that changes over time")
+    return keys
+
+
 def encode(spec: ModelSpec, params: dict, obs: dict, cfg: ModelConfig, eng: Any) -> dict:
     """The per-frame part of a model (no recurrence).
 
@@ -313,7 +328,9 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
     """Run ``L`` steps on time-major observations.
 
     Equal to ``L`` calls of :func:`step` (tested), but the backbone runs once on
-    all ``L·B`` frames and the time loop is one ``eng.scan`` on both engines.
+    all ``L·B`` frames (once per window on the observations of
+    :data:`minimanc.inputs.PER_SCENE_KEYS`, which must be the same at every step)
+    and the time loop is one ``eng.scan`` on both engines.
     Used to train the recurrent models on truncated back-propagation-through-time
     windows.
 
@@ -345,7 +362,9 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
     xp = eng.xp
     L, B = obs_seq["bev"].shape[:2]
     seen = inputs.visible(name, cfg.setting)
-    flat = {k: xp.reshape(xp.asarray(v), (L * B,) + tuple(v.shape[2:]))
+    per_scene = check_per_scene(obs_seq, seen)
+    flat = {k: xp.asarray(v)[0] if k in per_scene else
+            xp.reshape(xp.asarray(v), (L * B,) + tuple(v.shape[2:]))
             for k, v in obs_seq.items() if k in seen}
     enc = encode(spec, params, flat, cfg, eng)
     enc.pop("features")

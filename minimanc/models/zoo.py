@@ -162,8 +162,11 @@ def _rvs_g_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
 
 def _rvs_g_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig,
                   eng: Any) -> dict:
-    fg = backbone(params["backbone"], obs["goal_bev"], cfg, eng)
-    return {"pre": _with_num([flatten(f, eng.xp), flatten(fg, eng.xp)], num, eng.xp)}
+    fg = flatten(backbone(params["backbone"], obs["goal_bev"], cfg, eng), eng.xp)
+    reps = f.shape[0] // fg.shape[0]  # sequence(): one goal raster per window, for its L steps
+    if reps > 1:
+        fg = eng.xp.concatenate([fg] * reps, axis=0)
+    return {"pre": _with_num([flatten(f, eng.xp), fg], num, eng.xp)}
 
 
 # --------------------------------------------------------------------------- manc
