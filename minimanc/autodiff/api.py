@@ -3,7 +3,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import gc
 import numbers
 from collections.abc import Callable, Sequence
 
@@ -14,6 +16,25 @@ from minimanc.autodiff.pytrees import tree_flatten
 from minimanc.autodiff.reverse import backward
 
 __all__ = ["grad", "value_and_grad"]
+
+
+@contextlib.contextmanager
+def _collector_paused():
+    """Pause Python's cyclic garbage collector while a gradient is traced and run back.
+
+    A trace allocates tens of thousands of small objects (one box per operation) that
+    all stay alive until the backward pass; each allocation burst would otherwise
+    trigger collections that walk them (and every other live object) again, at no
+    gain. Reference counting still frees the tape at the end; the collector's state
+    is restored, so a nested call leaves it paused for the outer one.
+    """
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
 
 
 def _check_leaf(leaf, argnum: int, path: str) -> np.ndarray:
@@ -89,44 +110,51 @@ def value_and_grad(
             boxes = [Box(a) for a in arrays]
             per_arg.append((boxes, rebuild, leaves))
             args[n] = rebuild(boxes)
-        TRACING[0] += 1
-        try:
-            out = fun(*args, **kwargs)
-        finally:
-            TRACING[0] -= 1
-        if has_aux:
-            if not (isinstance(out, tuple | list) and len(out) == 2):
-                raise ValueError("has_aux=True requires the function to return (value, aux)")
-            out, aux = out
-            aux = strip_boxes(aux)
-        _check_output(out, has_aux)
-        shape, dtype = np.shape(unbox(out)), np.result_type(unbox(out))
-        if shape != ():
-            raise TypeError(
-                f"grad requires a scalar output (shape ()), got shape {shape}; reduce it "
-                "first, e.g. with .sum() or .mean()"
-            )
-        if not np.issubdtype(dtype, np.floating):
-            raise TypeError(f"grad requires a real floating-point output, got {dtype}")
-        cts = backward(out, np.ones((), dtype=dtype)) if isinstance(out, Box) else {}
-        grads = []
-        for boxes, rebuild, leaves in per_arg:
-            gl = []
-            for box, leaf in zip(boxes, leaves):
-                g = cts.get(id(box))
-                val = box._value
-                if g is None:
-                    g = np.zeros_like(val)
-                g = np.asarray(g, dtype=val.dtype)
-                if not g.flags.writeable:
-                    g = g.copy()
-                gl.append(float(g) if isinstance(leaf, float) else g)
-            grads.append(rebuild(gl))
-        grads = tuple(grads) if multi else grads[0]
-        value = unbox(out)
-        return ((value, aux) if has_aux else value), grads
+        with _collector_paused():
+            return _trace_and_backward(fun, args, kwargs, per_arg, has_aux, multi)
 
     return wrapped
+
+
+def _trace_and_backward(fun: Callable, args: list, kwargs: dict, per_arg: list, has_aux: bool,
+                        multi: bool) -> tuple:
+    """The value and the gradient of ``fun`` at ``args`` (inputs already boxed)."""
+    TRACING[0] += 1
+    try:
+        out = fun(*args, **kwargs)
+    finally:
+        TRACING[0] -= 1
+    if has_aux:
+        if not (isinstance(out, tuple | list) and len(out) == 2):
+            raise ValueError("has_aux=True requires the function to return (value, aux)")
+        out, aux = out
+        aux = strip_boxes(aux)
+    _check_output(out, has_aux)
+    shape, dtype = np.shape(unbox(out)), np.result_type(unbox(out))
+    if shape != ():
+        raise TypeError(
+            f"grad requires a scalar output (shape ()), got shape {shape}; reduce it "
+            "first, e.g. with .sum() or .mean()"
+        )
+    if not np.issubdtype(dtype, np.floating):
+        raise TypeError(f"grad requires a real floating-point output, got {dtype}")
+    cts = backward(out, np.ones((), dtype=dtype)) if isinstance(out, Box) else {}
+    grads = []
+    for boxes, rebuild, leaves in per_arg:
+        gl = []
+        for box, leaf in zip(boxes, leaves):
+            g = cts.get(id(box))
+            val = box._value
+            if g is None:
+                g = np.zeros_like(val)
+            g = np.asarray(g, dtype=val.dtype)
+            if not g.flags.writeable:
+                g = g.copy()
+            gl.append(float(g) if isinstance(leaf, float) else g)
+        grads.append(rebuild(gl))
+    grads = tuple(grads) if multi else grads[0]
+    value = unbox(out)
+    return ((value, aux) if has_aux else value), grads
 
 
 def grad(fun: Callable, argnums: int | Sequence[int] = 0, has_aux: bool = False) -> Callable:

@@ -21,7 +21,7 @@ def unbox_all(x):
     """``x`` with traced values (also inside lists and tuples) replaced by their values."""
     if isinstance(x, Box):
         return x._value
-    if isinstance(x, list | tuple):
+    if isinstance(x, (list, tuple)):
         return type(x)(unbox_all(v) for v in x)
     return x
 
@@ -30,7 +30,7 @@ def contains_box(x) -> bool:
     """True if ``x`` is traced or a list/tuple holding a traced value."""
     if isinstance(x, Box):
         return True
-    return isinstance(x, list | tuple) and builtins.any(contains_box(v) for v in x)
+    return isinstance(x, (list, tuple)) and builtins.any(contains_box(v) for v in x)
 
 
 # ---------------------------------------------------------------------------
@@ -252,7 +252,7 @@ def asarray(x, dtype=None):
     """``x`` as an array; traced values stay traced (lists of them are stacked)."""
     if isinstance(x, Box):
         return x if dtype is None or np.dtype(dtype) == x._value.dtype else astype(x, dtype)
-    if isinstance(x, list | tuple) and contains_box(x):
+    if isinstance(x, (list, tuple)) and contains_box(x):
         out = stack([asarray(v) for v in x])
         return out if dtype is None else astype(out, dtype)
     return np.asarray(x, dtype=dtype)

@@ -29,6 +29,9 @@ from minimanc.autodiff.pytrees import tree_flatten
 
 __all__ = ["custom_vjp"]
 
+_CONTAINERS = (list, tuple, dict)  # a pytree argument, flattened into its leaves
+_SEQUENCES = (tuple, list)
+
 
 class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
     """``fun`` with the VJP registered by :meth:`defvjp`; one tape node per call.
@@ -57,20 +60,20 @@ class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
         if kwargs:
             raise TypeError(f"{self.__name__}: a custom_vjp function takes positional "
                             f"arguments only, got keywords {sorted(kwargs)}")
-        for a in args:
-            if isinstance(a, list | tuple | dict):
+        parents, raw, nested = [], list(args), False
+        for k, a in enumerate(args):
+            if isinstance(a, Box):
+                parents.append((k, a))
+                raw[k] = a._value
+            elif isinstance(a, _CONTAINERS):
                 nested = True
                 break
-        else:
-            nested = False
         if not nested:  # flat arguments
-            parents = [(k, a) for k, a in enumerate(args) if isinstance(a, Box)]
             if not parents:
                 return self.fun(*args)
             flat, owner, counts = None, range(len(args)), [1] * len(args)
         else:
-            flat = [tree_flatten(a) if isinstance(a, list | tuple | dict) else None
-                    for a in args]
+            flat = [tree_flatten(a) if isinstance(a, _CONTAINERS) else None for a in args]
             leaves, owner = [], []  # every leaf of every argument, and its argument's index
             for i, (a, f) in enumerate(zip(args, flat)):
                 arg_leaves = [a] if f is None else f[0]
@@ -83,17 +86,15 @@ class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
         if self.fwd is None:
             raise NotImplementedError(f"{self.__name__}: register its VJP with .defvjp(fwd, bwd)")
         nondiff = self.nondiff_argnums
-        for k, _ in parents:
+        for k, _ in parents if nondiff else ():
             if owner[k] in nondiff:
                 raise TypeError(f"{self.__name__}: argument {owner[k]} is traced but listed in "
                                 f"nondiff_argnums={nondiff}")
-        if flat is None:
-            raw = [unbox(a) for a in args]
-        else:
+        if flat is not None:
             raw = [unbox(a) if f is None else f[2]([unbox(v) for v in f[0]])
                    for a, f in zip(args, flat)]
         out, res = self.fwd(*raw)
-        multi = isinstance(out, tuple | list)
+        multi = isinstance(out, _SEQUENCES)
         value = Outputs(out) if multi else out
         shapes = None if not multi else [
             (o.shape, o.dtype) if type(o) is np.ndarray else (np.shape(o), np.result_type(o))
@@ -120,7 +121,7 @@ class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
             g = tuple(np.zeros(s, dtype=d) if gk is None else gk
                       for gk, (s, d) in zip(g, shapes))
         cts = self.bwd(*nondiff_vals, res, g)
-        if not isinstance(cts, tuple | list):
+        if not isinstance(cts, _SEQUENCES):
             raise TypeError(f"{self.__name__}: bwd must return a tuple of cotangents, got "
                             f"{type(cts).__name__}")
         n_diff = n_args - len(self.nondiff_argnums)
@@ -135,7 +136,7 @@ class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
                 out += [None] * counts[i]  # a static argument, never traced
                 continue
             ct = next(it)
-            if isinstance(ct, list | tuple | dict):
+            if isinstance(ct, _CONTAINERS):
                 out += tree_flatten(ct)[0]
             else:
                 out.append(ct)

@@ -67,7 +67,7 @@ def _check_carry(new, paths: list[str], new_paths: list[str], ref: list) -> None
 
 
 def _split_step_output(out) -> tuple:
-    if not (isinstance(out, tuple | list) and len(out) == 2):
+    if not (isinstance(out, (tuple, list)) and len(out) == 2):
         raise TypeError(f"scan: f(carry, x) must return a pair (new_carry, y), got "
                         f"{type(out).__name__}")
     return out

@@ -35,7 +35,7 @@ def tree_flatten(tree) -> tuple[list, list[str], Callable[[Sequence], Any]]:
             keys = _dict_keys(node)
             subs = [build(node[k], f"{path}[{k!r}]") for k in keys]
             return lambda it: type(node)(zip(keys, [s(it) for s in subs]))
-        if isinstance(node, list | tuple):
+        if isinstance(node, (list, tuple)):
             subs = [build(c, f"{path}[{i}]") for i, c in enumerate(node)]
             if hasattr(node, "_fields"):  # namedtuple
                 return lambda it: type(node)(*[s(it) for s in subs])

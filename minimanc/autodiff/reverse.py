@@ -79,7 +79,7 @@ def parent_cotangents(box: Box, g: np.ndarray) -> list:
     out = []
     if prim.bwd is not None:
         cts = prim.bwd(g, box._res)
-        if not isinstance(cts, tuple | list):
+        if not isinstance(cts, (tuple, list)):
             cts = (cts,)
         n = len(cts)
         for argnum, parent in box._parents:
