@@ -24,6 +24,8 @@ def _scan_node(*args):
 
 
 def _is_float(value) -> bool:
+    if type(value) is np.ndarray:
+        return value.dtype.kind == "f"
     return np.issubdtype(np.result_type(value), np.floating)
 
 
@@ -59,6 +61,9 @@ def _check_carry(new, paths: list[str], new_paths: list[str], ref: list) -> None
                         f"leaves {paths}, f returned {new_paths}")
     for p, a, b in zip(paths, ref, new):
         vb = unbox(b)
+        if type(a) is np.ndarray and type(vb) is np.ndarray:
+            if a.shape == vb.shape and a.dtype == vb.dtype:
+                continue
         if np.shape(a) != np.shape(vb) or np.result_type(a) != np.result_type(vb):
             raise TypeError(
                 f"scan: the carry must keep its shape and dtype; at init{p} it has shape "
@@ -107,8 +112,9 @@ def scan(f: Callable, init, xs, length: int | None = None) -> tuple:
     carry_vals = init_vals
     xs_traced = [isinstance(v, Box) and _is_float(v._value) for v in xs_leaves]
     steps, ys_steps, y_rebuild = [], [], None
+    carry_float = [_is_float(v) for v in init_vals]  # the carry keeps its dtypes (checked)
     for i in range(n):
-        c_in = [Box(v) if _is_float(v) else v for v in carry_vals]
+        c_in = [Box(v) if t else v for v, t in zip(carry_vals, carry_float)]
         # only the slices of traced xs are traced: data stays plain (no tape, no VJP)
         x_in = [Box(v[i]) if t else v[i] for v, t in zip(xs_vals, xs_traced)]
         frame: dict[int, Box] = {}
