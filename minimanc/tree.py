@@ -1,4 +1,4 @@
-"""Pytrees: the nested dicts and lists that hold a model's parameters (chapter 2).
+"""Chapter 2 — pytrees: the nested dicts and lists that hold a model's parameters.
 
 A pytree is an array (any leaf), or a dict / list / tuple (named tuples included) of
 pytrees; ``None`` is an empty subtree, as in JAX and :func:`minimanc.autodiff.tree_flatten`.
@@ -21,7 +21,18 @@ __all__ = ["cast_floats", "flatten", "leaves", "map", "unflatten"]
 
 
 def leaves(tree: Any) -> list:
-    """The leaves of ``tree`` in a fixed order: dicts by sorted key, lists and tuples in order."""
+    """The leaves of ``tree`` in a fixed order: dicts by sorted key, lists and tuples in order.
+
+    Parameters
+    ----------
+    tree : pytree
+        An array (a leaf), ``None`` (no leaf), or a dict / list / tuple of pytrees.
+
+    Returns
+    -------
+    list
+        The leaves, each the object itself (not copied).
+    """
     if tree is None:
         return []
     if isinstance(tree, dict):
@@ -66,6 +77,7 @@ def map(f: Callable[..., Any], tree: Any, *rest: Any) -> Any:
     Returns
     -------
     pytree
+        ``tree``'s structure with ``f``'s results as leaves.
 
     Raises
     ------
@@ -99,13 +111,40 @@ def _cast_float(x: Any, dtype: Any) -> np.ndarray:
 
 def cast_floats(tree: Any, dtype: Any) -> Any:
     """``tree`` with NumPy leaves: the floating-point ones cast to ``dtype``, the others
-    (integers, booleans) kept as they are (``numpy.asarray`` of the leaf)."""
+    (integers, booleans) kept as they are (``numpy.asarray`` of the leaf).
+
+    Parameters
+    ----------
+    tree : pytree
+        Leaves are arrays or scalars; dicts are rebuilt in their own key order (:func:`map`).
+    dtype : numpy dtype or type
+        The floating-point type of the result's float leaves, e.g. ``numpy.float32``.
+
+    Returns
+    -------
+    pytree
+        ``tree``'s structure with ``numpy.ndarray`` leaves of the same shapes.
+    """
     return map(lambda x: _cast_float(x, dtype), tree)
 
 
 def flatten(tree: Any, prefix: str = "") -> dict[str, np.ndarray]:
     """``{"a/b/#0/w": array}``: a pytree as flat keys (dicts by sorted key, list and tuple
-    entries as ``#i``), each leaf ``numpy.asarray``; ``None`` subtrees have no key."""
+    entries as ``#i``), each leaf ``numpy.asarray``; ``None`` subtrees have no key.
+
+    Parameters
+    ----------
+    tree : pytree
+        Dict keys are strings without ``"/"`` (and not starting with ``"#"``), so that
+        :func:`unflatten` can rebuild the tree.
+    prefix : str
+        Put in front of every key (used by the recursion; ``""`` at the root).
+
+    Returns
+    -------
+    dict of str to ndarray
+        One entry per leaf, keys in :func:`leaves` order, each array of the leaf's shape.
+    """
     out: dict[str, np.ndarray] = {}
     if isinstance(tree, dict):
         for k in sorted(tree):
@@ -119,7 +158,18 @@ def flatten(tree: Any, prefix: str = "") -> dict[str, np.ndarray]:
 
 
 def unflatten(flat: dict[str, Any]) -> Any:
-    """Inverse of :func:`flatten` (tuples come back as lists)."""
+    """Inverse of :func:`flatten` (tuples come back as lists).
+
+    Parameters
+    ----------
+    flat : dict of str to array
+        Keys ``"a/b/#0/w"`` as :func:`flatten` writes them.
+
+    Returns
+    -------
+    pytree
+        Nested dicts, with lists where every key of a level is ``#i``; leaves as given.
+    """
     root: dict = {}
     for key, value in flat.items():
         parts = key.split("/")

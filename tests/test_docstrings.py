@@ -29,6 +29,12 @@ MODULES: tuple[str, ...] = (
     "minimanc.vagn",
     "minimanc.cam",
     "minimanc.layers",
+    "minimanc.dmp",
+    "minimanc.metrics",
+    "minimanc.tree",
+    "minimanc.viz.automaton",
+    "minimanc.viz.saliency",
+    "minimanc.models.dmp_head",
 )
 """Modules whose public functions must carry numpydoc sections."""
 

@@ -33,15 +33,25 @@ def eigenvalues(alpha: Any, beta: Any) -> np.ndarray:
     """Roots of the characteristic polynomial of eq. (12), ``λ² + αλ + αβ = 0``.
 
     Accepts any finite real α, β (arrays broadcast) so that unstable
-    coefficients can be studied too. Returns a complex array of shape
-    ``broadcast(α, β).shape + (2,)``: ``(−α + √(α² − 4αβ))/2`` then
-    ``(−α − √(α² − 4αβ))/2`` (for complex pairs, the one with positive
-    imaginary part first).
+    coefficients can be studied too.
 
     Parameters
     ----------
     alpha, beta : array or float
-        Finite real gains (broadcast).
+        Finite real gains in 1/s (broadcast).
+
+    Returns
+    -------
+    ndarray of complex, shape broadcast(alpha, beta).shape + (2,)
+        The roots λ in 1/s: ``(−α + √(α² − 4αβ))/2`` then ``(−α − √(α² − 4αβ))/2``
+        (for complex pairs, the one with positive imaginary part first).
+
+    Raises
+    ------
+    ValueError
+        If ``alpha`` or ``beta`` is not finite (naming it and the first bad value).
+    TypeError
+        If ``alpha`` or ``beta`` is not a real number or array.
     """
     a = check_finite("alpha", alpha)
     b = check_finite("beta", beta)
@@ -60,14 +70,19 @@ def damping_ratio(alpha: Any, beta: Any, xp: Any = np) -> Any:
     Parameters
     ----------
     alpha, beta : array or float
-        Gains with ``αβ > 0`` (broadcast); traced values are not checked.
+        Gains in 1/s with ``αβ > 0`` (broadcast); traced values are not checked.
     xp : module
         Array namespace (``numpy``, ``eng.xp``).
 
     Returns
     -------
     array, shape broadcast(alpha, beta).shape
-        ζ of eq. (13).
+        ζ of eq. (13), dimensionless.
+
+    Raises
+    ------
+    ValueError
+        If concrete gains have ``αβ ≤ 0`` (naming the first such pair) or are not finite.
     """
     if not is_traced(alpha) and not is_traced(beta):
         a = check_finite("alpha", alpha)
@@ -108,11 +123,17 @@ def classify(alpha: Any, beta: Any) -> Any:
     Parameters
     ----------
     alpha, beta : array or float
-        Finite real gains (broadcast).
+        Finite real gains in 1/s (broadcast).
 
     Returns
     -------
     str or ndarray of str, shape broadcast(alpha, beta).shape
+        One of ``"unstable"``, ``"underdamped"``, ``"critically damped"``, ``"overdamped"``.
+
+    Raises
+    ------
+    ValueError
+        If ``alpha`` or ``beta`` is not finite (naming it and the first bad value).
     """
     a = check_finite("alpha", alpha)
     b = check_finite("beta", beta)
@@ -142,18 +163,18 @@ def acceleration(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, force: Any =
     Parameters
     ----------
     y, dy : array, shape (..., D)
-        Position and velocity.
+        Position and velocity (units of ``y``, and per s).
     goal : array, shape (..., D) or broadcastable
         The attractor ``g``.
     alpha, beta : array or float
-        Gains, e.g. shape ``(..., 1)`` per sample.
+        Gains in 1/s, e.g. shape ``(..., 1)`` per sample.
     force : array or None
-        Extra acceleration (eq. 1's ``f / τ``).
+        Extra acceleration (eq. 1's ``f / τ``), per s².
 
     Returns
     -------
     array, shape broadcast of the inputs
-        ``ÿ``.
+        ``ÿ``, units of ``y`` per s².
     """
     acc = alpha * (beta * (goal - y) - dy)
     return acc if force is None else acc + force

@@ -77,7 +77,29 @@ def phase(t: Any, alpha_x: float, tau: float = 1.0) -> np.ndarray:
 
     The solution of ``τ ẋ = −α_x x`` with ``x(0) = 1`` (the paper's eq. 1 prints
     ``τ ẋ = α_x x``, which would make x grow: the phase must decay so that the
-    forcing term fades). ``t`` (s, ≥ 0) may be an array; plain NumPy.
+    forcing term fades). Plain NumPy.
+
+    Parameters
+    ----------
+    t : array or float, any shape
+        Time since the start of the movement in seconds (finite, ≥ 0).
+    alpha_x : float
+        Rate of the canonical system in 1/s (a finite scalar > 0).
+    tau : float
+        Temporal scaling τ of eq. (1), dimensionless (a finite scalar > 0; 1 keeps the pace).
+
+    Returns
+    -------
+    ndarray, shape of ``t``
+        The phase ``x(t)`` in ``(0, 1]``, dimensionless.
+
+    Raises
+    ------
+    ValueError
+        If ``t`` is negative or not finite, or ``alpha_x`` or ``tau`` is not a finite
+        scalar > 0 (naming the parameter and its value).
+    TypeError
+        If an argument is not a real number or array.
     """
     a = check_alpha_x(alpha_x)
     tau = check_tau(tau)
@@ -93,8 +115,30 @@ def canonical_system(steps: int, dt: float, alpha_x: float, tau: float = 1.0) ->
     The canonical system ``τ ẋ = −α_x x`` is linear, so its exact discrete
     solution is ``x_{k+1} = exp(−α_x dt / τ) x_k`` with ``x_0 = 1``: no
     integration error, whatever ``dt`` (explicit Euler, ``x_{k+1} = (1 − α_x dt / τ) x_k``,
-    would even change sign once ``α_x dt > τ``). Returns shape ``(steps + 1,)``,
-    equal to :func:`phase` at ``k dt`` up to rounding (tested).
+    would even change sign once ``α_x dt > τ``). Equal to :func:`phase` at
+    ``k dt`` up to rounding.
+
+    Parameters
+    ----------
+    steps : int
+        Number of steps (an integer >= 0).
+    dt : float
+        Step length in seconds (a finite scalar > 0).
+    alpha_x : float
+        Rate of the canonical system in 1/s (a finite scalar > 0).
+    tau : float
+        Temporal scaling τ of eq. (1), dimensionless (a finite scalar > 0).
+
+    Returns
+    -------
+    ndarray, shape (steps + 1,)
+        The phase ``x_k`` at ``t = k dt``, starting from ``x_0 = 1``.
+
+    Raises
+    ------
+    ValueError
+        If ``steps`` is not an integer >= 0, or ``dt``, ``alpha_x`` or ``tau`` is not a
+        finite scalar > 0 (naming the parameter and its value).
     """
     steps = check_int("steps", steps, 0)
     check_dt(dt)
@@ -120,7 +164,34 @@ def basis_centres(
     ``c_i = exp(−α_x t_i / τ)`` (so they crowd together near x = 0, where time
     runs slowly in phase), and each width ``h_i = −ln(overlap) / (c_{i+1} − c_i)²``
     makes ``ψ_i`` fall to ``overlap`` at the next centre (the last width repeats
-    the one before). Returns ``(centres, widths)``, each of shape ``(n_basis,)``.
+    the one before).
+
+    Parameters
+    ----------
+    n_basis : int
+        Number of basis functions (an integer >= 2).
+    alpha_x : float
+        Rate of the canonical system in 1/s (a finite scalar > 0).
+    duration : float
+        Length of the movement in seconds (a finite scalar > 0).
+    tau : float
+        Temporal scaling τ of eq. (1), dimensionless (a finite scalar > 0).
+    overlap : float
+        Value of ``ψ_i`` at the next centre, a scalar in (0, 1).
+
+    Returns
+    -------
+    centres : ndarray, shape (n_basis,)
+        The phases ``c_i``, decreasing from 1.
+    widths : ndarray, shape (n_basis,)
+        The widths ``h_i`` > 0 (inverse squared phase).
+
+    Raises
+    ------
+    ValueError
+        If ``n_basis`` is not an integer >= 2, ``alpha_x``, ``duration`` or ``tau`` is not a
+        finite scalar > 0, or ``overlap`` is not a scalar in (0, 1) (naming the parameter
+        and its value).
     """
     n = check_int("n_basis", n_basis, 2)
     a = check_alpha_x(alpha_x)
@@ -139,7 +210,27 @@ def basis_centres(
 def basis_functions(x: Any, centres: Any, widths: Any) -> np.ndarray:
     """Gaussian basis functions of eq. (1) in phase, ``ψ_i(x) = exp(−h_i (x − c_i)²)``.
 
-    ``x`` of any shape; returns ``x.shape + (n_basis,)`` (not normalised).
+    Not normalised (:func:`forcing_term` divides by ``Σ_i ψ_i(x)``).
+
+    Parameters
+    ----------
+    x : array or float, any shape
+        Phase values (finite, dimensionless).
+    centres : array, shape (n_basis,)
+        The centres ``c_i`` in phase (:func:`basis_centres`).
+    widths : array, shape (n_basis,)
+        The widths ``h_i`` > 0.
+
+    Returns
+    -------
+    ndarray, shape x.shape + (n_basis,)
+        ``ψ_i(x)`` in ``(0, 1]``.
+
+    Raises
+    ------
+    ValueError
+        If ``centres`` and ``widths`` are not 1-D of one length, ``x`` or ``centres`` is not
+        finite, or a width is not > 0 (naming the parameter and its value).
     """
     xx = check_finite("x", x)
     c = check_finite("centres", centres)
@@ -165,13 +256,36 @@ def forcing_term(
 ) -> Any:
     """The forcing term of eq. (1), ``f(x) = Σ_i ψ_i(x) w_i / Σ_i ψ_i(x) · x · (g − y0)``.
 
-    ``x``: phase, a scalar or shape ``(T,)``; ``goal``, ``y0``: shape ``(..., D)``.
-    Returns ``x.shape + (D,)`` broadcast with the batch of ``goal − y0``. The
-    gate ``x`` makes ``f`` vanish as the phase decays, so the point attractor
+    The gate ``x`` makes ``f`` vanish as the phase decays, so the point attractor
     alone decides where the motion ends; ``gate=False`` drops it (then ``f``
     tends to the weighted mean of the last weights, a force that never fades).
     The factor ``g − y0`` rescales the learned shape to a new goal. The weights
     may be traced (``xp`` provides ``matmul``): the basis is plain NumPy.
+
+    Parameters
+    ----------
+    x : array or float, shape () or (T,)
+        Phase of the canonical system (finite, dimensionless).
+    forcing : Forcing
+        Weights ``(n_basis, D)``, centres and widths of the basis.
+    goal, y0 : array, shape (..., D)
+        The goal ``g`` and the start ``y0`` of the movement (units of ``y``).
+    gate : bool
+        Multiply by the phase ``x``.
+    xp : module
+        Array namespace (``numpy``, ``eng.xp``).
+
+    Returns
+    -------
+    array, shape x.shape + (D,), broadcast with the batch of ``goal − y0``
+        The forcing ``f(x)`` of eq. (1), in units of ``y`` per s².
+
+    Raises
+    ------
+    TypeError
+        If ``forcing`` is not a :class:`Forcing`.
+    ValueError
+        If ``x`` is not finite (naming it and its value).
     """
     if not isinstance(forcing, Forcing):
         raise TypeError(f"forcing must be a dmp.Forcing, got forcing={forcing!r}")
@@ -224,6 +338,39 @@ def fit_forcing_weights(
     is :func:`basis_centres` over the demonstration's duration. Returns a
     :class:`Forcing` for :func:`rollout` (with the same ``alpha``, ``beta``,
     ``tau``, ``dt``, start at rest at ``demo[0]``).
+
+    Parameters
+    ----------
+    demo : array, shape (T + 1, D) or (T + 1,)
+        Demonstrated positions, ``T + 1 >= 3`` samples, finite.
+    dt : float
+        Sampling period of ``demo`` in seconds (a finite scalar > 0).
+    alpha, beta : float
+        Gains of eq. (1)'s point attractor in 1/s (finite scalars > 0).
+    n_basis : int
+        Number of basis functions (an integer >= 2).
+    alpha_x : float or None
+        Rate of the canonical system in 1/s (> 0); None: ``−ln(PHASE_END) τ / (T dt)``.
+    tau : float
+        Temporal scaling τ of eq. (1), dimensionless (a finite scalar > 0).
+    overlap : float
+        Value of each ``ψ_i`` at the next centre, in (0, 1) (:func:`basis_centres`).
+    regularization : float
+        Added to each denominator (a scalar >= 0).
+
+    Returns
+    -------
+    Forcing
+        ``weights`` of shape ``(n_basis, D)``, ``centres`` and ``widths`` of shape
+        ``(n_basis,)`` and the ``alpha_x`` used.
+
+    Raises
+    ------
+    ValueError
+        If ``demo`` has not shape ``(T + 1, D)`` with ``T + 1 >= 3`` or is not finite, if
+        ``dt``, ``alpha``, ``beta``, ``tau`` or ``alpha_x`` is not a finite scalar > 0, if
+        ``regularization`` is not a scalar >= 0, or if ``n_basis`` or ``overlap`` is out of
+        range (naming the parameter and its value).
     """
     y = check_finite("demo", demo)
     if y.ndim == 1:

@@ -101,6 +101,13 @@ def gains_from_logits(
     Returns
     -------
     alpha, beta : array, shaped like the logits
+        The gains in 1/s, inside their boxes.
+
+    Raises
+    ------
+    ValueError
+        If a range is not a finite pair ``0 < low < high``, or ``z_beta`` is None without
+        ``critically_damped=True``.
     """
     a_lo, a_hi = _check_range("alpha_range", alpha_range)
     b_lo, b_hi = _check_range("beta_range", beta_range)
@@ -132,6 +139,13 @@ def logits_from_gains(
     Returns
     -------
     z_alpha, z_beta : ndarray, shaped like the gains
+        The logits with ``gains_from_logits(z_alpha, z_beta) == (alpha, beta)``.
+
+    Raises
+    ------
+    ValueError
+        If a gain is not finite or not strictly inside its range, or a range is not a
+        finite pair ``0 < low < high`` (naming the parameter and its value).
     """
     out = []
     for name, value, rng in (("alpha", alpha, alpha_range), ("beta", beta, beta_range)):
@@ -157,16 +171,22 @@ def zeta_penalty(alpha: Any, beta: Any, xp: Any = np, zeta_min: float = 0.5) -> 
     Parameters
     ----------
     alpha, beta : array
-        Gains of any shape (``αβ > 0``).
+        Gains in 1/s of any shape (``αβ > 0``, broadcast).
     xp : module
         Array namespace.
     zeta_min : float
-        The ζ below which the penalty grows (> 0).
+        The ζ below which the penalty grows (> 0, dimensionless).
 
     Returns
     -------
     array, shape ()
-        The mean squared shortfall.
+        The mean squared shortfall of ζ (eq. 13), dimensionless.
+
+    Raises
+    ------
+    ValueError
+        If ``zeta_min`` is not > 0, or concrete gains have ``αβ ≤ 0``
+        (:func:`~minimanc.dmp.attractor.damping_ratio`).
     """
     zm = float(check_positive("zeta_min", zeta_min))
     zeta = damping_ratio(alpha, beta, xp=xp)

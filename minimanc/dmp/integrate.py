@@ -142,11 +142,11 @@ def step(
     Parameters
     ----------
     y, dy : array, shape (..., D)
-        Position and velocity at the start of the step.
+        Position and velocity (per s) at the start of the step.
     goal : array, shape (..., D) or broadcastable
         The goal ``g`` of eq. (10).
     alpha, beta : array or float
-        Gains, scalars or shape ``(..., 1)`` per sample.
+        Gains in 1/s, scalars or shape ``(..., 1)`` per sample.
     dt : float
         Step length in seconds (concrete, or traced inside ``grad``).
     method : str
@@ -161,6 +161,17 @@ def step(
     Returns
     -------
     y_next, dy_next, ddy : array, shape broadcast of the inputs
+        Position, velocity (per s) after the step and the mean acceleration (per s²).
+
+    Raises
+    ------
+    ValueError
+        If concrete gains, ``y``, ``dy`` or ``goal`` are not finite, α ≤ 0 or β < 0 (without
+        ``allow_unstable``), ``dt`` is not a finite scalar > 0, ``method`` is unknown,
+        ``substeps`` is not an integer >= 1, or the step is unstable (ρ > 1) without
+        ``allow_unstable`` (naming the parameter and its value).
+    TypeError
+        If ``allow_unstable`` is not a bool or a gain is not a real number or array.
     """
     method, substeps = _check_call(method, substeps, dt, alpha, beta, allow_unstable, 2)
     for name, value in (("y", y), ("dy", dy), ("goal", goal)):
@@ -241,7 +252,19 @@ def rollout(
     Returns
     -------
     Rollout
-        ``y``, ``dy`` of shape ``(steps + 1, ...)``, ``ddy`` of shape ``(steps, ...)``.
+        ``y``, ``dy`` (per s) of shape ``(steps + 1, ...)``, ``ddy`` (per s²) of shape
+        ``(steps, ...)``.
+
+    Raises
+    ------
+    ValueError
+        As :func:`step`; also if ``steps`` is not an integer >= 0, ``per_step`` names
+        something else than ``"goal"``, ``"alpha"``, ``"beta"``, a per-step argument's
+        leading axis is not of length ``steps``, ``tau`` is not a finite scalar > 0, or
+        ``forcing`` is given with a traced ``dt``.
+    TypeError
+        If ``gate`` or ``allow_unstable`` is not a bool, or ``forcing`` is neither a
+        :class:`Forcing` nor None.
     """
     method = check_method(method)
     substeps = check_int("substeps", substeps, 1)

@@ -54,14 +54,43 @@ rate at which the position error is closed. ``ALPHA_RANGE[1] / 4`` equals
 
 
 def check_method(method: Any) -> str:
-    """``method`` if it names an integrator of :data:`METHODS`, else ValueError naming it."""
+    """``method`` if it names an integrator of :data:`METHODS`, else ValueError naming it.
+
+    Parameters
+    ----------
+    method : str
+        An integrator name, one of :data:`METHODS`.
+
+    Returns
+    -------
+    str
+        ``method`` unchanged.
+
+    Raises
+    ------
+    ValueError
+        If ``method`` is not one of :data:`METHODS` (naming its value).
+    """
     if not isinstance(method, str) or method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got method={method!r}")
     return method
 
 
 def check_dt(dt: Any) -> None:
-    """A concrete ``dt`` must be a finite scalar > 0 (ValueError naming it); traced passes."""
+    """A concrete ``dt`` must be a finite scalar > 0 (ValueError naming it); traced passes.
+
+    Parameters
+    ----------
+    dt : float or array, shape ()
+        Step length in seconds; a traced value is not inspected.
+
+    Raises
+    ------
+    ValueError
+        If a concrete ``dt`` is not finite, not > 0 or not a scalar (naming its value).
+    TypeError
+        If ``dt`` is not a real number.
+    """
     if type(dt) is float and 0.0 < dt < float("inf"):  # the common case, checked at once
         return
     if not is_traced(dt):
@@ -82,6 +111,26 @@ def check_gains(alpha: Any, beta: Any, allow_negative: bool = False) -> bool:
     ``allow_negative=True`` only reality and finiteness are checked (the
     opt-in of :func:`step` / :func:`rollout` with ``allow_unstable=True``, to
     study the paper's ζ < 0).  Traced gains are not inspected.
+
+    Parameters
+    ----------
+    alpha, beta : array or float
+        The gains of eq. (10) in 1/s (any shapes; traced values pass).
+    allow_negative : bool
+        Check only reality and finiteness.
+
+    Returns
+    -------
+    bool
+        True when both gains are concrete (and were checked).
+
+    Raises
+    ------
+    ValueError
+        If a concrete gain is not finite, or (unless ``allow_negative``) α ≤ 0 or β < 0,
+        naming the gain and its first offending value.
+    TypeError
+        If a gain is not a real number or array.
     """
     concrete = True
     for name, value, low in (("alpha", alpha, "> 0"), ("beta", beta, ">= 0")):

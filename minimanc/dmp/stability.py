@@ -104,7 +104,7 @@ def step_matrix(
     Parameters
     ----------
     alpha, beta : array or float
-        Gains of eq. (10) (α > 0, β > 0), broadcasting against each other.
+        Gains of eq. (10) in 1/s (α > 0, β > 0), broadcasting against each other.
     dt : float
         Step length in seconds (default :data:`~minimanc.dmp.params.DT`).
     method : str
@@ -116,6 +116,13 @@ def step_matrix(
     -------
     ndarray, shape broadcast(alpha, beta).shape + (2, 2)
         The matrix acting on ``[y − g, ẏ]``.
+
+    Raises
+    ------
+    ValueError
+        If ``alpha``, ``beta`` or ``dt`` is not finite and > 0, ``dt`` is not a scalar,
+        ``method`` is not one of :data:`~minimanc.dmp.params.METHODS`, or ``substeps`` is
+        not an integer >= 1 (naming the parameter and its value).
     """
     a, b, dt, method, substeps = _check_step_args(alpha, beta, dt, method, substeps)
     return np.linalg.matrix_power(_substep_matrix(a, b, dt / substeps, method), substeps)
@@ -138,7 +145,7 @@ def spectral_radius(
     Parameters
     ----------
     alpha, beta : array or float
-        Gains of eq. (10) (α > 0, β > 0), broadcasting against each other.
+        Gains of eq. (10) in 1/s (α > 0, β > 0), broadcasting against each other.
     dt : float
         Step length in seconds (default :data:`~minimanc.dmp.params.DT`).
     method : str
@@ -150,6 +157,13 @@ def spectral_radius(
     -------
     float or ndarray, shape broadcast(alpha, beta).shape
         ρ of each step matrix (a float for scalar gains).
+
+    Raises
+    ------
+    ValueError
+        If ``alpha``, ``beta`` or ``dt`` is not finite and > 0, ``dt`` is not a scalar,
+        ``method`` is not one of :data:`~minimanc.dmp.params.METHODS`, or ``substeps`` is
+        not an integer >= 1 (naming the parameter and its value).
     """
     a, b, dt, method, substeps = _check_step_args(alpha, beta, dt, method, substeps)
     eig = _substep_eigs(a, b, dt / substeps, method)
@@ -225,7 +239,7 @@ def step_stable(
     Parameters
     ----------
     alpha, beta : array or float
-        Gains of eq. (10) (α > 0, β > 0), broadcasting against each other.
+        Gains of eq. (10) in 1/s (α > 0, β > 0), broadcasting against each other.
     dt : float
         Step length in seconds (default :data:`~minimanc.dmp.params.DT`).
     method : str
@@ -236,6 +250,14 @@ def step_stable(
     Returns
     -------
     bool or ndarray of bool, shape broadcast(alpha, beta).shape
+        True where ρ < 1.
+
+    Raises
+    ------
+    ValueError
+        If ``alpha``, ``beta`` or ``dt`` is not finite and > 0, ``dt`` is not a scalar,
+        ``method`` is not one of :data:`~minimanc.dmp.params.METHODS`, or ``substeps`` is
+        not an integer >= 1 (naming the parameter and its value).
     """
     a, b, dt, method, substeps = _check_step_args(alpha, beta, dt, method, substeps)
     return _maybe_scalar(_stable(a, b, dt / substeps, method))
@@ -291,7 +313,7 @@ def max_stable_alpha(
     Parameters
     ----------
     beta : float
-        The spring gain β > 0.
+        The spring gain β > 0 in 1/s.
     dt : float
         Step length in seconds.
     method : str
@@ -302,7 +324,13 @@ def max_stable_alpha(
     Returns
     -------
     float
-        The supremum of the stable α (0 when none is stable).
+        The supremum of the stable α in 1/s (0 when none is stable).
+
+    Raises
+    ------
+    ValueError
+        If ``beta`` or ``dt`` is not finite and > 0, ``method`` is not one of
+        :data:`~minimanc.dmp.params.METHODS`, or ``substeps`` is not an integer >= 1.
     """
     b = float(check_positive("beta", beta))
     d = float(check_positive("dt", dt))
@@ -338,7 +366,7 @@ def check_step_stability(
     Parameters
     ----------
     alpha, beta : array or float
-        Gains of eq. (10) (α > 0, β > 0), broadcasting against each other.
+        Gains of eq. (10) in 1/s (α > 0, β > 0), broadcasting against each other.
     dt : float
         Step length in seconds (default :data:`~minimanc.dmp.params.DT`).
     method : str

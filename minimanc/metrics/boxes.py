@@ -92,7 +92,23 @@ def check_maps(maps: Sequence[Any], n_scenes: int) -> Sequence[Any]:
 
 
 def ego_boxes(ego: Any) -> np.ndarray:
-    """Ego boxes ``(..., 5) = [x, y, yaw, EGO_LENGTH, EGO_WIDTH]`` from poses ``(..., 3)``."""
+    """Ego boxes ``(..., 5) = [x, y, yaw, EGO_LENGTH, EGO_WIDTH]`` from poses ``(..., 3)``.
+
+    Parameters
+    ----------
+    ego : array, shape (..., 3)
+        Poses ``[x, y, yaw]`` (m, m, rad) in the world frame.
+
+    Returns
+    -------
+    ndarray, shape (..., 5)
+        Boxes ``[x, y, yaw, length, width]`` (m, m, rad, m, m), centred on the poses.
+
+    Raises
+    ------
+    ValueError
+        If the last dimension of ``ego`` is not 3 (stating its shape).
+    """
     e = np.asarray(ego, dtype=np.float64)
     if e.ndim == 0 or e.shape[-1] != 3:
         raise ValueError(f"ego must have last dimension 3 [x, y, yaw]; got shape {e.shape}")
@@ -115,6 +131,16 @@ def box_gap(a: Any, b: Any) -> np.ndarray:
     :func:`minimanc.world.geometry.boxes_overlap`); otherwise the smallest
     distance from a corner of one box to an edge of the other, which is the
     exact distance between two disjoint convex polygons.
+
+    Parameters
+    ----------
+    a, b : array, shape (..., 5)
+        Boxes ``[x, y, yaw, length, width]`` (m, m, rad, m, m), broadcasting against each other.
+
+    Returns
+    -------
+    ndarray, shape broadcast(a, b).shape[:-1]
+        The gap in m (≥ 0).
     """
     ca = box_corners(a)  # (..., 4, 2)
     cb = box_corners(b)
@@ -129,7 +155,30 @@ def box_gap(a: Any, b: Any) -> np.ndarray:
 
 
 def ado_gaps(ego: Any, ado: Any, ado_valid: Any) -> np.ndarray:
-    """Gap ``(S, T, A)`` between the ego box and every ado box; ``inf`` where the ado is invalid."""
+    """Gap ``(S, T, A)`` between the ego box and every ado box; ``inf`` where the ado is invalid.
+
+    The ego's box is :func:`ego_boxes` of its pose; the gap is :func:`box_gap`.
+
+    Parameters
+    ----------
+    ego : array, shape (S, T, 3)
+        Ego poses ``[x, y, yaw]`` (m, m, rad), finite.
+    ado : array, shape (S, T, A, 5)
+        Ado boxes ``[x, y, yaw, length, width]`` on the same clock.
+    ado_valid : array of bool, shape (S, T, A)
+        Which ado boxes exist.
+
+    Returns
+    -------
+    ndarray, shape (S, T, A)
+        The edge-to-edge gap in m; ``inf`` where ``ado_valid`` is False.
+
+    Raises
+    ------
+    ValueError
+        If ``ego``, ``ado`` or ``ado_valid`` has another shape or ``ego`` is not finite
+        (:func:`check_poses`, :func:`check_ados`).
+    """
     e = check_poses(ego)
     a, v = check_ados(ado, ado_valid, e)
     gaps = box_gap(ego_boxes(e)[:, :, None, :], a)

@@ -119,9 +119,30 @@ def close_encounters(
 ) -> np.ndarray:
     """Per scene, the share of steps (in [0, 1]) with a valid ado box within ``gap`` m of the ego.
 
-    ``ego`` (S, T, 3); ``ado`` (S, T, A, 5) ``[x, y, yaw, length, width]``
-    (world frame, the logged replay); ``ado_valid`` (S, T, A).  A step counts
-    once however many ados are close.  Returns ``(S,)``.
+    A step counts once however many ados are close; the gap is
+    :func:`~minimanc.metrics.boxes.box_gap`.
+
+    Parameters
+    ----------
+    ego : array, shape (S, T, 3)
+        Ego poses ``[x, y, yaw]`` (m, m, rad) in the world frame, finite.
+    ado : array, shape (S, T, A, 5)
+        Ado boxes ``[x, y, yaw, length, width]`` (m, m, rad, m, m) on the same clock.
+    ado_valid : array of bool, shape (S, T, A)
+        Which ado boxes exist (only valid ones count).
+    gap : float
+        The close-encounter distance in m between box edges (finite, >= 0).
+
+    Returns
+    -------
+    ndarray, shape (S,)
+        The share of close steps per scene, in [0, 1].
+
+    Raises
+    ------
+    ValueError
+        If ``gap`` is not finite and >= 0, ``ego``, ``ado`` or ``ado_valid`` has another
+        shape, or ``ego`` is not finite.
     """
     if not np.isfinite(gap) or gap < 0:
         raise ValueError(f"gap must be a finite number >= 0; got gap = {gap!r}")
@@ -131,7 +152,27 @@ def close_encounters(
 
 
 def collisions(ego: Any, ado: Any, ado_valid: Any) -> np.ndarray:
-    """Per scene, 1.0 if the ego box overlaps a valid ado box at some step, else 0.0. ``(S,)``."""
+    """Per scene, 1.0 if the ego box overlaps a valid ado box at some step, else 0.0.
+
+    Parameters
+    ----------
+    ego : array, shape (S, T, 3)
+        Ego poses ``[x, y, yaw]`` (m, m, rad) in the world frame, finite.
+    ado : array, shape (S, T, A, 5)
+        Ado boxes ``[x, y, yaw, length, width]`` (m, m, rad, m, m) on the same clock.
+    ado_valid : array of bool, shape (S, T, A)
+        Which ado boxes exist (only valid ones count).
+
+    Returns
+    -------
+    ndarray, shape (S,)
+        1.0 for a scene with a collision, else 0.0.
+
+    Raises
+    ------
+    ValueError
+        If ``ego``, ``ado`` or ``ado_valid`` has another shape, or ``ego`` is not finite.
+    """
     e = check_poses(ego)
     a, v = check_ados(ado, ado_valid, e)
     hit = boxes_overlap(ego_boxes(e)[:, :, None, :], a) & v
@@ -201,6 +242,18 @@ def ego_in_lane(poses: Any, m: Any) -> np.ndarray:
     centreline sample (every 0.25 m) whose heading is within 45° of the ego's.
     ``m`` needs ``lane_samples(spacing)`` (a :class:`minimanc.world.lanes.LaneSamples`)
     and ``is_drivable(points)`` (a :class:`minimanc.world.maps.Map`).
+
+    Parameters
+    ----------
+    poses : array, shape (N, 3) (any array of ``3 N`` values is reshaped to it)
+        Ego poses ``[x, y, yaw]`` (m, m, rad).
+    m : Map
+        The scene's map.
+
+    Returns
+    -------
+    ndarray of bool, shape (N,)
+        True where the ego is inside a lane.
     """
     P = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
     samples = m.lane_samples(0.25)
@@ -222,6 +275,31 @@ def collision_events(ego: Any, ado: Any, ado_valid: Any, maps: Sequence[Any] | N
     See the module docstring for the classes and the at-fault rule. ``maps`` (one per
     scene) decide whether the ego was inside a lane for ``lateral`` contacts; without
     them a lateral contact counts as at fault (the conservative choice).
+
+    Parameters
+    ----------
+    ego : array, shape (S, T, 3)
+        Ego poses ``[x, y, yaw]`` (m, m, rad) in the world frame, finite.
+    ado : array, shape (S, T, A, 5)
+        Ado boxes ``[x, y, yaw, length, width]`` (m, m, rad, m, m) on the same clock.
+    ado_valid : array of bool, shape (S, T, A)
+        Which ado boxes exist (only valid ones count).
+    maps : sequence of Map, length S, or None
+        The scene's :class:`minimanc.world.maps.Map`, for the in-lane test of lateral
+        contacts.
+    dt : float
+        Time between logged steps in seconds (finite, > 0).
+
+    Returns
+    -------
+    list of CollisionEvent
+        One per colliding ado, ordered by scene then ado slot.
+
+    Raises
+    ------
+    ValueError
+        If ``ego``, ``ado`` or ``ado_valid`` has another shape, ``ego`` is not finite,
+        ``dt`` is not finite and > 0, or ``maps`` does not hold one map per scene.
     """
     e = check_poses(ego)
     a, v = check_ados(ado, ado_valid, e)
@@ -264,7 +342,32 @@ def collision_events(ego: Any, ado: Any, ado_valid: Any, maps: Sequence[Any] | N
 def at_fault_collisions(ego: Any, ado: Any, ado_valid: Any, maps: Sequence[Any] | None = None,
                         dt: float = DT) -> np.ndarray:
     """Per scene, 1.0 if the ego is at fault in some collision (:func:`collision_events`),
-    else 0.0. ``(S,)``."""
+    else 0.0.
+
+    Parameters
+    ----------
+    ego : array, shape (S, T, 3)
+        Ego poses ``[x, y, yaw]`` (m, m, rad) in the world frame, finite.
+    ado : array, shape (S, T, A, 5)
+        Ado boxes ``[x, y, yaw, length, width]`` (m, m, rad, m, m) on the same clock.
+    ado_valid : array of bool, shape (S, T, A)
+        Which ado boxes exist (only valid ones count).
+    maps : sequence of Map, length S, or None
+        The scene's :class:`minimanc.world.maps.Map`, for the in-lane test of lateral
+        contacts.
+    dt : float
+        Time between logged steps in seconds (finite, > 0).
+
+    Returns
+    -------
+    ndarray, shape (S,)
+        1.0 for a scene with an at-fault collision, else 0.0.
+
+    Raises
+    ------
+    ValueError
+        As :func:`collision_events`.
+    """
     e = check_poses(ego)
     out = np.zeros(e.shape[0])
     for ev in collision_events(e, ado, ado_valid, maps, dt):
@@ -278,8 +381,35 @@ def at_fault_collisions(ego: Any, ado: Any, ado_valid: Any, maps: Sequence[Any] 
 
 def time_to_collision(ego: Any, ado: Any, ado_valid: Any, horizon: float = TTC_THRESHOLD,
                       dt: float = DT) -> np.ndarray:
-    """Per scene and step, the time-to-collision ``(S, T)`` in s (``inf``: none within
-    ``horizon``); see the module docstring. Sampled every :data:`TTC_STEP` s."""
+    """Per scene and step, the time-to-collision in s; see the module docstring.
+
+    Both boxes move on at their constant current velocity; the times tried are
+    ``0, TTC_STEP, …`` up to ``horizon`` (:data:`TTC_STEP` s apart).
+
+    Parameters
+    ----------
+    ego : array, shape (S, T, 3)
+        Ego poses ``[x, y, yaw]`` (m, m, rad) in the world frame, finite.
+    ado : array, shape (S, T, A, 5)
+        Ado boxes ``[x, y, yaw, length, width]`` (m, m, rad, m, m) on the same clock.
+    ado_valid : array of bool, shape (S, T, A)
+        Which ado boxes exist (only valid ones count).
+    horizon : float
+        The longest time looked ahead in s (finite, >= 0).
+    dt : float
+        Time between logged steps in seconds (finite, > 0).
+
+    Returns
+    -------
+    ndarray, shape (S, T)
+        The time-to-collision in s; ``inf`` where none is within ``horizon``.
+
+    Raises
+    ------
+    ValueError
+        If ``horizon`` is not finite and >= 0, ``dt`` is not finite and > 0, or
+        ``ego``, ``ado`` or ``ado_valid`` has another shape.
+    """
     e = check_poses(ego)
     a, v = check_ados(ado, ado_valid, e)
     dt = check_dt(dt)
@@ -315,6 +445,31 @@ def time_to_collision(ego: Any, ado: Any, ado_valid: Any, horizon: float = TTC_T
 
 def ttc_rate(ego: Any, ado: Any, ado_valid: Any, threshold: float = TTC_THRESHOLD,
              dt: float = DT) -> np.ndarray:
-    """Per scene, the share of steps (in [0, 1]) whose time-to-collision is ``<= threshold``
-    s (:func:`time_to_collision` with ``horizon = threshold``). ``(S,)``."""
+    """Per scene, the share of steps whose time-to-collision is ``<= threshold`` s.
+
+    The time-to-collision is :func:`time_to_collision` with ``horizon = threshold``.
+
+    Parameters
+    ----------
+    ego : array, shape (S, T, 3)
+        Ego poses ``[x, y, yaw]`` (m, m, rad) in the world frame, finite.
+    ado : array, shape (S, T, A, 5)
+        Ado boxes ``[x, y, yaw, length, width]`` (m, m, rad, m, m) on the same clock.
+    ado_valid : array of bool, shape (S, T, A)
+        Which ado boxes exist (only valid ones count).
+    threshold : float
+        The time-to-collision bound in s (finite, >= 0).
+    dt : float
+        Time between logged steps in seconds (finite, > 0).
+
+    Returns
+    -------
+    ndarray, shape (S,)
+        The share of steps per scene, in [0, 1].
+
+    Raises
+    ------
+    ValueError
+        As :func:`time_to_collision` (``threshold`` is its ``horizon``).
+    """
     return (time_to_collision(ego, ado, ado_valid, threshold, dt) <= threshold).mean(axis=1)

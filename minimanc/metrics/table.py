@@ -55,14 +55,34 @@ ALL_METRICS: tuple[str, ...] = METRICS + SAFETY_METRICS
 def evaluate(traj: Any, ds: Any, gap: float = CLOSE_GAP) -> dict[str, float]:
     """All metrics of one rollout, averaged over its scenes.
 
-    ``traj`` has ``.ego`` (S, T, 3) (a :class:`minimanc.rollout.Rollout`);
-    ``ds`` is the validation dataset it was rolled out on (``ego``, ``ado``,
-    ``ado_valid``, ``maps``). The ados are the rollout's own when it holds them
+    The ados are the rollout's own when it holds them
     (``traj.ado``, ``traj.ado_valid``: the reactive protocol,
     :class:`minimanc.world.reactive.ReactiveRollout`), else the dataset's log.
     Keys: :data:`ALL_METRICS`; ``close_encounters``, ``collision_rate``,
     ``off_road_rate``, ``at_fault_collision_rate`` and ``ttc_rate`` in percent,
     ``route_progress`` a ratio, the rest in m or m/s².
+
+    Parameters
+    ----------
+    traj : Rollout
+        Has ``.ego``, poses ``(S, T, 3)`` ``[x, y, yaw]`` (a :class:`minimanc.rollout.Rollout`),
+        and optionally ``.ado`` ``(S, T, A, 5)`` and ``.ado_valid`` ``(S, T, A)``.
+    ds : Dataset
+        The validation dataset it was rolled out on: ``ego`` ``(S, T, 3)``, ``ado``
+        ``(S, T, A, 5)``, ``ado_valid`` ``(S, T, A)``, ``maps`` (one per scene).
+    gap : float
+        The close-encounter distance in m (:func:`~minimanc.metrics.safety.close_encounters`).
+
+    Returns
+    -------
+    dict of str to float
+        One value per key of :data:`ALL_METRICS`, the mean over the scenes.
+
+    Raises
+    ------
+    ValueError
+        If ``traj.ego`` and ``ds.ego`` are not finite poses of one shape ``(S, T, 3)``, or
+        an input of a metric is invalid (each metric's own check).
     """
     ego = check_poses(traj.ego)
     human = check_poses(ds.ego, "ds.ego")
@@ -93,6 +113,22 @@ def aggregate(per_seed: Sequence[Mapping[str, float]]) -> dict[str, dict[str, fl
     ``std`` is the population standard deviation over seeds (``ddof = 0``; NaN
     when a seed's value is infinite, e.g. a closed loop that blew up).
     Only the numeric keys present in every seed's dict are kept.
+
+    Parameters
+    ----------
+    per_seed : sequence of mapping of str to float
+        One dict of metrics per training seed (e.g. :func:`evaluate`'s), at least one.
+
+    Returns
+    -------
+    dict of str to dict
+        Per metric, ``"mean"`` and ``"std"`` (float, the metric's unit), ``"n"`` (int, the
+        number of seeds) and ``"values"`` (list of float, one per seed).
+
+    Raises
+    ------
+    ValueError
+        If ``per_seed`` is empty.
     """
     if len(per_seed) == 0:
         raise ValueError("per_seed must hold at least one dict of metrics; got an empty sequence")

@@ -60,7 +60,26 @@ def max_acceleration(ego: Any, dt: float = DT, kind: str = "total") -> np.ndarra
     ``t = 0 … T−3`` and ``a_lat[t] = v[t] ω[t]``.  ``kind="total"`` returns
     ``max_t sqrt(a_lon[t]² + a_lat[t]²)``, ``kind="longitudinal"``
     returns ``max_t |a_lon[t]|``.  Scenes with fewer than 3 poses give 0.
-    Returns ``(S,)``.
+
+    Parameters
+    ----------
+    ego : array, shape (S, T, 3)
+        Ego poses ``[x, y, yaw]`` (m, m, rad), finite.
+    dt : float
+        Time between poses in seconds (finite, > 0).
+    kind : str
+        ``"total"`` or ``"longitudinal"``.
+
+    Returns
+    -------
+    ndarray, shape (S,)
+        The maximum acceleration per scene in m/s².
+
+    Raises
+    ------
+    ValueError
+        If ``kind`` is neither ``"total"`` nor ``"longitudinal"``, ``dt`` is not finite and
+        > 0, or ``ego`` is not finite poses of shape ``(S, T, 3)``.
     """
     e = check_poses(ego)
     dt = check_dt(dt)
@@ -81,8 +100,23 @@ def max_acceleration(ego: Any, dt: float = DT, kind: str = "total") -> np.ndarra
 def ade(ego: Any, human: Any) -> np.ndarray:
     """Per scene, the average displacement error ``mean_t ‖p[t] − p_human[t]‖`` (m).
 
-    ``ego`` and ``human`` are ``(S, T, 3)`` poses on the same clock; only the
-    positions enter.  Returns ``(S,)``.
+    Only the positions enter.
+
+    Parameters
+    ----------
+    ego, human : array, shape (S, T, 3)
+        The policy's and the logged human's poses ``[x, y, yaw]`` (m, m, rad) on the same
+        clock.
+
+    Returns
+    -------
+    ndarray, shape (S,)
+        The ADE per scene in m.
+
+    Raises
+    ------
+    ValueError
+        If a pose array is not finite of shape ``(S, T, 3)``, or the two shapes differ.
     """
     e, h = check_ego_and_human(ego, human)
     return np.linalg.norm(e[..., :2] - h[..., :2], axis=-1).mean(axis=1)
@@ -97,9 +131,23 @@ def along_cross_track(ego: Any, human: Any) -> tuple[np.ndarray, np.ndarray]:
     ahead of the human) and ``cross[t] = d[t] · (−sin ψ[t], cos ψ[t])``
     (positive when it is to the human's left).  A rotation, so
     ``along² + cross² = ‖d‖²`` and ``mean_t sqrt(along² + cross²)`` is
-    :func:`ade`.  ``ego`` and ``human`` are ``(S, T, 3)`` poses on the same
-    clock (the policy's yaw does not enter).  Returns ``(along, cross)``,
-    each ``(S, T)``.
+    :func:`ade`.  The policy's yaw does not enter.
+
+    Parameters
+    ----------
+    ego, human : array, shape (S, T, 3)
+        The policy's and the logged human's poses ``[x, y, yaw]`` (m, m, rad) on the same
+        clock.
+
+    Returns
+    -------
+    along, cross : ndarray, shape (S, T)
+        The components of ``d[t]`` along and across the human's heading, in m.
+
+    Raises
+    ------
+    ValueError
+        If a pose array is not finite of shape ``(S, T, 3)``, or the two shapes differ.
     """
     e, h = check_ego_and_human(ego, human)
     d = e[..., :2] - h[..., :2]
@@ -110,7 +158,26 @@ def along_cross_track(ego: Any, human: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def goal_distance(ego: Any, goal: Any) -> np.ndarray:
-    """Per scene, ``‖p[T−1] − g‖``: last ego position to the goal position ``goal (S, 2|3)`` (m)."""
+    """Per scene, ``‖p[T−1] − g‖``: last ego position to the goal position (m).
+
+    Parameters
+    ----------
+    ego : array, shape (S, T, 3)
+        Ego poses ``[x, y, yaw]`` (m, m, rad), finite.
+    goal : array, shape (S, 2) or (S, 3)
+        The goal per scene, ``[x, y]`` or a pose ``[x, y, yaw]`` (its yaw is ignored).
+
+    Returns
+    -------
+    ndarray, shape (S,)
+        The goal distance per scene in m.
+
+    Raises
+    ------
+    ValueError
+        If ``goal`` has not shape ``(S, 2)`` or ``(S, 3)``, or ``ego`` is not finite poses
+        of shape ``(S, T, 3)``.
+    """
     e = check_poses(ego)
     g = np.asarray(goal, dtype=np.float64)
     if g.ndim != 2 or g.shape[0] != e.shape[0] or g.shape[1] not in (2, 3):
@@ -123,6 +190,24 @@ def off_road(ego: Any, maps: Sequence[Any]) -> np.ndarray:
 
     ``maps[s].is_drivable(points (N, 2)) -> bool (N,)`` decides (the
     :class:`minimanc.world.maps.Map`; pedestrian crossings count as drivable).
+
+    Parameters
+    ----------
+    ego : array, shape (S, T, 3)
+        Ego poses ``[x, y, yaw]`` (m, m, rad), finite.
+    maps : sequence of Map, length S
+        The map of each scene.
+
+    Returns
+    -------
+    ndarray, shape (S,)
+        1.0 where the ego left the drivable area, else 0.0.
+
+    Raises
+    ------
+    ValueError
+        If ``ego`` is not finite poses of shape ``(S, T, 3)`` or ``maps`` does not hold
+        one map per scene.
     """
     e = check_poses(ego)
     check_maps(maps, e.shape[0])
@@ -135,8 +220,27 @@ def off_road(ego: Any, maps: Sequence[Any]) -> np.ndarray:
 def route_progress(ego: Any, human: Any, maps: Sequence[Any]) -> np.ndarray:
     """Per scene, the ego's progress along the route over the human's (module docstring).
 
-    ``ego`` and ``human`` ``(S, T, 3)``; ``maps[s]`` the scene's
-    :class:`minimanc.world.maps.Map` (its route). ``(S,)``.
+    Progress is measured by projecting the first and last poses onto the route
+    (:func:`minimanc.world.maps.project_to_route`); a human progress below
+    :data:`PROGRESS_MIN` gives 1.
+
+    Parameters
+    ----------
+    ego, human : array, shape (S, T, 3)
+        The policy's and the logged human's poses ``[x, y, yaw]`` (m, m, rad).
+    maps : sequence of Map, length S
+        The scene's :class:`minimanc.world.maps.Map` (its route).
+
+    Returns
+    -------
+    ndarray, shape (S,)
+        The ratio of the ego's to the human's progress along the route (dimensionless).
+
+    Raises
+    ------
+    ValueError
+        If a pose array is not finite of shape ``(S, T, 3)``, the two shapes differ, or
+        ``maps`` does not hold one map per scene.
     """
     from minimanc.world.maps import project_to_route
 
