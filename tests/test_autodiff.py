@@ -910,3 +910,105 @@ def test_stack_is_one_traced_operation_and_expand_dims_accepts_every_axis():
         assert anp.expand_dims(x, axis).shape == np.expand_dims(x, axis).shape
     with pytest.raises(ValueError, match="expand_dims"):
         grad(lambda v: anp.sum(anp.expand_dims(v, 3)))(x)
+
+
+# ---------------------------------------------------------------------------
+# The fast paths of the common cases give the general paths' answers
+# ---------------------------------------------------------------------------
+def test_value_and_grad_pauses_the_garbage_collector_and_restores_it():
+    import gc
+
+    seen = []
+
+    def f(x):
+        seen.append(gc.isenabled())
+        return anp.sum(x * x)
+
+    def fails(x):
+        raise ValueError("inside the traced function")
+
+    was = gc.isenabled()
+    try:
+        gc.enable()
+        np.testing.assert_allclose(grad(f)(np.ones(3)), 2.0 * np.ones(3))
+        assert seen == [False] and gc.isenabled()  # paused while tracing, restored after
+        with pytest.raises(ValueError, match="inside the traced function"):
+            grad(fails)(np.ones(3))
+        assert gc.isenabled()  # restored after an error too
+        gc.disable()
+        grad(f)(np.ones(3))
+        assert not gc.isenabled()  # a caller's disabled collector stays disabled
+        gc.enable()
+        inner = []
+
+        def outer(x):  # a gradient taken (of plain values) inside another one's trace
+            grad(f)(np.ones(2))
+            inner.append(gc.isenabled())  # the inner call left the outer pause alone
+            return anp.sum(x)
+
+        grad(outer)(np.ones(2))
+        assert seen[-1] is False and inner == [False] and gc.isenabled()
+    finally:
+        (gc.enable if was else gc.disable)()
+
+
+@SETTINGS
+@given(shapes2=pairs, seed=seeds, which=st.sampled_from(["maximum", "minimum", "clip"]))
+def test_maximum_minimum_ties_share_like_jax(shapes2, seed, which):
+    # values on a grid of three, so ties between x and y are frequent (and sometimes absent)
+    (sx, sy), _ = shapes2
+    rng = np.random.default_rng(seed)
+    x = rng.integers(-1, 2, size=sx).astype(np.float64)
+    y = rng.integers(-1, 2, size=sy).astype(np.float64)
+    w = rng.normal(size=np.broadcast_shapes(sx, sy))
+    ops = {"maximum": lambda xp, a, b: xp.maximum(a, b),
+           "minimum": lambda xp, a, b: xp.minimum(a, b),
+           "clip": lambda xp, a, b: xp.clip(a + 0 * b, 0.0, 1.0) * b}
+    op = ops[which]
+    ours = grad(lambda a, b: anp.sum(op(anp, a, b) * w), argnums=(0, 1))(x, y)
+    ref = jax.grad(lambda a, b: jnp.sum(op(jnp, a, b) * w), argnums=(0, 1))(x, y)
+    for g, r in zip(ours, ref):
+        # weights 1, 1/2, 0; only the order of the broadcasting sums may differ
+        np.testing.assert_allclose(g, np.asarray(r), rtol=1e-12, atol=1e-12)
+
+
+@SETTINGS
+@given(shape=hnp.array_shapes(min_dims=1, max_dims=3, min_side=1, max_side=3), seed=seeds,
+       data=st.data())
+def test_concatenate_gradient_splits_along_any_axis(shape, seed, data):
+    axis = data.draw(st.integers(-len(shape), len(shape) - 1))
+    sizes = data.draw(st.lists(st.integers(1, 3), min_size=1, max_size=3))
+    rng = np.random.default_rng(seed)
+    parts = []
+    for n in sizes:
+        s = list(shape)
+        s[axis] = n
+        parts.append(rng.normal(size=s))
+    total = np.concatenate(parts, axis=axis)
+    w = rng.normal(size=total.shape)
+    nums = tuple(range(len(parts)))
+    ours = grad(lambda *p: anp.sum(anp.concatenate(p, axis=axis) * w), argnums=nums)(*parts)
+    pieces = np.split(w, np.cumsum(sizes)[:-1], axis=axis)
+    for g, ref in zip(ours, pieces):
+        np.testing.assert_array_equal(g, ref)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_reduction_and_index_gradients_are_fresh_writable_arrays_of_the_input_dtype(dtype):
+    x = np.arange(24, dtype=dtype).reshape(2, 3, 4)
+    max_hit = np.zeros((2, 3, 4), dtype)
+    max_hit[:, 2, 3] = 1.0  # the largest entry of each x[i]
+    index_hit = np.zeros((2, 3, 4), dtype)
+    index_hit[1, 2] += 1.0
+    index_hit[..., 0] += 1.0
+    cases = [
+        (lambda v: anp.sum(anp.sum(v, axis=(0, -1)) * 2.0), np.full(x.shape, 2.0, dtype)),
+        (lambda v: anp.sum(anp.mean(v, axis=-2, keepdims=True)),
+         np.full(x.shape, dtype(1.0) / dtype(3.0), dtype)),
+        (lambda v: anp.sum(anp.max(v, axis=(1, 2))), max_hit),
+        (lambda v: v[1, np.int64(2)].sum() + v[..., 0].sum(), index_hit),
+    ]
+    for f, want in cases:
+        g = grad(f)(x)
+        assert g.dtype == dtype and g.shape == x.shape and g.flags.writeable
+        np.testing.assert_array_equal(g, want)
