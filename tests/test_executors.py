@@ -95,7 +95,7 @@ def test_ray_address_from_argument_or_environment(monkeypatch):
     assert calls[0]["address"] == "auto"
     assert calls[1]["address"] == "ray://head:10001"
     assert "address" not in calls[2] and calls[2]["num_cpus"] == 3
-    assert calls[2]["runtime_env"] == {"env_vars": executors.thread_env(1, {})}  # one CPU each
+    assert calls[2]["runtime_env"] == {"env_vars": {"OMP_NUM_THREADS": "1"}}
 
 
 @needs_ray
@@ -135,27 +135,6 @@ def test_tiny_study_in_worker_processes_equals_inline(tmp_path):
     assert run_tiny(tmp_path / "pool", "local", log, workers=2) == inline
     assert sum(line.startswith("train:") and line.endswith("submitted") for line in log) == \
         sum(plan(PRESETS["tiny"])["train"].values())
-
-
-def xla_flags() -> str:
-    return os.environ.get("XLA_FLAGS", "")
-
-
-def test_workers_sharing_the_cpus_run_single_threaded():
-    """A worker of a pool with as many workers as CPUs has one XLA thread; one worker on
-    two CPUs keeps XLA's default."""
-    assert executors.thread_env(1, {})["XLA_FLAGS"] == executors.XLA_ONE_THREAD
-    assert executors.thread_env(1, {"XLA_FLAGS": "--a=1"})["XLA_FLAGS"] == \
-        "--a=1 " + executors.XLA_ONE_THREAD
-    assert "XLA_FLAGS" not in executors.thread_env(2, {})
-    with pytest.raises(ValueError, match="threads"):
-        executors.thread_env(0)
-    shared = executors.LocalExecutor(2, threads=1)
-    try:
-        assert executors.XLA_ONE_THREAD in shared.submit(xla_flags).result()
-    finally:
-        shared.shutdown()
-    assert executors.LocalExecutor(1).threads == max(executors.usable_cpus(), 1)
 
 
 def test_local_executor_waits_for_futures_without_blocking(tmp_path):

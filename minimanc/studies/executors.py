@@ -33,8 +33,7 @@ from minimanc.errors import UsageError
 
 __all__ = ["EXECUTORS", "RAY_MISSING", "Done", "LocalExecutor", "RayExecutor", "RayFuture",
            "check_ray", "evaluate_trained", "executor", "is_future", "load_scenes", "train_job",
-           "set_threads", "thread_env", "train_runs",
-           "usable_cpus", "XLA_ONE_THREAD"]
+           "train_runs", "usable_cpus"]
 
 EXECUTORS = ("local", "ray")
 """The executors :func:`executor` builds."""
@@ -50,34 +49,6 @@ def usable_cpus() -> int:
         return max(len(os.sched_getaffinity(0)), 1)
     except AttributeError:  # macOS, Windows
         return max(os.cpu_count() or 1, 1)
-
-
-XLA_ONE_THREAD = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
-"""XLA flags of a single-threaded CPU backend."""
-
-
-def thread_env(threads: int, environ: dict[str, str] | None = None) -> dict[str, str]:
-    """Environment variables that give NumPy's BLAS ``threads`` threads and, with one,
-    make XLA's CPU backend single-threaded too (appended to ``environ``'s ``XLA_FLAGS``,
-    default ``os.environ``). A worker that shares the CPUs with other workers runs best
-    with one thread: two processes of two spinning XLA threads each on two cores lose
-    more to each other than the second thread gains (``benchmarks/bench_study.py``)."""
-    threads = check_int("threads", threads, 1)
-    environ = os.environ if environ is None else environ
-    env = {var: str(threads) for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS",
-                                          "MKL_NUM_THREADS")}
-    if threads == 1:
-        flags = environ.get("XLA_FLAGS", "")
-        env["XLA_FLAGS"] = flags if XLA_ONE_THREAD in flags else \
-            f"{flags} {XLA_ONE_THREAD}".strip()
-    return env
-
-
-def set_threads(threads: int) -> None:
-    """Apply :func:`thread_env` to this process: the initializer of a local worker, which
-    has not imported JAX yet, so XLA starts with that many threads (NumPy is loaded by
-    then and keeps its BLAS threads; the rollouts' small products hardly use them)."""
-    os.environ.update(thread_env(threads))
 
 
 def check_ray() -> None:
@@ -119,17 +90,13 @@ class LocalExecutor:
 
     A job whose arguments hold unfinished futures is queued once they have finished (a
     thread of the caller waits for them), so ``submit`` never blocks while a worker could
-    be busy; an error of a future it waited for becomes the job's error. Each worker
-    uses ``threads`` threads (:func:`thread_env`; default: the usable CPUs shared among
-    the workers, at least one).
+    be busy; an error of a future it waited for becomes the job's error.
     """
 
     name = "local"
 
-    def __init__(self, workers: int = 1, threads: int | None = None) -> None:
+    def __init__(self, workers: int = 1) -> None:
         self.workers = check_int("workers", workers, 0)
-        self.threads = (max(usable_cpus() // max(self.workers, 1), 1) if threads is None
-                        else check_int("threads", threads, 1))
         self._pool: Any = None
 
     def submit(self, fn: Callable, *args: Any) -> Any:
@@ -160,9 +127,7 @@ class LocalExecutor:
             from concurrent.futures import ProcessPoolExecutor
 
             self._pool = ProcessPoolExecutor(max_workers=self.workers,
-                                             mp_context=mp.get_context("spawn"),
-                                             initializer=set_threads,
-                                             initargs=(self.threads,))
+                                             mp_context=mp.get_context("spawn"))
         return self._pool
 
     def shutdown(self) -> None:
@@ -201,8 +166,7 @@ class RayExecutor:
     (``max_retries``) by Ray; every job of a study resumes from its files.
 
     ``env`` are environment variables for the workers (e.g. the thread counts of the
-    driver); a task (one CPU) is single-threaded (:func:`thread_env`), as a local worker
-    sharing the CPUs is, so it computes what that one would.
+    driver, so that a task computes what it would compute locally).
     """
 
     name = "ray"
@@ -218,8 +182,7 @@ class RayExecutor:
         self._started = False
         self._remote: dict[Callable, Any] = {}
         if not ray.is_initialized():
-            env = dict(env or {})
-            runtime_env = {"env_vars": {**env, **thread_env(1, env)}}
+            runtime_env = {"env_vars": dict(env)} if env else None
             with warnings.catch_warnings():
                 # Ray starts its processes by fork + exec, which is safe beside JAX's threads
                 warnings.filterwarnings("ignore", message=r"os\.fork\(\) was called",
