@@ -72,7 +72,7 @@ def register(subparsers: Any) -> None:
                     "Cached under --out: a re-run is fast, an interrupted run resumes.",
     )
     p.add_argument("--quick", action="store_true",
-                   help="small data, few epochs, one seed (about 5 to 6 minutes on 2 cores)")
+                   help="small data, few epochs, one seed (about 4 to 5 minutes on 2 cores)")
     p.add_argument("--preset", choices=sorted(PRESETS), default=None,
                    help="a named configuration (overrides --quick)")
     add_engine_option(p)

@@ -139,12 +139,12 @@ PRESETS: dict[str, StudyConfig] = {
         max_steps_per_epoch=2, seq_len=4, lrs=(1e-3,), n_seeds=1, q_states=(3, 6),
         fractions=(0.5, 1.0), explain_scenes=1,
     ),
-    # ≈ 10 minutes on 2 cores: every study and the learning-rate sweep, one seed, small data
+    # minutes on 2 cores (README): every study and the learning-rate sweep, one seed, small data
     "quick": StudyConfig(
         preset="quick", n_train=64, n_tune=8, n_val=24, image_size=64, epochs=3,
         batch_size=64, lrs=(1e-3, 3e-3), n_seeds=1,
     ),
-    # ≤ 60 minutes on 2 cores (estimated from "quick"): three seeds, more data and epochs
+    # three seeds, more data and epochs than "quick"
     "full": StudyConfig(
         preset="full", n_train=96, n_tune=16, n_val=48, image_size=64, epochs=4,
         batch_size=64, lrs=(1e-3, 3e-3), n_seeds=3,
