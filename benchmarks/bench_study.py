@@ -2,8 +2,9 @@
 
 Counts the trainings and closed-loop rollouts of a preset (:func:`plan`), times one
 training epoch of every model at the preset's data size and one closed loop on its
-validation scenes, and extrapolates the study's wall time (training is serial in the
-main process; rollouts overlap with it in ``--workers`` processes). With
+validation scenes, one at a time, and extrapolates the study's wall time: the serial sum,
+and that sum shared by one worker per CPU (the study's pool; an ideal bound, since
+workers that share the cores slow each other down). With
 ``--seeds-together`` it also times :func:`minimanc.train.fit_seeds` (the preset's seeds
 of one configuration trained as one vmapped step).
 
@@ -24,6 +25,7 @@ import numpy as np
 
 from minimanc import models, rollout, train, world
 from minimanc.studies.config import PRESETS, plan
+from minimanc.studies.executors import usable_cpus
 
 
 def timed(f, *a, **k):
@@ -82,6 +84,7 @@ def main() -> None:
         if "seeds_s" in by[m]:
             total_seeds += n / len(c.seeds) * c.epochs * by[m]["seeds_s"] * f
     n_roll = sum(p["rollouts"].values())
+    n_cpu = usable_cpus()
     roll_each = float(np.mean([r["rollout_s"] for r in rows if "rollout_s" in r] or [math.nan]))
     tune_each = roll_each * c.n_tune / c.n_val
     roll_total = p["rollouts"]["val"] * roll_each + p["rollouts"]["tune"] * tune_each
@@ -90,7 +93,8 @@ def main() -> None:
     print(f"| rollout tune ({c.n_tune} scenes) | {p['rollouts']['tune']} | {tune_each:.0f} | "
           f"{p['rollouts']['tune'] * tune_each:.0f} |")
     print(f"\ntraining {total_train / 60:.0f} min, rollouts {roll_total / 60:.0f} min "
-          f"(serial sum {(total_train + roll_total) / 60:.0f} min; {n_roll} rollouts)")
+          f"(serial sum {(total_train + roll_total) / 60:.0f} min; {n_roll} rollouts); on "
+          f"{n_cpu} workers at best {(total_train + roll_total) / 60 / n_cpu:.0f} min")
     if total_seeds:
         print(f"seeds trained together: training {total_seeds / 60:.0f} min "
               f"({total_train / total_seeds:.2f}x)")

@@ -351,7 +351,8 @@ class Runs:
         return best
 
     def start_sweeps(self, pairs: Sequence[tuple[str, str]]) -> None:
-        """Train every sweep run first, so the rollout workers can overlap with training."""
+        """Queue every sweep run (training, then its evaluation on the tuning split) first:
+        the learning rates every other run waits for."""
         c = self.config
         if len(c.lrs) == 1:
             return
