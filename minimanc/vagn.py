@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from minimanc.autodiff import Box
 from minimanc.checks import (
     check_distribution,
     check_int,
@@ -52,6 +53,7 @@ from minimanc.checks import (
     check_stochastic_columns,
     is_concrete,
 )
+from minimanc.vagn_step import fused_step
 from minimanc.viz.forward import forwarder
 
 __all__ = [
@@ -345,7 +347,8 @@ def step(q: Any, p: Any, W: Any, xp: Any = np) -> Any:
     (every column of ``T`` sums to one, so ``Σ q_t = Σ q_{t-1} = 1``) and it
     changes no gradient with respect to ``p`` or ``W``; in floating point it
     removes the rounding drift of the sum, so ``q`` fed back step after step
-    stays a distribution to the precision of its dtype.
+    stays a distribution to the precision of its dtype.  Traced by the NumPy
+    engine the whole update is one tape node (:data:`minimanc.vagn_step.fused_step`).
 
     Parameters
     ----------
@@ -373,6 +376,9 @@ def step(q: Any, p: Any, W: Any, xp: Any = np) -> Any:
     """
     M, N = check_weights(W)
     check_state(q, N)
+    if isinstance(q, Box) or isinstance(p, Box) or isinstance(W, Box):
+        _check_p(p, M)  # traced by the NumPy engine: one tape node (minimanc.vagn_step)
+        return fused_step(xp.asarray(q), xp.asarray(p), xp.asarray(W))
     T = transition_matrix(p, W, xp=xp)
     q = xp.asarray(q)
     return _renormalise(xp.sum(T * xp.expand_dims(q, -2), axis=-1), xp)
