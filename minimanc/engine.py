@@ -24,6 +24,15 @@ and HWIO kernels; ``conv2d`` zero-pads ``padding`` pixels on each side and its
 output has spatial size ``(H + 2p - k) // s + 1``. ``get_engine("jax")`` turns on
 ``jax_enable_x64`` so that float64 runs agree with the NumPy engine to 1e-6.
 
+XLA's CPU results depend, in the last bits of a float32 reduction, on how many
+threads its intra-op pool has, and the pool is sized by the CPUs the process may use
+when JAX starts. ``get_engine("jax")`` therefore starts JAX with
+:func:`xla_threads` threads (one unless ``MINIMANC_XLA_THREADS`` says more): the same
+computation gives the same bits on a 2-core laptop, a 64-core node, in a study's worker
+processes and in a Ray task, and worker processes that each run one XLA thread do not
+oversubscribe the cores (a study's parallelism is its processes). A process that ran
+JAX before its first ``get_engine("jax")`` keeps the pool it started with.
+
 Library code that receives only an array namespace ``xp`` (the DMP step of eq. 10)
 finds its engine with :func:`engine_of`, e.g. to use ``engine_of(xp).custom_vjp``.
 """
@@ -32,6 +41,7 @@ from __future__ import annotations
 
 import functools
 import importlib
+import os
 import sys
 import types
 from collections.abc import Callable
@@ -41,9 +51,13 @@ import numpy as np
 
 from minimanc.checks import check_int
 
-__all__ = ["ENGINES", "Engine", "engine_of", "get_engine"]
+__all__ = ["ENGINES", "XLA_THREADS_VAR", "Engine", "engine_of", "get_engine", "start_jax",
+           "xla_threads"]
 
 ENGINES = ("numpy", "jax")
+
+XLA_THREADS_VAR = "MINIMANC_XLA_THREADS"
+"""Environment variable: XLA's intra-op threads per process (a positive integer; default 1)."""
 
 
 class Engine:
@@ -180,6 +194,53 @@ def _jax_jit(jax: Any) -> Callable:
     return jit
 
 
+def xla_threads() -> int:
+    """XLA's intra-op threads per process: ``$MINIMANC_XLA_THREADS`` (a positive integer),
+    default 1. A value that is not a positive integer raises ``ValueError``."""
+    raw = os.environ.get(XLA_THREADS_VAR, "1").strip()
+    try:
+        n = int(raw)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise ValueError(f"{XLA_THREADS_VAR} must be a positive integer (XLA threads per "
+                         f"process); got {XLA_THREADS_VAR}={raw!r}")
+    return n
+
+
+def _thread_ids() -> list[int]:
+    return [int(t) for t in os.listdir("/proc/self/task")]
+
+
+def start_jax(jax: Any, threads: int) -> None:
+    """Start JAX's CPU backend with an intra-op pool of ``threads`` threads.
+
+    XLA sizes its pool by the CPUs the process may use, so the calling thread is
+    restricted to ``threads`` of them while the backend starts, and every thread of the
+    process gets its own CPU mask back afterwards (the pool's threads the caller's):
+    the operating system still places them on any CPU. Without CPU masks (macOS,
+    Windows) or with ``threads`` ≥ the usable CPUs, JAX starts as it would.
+    """
+    try:
+        mask = os.sched_getaffinity(0)
+        before = {tid: os.sched_getaffinity(tid) for tid in _thread_ids()}
+    except (AttributeError, OSError):  # no CPU masks here
+        jax.devices()
+        return
+    if threads >= len(mask):
+        jax.devices()
+        return
+    os.sched_setaffinity(0, set(sorted(mask)[:threads]))
+    try:
+        jax.devices()  # creates the CPU client and its thread pool
+    finally:
+        for tid in _thread_ids():
+            try:
+                os.sched_setaffinity(tid, before.get(tid, mask))
+            except OSError:  # the thread ended meanwhile
+                pass
+
+
 def _jax_engine() -> Engine:
     try:
         import jax
@@ -188,6 +249,7 @@ def _jax_engine() -> Engine:
             "the 'jax' engine needs JAX: install it with  pip install 'jax[cpu]'"
         ) from err
     jax.config.update("jax_enable_x64", True)
+    start_jax(jax, xla_threads())
     return Engine(
         name="jax",
         xp=jax.numpy,
@@ -203,7 +265,10 @@ def _jax_engine() -> Engine:
 
 @functools.cache
 def get_engine(name: str = "numpy") -> Engine:
-    """Return the engine called ``name`` ("numpy" or "jax"); the same object each time."""
+    """Return the engine called ``name`` ("numpy" or "jax"); the same object each time.
+
+    The first ``get_engine("jax")`` of a process starts JAX with :func:`xla_threads`
+    intra-op threads (see the module docstring)."""
     if name == "numpy":
         return _numpy_engine()
     if name == "jax":

@@ -26,3 +26,10 @@ settings.register_profile(
 settings.load_profile(
     os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if os.environ.get("CI") else "default")
 )
+
+# Start JAX the way the library does (one XLA thread, minimanc.engine) before any test
+# computes with it, so that in-process results have the bits of a study's worker
+# processes whichever test happens to run JAX first.
+from minimanc.engine import get_engine  # noqa: E402
+
+get_engine("jax")

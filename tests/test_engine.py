@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import importlib
+import os
+import shutil
+import subprocess
 import sys
 
 import jax
@@ -305,3 +308,73 @@ def test_scan_nested_and_closed_over_computed_values_match_jax():
     np.testing.assert_allclose(ours[0], float(ref[0]), rtol=1e-12)
     for a, b in zip(ours[1], ref[1]):
         np.testing.assert_allclose(a, np.asarray(b), rtol=1e-10, atol=1e-12)
+
+
+# ----------------------------------------------------------------- XLA's threads
+
+XLA_PROBE = """
+import os
+import numpy as np
+from minimanc.engine import get_engine
+eng = get_engine("jax")
+import jax.numpy as jnp
+tasks = os.listdir("/proc/self/task")
+pool = sum("Eigen" in open(f"/proc/self/task/{t}/comm").read() for t in tasks)
+masks = sorted({len(os.sched_getaffinity(int(t))) for t in tasks})
+x = jnp.asarray(np.random.default_rng(0).normal(size=(64, 64, 64, 16)).astype(np.float32))
+w = jnp.asarray(np.random.default_rng(1).normal(size=(3, 3, 16, 32)).astype(np.float32))
+y = eng.nn.conv2d(x, w, stride=2, padding=1)
+print(pool, masks, float(jnp.mean(y * y)).hex())
+"""
+
+
+def _probe(cpus=None, threads=None):
+    """``(pool threads, CPUs per thread, result bits)`` of :data:`XLA_PROBE` in a fresh
+    process (on the CPUs ``cpus`` if given, with ``threads`` XLA threads if given)."""
+    env = dict(os.environ)
+    env.pop("MINIMANC_XLA_THREADS", None)
+    if threads is not None:
+        env["MINIMANC_XLA_THREADS"] = str(threads)
+    cmd = [sys.executable, "-c", XLA_PROBE]
+    if cpus is not None:
+        cmd = ["taskset", "-c", cpus] + cmd
+    out = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    return out.stdout.split()[0], out.stdout.split("]")[0].split("[")[1], out.stdout.split()[-1]
+
+
+needs_two_cpus = pytest.mark.skipif(
+    not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2
+    or shutil.which("taskset") is None,
+    reason="needs CPU masks, two usable CPUs and taskset")
+
+
+@needs_two_cpus
+def test_jax_starts_with_one_xla_thread_and_the_cpus_given_back():
+    """``get_engine("jax")`` starts XLA's pool with one thread, and afterwards every thread
+    of the process may again run on all the CPUs it could use before."""
+    pool, masks, _ = _probe()
+    assert pool == "1"
+    assert masks == str(len(os.sched_getaffinity(0)))
+
+
+@needs_two_cpus
+def test_float32_results_do_not_depend_on_the_cores():
+    """The same float32 reduction gives the same bits on one core and on two, since XLA
+    runs one thread either way; with two XLA threads (the variable) the pool has two."""
+    one = _probe(cpus="0")
+    two = _probe()
+    assert one[2] == two[2]
+    pool, _, _ = _probe(threads=2)
+    assert pool == "2"
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "two", ""])
+def test_bad_xla_threads_variable(monkeypatch, value):
+    from minimanc.engine import xla_threads
+
+    monkeypatch.setenv("MINIMANC_XLA_THREADS", value)
+    with pytest.raises(ValueError, match="MINIMANC_XLA_THREADS must be a positive integer"):
+        xla_threads()
+    monkeypatch.setenv("MINIMANC_XLA_THREADS", "3")
+    assert xla_threads() == 3
