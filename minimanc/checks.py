@@ -65,6 +65,9 @@ def is_concrete(x: Any) -> bool:
     False for traced values (autodiff boxes, JAX tracers), device arrays,
     strings, ``None`` and anything else; only concrete values are inspected.
     """
+    tx = type(x)
+    if tx is np.ndarray or tx is float:  # the common cases first (called once per check)
+        return True
     if isinstance(x, bool | numbers.Number | np.ndarray | np.generic):
         return True
     if isinstance(x, list | tuple):
@@ -79,6 +82,9 @@ def is_traced(x: Any) -> bool:
     Neither concrete nor traced (a string, ``None``, a dict) is a type error
     for every numeric argument: the ``check_*`` functions raise ``TypeError``.
     """
+    tx = type(x)
+    if tx is np.ndarray or tx is float:
+        return False
     if isinstance(x, list | tuple):
         return any(is_traced(v) for v in x)
     return hasattr(x, "shape") and hasattr(x, "dtype") and not is_concrete(x)
