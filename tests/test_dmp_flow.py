@@ -25,6 +25,7 @@ SHAPES = [
     ((3, 2), (3, 2), (3, 2), (3, 1), (3, 1)),       # the model's: per-sample gains
     ((2,), (4, 2), (2,), (), ()),                   # one start, many velocities, scalar gains
     ((1, 1), (2, 1), (2, 1), (2, 1), (1, 1)),       # yaw-like, gains broadcast over the batch
+    ((4, 3), (4, 3), (4, 3), (4, 3), (4, 3)),       # MANC's: one shape (the stacked backward)
 ]
 
 

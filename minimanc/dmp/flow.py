@@ -26,6 +26,8 @@ from __future__ import annotations
 import functools
 from typing import Any
 
+import numpy as np
+
 from minimanc.dmp.attractor import acceleration
 
 __all__ = ["coefficients", "flow", "flow_for", "force_times", "substep"]
@@ -208,6 +210,14 @@ def _flow_bwd(dt, method, n, res, g):
                 g_forces[k] = ga_k if g_forces[k] is None else g_forces[k] + ga_k
         g_goal, s_e = ab * s_a, goal * s_a - s_y
         g_alpha, g_beta = beta * s_e - s_v, alpha * s_e
+    elif _same_numpy_shapes(gy, gv, *coef, ys[0], vs[0], goal, alpha, beta, *(forces or ())):
+        s_a, s_y, s_v, gy, gv, gvs = _linear_back_stacked(method, h, n, coef, gy, gv, ys, vs)
+        if forces is not None:
+            g_forces = [h * gk for gk in gvs]
+        s_e = goal * s_a - s_y
+        g_goal = coef[1] * s_a
+        g_alpha = h * (beta * s_e - s_v)
+        g_beta = (h * alpha) * s_e
     else:
         # the velocity update ẏ' = p ẏ + hab (g − y) + h F is linear: run its transpose
         p, hab = coef
@@ -231,6 +241,36 @@ def _flow_bwd(dt, method, n, res, g):
         _sum_to(f, gk) for f, gk in zip(forces, g_forces))
     return (_sum_to(y0, gy), _sum_to(dy0, gv - g_ddy), _sum_to(goal, g_goal),
             _sum_to(alpha, g_alpha), _sum_to(beta, g_beta), g_f)
+
+
+def _same_numpy_shapes(*arrays: Any) -> bool:
+    """True when every argument is a NumPy array and all have one shape."""
+    first = arrays[0]
+    if type(first) is not np.ndarray:
+        return False
+    shape = first.shape
+    return all(type(a) is np.ndarray and a.shape == shape for a in arrays[1:])
+
+
+def _linear_back_stacked(method, h, n, coef, gy, gv, ys, vs):
+    """The transposed sub-steps of the Euler methods on NumPy arrays of one shape, with the
+    moments of :func:`_moments` as three reductions over the stacked sub-steps (the same
+    sequential sums, one call each instead of ``3 n``)."""
+    p, hab = coef
+    G = np.empty((n,) + gv.shape, dtype=np.result_type(gy, gv, p, hab))
+    semi = method == "semi_implicit"
+    for j in range(n - 1, -1, -1):
+        if semi:
+            gv = gv + h * gy  # y' = y + h ẏ'
+            G[j] = gv
+            gy, gv = gy - hab * gv, p * gv
+        else:
+            G[j] = gv
+            gy, gv = gy - hab * gv, p * gv + h * gy
+    s_a = G.sum(axis=0)
+    s_y = (G * np.stack(ys)).sum(axis=0)
+    s_v = (G * np.stack(vs)).sum(axis=0)
+    return s_a, s_y, s_v, gy, gv, G
 
 
 def _rk4_back(gy, gv, y, v, goal, alpha, beta, ab, h, j, forces, records):
