@@ -113,6 +113,24 @@ def test_fused_step_values_equal_the_plain_substeps(method):
             np.testing.assert_allclose(np.asarray(u), v, rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.parametrize("with_forces", [False, True])
+@pytest.mark.parametrize("method", dmp.METHODS)
+@pytest.mark.parametrize("k", range(len(SHAPES)))
+def test_traced_forward_values_equal_the_plain_substeps_bit_for_bit(method, with_forces, k):
+    rng = np.random.default_rng(k)
+    (y, dy, g, a, b), forces = _args(rng, SHAPES[k], with_forces, method, 7)
+    seen = []
+
+    def loss(y):
+        out = flow_for(NP)(y, dy, g, a, b, forces, 0.3, method, 7)
+        seen.append([o.value for o in out])
+        return NP.xp.sum(out[0]) + NP.xp.sum(out[1]) + NP.xp.sum(out[2])
+
+    NP.grad(loss)(y)
+    for u, v in zip(seen[0], flow(y, dy, g, a, b, forces, 0.3, method, 7)):
+        np.testing.assert_array_equal(u, v)
+
+
 def test_dmp_step_is_one_tape_node_per_call_on_numpy():
     """The speed-up itself: a 10-sub-step step is one node (plus its selected outputs)."""
     seen = []
