@@ -20,9 +20,12 @@ mask, and the backward is written by hand, from the output cotangent ``ḡ``:
   elsewhere (the tie rule of the engine's ``maximum``, JAX's),
 * ``W̄_i = Σ_batch p_i Ā`` and ``p̄_i = Σ_jk Ā_jk W_ijk`` (eq. 8 is a matrix product).
 
-Cotangents are summed back over the axes along which ``q`` and ``p`` were broadcast
-against each other. The NumPy engine uses it (:func:`minimanc.vagn.step` calls it when
-an argument is traced by :mod:`minimanc.autodiff`); JAX differentiates the plain code.
+Both passes hold the batch axis last (matrices of shape ``(N, N, B)``), so each sum and
+maximum over the q-states is a reduction over an outer axis. Cotangents are summed back
+over the axes along which ``q`` and ``p`` were broadcast against each other.
+
+The NumPy engine uses it (:func:`minimanc.vagn.step` calls it when an argument is traced
+by :mod:`minimanc.autodiff`); JAX differentiates the plain code.
 """
 
 from __future__ import annotations
@@ -39,8 +42,8 @@ __all__ = ["fused_step", "step_plain"]
 def step_plain(q: np.ndarray, p: np.ndarray, W: np.ndarray) -> np.ndarray:
     """Eqs. 8–9 on plain NumPy arrays: ``q_t = T(p) q / Σ T(p) q``.
 
-    The operations of :func:`minimanc.vagn.step` with ``xp = numpy``, in the same order
-    (the same values, bit for bit).
+    The arithmetic of :func:`minimanc.vagn.step` (equal to it up to float rounding:
+    the sums over the q-states may be taken in another order).
 
     Parameters
     ----------
@@ -55,46 +58,61 @@ def step_plain(q: np.ndarray, p: np.ndarray, W: np.ndarray) -> np.ndarray:
     -------
     q_next : array, shape (..., N)
     """
-    return _forward(q, p, W)[0]
+    return _forward(np.asarray(q), np.asarray(p), np.asarray(W))[0]
+
+
+def _flat(q, p, N, M):
+    """``q`` and ``p`` broadcast to one batch and flattened: ``(B, N)``, ``(B, M)``."""
+    batch = np.broadcast_shapes(q.shape[:-1], p.shape[:-1])
+    if q.shape[:-1] != batch:
+        q = np.broadcast_to(q, batch + (N,))
+    if p.shape[:-1] != batch:
+        p = np.broadcast_to(p, batch + (M,))
+    return q.reshape(-1, N), p.reshape(-1, M), batch
 
 
 def _forward(q, p, W):
+    """The update with the batch axis last: ``(N, N, B)`` matrices, so every sum and
+    maximum over the q-states runs over an outer axis (long inner loops on small ``N``)."""
     M, N = W.shape[0], W.shape[1]
-    A = np.matmul(p, np.reshape(W, (M, N * N)))
-    A = np.reshape(A, tuple(p.shape[:-1]) + (N, N))
+    qf, pf, batch = _flat(q, p, N, M)
+    A = np.matmul(np.reshape(W, (M, N * N)).T, pf.T).reshape(N, N, -1)  # eq. 8: A[i, j, b]
     R = np.maximum(A, 0.0)
-    E = np.exp(R - np.expand_dims(np.max(R, axis=-2), -2))
-    T = E / np.expand_dims(np.sum(E, axis=-2), -2)
-    u = np.sum(T * np.expand_dims(q, -2), axis=-1)
-    s = np.expand_dims(np.sum(u, axis=-1), -1)
-    return u / s, A, T, s
+    E = np.exp(R - R.max(axis=0))  # shifted by each column's maximum
+    T = E / E.sum(axis=0)  # column softmax of eq. 9
+    qt = qf.T  # (N, B)
+    u = (T * qt).sum(axis=1)  # u_i = Σ_j T_ij q_j
+    s = u.sum(axis=0)
+    out = u / s
+    q_next = np.ascontiguousarray(out.T).reshape(batch + (N,))
+    return q_next, (qf, pf, batch, A, T, qt, s, out)
 
 
 def _fwd(q, p, W):
-    out, A, T, s = _forward(q, p, W)
-    return out, (q, p, W, A, T, s, out)
+    q_next, res = _forward(q, p, W)
+    return q_next, (q, p, W) + res
 
 
 def _bwd(res: tuple, g: np.ndarray) -> tuple:
-    q, p, W, A, T, s, out = res
+    q, p, W, qf, pf, batch, A, T, qt, s, out = res
     M, N = W.shape[0], W.shape[1]
-    g_u = (g - np.sum(g * out, axis=-1, keepdims=True)) / s  # (..., N)
-    g_q = np.matmul(np.expand_dims(g_u, -2), T)[..., 0, :]  # Σ_i ū_i T_ij
-    g_T = np.expand_dims(g_u, -1) * np.expand_dims(q, -2)  # ū_i q_j
-    g_R = T * (g_T - np.sum(g_T * T, axis=-2, keepdims=True))
-    pos = A > 0
-    g_A = g_R * pos
+    if g.shape != batch + (N,):
+        g = np.broadcast_to(g, batch + (N,))
+    gt = g.reshape(-1, N).T  # (N, B)
+    g_u = (gt - (gt * out).sum(axis=0)) / s
+    g_q = (T * g_u[:, None, :]).sum(axis=0)  # Σ_i ū_i T_ij
+    g_T = g_u[:, None, :] * qt  # ū_i q_j
+    g_R = T * (g_T - (g_T * T).sum(axis=0))
+    g_A = g_R * (A > 0)
     tie = A == 0
     if tie.any():
         g_A = g_A + (0.5 * g_R) * tie
-    g_A = g_A.astype(g_R.dtype, copy=False)
-    batch = g_A.shape[:-2]
-    ga = np.reshape(g_A, batch + (N * N,))
-    g_p = np.matmul(ga, np.reshape(W, (M, N * N)).T)  # (..., M)
-    pb = np.broadcast_to(p, batch + (M,)).reshape(-1, M)
-    g_W = np.matmul(pb.T, ga.reshape(-1, N * N)).reshape(M, N, N)
-    return (_cast(unbroadcast(q, g_q), q), _cast(unbroadcast(p, g_p), p),
-            _cast(g_W, W))
+    g_A = g_A.astype(g_R.dtype, copy=False).reshape(N * N, -1)  # (N², B)
+    Wf = np.reshape(W, (M, N * N))
+    g_p = np.matmul(Wf, g_A).T.reshape(batch + (M,))
+    g_W = np.matmul(g_A, pf).T.reshape(M, N, N)
+    g_q = g_q.T.reshape(batch + (N,))
+    return (_cast(unbroadcast(q, g_q), q), _cast(unbroadcast(p, g_p), p), _cast(g_W, W))
 
 
 def _cast(g: Any, x: Any) -> Any:

@@ -2,7 +2,7 @@
 with a hand-written VJP, used by :func:`minimanc.vagn.step` on the NumPy engine.
 
 Oracles: JAX's own reverse mode through the plain jnp code of :func:`vagn.step` (float64),
-central differences, the plain NumPy values (bit for bit), and the tape's node count.
+central differences, the plain NumPy values (to rounding), and the tape's node count.
 """
 
 from __future__ import annotations
@@ -80,7 +80,7 @@ def test_fused_vjp_equals_central_differences(seed, shape):
         np.testing.assert_allclose(ours[k], want, rtol=1e-6, atol=1e-8)
 
 
-def test_fused_values_equal_the_plain_numpy_code_bit_for_bit():
+def test_fused_values_equal_the_plain_numpy_code_to_rounding():
     for dtype in (np.float32, np.float64):
         q, p, W = (a.astype(dtype) for a in _args(3, 0))
         seen: dict = {}
@@ -92,8 +92,9 @@ def test_fused_values_equal_the_plain_numpy_code_bit_for_bit():
 
         value_and_grad(f, argnums=(0, 1, 2))(q, p, W)
         assert seen["out"].dtype == dtype
-        np.testing.assert_array_equal(seen["out"], vagn.step(q, p, W))
-        np.testing.assert_array_equal(step_plain(q, p, W), vagn.step(q, p, W))
+        tol = 8 * np.finfo(dtype).eps  # a few roundings: the sums are taken in another order
+        np.testing.assert_allclose(seen["out"], vagn.step(q, p, W), rtol=tol, atol=tol)
+        np.testing.assert_allclose(step_plain(q, p, W), vagn.step(q, p, W), rtol=tol, atol=tol)
 
 
 def test_float32_cotangents_stay_float32_and_match_float64():
