@@ -68,11 +68,17 @@ def is_concrete(x: Any) -> bool:
     tx = type(x)
     if tx is np.ndarray or tx is float:  # the common cases first (called once per check)
         return True
-    if isinstance(x, bool | numbers.Number | np.ndarray | np.generic):
-        return True
     if isinstance(x, list | tuple):
         return all(is_concrete(v) for v in x)
-    return False
+    known = _CONCRETE_TYPES.get(tx)
+    if known is None:  # the answer depends on the type alone: ask isinstance once per type
+        known = _CONCRETE_TYPES[tx] = isinstance(x, bool | numbers.Number | np.ndarray
+                                                 | np.generic)
+    return known
+
+
+_CONCRETE_TYPES: dict[type, bool] = {}
+_TRACED_TYPES: dict[type, bool] = {}
 
 
 def is_traced(x: Any) -> bool:
@@ -87,7 +93,12 @@ def is_traced(x: Any) -> bool:
         return False
     if isinstance(x, list | tuple):
         return any(is_traced(v) for v in x)
-    return hasattr(x, "shape") and hasattr(x, "dtype") and not is_concrete(x)
+    known = _TRACED_TYPES.get(tx)
+    if known is None:  # shape and dtype are attributes of the type (a Box's, a tracer's)
+        known = hasattr(x, "shape") and hasattr(x, "dtype") and not is_concrete(x)
+        if known:
+            _TRACED_TYPES[tx] = True
+    return known
 
 
 # --------------------------------------------------------------------------- tolerances

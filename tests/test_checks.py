@@ -128,6 +128,24 @@ def test_traced_values_are_never_inspected(name):
     assert not checks.is_traced(np.ones(2)) and not checks.is_traced("a")
 
 
+def test_concreteness_by_type_is_the_same_on_every_call():
+    """The answers are remembered per type: asking twice (in either order) changes nothing."""
+    import jax.numpy as jnp
+
+    from minimanc.autodiff import Box
+
+    cases = [(np.ones(2), True, False), (np.ma.masked_array([1.0]), True, False),
+             (2.5, True, False), (3, True, False), (True, True, False),
+             (np.float32(1), True, False), (1 + 2j, True, False), ("a", False, False),
+             (None, False, False), ({"a": 1.0}, False, False), (Box(np.ones(2)), False, True),
+             (jnp.ones(2), False, True), ([1.0, np.ones(2)], True, False),
+             ((1.0, Box(1.0)), False, True)]
+    for _ in range(2):
+        for x, concrete, traced in cases + cases[::-1]:
+            assert checks.is_concrete(x) is concrete, x
+            assert checks.is_traced(x) is traced, x
+
+
 # --------------------------------------------------------------------------- distributions
 
 
