@@ -61,8 +61,8 @@ def _check_carry(new, paths: list[str], new_paths: list[str], ref: list) -> None
                         f"leaves {paths}, f returned {new_paths}")
     for p, a, b in zip(paths, ref, new):
         vb = unbox(b)
-        if type(a) is np.ndarray and type(vb) is np.ndarray:
-            if a.shape == vb.shape and a.dtype == vb.dtype:
+        if type(a) is np.ndarray and (type(vb) is np.ndarray or isinstance(vb, np.generic)):
+            if a.shape == vb.shape and a.dtype == vb.dtype:  # a NumPy scalar has both too
                 continue
         if np.shape(a) != np.shape(vb) or np.result_type(a) != np.result_type(vb):
             raise TypeError(
