@@ -105,7 +105,7 @@ def _bwd(res: tuple, g: np.ndarray) -> tuple:
     g_R = T * (g_T - (g_T * T).sum(axis=0))
     g_A = g_R * (A > 0)
     tie = A == 0
-    if tie.any():
+    if np.count_nonzero(tie):
         g_A = g_A + (0.5 * g_R) * tie
     g_A = g_A.astype(g_R.dtype, copy=False).reshape(N * N, -1)  # (N², B)
     Wf = np.reshape(W, (M, N * N))

@@ -79,7 +79,7 @@ defvjp(
 def _balanced(first, second, g):
     """Weight 1 where ``first`` wins, 1/2 on ties, 0 elsewhere (JAX's convention)."""
     tie = np.equal(first, second)
-    if not tie.any():  # no ties (the common case): the weight is the comparison itself
+    if not np.count_nonzero(tie):  # no ties (the common case): the comparison is the weight
         return g * np.greater(first, second)
     w = np.where(first > second, 1.0, np.where(tie, 0.5, 0.0))
     return g * w.astype(g.dtype, copy=False)
