@@ -406,6 +406,17 @@ plt.show()
 # states are a clock, not modes. The study measures this for every model with a vAGN
 # and reports it in its findings (`vagn_modes_*`), with the rule it applies.
 
+# %% [markdown]
+# Can a change to training make them modes? `benchmarks/modes_training.py` trains MANC
+# at the paper's data size under four variants of Algorithm 1 and applies the same
+# measure (its table is in the README, quoted from `results/modes_training.md`). The ζ
+# penalty changes nothing and a random initial q' alone barely helps. What helps is
+# training on **short windows that start anywhere in a scene, from a random q'**
+# (`train.TrainConfig(dmp_seq_len=10, q_init="random")`): no window begins at the
+# scene's first step, so q cannot learn to count steps from a known start, and its most
+# likely state then carries information about the human's mode, at a cost in open-loop
+# imitation.
+
 # %% tags=["nbval-ignore-output"]
 steps = studies.saliency_steps(traj, scene)
 maps_ = plots.saliency_maps(fit.params, manc_cfg, traj, val_ds, scene, steps)
