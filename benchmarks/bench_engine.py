@@ -12,7 +12,8 @@ NumPy / JAX (lower is better for NumPy).
     python benchmarks/bench_engine.py [--rounds 7] [--steps 5] [--batch 32] [--size 64]
                                       [--threads 1]
 
-``--threads 1`` runs OpenBLAS (NumPy) and XLA (JAX) single-threaded; it must be
+``--threads N`` gives OpenBLAS (NumPy) and XLA (JAX) N threads (default: the BLAS
+default, and JAX's one XLA thread per process of :mod:`minimanc.engine`); it must be
 applied before NumPy and JAX load, so this script reads it first. On a busy
 shared machine a 2-thread BLAS waits for its second thread and single-threaded
 runs are both faster and steadier.
@@ -35,7 +36,7 @@ def _parse_args(argv: list[str]) -> argparse.Namespace:
     ap.add_argument("--batch", type=int, default=32)
     ap.add_argument("--size", type=int, default=64, help="image height = width")
     ap.add_argument("--threads", type=int, default=None,
-                    help="BLAS threads for NumPy; 1 also makes XLA single-threaded")
+                    help="BLAS threads for NumPy and XLA threads for JAX")
     return ap.parse_args(argv)
 
 
