@@ -41,7 +41,7 @@ from minimanc.studies.jobs import (
 __all__ = ["THREAD_ENV", "Runs", "families_of"]
 
 THREAD_ENV: tuple[str, ...] = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-                               "XLA_FLAGS", "JAX_PLATFORMS")
+                               "MINIMANC_XLA_THREADS", "XLA_FLAGS", "JAX_PLATFORMS")
 """Environment variables a Ray worker inherits from the driver (so that a task computes as
 a local job would)."""
 
