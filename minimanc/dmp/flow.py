@@ -218,27 +218,20 @@ def _flow_bwd(dt, method, n, res, g):
                 g_forces[k] = ga_k if g_forces[k] is None else g_forces[k] + ga_k
         g_goal, s_e = ab * s_a, goal * s_a - s_y
         g_alpha, g_beta = beta * s_e - s_v, alpha * s_e
-    elif _same_numpy_shapes(gy, gv, *coef, ys[0], vs[0], goal, alpha, beta, *(forces or ())):
-        s_a, s_y, s_v, gy, gv, gvs = _linear_back_stacked(method, h, n, coef, gy, gv, ys, vs)
-        if forces is not None:
-            g_forces = [h * gk for gk in gvs]
-        s_e = goal * s_a - s_y
-        g_goal = coef[1] * s_a
-        g_alpha = h * (beta * s_e - s_v)
-        g_beta = (h * alpha) * s_e
     else:
         # the velocity update ẏ' = p ẏ + hab (g − y) + h F is linear: run its transpose
         p, hab = coef
-        gvs = [None] * n  # cotangent of each sub-step's new velocity: ā = h · it
-        for j in range(n - 1, -1, -1):
-            if method == "semi_implicit":
-                gv = gv + h * gy  # y' = y + h ẏ'
-                gvs[j] = gv
-                gy, gv = gy - hab * gv, p * gv
-            else:
-                gvs[j] = gv
-                gy, gv = gy - hab * gv, p * gv + h * gy
-        s_a, s_y, s_v = _moments(gvs, ys, vs)
+        if _same_numpy_shapes(gy, gv, p, hab, ys[0], vs[0], goal, alpha, beta,
+                              *(forces or ())):  # NumPy, one shape: stack the sub-steps
+            gvs = np.empty((n,) + gv.shape, dtype=np.result_type(gy, gv, p, hab))
+            gy, gv = _transpose_linear(method, h, p, hab, gy, gv, gvs)
+            s_a = gvs.sum(axis=0)  # the sums of _moments, one reduction each
+            s_y = (gvs * np.stack(ys)).sum(axis=0)
+            s_v = (gvs * np.stack(vs)).sum(axis=0)
+        else:
+            gvs = [None] * n  # cotangent of each sub-step's new velocity: ā = h · it
+            gy, gv = _transpose_linear(method, h, p, hab, gy, gv, gvs)
+            s_a, s_y, s_v = _moments(gvs, ys, vs)
         if forces is not None:
             g_forces = [h * gk for gk in gvs]
         s_e = goal * s_a - s_y  # Σ ā (g − y_j) / h
@@ -260,25 +253,18 @@ def _same_numpy_shapes(*arrays: Any) -> bool:
     return all(type(a) is np.ndarray and a.shape == shape for a in arrays[1:])
 
 
-def _linear_back_stacked(method, h, n, coef, gy, gv, ys, vs):
-    """The transposed sub-steps of the Euler methods on NumPy arrays of one shape, with the
-    moments of :func:`_moments` as three reductions over the stacked sub-steps (the same
-    sequential sums, one call each instead of ``3 n``)."""
-    p, hab = coef
-    G = np.empty((n,) + gv.shape, dtype=np.result_type(gy, gv, p, hab))
-    semi = method == "semi_implicit"
-    for j in range(n - 1, -1, -1):
-        if semi:
+def _transpose_linear(method, h, p, hab, gy, gv, out):
+    """The transposed sub-steps of the Euler methods, last to first: ``out[j]`` receives the
+    cotangent of sub-step ``j``'s new velocity; returns the cotangents of ``(y, ẏ)``."""
+    for j in range(len(out) - 1, -1, -1):
+        if method == "semi_implicit":
             gv = gv + h * gy  # y' = y + h ẏ'
-            G[j] = gv
+            out[j] = gv
             gy, gv = gy - hab * gv, p * gv
         else:
-            G[j] = gv
+            out[j] = gv
             gy, gv = gy - hab * gv, p * gv + h * gy
-    s_a = G.sum(axis=0)
-    s_y = (G * np.stack(ys)).sum(axis=0)
-    s_v = (G * np.stack(vs)).sum(axis=0)
-    return s_a, s_y, s_v, gy, gv, G
+    return gy, gv
 
 
 def _rk4_back(gy, gv, y, v, goal, alpha, beta, ab, h, j, forces, records):
