@@ -30,7 +30,8 @@ import numpy as np
 
 from minimanc.dmp.attractor import acceleration
 
-__all__ = ["coefficients", "flow", "flow_for", "force_times", "substep"]
+__all__ = ["coefficients", "flow", "flow_backward", "flow_for", "flow_forward", "force_times",
+           "substep"]
 
 
 def coefficients(alpha: Any, beta: Any, h: float) -> tuple[Any, Any]:
@@ -146,7 +147,37 @@ def _flow_plain(y, dy, goal, alpha, beta, forces, dt, method, n):
     return y_j, v_j, (v_j - dy) / dt
 
 
-def _flow_fwd(y, dy, goal, alpha, beta, forces, dt, method, n):
+def flow_forward(y: Any, dy: Any, goal: Any, alpha: Any, beta: Any, forces: Any, dt: float,
+                 method: str, n: int) -> tuple[tuple[Any, Any, Any], tuple]:
+    """The forward half of :func:`flow_for`'s VJP: ``((y_next, dy_next, ddy), residuals)``.
+
+    Public so that a larger function with its own VJP (the DMP head,
+    :mod:`minimanc.models.head_vjp`) can run a DMP step inside its forward and
+    hand the residuals to :func:`flow_backward` in its backward. Arguments as in
+    :func:`flow` (``dt`` concrete).
+
+    Parameters
+    ----------
+    y, dy : array, shape (..., D)
+        State at the start of the step.
+    goal, alpha, beta : array or float
+        Goal and gains of eq. (10), broadcasting against ``y``.
+    forces : list of array or None
+        Forcing accelerations at :func:`force_times` (``None``: eq. 10 alone).
+    dt : float
+        Step length in seconds.
+    method : str
+        One of :data:`~minimanc.dmp.params.METHODS`.
+    n : int
+        Sub-steps per step.
+
+    Returns
+    -------
+    outputs : tuple
+        ``(y_next, dy_next, ddy)`` as :func:`flow` returns them.
+    residuals : tuple
+        What :func:`flow_backward` needs.
+    """
     h = dt / n
     coef = None if method == "rk4" else coefficients(alpha, beta, h)
     ys, vs = [], []
@@ -199,7 +230,24 @@ def _moments(ws: list, ys: list, vs: list) -> tuple[Any, Any, Any]:
     return s_a, s_y, s_v
 
 
-def _flow_bwd(dt, method, n, res, g):
+def flow_backward(dt: float, method: str, n: int, res: tuple, g: tuple) -> tuple:
+    """The backward half of :func:`flow_for`'s VJP (module docstring).
+
+    Parameters
+    ----------
+    dt, method, n
+        As given to :func:`flow_forward`.
+    res : tuple
+        The residuals :func:`flow_forward` returned.
+    g : tuple of array
+        Cotangents of ``(y_next, dy_next, ddy)``.
+
+    Returns
+    -------
+    tuple
+        Cotangents of ``(y, dy, goal, alpha, beta, forces)``, each of its argument's shape
+        (``None`` for ``forces=None``).
+    """
     ys, vs, coef, y0, dy0, goal, alpha, beta, forces = res
     h = dt / n
     gy, gv, g_ddy = g
@@ -313,7 +361,7 @@ def flow_for(eng: Any) -> Any:
     :func:`force_times`. The arguments broadcast as in :func:`substep`.
     """
     f = eng.custom_vjp(_flow_plain, nondiff_argnums=(6, 7, 8))
-    f.defvjp(_flow_fwd, _flow_bwd)
+    f.defvjp(flow_forward, flow_backward)
     return f
 
 

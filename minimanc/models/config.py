@@ -11,7 +11,8 @@ import numpy as np
 from minimanc import dmp, inputs
 from minimanc.checks import check_int
 
-__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "ModelConfig", "gain_box_corners", "gain_logits"]
+__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "ModelConfig", "gain_box_corners", "gain_logits",
+           "lookahead_rule"]
 
 CONTROL_SCALE: tuple[float, float] = (10.0, 0.5)
 """Output scale of the direct heads: ``controls = o · (10 m/s, 0.5 rad/s)``."""
@@ -201,3 +202,28 @@ class ModelConfig:
         d = asdict(self)
         d["channels"] = list(d["channels"])
         return d
+
+
+def lookahead_rule(cfg: ModelConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The DMP head's two look-ahead distances as ``clip(near + per_speed · v₀, lo, hi)``.
+
+    Columns (position goal, pure-pursuit point) of :func:`minimanc.models.dmp_head`:
+    ``near = (d_y, d_q)``, ``per_speed = (τ_y, t_q)``, ``lo = (4, d_q)`` and
+    ``hi = (4K, min(22, 4K))`` metres (``K = cfg.k_targets``).
+
+    Parameters
+    ----------
+    cfg : ModelConfig
+        The head's look-ahead fields and ``k_targets``.
+
+    Returns
+    -------
+    near, per_speed, lo, hi : numpy.ndarray, shape (2,), float32
+    """
+    K = cfg.k_targets
+    near = np.array([cfg.position_lookahead, cfg.heading_lookahead], dtype=np.float32)
+    per_speed = np.array([cfg.position_lookahead_time, cfg.heading_lookahead_time],
+                         dtype=np.float32)
+    lo = np.array([4.0, cfg.heading_lookahead], dtype=np.float32)
+    hi = np.array([4.0 * K, min(22.0, 4.0 * K)], dtype=np.float32)
+    return near, per_speed, lo, hi

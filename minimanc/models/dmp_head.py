@@ -50,9 +50,11 @@ from typing import Any
 import numpy as np
 
 from minimanc import dmp, quaternion
-from minimanc.models.config import ModelConfig
+from minimanc.autodiff import Box
+from minimanc.models.config import ModelConfig, lookahead_rule
+from minimanc.models.head_vjp import fused_head
 
-__all__ = ["dmp_head", "lane_point", "lane_points"]
+__all__ = ["dmp_head", "head_ops", "lane_point", "lane_points"]
 
 
 def lane_point(lane_target: Any, dist: Any, xp: Any = np, spacing: float = 4.0) -> Any:
@@ -109,6 +111,11 @@ def dmp_head(logits: Any, lane_target: Any, motion: Any, cfg: ModelConfig,
              xp: Any = np) -> tuple[Any, dict]:
     """Eqs. 10–11: four gain logits → one DMP step → controls (module docstring).
 
+    :func:`head_ops`, except that with ``orientation="yaw"`` and an argument traced
+    by the NumPy engine the whole head is one node of its tape
+    (:data:`minimanc.models.head_vjp.fused_head`, the same arithmetic with a
+    hand-written VJP).
+
     Parameters
     ----------
     logits : array, shape (B, 4)
@@ -131,7 +138,42 @@ def dmp_head(logits: Any, lane_target: Any, motion: Any, cfg: ModelConfig,
         ``alpha``, ``beta`` ``(B, 2)`` = (position, orientation) gains, the
         position goal ``g`` ``(B, 2)`` and the yaw goal ``psi_g`` ``(B,)``.
     """
-    K = cfg.k_targets
+    if cfg.orientation == "yaw" and any(isinstance(a, Box) for a in (logits, lane_target, motion)):
+        controls, alpha, beta, g, psi_g = fused_head(xp.asarray(logits), xp.asarray(lane_target),
+                                                     xp.asarray(motion), cfg)
+        return controls, {"alpha": alpha, "beta": beta, "g": g, "psi_g": psi_g}
+    return head_ops(logits, lane_target, motion, cfg, xp)
+
+
+def head_ops(logits: Any, lane_target: Any, motion: Any, cfg: ModelConfig,
+             xp: Any = np) -> tuple[Any, dict]:
+    """:func:`dmp_head` operation by operation, on any engine (JAX differentiates this).
+
+    It is also the reference the VJP of :data:`~minimanc.models.head_vjp.fused_head`
+    is tested against.
+
+    Parameters
+    ----------
+    logits : array, shape (B, 4)
+        ``(z_αy, z_βy, z_αq, z_βq)``; the β logits are ignored when
+        ``cfg.critically_damped``.
+    lane_target : array, shape (B, K, 2)
+        The moving lane target, ego frame (m); ``K = cfg.k_targets``.
+    motion : array, shape (B, 2)
+        The current ``[speed, yaw rate]``: the DMPs' initial velocities.
+    cfg : ModelConfig
+        Look-ahead rules, ``orientation`` and ``dt``.
+    xp : module
+        The engine's array namespace.
+
+    Returns
+    -------
+    controls : array, shape (B, 2)
+        ``[speed (m/s), yaw rate (rad/s)]`` over the step.
+    aux : dict
+        ``alpha``, ``beta`` ``(B, 2)`` = (position, orientation) gains, the
+        position goal ``g`` ``(B, 2)`` and the yaw goal ``psi_g`` ``(B,)``.
+    """
     lt = xp.asarray(lane_target)
     mot = xp.asarray(motion)
     v0, w0 = mot[:, 0:1], mot[:, 1:2]  # (B, 1) each
@@ -141,12 +183,7 @@ def dmp_head(logits: Any, lane_target: Any, motion: Any, cfg: ModelConfig,
                                         xp=xp, critically_damped=crit)
     # the look-ahead distances of the position goal (tau_y seconds ahead) and of the
     # pure-pursuit point, one (B, 2) array; both points from one interpolation
-    top = min(22.0, 4.0 * K)
-    near = np.array([cfg.position_lookahead, cfg.heading_lookahead], dtype=np.float32)
-    per_speed = np.array([cfg.position_lookahead_time, cfg.heading_lookahead_time],
-                         dtype=np.float32)
-    lo = np.array([4.0, cfg.heading_lookahead], dtype=np.float32)
-    hi = np.array([4.0 * K, top], dtype=np.float32)
+    near, per_speed, lo, hi = lookahead_rule(cfg)
     dist = xp.clip(near + per_speed * v0, lo, hi)
     points = lane_points(lt, dist, xp)  # (B, 2, 2): [goal g, pursuit point p]
     g, p = points[:, 0], points[:, 1]

@@ -1,0 +1,206 @@
+"""Chapter 8 — the DMP head of eqs. 10–11 as one differentiable function with its own VJP.
+
+:func:`minimanc.models.dmp_head.head_ops` maps four gain logits ``z``, the lane target
+``L`` ``(B, K, 2)`` and the current motion ``(v₀, ω₀)`` to the controls (the module
+:mod:`minimanc.models.dmp_head` states the model). With ``orientation="yaw"`` it is,
+in order:
+
+* the gains ``α = α_lo + (α_hi − α_lo) σ(z_α)``, likewise ``β`` (eq. 10's gain map;
+  ``β = α/4`` when critically damped), ``σ(z) = ½ (1 + tanh(z/2))``;
+* the look-ahead distances ``d = clip(near + per_speed · v₀, lo, hi)``
+  (:func:`~minimanc.models.config.lookahead_rule`) and the hat weights
+  ``w_jk = max(1 − |d_j / 4 − k|, 0)``, so the goal ``g`` and the pursuit point ``p``
+  are the rows of ``w L``;
+* the curvature ``κ = 2 p_y / max(|p|², 10⁻⁶)`` and the yaw goal
+  ``ψ_g = clip(κ v₀ τ_q, ±π/2)``;
+* one DMP step (eq. 10, :func:`minimanc.dmp.flow.flow_forward`) of ``(x, y, ψ)`` from
+  rest at the origin with velocity ``(v₀, 0, ω₀)``, goal ``(g, ψ_g)`` and gains
+  ``(α_y, α_y, α_q)``, ``(β_y, β_y, β_q)``; the controls are ``(x₁, ψ₁) / dt``.
+
+Traced by the generic tape that is about 35 operations per control step.
+:data:`fused_head` is the same arithmetic, in the same order, as **one** node
+(:class:`minimanc.autodiff.custom_vjp`): the forward runs on plain NumPy arrays, the
+backward is the chain rule written out, from the cotangents of the outputs back:
+
+* the DMP step's own backward (:func:`minimanc.dmp.flow.flow_backward`) gives the
+  cotangents of the goal, of the initial velocity and of the three gain columns;
+* ``clip`` passes the cotangent where the value lies strictly inside its bounds, half
+  of it on a bound and none outside (``clip = minimum(maximum(x, lo), hi)`` with the
+  tie rule of the engine's ``maximum``, JAX's); the same rule at ``max(·, 0)`` and
+  ``max(·, 10⁻⁶)``, and ``|u|′ = sign(u)``;
+* ``κ = a / b`` gives ``ā = κ̄ / b``, ``b̄ = −κ̄ κ / b``; ``|p|²`` gives ``2 p``;
+* ``P = w L`` gives ``w̄ = P̄ Lᵀ`` and ``L̄ = wᵀ P̄``; ``σ′ = ¼ (1 − tanh²(z/2))``.
+
+The NumPy engine uses it (:func:`minimanc.models.dmp_head` calls it when an argument
+is traced by :mod:`minimanc.autodiff`); JAX differentiates the plain code.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from minimanc import dmp
+from minimanc.autodiff import custom_vjp, unbroadcast
+from minimanc.dmp.flow import flow_backward, flow_forward
+from minimanc.models.config import ModelConfig, lookahead_rule
+
+__all__ = ["fused_head", "head_plain"]
+
+SPACING = 4.0
+"""Metres between lane-target points (the hat weights' width)."""
+
+COLS = [0, 0, 1]
+"""The gain column of each DMP coordinate ``(x, y, ψ)``: position, position, orientation."""
+
+
+def head_plain(logits: np.ndarray, lane_target: np.ndarray, motion: np.ndarray,
+               cfg: ModelConfig) -> tuple[np.ndarray, ...]:
+    """The yaw head on plain NumPy arrays: ``(controls, alpha, beta, g, psi_g)``.
+
+    Parameters
+    ----------
+    logits : array, shape (B, 4)
+        ``(z_αy, z_βy, z_αq, z_βq)``.
+    lane_target : array, shape (B, K, 2)
+        The moving lane target, ego frame (m).
+    motion : array, shape (B, 2)
+        The current ``[speed, yaw rate]``.
+    cfg : ModelConfig
+        Look-ahead rules and ``dt`` (``orientation="yaw"``).
+
+    Returns
+    -------
+    controls : array, shape (B, 2)
+    alpha, beta : array, shape (B, 2)
+        (position, orientation) gains.
+    g : array, shape (B, 2)
+        The position goal.
+    psi_g : array, shape (B,)
+        The yaw goal.
+    """
+    return _forward(np.asarray(logits), np.asarray(lane_target), np.asarray(motion), cfg)[0]
+
+
+def _gains(logits, crit):
+    """Eq. 10's gain map on both columns at once, with the tanh values for the backward."""
+    a_lo, a_hi = dmp.ALPHA_RANGE
+    ta = np.tanh(0.5 * logits[:, 0::2])
+    alpha = a_lo + (a_hi - a_lo) * (0.5 * (1.0 + ta))
+    if crit:
+        return alpha, alpha / 4.0, ta, None
+    b_lo, b_hi = dmp.BETA_RANGE
+    tb = np.tanh(0.5 * logits[:, 1::2])
+    return alpha, b_lo + (b_hi - b_lo) * (0.5 * (1.0 + tb)), ta, tb
+
+
+def _forward(logits, lt, mot, cfg):
+    v0, w0 = mot[:, 0:1], mot[:, 1:2]
+    alpha, beta, ta, tb = _gains(logits, cfg.critically_damped)
+    near, per_speed, lo, hi = lookahead_rule(cfg)
+    pre = near + per_speed * v0
+    dist = np.minimum(np.maximum(pre, lo), hi)
+    idx = np.arange(1, lt.shape[1] + 1, dtype=np.float32)
+    u = np.expand_dims(dist, -1) / SPACING - idx  # (B, 2, K)
+    hat = 1.0 - np.abs(u)
+    w = np.maximum(hat, 0.0)
+    points = w @ lt  # (B, 2, 2): [goal g, pursuit point p]
+    g, p = points[:, 0], points[:, 1]
+    ss = np.sum(p * p, axis=-1, keepdims=True)
+    den = np.maximum(ss, 1e-6)
+    kappa = 2.0 * p[:, 1:2] / den
+    half_pi = float(np.pi / 2)
+    kv = kappa * v0
+    raw = kv * cfg.heading_horizon
+    psi_g = np.minimum(np.maximum(raw, -half_pi), half_pi)  # (B, 1)
+    zero = np.zeros_like(v0)
+    goal = np.concatenate([g, psi_g], axis=-1)
+    vel = np.concatenate([v0, zero, w0], axis=-1)
+    (r1, _, _), flow_res = flow_forward(np.zeros_like(goal), vel, goal, alpha[:, COLS],
+                                        beta[:, COLS], None, cfg.dt, dmp.DEFAULT_METHOD,
+                                        dmp.DEFAULT_SUBSTEPS)
+    controls = r1[:, 0::2] / cfg.dt
+    outs = (controls, alpha, beta, g, psi_g[:, 0])
+    return outs, (ta, tb, v0, pre, lo, hi, per_speed, u, hat, w, p, ss, den, kappa, raw,
+                  flow_res, r1)
+
+
+def _through_max(g, a, b):
+    """``g · ∂ max(a, b) / ∂a``: all of ``g`` where ``a > b``, half where equal, none elsewhere."""
+    tie = a == b
+    if not np.count_nonzero(tie):
+        return g * (a > b)
+    return g * np.where(a > b, 1.0, np.where(tie, 0.5, 0.0)).astype(g.dtype, copy=False)
+
+
+def _through_clip(g, x, lo, hi):
+    """``g · ∂ clip(x, lo, hi) / ∂x`` with ``clip = minimum(maximum(x, lo), hi)``."""
+    return _through_max(_through_max(g, hi, np.maximum(x, lo)), x, lo)
+
+
+def _fwd(logits, lt, mot, cfg):
+    outs, res = _forward(logits, lt, mot, cfg)
+    return outs, (logits, lt, mot) + res
+
+
+def _bwd(cfg: ModelConfig, res: tuple, cts: tuple) -> tuple:
+    (logits, lt, mot, ta, tb, v0, pre, lo, hi, per_speed, u, hat, w, p, ss, den, kappa,
+     raw, flow_res, r1) = res
+    g_controls, g_alpha, g_beta, g_g, g_psi = (np.asarray(c) for c in cts)
+    dt = cfg.dt
+    # the DMP step: controls = (x1, psi1) / dt
+    g_r1 = np.zeros_like(r1)
+    g_r1[:, 0::2] = g_controls / dt
+    zeros = np.zeros_like(r1)
+    _, g_vel, g_goal, g_a3, g_b3, _ = flow_backward(dt, dmp.DEFAULT_METHOD,
+                                                     dmp.DEFAULT_SUBSTEPS, flow_res,
+                                                     (g_r1, zeros, zeros))
+    g_alpha = g_alpha + np.concatenate([g_a3[:, 0:1] + g_a3[:, 1:2], g_a3[:, 2:3]], axis=-1)
+    g_beta = g_beta + np.concatenate([g_b3[:, 0:1] + g_b3[:, 1:2], g_b3[:, 2:3]], axis=-1)
+    g_v0 = g_vel[:, 0:1]
+    g_w0 = g_vel[:, 2:3]
+    # the yaw goal psi_g = clip(kappa v0 tau_q, ±pi/2), kappa = 2 p_y / max(|p|², 1e-6)
+    half_pi = float(np.pi / 2)
+    g_raw = _through_clip(g_goal[:, 2:3] + g_psi[:, None], raw, -half_pi, half_pi)
+    g_kv = g_raw * cfg.heading_horizon
+    g_kappa = g_kv * v0
+    g_v0 = g_v0 + g_kv * kappa
+    g_den = -g_kappa * kappa / den
+    g_ss = _through_max(g_den, ss, 1e-6)
+    g_p = 2.0 * p * g_ss
+    g_p[:, 1:2] += 2.0 * (g_kappa / den)
+    # both points from the hat weights: points = w @ lt
+    g_points = np.stack([g_goal[:, 0:2] + g_g, g_p], axis=1)  # (B, 2, 2)
+    g_w = g_points @ np.swapaxes(lt, -1, -2)
+    g_lt = np.swapaxes(w, -1, -2) @ g_points
+    g_u = -np.sign(u) * _through_max(g_w, hat, 0.0)
+    g_dist = g_u.sum(axis=-1) / SPACING
+    g_pre = _through_clip(g_dist, pre, lo, hi)
+    g_v0 = g_v0 + (g_pre * per_speed).sum(axis=-1, keepdims=True)
+    # the gains (eq. 10's gain map)
+    g_logits = np.zeros(np.broadcast_shapes(g_alpha.shape, g_beta.shape)[:-1] + (4,),
+                        dtype=g_alpha.dtype)
+    a_lo, a_hi = dmp.ALPHA_RANGE
+    if tb is None:  # beta = alpha / 4
+        g_alpha = g_alpha + g_beta / 4.0
+    else:
+        b_lo, b_hi = dmp.BETA_RANGE
+        g_logits[:, 1::2] = g_beta * ((0.25 * (b_hi - b_lo)) * (1.0 - tb * tb))
+    g_logits[:, 0::2] = g_alpha * ((0.25 * (a_hi - a_lo)) * (1.0 - ta * ta))
+    g_mot = np.concatenate([g_v0, g_w0], axis=-1)
+    return tuple(_cast(unbroadcast(x, gx), x) for x, gx in
+                 ((logits, g_logits), (lt, g_lt), (mot, g_mot)))
+
+
+def _cast(g: Any, x: Any) -> Any:
+    dtype = getattr(x, "dtype", None)
+    if dtype is not None and dtype.kind == "f" and g.dtype != dtype:
+        return g.astype(dtype)
+    return g
+
+
+fused_head = custom_vjp(head_plain, nondiff_argnums=(3,))
+"""``fused_head(logits, lane_target, motion, cfg)``: :func:`head_plain` as one node of the
+NumPy engine's tape, with the VJP of the module docstring (shapes as there)."""
+fused_head.defvjp(_fwd, _bwd)
