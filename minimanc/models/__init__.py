@@ -37,7 +37,8 @@ gradients agree to 1e-6 in float64 (``tests/test_models.py``).
 
 Modules: :mod:`~minimanc.models.config` (:class:`ModelConfig`),
 :mod:`~minimanc.models.registry` (:class:`ModelSpec`, :func:`register`),
-:mod:`~minimanc.models.backbone`, :mod:`~minimanc.models.dmp_head`,
+:mod:`~minimanc.models.backbone`, :mod:`~minimanc.models.dmp_head` (with
+:mod:`~minimanc.models.head_vjp`, its one-node VJP on the NumPy engine),
 :mod:`~minimanc.models.zoo` (the six specs), :mod:`~minimanc.models.forward`
 (:func:`init`, :func:`initial_state`, :func:`step`, :func:`sequence`) and
 :mod:`~minimanc.models.explain` (:func:`explain`, :func:`replay`).

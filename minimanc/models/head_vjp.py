@@ -37,7 +37,7 @@ is traced by :mod:`minimanc.autodiff`); JAX differentiates the plain code.
 
 from __future__ import annotations
 
-from typing import Any
+import functools
 
 import numpy as np
 
@@ -53,6 +53,9 @@ SPACING = 4.0
 
 COLS = [0, 0, 1]
 """The gain column of each DMP coordinate ``(x, y, ψ)``: position, position, orientation."""
+
+HALF_PI = float(np.pi / 2)
+"""The bound of the yaw goal (rad)."""
 
 
 def head_plain(logits: np.ndarray, lane_target: np.ndarray, motion: np.ndarray,
@@ -83,47 +86,56 @@ def head_plain(logits: np.ndarray, lane_target: np.ndarray, motion: np.ndarray,
     return _forward(np.asarray(logits), np.asarray(lane_target), np.asarray(motion), cfg)[0]
 
 
-def _gains(logits, crit):
-    """Eq. 10's gain map on both columns at once, with the tanh values for the backward."""
-    a_lo, a_hi = dmp.ALPHA_RANGE
-    ta = np.tanh(0.5 * logits[:, 0::2])
-    alpha = a_lo + (a_hi - a_lo) * (0.5 * (1.0 + ta))
-    if crit:
-        return alpha, alpha / 4.0, ta, None
-    b_lo, b_hi = dmp.BETA_RANGE
-    tb = np.tanh(0.5 * logits[:, 1::2])
-    return alpha, b_lo + (b_hi - b_lo) * (0.5 * (1.0 + tb)), ta, tb
+@functools.lru_cache(maxsize=64)
+def _constants(cfg: ModelConfig, dtype: np.dtype, K: int) -> tuple:
+    """Per head and dtype: the gain map's offsets, spans and slopes (logit order
+    ``(α_y, β_y, α_q, β_q)``), the look-ahead rule, the hat weights' centres, and the map
+    of the three DMP coordinates' gain cotangents back onto the four logits."""
+    (a_lo, a_hi), (b_lo, b_hi) = dmp.ALPHA_RANGE, dmp.BETA_RANGE
+    lo4 = np.array([a_lo, b_lo] * 2, dtype=dtype)
+    span4 = np.array([a_hi - a_lo, b_hi - b_lo] * 2, dtype=dtype)
+    idx = np.arange(1, K + 1, dtype=np.float32)
+    # (x, y, psi) alpha cotangents -> logit columns 0, 0, 2; beta's -> 1, 1, 3
+    gather = np.zeros((6, 4), dtype=dtype)
+    gather[[0, 1, 2, 3, 4, 5], [0, 0, 2, 1, 1, 3]] = 1.0
+    return lo4, span4, 0.25 * span4, idx, gather, lookahead_rule(cfg)
 
 
 def _forward(logits, lt, mot, cfg):
-    v0, w0 = mot[:, 0:1], mot[:, 1:2]
-    alpha, beta, ta, tb = _gains(logits, cfg.critically_damped)
-    near, per_speed, lo, hi = lookahead_rule(cfg)
+    lo4, span4, _, idx, _, (near, per_speed, lo, hi) = _constants(cfg, logits.dtype,
+                                                                  lt.shape[1])
+    v0 = mot[:, 0:1]
+    # eq. 10's gain map on the four logits at once
+    t = np.tanh(0.5 * logits)
+    gains = lo4 + span4 * (0.5 * (1.0 + t))
+    alpha = gains[:, 0::2]
+    beta = alpha / 4.0 if cfg.critically_damped else gains[:, 1::2]
+    # the goal g and the pursuit point p from the hat weights
     pre = near + per_speed * v0
     dist = np.minimum(np.maximum(pre, lo), hi)
-    idx = np.arange(1, lt.shape[1] + 1, dtype=np.float32)
     u = np.expand_dims(dist, -1) / SPACING - idx  # (B, 2, K)
     hat = 1.0 - np.abs(u)
     w = np.maximum(hat, 0.0)
     points = w @ lt  # (B, 2, 2): [goal g, pursuit point p]
-    g, p = points[:, 0], points[:, 1]
+    p = points[:, 1]
     ss = np.sum(p * p, axis=-1, keepdims=True)
     den = np.maximum(ss, 1e-6)
     kappa = 2.0 * p[:, 1:2] / den
-    half_pi = float(np.pi / 2)
-    kv = kappa * v0
-    raw = kv * cfg.heading_horizon
-    psi_g = np.minimum(np.maximum(raw, -half_pi), half_pi)  # (B, 1)
-    zero = np.zeros_like(v0)
-    goal = np.concatenate([g, psi_g], axis=-1)
-    vel = np.concatenate([v0, zero, w0], axis=-1)
+    raw = kappa * v0 * cfg.heading_horizon
+    psi_g = np.minimum(np.maximum(raw, -HALF_PI), HALF_PI)  # (B, 1)
+    # one DMP step of (x, y, psi) from rest at the origin
+    B = points.shape[0]
+    goal = np.empty((B, 3), dtype=points.dtype)
+    goal[:, 0:2] = points[:, 0]
+    goal[:, 2:3] = psi_g
+    vel = np.zeros((B, 3), dtype=mot.dtype)
+    vel[:, 0::2] = mot
     (r1, _, _), flow_res = flow_forward(np.zeros_like(goal), vel, goal, alpha[:, COLS],
                                         beta[:, COLS], None, cfg.dt, dmp.DEFAULT_METHOD,
                                         dmp.DEFAULT_SUBSTEPS)
     controls = r1[:, 0::2] / cfg.dt
-    outs = (controls, alpha, beta, g, psi_g[:, 0])
-    return outs, (ta, tb, v0, pre, lo, hi, per_speed, u, hat, w, p, ss, den, kappa, raw,
-                  flow_res, r1)
+    outs = (controls, alpha, beta, points[:, 0], psi_g[:, 0])
+    return outs, (t, v0, pre, u, hat, w, p, ss, den, kappa, raw, flow_res, r1.shape)
 
 
 def _through_max(g, a, b):
@@ -145,59 +157,42 @@ def _fwd(logits, lt, mot, cfg):
 
 
 def _bwd(cfg: ModelConfig, res: tuple, cts: tuple) -> tuple:
-    (logits, lt, mot, ta, tb, v0, pre, lo, hi, per_speed, u, hat, w, p, ss, den, kappa,
-     raw, flow_res, r1) = res
-    g_controls, g_alpha, g_beta, g_g, g_psi = (np.asarray(c) for c in cts)
-    dt = cfg.dt
+    logits, lt, mot, t, v0, pre, u, hat, w, p, ss, den, kappa, raw, flow_res, shape = res
+    _, _, slope4, _, gather, (_, per_speed, lo, hi) = _constants(cfg, logits.dtype,
+                                                                 lt.shape[1])
+    g_controls, g_alpha, g_beta, g_g, g_psi = cts
     # the DMP step: controls = (x1, psi1) / dt
-    g_r1 = np.zeros_like(r1)
-    g_r1[:, 0::2] = g_controls / dt
-    zeros = np.zeros_like(r1)
-    _, g_vel, g_goal, g_a3, g_b3, _ = flow_backward(dt, dmp.DEFAULT_METHOD,
+    g_r1 = np.zeros(shape, dtype=g_controls.dtype)
+    g_r1[:, 0::2] = g_controls / cfg.dt
+    zeros = np.zeros_like(g_r1)
+    _, g_vel, g_goal, g_a3, g_b3, _ = flow_backward(cfg.dt, dmp.DEFAULT_METHOD,
                                                      dmp.DEFAULT_SUBSTEPS, flow_res,
                                                      (g_r1, zeros, zeros))
-    g_alpha = g_alpha + np.concatenate([g_a3[:, 0:1] + g_a3[:, 1:2], g_a3[:, 2:3]], axis=-1)
-    g_beta = g_beta + np.concatenate([g_b3[:, 0:1] + g_b3[:, 1:2], g_b3[:, 2:3]], axis=-1)
-    g_v0 = g_vel[:, 0:1]
-    g_w0 = g_vel[:, 2:3]
     # the yaw goal psi_g = clip(kappa v0 tau_q, ±pi/2), kappa = 2 p_y / max(|p|², 1e-6)
-    half_pi = float(np.pi / 2)
-    g_raw = _through_clip(g_goal[:, 2:3] + g_psi[:, None], raw, -half_pi, half_pi)
-    g_kv = g_raw * cfg.heading_horizon
+    g_kv = _through_clip(g_goal[:, 2:3] + g_psi[:, None], raw, -HALF_PI, HALF_PI) \
+        * cfg.heading_horizon
     g_kappa = g_kv * v0
-    g_v0 = g_v0 + g_kv * kappa
     g_den = -g_kappa * kappa / den
-    g_ss = _through_max(g_den, ss, 1e-6)
-    g_p = 2.0 * p * g_ss
-    g_p[:, 1:2] += 2.0 * (g_kappa / den)
+    g_points = np.empty((p.shape[0], 2, 2), dtype=g_goal.dtype)
+    g_points[:, 0] = g_goal[:, 0:2] + g_g
+    g_points[:, 1] = 2.0 * p * _through_max(g_den, ss, 1e-6)
+    g_points[:, 1, 1:2] += 2.0 * (g_kappa / den)
     # both points from the hat weights: points = w @ lt
-    g_points = np.stack([g_goal[:, 0:2] + g_g, g_p], axis=1)  # (B, 2, 2)
-    g_w = g_points @ np.swapaxes(lt, -1, -2)
     g_lt = np.swapaxes(w, -1, -2) @ g_points
-    g_u = -np.sign(u) * _through_max(g_w, hat, 0.0)
-    g_dist = g_u.sum(axis=-1) / SPACING
-    g_pre = _through_clip(g_dist, pre, lo, hi)
-    g_v0 = g_v0 + (g_pre * per_speed).sum(axis=-1, keepdims=True)
-    # the gains (eq. 10's gain map)
-    g_logits = np.zeros(np.broadcast_shapes(g_alpha.shape, g_beta.shape)[:-1] + (4,),
-                        dtype=g_alpha.dtype)
-    a_lo, a_hi = dmp.ALPHA_RANGE
-    if tb is None:  # beta = alpha / 4
-        g_alpha = g_alpha + g_beta / 4.0
+    g_u = np.sign(u) * _through_max(g_points @ np.swapaxes(lt, -1, -2), hat, 0.0)
+    g_pre = _through_clip(g_u.sum(axis=-1) / -SPACING, pre, lo, hi)
+    g_mot = g_vel[:, 0::2].copy()
+    g_mot[:, 0:1] += g_kv * kappa + (g_pre * per_speed).sum(axis=-1, keepdims=True)
+    # the gains: the three coordinates' cotangents onto the logits' columns, then eq. 10's map
+    g_gains = np.concatenate([g_a3, g_b3], axis=-1) @ gather  # (B, 4), logit order
+    g_gains[:, 0::2] += g_alpha
+    if cfg.critically_damped:  # beta = alpha / 4: the beta logits get nothing
+        g_gains[:, 0::2] += (g_gains[:, 1::2] + g_beta) / 4.0
+        g_gains[:, 1::2] = 0.0
     else:
-        b_lo, b_hi = dmp.BETA_RANGE
-        g_logits[:, 1::2] = g_beta * ((0.25 * (b_hi - b_lo)) * (1.0 - tb * tb))
-    g_logits[:, 0::2] = g_alpha * ((0.25 * (a_hi - a_lo)) * (1.0 - ta * ta))
-    g_mot = np.concatenate([g_v0, g_w0], axis=-1)
-    return tuple(_cast(unbroadcast(x, gx), x) for x, gx in
-                 ((logits, g_logits), (lt, g_lt), (mot, g_mot)))
-
-
-def _cast(g: Any, x: Any) -> Any:
-    dtype = getattr(x, "dtype", None)
-    if dtype is not None and dtype.kind == "f" and g.dtype != dtype:
-        return g.astype(dtype)
-    return g
+        g_gains[:, 1::2] += g_beta
+    g_logits = g_gains * (slope4 * (1.0 - t * t))
+    return (unbroadcast(logits, g_logits), unbroadcast(lt, g_lt), unbroadcast(mot, g_mot))
 
 
 fused_head = custom_vjp(head_plain, nondiff_argnums=(3,))
