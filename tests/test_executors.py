@@ -126,13 +126,21 @@ def run_tiny(out: Path, executor: str, log: list | None = None, workers: int = 2
     return json.dumps(json_safe(res), indent=1, sort_keys=True)
 
 
-def test_tiny_study_in_worker_processes_equals_inline(tmp_path):
+@pytest.fixture(scope="module")
+def pool_run(tmp_path_factory) -> tuple[str, Path, list]:
+    """The tiny study on the local executor's two worker processes, run once for the tests
+    that compare other executors with it: ``(results text, its directory, its log)``."""
+    out = tmp_path_factory.mktemp("pool")
+    log: list[str] = []
+    return run_tiny(out, "local", log, workers=2), out, log
+
+
+def test_tiny_study_in_worker_processes_equals_inline(tmp_path, pool_run):
     """Trainings and evaluations as jobs of two worker processes (queued as soon as their
     inputs are known) give the inline run's results.json to the last digit."""
-    inline = run_tiny(tmp_path / "inline", "local", workers=0)
-    shutil.copytree(tmp_path / "inline" / "data", tmp_path / "pool" / "data")
-    log: list[str] = []
-    assert run_tiny(tmp_path / "pool", "local", log, workers=2) == inline
+    pooled, pool_dir, log = pool_run
+    shutil.copytree(pool_dir / "data", tmp_path / "inline" / "data")  # same scenes
+    assert run_tiny(tmp_path / "inline", "local", workers=0) == pooled
     assert sum(line.startswith("train:") and line.endswith("submitted") for line in log) == \
         sum(plan(PRESETS["tiny"])["train"].values())
 
@@ -155,11 +163,11 @@ def test_local_executor_waits_for_futures_without_blocking(tmp_path):
 
 
 @needs_ray
-def test_tiny_study_on_ray_equals_local(tmp_path):
+def test_tiny_study_on_ray_equals_local(tmp_path, pool_run):
     """Same results.json to the last digit on a local Ray (2 CPUs) as on the local executor;
     a rerun after lost results recomputes only those and gives the same file again."""
-    local = run_tiny(tmp_path / "local", "local")
-    shutil.copytree(tmp_path / "local" / "data", tmp_path / "ray" / "data")  # same scenes
+    local, pool_dir, _ = pool_run
+    shutil.copytree(pool_dir / "data", tmp_path / "ray" / "data")  # same scenes
     on_ray = run_tiny(tmp_path / "ray", "ray")
     assert on_ray == local
     # lose one run's checkpoint and its validation metrics: the rerun trains and evaluates
