@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc.autodiff import custom_vjp, unbroadcast
+from minimanc.autodiff import custom_vjp, through_max, unbroadcast
 
 __all__ = ["fused_step", "step_plain"]
 
@@ -103,11 +103,7 @@ def _bwd(res: tuple, g: np.ndarray) -> tuple:
     g_q = (T * g_u[:, None, :]).sum(axis=0)  # Σ_i ū_i T_ij
     g_T = g_u[:, None, :] * qt  # ū_i q_j
     g_R = T * (g_T - (g_T * T).sum(axis=0))
-    g_A = g_R * (A > 0)
-    tie = A == 0
-    if np.count_nonzero(tie):
-        g_A = g_A + (0.5 * g_R) * tie
-    g_A = g_A.astype(g_R.dtype, copy=False).reshape(N * N, -1)  # (N², B)
+    g_A = through_max(g_R, A, 0.0).reshape(N * N, -1)  # the ReLU; (N², B)
     Wf = np.reshape(W, (M, N * N))
     g_p = np.matmul(Wf, g_A).T.reshape(batch + (M,))
     g_W = np.matmul(g_A, pf).T.reshape(M, N, N)

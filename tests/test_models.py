@@ -239,6 +239,16 @@ def test_predicates_match_cam(eng_np):
     np.testing.assert_allclose(aux["predicates"], 1.0 / (1.0 + np.exp(-p)), rtol=1e-10)
 
 
+def test_the_heads_lane_spacing_is_the_worlds():
+    from minimanc import world
+
+    assert models.config.TARGET_SPACING == world.TARGET_SPACING
+    ds = world.generate(1, seed=0, progress=False)
+    steps = np.linalg.norm(np.diff(inputs.from_dataset(ds, 0, 5, model="manc")["lane_target"],
+                                   axis=-2), axis=-1)
+    np.testing.assert_allclose(np.median(steps), models.config.TARGET_SPACING, rtol=0.05)
+
+
 def test_param_count():
     cfg = CFG
     params = models.init("manc", np.random.default_rng(0), cfg)

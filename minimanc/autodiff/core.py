@@ -46,7 +46,13 @@ from minimanc.autodiff.api import grad, value_and_grad
 from minimanc.autodiff.boxes import Box, TracerConversionError, stop_gradient
 from minimanc.autodiff.custom import custom_vjp
 from minimanc.autodiff.loops import scan
-from minimanc.autodiff.primitives import defvjp, defvjp_fwd, primitive, unbroadcast
+from minimanc.autodiff.primitives import (
+    defvjp,
+    defvjp_fwd,
+    primitive,
+    through_max,
+    unbroadcast,
+)
 from minimanc.autodiff.pytrees import tree_flatten, tree_unflatten
 from minimanc.autodiff.reverse import backward, parent_cotangents, toposort
 
@@ -58,6 +64,7 @@ __all__ = [
     "defvjp",
     "defvjp_fwd",
     "unbroadcast",
+    "through_max",
     "backward",
     "parent_cotangents",
     "toposort",

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from minimanc.autodiff.boxes import unbox
-from minimanc.autodiff.primitives import defvjp, primitive, unbroadcast
+from minimanc.autodiff.primitives import defvjp, primitive, through_max, unbroadcast
 
 # ---------------------------------------------------------------------------
 # Element-wise arithmetic (with broadcasting)
@@ -76,27 +76,18 @@ defvjp(
 )
 
 
-def _balanced(first, second, g):
-    """Weight 1 where ``first`` wins, 1/2 on ties, 0 elsewhere (JAX's convention)."""
-    tie = np.equal(first, second)
-    if not np.count_nonzero(tie):  # no ties (the common case): the comparison is the weight
-        return g * np.greater(first, second)
-    w = np.where(first > second, 1.0, np.where(tie, 0.5, 0.0))
-    return g * w.astype(g.dtype, copy=False)
-
-
 maximum = primitive(np.maximum)
 defvjp(
     maximum,
-    lambda g, ans, x, y: unbroadcast(x, _balanced(x, y, g)),
-    lambda g, ans, x, y: unbroadcast(y, _balanced(y, x, g)),
+    lambda g, ans, x, y: unbroadcast(x, through_max(g, x, y)),
+    lambda g, ans, x, y: unbroadcast(y, through_max(g, y, x)),
 )
 
 minimum = primitive(np.minimum)
 defvjp(
     minimum,
-    lambda g, ans, x, y: unbroadcast(x, _balanced(y, x, g)),
-    lambda g, ans, x, y: unbroadcast(y, _balanced(x, y, g)),
+    lambda g, ans, x, y: unbroadcast(x, through_max(g, y, x)),
+    lambda g, ans, x, y: unbroadcast(y, through_max(g, x, y)),
 )
 
 

@@ -27,6 +27,7 @@ __all__ = [
     "defvjp_fwd",
     "primitive",
     "select",
+    "through_max",
     "unbroadcast",
 ]
 
@@ -160,6 +161,20 @@ def unbroadcast(target, g: np.ndarray) -> np.ndarray:
     if dtype is not None and dtype.kind == "f" and g.dtype != dtype:
         g = g.astype(dtype)
     return g
+
+
+def through_max(g: np.ndarray, a, b) -> np.ndarray:
+    """``g · ∂ max(a, b) / ∂a``: all of ``g`` where ``a > b``, half of it where ``a == b``,
+    none elsewhere — the tie rule of :func:`maximum` and :func:`minimum` (JAX's), for every
+    hand-written VJP that passes a cotangent through a maximum, a minimum or a clip.
+
+    ``a`` and ``b`` broadcast against ``g``; the result keeps ``g``'s dtype.
+    """
+    tie = np.equal(a, b)
+    if not np.count_nonzero(tie):  # no ties (the common case): the comparison is the weight
+        return g * np.greater(a, b)
+    w = np.where(np.greater(a, b), 1.0, np.where(tie, 0.5, 0.0))
+    return g * w.astype(g.dtype, copy=False)
 
 
 

@@ -11,8 +11,13 @@ import numpy as np
 from minimanc import dmp, inputs
 from minimanc.checks import check_int
 
-__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "ModelConfig", "gain_box_corners", "gain_logits",
-           "lookahead_rule"]
+__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "TARGET_SPACING", "ModelConfig", "gain_box_corners",
+           "gain_logits", "lookahead_rule"]
+
+TARGET_SPACING: float = 4.0
+"""Metres of route between the lane-target points the heads see (``obs["lane_target"]``,
+points at ``4 · (1 … K)`` m): :data:`minimanc.world.TARGET_SPACING`, restated here so
+that the models import nothing of the world (a test keeps the two equal)."""
 
 CONTROL_SCALE: tuple[float, float] = (10.0, 0.5)
 """Output scale of the direct heads: ``controls = o · (10 m/s, 0.5 rad/s)``."""
@@ -146,10 +151,10 @@ class ModelConfig:
         if self.activation not in ("silu", "relu"):
             raise ValueError(f"activation must be 'silu' or 'relu', got "
                              f"activation={self.activation!r}")
-        reach = 4.0 * self.k_targets
+        reach = TARGET_SPACING * self.k_targets
         for name in ("position_lookahead", "heading_lookahead"):
             v = getattr(self, name)
-            if not (isinstance(v, int | float) and 4.0 <= v <= min(reach, 22.0)):
+            if not (isinstance(v, int | float) and TARGET_SPACING <= v <= min(reach, 22.0)):
                 raise ValueError(f"{name} must be in [4, {min(reach, 22.0)}] m (the lane "
                                  f"target spans 4 .. 4·k_targets m), got {name}={v!r}")
         for name in ("position_lookahead_time", "heading_lookahead_time", "heading_horizon"):
@@ -224,6 +229,7 @@ def lookahead_rule(cfg: ModelConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray
     near = np.array([cfg.position_lookahead, cfg.heading_lookahead], dtype=np.float32)
     per_speed = np.array([cfg.position_lookahead_time, cfg.heading_lookahead_time],
                          dtype=np.float32)
-    lo = np.array([4.0, cfg.heading_lookahead], dtype=np.float32)
-    hi = np.array([4.0 * K, min(22.0, 4.0 * K)], dtype=np.float32)
+    reach = TARGET_SPACING * K
+    lo = np.array([TARGET_SPACING, cfg.heading_lookahead], dtype=np.float32)
+    hi = np.array([reach, min(22.0, reach)], dtype=np.float32)
     return near, per_speed, lo, hi

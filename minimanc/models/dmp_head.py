@@ -51,13 +51,14 @@ import numpy as np
 
 from minimanc import dmp, quaternion
 from minimanc.autodiff import Box
-from minimanc.models.config import ModelConfig, lookahead_rule
+from minimanc.models.config import TARGET_SPACING, ModelConfig, lookahead_rule
 from minimanc.models.head_vjp import fused_head
 
 __all__ = ["dmp_head", "head_ops", "lane_point", "lane_points"]
 
 
-def lane_point(lane_target: Any, dist: Any, xp: Any = np, spacing: float = 4.0) -> Any:
+def lane_point(lane_target: Any, dist: Any, xp: Any = np,
+               spacing: float = TARGET_SPACING) -> Any:
     """The lane-target point ``dist`` metres ahead, by linear interpolation.
 
     The weights are hat functions ``max(1 − |dist/spacing − k|, 0)``, so the
@@ -81,7 +82,8 @@ def lane_point(lane_target: Any, dist: Any, xp: Any = np, spacing: float = 4.0) 
     return lane_points(lane_target, xp.expand_dims(dist, -1), xp, spacing)[:, 0]
 
 
-def lane_points(lane_target: Any, dist: Any, xp: Any = np, spacing: float = 4.0) -> Any:
+def lane_points(lane_target: Any, dist: Any, xp: Any = np,
+                spacing: float = TARGET_SPACING) -> Any:
     """:func:`lane_point` at several distances at once: ``dist (B, J)`` → ``(B, J, 2)``.
 
     Parameters

@@ -42,14 +42,11 @@ import functools
 import numpy as np
 
 from minimanc import dmp
-from minimanc.autodiff import custom_vjp, unbroadcast
+from minimanc.autodiff import custom_vjp, through_max, unbroadcast
 from minimanc.dmp.flow import flow_backward, flow_forward
-from minimanc.models.config import ModelConfig, lookahead_rule
+from minimanc.models.config import TARGET_SPACING, ModelConfig, lookahead_rule
 
 __all__ = ["fused_head", "head_plain"]
-
-SPACING = 4.0
-"""Metres between lane-target points (the hat weights' width)."""
 
 COLS = [0, 0, 1]
 """The gain column of each DMP coordinate ``(x, y, ψ)``: position, position, orientation."""
@@ -113,7 +110,7 @@ def _forward(logits, lt, mot, cfg):
     # the goal g and the pursuit point p from the hat weights
     pre = near + per_speed * v0
     dist = np.minimum(np.maximum(pre, lo), hi)
-    u = np.expand_dims(dist, -1) / SPACING - idx  # (B, 2, K)
+    u = np.expand_dims(dist, -1) / TARGET_SPACING - idx  # (B, 2, K)
     hat = 1.0 - np.abs(u)
     w = np.maximum(hat, 0.0)
     points = w @ lt  # (B, 2, 2): [goal g, pursuit point p]
@@ -138,17 +135,10 @@ def _forward(logits, lt, mot, cfg):
     return outs, (t, v0, pre, u, hat, w, p, ss, den, kappa, raw, flow_res, r1.shape)
 
 
-def _through_max(g, a, b):
-    """``g · ∂ max(a, b) / ∂a``: all of ``g`` where ``a > b``, half where equal, none elsewhere."""
-    tie = a == b
-    if not np.count_nonzero(tie):
-        return g * (a > b)
-    return g * np.where(a > b, 1.0, np.where(tie, 0.5, 0.0)).astype(g.dtype, copy=False)
-
-
 def _through_clip(g, x, lo, hi):
-    """``g · ∂ clip(x, lo, hi) / ∂x`` with ``clip = minimum(maximum(x, lo), hi)``."""
-    return _through_max(_through_max(g, hi, np.maximum(x, lo)), x, lo)
+    """``g · ∂ clip(x, lo, hi) / ∂x`` with ``clip = minimum(maximum(x, lo), hi)``
+    (:func:`~minimanc.autodiff.through_max` at each of the two)."""
+    return through_max(through_max(g, hi, np.maximum(x, lo)), x, lo)
 
 
 def _fwd(logits, lt, mot, cfg):
@@ -175,12 +165,12 @@ def _bwd(cfg: ModelConfig, res: tuple, cts: tuple) -> tuple:
     g_den = -g_kappa * kappa / den
     g_points = np.empty((p.shape[0], 2, 2), dtype=g_goal.dtype)
     g_points[:, 0] = g_goal[:, 0:2] + g_g
-    g_points[:, 1] = 2.0 * p * _through_max(g_den, ss, 1e-6)
+    g_points[:, 1] = 2.0 * p * through_max(g_den, ss, 1e-6)
     g_points[:, 1, 1:2] += 2.0 * (g_kappa / den)
     # both points from the hat weights: points = w @ lt
     g_lt = np.swapaxes(w, -1, -2) @ g_points
-    g_u = np.sign(u) * _through_max(g_points @ np.swapaxes(lt, -1, -2), hat, 0.0)
-    g_pre = _through_clip(g_u.sum(axis=-1) / -SPACING, pre, lo, hi)
+    g_u = np.sign(u) * through_max(g_points @ np.swapaxes(lt, -1, -2), hat, 0.0)
+    g_pre = _through_clip(g_u.sum(axis=-1) / -TARGET_SPACING, pre, lo, hi)
     g_mot = g_vel[:, 0::2].copy()
     g_mot[:, 0:1] += g_kv * kappa + (g_pre * per_speed).sum(axis=-1, keepdims=True)
     # the gains: the three coordinates' cotangents onto the logits' columns, then eq. 10's map
