@@ -18,11 +18,12 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
-from minimanc import metrics, world
+from minimanc import metrics, results, world
 from minimanc.dagger.teachers import WorldTeacher
 from minimanc.rollout.driver import drive
 
@@ -75,21 +76,35 @@ def expert_rollout(ds, agents: str):
 
 
 def main() -> None:
+    lines: list[str] = []
+
+    def say(text: str) -> None:
+        print(text)
+        lines.append(text)
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", type=int, default=200)
     ap.add_argument("--seed", type=int, default=777)
+    ap.add_argument("--out", type=Path, default=None,
+                    help="also write the figures and their provenance to this markdown file")
     args = ap.parse_args()
+    t_start = time.perf_counter()
     ds = world.generate(args.scenes, seed=args.seed)
-    print(f"expert bound: {args.scenes} scenes of data seed {args.seed}")
-    print(f"{'protocol':10s} {'ADE m':>7s} {'at fault %':>11s} "
-          f"{'collision %':>12s} {'off road %':>11s} {'refused':>8s} {'s':>6s}")
+    say(f"expert bound: {args.scenes} scenes of data seed {args.seed}")
+    say(f"{'protocol':10s} {'ADE m':>7s} {'at fault %':>11s} "
+        f"{'collision %':>12s} {'off road %':>11s} {'refused':>8s} {'s':>6s}")
     for agents in ("replay", "reactive"):
         t0 = time.perf_counter()
         traj, refused = expert_rollout(ds, agents)
         m = metrics.evaluate(traj, ds)
-        print(f"{agents:10s} {m['ade']:7.2f} {m['at_fault_collision_rate']:11.1f} "
-              f"{m['collision_rate']:12.1f} {m['off_road_rate']:11.1f} {refused:8d} "
-              f"{time.perf_counter() - t0:6.0f}")
+        say(f"{agents:10s} {m['ade']:7.2f} {m['at_fault_collision_rate']:11.1f} "
+            f"{m['collision_rate']:12.1f} {m['off_road_rate']:11.1f} {refused:8d} "
+            f"{time.perf_counter() - t0:6.0f}")
+
+    if args.out is not None:
+        text = "# Expert bound\n\n## Figures\n\n```\n" + "\n".join(lines) + "\n```\n\n"
+        results.write_text(args.out, text + results.provenance_markdown(
+            results.provenance(), time.perf_counter() - t_start))
 
 
 if __name__ == "__main__":

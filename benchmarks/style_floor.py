@@ -17,10 +17,11 @@ from __future__ import annotations
 import argparse
 import time
 from dataclasses import asdict, fields
+from pathlib import Path
 
 import numpy as np
 
-from minimanc import world
+from minimanc import results, world
 from minimanc.metrics.safety import at_fault_collisions
 from minimanc.world.driver import HumanStyle, SceneRun, random_style
 from minimanc.world.generation import draw_scene
@@ -65,24 +66,33 @@ def along_cross(ego: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
 
 
 def main() -> None:
+    lines: list[str] = []
+
+    def say(text: str) -> None:
+        print(text)
+        lines.append(text)
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", type=int, default=200)
     ap.add_argument("--seed", type=int, default=777)
     ap.add_argument("--population", type=int, default=20000)
+    ap.add_argument("--out", type=Path, default=None,
+                    help="also write the figures and their provenance to this markdown file")
     args = ap.parse_args()
+    t_start = time.perf_counter()
     t0 = time.perf_counter()
     ds = world.generate(args.scenes, seed=args.seed)
     style = median_style(args.population)
-    print(f"style floor: {args.scenes} scenes of data seed {args.seed}; median style "
+    say(f"style floor: {args.scenes} scenes of data seed {args.seed}; median style "
           + ", ".join(f"{k}={v:.2f}" for k, v in asdict(style).items()))
     S, T = ds.ego.shape[:2]
     own = [redrive(args.seed, int(ds.meta["scene_index"][i]), int(ds.meta["attempts"][i]) - 1,
                    None, T)[0] for i in range(min(S, 4))]
     err = max(float(np.abs(e[:, :2] - ds.ego[i, :, :2]).max()) for i, e in enumerate(own))
     if err > 1e-3:
-        raise SystemExit(f"self-check failed: the scene's own style re-drives {err:.3g} m "
-                         "from the log (expected float32 rounding)")
-    print(f"self-check: own-style re-drive of {len(own)} scenes matches the log to {err:.1e} m")
+        raise SystemExit(f"style_floor: self-check failed: the scene's own style re-drives "
+                         f"{err:.3g} m from the log (expected float32 rounding)")
+    say(f"self-check: own-style re-drive of {len(own)} scenes matches the log to {err:.1e} m")
     ades, alongs, crosses, dv = [], [], [], []
     egos, ados, vals, maps = [], [], [], []
     for i in range(S):
@@ -102,12 +112,17 @@ def main() -> None:
         maps.append(m)
     fault = at_fault_collisions(np.stack(egos), np.stack(ados), np.stack(vals), maps)
     ades_a = np.array(ades)
-    print(f"ADE m: mean {ades_a.mean():.2f}, median {np.median(ades_a):.2f}, "
+    say(f"ADE m: mean {ades_a.mean():.2f}, median {np.median(ades_a):.2f}, "
           f"90th percentile {np.percentile(ades_a, 90):.2f}")
-    print(f"along-track m {np.mean(alongs):.2f}, cross-track m {np.mean(crosses):.2f}, "
+    say(f"along-track m {np.mean(alongs):.2f}, cross-track m {np.mean(crosses):.2f}, "
           f"mean |speed difference| m/s {np.mean(dv):.2f}")
-    print(f"at-fault collisions of the median-style driver: {100 * fault.mean():.1f} % "
+    say(f"at-fault collisions of the median-style driver: {100 * fault.mean():.1f} % "
           f"({int(fault.sum())} of {S}); {time.perf_counter() - t0:.0f} s")
+
+    if args.out is not None:
+        text = "# Style floor\n\n## Figures\n\n```\n" + "\n".join(lines) + "\n```\n\n"
+        results.write_text(args.out, text + results.provenance_markdown(
+            results.provenance(), time.perf_counter() - t_start))
 
 
 if __name__ == "__main__":
