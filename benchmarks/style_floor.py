@@ -23,11 +23,8 @@ import numpy as np
 
 from minimanc import results, world
 from minimanc.metrics.safety import at_fault_collisions
-from minimanc.world.driver import HumanStyle, SceneRun, random_style
+from minimanc.world.driver import HumanStyle, random_style, simulate_scene
 from minimanc.world.generation import draw_scene
-
-EGO_STYLE_FIELDS = ("v0", "T", "a_max", "b", "s0", "a_lat", "gap_crit")
-"""The style fields the ego :class:`~minimanc.world.traffic.Vehicle` carries itself."""
 
 
 def median_style(n: int = 20000, seed: int = 0) -> HumanStyle:
@@ -42,19 +39,8 @@ def redrive(seed: int, index: int, attempt: int, style: HumanStyle | None, T: in
     """Scene ``index`` of data seed ``seed`` driven by the world's human with ``style``
     (``None``: the scene's own style, which reproduces the log: the script's self-check)."""
     rng, _, m = draw_scene(seed, index, attempt)
-    run = SceneRun(m, rng)
-    if style is not None:
-        run.style = style
-        run.driver.style = style
-        for name in EGO_STYLE_FIELDS:
-            setattr(run.ego, name, getattr(style, name))
-    A = run.max_ados
-    ego, ado, val = np.zeros((T, 3)), np.zeros((T, A, 5)), np.zeros((T, A), bool)
-    for t in range(T):
-        ego[t] = run.pose
-        ado[t], val[t] = run.ado_boxes()
-        run.human_step()
-    return ego, ado, val, m
+    log = simulate_scene(m, rng, T=T, style=style)
+    return log.ego, log.ado, log.ado_valid, m
 
 
 def along_cross(ego: np.ndarray, ref: np.ndarray) -> tuple[float, float]:

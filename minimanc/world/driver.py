@@ -236,6 +236,16 @@ class SceneRun:
         self.kinds: list[str] = []
         self.spawner: Callable[[SceneRun], None] = SceneRun.spawn_arrivals
 
+    def restyle(self, style: HumanStyle) -> None:
+        """Drive on from here with ``style`` in place of the drawn one (the start state, the
+        traffic and the random stream stay as drawn): the human of another style in the
+        same scene, e.g. the population's median style, which no controller that cannot
+        see the style can beat."""
+        self.style = style
+        self.driver.style = style
+        for name in ("v0", "T", "a_max", "b", "s0", "a_lat", "gap_crit"):
+            setattr(self.ego, name, getattr(style, name))
+
     def spawn_arrivals(self) -> None:
         """The default :attr:`spawner`: Poisson arrivals at the entries near the ego."""
         self.traffic.spawn(self.pose[:2])
@@ -286,9 +296,14 @@ class SceneRun:
 
 
 def simulate_scene(m: Map, rng: np.random.Generator, T: int = T_STEPS, dt: float = DT,
-                   max_ados: int = MAX_ADOS) -> SceneLog:
-    """Simulate one scene on map ``m``: the human ego among IDM ados. See the module doc."""
+                   max_ados: int = MAX_ADOS, style: HumanStyle | None = None) -> SceneLog:
+    """Simulate one scene on map ``m``: the human ego among IDM ados. See the module doc.
+
+    ``style`` (default: the drawn one) replaces the human's style after the scene is set
+    up (:meth:`SceneRun.restyle`)."""
     run = SceneRun(m, rng, dt, max_ados)
+    if style is not None:
+        run.restyle(style)
     ego_log = np.zeros((T, 3))
     ctl_log = np.zeros((T, 2))
     ado_log = np.zeros((T, max_ados, 5))
