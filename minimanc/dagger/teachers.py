@@ -87,9 +87,12 @@ class WorldTeacher:
             return ReactiveSim(self.pool, scenes)
         return LogReplay(self.pool, scenes)
 
-    def label(self, sim: Any, t: int, prev: np.ndarray | None
-              ) -> tuple[np.ndarray, list[str | None]]:
-        state = sim.observe()
+    def states(self, sim: Any, prev: np.ndarray | None
+               ) -> tuple[np.ndarray, list[float], list[Any]]:
+        """The ego poses ``(B, 3)``, speeds and ados (a live traffic, or ``None`` for the
+        log's) of the simulator's current state, as the expert is asked in it: among
+        reactive ados the simulated ego's speed, in a replay the speed of the controls
+        applied last (``prev``; the logged start speed at ``t = 0``)."""
         scenes = np.asarray(sim.scenes)
         if self.agents == "reactive":
             speeds = [float(run.ego.v) for run in sim.runs]
@@ -98,11 +101,17 @@ class WorldTeacher:
             speeds = ([self.expert.steps(int(s))[0].speed for s in scenes] if prev is None
                       else [float(v) for v in np.asarray(prev)[:, 0]])
             traffics = [None] * len(scenes)
+        return np.asarray(sim.observe().pose, dtype=np.float64), speeds, traffics
+
+    def label(self, sim: Any, t: int, prev: np.ndarray | None
+              ) -> tuple[np.ndarray, list[str | None]]:
+        poses, speeds, traffics = self.states(sim, prev)
+        scenes = np.asarray(sim.scenes)
         out = np.full((len(scenes), 2), np.nan)
         why: list[str | None] = [None] * len(scenes)
         for b, s in enumerate(scenes):
             try:
-                out[b] = self.expert(int(s), int(t), state.pose[b], max(speeds[b], 0.0),
+                out[b] = self.expert(int(s), int(t), poses[b], max(speeds[b], 0.0),
                                      traffics[b])
             except ValueError as e:  # the driver cannot be asked in this state
                 why[b] = str(e)

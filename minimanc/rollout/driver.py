@@ -32,6 +32,10 @@ class Policy(Protocol):
     are built (:func:`minimanc.inputs.visible`); a policy may instead name them
     in an optional ``keys`` attribute (a driver that reads no image then costs
     no rasterising).  ``scenes`` are the dataset indices of the batch rows.
+
+    A policy that reads the simulator itself (the world's expert, a learner given the
+    expert's own perception: :mod:`minimanc.dagger.privileged`) has an optional
+    ``bind(sim)``, which :func:`drive` calls after ``sim.reset()``.
     """
 
     model: str | None
@@ -174,11 +178,11 @@ def drive(policy: Policy, sim: Simulator, steps: int,
           on_step: Callable[[int], None] | None = None) -> Drive:
     """Run ``policy`` in closed loop in ``sim`` for ``steps`` decisions.
 
-    ``sim.reset()``, then at each step ``t``: observe the scene, build the
-    policy's observation from the ego's own state (:func:`observation`, with
-    ``motion`` the policy's previous control — or the motion ``sim.step``
-    returned, when it returns one — and at ``t = 0`` the motion ``reset``
-    returned), call the policy, check its controls (:func:`check_controls`),
+    ``sim.reset()`` (and ``policy.bind(sim)`` for a policy that has it), then at each
+    step ``t``: observe the scene, build the policy's observation from the ego's own
+    state (:func:`observation`, with ``motion`` the policy's previous control — or the
+    motion ``sim.step`` returned, when it returns one — and at ``t = 0`` the motion
+    ``reset`` returned), call the policy, check its controls (:func:`check_controls`),
     carry its state over and ``sim.step`` them.
 
     Parameters
@@ -199,6 +203,8 @@ def drive(policy: Policy, sim: Simulator, steps: int,
     steps = check_int("steps", steps, 1)
     scenes = np.asarray(sim.scenes)
     motion = np.asarray(sim.reset(), dtype=np.float32)
+    if hasattr(policy, "bind"):
+        policy.bind(sim)
     state = policy.initial_state(scenes)
     controls, aux_steps = [], {}
     for t in range(int(steps)):

@@ -42,9 +42,9 @@ from minimanc.world.driver import HumanDriver, project_on_path
 from minimanc.world.geometry import wrap_angle
 from minimanc.world.maps import LANE_WIDTH, project_to_route
 from minimanc.world.reactive import record_human, scene_key, start_run
-from minimanc.world.traffic import Traffic
+from minimanc.world.traffic import Path, Traffic, Vehicle
 
-__all__ = ["MAX_OFFSET", "DriverStep", "HumanExpert"]
+__all__ = ["MAX_OFFSET", "DriverStep", "HumanExpert", "Situation"]
 
 MAX_OFFSET: float = 2.0 * LANE_WIDTH
 """Largest lateral distance (m) from the route at which the driver can still be asked."""
@@ -58,6 +58,20 @@ class DriverStep:
     driver: HumanDriver
     traffic: Traffic
     speed: float
+
+
+@dataclass
+class Situation:
+    """What the human perceives in one asked state: its run's ``step``, the ``ego``
+    vehicle put at the asked ``pose`` and speed on its ``path``, and ``perceived``, the
+    binding constraints of :meth:`minimanc.world.traffic.Traffic.perceive` for the ego
+    (``gap`` and ``v_lead`` of its leader, ``stop`` distance, ``a_curve``)."""
+
+    step: DriverStep
+    ego: Vehicle
+    path: Path
+    pose: np.ndarray
+    perceived: dict[str, float]
 
 
 class HumanExpert:
@@ -100,15 +114,10 @@ class HumanExpert:
         return hit
 
     # ------------------------------------------------------------------ asking
-    def __call__(self, scene: int, t: int, pose: Any, speed: float,
-                 traffic: Traffic | None = None) -> np.ndarray:
-        """The controls ``[speed, yaw rate]`` (float64 ``(2,)``) the human would apply at
-        step ``t`` of ``scene`` with the ego at ``pose = (x, y, yaw)`` moving at ``speed``.
-
-        ``traffic``: the ados of that simulation step (a live
-        :class:`minimanc.world.traffic.Traffic` whose ``vehicles[0]`` is the ego; it is
-        not changed); default: the log's.
-        """
+    def situation(self, scene: int, t: int, pose: Any, speed: float,
+                  traffic: Traffic | None = None) -> Situation:
+        """What the human perceives at step ``t`` of ``scene`` with the ego at
+        ``pose = (x, y, yaw)`` moving at ``speed`` (arguments as :meth:`__call__`)."""
         steps = self.steps(scene)
         if isinstance(t, bool) or not isinstance(t, int | np.integer) or not 0 <= t < self._T:
             raise ValueError(f"t must be an integer in [0, {self._T}); got t={t!r}")
@@ -141,9 +150,27 @@ class HumanExpert:
         world.going = set(base.going)
         world.update_stamps(int(t))
         per = world.perceive()
-        driver = copy.deepcopy(step.driver, {id(m): m})
-        v, w, _ = driver.act(ego, path, p, float(per["gap"][0]), float(per["v_lead"][0]),
-                             float(per["stop"][0]), float(per["a_curve"][0]))
+        return Situation(step, ego, path, p,
+                         {k: float(per[k][0]) for k in ("gap", "v_lead", "stop", "a_curve")})
+
+    def __call__(self, scene: int, t: int, pose: Any, speed: float,
+                 traffic: Traffic | None = None) -> np.ndarray:
+        """The controls ``[speed, yaw rate]`` (float64 ``(2,)``) the human would apply at
+        step ``t`` of ``scene`` with the ego at ``pose = (x, y, yaw)`` moving at ``speed``.
+
+        ``traffic``: the ados of that simulation step (a live
+        :class:`minimanc.world.traffic.Traffic` whose ``vehicles[0]`` is the ego; it is
+        not changed); default: the log's.
+        """
+        return self.controls(self.situation(scene, t, pose, speed, traffic))
+
+    def controls(self, sit: Situation) -> np.ndarray:
+        """The human's controls ``[speed, yaw rate]`` in a :class:`Situation` (its driver
+        is copied, never advanced)."""
+        driver = copy.deepcopy(sit.step.driver, {id(sit.step.driver.m): sit.step.driver.m})
+        per = sit.perceived
+        v, w, _ = driver.act(sit.ego, sit.path, sit.pose, per["gap"], per["v_lead"],
+                             per["stop"], per["a_curve"])
         return np.array([v, w])
 
     def label(self, scenes: Any, t: int, poses: Any, speeds: Any,

@@ -1,0 +1,153 @@
+"""The privileged learner: behaviour cloning on the numbers the world's expert perceives
+(:mod:`minimanc.dagger.privileged`), driven closed loop on the paper preset's split.
+
+Three parts, each a section of the results file:
+
+* **Behaviour cloning**: the MLP trained by Algorithm 1 on the human's logged states of
+  the ``--train`` training scenes, over ``--seeds`` training seeds, driven on the
+  ``--val`` validation scenes under both protocols, next to the expert driven the same
+  way (:class:`~minimanc.dagger.privileged.ExpertPolicy`): open-loop RMSE, ADE with its
+  along-/cross-track split, collisions and at-fault collisions (mean ± std over seeds).
+* **Ablation**: the same with one input group of
+  :data:`~minimanc.dagger.privileged.FEATURE_GROUPS` removed, reactive ados.
+* **DAgger**: ``--rounds`` rounds of ``--per-round`` training scenes each
+  (:func:`~minimanc.dagger.privileged.dagger_rounds`, reactive ados), the closed-loop
+  metrics after every round, against behaviour cloning given the same number of labels
+  as extra demonstrations (more scenes of the same draw).
+
+The data is the paper preset's draw (data seed ``--data-seed``: ``--train`` training,
+40 tuning, ``--val`` validation scenes, in that order).
+
+Run: ``python benchmarks/privileged.py --out results/privileged.md``
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from minimanc import results, world
+from minimanc.dagger import privileged as P
+from minimanc.dagger.teachers import AGENTS, WorldTeacher
+
+N_TUNE = 40
+SHOW = ("ade", "along_track", "cross_track", "collision_rate", "at_fault_collision_rate",
+        "off_road_rate", "refused")
+HEAD = ("ADE m", "along m", "cross m", "coll. %", "at fault %", "off road %", "refused")
+
+
+def cells(runs: list[dict]) -> str:
+    out = []
+    for k in SHOW:
+        v = np.array([r[k] for r in runs])
+        out.append(f"{v.mean():.2f}" if len(v) == 1 else f"{v.mean():.2f} ± {v.std():.2f}")
+    return " | ".join(out)
+
+
+def row(name: str, runs: list[dict]) -> str:
+    return f"| {name} | {cells(runs)} |"
+
+
+def table(rows: list[str], first: str = "driver") -> list[str]:
+    return [f"| {first} | " + " | ".join(HEAD) + " |",
+            "|---" * (len(HEAD) + 1) + "|", *rows]
+
+
+def log(msg: str, t0: float) -> None:
+    print(f"[{time.perf_counter() - t0:7.1f} s] {msg}", flush=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--train", type=int, default=650)
+    ap.add_argument("--val", type=int, default=200)
+    ap.add_argument("--data-seed", type=int, default=0)
+    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--steps", type=int, default=3000)
+    ap.add_argument("--ablation-seeds", type=int, default=2)
+    ap.add_argument("--rounds", type=int, default=10)
+    ap.add_argument("--per-round", type=int, default=65)
+    ap.add_argument("--parts", default="bc,ablation,dagger")
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args()
+    parts = args.parts.split(",")
+    t0 = time.perf_counter()
+    extra = args.rounds * args.per_round if "dagger" in parts else 0
+    n = args.train + N_TUNE + args.val
+    ds = world.generate(n + extra, seed=args.data_seed, raster=world.RasterConfig(size=16))
+    train, val = ds.subset(slice(0, args.train)), ds.subset(slice(args.train + N_TUNE, n))
+    log(f"data: {n + extra} scenes", t0)
+    X, Y = P.demonstrations(train)
+    Xv, Yv = P.demonstrations(val)
+    log(f"demonstrations: {len(X)} training, {len(Xv)} validation states", t0)
+    teachers = {a: WorldTeacher(val, agents=a) for a in AGENTS}
+    sections: dict[str, list[str]] = {}
+
+    if "bc" in parts:
+        lines = []
+        for agents in AGENTS:
+            ex = P.closed_loop(P.ExpertPolicy(teachers[agents]), val, agents)
+            runs, rmse = [], []
+            for seed in range(args.seeds):
+                model = P.fit(X, Y, steps=args.steps, seed=seed)
+                rmse.append(np.sqrt(((P.predict(model, Xv) - Yv) ** 2).mean(0)))
+                runs.append(P.closed_loop(P.PrivilegedPolicy(model, teachers[agents]), val,
+                                          agents))
+                log(f"bc {agents} seed {seed}: {runs[-1]['at_fault_collision_rate']:.1f} % "
+                    f"at fault, ADE {runs[-1]['ade']:.2f}", t0)
+            lines += [f"agents `{agents}`", "", *table([row("Expert", [ex]),
+                                                        row("Privileged BC", runs)]), ""]
+        r = np.array(rmse)
+        lines += [f"Open-loop RMSE on the validation states (human's logged controls), "
+                  f"{args.seeds} seeds: acceleration {r[:, 0].mean():.3f} m/s² (their std "
+                  f"{Yv[:, 0].std():.3f}), yaw rate {r[:, 1].mean():.4f} rad/s (std "
+                  f"{Yv[:, 1].std():.4f})."]
+        sections["Behaviour cloning"] = lines
+
+    if "ablation" in parts:
+        rows = []
+        for drop in ((),) + tuple((g,) for g in P.FEATURE_GROUPS if g != "speed"):
+            runs = []
+            for seed in range(args.ablation_seeds):
+                model = P.fit(X, Y, drop=drop, steps=args.steps, seed=seed)
+                runs.append(P.closed_loop(P.PrivilegedPolicy(model, teachers["reactive"]), val,
+                                          "reactive"))
+            name = "all inputs" if not drop else f"without `{drop[0]}`"
+            rows.append(row(name, runs))
+            log(f"ablation {name}: {np.mean([r['at_fault_collision_rate'] for r in runs]):.1f} "
+                "% at fault", t0)
+        sections["Ablation"] = [f"agents `reactive`, {args.ablation_seeds} seeds", "",
+                                *table(rows, "inputs")]
+
+    if "dagger" in parts:
+        rounds = P.dagger_rounds(train, val, args.rounds, args.per_round, agents="reactive",
+                                 steps=args.steps)
+        lines = ["| round | labels | " + " | ".join(HEAD) + " |", "|---" * (len(HEAD) + 2) + "|"]
+        for i, r in enumerate(rounds):
+            lines.append(f"| {i} | {r.labels} | {cells([r.metrics])} |")
+            log(f"dagger round {i}: {r.metrics['at_fault_collision_rate']:.1f} % at fault", t0)
+        more = ds.subset(np.r_[np.arange(args.train), np.arange(n, n + extra)])
+        Xm, Ym = P.demonstrations(more)
+        model = P.fit(Xm, Ym, steps=args.steps, seed=0)
+        bc = P.closed_loop(P.PrivilegedPolicy(model, teachers["reactive"]), val, "reactive")
+        lines += ["", "Behaviour cloning at equal labels (the demonstrations of "
+                  f"{args.train + extra} scenes, {len(Xm)} states):", "",
+                  *table([row("BC, equal labels", [bc])])]
+        sections["DAgger"] = [f"agents `reactive`, {args.per_round} scenes per round, "
+                              "training seed 0", "", *lines]
+
+    text = (f"# The privileged learner (data seed {args.data_seed}: {args.train} training, "
+            f"{args.val} validation scenes; {args.steps} Adam steps)\n\n")
+    for title, lines in sections.items():
+        text += f"## {title}\n\n" + "\n".join(lines) + "\n\n"
+    print(text, end="")
+    if args.out is not None:
+        results.write_text(args.out, text + results.provenance_markdown(
+            results.provenance(), time.perf_counter() - t0))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,358 @@
+"""Chapter 11 — the learners that read the world's own numbers: the expert as a policy, and
+a behaviour-cloned MLP given exactly what the expert perceives (a *privileged* learner).
+
+Behaviour cloning can fail for two reasons: the learning (Algorithm 1, the closed loop,
+the labels) or the information (what the learner sees). A learner given the expert's own
+inputs separates them (the "privileged agent" of Chen et al. 2019, *Learning by
+Cheating*): if it drives like the expert, learning works and what the image-based models
+lack is information.
+
+**Perception.** :meth:`minimanc.world.expert.HumanExpert.situation` puts the ego at the
+simulator's pose and speed among the step's ados and returns what the world's human
+perceives there. :func:`features` turns it into :data:`FEATURES`, grouped as
+:data:`FEATURE_GROUPS`:
+
+* ``speed``: the ego's speed ``v``;
+* ``history``: its last acceleration ``(v_t − v_{t−1})/Δt`` (0 at the first step), the
+  only memory it is given (the human's reaction delay and jerk bound make its next
+  acceleration depend on its last ones);
+* ``leader``: the gap to the vehicle ahead in its corridor (clipped at :data:`FAR`),
+  the speed difference ``v_lead − v`` and whether there is a leader;
+* ``stop``: the distance to the point where it must yield at a junction (clipped) and
+  whether there is one;
+* ``curve``: the braking bound of the curves ahead (``a_curve``, clipped);
+* ``lane``: the signed lateral offset from its path, the heading error, and the
+  lateral position of the path :data:`AHEAD` metres ahead in the ego frame.
+
+It does not see the scene's hidden style (desired speed, headway, reaction delay) nor
+the driver's memory of its last commands, so it is bounded by the style floor, not by
+the expert.
+
+**Model.** An MLP (tanh hidden layers, :func:`minimanc.layers.dense`) on standardised
+features predicts the acceleration ``a = (v_{t+1} − v_t)/Δt`` and the yaw rate ``ω``;
+the control applied is ``[clip(v + a Δt, 0, V_MAX), ω]``. :func:`fit` trains it by
+Algorithm 1 (minibatches, mean squared error on both outputs each divided by its
+standard deviation over the demonstrations, Adam) with :mod:`minimanc.autodiff`.
+``drop`` removes feature groups (the ablation: a group dropped is not an input).
+
+**Policies.** :class:`ExpertPolicy` (the world's human asked in every reached state)
+and :class:`PrivilegedPolicy` read the simulator they drive in through ``bind(sim)``
+(:func:`minimanc.rollout.driver.drive`), so they run in the same closed loop as every
+model. A state the expert cannot be asked in (off the drivable area, far from its
+route) is driven with the last applied controls and counted as ``refused``.
+:class:`PrivilegedPolicy` can record every state it visits with the expert's label
+there, which is one DAgger round (:func:`dagger_rounds`; β_0 = 1, then β_i = 0:
+after the demonstrations, the learner drives).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from minimanc import layers, metrics, optim, rollout
+from minimanc.autodiff import numpy as anp
+from minimanc.autodiff import value_and_grad
+from minimanc.checks import check_int
+from minimanc.dagger.teachers import WorldTeacher
+from minimanc.metrics.trajectory import along_cross_track
+from minimanc.world.expert import HumanExpert, Situation
+from minimanc.world.geometry import DT, wrap_angle
+from minimanc.world.traffic import B_MAX
+
+__all__ = [
+    "AHEAD", "FAR", "FEATURES", "FEATURE_GROUPS", "V_MAX", "ExpertPolicy", "Privileged",
+    "PrivilegedPolicy", "closed_loop", "dagger_rounds", "demonstrations", "features",
+    "fit", "predict",
+]
+
+FAR: float = 60.0
+"""Distances (m) to a leader or a stop point are clipped here; beyond, nothing binds."""
+AHEAD: tuple[float, ...] = (5.0, 10.0, 20.0)
+"""Arc lengths ahead (m) at which the path's lateral position in the ego frame is read."""
+V_MAX: float = 22.0
+"""The largest speed (m/s) a control may ask for (the world's human's bound)."""
+
+FEATURE_GROUPS: dict[str, tuple[str, ...]] = {
+    "speed": ("v",),
+    "history": ("a_prev",),
+    "leader": ("gap", "dv", "has_leader"),
+    "stop": ("stop", "has_stop"),
+    "curve": ("a_curve",),
+    "lane": ("lateral", "heading") + tuple(f"ahead_{int(d)}" for d in AHEAD),
+}
+"""The expert's perception, by group (what the ablation drops one at a time)."""
+FEATURES: tuple[str, ...] = tuple(f for g in FEATURE_GROUPS.values() for f in g)
+"""Every feature, in the order of :func:`features`' vector."""
+
+
+def features(sit: Situation, a_prev: float = 0.0) -> np.ndarray:
+    """The vector :data:`FEATURES` (float64) of what the human perceives in ``sit``, with
+    ``a_prev`` the ego's last acceleration."""
+    ego, path, per, pose = sit.ego, sit.path, sit.perceived, sit.pose
+    v = float(ego.v)
+    lead = math.isfinite(per["gap"])
+    stop = math.isfinite(per["stop"])
+    (px, py), h = path.pose(float(ego.s))
+    dx, dy = pose[0] - px, pose[1] - py
+    lateral = -math.sin(h) * dx + math.cos(h) * dy
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    ahead = []
+    for d in AHEAD:
+        (qx, qy), _ = path.pose(float(ego.s) + d)
+        ahead.append(-s * (qx - pose[0]) + c * (qy - pose[1]))
+    return np.array([
+        v, float(a_prev),
+        min(per["gap"], FAR) if lead else FAR, (per["v_lead"] - v) if lead else 0.0,
+        float(lead),
+        min(per["stop"], FAR) if stop else FAR, float(stop),
+        min(max(per["a_curve"], -B_MAX), 4.0),
+        lateral, float(wrap_angle(pose[2] - h)), *ahead,
+    ])
+
+
+def demonstrations(ds: Any, scenes: Iterable[int] | None = None,
+                   expert: HumanExpert | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Features ``X (N, F)`` of every logged state of ``scenes`` (default: all) of ``ds`` and
+    the human's logged controls there ``Y (N, 2)`` as ``[acceleration, yaw rate]``."""
+    expert = HumanExpert(ds) if expert is None else expert
+    ctrl = np.asarray(ds.controls, dtype=np.float64)
+    pose = np.asarray(ds.ego, dtype=np.float64)
+    X, Y = [], []
+    for s in range(len(pose)) if scenes is None else scenes:
+        steps = expert.steps(int(s))
+        for t, step in enumerate(steps):
+            a_prev = (step.speed - steps[t - 1].speed) / DT if t else 0.0
+            X.append(features(expert.situation(int(s), t, pose[s, t], step.speed), a_prev))
+            Y.append([(ctrl[s, t, 0] - step.speed) / DT, ctrl[s, t, 1]])
+    return np.asarray(X), np.asarray(Y)
+
+
+@dataclass
+class Privileged:
+    """A trained privileged learner: MLP ``params``, the features it reads (``keep``,
+    indices into :data:`FEATURES`), their standardisation and the outputs' scales."""
+
+    params: dict
+    keep: np.ndarray
+    mean: np.ndarray
+    std: np.ndarray
+    scale: np.ndarray
+    losses: list[float] = field(default_factory=list)
+
+
+def kept(drop: Sequence[str] = ()) -> np.ndarray:
+    """Indices of the :data:`FEATURES` left when the groups ``drop`` are removed."""
+    bad = [g for g in drop if g not in FEATURE_GROUPS]
+    if bad:
+        raise ValueError(f"unknown feature groups {bad}; expected some of "
+                         f"{tuple(FEATURE_GROUPS)}")
+    gone = {f for g in drop for f in FEATURE_GROUPS[g]}
+    idx = np.array([i for i, f in enumerate(FEATURES) if f not in gone], dtype=np.int64)
+    if len(idx) == 0:
+        raise ValueError("drop removes every feature")
+    return idx
+
+
+def _forward(params: dict, x: Any, xp: Any) -> Any:
+    h = x
+    n = len(params)
+    for i in range(n - 1):
+        h = xp.tanh(layers.dense(params[f"l{i}"], h, xp=xp))
+    return layers.dense(params[f"l{n - 1}"], h, xp=xp)
+
+
+def fit(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (), hidden: Sequence[int] = (64, 64),
+        steps: int = 3000, batch: int = 256, lr: float = 3e-3, seed: int = 0,
+        init: Privileged | None = None) -> Privileged:
+    """Train the MLP by behaviour cloning on ``X (N, F)``, ``Y (N, 2)`` (see the module
+    docstring); ``init`` continues from a trained learner (its standardisation kept)."""
+    X = np.asarray(X, dtype=np.float64)
+    Y = np.asarray(Y, dtype=np.float64)
+    if X.ndim != 2 or X.shape[1] != len(FEATURES) or Y.shape != (len(X), 2) or len(X) == 0:
+        raise ValueError(f"X must have shape (N, {len(FEATURES)}) and Y (N, 2) with N >= 1; "
+                         f"got {X.shape} and {Y.shape}")
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(Y))):
+        raise ValueError("X and Y must be finite")
+    steps = check_int("steps", steps, 1)
+    batch = check_int("batch", batch, 1)
+    rng = np.random.default_rng(seed)
+    if init is None:
+        keep = kept(drop)
+        mean, std = X[:, keep].mean(0), X[:, keep].std(0) + 1e-6
+        scale = Y.std(0) + 1e-6
+        sizes = [len(keep), *hidden, 2]
+        params = {f"l{i}": layers.init_dense(rng, a, b)
+                  for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:]))}
+        params[f"l{len(sizes) - 2}"]["w"] = params[f"l{len(sizes) - 2}"]["w"] * 0.1
+    else:
+        keep, mean, std, scale, params = init.keep, init.mean, init.std, init.scale, init.params
+    Z = (X[:, keep] - mean) / std
+    T = Y / scale
+
+    def loss(p: dict, x: Any, y: Any) -> Any:
+        d = _forward(p, x, anp) - y
+        return anp.mean(d * d)
+
+    step_fn = value_and_grad(loss)
+    state = optim.adam_init(params)
+    losses = []
+    for k in range(steps):
+        i = rng.integers(0, len(Z), size=min(batch, len(Z)))
+        lr_k = lr * 0.5 * (1.0 + math.cos(math.pi * k / steps))  # cosine decay
+        value, g = step_fn(params, Z[i], T[i])
+        params, state = optim.adam_update(g, state, params, lr=lr_k)
+        losses.append(float(value))
+    return Privileged(params, keep, mean, std, scale, losses)
+
+
+def predict(model: Privileged, X: np.ndarray) -> np.ndarray:
+    """The learner's ``[acceleration, yaw rate]`` ``(N, 2)`` for features ``X (N, F)``."""
+    Z = (np.asarray(X, dtype=np.float64)[:, model.keep] - model.mean) / model.std
+    return _forward(model.params, Z, np) * model.scale
+
+
+class _Reader:
+    """Common part of the policies that ask the world's expert in the simulator's state."""
+
+    model = None
+    setting = "paper"
+    keys = ("motion",)
+
+    def __init__(self, teacher: WorldTeacher) -> None:
+        self.teacher = teacher
+        self.sim: Any = None
+        self.prev: np.ndarray | None = None
+        self.speeds: np.ndarray | None = None
+        self.a_prev: np.ndarray = np.zeros(0)
+        self.refused = 0
+
+    def bind(self, sim: Any) -> None:
+        self.sim, self.prev, self.speeds = sim, None, None
+
+    def initial_state(self, scenes: np.ndarray) -> None:
+        return None
+
+    def situations(self, t: int) -> list[Situation | None]:
+        poses, speeds, traffics = self.teacher.states(self.sim, self.prev)
+        v = np.maximum(np.asarray(speeds, dtype=np.float64), 0.0)
+        self.a_prev = np.zeros_like(v) if self.speeds is None else (v - self.speeds) / DT
+        self.speeds = v
+        out: list[Situation | None] = []
+        for b, s in enumerate(np.asarray(self.sim.scenes)):
+            try:
+                out.append(self.teacher.expert.situation(int(s), int(t), poses[b],
+                                                         max(speeds[b], 0.0), traffics[b]))
+            except ValueError:  # the expert cannot be asked here
+                out.append(None)
+        return out
+
+    def finish(self, u: np.ndarray, sits: list[Situation | None]) -> np.ndarray:
+        bad = np.array([s is None for s in sits])
+        if bad.any():
+            self.refused += int(bad.sum())
+            u[bad] = self.prev[bad] if self.prev is not None else 0.0
+        self.prev = u
+        return u
+
+
+class ExpertPolicy(_Reader):
+    """The world's human asked in every state the closed loop reaches (the upper bound)."""
+
+    def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
+                 ) -> tuple[np.ndarray, Any, dict]:
+        sits = self.situations(t)
+        u = np.zeros((len(sits), 2))
+        for b, sit in enumerate(sits):
+            if sit is not None:
+                u[b] = self.teacher.expert.controls(sit)
+        return self.finish(u, sits), state, {}
+
+
+class PrivilegedPolicy(_Reader):
+    """A :class:`Privileged` learner driving on the expert's perception; with
+    ``record=True`` it keeps every visited state's features and the expert's label there
+    (``visited``, as :func:`demonstrations` returns them)."""
+
+    def __init__(self, model: Privileged, teacher: WorldTeacher, record: bool = False) -> None:
+        super().__init__(teacher)
+        self.net, self.record = model, record
+        self.X: list[np.ndarray] = []
+        self.Y: list[list[float]] = []
+
+    def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
+                 ) -> tuple[np.ndarray, Any, dict]:
+        sits = self.situations(t)
+        F = np.array([features(s, a) if s is not None else np.zeros(len(FEATURES))
+                      for s, a in zip(sits, self.a_prev)])
+        a = predict(self.net, F)
+        v = F[:, 0]
+        u = np.stack([np.clip(v + a[:, 0] * DT, 0.0, V_MAX), a[:, 1]], axis=1)
+        if self.record:
+            for b, sit in enumerate(sits):
+                if sit is not None:
+                    lab = self.teacher.expert.controls(sit)
+                    self.X.append(F[b])
+                    self.Y.append([(lab[0] - v[b]) / DT, lab[1]])
+        return self.finish(u, sits), state, {}
+
+    def visited(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.asarray(self.X).reshape(-1, len(FEATURES)), np.asarray(self.Y).reshape(-1, 2)
+
+
+def closed_loop(policy: _Reader, ds: Any, agents: str, progress: bool = False
+                ) -> dict[str, float]:
+    """Drive ``policy`` (its teacher built on ``ds``) on every scene of ``ds`` under
+    ``agents``: :func:`minimanc.metrics.evaluate`'s metrics, the mean along- and
+    cross-track errors (:func:`minimanc.metrics.trajectory.along_cross_track`) and the
+    number of ``refused`` states."""
+    policy.refused = 0
+    traj = rollout.simulate(policy, ds, agents=agents, progress=progress,
+                            desc=f"{type(policy).__name__} ({agents})")
+    out = metrics.evaluate(traj, ds)
+    along, cross = along_cross_track(traj.ego, np.asarray(ds.ego, dtype=np.float64))
+    out["along_track"] = float(np.abs(along).mean())
+    out["cross_track"] = float(np.abs(cross).mean())
+    out["refused"] = float(policy.refused)
+    return out
+
+
+@dataclass
+class Round:
+    """One DAgger round of the privileged learner: labels aggregated so far and its
+    closed-loop metrics on the validation scenes."""
+
+    labels: int
+    metrics: dict[str, float]
+
+
+def dagger_rounds(train: Any, val: Any, rounds: int, per_round: int, agents: str = "reactive",
+                  seed: int = 0, drop: Sequence[str] = (), steps: int = 3000,
+                  progress: bool = False) -> list[Round]:
+    """DAgger for the privileged learner: round 0 trains on the demonstrations of ``train``;
+    each further round drives ``per_round`` training scenes (in a seeded order, cycling)
+    with the current learner under ``agents``, labels every state it reached with the
+    expert, aggregates and retrains from the previous weights. Every round is evaluated
+    closed loop on ``val`` under ``agents``."""
+    rounds = check_int("rounds", rounds, 0)
+    per_round = check_int("per_round", per_round, 1)
+    teacher = WorldTeacher(train, agents=agents)
+    vteacher = WorldTeacher(val, agents=agents)
+    X, Y = demonstrations(train, expert=teacher.expert)
+    model = fit(X, Y, drop=drop, steps=steps, seed=seed)
+    out = [Round(len(X), closed_loop(PrivilegedPolicy(model, vteacher), val, agents))]
+    order = np.random.default_rng(seed).permutation(len(np.asarray(train.ego)))
+    for r in range(rounds):
+        pick = order[(np.arange(per_round) + r * per_round) % len(order)]
+        policy = PrivilegedPolicy(model, teacher, record=True)
+        rollout.simulate(policy, train, scenes=np.sort(pick), agents=agents, progress=progress,
+                         desc=f"DAgger round {r + 1}")
+        Xn, Yn = policy.visited()
+        X, Y = np.concatenate([X, Xn]), np.concatenate([Y, Yn])
+        model = fit(X, Y, steps=steps, seed=seed + r + 1, init=model)
+        out.append(Round(len(X), closed_loop(PrivilegedPolicy(model, vteacher), val, agents)))
+    return out
