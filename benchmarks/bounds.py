@@ -1,9 +1,8 @@
 """The bounds of Table I: the expert, and the style floor no style-blind learner can beat.
 
-**Expert.** The world's human (:class:`minimanc.world.expert.HumanExpert`, asked through
-:class:`minimanc.dagger.teachers.WorldTeacher`) drives the validation scenes through the
-same simulators and the same time loop (:func:`minimanc.rollout.driver.drive`) as the
-learned policies, under both protocols (replayed and reactive ados); the metrics are
+**Expert.** The world's human (:func:`minimanc.studies.bounds.expert_rollout`) drives the
+validation scenes through the same simulators and the same time loop as the learned
+policies, under both protocols (replayed and reactive ados); the metrics are
 :func:`minimanc.metrics.evaluate`'s. A state the expert refuses to label (off the
 drivable area, far from its route) is driven with the last applied controls and counted.
 
@@ -12,7 +11,7 @@ drivable area, far from its route) is driven with the last applied controls and 
 that a controller seeing only the scene cannot know. Every validation scene is re-driven
 by the world's own driver on the scene's own random stream (same map, traffic and noise
 draws), with the style replaced by the population's median style (the median of each
-field over ``--population`` draws; :meth:`minimanc.world.driver.SceneRun.restyle`), the
+field over ``--population`` draws; :func:`minimanc.studies.bounds.floor_rollout`), the
 ados reacting to it: its ADE to the logged human (mean, median, 90th percentile), the
 along- and cross-track parts (:func:`minimanc.metrics.trajectory.along_cross_track`), the
 mean speed difference and its at-fault collisions. Re-driving with the scene's own style
@@ -25,87 +24,16 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import asdict, fields
+from dataclasses import asdict
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 
 from minimanc import metrics, results, world
-from minimanc.dagger.teachers import AGENTS, WorldTeacher
+from minimanc.dagger.teachers import AGENTS
 from minimanc.metrics.trajectory import ade, along_cross_track
-from minimanc.rollout.driver import drive
-from minimanc.world.driver import HumanStyle, random_style, simulate_scene
-from minimanc.world.generation import draw_scene
+from minimanc.studies.bounds import expert_rollout, floor_rollout, median_style
 from minimanc.world.geometry import DT
-
-
-class ExpertPolicy:
-    """The teacher's label of the simulator's current state as a policy (reads no image)."""
-
-    model = None
-    setting = "paper"
-    keys = ("motion",)
-
-    def __init__(self, teacher: WorldTeacher, sim) -> None:
-        self.teacher, self.sim = teacher, sim
-        self.prev: np.ndarray | None = None
-        self.refused = 0
-
-    def initial_state(self, scenes: np.ndarray) -> None:
-        return None
-
-    def __call__(self, obs: dict, state, t: int, scenes: np.ndarray):
-        out, why = self.teacher.label(self.sim, t, self.prev)
-        bad = np.array([w is not None for w in why])
-        if bad.any():
-            self.refused += int(bad.sum())
-            fallback = self.prev if self.prev is not None else np.zeros_like(out)
-            out[bad] = fallback[bad]
-        self.prev = out
-        return out, state, {}
-
-
-def expert_rollout(ds, agents: str) -> tuple[SimpleNamespace, int]:
-    """The expert's closed-loop trajectory on every scene of ``ds`` under ``agents``, and
-    the number of states it refused to label."""
-    teacher = WorldTeacher(ds, agents=agents)
-    egos, ados, valids, refused = [], [], [], 0
-    for chunk in teacher.groups(np.arange(len(ds.ego))):
-        sim = teacher.simulator(chunk)
-        policy = ExpertPolicy(teacher, sim)
-        drive(policy, sim, ds.ego.shape[1] - 1)
-        egos.append(sim.trajectory())
-        refused += policy.refused
-        if agents == "reactive":
-            a, v = sim.ado_trajectory()
-            ados.append(a)
-            valids.append(v)
-    traj = SimpleNamespace(ego=np.concatenate(egos), ado=np.concatenate(ados) if ados else None,
-                           ado_valid=np.concatenate(valids) if valids else None)
-    return traj, refused
-
-
-def median_style(n: int = 20000, seed: int = 0) -> HumanStyle:
-    """The field-wise median of ``n`` styles drawn by :func:`random_style`."""
-    rng = np.random.default_rng(seed)
-    draws = [asdict(random_style(rng)) for _ in range(n)]
-    return HumanStyle(**{f.name: float(np.median([d[f.name] for d in draws]))
-                         for f in fields(HumanStyle)})
-
-
-def restyled_rollout(ds, seed: int, style: HumanStyle | None, scenes=None) -> SimpleNamespace:
-    """The scenes ``scenes`` (default: all) of ``ds`` (generated from data seed ``seed``)
-    re-driven by the world's human with ``style`` (``None``: the scene's own style)."""
-    idx = range(len(ds.ego)) if scenes is None else scenes
-    logs = []
-    for i in idx:
-        rng, _, m = draw_scene(seed, int(ds.meta["scene_index"][i]),
-                               int(ds.meta["attempts"][i]) - 1)
-        logs.append(simulate_scene(m, rng, T=ds.ego.shape[1], style=style))
-    return SimpleNamespace(ego=np.stack([g.ego for g in logs]),
-                           ado=np.stack([g.ado for g in logs]),
-                           ado_valid=np.stack([g.ado_valid for g in logs]))
 
 
 def expert_lines(ds) -> list[str]:
@@ -119,14 +47,14 @@ def expert_lines(ds) -> list[str]:
     return out
 
 
-def floor_lines(ds, seed: int, population: int) -> list[str]:
-    own = restyled_rollout(ds, seed, None, scenes=range(min(len(ds.ego), 4)))
+def floor_lines(ds, population: int) -> list[str]:
+    own = floor_rollout(ds, None, scenes=range(min(len(ds.ego), 4)))
     err = float(np.abs(own.ego[..., :2] - ds.ego[:len(own.ego), :, :2]).max())
     if err > 1e-3:
         raise SystemExit(f"bounds: self-check failed: the scenes' own style re-drives "
                          f"{err:.3g} m from the log (expected float32 rounding)")
     style = median_style(population)
-    traj = restyled_rollout(ds, seed, style)
+    traj = floor_rollout(ds, style)
     human = np.asarray(ds.ego, dtype=np.float64)
     dist = ade(traj.ego, human)
     along, cross = along_cross_track(traj.ego, human)
@@ -155,7 +83,7 @@ def main() -> None:
     t0 = time.perf_counter()
     ds = world.generate(args.scenes, seed=args.seed)
     parts = {"Expert": expert_lines(ds),
-             "Style floor": floor_lines(ds, args.seed, args.population)}
+             "Style floor": floor_lines(ds, args.population)}
     text = f"# Bounds of Table I ({args.scenes} scenes of data seed {args.seed})\n\n"
     for title, lines in parts.items():
         text += f"## {title}\n\n```\n" + "\n".join(lines) + "\n```\n\n"

@@ -1,0 +1,124 @@
+"""Chapter 11 — the learners that read the world's own numbers (minimanc.dagger.privileged)
+and the bounds of Table I (minimanc.studies.bounds): the expert driven closed loop is the
+log, the perception features are what the human saw, the MLP learns a known map, the
+style floor re-drives the log with the scene's own style."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from minimanc import metrics, rollout, world
+from minimanc.dagger import privileged as P
+from minimanc.dagger.teachers import AGENTS, WorldTeacher
+from minimanc.studies.bounds import expert_rollout, floor_rollout, median_style
+from minimanc.world.geometry import DT
+
+LOG_POSE = 1e-3
+"""The expert re-driving a scene ends on the logged poses up to float32 rounding of the
+dataset's start state (measured 2e-5 m)."""
+
+
+@pytest.fixture(scope="module")
+def ds():
+    return world.generate(6, seed=5, raster=world.RasterConfig(size=16), workers=1)
+
+
+@pytest.fixture(scope="module")
+def demos(ds):
+    return P.demonstrations(ds)
+
+
+@pytest.mark.parametrize("agents", AGENTS)
+def test_the_expert_driven_closed_loop_is_the_log(ds, agents):
+    traj, refused = expert_rollout(ds, agents)
+    assert refused == 0
+    err = float(np.abs(traj.ego[..., :2] - np.asarray(ds.ego)[..., :2]).max())
+    assert err < LOG_POSE, f"the expert's closed loop left the log by {err:.3g} m"
+    m = metrics.evaluate(traj, ds)
+    assert m["at_fault_collision_rate"] == 0.0
+
+
+def test_demonstrations_are_the_logged_controls(ds, demos):
+    X, Y = demos
+    S, T = np.asarray(ds.ego).shape[:2]
+    assert X.shape == (S * T, len(P.FEATURES)) and Y.shape == (S * T, 2)
+    ctrl = np.asarray(ds.controls, dtype=np.float64).reshape(-1, 2)
+    v = X[:, P.FEATURES.index("v")]
+    np.testing.assert_allclose(v + Y[:, 0] * DT, ctrl[:, 0], atol=1e-9)
+    np.testing.assert_allclose(Y[:, 1], ctrl[:, 1], atol=0)
+    # the speed feature is the logged speed: the previous step's logged control
+    np.testing.assert_allclose(v.reshape(S, T)[:, 1:], ctrl.reshape(S, T, 2)[:, :-1, 0],
+                               atol=1e-4)
+    # the human drives near its path, facing along it
+    assert np.abs(X[:, P.FEATURES.index("lateral")]).max() < 1.0
+    assert np.abs(X[:, P.FEATURES.index("heading")]).max() < 0.5
+    lead = X[:, P.FEATURES.index("has_leader")]
+    assert set(np.unique(lead)) <= {0.0, 1.0}
+    assert np.all(X[lead == 0.0, P.FEATURES.index("gap")] == P.FAR)
+
+
+def test_groups_drop_what_they_name():
+    assert len(P.kept()) == len(P.FEATURES)
+    idx = P.kept(["leader"])
+    assert [P.FEATURES[i] for i in idx if P.FEATURES[i] in P.FEATURE_GROUPS["leader"]] == []
+    assert len(idx) == len(P.FEATURES) - len(P.FEATURE_GROUPS["leader"])
+    with pytest.raises(ValueError, match="unknown feature groups"):
+        P.kept(["radar"])
+    with pytest.raises(ValueError, match="every feature"):
+        P.kept(list(P.FEATURE_GROUPS))
+
+
+def test_fit_learns_a_smooth_map():
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(2000, len(P.FEATURES)))
+    Y = np.stack([np.tanh(X[:, 0] - 0.5 * X[:, 3]), 0.3 * X[:, 8] + 0.1 * X[:, 1]], axis=1)
+    model = P.fit(X, Y, steps=1500, seed=0)
+    err = np.sqrt(((P.predict(model, X) - Y) ** 2).mean(0)) / Y.std(0)
+    assert np.all(err < 0.1), f"relative RMSE {err} (expected < 0.1 on a smooth map)"
+    assert np.mean(model.losses[-50:]) < 0.1 * model.losses[0]
+
+
+def test_fit_refuses_bad_data():
+    X = np.zeros((4, len(P.FEATURES)))
+    with pytest.raises(ValueError, match="shape"):
+        P.fit(X[:, :3], np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="finite"):
+        P.fit(X, np.full((4, 2), np.nan))
+
+
+def test_a_recording_policy_labels_what_it_visited(ds, demos):
+    X, Y = demos
+    model = P.fit(X, Y, steps=50, seed=0)
+    teacher = WorldTeacher(ds, agents="reactive")
+    policy = P.PrivilegedPolicy(model, teacher, record=True)
+    rollout.simulate(policy, ds, scenes=[0, 1], agents="reactive", progress=False)
+    Xv, Yv = policy.visited()
+    T = np.asarray(ds.ego).shape[1]
+    assert len(Xv) == 2 * (T - 1) - policy.refused
+    assert np.all(np.isfinite(Xv)) and np.all(np.isfinite(Yv))
+    # the first state of each scene is the logged start: its label is the human's
+    np.testing.assert_allclose(Yv[0], Y[0], atol=1e-3)
+
+
+def test_the_floor_with_each_scene_s_own_style_is_the_log(ds):
+    own = floor_rollout(ds, None, scenes=[0, 1])
+    np.testing.assert_allclose(own.ego, np.asarray(ds.ego)[:2], atol=LOG_POSE)
+    med = floor_rollout(ds, median_style(200), scenes=[0, 1])
+    assert med.ego.shape == own.ego.shape
+    np.testing.assert_allclose(med.ego[:, 0], own.ego[:, 0], atol=0)  # same start
+    assert not np.allclose(med.ego, own.ego)  # another style drives otherwise
+
+
+def test_median_style_is_a_median():
+    st = median_style(101, seed=1)
+    assert 7.5 <= st.v0 <= 15.0 and 0.8 <= st.T <= 2.4
+    with pytest.raises(ValueError):
+        median_style(0)
+
+
+def test_the_floor_refuses_a_dataset_that_was_not_generated(ds):
+    sub = ds.subset([0])
+    sub.meta = {k: v for k, v in sub.meta.items() if k != "attempts"}
+    with pytest.raises(ValueError, match="generated dataset"):
+        floor_rollout(sub, None)
