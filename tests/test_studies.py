@@ -247,11 +247,18 @@ def test_reproduce_tiny_writes_everything(tmp_path, capsys):
     table = (out / "table1.md").read_text()
     assert table.rstrip().splitlines()[-1].startswith("- wall time: ")
     assert "- command: `minimanc reproduce --preset tiny" in table
+    assert "| Model | ADE ÷ floor | along-track ÷ floor |" in table
     assert "agents replay and reactive" in printed and "agents `reactive`" in printed
     assert res["agents"] == ["replay", "reactive"] and set(res["table1"]) == set(res["agents"])
     for agents, t1 in res["table1"].items():
         assert set(t1) == {"paper", "parity"}
-        assert set(t1["paper"]) == {"human", "dmp_prior", "cnn", "cnn_lstm", "rvs_g", "manc"}
+        assert set(t1["paper"]) == {"human", "dmp_prior", "expert", "style_floor", "cnn",
+                                    "cnn_lstm", "rvs_g", "manc"}
+        # the bounds: the world's driver asked closed loop is the log; the median-style
+        # driver is not, and collides no more than the human
+        assert t1["paper"]["expert"]["ade"]["mean"] < 1e-3
+        assert t1["paper"]["expert"]["at_fault_collision_rate"]["mean"] == 0.0
+        assert t1["paper"]["style_floor"]["ade"]["mean"] > 0.0
         human = t1["paper"]["human"]
         # the log itself, or its controls integrated again among reactive ados (float32 log)
         assert human["ade"]["mean"] < 1e-4 and human["along_track"]["mean"] < 1e-4

@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from minimanc.studies.bounds import BOUND_ROWS
+
 
 def _mean(agg: dict, metric: str) -> float:
     return float(agg[metric]["mean"])
@@ -33,9 +35,10 @@ def _fmt(x: float) -> str:
     return f"{x:.2f}"
 
 
-REFERENCE_ROWS: tuple[str, ...] = ("human", "dmp_prior")
-"""Table I's rows that are not learned models: the logged human and the DMP head at fixed
-gains (:func:`minimanc.rollout.fixed_gains`)."""
+REFERENCE_ROWS: tuple[str, ...] = ("human", "dmp_prior", *BOUND_ROWS)
+"""Table I's rows that are not learned models: the logged human, the DMP head at fixed
+gains (:func:`minimanc.rollout.fixed_gains`) and the bounds (:mod:`minimanc.studies.bounds`:
+the expert, the style floor)."""
 
 MODE_MIN_EXCESS: float = 0.05
 """The explainability claim holds for a model when the mutual information between its most
@@ -310,6 +313,32 @@ def _training(config: dict, key: str) -> Any:
     return t[key] if isinstance(t, dict) else getattr(t, key)
 
 
+_RATIO_COLS = ("ade", "along_track", "cross_track")
+
+
+def floor_ratios(table: dict, agents: str, setting: str, label: Any = str) -> list[str]:
+    """Lines of the table "against the bounds": every learned row's ADE, along- and
+    cross-track error as multiples of the style floor's, and its at-fault collisions next
+    to the expert's (nothing when the table has no bound rows)."""
+    floor, expert = table.get("style_floor"), table.get("expert")
+    if floor is None or expert is None:
+        return []
+    out = [f"Against the bounds — setting `{setting}`, agents `{agents}`: the learned rows' "
+           "errors as multiples of the style floor's (1 = as close to the human as a "
+           "style-blind driver that sees road and traffic perfectly), and their at-fault "
+           "collisions next to the expert's.", "",
+           "| Model | ADE ÷ floor | along-track ÷ floor | cross-track ÷ floor | % at fault "
+           "(expert: " + f"{_mean(expert, 'at_fault_collision_rate'):.2f}) |",
+           "|---|---|---|---|---|"]
+    for m, agg in table.items():
+        if m in REFERENCE_ROWS and m != "dmp_prior":
+            continue
+        ratios = [_mean(agg, k) / max(_mean(floor, k), 1e-9) for k in _RATIO_COLS]
+        out.append(f"| {label(m)} | " + " | ".join(f"{r:.2f}" for r in ratios)
+                   + f" | {_mean(agg, 'at_fault_collision_rate'):.2f} |")
+    return [*out, ""]
+
+
 def table_markdown(results: dict) -> str:
     """``table1.md``: Table I per protocol and setting, per scenario family, the studies as
     tables, the q-states against the human's modes, and the findings."""
@@ -349,6 +378,7 @@ def table_markdown(results: dict) -> str:
                 lines.append(f"| {lab(m)} | " + " | ".join(cell(agg, k, n) for k in _COLS)
                              + " |")
             lines.append("")
+            lines += floor_ratios(table, agents, setting, lab)
     fam_header = "| Model | Family | scenes | " + " | ".join(_HEAD) + " |"
     fam_rule = "|---" * (len(_HEAD) + 3) + "|"
     for agents, by_setting in results.get("families", {}).items():

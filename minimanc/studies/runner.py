@@ -10,6 +10,7 @@ from dataclasses import asdict
 from typing import Any
 
 from minimanc import metrics
+from minimanc.studies.bounds import BOUND_ROWS
 from minimanc.studies.config import Run, canonical_setting, plan
 from minimanc.studies.jobs import read_json, write_json
 from minimanc.studies.report import findings
@@ -25,7 +26,8 @@ class Study(Runs):
 
     def table1(self) -> dict:
         """``{agents: {setting: {model: aggregate}}}`` (Table I under each protocol), with
-        the rows ``"human"`` and ``"dmp_prior"`` (the DMP head at fixed gains) first."""
+        the rows ``"human"``, ``"dmp_prior"`` (the DMP head at fixed gains) and the bounds
+        (:data:`minimanc.studies.bounds.BOUND_ROWS`: the expert, the style floor) first."""
         c = self.config
         for a in self.agents:
             for s in c.settings:
@@ -33,7 +35,8 @@ class Study(Runs):
                     self.submit_runs(self.runs(m, s), a)
         out = {}
         for a in self.agents:
-            fixed = {"human": self.human(a), "dmp_prior": self.references(a)["dmp_prior"]}
+            fixed = {"human": self.human(a), "dmp_prior": self.references(a)["dmp_prior"],
+                     **{b: metrics.aggregate([self.reference(b, a)]) for b in BOUND_ROWS}}
             out[a] = {s: {**fixed, **{m: self.aggregate(self.runs(m, s), a)
                                       for m in c.table_models}} for s in c.settings}
         return out
@@ -45,7 +48,8 @@ class Study(Runs):
         c = self.config
         out: dict = {}
         for a in self.agents:
-            fixed = {m: families_of([self.reference(m, a)]) for m in ("human", "dmp_prior")}
+            fixed = {m: families_of([self.reference(m, a)])
+                     for m in ("human", "dmp_prior", *BOUND_ROWS)}
             out[a] = {s: {**fixed, **{m: self.aggregate_families(self.runs(m, s), a)
                                       for m in c.table_models}} for s in c.settings}
         return out

@@ -18,6 +18,7 @@ from typing import Any
 from minimanc import metrics
 from minimanc.checks import check_int
 from minimanc.engine import ENGINES
+from minimanc.studies import bounds
 from minimanc.studies.config import Run, StudyConfig, canonical_setting
 from minimanc.studies.executors import (
     EXECUTORS,
@@ -403,7 +404,8 @@ class Runs:
         return self.executor == "ray" or self.workers > 0
 
     def reference(self, name: str, agents: str) -> dict:
-        """The scores of a driver without learning on the validation split (cached in memory)."""
+        """The scores of a driver without learning on the validation split (cached in memory):
+        ``"human"``, ``"dmp_prior"`` or a bound (:data:`minimanc.studies.bounds.BOUND_ROWS`)."""
         from minimanc import models, rollout
 
         key = f"{name}-val-{agents}"
@@ -412,6 +414,13 @@ class Runs:
             t0 = time.perf_counter()
             if name == "human":
                 traj = rollout.human(val, agents=agents)
+            elif name == "expert":
+                traj, _ = bounds.expert_rollout(val, agents)
+            elif name == "style_floor":  # one drive, ados reacting, scored under either protocol
+                if "style_floor" not in self._references:
+                    self._references["style_floor"] = bounds.floor_rollout(
+                        val, bounds.median_style())
+                traj = self._references["style_floor"]
             else:
                 cfg = models.ModelConfig(n_states=self.config.n_states,
                                          image_size=self.config.image_size)
