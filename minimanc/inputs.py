@@ -345,6 +345,7 @@ def from_state(
     model: str | None = None,
     k_targets: int | None = None,
     keys: Sequence[str] | None = None,
+    history: Any = None,
 ) -> dict:
     """Observations for the closed loop, from the policy's *own* poses.
 
@@ -359,6 +360,8 @@ def from_state(
     ego pose. ``model`` restricts the keys as in :func:`from_dataset`;
     ``keys`` (a subset of :data:`KEYS`) overrides that choice, e.g. for a
     driver that reads no image (the BEV, the costly part, is then not drawn).
+    ``history``: the rows' past boxes (:class:`minimanc.world.history.History`), drawn when
+    ``cfg.history > 0``.
     """
     from minimanc.world import maps as world_maps
     from minimanc.world.geometry import goal_in_ego_frame
@@ -392,7 +395,7 @@ def from_state(
         keys = visible(model, setting) if model is not None else KEYS[:4]
     obs: dict = {}
     if "bev" in keys:
-        bev = rasterize_batch(map_list, poses, ado, ado_valid, cfg)
+        bev = rasterize_batch(map_list, poses, ado, ado_valid, cfg, history=history)
         obs["bev"] = bev.astype(np.float32) / np.float32(255.0)
     if "goal" in keys:
         obs["goal"] = goal_in_ego_frame(goals, poses).astype(np.float32)

@@ -14,6 +14,7 @@ from minimanc.dagger.teachers import Teacher
 from minimanc.rollout import SceneState, drive
 from minimanc.world.fileformat import ARRAY_FIELDS, PER_SCENE_KEYS, append_scenes, empty_meta
 from minimanc.world.geometry import goal_in_ego_frame
+from minimanc.world.history import history_of
 from minimanc.world.maps import lane_targets
 from minimanc.world.raster import rasterize_batch, rasterize_goal
 from minimanc.world.scenes import Dataset
@@ -145,8 +146,10 @@ def _rows_to_scenes(pool: Dataset, scenes: np.ndarray, states: list[SceneState],
         maps = [st.maps[b] for st in states]
         goal = np.asarray(states[0].goal[b], dtype=np.float64)
         lt = np.stack([lane_targets(maps[t], ego[t], K) for t in range(T)])
+        ado64 = ado32.astype(np.float64)
+        past = history_of(ego, ado64, valid, cfg.history) if cfg.history else None
         out.append({
-            "bev": rasterize_batch(maps, ego, ado32.astype(np.float64), valid, cfg),
+            "bev": rasterize_batch(maps, ego, ado64, valid, cfg, history=past),
             "ego": ego32,
             "controls": labels[:, b].astype(np.float32),
             "goal": goal_in_ego_frame(np.broadcast_to(goal, ego.shape), ego).astype(np.float32),

@@ -55,7 +55,8 @@ class SceneState:
     ``maps`` one :class:`minimanc.world.maps.Map` per row, ``pose (B, 3)`` the
     ego's world pose ``[x, y, yaw]``, ``ado (B, A, 5)`` the ado boxes
     ``[x, y, yaw, length, width]`` at this step with ``ado_valid (B, A)`` bool,
-    ``goal (B, 3)`` the goal world pose.
+    ``goal (B, 3)`` the goal world pose, and ``history`` the past boxes of every row when
+    the raster draws them (a :class:`minimanc.world.history.History`, else ``None``).
     """
 
     maps: list
@@ -63,6 +64,7 @@ class SceneState:
     ado: np.ndarray
     ado_valid: np.ndarray
     goal: np.ndarray
+    history: Any = None
 
 
 class Simulator(Protocol):
@@ -136,7 +138,7 @@ def observation(policy: Policy, scene: SceneState, motion: np.ndarray, raster: A
     return inputs.from_state(
         scene.maps, scene.pose, scene.ado, scene.ado_valid, scene.goal, raster, policy.setting,
         motion=motion, model=policy.model, k_targets=k_targets,
-        keys=getattr(policy, "keys", None),
+        keys=getattr(policy, "keys", None), history=scene.history,
     )
 
 

@@ -14,6 +14,7 @@ from minimanc import inputs
 from minimanc.checks import check_int
 from minimanc.rollout.driver import Policy, SceneState, drive
 from minimanc.world.geometry import DT, unicycle_step
+from minimanc.world.history import latest_history
 
 __all__ = ["AGENTS", "BATCH_SIZE", "LogReplay", "Rollout", "check_agents", "check_dataset",
            "human", "k_targets_of", "raster_config", "scene_index", "simulate"]
@@ -230,8 +231,12 @@ class LogReplay:
         t = len(self._poses) - 1
         if t >= self.T:
             raise ValueError(f"the log has {self.T} steps; no observation at step {t}")
+        past = None
+        if self.raster.history:
+            past = latest_history(np.stack(self._poses, axis=1), self._ado[self.scenes, :t + 1],
+                                  self._ado_valid[self.scenes, :t + 1], self.raster.history)
         return SceneState(self._maps, self._poses[-1], self._ado[self.scenes, t],
-                          self._ado_valid[self.scenes, t], self._goal)
+                          self._ado_valid[self.scenes, t], self._goal, past)
 
     def step(self, controls: np.ndarray) -> np.ndarray | None:
         if not self.follow_log:

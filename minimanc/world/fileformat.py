@@ -19,7 +19,6 @@ import hashlib
 import json
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import asdict
 from typing import Any
 
 import numpy as np
@@ -113,7 +112,7 @@ def check_finite(arrays: Any, what: str = "dataset", scene_offset: int = 0) -> N
 def empty_meta(seed: int, cfg: RasterConfig) -> dict:
     """The metadata of a dataset with no scenes yet (keys :data:`META_KEYS`, in order):
     every dataset writer of the package starts from it, so the format lives here."""
-    return {"seed": int(seed), "version": FORMAT_VERSION, "dt": DT, "raster": asdict(cfg),
+    return {"seed": int(seed), "version": FORMAT_VERSION, "dt": DT, "raster": cfg.as_meta(),
             "recipes": [], "tags": [], "attempts": [], "scene_index": []}
 
 

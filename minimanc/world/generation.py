@@ -20,7 +20,7 @@ import sys
 import time
 import zlib
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +40,7 @@ from minimanc.world.fileformat import (
     empty_meta,
 )
 from minimanc.world.geometry import goal_in_ego_frame
+from minimanc.world.history import history_of
 from minimanc.world.maps import K_TARGETS, Map, build_map, lane_targets, random_recipe
 from minimanc.world.raster import RasterConfig, rasterize_batch, rasterize_goal
 from minimanc.world.scenes import Dataset
@@ -96,7 +97,9 @@ def generate_scene(seed: int, index: int, cfg: RasterConfig, k_targets: int = K_
     ego32 = log.ego.astype(np.float32)
     ado32 = np.where(log.ado_valid[..., None], log.ado, 0.0).astype(np.float32)
     ego = ego32.astype(np.float64)
-    bev = rasterize_batch(m, ego, ado32.astype(np.float64), log.ado_valid, cfg)
+    ado64 = ado32.astype(np.float64)
+    past = history_of(ego, ado64, log.ado_valid, cfg.history) if cfg.history else None
+    bev = rasterize_batch(m, ego, ado64, log.ado_valid, cfg, history=past)
     goal = goal_in_ego_frame(np.broadcast_to(ego[-1], ego.shape), ego)
     lt = lane_targets(m, ego, k_targets)
     return {
@@ -221,7 +224,7 @@ def generate(
     held in memory: for more scenes than fit, use :func:`generate_file`.
     """
     cfg = _check_generate_args(n_scenes, seed, raster, k_targets, max_ados)
-    key = {"n_scenes": int(n_scenes), "seed": int(seed), "raster": asdict(cfg),
+    key = {"n_scenes": int(n_scenes), "seed": int(seed), "raster": cfg.as_meta(),
            "k_targets": int(k_targets), "max_ados": int(max_ados), "version": FORMAT_VERSION}
     cache_path = None
     if cache:

@@ -16,6 +16,8 @@ drivable area  (255, 255, 255)   map class grid
 ped crossing   (119, 136, 153)   map class grid
 lanes          HSV hue by yaw    lane centrelines; same direction as the ego
                                  = cyan (0, 255, 255), opposite = red
+faded history  colours × fade    the boxes of the last ``history`` steps
+                                 (ados and ego, oldest first; off by default)
 ado vehicles   (255, 255, 0)     oriented boxes
 ego            (255, 0, 0)       4.727 m x 1.907 m box at the ego pose
 ============== ================= ===========================================
@@ -32,12 +34,13 @@ vectorised NumPy, no Python loop over pixels, any ego pose.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from minimanc.checks import check_int
 from minimanc.world.geometry import EGO_LENGTH, EGO_WIDTH, wrap_angle
+from minimanc.world.history import MAX_HISTORY, History, fade
 from minimanc.world.maps import (
     CLASS_CROSSING,
     CLASS_DRIVABLE,
@@ -64,7 +67,9 @@ class RasterConfig:
     the devkit's 500 px at 0.1 m/px is ``RasterConfig(size=500)``; the
     authors' 250 px at 0.2 m/px is ``RasterConfig(size=250)``).
     ``lane_width_m`` is the drawn width of lane centrelines (devkit: 5 px at
-    0.1 m/px = 0.5 m), never thinner than one pixel.
+    0.1 m/px = 0.5 m), never thinner than one pixel. ``history`` is the number of past
+    steps drawn as faded boxes under the current ones (:mod:`minimanc.world.history`; 0,
+    the authors' environment, draws none).
     """
 
     size: int = 64
@@ -77,9 +82,11 @@ class RasterConfig:
     draw_crossings: bool = True
     ego_length: float = EGO_LENGTH
     ego_width: float = EGO_WIDTH
+    history: int = 0
 
     def __post_init__(self) -> None:
         check_int("size", self.size, 8)
+        check_int("history", self.history, 0, MAX_HISTORY)
         for name in ("metres_ahead", "metres_side", "ego_length", "ego_width",
                      "lane_width_m"):
             v = getattr(self, name)
@@ -87,6 +94,15 @@ class RasterConfig:
                 raise ValueError(f"{name} must be positive and finite, got {v!r}")
         if not (np.isfinite(self.metres_behind) and self.metres_behind >= 0):
             raise ValueError(f"metres_behind must be >= 0, got {self.metres_behind!r}")
+
+    def as_meta(self) -> dict:
+        """The config as a dataset's metadata stores it: every field, ``history`` only when
+        it is drawn (so a history-free dataset's metadata and checksums are those of the
+        format before the option)."""
+        d = asdict(self)
+        if d["history"] == 0:
+            del d["history"]
+        return d
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -198,6 +214,23 @@ def _class_lut(cfg: RasterConfig) -> np.ndarray:
     return lut
 
 
+def check_history(history: History | None, cfg: RasterConfig, frames: int,
+                  with_ados: bool) -> History | None:
+    """``history`` checked against ``cfg.history`` and the ``frames`` drawn (``None`` when the
+    raster draws no history: ``cfg.history == 0``, or a frame without ados, e.g. a goal)."""
+    if cfg.history == 0 or not with_ados:
+        if history is not None and cfg.history == 0:
+            raise ValueError("a history was given but the raster draws none (history=0)")
+        return None
+    if not isinstance(history, History):
+        raise ValueError(f"this raster draws {cfg.history} past steps (RasterConfig.history): "
+                         "pass history= the frames' past (minimanc.world.history.history_of)")
+    if history.ego_valid.shape != (frames, cfg.history):
+        raise ValueError(f"history must hold {frames} frames of {cfg.history} steps; got "
+                         f"{history.ego_valid.shape}")
+    return history
+
+
 def _check_pose(ego_pose: np.ndarray) -> np.ndarray:
     pose = np.asarray(ego_pose, dtype=np.float64)
     if pose.shape != (3,) or not np.all(np.isfinite(pose)):
@@ -205,8 +238,44 @@ def _check_pose(ego_pose: np.ndarray) -> np.ndarray:
     return pose
 
 
+def _draw_boxes(img: np.ndarray, poses: np.ndarray, fb: np.ndarray, b: np.ndarray,
+                cfg: RasterConfig, colour: np.ndarray) -> None:
+    """Paint the world boxes ``b (N, 5)`` into the frames ``fb (N,)`` of ``img`` (seen from
+    ``poses``): every (frame, box) tested on a square crop of pixels around the box."""
+    size = cfg.size
+    X, Y = _pixel_centres(cfg)
+    cos, sin = np.cos(poses[fb, 2]), np.sin(poses[fb, 2])
+    dx, dy = b[:, 0] - poses[fb, 0], b[:, 1] - poses[fb, 1]
+    bx = cos * dx + sin * dy
+    by = -sin * dx + cos * dy
+    half = np.hypot(b[:, 3], b[:, 4]) / 2
+    vis = ((bx - half < cfg.metres_ahead) & (bx + half > -cfg.metres_behind)
+           & (np.abs(by) - half < cfg.metres_side))
+    fb, b, bx, by, half = fb[vis], b[vis], bx[vis], by[vis], half[vis]
+    if not len(fb):
+        return
+    byaw = b[:, 2] - poses[fb, 2]
+    K = int(np.ceil(half.max() / cfg.resolution)) + 1
+    off = np.arange(-K, K + 1)
+    rc = np.floor((cfg.metres_ahead - bx) / cfg.res_row).astype(np.intp)
+    cc = np.floor((cfg.metres_side - by) / cfg.res_col).astype(np.intp)
+    rr = rc[:, None, None] + off[None, :, None] + 0 * off[None, None, :]
+    ca = cc[:, None, None] + 0 * off[None, :, None] + off[None, None, :]
+    ok = (rr >= 0) & (rr < size) & (ca >= 0) & (ca < size)
+    rcl, ccl = np.clip(rr, 0, size - 1), np.clip(ca, 0, size - 1)
+    px = X[rcl, ccl] - bx[:, None, None]
+    py = Y[rcl, ccl] - by[:, None, None]
+    c, s = np.cos(byaw)[:, None, None], np.sin(byaw)[:, None, None]
+    u = c * px + s * py
+    v = -s * px + c * py
+    ok &= (np.abs(u) <= b[:, 3, None, None] / 2) & (np.abs(v) <= b[:, 4, None, None] / 2)
+    ff = np.broadcast_to(fb[:, None, None], ok.shape)
+    img[ff[ok], rr[ok], ca[ok]] = colour
+
+
 def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
-            valid: np.ndarray | None, cfg: RasterConfig, draw_ego: bool) -> np.ndarray:
+            valid: np.ndarray | None, cfg: RasterConfig, draw_ego: bool,
+            history: History | None = None) -> np.ndarray:
     """Render S frames at once (checked inputs): see :func:`rasterize_batch`."""
     S = poses.shape[0]
     size = cfg.size
@@ -261,35 +330,21 @@ def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
                     r, cc = row + dr, col + dc
                     ok = (r >= 0) & (r < size) & (cc >= 0) & (cc < size)
                     img[f[ok], r[ok], cc[ok]] = colours[ok]
-    # ado boxes: every (frame, box) tested on a square crop of pixels around the box
+    if history is not None:  # faded past boxes, oldest first, under the current ones
+        shade = fade(history.steps)
+        ego_box = np.array([cfg.ego_length, cfg.ego_width])
+        for j in range(history.steps - 1, -1, -1):
+            fb, kb = np.nonzero(history.ado_valid[:, j])
+            _draw_boxes(img, poses, fb, history.ado[fb, j, kb], cfg,
+                        np.round(np.array(VEHICLE) * shade[j]).astype(np.uint8))
+            fe = np.nonzero(history.ego_valid[:, j])[0]
+            boxes = np.concatenate([history.ego[fe, j], np.broadcast_to(ego_box,
+                                                                        (len(fe), 2))], axis=1)
+            _draw_boxes(img, poses, fe, boxes, cfg,
+                        np.round(np.array(EGO) * shade[j]).astype(np.uint8))
     if ado is not None:
         fb, kb = np.nonzero(valid)
-        b = ado[fb, kb]
-        dx, dy = b[:, 0] - poses[fb, 0], b[:, 1] - poses[fb, 1]
-        bx = cos[fb] * dx + sin[fb] * dy
-        by = -sin[fb] * dx + cos[fb] * dy
-        half = np.hypot(b[:, 3], b[:, 4]) / 2
-        vis = ((bx - half < cfg.metres_ahead) & (bx + half > -cfg.metres_behind)
-               & (np.abs(by) - half < cfg.metres_side))
-        fb, b, bx, by, half = fb[vis], b[vis], bx[vis], by[vis], half[vis]
-        if len(fb):
-            byaw = b[:, 2] - poses[fb, 2]
-            K = int(np.ceil(half.max() / cfg.resolution)) + 1
-            off = np.arange(-K, K + 1)
-            rc = np.floor((cfg.metres_ahead - bx) / cfg.res_row).astype(np.intp)
-            cc = np.floor((cfg.metres_side - by) / cfg.res_col).astype(np.intp)
-            rr = rc[:, None, None] + off[None, :, None] + 0 * off[None, None, :]
-            ca = cc[:, None, None] + 0 * off[None, :, None] + off[None, None, :]
-            ok = (rr >= 0) & (rr < size) & (ca >= 0) & (ca < size)
-            rcl, ccl = np.clip(rr, 0, size - 1), np.clip(ca, 0, size - 1)
-            px = X[rcl, ccl] - bx[:, None, None]
-            py = Y[rcl, ccl] - by[:, None, None]
-            c, s = np.cos(byaw)[:, None, None], np.sin(byaw)[:, None, None]
-            u = c * px + s * py
-            v = -s * px + c * py
-            ok &= (np.abs(u) <= b[:, 3, None, None] / 2) & (np.abs(v) <= b[:, 4, None, None] / 2)
-            ff = np.broadcast_to(fb[:, None, None], ok.shape)
-            img[ff[ok], rr[ok], ca[ok]] = VEHICLE
+        _draw_boxes(img, poses, fb, ado[fb, kb], cfg, np.array(VEHICLE, dtype=np.uint8))
     if draw_ego:
         img[:, _ego_mask(cfg)] = EGO
     return img
@@ -302,12 +357,14 @@ def rasterize(
     ado_valid: np.ndarray | None = None,
     cfg: RasterConfig | None = None,
     draw_ego: bool = True,
+    history: History | None = None,
 ) -> np.ndarray:
     """Render the BEV raster seen from ``ego_pose = [x, y, yaw]`` (world frame): uint8 (H, W, 3).
 
     ``ado (A, 5)`` are world boxes ``[x, y, yaw, length, width]``; rows with
     ``ado_valid`` False are skipped. Any pose works (the closed loop renders
-    from the policy's own pose).
+    from the policy's own pose). ``history``: the frame's past (a :class:`History` of
+    one frame), required when ``cfg.history > 0`` and ados are drawn.
     """
     cfg = cfg or RasterConfig()
     pose = _check_pose(ego_pose)
@@ -319,7 +376,8 @@ def rasterize(
         if v.shape[0] != a.shape[0]:
             raise ValueError(f"ado_valid must have {a.shape[0]} entries, got {v.shape[0]}")
         a, v = a[None], v[None]
-    return _render([m], pose[None], a, v, cfg, draw_ego)[0]
+    return _render([m], pose[None], a, v, cfg, draw_ego,
+                   check_history(history, cfg, 1, a is not None))[0]
 
 
 def rasterize_batch(
@@ -329,11 +387,14 @@ def rasterize_batch(
     ado_valid: np.ndarray | None = None,
     cfg: RasterConfig | None = None,
     draw_ego: bool = True,
+    history: History | None = None,
 ) -> np.ndarray:
     """Rasterise S frames: ``ego_poses (S, 3)``, ``ado (S, A, 5)``, ``ado_valid (S, A)``.
 
     ``maps`` is one map per frame, or a single map for all. Returns uint8
     ``(S, H, W, 3)``; frames are rendered together (vectorised over frames).
+    ``history``: the frames' past (:class:`History` of ``S`` frames and
+    ``cfg.history`` steps), required when ``cfg.history > 0`` and ados are drawn.
     """
     cfg = cfg or RasterConfig()
     poses = np.asarray(ego_poses, dtype=np.float64)
@@ -353,7 +414,8 @@ def rasterize_batch(
              else np.asarray(ado_valid, dtype=bool))
         if v.shape != a.shape[:2]:
             raise ValueError(f"ado_valid must have shape {a.shape[:2]}, got {v.shape}")
-    return _render(list(maps), poses, a, v, cfg, draw_ego)
+    return _render(list(maps), poses, a, v, cfg, draw_ego,
+                   check_history(history, cfg, S, a is not None))
 
 
 def rasterize_goal(m: Map, goal_pose: np.ndarray, cfg: RasterConfig | None = None) -> np.ndarray:

@@ -49,6 +49,7 @@ from minimanc.rollout import Policy, Rollout, SceneState
 from minimanc.world.driver import SceneRun
 from minimanc.world.generation import scene_stream
 from minimanc.world.geometry import DT
+from minimanc.world.history import latest_history
 from minimanc.world.maps import Map
 from minimanc.world.paths import Vehicle
 
@@ -307,8 +308,12 @@ class ReactiveSim:
             raise ValueError("call reset() before observe()")
         if t >= self.T:
             raise ValueError(f"the scenes have {self.T} steps; no observation at step {t}")
+        past = None
+        if self.raster.history:
+            past = latest_history(np.stack(self._poses, axis=1), np.stack(self._ado, axis=1),
+                                  np.stack(self._valid, axis=1), self.raster.history)
         return SceneState(self._maps, self._poses[-1], self._ado[-1], self._valid[-1],
-                          self._goal)
+                          self._goal, past)
 
     def step(self, controls: np.ndarray) -> None:
         u = np.asarray(controls, dtype=np.float64)
