@@ -248,6 +248,7 @@ def test_reproduce_tiny_writes_everything(tmp_path, capsys):
     assert table.rstrip().splitlines()[-1].startswith("- wall time: ")
     assert "- command: `minimanc reproduce --preset tiny" in table
     assert "| Model | ADE ÷ floor | along-track ÷ floor |" in table
+    assert "| Model | front | stopped ado | lateral | rear | stopped ego | at fault |" in table
     assert "agents replay and reactive" in printed and "agents `reactive`" in printed
     assert res["agents"] == ["replay", "reactive"] and set(res["table1"]) == set(res["agents"])
     for agents, t1 in res["table1"].items():
@@ -259,6 +260,8 @@ def test_reproduce_tiny_writes_everything(tmp_path, capsys):
         assert t1["paper"]["expert"]["ade"]["mean"] < 1e-3
         assert t1["paper"]["expert"]["at_fault_collision_rate"]["mean"] == 0.0
         assert t1["paper"]["style_floor"]["ade"]["mean"] > 0.0
+        # the human's log touches nothing it is at fault for
+        assert t1["paper"]["human"]["contacts_at_fault"]["mean"] == 0.0
         human = t1["paper"]["human"]
         # the log itself, or its controls integrated again among reactive ados (float32 log)
         assert human["ade"]["mean"] < 1e-4 and human["along_track"]["mean"] < 1e-4

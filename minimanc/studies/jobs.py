@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import metrics
+from minimanc.metrics.diagnostics import collision_taxonomy
 
 _WORKER_DATA: dict[str, Any] = {}
 
@@ -25,6 +26,8 @@ scenes and steps of ``|along|`` (m; speed and timing), ``cross_track`` = mean of
 (m; steering), ``along_bias`` = mean of the signed ``along`` (m; < 0: behind the human)."""
 
 STUDY_METRICS: tuple[str, ...] = metrics.ALL_METRICS + TRACK_METRICS
+CONTACT_PREFIX: str = "contacts_"
+"""Prefix of the collision-taxonomy keys of :func:`score`."""
 """Every metric a study reports for a rollout (a failed run has them all ``inf``)."""
 
 FAMILIES: tuple[str, ...] = ("free", "junction", "roundabout", "cut_in")
@@ -88,11 +91,18 @@ def scene_scores(traj: Any, ds: Any) -> dict[str, np.ndarray]:
 def score(traj: Any, ds: Any) -> dict:
     """Every metric of the rollout ``traj`` on ``ds`` (its rows are ``ds``'s scenes in
     order), averaged over the scenes (:func:`scene_scores`; the same numbers as
-    :func:`minimanc.metrics.evaluate`, and :data:`TRACK_METRICS`), and ``"families"``:
+    :func:`minimanc.metrics.evaluate`, and :data:`TRACK_METRICS`), the collisions by kind
+    (:func:`minimanc.metrics.diagnostics.collision_taxonomy`, keys prefixed
+    :data:`CONTACT_PREFIX`), and ``"families"``:
     the same averages over the scenes of each of :data:`FAMILIES` present (with
     ``n_scenes``)."""
     per = scene_scores(traj, ds)
     res: dict[str, Any] = {k: float(v.mean()) for k, v in per.items()}
+    ado, valid = ds.ado, ds.ado_valid
+    if getattr(traj, "ado", None) is not None:
+        ado, valid = traj.ado, traj.ado_valid
+    kinds = collision_taxonomy(traj.ego, ado, valid, ds.ego, ds.maps)
+    res.update({f"{CONTACT_PREFIX}{k}": v for k, v in kinds.items()})
     fams = {}
     for fam, mask in scene_families(ds).items():
         if mask.any():

@@ -339,6 +339,33 @@ def floor_ratios(table: dict, agents: str, setting: str, label: Any = str) -> li
     return [*out, ""]
 
 
+_CONTACT_COLS = ("front", "stopped_ado", "lateral", "rear", "stopped_ego", "at_fault")
+
+
+def contact_table(table: dict, agents: str, setting: str, label: Any = str) -> list[str]:
+    """Lines of the table "collisions by kind" (:func:`minimanc.metrics.diagnostics.
+    collision_taxonomy`, mean over seeds of the contacts in the validation scenes) and the
+    speed at the at-fault contacts next to the human's; nothing for results without it."""
+    rows = [(m, agg) for m, agg in table.items() if "contacts_at_fault" in agg]
+    if not rows:
+        return []
+    out = [f"Collisions by kind — setting `{setting}`, agents `{agents}`: first contacts in "
+           "the validation scenes (front: into the vehicle ahead; stopped ado: into a "
+           "standing one; lateral: beside it; rear: hit from behind; stopped ego: hit while "
+           "standing), and at the at-fault ones the ego's speed next to the human's at the "
+           "same step.", "",
+           "| Model | front | stopped ado | lateral | rear | stopped ego | at fault | "
+           "speed at contact (m/s) | human's speed (m/s) | % faster than the human |",
+           "|---" * 10 + "|"]
+    for m, agg in rows:
+        nums = [f"{_mean(agg, 'contacts_' + k):.1f}" for k in _CONTACT_COLS]
+        speeds = [_mean(agg, f"contacts_{k}") for k in ("ego_speed", "human_speed", "faster")]
+        nums += [f"{v:.2f}" if np.isfinite(v) else "—" for v in speeds[:2]]
+        nums.append(f"{100 * speeds[2]:.0f}" if np.isfinite(speeds[2]) else "—")
+        out.append(f"| {label(m)} | " + " | ".join(nums) + " |")
+    return [*out, ""]
+
+
 def table_markdown(results: dict) -> str:
     """``table1.md``: Table I per protocol and setting, per scenario family, the studies as
     tables, the q-states against the human's modes, and the findings."""
@@ -379,6 +406,7 @@ def table_markdown(results: dict) -> str:
                              + " |")
             lines.append("")
             lines += floor_ratios(table, agents, setting, lab)
+            lines += contact_table(table, agents, setting, lab)
     fam_header = "| Model | Family | scenes | " + " | ".join(_HEAD) + " |"
     fam_rule = "|---" * (len(_HEAD) + 3) + "|"
     for agents, by_setting in results.get("families", {}).items():
