@@ -10,6 +10,8 @@ Three parts, each a section of the results file:
   along-/cross-track split, collisions and at-fault collisions (mean ± std over seeds).
 * **Ablation**: the same with one input group of
   :data:`~minimanc.dagger.privileged.FEATURE_GROUPS` removed, reactive ados.
+* **What one image can show** (``--parts information``): the learner without the speeds
+  a single raster frame does not hold, under both protocols.
 * **DAgger**: ``--rounds`` rounds of ``--per-round`` training scenes each
   (:func:`~minimanc.dagger.privileged.dagger_rounds`, reactive ados), the closed-loop
   metrics after every round, against behaviour cloning given the same number of labels
@@ -37,6 +39,11 @@ N_TUNE = 40
 SHOW = ("ade", "along_track", "cross_track", "collision_rate", "at_fault_collision_rate",
         "off_road_rate", "refused")
 HEAD = ("ADE m", "along m", "cross m", "coll. %", "at fault %", "off road %", "refused")
+INFORMATION: dict[str, tuple[str, ...]] = {
+    "one frame": ("v", "a_prev", "dv"),
+    "one frame + own speed": ("a_prev", "dv"),
+}
+"""Features a raster cannot show, by what the image (and the setting) give."""
 
 
 def cells(runs: list[dict]) -> str:
@@ -121,6 +128,27 @@ def main() -> None:
                 "% at fault", t0)
         sections["Ablation"] = [f"agents `reactive`, {args.ablation_seeds} seeds", "",
                                 *table(rows, "inputs")]
+
+    if "information" in parts:
+        rows = []
+        for name, without in INFORMATION.items():
+            runs = {a: [] for a in AGENTS}
+            for seed in range(args.ablation_seeds):
+                model = P.fit(X, Y, without=without, steps=args.steps, seed=seed)
+                for a in AGENTS:
+                    runs[a].append(P.closed_loop(P.PrivilegedPolicy(model, teachers[a]), val,
+                                                 a))
+            for a in AGENTS:
+                rows.append(row(f"{name}, `{a}`", runs[a]))
+            log(f"information {name}: " + ", ".join(
+                f"{a} {np.mean([r['at_fault_collision_rate'] for r in runs[a]]):.1f} %"
+                for a in AGENTS), t0)
+        sections["What one image can show"] = [
+            f"{args.ablation_seeds} seeds. The privileged learner given only what a raster "
+            "can show: one frame holds positions (gap, stop distance, curves, lane) but no "
+            "speed (neither the ego's nor the closing speed: without "
+            f"{', '.join(f'`{f}`' for f in INFORMATION['one frame'])}); a faded history "
+            "adds them back.", "", *table(rows, "information")]
 
     if "dagger" in parts:
         rounds = P.dagger_rounds(train, val, args.rounds, args.per_round, agents="reactive",

@@ -65,6 +65,10 @@ def test_groups_drop_what_they_name():
     assert len(idx) == len(P.FEATURES) - len(P.FEATURE_GROUPS["leader"])
     with pytest.raises(ValueError, match="unknown feature groups"):
         P.kept(["radar"])
+    assert P.FEATURES.index("dv") not in P.kept(without=["dv"])
+    assert len(P.kept(without=["dv", "v"])) == len(P.FEATURES) - 2
+    with pytest.raises(ValueError, match="unknown features"):
+        P.kept(without=["speed"])
     with pytest.raises(ValueError, match="every feature"):
         P.kept(list(P.FEATURE_GROUPS))
 

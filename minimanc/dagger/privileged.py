@@ -145,13 +145,17 @@ class Privileged:
     losses: list[float] = field(default_factory=list)
 
 
-def kept(drop: Sequence[str] = ()) -> np.ndarray:
-    """Indices of the :data:`FEATURES` left when the groups ``drop`` are removed."""
+def kept(drop: Sequence[str] = (), without: Sequence[str] = ()) -> np.ndarray:
+    """Indices of the :data:`FEATURES` left when the groups ``drop`` and the single features
+    ``without`` are removed."""
     bad = [g for g in drop if g not in FEATURE_GROUPS]
     if bad:
         raise ValueError(f"unknown feature groups {bad}; expected some of "
                          f"{tuple(FEATURE_GROUPS)}")
-    gone = {f for g in drop for f in FEATURE_GROUPS[g]}
+    bad = [f for f in without if f not in FEATURES]
+    if bad:
+        raise ValueError(f"unknown features {bad}; expected some of {FEATURES}")
+    gone = {f for g in drop for f in FEATURE_GROUPS[g]} | set(without)
     idx = np.array([i for i, f in enumerate(FEATURES) if f not in gone], dtype=np.int64)
     if len(idx) == 0:
         raise ValueError("drop removes every feature")
@@ -168,9 +172,11 @@ def _forward(params: dict, x: Any, xp: Any) -> Any:
 
 def fit(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (), hidden: Sequence[int] = (64, 64),
         steps: int = 3000, batch: int = 256, lr: float = 3e-3, seed: int = 0,
-        init: Privileged | None = None) -> Privileged:
+        init: Privileged | None = None, without: Sequence[str] = ()) -> Privileged:
     """Train the MLP by behaviour cloning on ``X (N, F)``, ``Y (N, 2)`` (see the module
-    docstring); ``init`` continues from a trained learner (its standardisation kept)."""
+    docstring) on the features :func:`kept` leaves (``drop``: groups, ``without``: single
+    features); ``init`` continues from a trained learner (its inputs and standardisation
+    kept)."""
     X = np.asarray(X, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64)
     if X.ndim != 2 or X.shape[1] != len(FEATURES) or Y.shape != (len(X), 2) or len(X) == 0:
@@ -182,7 +188,7 @@ def fit(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (), hidden: Sequence
     batch = check_int("batch", batch, 1)
     rng = np.random.default_rng(seed)
     if init is None:
-        keep = kept(drop)
+        keep = kept(drop, without)
         mean, std = X[:, keep].mean(0), X[:, keep].std(0) + 1e-6
         scale = Y.std(0) + 1e-6
         sizes = [len(keep), *hidden, 2]
