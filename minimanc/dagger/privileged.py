@@ -66,8 +66,8 @@ from minimanc.world.traffic import B_MAX
 
 __all__ = [
     "AHEAD", "FAR", "FEATURES", "FEATURE_GROUPS", "V_MAX", "ExpertPolicy", "Privileged",
-    "PrivilegedPolicy", "closed_loop", "dagger_rounds", "demonstrations", "features",
-    "fit", "predict",
+    "PrivilegedPolicy", "Round", "closed_loop", "dagger_rounds", "demonstrations", "features",
+    "fit", "kept", "predict",
 ]
 
 FAR: float = 60.0
