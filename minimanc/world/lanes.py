@@ -138,6 +138,8 @@ class Map:
     conflicts: dict[tuple[int, int], tuple[float, float]]  # (a, b) -> (s_in, s_out) on a
     bounds: tuple[float, float, float, float]
     key: str = ""
+    holes: list[np.ndarray] = field(default_factory=list)  # holes cut from the drivable area
+    walkway_polygons: list[np.ndarray] = field(default_factory=list)  # under the drivable area
 
     @property
     def has_junction(self) -> bool:
@@ -251,6 +253,17 @@ def class_grid(m: Map, res: float) -> tuple[np.ndarray, np.ndarray, float]:
         c = px(np.array([[cx, cy]]))[0]
         rr = r / res
         draw.ellipse([c[0] - rr, c[1] - rr, c[0] + rr, c[1] + rr], fill=val)
+    for poly in m.holes:
+        draw.polygon(px(poly), fill=CLASS_NONE)
+    if m.walkway_polygons:  # recorded maps: walkways where nothing drivable is drawn
+        walk = Image.new("L", (W, H), 0)
+        wdraw = ImageDraw.Draw(walk)
+        for poly in m.walkway_polygons:
+            wdraw.polygon(px(poly), fill=1)
+        arr = np.asarray(img, dtype=np.uint8).copy()
+        arr[(np.asarray(walk) > 0) & (arr == CLASS_NONE)] = CLASS_WALKWAY
+        img = Image.fromarray(arr)
+        draw = ImageDraw.Draw(img)
     for poly in m.crossings:
         draw.polygon(px(poly), fill=CLASS_CROSSING)
     grid = np.asarray(img, dtype=np.uint8).copy()

@@ -391,7 +391,11 @@ def _explicit_map(recipe: dict) -> Map:
          "strips": [{"lane": id, "half_width": hw} | {"points": [...], "half_width": hw}],
          "polygons": [[[x, y], ...]], "walkways": [{"points": ..., "half_width": hw}],
          "crossings": [[[x, y] x 4]], "discs": [[cx, cy, r, class]],
+         "holes": [[[x, y], ...]], "walkway_polygons": [[[x, y], ...]],
          "route": [lane ids], "start_s": s0}
+
+    ``holes`` (optional) are cut from the drivable area; ``walkway_polygons`` (optional,
+    recorded maps such as nuScenes') are walkways wherever nothing drivable is drawn.
 
     Lanes are resampled every 1 m with headings from the polyline; the key
     hashes the geometry only (the format of :func:`minimanc.highway.explicit_map`).
@@ -421,22 +425,26 @@ def _explicit_map(recipe: dict) -> Map:
     walkways = [strip(sp) for sp in recipe.get("walkways", [])]
     polygons = [np.asarray(p, dtype=np.float64) for p in recipe.get("polygons", [])]
     crossings = [np.asarray(p, dtype=np.float64) for p in recipe.get("crossings", [])]
+    holes = [np.asarray(p, dtype=np.float64) for p in recipe.get("holes", [])]
+    walk_polys = [np.asarray(p, dtype=np.float64) for p in recipe.get("walkway_polygons", [])]
     discs = [(float(d[0]), float(d[1]), float(d[2]), int(d[3])) for d in recipe.get("discs", [])]
     route = [int(r) for r in recipe["route"]]
     rp, rh, rs, _ = concat_lanes(lanes, route)
-    allp = np.concatenate([ln.points for ln in lanes] + [p for p, _ in walkways] + polygons)
+    allp = np.concatenate([ln.points for ln in lanes] + [p for p, _ in walkways] + polygons
+                          + walk_polys)
     margin = 12.0
     bounds = (float(allp[:, 0].min() - margin), float(allp[:, 1].min() - margin),
               float(allp[:, 0].max() + margin), float(allp[:, 1].max() + margin))
     geometry = {k: recipe.get(k, []) for k in ("lanes", "strips", "polygons", "walkways",
                                                 "crossings", "discs")}
+    geometry.update({k: recipe[k] for k in ("holes", "walkway_polygons") if k in recipe})
     key = hashlib.sha256(json.dumps(geometry, sort_keys=True).encode()).hexdigest()[:16]
     return Map(
         recipe=recipe, kind=str(recipe.get("map_kind", "straight")), lanes=lanes,
         strips=strips, polygons=polygons, discs=discs, walkways=walkways, crossings=crossings,
         route=route, route_points=rp, route_heads=rh, route_s=rs,
         start_s=float(recipe.get("start_s", 0.0)), conflicts=_conflicts(lanes),
-        bounds=bounds, key="x-" + key,
+        bounds=bounds, key="x-" + key, holes=holes, walkway_polygons=walk_polys,
     )
 
 

@@ -1,0 +1,73 @@
+"""The nuScenes reader's parts: the official splits, arcline discretisation, polygon clipping,
+quaternion yaw and bad input."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from minimanc.world.nuscenes import (
+    NuScenesError,
+    Tables,
+    clip_polygon,
+    discretize_arcline,
+    scene_split,
+    split_lists,
+    yaw_of,
+)
+
+
+def test_official_splits():
+    s = split_lists()
+    assert (len(s["train"]), len(s["val"]), len(s["mini_train"]), len(s["mini_val"])) == \
+        (700, 150, 8, 2)
+    assert not set(s["train"]) & set(s["val"])
+    assert scene_split("v1.0-mini", "scene-0103") == "mini_val"
+    assert scene_split("v1.0-mini", "scene-0001") is None
+
+
+def test_arcline_left_quarter_circle():
+    r = 10.0
+    path = {"start_pose": [1.0, 2.0, 0.0], "shape": "LSL", "radius": r,
+            "segment_length": [r * math.pi / 2, 0.0, 0.0]}
+    p = discretize_arcline(path)
+    assert np.allclose(p[-1], [1.0 + r, 2.0 + r, math.pi / 2], atol=1e-9)
+    assert np.allclose(np.hypot(p[:, 0] - 1.0, p[:, 1] - 12.0), r)
+    assert np.max(np.hypot(*np.diff(p[:, :2], axis=0).T)) <= 1.0
+
+
+def test_arcline_straight_then_right():
+    path = {"start_pose": [0.0, 0.0, 0.0], "shape": "RSR", "radius": 5.0,
+            "segment_length": [0.0, 7.0, 5.0 * math.pi / 2]}
+    p = discretize_arcline(path)
+    assert np.allclose(p[-1], [12.0, -5.0, -math.pi / 2], atol=1e-9)
+
+
+def test_clip_polygon():
+    sq = np.array([[-1, -1], [3, -1], [3, 3], [-1, 3]], dtype=float)
+    c = clip_polygon(sq, (0, 0, 2, 2))
+    x, y = c[:, 0], c[:, 1]
+    assert 0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))) == pytest.approx(4.0)
+    assert len(clip_polygon(sq, (10, 10, 12, 12))) == 0
+
+
+def test_yaw_of():
+    a = 0.7
+    assert yaw_of([math.cos(a / 2), 0, 0, math.sin(a / 2)]) == pytest.approx(a)
+
+
+def test_bad_dataroot(tmp_path):
+    with pytest.raises(NuScenesError, match="version must be one of"):
+        Tables(tmp_path, "v2.0")
+    with pytest.raises(NuScenesError, match="no folder v1.0-mini"):
+        Tables(tmp_path, "v1.0-mini")
+    (tmp_path / "v1.0-mini").mkdir()
+    with pytest.raises(NuScenesError, match="table 'scene'.*missing"):
+        Tables(tmp_path, "v1.0-mini")
+    (tmp_path / "v1.0-mini" / "scene.json").write_text("[{")
+    with pytest.raises(NuScenesError, match="not valid JSON"):
+        Tables(tmp_path, "v1.0-mini")
+    (tmp_path / "v1.0-mini" / "scene.json").write_text(json.dumps([]))
+    with pytest.raises(NuScenesError, match="table 'sample'.*missing"):
+        Tables(tmp_path, "v1.0-mini")
