@@ -87,10 +87,7 @@ def main() -> None:
     text = f"# Bounds of Table I ({args.scenes} scenes of data seed {args.seed})\n\n"
     for title, lines in parts.items():
         text += f"## {title}\n\n```\n" + "\n".join(lines) + "\n```\n\n"
-    print(text, end="")
-    if args.out is not None:
-        results.write_text(args.out, text + results.provenance_markdown(
-            results.provenance(), time.perf_counter() - t0))
+    results.publish(text, args.out, time.perf_counter() - t0)
 
 
 if __name__ == "__main__":

@@ -80,10 +80,7 @@ def main() -> None:
     for a in AGENTS:
         text += (f"## Agents `{a}`\n\n| model | history steps | " + " | ".join(HEAD) + " |\n"
                  + "|---" * (len(HEAD) + 2) + "|\n" + "\n".join(rows[a]) + "\n\n")
-    print(text, end="")
-    if args.out is not None:
-        results.write_text(args.out, text + results.provenance_markdown(
-            results.provenance(), time.perf_counter() - t0))
+    results.publish(text, args.out, time.perf_counter() - t0)
 
 
 if __name__ == "__main__":

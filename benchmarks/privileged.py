@@ -171,10 +171,7 @@ def main() -> None:
             f"{args.val} validation scenes; {args.steps} Adam steps)\n\n")
     for title, lines in sections.items():
         text += f"## {title}\n\n" + "\n".join(lines) + "\n\n"
-    print(text, end="")
-    if args.out is not None:
-        results.write_text(args.out, text + results.provenance_markdown(
-            results.provenance(), time.perf_counter() - t0))
+    results.publish(text, args.out, time.perf_counter() - t0)
 
 
 if __name__ == "__main__":

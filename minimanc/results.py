@@ -39,6 +39,7 @@ __all__ = [
     "cpu_model",
     "provenance",
     "provenance_markdown",
+    "publish",
     "quotes",
     "section",
     "update_readme",
@@ -146,6 +147,15 @@ def provenance_markdown(prov: dict, wall_time_s: float | None = None) -> str:
     if wall_time_s is not None:
         lines.append(f"- wall time: {wall_time_s / 60:.1f} min")
     return "\n".join(lines) + "\n"
+
+
+def publish(text: str, out: str | Path | None, wall_time_s: float) -> Path | None:
+    """Print a benchmark's markdown ``text`` and, when ``out`` is given, write it there
+    atomically (:func:`write_text`) followed by its :func:`provenance_markdown` section."""
+    print(text, end="")
+    if out is None:
+        return None
+    return write_text(out, text + provenance_markdown(provenance(), wall_time_s))
 
 
 def write_text(path: str | Path, text: str) -> Path:

@@ -131,3 +131,14 @@ def test_cli_exit_codes(tmp_path, capsys):
     assert cli.main(["results", "check", str(tmp_path / "missing.md")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "missing.md" in err[0] and "Traceback" not in err[0]
+
+
+def test_publish_prints_and_writes_text_with_provenance(tmp_path, capsys):
+    assert results.publish("# Title\n\nbody\n", None, 1.0) is None
+    assert capsys.readouterr().out == "# Title\n\nbody\n"
+    assert list(tmp_path.iterdir()) == []
+    out = results.publish("# Title\n\nbody\n", tmp_path / "sub" / "r.md", 90.0)
+    text = out.read_text()
+    assert text.startswith("# Title\n\nbody\n## Provenance\n")
+    assert "- wall time: 1.5 min" in text
+    assert [p.name for p in out.parent.iterdir()] == ["r.md"], "no temporary file left"
