@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from minimanc.world.geometry import wrap_angle
 from minimanc.world.lanes import LANE_WIDTH
 from minimanc.world.nuscenes.tables import NuScenesError, read_json
 
@@ -82,7 +83,7 @@ def discretize_arcline(path: dict, resolution: float = RESOLUTION) -> np.ndarray
                 y - (math.cos(h + k * length) - math.cos(h)) / k
             h = h + k * length
         start = stop
-    out[:, 2] = (out[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    out[:, 2] = wrap_angle(out[:, 2])
     return out
 
 
@@ -131,8 +132,7 @@ class MapExpansion:
                                 "(version 1.3 of the expansion holds them)")
         self.location = location
         nodes = {n["token"]: (float(n["x"]), float(n["y"])) for n in data["node"]}
-        self._polys = {p["token"]: p for p in data["polygon"]}
-        self._nodes = nodes
+        polys = {p["token"]: p for p in data["polygon"]}
 
         def ring(tokens) -> np.ndarray:
             return np.asarray([nodes[t] for t in tokens], dtype=np.float64).reshape(-1, 2)
@@ -140,12 +140,12 @@ class MapExpansion:
         self.drivable: list[tuple[np.ndarray, list[np.ndarray]]] = []
         for area in data["drivable_area"]:
             for pt in area["polygon_tokens"]:
-                p = self._polys[pt]
+                p = polys[pt]
                 self.drivable.append((ring(p["exterior_node_tokens"]),
                                       [ring(h["node_tokens"]) for h in p.get("holes", [])]))
-        self.walkways = [ring(self._polys[w["polygon_token"]]["exterior_node_tokens"])
+        self.walkways = [ring(polys[w["polygon_token"]]["exterior_node_tokens"])
                          for w in data["walkway"]]
-        self.crossings = [ring(self._polys[c["polygon_token"]]["exterior_node_tokens"])
+        self.crossings = [ring(polys[c["polygon_token"]]["exterior_node_tokens"])
                           for c in data["ped_crossing"]]
         self.lane_tokens: list[str] = []
         self.lane_kind: list[str] = []
