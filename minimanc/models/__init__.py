@@ -50,7 +50,14 @@ from typing import Any
 
 from minimanc.models import registry
 from minimanc.models.backbone import backbone
-from minimanc.models.config import CONTROL_SCALE, DEFAULT_GAINS, ModelConfig, gain_logits
+from minimanc.models.config import (
+    CHANGE_SCALE,
+    CONTROL_SCALE,
+    DEFAULT_GAINS,
+    SPEED_OUTPUTS,
+    ModelConfig,
+    gain_logits,
+)
 from minimanc.models.dmp_head import dmp_head, lane_point, lane_points
 from minimanc.models.explain import explain, replay
 from minimanc.models.forward import (
@@ -66,11 +73,13 @@ from minimanc.models.zoo import BUILTIN
 
 __all__ = [
     "BUILTIN",
+    "CHANGE_SCALE",
     "CONTROL_SCALE",
     "DEFAULT_GAINS",
     "DMP_MODELS",
     "LSTM_MODELS",
     "MODEL_NAMES",
+    "SPEED_OUTPUTS",
     "VAGN_MODELS",
     "ModelConfig",
     "ModelSpec",

@@ -20,13 +20,14 @@ from minimanc import inputs, layers, vagn
 from minimanc.checks import check_int, check_rng
 from minimanc.models import registry
 from minimanc.models.backbone import backbone, dense
-from minimanc.models.config import ModelConfig
+from minimanc.models.config import CHANGE_SCALE, CONTROL_SCALE, ModelConfig
 from minimanc.models.registry import ModelSpec, get
 from minimanc.tree import leaves as tree_leaves
 from minimanc.tree import map as tree_map
 
 __all__ = [
     "cast_tree",
+    "changes_speed",
     "check_obs",
     "check_per_scene",
     "encode",
@@ -256,7 +257,20 @@ def encode(spec: ModelSpec, params: dict, obs: dict, cfg: ModelConfig, eng: Any)
         enc["predicates"] = eng.nn.sigmoid(z) if cfg.predicate_activation == "sigmoid" else z
     num = inputs.numeric_features(obs, spec.name, cfg.setting, xp=xp)
     enc.update(spec.encode(params, obs, f, num, cfg, eng))
+    if changes_speed(spec, cfg):
+        enc["speed_now"] = obs["motion"][:, :1]
     return enc
+
+
+def changes_speed(spec: ModelSpec, cfg: ModelConfig) -> bool:
+    """Whether ``spec``'s head predicts the change of speed (``cfg.speed_output="change"``,
+    a direct head); ValueError if it does not see the ``motion`` it changes."""
+    if cfg.speed_output != "change" or spec.dmp:
+        return False
+    if "motion" not in inputs.visible(spec.name, cfg.setting):
+        raise ValueError(f"speed_output='change' needs a model that sees 'motion'; "
+                         f"{spec.name!r} does not in setting {cfg.setting!r} (use 'parity')")
+    return True
 
 
 def run_head(spec: ModelSpec, params: dict, enc: dict, state: dict, cfg: ModelConfig,
@@ -281,6 +295,11 @@ def run_head(spec: ModelSpec, params: dict, enc: dict, state: dict, cfg: ModelCo
         The spec's ``aux`` and, for models with eq. 7, ``predicates`` ``(B, M)``.
     """
     controls, new_state, aux = spec.head(params, enc, state, cfg, eng)
+    if enc.get("speed_now") is not None:  # speed_output="change": v = v_now + Δv
+        xp = eng.xp
+        k = CHANGE_SCALE / CONTROL_SCALE[0]
+        controls = xp.concatenate([enc["speed_now"] + controls[:, :1] * k, controls[:, 1:]],
+                                  axis=-1)
     if "predicates" in enc:
         aux = {"predicates": enc["predicates"], **aux}
     return controls, new_state, aux

@@ -116,7 +116,7 @@ def start_run(name: str, train_ds: Any, cfg: models.ModelConfig, tc: TrainConfig
     dtype = DTYPES[tc.dtype]
     S, _ = dataset_shape(train_ds)
     scenes = subset_scenes(S, tc.subset, tc.seed)
-    std = control_std(train_ds, scenes) if tc.normalize else np.ones(2)
+    std = control_std(train_ds, scenes, tc.speed_scale) if tc.normalize else np.ones(2)
     ck_path = Path(checkpoint_dir) / CHECKPOINT_NAME if checkpoint_dir is not None else None
     if ck_path is not None:
         remove_temp_files(ck_path)  # left by a run that was killed while saving
