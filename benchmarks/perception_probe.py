@@ -1,5 +1,6 @@
 """What the image models perceive: a linear probe
-(:func:`minimanc.metrics.diagnostics.linear_probe`) from each model's backbone features of a state to what the world's human perceives there
+(:func:`minimanc.metrics.diagnostics.linear_probe`) from each model's backbone features of a
+state to what the world's human perceives there
 (:mod:`minimanc.dagger.privileged`: its own speed, the gap and speed difference to its leader,
 the distance to the point where it must yield, the braking bound of the curves ahead, the lateral
 offset and heading error) and to the acceleration the human applied.
