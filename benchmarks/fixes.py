@@ -2,7 +2,7 @@
 Algorithm 1 on the paper preset's draw under *variants* of what they see and how their
 speed is learned, driven closed loop under both protocols.
 
-A variant is ``model:setting:history:speed_output:speed_scale``:
+A variant is ``model:setting:history:speed_output:speed_scale[:perception]``:
 
 * ``setting`` (:mod:`minimanc.inputs`): "paper" (what the paper gives each model) or
   "parity" (every model also sees the lane target and its own motion);
@@ -10,7 +10,10 @@ A variant is ``model:setting:history:speed_output:speed_scale``:
 * ``speed_output`` (:class:`minimanc.models.ModelConfig`): the direct heads predict the
   speed ("level") or its change over one step ("change");
 * ``speed_scale`` (:class:`minimanc.train.TrainConfig`): the loss divides the speed error by
-  the std of the speed ("level") or of its change over one step ("change").
+  the std of the speed ("level") or of its change over one step ("change");
+* ``perception`` (optional, default 0): the weight of the auxiliary perception loss
+  (``TrainConfig.perception_weight``) whose targets are :data:`PERCEIVE`, what the world's
+  human perceives in each state (:func:`minimanc.dagger.privileged.perceived`).
 
 The data is the paper preset's draw (data seed 0: 650 training, 40 tuning, 200 validation
 scenes, in that order; only the validation scenes are driven); each raster variant is
@@ -29,21 +32,25 @@ from pathlib import Path
 import numpy as np
 
 from minimanc import metrics, models, results, rollout, train, world
+from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS
 
 N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
 SHOW = ("ade", "along_track", "collision_rate", "at_fault_collision_rate", "off_road_rate")
+PERCEIVE = tuple(f for f in P.FEATURES if f != "a_prev")
+"""The auxiliary loss's targets: every feature of the privileged learner a raster can hold
+(its last acceleration is the only one left out)."""
 HEAD = ("ADE m", "along m", "coll. %", "at fault %", "off road %")
 
 
-def parse(variant: str) -> tuple[str, str, int, str, str]:
-    """``model:setting:history:speed_output:speed_scale`` → its five parts (ValueError)."""
+def parse(variant: str) -> tuple[str, str, int, str, str, float]:
+    """``model:setting:history:speed_output:speed_scale[:perception]`` → its six parts."""
     parts = variant.split(":")
-    if len(parts) != 5:
-        raise ValueError(f"a variant is model:setting:history:speed_output:speed_scale, got "
-                         f"{variant!r}")
-    name, setting, history, out, scale = parts
-    return name, setting, int(history), out, scale
+    if len(parts) not in (5, 6):
+        raise ValueError(f"a variant is model:setting:history:speed_output:speed_scale"
+                         f"[:perception], got {variant!r}")
+    name, setting, history, out, scale = parts[:5]
+    return name, setting, int(history), out, scale, float(parts[5]) if len(parts) == 6 else 0.0
 
 
 def scores(traj, val) -> dict[str, float]:
@@ -73,33 +80,39 @@ def main() -> None:
     t0 = time.perf_counter()
     data: dict[int, tuple] = {}
     rows = {a: [] for a in AGENTS}
-    for name, setting, h, out, scale in variants:
+    perceived: dict[int, np.ndarray] = {}
+    for name, setting, h, out, scale, w in variants:
         if h not in data:
             ds = world.generate(N_TRAIN + N_TUNE + N_VAL, seed=0, cache=True,
                                 raster=world.RasterConfig(history=h), progress=True)
             data[h] = (ds.subset(slice(0, N_TRAIN)), ds.subset(slice(N_TRAIN + N_TUNE, None)))
         tr, val = data[h]
+        if w > 0 and h not in perceived:
+            perceived[h] = P.perceived(tr, PERCEIVE)
         cfg = models.ModelConfig(setting=setting, speed_output=out)
         runs = {a: [] for a in AGENTS}
         for seed in range(args.seeds):
-            tc = train.TrainConfig(epochs=args.epochs, lr=args.lr, seed=seed, speed_scale=scale)
-            res = train.fit(name, tr, cfg, tc, progress=False)
+            tc = train.TrainConfig(epochs=args.epochs, lr=args.lr, seed=seed, speed_scale=scale,
+                                   perception_weight=w)
+            res = train.fit(name, tr, cfg, tc, progress=False,
+                            perception=perceived[h] if w > 0 else None)
             for a in AGENTS:
                 traj = rollout.closed_loop(name, res.params, val, cfg, progress=False, agents=a)
                 runs[a].append(scores(traj, val))
-            print(f"[{time.perf_counter() - t0:6.0f} s] {name}:{setting}:{h}:{out}:{scale} "
+            print(f"[{time.perf_counter() - t0:6.0f} s] {name}:{setting}:{h}:{out}:{scale}:{w:g} "
                   f"seed {seed}: " + ", ".join(
                       f"{a} {runs[a][-1]['at_fault_collision_rate']:.1f} % at fault, ADE "
                       f"{runs[a][-1]['ade']:.2f}" for a in AGENTS), flush=True)
         for a in AGENTS:
             rows[a].append(f"| {models.spec(name).label} | {setting} | {h} | {out} | {scale} | "
-                           f"{cells(runs[a])} |")
+                           f"{w:g} | {cells(runs[a])} |")
     text = (f"# Fixes, one at a time (paper preset draw: {N_TRAIN} training, {N_VAL} "
             f"validation scenes; {args.epochs} epochs, lr {args.lr:g}, {args.seeds} seeds, "
             "mean ± std)\n\n")
     for a in AGENTS:
         text += (f"## Agents `{a}`\n\n| model | setting | history | speed output | speed scale"
-                 " | " + " | ".join(HEAD) + " |\n" + "|---" * (5 + len(HEAD)) + "|\n"
+                 " | perception loss | " + " | ".join(HEAD) + " |\n" + "|---" * (6 + len(HEAD))
+                 + "|\n"
                  + "\n".join(rows[a]) + "\n\n")
     results.publish(text, args.out, time.perf_counter() - t0)
 

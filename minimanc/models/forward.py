@@ -343,7 +343,8 @@ def step(name: str, params: dict, obs: dict, state: dict, cfg: ModelConfig | Non
 
 
 def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConfig | None,
-             eng: Any, feedback_motion: bool = False, return_aux: bool = False) -> tuple:
+             eng: Any, feedback_motion: bool = False, return_aux: bool = False,
+             with_features: bool = False) -> tuple:
     """Run ``L`` steps on time-major observations.
 
     Equal to ``L`` calls of :func:`step` (tested), but the backbone runs once on
@@ -365,7 +366,10 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
         integrates its own state, as in closed loop; only step 0 uses the logged motion).
     return_aux : bool
         Also return the per-step ``aux`` of :func:`step` stacked along time
-        (``features`` excluded).
+        (``features`` excluded unless ``with_features``).
+    with_features : bool
+        With ``return_aux``: ``aux["features"]`` holds the backbone features ``(L, B, h, w,
+        C)`` of every step (an auxiliary loss on what the backbone perceives reads them).
 
     Returns
     -------
@@ -386,7 +390,7 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
             xp.reshape(xp.asarray(v), (L * B,) + tuple(v.shape[2:]))
             for k, v in obs_seq.items() if k in seen}
     enc = encode(spec, params, flat, cfg, eng)
-    enc.pop("features")
+    features = enc.pop("features")
     feedback = feedback_motion and spec.dmp
     none_keys = [k for k, v in enc.items() if v is None]
     xs = {k: xp.reshape(v, (L, B) + tuple(v.shape[1:])) for k, v in enc.items() if v is not None}
@@ -407,5 +411,7 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
     (state, _, _), (outs, auxs) = eng.scan(body, (dict(state), prev0, 0), xs)
     if not return_aux:
         return outs, state
+    if with_features:
+        auxs = {**auxs, "features": xp.reshape(features, (L, B) + tuple(features.shape[1:]))}
     return outs, state, auxs
 
