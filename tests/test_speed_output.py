@@ -13,7 +13,7 @@ from minimanc.train.batches import control_std
 
 CFG = models.ModelConfig(image_size=16, channels=(4, 8), n_predicates=5, n_states=4, hidden=8,
                          k_targets=6, setting="parity")
-DIRECT = [n for n in models.MODEL_NAMES if n not in models.DMP_MODELS]
+DIRECT = [n for n in models.names() if n not in models.dmp_models()]
 
 
 def _obs(rng, b=3):
@@ -42,7 +42,7 @@ def test_change_output_is_the_current_speed_plus_a_scaled_head_output(name):
     np.testing.assert_allclose(change[:, 1], level[:, 1], rtol=1e-6)
 
 
-@pytest.mark.parametrize("name", models.DMP_MODELS)
+@pytest.mark.parametrize("name", models.dmp_models())
 def test_the_dmp_heads_do_not_change_with_the_option(name):
     eng = engine("numpy")
     rng = np.random.default_rng(2)
