@@ -16,8 +16,11 @@ nearest lane point heading within 90 degrees of the ego (closer than :data:`MATC
 consecutive lanes are joined by the shortest path in the lane graph. At a lane change (the
 next lane is not reachable ahead) the route follows the lane changed into, back through its
 predecessors to the route so far, so the route is always one connected lane chain and the
-lane target (the points every 4 m ahead on it) is defined exactly as on the world. The route
-is then extended ahead through the straightest successors, up to :data:`ROUTE_EXTENSION`.
+lane target (the points every 4 m ahead on it) is defined exactly as on the world. A lane
+matched at one keyframe that is connected neither way to the route while a later matched lane
+is reachable ahead (at the end of a junction, where connectors from several arms converge on
+one lane, the nearest can be another arm's) is passed over. The route is then extended ahead
+through the straightest successors, up to :data:`ROUTE_EXTENSION`.
 """
 
 from __future__ import annotations
@@ -260,7 +263,7 @@ def route_of(m: MapExpansion, ego: np.ndarray, lanes: list[int]) -> list[int]:
     if not matched:
         return []
     route = [matched[0]]
-    for g in matched[1:]:
+    for i, g in enumerate(matched[1:], start=1):
         if g in route:
             continue
         ahead = _path(m.successors, route[-1], g)
@@ -273,6 +276,9 @@ def route_of(m: MapExpansion, ego: np.ndarray, lanes: list[int]) -> list[int]:
             if p is not None:
                 back = route[:j + 1] + p[::-1][1:]
                 break
+        if back is None and any(_path(m.successors, route[-1], h) is not None
+                                for h in matched[i + 1:]):
+            continue  # a connector converging on the lane ahead, matched by mistake
         if back is None:
             back, u = [g], g
             while m.predecessors[u] and len(back) < len(route) and m.predecessors[u][0] not in back:
