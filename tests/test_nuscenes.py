@@ -3,12 +3,22 @@ schema, ego poses, controls, boxes, map classes and the route against values com
 here, skipped scenes, and one-line errors for bad input."""
 
 import json
+import math
+import zipfile
 
 import numpy as np
 import pytest
-from nuscenes_fixture import LOCATION, VERSION, lane_token, write_fixture
+from nuscenes_fixture import CENTRE, LOCATION, VERSION, lane_token, write_fixture
 
-from minimanc.world.nuscenes import MapExpansion, Tables, keyframe_poses
+from minimanc import world
+from minimanc.world.maps import class_grid
+from minimanc.world.nuscenes import (
+    MapExpansion,
+    NuScenesError,
+    Tables,
+    import_nuscenes,
+    keyframe_poses,
+)
 
 SCHEMA = {  # the devkit's schema.md, every field of every table
     "attribute": {"token", "name", "description"},
@@ -81,3 +91,195 @@ def test_fixture_tables_read_and_route_through_the_junction(dataroot):
         recipe = m.local_recipe(poses[:41])
         assert [recipe["lanes"][i]["token"] for i in recipe["route"]] == \
             [lane_token(k) for k in lanes]
+
+
+# --------------------------------------------------------------------------- the import
+
+
+@pytest.fixture(scope="module")
+def imported(dataroot, tmp_path_factory):
+    root, truth = dataroot
+    path = tmp_path_factory.mktemp("out") / "nuscenes.npz"
+    report = import_nuscenes(root, VERSION, path)
+    return truth, report, world.load(path)
+
+
+def wrap(a):
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def test_scenes_splits_and_skipped(imported):
+    truth, report, ds = imported
+    assert report.imported == ("scene-0061", "scene-0103")  # mini_train first, then mini_val
+    assert [t["split"] for t in ds.tags] == ["mini_train", "mini_val"]
+    assert [t["scene_token"] for t in ds.tags] == [truth[n]["token"] for n in report.imported]
+    assert dict(report.skipped) == {
+        "scene-0553": "39 keyframes, fewer than the 40 a scene needs",
+        "scene-0655": "a gap of 1.00 s between keyframes 20 and 21 (allowed 0.3-0.7 s)"}
+    assert ds.meta["nuscenes"]["skipped"] == [{"scene": n, "reason": r}
+                                              for n, r in report.skipped]
+    assert ds.meta["nuscenes"]["splits"] == {"mini_train": 1, "mini_val": 1}
+    assert ds.ego.shape == (2, 40, 3) and ds.controls.shape == (2, 40, 2)
+    assert ds.dt == 0.5
+
+
+def test_ego_poses_are_the_lidar_keyframes(imported):
+    truth, _, ds = imported
+    for i, name in enumerate(("scene-0061", "scene-0103")):
+        want = truth[name]["poses"][:40]
+        assert np.abs(ds.ego[i, :, :2] - want[:, :2]).max() < 1e-3
+        assert np.abs(wrap(ds.ego[i, :, 2] - want[:, 2])).max() < 1e-5
+
+
+def _expected_controls(p):
+    """Finite differences at dt = 0.5 s, the displacement projected on the heading."""
+    dx, dy = np.diff(p[:, 0]), np.diff(p[:, 1])
+    v = (dx * np.cos(p[:-1, 2]) + dy * np.sin(p[:-1, 2])) / 0.5
+    w = wrap(np.diff(p[:, 2])) / 0.5
+    return np.stack([v, w], axis=1)
+
+
+def test_controls_by_finite_differences(imported):
+    truth, _, ds = imported
+    a = _expected_controls(truth["scene-0061"]["poses"][:41])  # 42 keyframes: the first 41
+    assert np.abs(ds.controls[0] - a).max() < 2e-3
+    assert ds.controls[0, :, 1].sum() * 0.5 == pytest.approx(math.pi / 2, abs=0.05)  # a left turn
+    b = _expected_controls(truth["scene-0103"]["poses"])  # exactly 40: the last one held
+    assert np.abs(ds.controls[1, :39] - b).max() < 2e-3
+    assert np.array_equal(ds.controls[1, 39], ds.controls[1, 38])
+    assert np.all(ds.controls[1, :3, 0] == 0.0)  # it waits 2 s
+    assert ds.tags[1]["stopped_steps"] == 4 and ds.tags[0]["turn"] == "left"
+
+
+def _vehicles(agents):
+    cars = [a for a in agents if a["category"].startswith("vehicle.")]
+    return sorted(cars, key=lambda a: (min(a["boxes"]), a["instance_token"]))
+
+
+def test_vehicle_boxes_fill_the_ado_slots(imported):
+    truth, _, ds = imported
+    for i, name in enumerate(("scene-0061", "scene-0103")):
+        agents = truth[name]["agents"]
+        cars = _vehicles(agents)
+        assert ds.tags[i]["n_vehicles"] == len(cars) == ds.tags[i]["n_ados"]
+        assert ds.tags[i]["n_pedestrians"] == sum(a["category"].startswith("human.")
+                                                  for a in agents) == 1
+        assert not ds.ado_valid[i, :, len(cars):].any()  # pedestrians, barriers: not ados
+        for slot, car in enumerate(cars):
+            frames = [k for k in range(40) if k in car["boxes"]]
+            assert list(np.flatnonzero(ds.ado_valid[i, :, slot])) == frames
+            want = np.array([car["boxes"][k] for k in frames])
+            got = ds.ado[i, frames, slot]
+            assert np.abs(got[:, [0, 1, 3, 4]] - want[:, [0, 1, 3, 4]]).max() < 1e-3
+            assert np.abs(wrap(got[:, 2] - want[:, 2])).max() < 1e-5
+    labels = [c["label"] for c in _vehicles(truth["scene-0061"]["agents"])]
+    assert sorted(labels) == ["bike", "car_lead", "car_oncoming"]  # the bicycle is an ado
+
+
+def test_too_many_vehicles_keep_the_nearest(dataroot, tmp_path):
+    root, truth = dataroot
+    import_nuscenes(root, VERSION, tmp_path / "one.npz", scenes=["scene-0061"], max_ados=1)
+    ds = world.load(tmp_path / "one.npz")
+    ego = truth["scene-0061"]["poses"][:40]
+    cars = _vehicles(truth["scene-0061"]["agents"])
+    near = [min(math.hypot(b[0] - ego[k, 0], b[1] - ego[k, 1]) for k, b in c["boxes"].items()
+                if k < 40) for c in cars]
+    best = cars[int(np.argmin(near))]
+    assert best["label"] == "bike"  # parked at the kerb the ego passes
+    k = min(best["boxes"])
+    assert np.allclose(ds.ado[0, k, 0, :2], best["boxes"][k][:2], atol=1e-3)
+    assert ds.tags[0]["n_vehicles_dropped"] == 2 and ds.ado.shape[2] == 1
+
+
+def test_map_classes_lanes_and_route(imported):
+    _, _, ds = imported
+    cx, cy = CENTRE
+    m = ds.maps[0]
+    grid, origin, res = class_grid(m, 0.25)
+
+    def cls(x, y):
+        return int(grid[int((y - origin[1]) / res), int((x - origin[0]) / res)])
+
+    assert cls(cx + 1.75, cy - 50) == 1  # road
+    assert cls(cx + 3.3, cy - 50) == 1  # walkway under the drivable area
+    assert cls(cx + 5.5, cy - 50) == 3  # walkway
+    assert cls(cx + 10.0, cy - 50) == 0
+    assert cls(cx + 25.0, cy - 25) == 1  # plaza
+    assert cls(cx + 40.0, cy - 40) == 0  # its hole
+    assert cls(cx + 0.0, cy + 14.5) == 2  # crossing
+    lanes = {ln["token"]: ln for ln in m.recipe["lanes"]}
+    turn = np.asarray(lanes[lane_token("conn_s_w")]["points"])
+    assert np.abs(np.hypot(turn[:, 0] - (cx - 10), turn[:, 1] - (cy - 10)) - 11.75).max() < 0.02
+    assert lanes[lane_token("conn_s_w")]["kind"] == "connector"
+    west = m.lanes[list(lanes).index(lane_token("lane_w_out"))]
+    assert np.allclose(np.cos(west.heads), -1.0, atol=1e-6)  # the raster's hue: westbound
+    for i, route in enumerate((["lane_s_in", "conn_s_w", "lane_w_out"],
+                               ["lane_s_in", "conn_s_n", "lane_n_out"])):
+        rec = ds.maps[i].recipe
+        assert [rec["lanes"][j]["token"] for j in rec["route"]] == [lane_token(k) for k in route]
+        assert ds.tags[i]["has_junction"] and ds.tags[i]["kind"] == "intersection"
+
+
+def test_lane_target_and_goal(imported):
+    truth, _, ds = imported
+    # scene-0103 drives north 0.3 m right of the lane centre: the targets are 0.3 m left
+    want = np.stack([4.0 * np.arange(1, 11), np.full(10, 0.3)], axis=1)
+    assert np.abs(ds.lane_target[1] - want[None]).max() < 0.02
+    p = truth["scene-0103"]["poses"]
+    assert np.allclose(ds.goal[1, :, 0], p[39, 1] - p[:40, 1], atol=2e-3)
+    assert np.allclose(ds.goal[1, :, 1:], 0.0, atol=2e-3)
+
+
+def test_shards_stream_the_same_dataset(dataroot, tmp_path):
+    root, _ = dataroot
+    one = import_nuscenes(root, VERSION, tmp_path / "a.npz", shard_scenes=1).path
+    two = import_nuscenes(root, VERSION, tmp_path / "b.npz").path
+    with zipfile.ZipFile(one) as z:
+        assert {"ego-00000.npy", "ego-00001.npy"} <= set(z.namelist())
+    assert world.file_content_hash(one) == world.file_content_hash(two)
+
+
+# --------------------------------------------------------------------------- bad input
+
+
+def _edit(root, table, fn):
+    path = root / VERSION / f"{table}.json"
+    path.write_text(json.dumps(fn(json.loads(path.read_text()))))
+
+
+@pytest.mark.parametrize("case, match", [
+    ("corrupt", r"table 'sample_annotation':.*sample_annotation\.json is not valid JSON"),
+    ("no_expansion", r"map expansion .*boston-seaport\.json is missing: download"),
+    ("no_ego_pose", r"table 'ego_pose' of .* has no record"),
+    ("no_category", r"table 'category' of .* has no record"),
+    ("not_in_split", r"scene 'scene-0001' is not in the v1\.0-mini splits"),
+    ("not_in_tables", r"scene 'scene-0757' is not in .*scene\.json"),
+    ("all_skipped", r"no scene could be imported: scene-0553: 39 keyframes"),
+    ("no_tables", r"has no folder v1\.0-trainval/"),
+])
+def test_bad_input_one_line_error_and_no_file(tmp_path, case, match):
+    root = tmp_path / "root"
+    write_fixture(root)
+    version, scenes = VERSION, None
+    if case == "corrupt":
+        path = root / VERSION / "sample_annotation.json"
+        path.write_text(path.read_text()[:-40])
+    elif case == "no_expansion":
+        (root / "maps" / "expansion" / f"{LOCATION}.json").unlink()
+    elif case == "no_ego_pose":
+        _edit(root, "ego_pose", lambda rows: rows[5:])
+    elif case == "no_category":
+        _edit(root, "category", lambda rows: [r for r in rows if r["name"] != "vehicle.bicycle"])
+    elif case == "not_in_split":
+        scenes = ["scene-0001"]
+    elif case == "not_in_tables":
+        scenes = ["scene-0757"]
+    elif case == "all_skipped":
+        scenes = ["scene-0553"]
+    else:
+        version = "v1.0-trainval"
+    out = tmp_path / "out"
+    with pytest.raises(NuScenesError, match=match) as err:
+        import_nuscenes(root, version, out / "ns.npz", scenes=scenes)
+    assert "\n" not in str(err.value)
+    assert not out.exists() or list(out.iterdir()) == []
