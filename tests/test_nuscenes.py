@@ -4,13 +4,16 @@ here, skipped scenes, and one-line errors for bad input."""
 
 import json
 import math
+import shutil
 import zipfile
+from collections import namedtuple
 
 import numpy as np
 import pytest
 from nuscenes_fixture import CENTRE, LOCATION, VERSION, lane_token, write_fixture
 
 from minimanc import world
+from minimanc.cli import main
 from minimanc.world.maps import class_grid
 from minimanc.world.nuscenes import (
     MapExpansion,
@@ -283,3 +286,48 @@ def test_bad_input_one_line_error_and_no_file(tmp_path, case, match):
         import_nuscenes(root, version, out / "ns.npz", scenes=scenes)
     assert "\n" not in str(err.value)
     assert not out.exists() or list(out.iterdir()) == []
+
+
+# --------------------------------------------------------------------------- the command
+
+
+def test_cli_import_nuscenes(dataroot, tmp_path, capsys):
+    root, _ = dataroot
+    out = tmp_path / "d" / "ns.npz"
+    assert main(["data", "import-nuscenes", str(root), "--version", VERSION, "--out", str(out),
+                 "--quiet"]) == 0
+    cap = capsys.readouterr()
+    assert "estimate for 4 scenes: about " in cap.err  # before knowing two are skipped
+    assert "imported 2 scene(s)" in cap.out and "skipped scene-0553: 39 keyframes" in cap.out
+    ds = world.load(out)
+    assert ds.tags[0]["scene"] == "scene-0061" and "content hash" in cap.out
+    assert main(["data", "import-nuscenes", str(root), "--version", VERSION, "--out", str(out),
+                 "--quiet", "--scenes", "scene-0103"]) == 0
+    assert [t["scene"] for t in world.load(out).tags] == ["scene-0103"]
+    assert sorted(p.name for p in out.parent.iterdir()) == ["ns.npz"]  # no temporary left
+
+
+def _one_line_error(capsys, argv):
+    code = main(argv)
+    err = [ln for ln in capsys.readouterr().err.splitlines() if not ln.startswith("estimate")]
+    assert code == 2 and len(err) == 1 and "Traceback" not in err[0], err
+    return err[0]
+
+
+def test_cli_bad_input_is_one_line_exit_2(dataroot, tmp_path, capsys, monkeypatch):
+    root, _ = dataroot
+    out = tmp_path / "o" / "ns.npz"
+    base = ["data", "import-nuscenes", str(root), "--out", str(out), "--quiet"]
+    line = _one_line_error(capsys, [*base, "--version", "v2.0"])
+    assert line == ("minimanc data: error: --version must be one of v1.0-mini, v1.0-trainval, "
+                    "got 'v2.0'")
+    line = _one_line_error(capsys, [*base, "--version", VERSION, "--scenes", "scene-0001"])
+    assert "scene 'scene-0001' is not in the v1.0-mini splits" in line
+    line = _one_line_error(capsys, ["data", "import-nuscenes", str(tmp_path / "none"),
+                                    "--version", VERSION, "--out", str(out), "--quiet"])
+    assert "is not a directory" in line
+    Usage = namedtuple("Usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: Usage(10**9, 10**9 - 10**3, 10**3))
+    line = _one_line_error(capsys, [*base, "--version", VERSION])
+    assert "not enough free disk space" in line
+    assert not out.exists() and (not out.parent.exists() or list(out.parent.iterdir()) == [])

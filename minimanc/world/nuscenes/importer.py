@@ -276,15 +276,26 @@ def _scene_index(tables: Tables) -> dict[str, int]:
     return {sc["token"]: i for i, sc in enumerate(tables.rows["scene"])}
 
 
+def _tables(dataroot: str | os.PathLike, version: str, tables: Tables | None) -> Tables:
+    if tables is None:
+        return Tables(dataroot, version)
+    if tables.version != version or Path(tables.root) != Path(dataroot):
+        raise ValueError(f"tables are those of {tables.root} {tables.version}, not of "
+                         f"{dataroot} {version}")
+    return tables
+
+
 def estimate_import(dataroot: str | os.PathLike, version: str,
                     scenes: Sequence[str] | None = None, raster: RasterConfig | None = None,
-                    k_targets: int = K_TARGETS, max_ados: int = MAX_ADOS) -> Estimate:
+                    k_targets: int = K_TARGETS, max_ados: int = MAX_ADOS,
+                    tables: Tables | None = None) -> Estimate:
     """Disk size and time of :func:`import_nuscenes`, from importing the first scene that
-    imports (compressed as in the file, with its metadata).
+    imports (compressed as in the file, with its metadata); ``tables`` are the
+    :class:`Tables` of ``dataroot`` and ``version`` if already read.
 
     Raises :class:`NuScenesError` if no scene imports (the reasons of the first few).
     """
-    tables = Tables(dataroot, version)
+    tables = _tables(dataroot, version, tables)
     cfg = raster or RasterConfig()
     chosen = select_scenes(tables, scenes)
     expansions: dict[str, MapExpansion] = {}
@@ -314,13 +325,15 @@ def _none_imported(chosen: list, reasons: list[str]) -> str:
 def import_nuscenes(dataroot: str | os.PathLike, version: str, path: str | os.PathLike,
                     scenes: Sequence[str] | None = None, raster: RasterConfig | None = None,
                     progress: bool = False, k_targets: int = K_TARGETS,
-                    max_ados: int = MAX_ADOS, shard_scenes: int | None = None) -> ImportReport:
+                    max_ados: int = MAX_ADOS, shard_scenes: int | None = None,
+                    tables: Tables | None = None) -> ImportReport:
     """Import the scenes of ``DATAROOT/<version>`` into the dataset file ``path``.
 
     ``scenes`` names the scenes (default: all of the version's splits; see
     :func:`select_scenes`), ``raster`` the BEV geometry (default :class:`RasterConfig`),
     ``progress`` shows a tqdm bar; ``shard_scenes`` scenes go in each shard (default
-    :func:`~minimanc.world.default_shard_scenes`). ``world.load(path)`` reads the result.
+    :func:`~minimanc.world.default_shard_scenes`); ``tables`` are the :class:`Tables` of
+    ``dataroot`` and ``version`` if already read. ``world.load(path)`` reads the result.
     Returns the :class:`ImportReport` (scenes imported and skipped, with reasons).
 
     Raises :class:`NuScenesError` (one line) for an unknown version, a DATAROOT without the
@@ -338,7 +351,7 @@ def import_nuscenes(dataroot: str | os.PathLike, version: str, path: str | os.Pa
         shard_scenes = default_shard_scenes(cfg, k_targets, max_ados)
     shard_scenes = check_int("shard_scenes", shard_scenes, 1)
     t0 = time.perf_counter()
-    tables = Tables(dataroot, version)
+    tables = _tables(dataroot, version, tables)
     chosen = select_scenes(tables, scenes)
     index = _scene_index(tables)
     from tqdm import tqdm
