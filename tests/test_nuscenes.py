@@ -298,6 +298,7 @@ def test_cli_import_nuscenes(dataroot, tmp_path, capsys):
                  "--quiet"]) == 0
     cap = capsys.readouterr()
     assert "estimate for 4 scenes: about " in cap.err  # before knowing two are skipped
+    assert "measured on scene-0061" in cap.err
     assert "imported 2 scene(s)" in cap.out and "skipped scene-0553: 39 keyframes" in cap.out
     ds = world.load(out)
     assert ds.tags[0]["scene"] == "scene-0061" and "content hash" in cap.out

@@ -11,6 +11,7 @@ ego's route through the lane graph) into the world's explicit map recipe,
 from minimanc.world.nuscenes.importer import (
     MAX_GAP,
     MIN_GAP,
+    ImportEstimate,
     ImportReport,
     SceneSkipped,
     ego_track,
@@ -32,7 +33,8 @@ from minimanc.world.nuscenes.splits import SPLITS_OF_VERSION, VERSIONS, scene_sp
 from minimanc.world.nuscenes.tables import TABLES, NuScenesError, Tables, keyframe_poses, yaw_of
 
 __all__ = ["LOCATIONS", "MAX_GAP", "MIN_GAP", "SPLITS_OF_VERSION", "TABLES", "VERSIONS",
-           "ImportReport", "MapExpansion", "NuScenesError", "SceneSkipped", "Tables",
+           "ImportEstimate", "ImportReport", "MapExpansion", "NuScenesError", "SceneSkipped",
+           "Tables",
            "clip_polygon", "discretize_arcline", "ego_track", "estimate_import",
            "import_nuscenes", "import_scene", "keyframe_poses", "route_of", "scene_split",
            "select_scenes", "skip_reason", "split_lists", "vehicle_boxes", "yaw_of"]

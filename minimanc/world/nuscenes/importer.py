@@ -70,8 +70,9 @@ from minimanc.world.nuscenes.splits import SPLITS_OF_VERSION, VERSIONS, split_li
 from minimanc.world.nuscenes.tables import NuScenesError, Tables, keyframe_poses, yaw_of
 from minimanc.world.raster import RasterConfig, rasterize_batch, rasterize_goal
 
-__all__ = ["MAX_GAP", "MIN_GAP", "ImportReport", "SceneSkipped", "ego_track", "estimate_import",
-           "import_nuscenes", "import_scene", "select_scenes", "skip_reason", "vehicle_boxes"]
+__all__ = ["MAX_GAP", "MIN_GAP", "ImportEstimate", "ImportReport", "SceneSkipped", "ego_track",
+           "estimate_import", "import_nuscenes", "import_scene", "select_scenes", "skip_reason",
+           "vehicle_boxes"]
 
 MIN_GAP = 0.3
 """Shortest time between two keyframes a scene may hold (s)."""
@@ -81,6 +82,27 @@ VEHICLE = "vehicle."
 """Category prefix of the annotations imported as ados."""
 PEDESTRIAN = "human.pedestrian."
 """Category prefix of the annotations counted as pedestrians."""
+
+
+@dataclass(frozen=True)
+class ImportEstimate(Estimate):
+    """What :func:`estimate_import` predicts: a world :class:`~minimanc.world.Estimate`
+    measured on the first scene that imports (``scene``), for every scene selected."""
+
+    scene: str = ""
+
+    def __str__(self) -> str:
+        return (f"about {_human(self.disk_bytes, 'B')} on disk and {self.seconds:.0f} s "
+                f"({_human(self.bytes_per_scene, 'B')} and {self.seconds_per_scene:.2f} s per "
+                f"scene, measured on {self.scene}; scenes that turn out too short are skipped)")
+
+
+def _human(n: float, unit: str) -> str:
+    for prefix in ("", "k", "M", "G", "T"):
+        if n < 1000 or prefix == "T":
+            return f"{n:.0f} {prefix}{unit}" if not prefix else f"{n:.1f} {prefix}{unit}"
+        n /= 1000
+    raise AssertionError("unreachable")
 
 
 class SceneSkipped(Exception):
@@ -288,7 +310,7 @@ def _tables(dataroot: str | os.PathLike, version: str, tables: Tables | None) ->
 def estimate_import(dataroot: str | os.PathLike, version: str,
                     scenes: Sequence[str] | None = None, raster: RasterConfig | None = None,
                     k_targets: int = K_TARGETS, max_ados: int = MAX_ADOS,
-                    tables: Tables | None = None) -> Estimate:
+                    tables: Tables | None = None) -> ImportEstimate:
     """Disk size and time of :func:`import_nuscenes`, from importing the first scene that
     imports (compressed as in the file, with its metadata); ``tables`` are the
     :class:`Tables` of ``dataroot`` and ``version`` if already read.
@@ -311,7 +333,7 @@ def estimate_import(dataroot: str | os.PathLike, version: str,
         nbytes = sum(len(zlib.compress(np.ascontiguousarray(out[f]).tobytes(), 6))
                      for f in ARRAY_FIELDS)
         nbytes += len(json.dumps({"recipe": out["recipe"], "tags": out["tags"]}))
-        return Estimate(len(chosen), float(nbytes), float(seconds), 1)
+        return ImportEstimate(len(chosen), float(nbytes), float(seconds), 1, sc["name"])
     raise NuScenesError(_none_imported(chosen, reasons))
 
 
