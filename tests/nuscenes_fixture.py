@@ -3,7 +3,8 @@
 :func:`write_fixture` writes ``DATAROOT/v1.0-mini/*.json`` (all thirteen tables of the
 devkit's ``schema.md``, every field) and ``DATAROOT/maps/expansion/boston-seaport.json``
 (the map expansion v1.3: every layer the devkit's ``NuScenesMap`` loads, geometry as
-``node``/``line``/``polygon`` tokens, ``arcline_path_3`` centrelines and ``connectivity``).
+``node``/``line``/``polygon`` tokens, ``arcline_path_3`` centrelines and ``connectivity``),
+and the other three locations' expansions with every layer empty.
 
 The map is a T junction at ``CENTRE`` in right-hand traffic: a north-south road with one
 lane per direction (lanes at ``x = cx +- 1.75``), a west arm, six lane connectors (straight
@@ -21,6 +22,7 @@ Scenes (names of the official ``mini`` splits):
 * ``scene-0553`` (mini_train): 39 keyframes (too short);
 * ``scene-0655`` (mini_train): 41 keyframes with a 1.0 s gap after keyframe 20.
 
+The ``map`` table's semantic-prior mask is a blank 16 x 16 PNG (the devkit opens it).
 Each keyframe has a ``LIDAR_TOP`` keyframe ``sample_data`` (whose ``ego_pose`` is the
 truth), a ``CAM_FRONT`` keyframe 50 ms earlier and a ``LIDAR_TOP`` sweep (not a keyframe)
 250 ms later, each with its own ``ego_pose``, so that reading the wrong one is detected.
@@ -35,10 +37,12 @@ import math
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 CENTRE = (600.0, 1200.0)
 VERSION = "v1.0-mini"
 LOCATION = "boston-seaport"
+OTHER_LOCATIONS = ("singapore-onenorth", "singapore-hollandvillage", "singapore-queenstown")
 BASE_US = 1533151603547590
 
 
@@ -420,4 +424,11 @@ def write_fixture(root: Path) -> dict:
     maps = root / "maps" / "expansion"
     maps.mkdir(parents=True, exist_ok=True)
     (maps / f"{LOCATION}.json").write_text(json.dumps(_expansion()))
+    for other in OTHER_LOCATIONS:  # the download holds all four (empty here)
+        empty = {k: ([] if isinstance(v, list) else {}) for k, v in _Expansion().layers.items()}
+        (maps / f"{other}.json").write_text(json.dumps({"version": "1.3",
+                                                        "canvas_edge": [2000.0, 2000.0],
+                                                        **empty}))
+    for rec in tables["map"]:  # the semantic prior mask the devkit opens (not read by us)
+        Image.fromarray(np.zeros((16, 16), dtype=np.uint8)).save(root / rec["filename"])
     return truth
