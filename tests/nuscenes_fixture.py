@@ -39,6 +39,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from minimanc.world.nuscenes import split_lists
+
 CENTRE = (600.0, 1200.0)
 VERSION = "v1.0-mini"
 LOCATION = "boston-seaport"
@@ -167,7 +169,19 @@ def _scene_specs() -> list[dict]:
 # --------------------------------------------------------------------------- the tables
 
 
-def _tables(start: float) -> tuple[dict[str, list[dict]], dict]:
+def _specs(version: str, copies: int) -> list[dict]:
+    """The four scenes (``v1.0-mini``), or ``copies`` of each under the names of the
+    ``v1.0-trainval`` splits (scene-0103's copies in ``val``, the others in ``train``)."""
+    specs = _scene_specs()
+    if version == VERSION:
+        return specs
+    lists = split_lists()
+    train, val = iter(lists["train"]), iter(lists["val"])
+    return [{**sp, "name": next(val if sp["name"] == "scene-0103" else train)}
+            for _ in range(copies) for sp in specs]
+
+
+def _tables(version: str, copies: int) -> tuple[dict[str, list[dict]], dict]:
     T: dict[str, list[dict]] = {k: [] for k in (
         "attribute", "calibrated_sensor", "category", "ego_pose", "instance", "log", "map",
         "sample", "sample_annotation", "sample_data", "scene", "sensor", "visibility")}
@@ -202,8 +216,8 @@ def _tables(start: float) -> tuple[dict[str, list[dict]], dict]:
                      "category": "semantic_prior",
                      "filename": f"maps/{token('map png', LOCATION)}.png"})
     truth: dict = {}
-    for si, spec in enumerate(_scene_specs()):
-        name, stamps = spec["name"], spec["t"] + start + 40.0 * si
+    for si, spec in enumerate(_specs(version, copies)):
+        name, stamps = spec["name"], spec["t"] + 40.0 * si
         n = len(stamps)
         us = [BASE_US + int(round(t * 1e6)) for t in stamps]
         log_tok = token("log", spec["log"])
@@ -408,16 +422,19 @@ def _expansion() -> dict:
 # --------------------------------------------------------------------------- writing
 
 
-def write_fixture(root: Path) -> dict:
+def write_fixture(root: Path, version: str = VERSION, copies: int = 1) -> dict:
     """Write the DATAROOT under ``root``; returns the truth of every scene, by name.
+
+    ``version="v1.0-trainval"`` writes ``copies`` of every scene under names of the
+    trainval splits instead (for the streaming tests).
 
     ``truth[name]`` holds ``poses (N, 3)`` (the LIDAR_TOP keyframes' ego ``[x, y, yaw]``),
     ``stamps (N,)`` (s), ``token`` and ``agents``: per agent its ``label``, ``category``,
     ``instance_token`` and ``boxes {keyframe: (x, y, yaw, length, width)}``.
     """
     root = Path(root)
-    tables, truth = _tables(0.0)
-    folder = root / VERSION
+    tables, truth = _tables(version, copies)
+    folder = root / version
     folder.mkdir(parents=True, exist_ok=True)
     for name, rows in tables.items():
         (folder / f"{name}.json").write_text(json.dumps(rows, indent=0))

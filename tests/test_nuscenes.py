@@ -5,6 +5,7 @@ here, skipped scenes, and one-line errors for bad input."""
 import json
 import math
 import shutil
+import tracemalloc
 import zipfile
 from collections import namedtuple
 
@@ -332,3 +333,24 @@ def test_cli_bad_input_is_one_line_exit_2(dataroot, tmp_path, capsys, monkeypatc
     line = _one_line_error(capsys, [*base, "--version", VERSION])
     assert "not enough free disk space" in line
     assert not out.exists() and (not out.parent.exists() or list(out.parent.iterdir()) == [])
+
+
+def test_streaming_memory_does_not_grow_with_the_scenes(tmp_path):
+    """Twice 8 copies of the scenes in trainval's splits: shards of 2 scenes, training
+    split first; the memory the import allocates on top of its (read) tables stays put."""
+    peaks = {}
+    for copies in (2, 8):
+        root = tmp_path / f"copies{copies}"
+        write_fixture(root, "v1.0-trainval", copies)
+        tables = Tables(root, "v1.0-trainval")
+        tracemalloc.start()
+        report = import_nuscenes(root, "v1.0-trainval", root / "o.npz", shard_scenes=2,
+                                 raster=world.RasterConfig(size=32), tables=tables)
+        peaks[copies] = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        assert len(report.imported) == 2 * copies and len(report.skipped) == 2 * copies
+        ds = world.load(report.path)
+        assert [t["split"] for t in ds.tags] == ["train"] * copies + ["val"] * copies
+        with zipfile.ZipFile(report.path) as z:
+            assert sum(n.startswith("bev-") for n in z.namelist()) == copies  # 2 per shard
+    assert peaks[8] < 1.2 * peaks[2], peaks

@@ -13,6 +13,7 @@ from minimanc.world.nuscenes import (
     clip_polygon,
     discretize_arcline,
     scene_split,
+    simplify_polyline,
     split_lists,
     yaw_of,
 )
@@ -71,3 +72,18 @@ def test_bad_dataroot(tmp_path):
     (tmp_path / "v1.0-mini" / "scene.json").write_text(json.dumps([]))
     with pytest.raises(NuScenesError, match="table 'sample'.*missing"):
         Tables(tmp_path, "v1.0-mini")
+
+
+def test_simplify_polyline():
+    line = np.stack([np.linspace(0, 99, 100), 0.5 * np.linspace(0, 99, 100)], axis=1)
+    assert np.array_equal(simplify_polyline(line), line[[0, -1]])
+    a = np.linspace(0.0, np.pi / 2, 200)
+    arc = np.stack([20 * np.cos(a), 20 * np.sin(a)], axis=1)
+    kept = simplify_polyline(arc, 0.01)
+    assert 2 < len(kept) < len(arc) and np.array_equal(kept[[0, -1]], arc[[0, -1]])
+    # every point left out lies within 1 cm of the chord of the kept points around it
+    for p in arc:
+        d = [abs((b - a)[0] * (p - a)[1] - (b - a)[1] * (p - a)[0]) / np.linalg.norm(b - a)
+             for a, b in zip(kept[:-1], kept[1:]) if np.dot(p - a, b - a) >= -1e-9
+             and np.dot(p - b, a - b) >= -1e-9]
+        assert min(d) <= 0.01 + 1e-12

@@ -28,6 +28,7 @@ from minimanc.world.nuscenes.mapexp import (
     clip_polygon,
     discretize_arcline,
     route_of,
+    simplify_polyline,
 )
 from minimanc.world.nuscenes.splits import SPLITS_OF_VERSION, VERSIONS, scene_split, split_lists
 from minimanc.world.nuscenes.tables import TABLES, NuScenesError, Tables, keyframe_poses, yaw_of
@@ -37,4 +38,5 @@ __all__ = ["LOCATIONS", "MAX_GAP", "MIN_GAP", "SPLITS_OF_VERSION", "TABLES", "VE
            "Tables",
            "clip_polygon", "discretize_arcline", "ego_track", "estimate_import",
            "import_nuscenes", "import_scene", "keyframe_poses", "route_of", "scene_split",
-           "select_scenes", "skip_reason", "split_lists", "vehicle_boxes", "yaw_of"]
+           "select_scenes", "simplify_polyline", "skip_reason", "split_lists", "vehicle_boxes",
+           "yaw_of"]

@@ -7,7 +7,9 @@
 ``arcline_path_utils.discretize_lane`` does (each path a sequence of three arcs or straight
 pieces of curvature ``sign / radius``; :func:`discretize_arcline`). :meth:`local_recipe`
 cuts what a scene sees (its ego track plus :data:`MARGIN`) into an *explicit* map recipe
-(:func:`minimanc.world.maps.build_map`): lanes (connectors marked as junction lanes) with
+(:func:`minimanc.world.maps.build_map`): lanes (connectors marked as junction lanes; their
+points thinned to within :data:`SIMPLIFY` by :func:`simplify_polyline`, since every scene's
+recipe is kept in the dataset's header) with
 their successors, the drivable polygons and their holes, walkways and pedestrian crossings
 (polygons clipped to the scene's box, :func:`clip_polygon`), and the route.
 
@@ -35,8 +37,8 @@ from minimanc.world.geometry import wrap_angle
 from minimanc.world.lanes import LANE_WIDTH
 from minimanc.world.nuscenes.tables import NuScenesError, read_json
 
-__all__ = ["LOCATIONS", "MARGIN", "MATCH_RADIUS", "ROUTE_EXTENSION", "MapExpansion",
-           "clip_polygon", "discretize_arcline", "route_of"]
+__all__ = ["LOCATIONS", "MARGIN", "MATCH_RADIUS", "ROUTE_EXTENSION", "SIMPLIFY", "MapExpansion",
+           "clip_polygon", "discretize_arcline", "route_of", "simplify_polyline"]
 
 LOCATIONS: tuple[str, ...] = ("boston-seaport", "singapore-onenorth",
                               "singapore-hollandvillage", "singapore-queenstown")
@@ -49,6 +51,32 @@ ROUTE_EXTENSION = 60.0
 """Route length added ahead of the ego's last keyframe through successor lanes (m)."""
 RESOLUTION = 1.0
 """Discretisation of the arcline centrelines (m), the world's lane spacing."""
+SIMPLIFY = 0.01
+"""Largest distance (m) a lane point left out of a recipe lies from the polyline kept."""
+
+
+def simplify_polyline(points: np.ndarray, tol: float = SIMPLIFY) -> np.ndarray:
+    """The points ``(N, 2)`` without those within ``tol`` of the polyline through the rest
+    (Douglas–Peucker; the ends are kept). A recipe's lanes are resampled every metre when
+    the map is built, so a straight lane needs its two ends only."""
+    p = np.asarray(points, dtype=np.float64)
+    keep = np.zeros(len(p), dtype=bool)
+    keep[[0, -1]] = True
+    todo = [(0, len(p) - 1)]
+    while todo:
+        a, b = todo.pop()
+        if b - a < 2:
+            continue
+        d = p[b] - p[a]
+        rel = p[a + 1:b] - p[a]
+        n = math.hypot(d[0], d[1])
+        dist = (np.abs(d[0] * rel[:, 1] - d[1] * rel[:, 0]) / n if n > 1e-12
+                else np.hypot(rel[:, 0], rel[:, 1]))
+        k = int(np.argmax(dist))
+        if dist[k] > tol:
+            keep[a + 1 + k] = True
+            todo += [(a, a + 1 + k), (a + 1 + k, b)]
+    return p[keep]
 
 
 def discretize_arcline(path: dict, resolution: float = RESOLUTION) -> np.ndarray:
@@ -199,7 +227,7 @@ class MapExpansion:
         def pts(a: np.ndarray) -> list[list[float]]:
             return np.round(a, 2).tolist()
 
-        lanes = [{"points": pts(self.centre[g][:, :2]), "width": LANE_WIDTH,
+        lanes = [{"points": pts(simplify_polyline(self.centre[g][:, :2])), "width": LANE_WIDTH,
                   "kind": self.lane_kind[g], "junction": 0 if self.lane_kind[g] == "connector"
                   else -1, "successors": [local[j] for j in self.successors[g] if j in local],
                   "token": self.lane_tokens[g]} for g in keep]
