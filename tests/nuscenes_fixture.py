@@ -15,7 +15,7 @@ crossing over the north arm.
 Scenes (names of the official ``mini`` splits):
 
 * ``scene-0061`` (mini_train): 42 keyframes, the ego drives north and turns left onto the
-  west arm; a car leads it, a car comes the other way (keyframes 5-30 only), a bicycle is
+  west arm; a car leads it, a car comes the other way (keyframes 2-20 only), a bicycle is
   parked at the kerb, a pedestrian walks on the walkway, a barrier stands at the corner;
 * ``scene-0103`` (mini_val): exactly 40 keyframes, the ego waits 2 s, then drives straight
   on behind a car; a pedestrian stands on the crossing;
@@ -107,7 +107,7 @@ def straight_path(off: float, y0: float = -70.0) -> Path2D:
 
 def southbound_path() -> Path2D:
     cx, cy = CENTRE
-    return Path2D([("line", (cx - 1.75, cy + 60.0), -math.pi / 2, 200.0)])
+    return Path2D([("line", (cx - 1.75, cy + 40.0), -math.pi / 2, 200.0)])
 
 
 # --------------------------------------------------------------------------- scenes
@@ -146,10 +146,10 @@ def _scene_specs() -> list[dict]:
         {"name": "scene-0061", "log": 0, "t": a_t, "path": a_path, "s": a_s, "agents": [
             {"label": "car_lead", "category": "vehicle.car", "frames": range(42),
              "pose": lambda t: lead.pose(a_s(t) + 15.0)},
-            {"label": "car_oncoming", "category": "vehicle.car", "frames": range(5, 31),
-             "pose": lambda t: south.pose(7.0 * (t - a_t[5]))},
+            {"label": "car_oncoming", "category": "vehicle.car", "frames": range(2, 21),
+             "pose": lambda t: south.pose(7.0 * (t - a_t[2]))},
             {"label": "bike", "category": "vehicle.bicycle", "frames": range(42),
-             "pose": lambda t: (cx + 3.0, cy - 30.0, math.pi / 2)},
+             "pose": lambda t: (cx + 3.5, cy - 30.0, math.pi / 2)},
             {"label": "ped", "category": "human.pedestrian.adult", "frames": range(42),
              "pose": lambda t: (cx + 5.5, cy - 60.0 + 1.2 * t, math.pi / 2)},
             {"label": "barrier", "category": "movable_object.barrier", "frames": range(42),

@@ -354,3 +354,18 @@ def test_streaming_memory_does_not_grow_with_the_scenes(tmp_path):
         with zipfile.ZipFile(report.path) as z:
             assert sum(n.startswith("bev-") for n in z.namelist()) == copies  # 2 per shard
     assert peaks[8] < 1.2 * peaks[2], peaks
+
+
+def test_the_replay_protocol_runs_on_imported_scenes(imported):
+    """The closed loop and the metrics of chapter 8 on an imported file: the logged human
+    replayed is on the road, collision-free and on its route; a policy drives it."""
+    from minimanc import metrics, models, rollout
+
+    _, _, ds = imported
+    human = metrics.evaluate(rollout.human(ds, agents="replay"), ds)
+    assert human["ade"] == 0.0 and human["off_road_rate"] == 0.0
+    assert human["collision_rate"] == 0.0 and human["route_progress"] == pytest.approx(1.0)
+    prior = rollout.fixed_gains(ds, cfg=models.ModelConfig(n_states=4, image_size=64),
+                                agents="replay")
+    assert np.asarray(prior.ego).shape == ds.ego.shape and np.all(np.isfinite(prior.ego))
+    assert np.isfinite(metrics.evaluate(prior, ds)["ade"])
