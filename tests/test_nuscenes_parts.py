@@ -12,6 +12,7 @@ from minimanc.world.nuscenes import (
     Tables,
     clip_polygon,
     discretize_arcline,
+    read_records,
     scene_split,
     simplify_polyline,
     split_lists,
@@ -87,3 +88,31 @@ def test_simplify_polyline():
              for a, b in zip(kept[:-1], kept[1:]) if np.dot(p - a, b - a) >= -1e-9
              and np.dot(p - b, a - b) >= -1e-9]
         assert min(d) <= 0.01 + 1e-12
+
+
+def test_read_records(tmp_path):
+    path = tmp_path / "t.json"
+    rows = [{"token": f"t{i}", "k": i % 2 == 0, "v": [1.5, None]} for i in range(5)]
+    path.write_text(json.dumps(rows, indent=1))
+    assert read_records(path, "table") == rows
+    assert read_records(path, "table", lambda r: r["k"]) == rows[::2]
+    path.write_text(" [ ] \n")
+    assert read_records(path, "table") == []
+    for text, match in [("", "not valid JSON: Expecting value at line 1 column 1"),
+                        ('[{"token": 1}', "not valid JSON: Expecting ',' delimiter"),
+                        ('[{"token": 1},]', "Illegal trailing comma"),
+                        ('[{"token": 1}] x', "Extra data at line 1 column 16"),
+                        ('[{"token": 1}\n {"token": 2}]', "Expecting ',' delimiter at line 2"),
+                        ('[{"tok', "not valid JSON"),
+                        ('{"token": 1}', "must hold a list of records with a 'token'"),
+                        ('[{"token": 1}, 3]', "must hold a list of records")]:
+        path.write_text(text)
+        with pytest.raises(NuScenesError, match=match):
+            read_records(path, "table 'x':")
+        try:  # the same verdict as the standard library's parser
+            ok = isinstance(json.loads(text), list)
+        except json.JSONDecodeError:
+            ok = False
+        assert not ok or "must hold" in match
+    with pytest.raises(NuScenesError, match="is missing"):
+        read_records(tmp_path / "none.json", "table")

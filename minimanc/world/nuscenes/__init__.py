@@ -31,12 +31,20 @@ from minimanc.world.nuscenes.mapexp import (
     simplify_polyline,
 )
 from minimanc.world.nuscenes.splits import SPLITS_OF_VERSION, VERSIONS, scene_split, split_lists
-from minimanc.world.nuscenes.tables import TABLES, NuScenesError, Tables, keyframe_poses, yaw_of
+from minimanc.world.nuscenes.tables import (
+    TABLES,
+    NuScenesError,
+    Tables,
+    keyframe_poses,
+    read_records,
+    yaw_of,
+)
 
 __all__ = ["LOCATIONS", "MAX_GAP", "MIN_GAP", "SPLITS_OF_VERSION", "TABLES", "VERSIONS",
            "ImportEstimate", "ImportReport", "MapExpansion", "NuScenesError", "SceneSkipped",
            "Tables",
            "clip_polygon", "discretize_arcline", "ego_track", "estimate_import",
-           "import_nuscenes", "import_scene", "keyframe_poses", "route_of", "scene_split",
+           "import_nuscenes", "import_scene", "keyframe_poses", "read_records", "route_of",
+           "scene_split",
            "select_scenes", "simplify_polyline", "skip_reason", "split_lists", "vehicle_boxes",
            "yaw_of"]
