@@ -9,8 +9,8 @@ and the other three locations' expansions with every layer empty.
 The map is a T junction at ``CENTRE`` in right-hand traffic: a north-south road with one
 lane per direction (lanes at ``x = cx +- 1.75``), a west arm, six lane connectors (straight
 on, left and right turns), a drivable area (the roads, plus a plaza with a hole), a walkway
-along the east side of the south arm overlapping the road's edge by 0.6 m, and a pedestrian
-crossing over the north arm.
+along the east side of the south arm overlapping the road's edge by 0.6 m (and one 500 m
+away, outside every scene's map), and a pedestrian crossing over the north arm.
 
 Scenes (names of the official ``mini`` splits):
 
@@ -413,6 +413,8 @@ def _expansion() -> dict:
                               "drivable_area_token": da, "polygon_token": ex.polygon(box)})
     L["walkway"].append({"token": token("walkway", 0), "polygon_token": ex.polygon(
         [(cx + 3.0, cy - 120), (cx + 7.0, cy - 120), (cx + 7.0, cy - 12), (cx + 3.0, cy - 12)])})
+    L["walkway"].append({"token": token("walkway", 1), "polygon_token": ex.polygon(  # far away
+        [(cx + 500, cy - 20), (cx + 510, cy - 20), (cx + 510, cy + 20), (cx + 500, cy + 20)])})
     zebra = [(cx - hw, cy + 13), (cx + hw, cy + 13), (cx + hw, cy + 16), (cx - hw, cy + 16)]
     L["ped_crossing"].append({"token": token("ped_crossing", 0), "road_segment_token": junction,
                               "polygon_token": ex.polygon(zebra)})

@@ -23,6 +23,7 @@ from minimanc.world.nuscenes import (
     import_nuscenes,
     keyframe_poses,
 )
+from minimanc.world.nuscenes.mapexp import MARGIN
 
 SCHEMA = {  # the devkit's schema.md, every field of every table
     "attribute": {"token", "name", "description"},
@@ -196,7 +197,7 @@ def test_too_many_vehicles_keep_the_nearest(dataroot, tmp_path):
 
 
 def test_map_classes_lanes_and_route(imported):
-    _, _, ds = imported
+    truth, _, ds = imported
     cx, cy = CENTRE
     m = ds.maps[0]
     grid, origin, res = class_grid(m, 0.25)
@@ -211,6 +212,9 @@ def test_map_classes_lanes_and_route(imported):
     assert cls(cx + 25.0, cy - 25) == 1  # plaza
     assert cls(cx + 40.0, cy - 40) == 0  # its hole
     assert cls(cx + 0.0, cy + 14.5) == 2  # crossing
+    assert len(m.recipe["walkway_polygons"]) == 1  # the far one is left out
+    top = max(np.asarray(p)[:, 1].max() for p in m.recipe["polygons"])
+    assert top == pytest.approx(truth["scene-0061"]["poses"][:41, 1].max() + MARGIN, abs=0.01)
     lanes = {ln["token"]: ln for ln in m.recipe["lanes"]}
     turn = np.asarray(lanes[lane_token("conn_s_w")]["points"])
     assert np.abs(np.hypot(turn[:, 0] - (cx - 10), turn[:, 1] - (cy - 10)) - 11.75).max() < 0.02

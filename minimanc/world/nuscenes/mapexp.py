@@ -231,17 +231,23 @@ class MapExpansion:
                   "kind": self.lane_kind[g], "junction": 0 if self.lane_kind[g] == "connector"
                   else -1, "successors": [local[j] for j in self.successors[g] if j in local],
                   "token": self.lane_tokens[g]} for g in keep]
+        def cut(poly: np.ndarray) -> list[list[float]] | None:
+            """``poly`` clipped to the box (as is when inside it, None when outside it)."""
+            lo, hi = poly.min(axis=0), poly.max(axis=0)
+            if hi[0] < box[0] or lo[0] > box[2] or hi[1] < box[1] or lo[1] > box[3]:
+                return None
+            inside = lo[0] >= box[0] and hi[0] <= box[2] and lo[1] >= box[1] and hi[1] <= box[3]
+            c = poly if inside else clip_polygon(poly, box)
+            return pts(c) if len(c) >= 3 else None
+
         polygons, holes = [], []
         for ext, hs in self.drivable:
-            c = clip_polygon(ext, box)
-            if len(c) >= 3:
-                polygons.append(pts(c))
-                for h in hs:
-                    ch = clip_polygon(h, box)
-                    if len(ch) >= 3:
-                        holes.append(pts(ch))
-        walk = [pts(c) for c in (clip_polygon(w, box) for w in self.walkways) if len(c) >= 3]
-        cross = [pts(c) for c in (clip_polygon(w, box) for w in self.crossings) if len(c) >= 3]
+            c = cut(ext)
+            if c is not None:
+                polygons.append(c)
+                holes += [h for h in map(cut, hs) if h is not None]
+        walk = [c for c in map(cut, self.walkways) if c is not None]
+        cross = [c for c in map(cut, self.crossings) if c is not None]
         junction = any(self.lane_kind[g] == "connector" for g in route)
         return {"kind": "explicit", "map_kind": "intersection" if junction else map_kind,
                 "source": "nuscenes", "location": self.location, "lanes": lanes,
