@@ -14,13 +14,15 @@ away, outside every scene's map), and a pedestrian crossing over the north arm.
 
 Scenes (names of the official ``mini`` splits):
 
-* ``scene-0061`` (mini_train): 42 keyframes, the ego drives north and turns left onto the
+* ``scene-0061`` (mini_train): 42 keyframes (a 1.0 s gap before the last, which is not
+  used), the ego drives north and turns left onto the
   west arm; a car leads it, a car comes the other way (keyframes 2-20 only), a bicycle is
   parked at the kerb, a pedestrian walks on the walkway, a barrier stands at the corner;
 * ``scene-0103`` (mini_val): exactly 40 keyframes, the ego waits 2 s, then drives straight
   on behind a car; a pedestrian stands on the crossing;
 * ``scene-0553`` (mini_train): 39 keyframes (too short);
-* ``scene-0655`` (mini_train): 41 keyframes with a 1.0 s gap after keyframe 20.
+* ``scene-0655`` (mini_train): 41 keyframes with a 1.0 s gap after keyframe 20;
+* ``scene-0757`` (mini_train): 41 keyframes in the plaza, far from every lane.
 
 The ``map`` table's semantic-prior mask is a blank 16 x 16 PNG (the devkit opens it).
 Each keyframe has a ``LIDAR_TOP`` keyframe ``sample_data`` (whose ``ego_pose`` is the
@@ -127,7 +129,7 @@ def _stamps(n: int, gap_after: int | None = None) -> np.ndarray:
 
 def _scene_specs() -> list[dict]:
     cx, cy = CENTRE
-    a_path, a_t = left_turn_path(0.3), _stamps(42)
+    a_path, a_t = left_turn_path(0.3), _stamps(42, gap_after=40)  # after the 41 used
     a_s = lambda t: 6.0 * t + 3.0 * math.sin(0.3 * t)  # noqa: E731  speed 6 +- 0.9 m/s
     lead = left_turn_path(0.0)
     south = southbound_path()
@@ -163,6 +165,8 @@ def _scene_specs() -> list[dict]:
          "s": const, "agents": []},
         {"name": "scene-0655", "log": 1, "t": _stamps(41, gap_after=20),
          "path": straight_path(0.0), "s": const, "agents": []},
+        {"name": "scene-0757", "log": 1, "t": _stamps(41), "s": lambda t: 1.0 * t,
+         "path": Path2D([("line", (cx + 25.0, cy - 50.0), 0.0, 100.0)]), "agents": []},
     ]
 
 

@@ -120,7 +120,10 @@ def test_scenes_splits_and_skipped(imported):
     assert [t["scene_token"] for t in ds.tags] == [truth[n]["token"] for n in report.imported]
     assert dict(report.skipped) == {
         "scene-0553": "39 keyframes, fewer than the 40 a scene needs",
-        "scene-0655": "a gap of 1.00 s between keyframes 20 and 21 (allowed 0.3-0.7 s)"}
+        "scene-0655": "a gap of 1.00 s between keyframes 20 and 21 (allowed 0.3-0.7 s)",
+        "scene-0757": "the ego drives on no lane of boston-seaport (within 5.0 m, heading "
+                      "within 90 degrees)"}
+    assert np.diff(truth["scene-0061"]["stamps"])[40] == pytest.approx(1.0)  # not used
     assert ds.meta["nuscenes"]["skipped"] == [{"scene": n, "reason": r}
                                               for n, r in report.skipped]
     assert ds.meta["nuscenes"]["splits"] == {"mini_train": 1, "mini_val": 1}
@@ -261,7 +264,7 @@ def _edit(root, table, fn):
     ("no_ego_pose", r"table 'ego_pose' of .* has no record"),
     ("no_category", r"table 'category' of .* has no record"),
     ("not_in_split", r"scene 'scene-0001' is not in the v1\.0-mini splits"),
-    ("not_in_tables", r"scene 'scene-0757' is not in .*scene\.json"),
+    ("not_in_tables", r"scene 'scene-0796' is not in .*scene\.json"),
     ("all_skipped", r"no scene could be imported: scene-0553: 39 keyframes"),
     ("no_tables", r"has no folder v1\.0-trainval/"),
 ])
@@ -281,7 +284,7 @@ def test_bad_input_one_line_error_and_no_file(tmp_path, case, match):
     elif case == "not_in_split":
         scenes = ["scene-0001"]
     elif case == "not_in_tables":
-        scenes = ["scene-0757"]
+        scenes = ["scene-0796"]
     elif case == "all_skipped":
         scenes = ["scene-0553"]
     else:
@@ -302,7 +305,7 @@ def test_cli_import_nuscenes(dataroot, tmp_path, capsys):
     assert main(["data", "import-nuscenes", str(root), "--version", VERSION, "--out", str(out),
                  "--quiet"]) == 0
     cap = capsys.readouterr()
-    assert "estimate for 4 scenes: about " in cap.err  # before knowing two are skipped
+    assert "estimate for 5 scenes: about " in cap.err  # before knowing three are skipped
     assert "measured on scene-0061" in cap.err
     assert "imported 2 scene(s)" in cap.out and "skipped scene-0553: 39 keyframes" in cap.out
     ds = world.load(out)
@@ -352,7 +355,7 @@ def test_streaming_memory_does_not_grow_with_the_scenes(tmp_path):
                                  raster=world.RasterConfig(size=32), tables=tables)
         peaks[copies] = tracemalloc.get_traced_memory()[1]
         tracemalloc.stop()
-        assert len(report.imported) == 2 * copies and len(report.skipped) == 2 * copies
+        assert len(report.imported) == 2 * copies and len(report.skipped) == 3 * copies
         ds = world.load(report.path)
         assert [t["split"] for t in ds.tags] == ["train"] * copies + ["val"] * copies
         with zipfile.ZipFile(report.path) as z:
