@@ -3,8 +3,10 @@
 :func:`import_nuscenes` reads a version's JSON tables (:class:`~minimanc.world.nuscenes.Tables`)
 and the map expansion (:class:`~minimanc.world.nuscenes.MapExpansion`) and streams the scenes
 through the package's one dataset writer (:class:`minimanc.world.DatasetWriter`: same format,
-checksums and shards as ``world.generate_file``; one shard of scenes in memory at a time, so
-memory does not grow with the number of scenes — the tables themselves are read once).
+checksums and shards as ``world.generate_file``; one shard of scenes' arrays in memory at a
+time, so they do not grow with the number of scenes — only the small per-scene metadata the
+header keeps (recipe, tags) does; the tables are read once, :class:`Tables` keeping of the
+sweeps only the ``LIDAR_TOP`` keyframes and their ego poses).
 The paper trains on nuScenes' 20 s scenes at 2 Hz; a scene becomes the world's 40 steps of
 ``dt = 0.5`` s (``world.DT``) as follows.
 
@@ -94,7 +96,7 @@ class ImportEstimate(Estimate):
     def __str__(self) -> str:
         return (f"about {_human(self.disk_bytes, 'B')} on disk and {self.seconds:.0f} s "
                 f"({_human(self.bytes_per_scene, 'B')} and {self.seconds_per_scene:.2f} s per "
-                f"scene, measured on {self.scene}; scenes that turn out too short are skipped)")
+                f"scene, measured on {self.scene}; fewer if some scenes are skipped)")
 
 
 def _human(n: float, unit: str) -> str:
