@@ -376,3 +376,17 @@ def test_the_replay_protocol_runs_on_imported_scenes(imported):
                                 agents="replay")
     assert np.asarray(prior.ego).shape == ds.ego.shape and np.all(np.isfinite(prior.ego))
     assert np.isfinite(metrics.evaluate(prior, ds)["ade"])
+
+
+def test_simulators_of_generated_scenes_refuse_recorded_ones(imported):
+    """The reactive ados and the style floor re-draw a generated scene from its seed; an
+    imported scene (attempts 0: no draw) is refused, never swapped for a generated one."""
+    from minimanc import rollout
+    from minimanc.studies import bounds
+
+    _, _, ds = imported
+    assert ds.meta["attempts"] == [0, 0] and ds.meta["source"] == "nuscenes"
+    with pytest.raises(ValueError, match="attempt"):
+        rollout.human(ds, agents="reactive")
+    with pytest.raises(ValueError, match="attempt"):
+        bounds.floor_rollout(ds, bounds.median_style(50))

@@ -41,6 +41,9 @@ The paper trains on nuScenes' 20 s scenes at 2 Hz; a scene becomes the world's 4
   (:data:`~minimanc.world.nuscenes.SPLITS_OF_VERSION`, the devkit's official lists), each in
   the order of ``scene.json``; ``tags["split"]`` names each scene's split and
   ``meta["nuscenes"]`` records the version, the counts per split and the skipped scenes.
+  ``meta["scene_index"]`` is each scene's row in ``scene.json`` and ``meta["attempts"]`` is
+  0: no draw of the world's generator, so what re-simulates a generated scene from its seed
+  (the reactive ados, the style floor) refuses a recorded one instead of drawing another.
 
 Every failure is a one-line :class:`~minimanc.world.nuscenes.NuScenesError`, and a failed
 import leaves no file (the writer's temporary file is removed).
@@ -393,7 +396,7 @@ def import_nuscenes(dataroot: str | os.PathLike, version: str, path: str | os.Pa
             def flush() -> None:
                 writer.add({f: np.stack([sc[f] for sc in shard]) for f in ARRAY_FIELDS})
                 append_scenes(meta, [sc["recipe"] for sc in shard], [sc["tags"] for sc in shard],
-                              [1] * len(shard), [sc["index"] for sc in shard])
+                              [0] * len(shard), [sc["index"] for sc in shard])
                 shard.clear()
 
             for sc, split in chosen:
