@@ -379,8 +379,9 @@ def test_the_replay_protocol_runs_on_imported_scenes(imported):
 
 
 def test_simulators_of_generated_scenes_refuse_recorded_ones(imported):
-    """The reactive ados and the style floor re-draw a generated scene from its seed; an
-    imported scene (attempts 0: no draw) is refused, never swapped for a generated one."""
+    """The reactive ados, the style floor and the expert re-draw a generated scene from its
+    seed; an imported scene (attempts 0: no draw) is refused, never swapped for a generated
+    one."""
     from minimanc import rollout
     from minimanc.studies import bounds
 
@@ -390,3 +391,5 @@ def test_simulators_of_generated_scenes_refuse_recorded_ones(imported):
         rollout.human(ds, agents="reactive")
     with pytest.raises(ValueError, match="attempt"):
         bounds.floor_rollout(ds, bounds.median_style(50))
+    with pytest.raises(ValueError, match="attempt"):
+        bounds.expert_rollout(ds, "replay")
