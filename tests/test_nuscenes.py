@@ -21,6 +21,7 @@ from minimanc.world.nuscenes import (
     NuScenesError,
     Tables,
     import_nuscenes,
+    importer,
     keyframe_poses,
 )
 from minimanc.world.nuscenes.mapexp import MARGIN
@@ -299,9 +300,17 @@ def test_bad_input_one_line_error_and_no_file(tmp_path, case, match):
 # --------------------------------------------------------------------------- the command
 
 
-def test_cli_import_nuscenes(dataroot, tmp_path, capsys):
+def test_cli_import_nuscenes(dataroot, tmp_path, capsys, monkeypatch):
     root, _ = dataroot
     out = tmp_path / "d" / "ns.npz"
+    reads = []
+
+    class Counted(MapExpansion):
+        def __init__(self, *a):
+            reads.append(a)
+            super().__init__(*a)
+
+    monkeypatch.setattr(importer, "MapExpansion", Counted)
     assert main(["data", "import-nuscenes", str(root), "--version", VERSION, "--out", str(out),
                  "--quiet"]) == 0
     cap = capsys.readouterr()
@@ -310,6 +319,7 @@ def test_cli_import_nuscenes(dataroot, tmp_path, capsys):
     assert "imported 2 scene(s)" in cap.out and "skipped scene-0553: 39 keyframes" in cap.out
     ds = world.load(out)
     assert ds.tags[0]["scene"] == "scene-0061" and "content hash" in cap.out
+    assert len(reads) == 1  # the estimate's map expansion is reused by the import
     assert main(["data", "import-nuscenes", str(root), "--version", VERSION, "--out", str(out),
                  "--quiet", "--scenes", "scene-0103"]) == 0
     assert [t["scene"] for t in world.load(out).tags] == ["scene-0103"]

@@ -83,9 +83,9 @@ def cmd_import_nuscenes(args: argparse.Namespace) -> int:
     cfg = _raster(args.size)
     path = check_out_file(args.out or Path("data") / f"nuscenes_{args.version}.npz")
     try:
-        tables = nuscenes.Tables(args.dataroot, args.version)
+        tables, expansions = nuscenes.Tables(args.dataroot, args.version), {}
         est = nuscenes.estimate_import(args.dataroot, args.version, args.scenes, raster=cfg,
-                                       tables=tables)
+                                       tables=tables, expansions=expansions)
         free = shutil.disk_usage(path.parent).free
         print(f"estimate for {est.n_scenes} scenes: {est}", file=sys.stderr)
         if est.disk_bytes * DISK_MARGIN > free:
@@ -94,7 +94,8 @@ def cmd_import_nuscenes(args: argparse.Namespace) -> int:
                              f"(+{DISK_MARGIN - 1:.0%} margin), {free / 1e9:.2f} GB are free; "
                              "import fewer --scenes or choose another --out")
         report = nuscenes.import_nuscenes(args.dataroot, args.version, path, args.scenes,
-                                          raster=cfg, progress=not args.quiet, tables=tables)
+                                          raster=cfg, progress=not args.quiet, tables=tables,
+                                          expansions=expansions)
     except nuscenes.NuScenesError as e:
         raise UsageError(str(e)) from e
     except OSError as e:  # e.g. the disk filled up: nothing is left behind

@@ -315,17 +315,20 @@ def _tables(dataroot: str | os.PathLike, version: str, tables: Tables | None) ->
 def estimate_import(dataroot: str | os.PathLike, version: str,
                     scenes: Sequence[str] | None = None, raster: RasterConfig | None = None,
                     k_targets: int = K_TARGETS, max_ados: int = MAX_ADOS,
-                    tables: Tables | None = None) -> ImportEstimate:
+                    tables: Tables | None = None,
+                    expansions: dict[str, MapExpansion] | None = None) -> ImportEstimate:
     """Disk size and time of :func:`import_nuscenes`, from importing the first scene that
     imports (compressed as in the file, with its metadata); ``tables`` are the
-    :class:`Tables` of ``dataroot`` and ``version`` if already read.
+    :class:`Tables` of ``dataroot`` and ``version`` if already read, ``expansions`` a cache
+    of the map expansion of each location (filled as needed; pass the same to
+    :func:`import_nuscenes` to read each file once).
 
     Raises :class:`NuScenesError` if no scene imports (the reasons of the first few).
     """
     tables = _tables(dataroot, version, tables)
     cfg = raster or RasterConfig()
     chosen = select_scenes(tables, scenes)
-    expansions: dict[str, MapExpansion] = {}
+    expansions = {} if expansions is None else expansions
     reasons = []
     for sc, split in chosen:
         t0 = time.perf_counter()
@@ -353,14 +356,16 @@ def import_nuscenes(dataroot: str | os.PathLike, version: str, path: str | os.Pa
                     scenes: Sequence[str] | None = None, raster: RasterConfig | None = None,
                     progress: bool = False, k_targets: int = K_TARGETS,
                     max_ados: int = MAX_ADOS, shard_scenes: int | None = None,
-                    tables: Tables | None = None) -> ImportReport:
+                    tables: Tables | None = None,
+                    expansions: dict[str, MapExpansion] | None = None) -> ImportReport:
     """Import the scenes of ``DATAROOT/<version>`` into the dataset file ``path``.
 
     ``scenes`` names the scenes (default: all of the version's splits; see
     :func:`select_scenes`), ``raster`` the BEV geometry (default :class:`RasterConfig`),
     ``progress`` shows a tqdm bar; ``shard_scenes`` scenes go in each shard (default
     :func:`~minimanc.world.default_shard_scenes`); ``tables`` are the :class:`Tables` of
-    ``dataroot`` and ``version`` if already read. ``world.load(path)`` reads the result.
+    ``dataroot`` and ``version`` if already read and ``expansions`` a cache of the map
+    expansions (as in :func:`estimate_import`). ``world.load(path)`` reads the result.
     Returns the :class:`ImportReport` (scenes imported and skipped, with reasons).
 
     Raises :class:`NuScenesError` (one line) for an unknown version, a DATAROOT without the
@@ -384,7 +389,7 @@ def import_nuscenes(dataroot: str | os.PathLike, version: str, path: str | os.Pa
     from tqdm import tqdm
 
     meta = empty_meta(0, cfg)
-    expansions: dict[str, MapExpansion] = {}
+    expansions = {} if expansions is None else expansions
     imported: list[str] = []
     skipped: list[tuple[str, str]] = []
     per_split = dict.fromkeys(SPLITS_OF_VERSION[version], 0)
