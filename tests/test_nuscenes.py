@@ -323,6 +323,10 @@ def test_cli_import_nuscenes(dataroot, tmp_path, capsys, monkeypatch):
     assert main(["data", "import-nuscenes", str(root), "--version", VERSION, "--out", str(out),
                  "--quiet", "--scenes", "scene-0103"]) == 0
     assert [t["scene"] for t in world.load(out).tags] == ["scene-0103"]
+    show = tmp_path / "show"  # chapter 7's gallery, animation and map plot of an imported file
+    assert main(["data", "show", "--data", str(out), "--out", str(show)]) == 0
+    assert sorted(p.name for p in show.iterdir()) == ["gallery.png", "scene.gif",
+                                                     "scene_map.png"]
     assert sorted(p.name for p in out.parent.iterdir()) == ["ns.npz"]  # no temporary left
 
 
