@@ -13,6 +13,10 @@ The paper trains on nuScenes' 20 s scenes at 2 Hz; a scene becomes the world's 4
 * **Ego.** The pose at each keyframe is the ``ego_pose`` of the keyframe's ``LIDAR_TOP``
   ``sample_data`` (:func:`~minimanc.world.nuscenes.keyframe_poses`): ``[x, y, yaw]`` in the
   map's global frame, ``yaw`` the heading of its quaternion (roll, pitch and height dropped).
+  nuScenes' ego frame has its origin at the middle of the rear axle, the point a unicycle
+  moves (no sideways slip), so the controls below describe the log well; the world centres
+  the ego's box on the pose, so on imported scenes that box sits about a wheelbase's half
+  behind the car's true footprint (collision and off-road checks, not the pose errors).
   The controls ``[speed, yaw rate]`` are finite differences at the dataset's ``dt``
   (:func:`minimanc.world.controls_from_poses`: the displacement projected on the heading over
   ``dt``, the wrapped heading change over ``dt``; the unicycle of the paper's environment).
