@@ -238,3 +238,20 @@ def test_a_hook_that_reads_the_grade_cell_and_hides_its_failure_is_removed(tmp_p
     assert row.points == 0, report.format()
     assert "IPython.events.pre_run_cell" in row.message
     assert "IPython.set_custom_exc" in row.message
+
+
+def test_a_grade_cell_uses_the_captured_imports_not_the_students_globals():
+    integrity.capture("import numpy as np")
+    fake_np = type("FakeNumpy", (), {"isclose": staticmethod(lambda *a, **k: True)})()
+    user = {"abs": lambda x: 0.0, "isinstance": lambda *a: True, "np": fake_np,
+            "answer": lambda: 2.0}
+    with pytest.raises(AssertionError, match="expected 1"):
+        integrity.run_grade("assert np.isclose(answer(), 1.0), 'expected 1'", user, ["answer"])
+    with pytest.raises(AssertionError, match="expected 1"):
+        integrity.run_grade("assert abs(answer() - 1) < 1e-9, 'expected 1'", user, ["answer"])
+    with pytest.raises(AssertionError, match="expected a str"):
+        integrity.run_grade("assert isinstance(answer(), str), 'expected a str'", user,
+                            ["answer"])
+    integrity.run_grade("assert np.isclose(answer(), 2.0)\nseen = 'ran'", user, ["answer"])
+    assert user["seen"] == "ran"   # what the cell binds reaches later cells
+    assert user["np"] is fake_np and user["abs"](5) == 0.0   # the student's globals stay
