@@ -255,3 +255,15 @@ def test_a_grade_cell_uses_the_captured_imports_not_the_students_globals():
     integrity.run_grade("assert np.isclose(answer(), 2.0)\nseen = 'ran'", user, ["answer"])
     assert user["seen"] == "ran"   # what the cell binds reaches later cells
     assert user["np"] is fake_np and user["abs"](5) == 0.0   # the student's globals stay
+
+
+def test_a_callable_object_answer_is_wrapped_too():
+    integrity.capture("import numpy as np")
+    rigged = type("R", (float,), {"__eq__": lambda s, o: True, "__hash__": float.__hash__})
+    callable_answer = type("Answer", (), {"__call__": lambda self, x: rigged(x)})()
+    with pytest.raises(integrity.RefusedAnswer, match="R, a float subclass"):
+        integrity.run_grade("assert f(1.0) == 2.0", {"f": callable_answer}, ["f"])
+    integrity.run_grade("assert (f(np.arange(3)) == [0, 2, 4]).all()",
+                        {"f": np.vectorize(lambda x: 2 * x)}, ["f"])
+    with pytest.raises(integrity.RefusedAnswer, match="x is a .*S, a str subclass"):
+        integrity.run_grade("assert x == 'a'", {"x": type("S", (str,), {})("b")}, ["x"])

@@ -447,10 +447,10 @@ def run_grade(source: str, user: dict, answers: Sequence[str] = (),
 
     The cell runs in a copy of ``user`` where the solutions notebook's imports are
     the captured objects, ``__builtins__`` is the captured builtins (a global that
-    hides a builtin the cell reads is dropped), each function in ``answers`` is
-    wrapped by :func:`strict_answer` and each other value in ``answers`` must be
-    plain (:func:`plain_value`). Names the cell binds are copied back to ``user``
-    afterwards, so later cells see them.
+    hides a builtin the cell reads is dropped), each function (or callable object
+    of no known class) in ``answers`` is wrapped by :func:`strict_answer` and each
+    other value in ``answers`` must be plain (:func:`plain_value`). Names the cell
+    binds are copied back to ``user`` afterwards, so later cells see them.
     """
     cap = current()
     read = read_names(source)
@@ -459,9 +459,12 @@ def run_grade(source: str, user: dict, answers: Sequence[str] = (),
     for name in sorted(read):
         if name in answers and name in user:
             value = user[name]
-            if callable(value) and not isinstance(value, type):
+            if isinstance(value, type):
+                pass
+            elif type(value) in _CALLABLE or (callable(value) and not cap.is_plain_type(
+                    type(value))):   # a function, or a callable object of no known class
                 injected[name] = strict_answer(name, value, cap)
-            elif not isinstance(value, type):
+            else:                    # data, or an object of a library or notebook class
                 plain_value(value, name, cap, verb="is")
         elif name in cap.preamble:
             injected[name] = cap.preamble[name]
