@@ -56,7 +56,8 @@ assert np.isclose(z, 1.0), f"alpha=4, beta=1: expected zeta = 4/(2*2) = 1, got {
 z = damping_ratio(1.0, 1.0)
 assert np.isclose(z, 0.5), f"alpha=beta=1: expected zeta = 1/(2*1) = 0.5, got {z!r}"
 ### BEGIN HIDDEN TESTS
-for a, b in rng.uniform(0.01, 50, size=(200, 2)):
+test_rng = np.random.default_rng(310)  # the tests' own draws, not the notebook's rng
+for a, b in test_rng.uniform(0.01, 50, size=(200, 2)):
     z, expected = damping_ratio(a, b), 0.5 * np.sqrt(a / b)
     assert np.isclose(z, expected, rtol=1e-9), \
         f"alpha={a}, beta={b}: expected zeta = ½√(α/β) = {expected}, got {z!r}"
@@ -68,6 +69,7 @@ for (a, b), expected in (((4.0, 1.0), "critically damped"), ((1.0, 1.0), "underd
     got = classify(a, b)
     assert got == expected, f"alpha={a}, beta={b}: expected {expected!r}, got {got!r}"
 ### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(311)  # the tests' own draws, not the notebook's rng
 for b in (0.25, 1.0, 6.25, 40.0):   # zeta = 1 + d: alpha = 4 beta (1 + d)^2
     for d, expected in ((1e-12, "critically damped"), (-1e-12, "critically damped"),
                         (1e-10, "critically damped"), (-1e-10, "critically damped"),
@@ -75,10 +77,10 @@ for b in (0.25, 1.0, 6.25, 40.0):   # zeta = 1 + d: alpha = 4 beta (1 + d)^2
         got = classify(4 * b * (1 + d) ** 2, b)
         assert got == expected, \
             f"beta={b}, zeta = 1 + {d:g}: expected {expected!r}, got {got!r}"
-for a, b in rng.uniform(0.01, 50, size=(200, 2)):
+for a, b in test_rng.uniform(0.01, 50, size=(200, 2)):
     got, expected = classify(a, b), "underdamped" if a < 4 * b else "overdamped"
     assert got == expected, f"alpha={a}, beta={b}: expected {expected!r}, got {got!r}"
-for a in rng.uniform(0.1, 50, size=20):
+for a in test_rng.uniform(0.1, 50, size=20):
     got = classify(a, a / 4)
     assert got == "critically damped", \
         f"alpha={a}, beta = alpha/4: expected 'critically damped', got {got!r}"
@@ -125,9 +127,10 @@ try:
 except ValueError:
     pass
 ### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(320)  # the tests' own draws, not the notebook's rng
 for method in ("euler", "semi_implicit"):
-    y, dy, g = rng.normal(size=(3, 5, 2))
-    a, b = rng.uniform(0.5, 10, size=(2, 5, 1))
+    y, dy, g = test_rng.normal(size=(3, 5, 2))
+    a, b = test_rng.uniform(0.5, 10, size=(2, 5, 1))
     yn, dyn = integrator_step(y, dy, g, a, b, 0.1, method)
     ref_dy = dy + 0.1 * a * (b * (g - y) - dy)
     ref_y = y + 0.1 * (dy if method == "euler" else ref_dy)
@@ -175,11 +178,12 @@ assert rho < 1, f"beta=1, h=0.25: 0.99 x your bound {a_max!r} must be stable, rh
 rho = dmp.spectral_radius(1.01 * a_max, 1.0, 0.25, "euler", 1)
 assert rho > 1, f"beta=1, h=0.25: 1.01 x your bound {a_max!r} must be unstable, rho = {rho:.4f}"
 ### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(330)  # the tests' own draws, not the notebook's rng
 for h, b in ((0.5, 2.0), (0.25, 4.0), (0.125, 8.0)):   # h*beta = 1 exactly: marginal
     got = max_stable_alpha_euler(b, h)
     assert got == 0.0, \
         f"beta={b}, h={h} (h*beta = 1): expected 0.0 (no alpha > 0 is stable), got {got!r}"
-for b in rng.uniform(0.05, 5, size=30):
+for b in test_rng.uniform(0.05, 5, size=30):
     for h in (0.05, 0.25, 0.5):
         got = max_stable_alpha_euler(b, h)
         expected = 0.0 if h * b >= 1 else 4.0 / (h * (2.0 - h * b))
@@ -303,7 +307,8 @@ assert rho < 1, f"beta=1, h=0.25: 0.99 x your bound {a5!r} must be stable, rho =
 rho = dmp.spectral_radius(1.01 * a5, 1.0, 0.25, "semi_implicit", 1)
 assert rho > 1, f"beta=1, h=0.25: 1.01 x your bound {a5!r} must be unstable, rho = {rho:.4f}"
 ### BEGIN HIDDEN TESTS
-for b in rng.uniform(0.05, 5, size=20):
+test_rng = np.random.default_rng(350)  # the tests' own draws, not the notebook's rng
+for b in test_rng.uniform(0.05, 5, size=20):
     for h in (0.05, 0.25, 0.5):
         bound = max_stable_alpha_semi_implicit(b, h)
         for a, inside in ((0.995 * bound, True), (1.005 * bound, False)):

@@ -65,7 +65,7 @@ WATCHED = ("builtins", "math", "cmath", "operator", "numpy", "minimanc")
 
 _MISSING = object()
 _IS_NOT = operator.is_not
-_ALWAYS = ("math", "cmath", "operator", "numpy", "numpy.testing", "numpy.linalg")
+_ALWAYS = ("math", "cmath", "operator", "numpy", "numpy.linalg", "numpy.random", "numpy.testing")
 _EVENTS = ("pre_run_cell", "pre_execute")  # callbacks that would see a grade cell's text
 _SYS_HOOKS = ("displayhook", "stdout", "stderr")  # the kernel sets sys.excepthook per cell
 
@@ -158,7 +158,7 @@ class Capture:
 
     def __init__(self, preamble: str = "", classes: Sequence[str] = ()) -> None:
         space: dict[str, Any] = {"__builtins__": builtins}
-        for module in _ALWAYS:  # numpy.testing is loaded lazily: import it to watch it
+        for module in _ALWAYS:  # numpy loads its submodules lazily: import them to watch them
             with contextlib.suppress(ImportError):
                 importlib.import_module(module)
         for line in preamble.splitlines():
