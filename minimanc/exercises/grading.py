@@ -263,7 +263,7 @@ def _capture_source(reference) -> str:
     any student cell runs."""
     plain = [cell_source(c) for c in reference.cells if c.cell_type == "code"
              and not is_grade_cell(c) and not is_solution_cell(c)]
-    classes = [n for c in reference.cells if c.cell_type == "code"
+    classes = [n for c in reference.cells if c.cell_type == "code" and not is_grade_cell(c)
                for n in defined_names(cell_source(c))[1]]
     return (_INTEGRITY + f"_minimanc_integrity.capture({imported_names(plain)!r}, "
             f"{sorted(set(classes))!r})\ndel _minimanc_integrity")

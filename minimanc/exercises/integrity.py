@@ -71,7 +71,8 @@ _SYS_HOOKS = ("displayhook", "stdout", "stderr")  # the kernel sets sys.exceptho
 
 
 class RefusedAnswer(AssertionError):
-    """A value returned by the student's function does not have a plain type."""
+    """An answer (a value the student's function returned, or a graded value the
+    solution cell binds) does not have an exact plain type."""
 
 
 class TamperedDuringGrading(AssertionError):
@@ -239,13 +240,17 @@ _CALLABLE = (types.FunctionType, types.BuiltinFunctionType, types.MethodType,
 
 
 def _is_jax_type(t: type) -> bool:
-    """JAX arrays and tracers (their classes cannot be subclassed from Python code)."""
+    """JAX arrays and tracers: a class that JAX's own modules define (one merely
+    claiming a ``jax`` ``__module__`` is not found there)."""
     jax = sys.modules.get("jax")
     if jax is None or not t.__module__.startswith(("jax", "jaxlib")):
         return False
-    core = sys.modules.get("jax.core")
-    tracer = getattr(core, "Tracer", ())
-    return issubclass(t, (jax.Array, *((tracer,) if tracer else ())))
+    home = sys.modules.get(t.__module__)
+    if home is None or getattr(home, t.__name__, None) is not t:
+        return False
+    core = sys.modules.get("jax._src.core")
+    tracer = getattr(core, "Tracer", None)
+    return issubclass(t, (jax.Array, tracer) if tracer is not None else jax.Array)
 
 
 def _hooks() -> dict[str, Any]:
