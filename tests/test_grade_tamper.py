@@ -140,6 +140,8 @@ def test_tools_patched_before_the_tests_are_restored_and_listed(reports):
         "tampered: your code replaced numpy.isclose; restored for the tests; ")
     # restored: the next grade cell of the same exercise sees nothing new and passes
     assert rows["ex03_1_tests"].points == 2 and not rows["ex03_1_tests"].tampered
+    listed = {r["grade_id"]: r["tampered"] for r in reports["tools"][1].to_dict()["rows"]}
+    assert listed["ex03_6_tests"] == ["builtins.abs"]   # in `minimanc grade --json` too
 
 
 def test_partial_credit_in_exercise_3_1(reports):
@@ -155,10 +157,12 @@ def test_capture_restores_and_names_what_was_replaced(monkeypatch):
     assert cap.replaced() == []
     original = np.isclose
     monkeypatch.setattr(np, "isclose", lambda *a, **k: True)
+    monkeypatch.setattr(np, "allclose", lambda *a, **k: True)
     monkeypatch.setattr(np.testing, "assert_allclose", lambda *a, **k: None)
+    monkeypatch.setattr(math, "isclose", lambda *a, **k: True)
     monkeypatch.setattr(builtins, "abs", lambda x: 0.0)
-    assert set(cap.replaced()) == {"builtins.abs", "numpy.isclose",
-                                   "numpy.testing.assert_allclose"}
+    assert set(cap.replaced()) == {"builtins.abs", "numpy.isclose", "numpy.allclose",
+                                   "numpy.testing.assert_allclose", "math.isclose"}
     assert cap.replaced() == []
     assert np.isclose is original and not np.isclose(1.0, 2.0)
     assert cap.preamble["np"] is np and cap.preamble["math"] is math
