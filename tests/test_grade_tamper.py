@@ -113,8 +113,10 @@ def graded(tmp_path: Path, name: str, answers: dict[str, str]):
 @pytest.fixture(scope="module")
 def reports(tmp_path_factory):
     folder = tmp_path_factory.mktemp("tamper")
+    # honest: the reference solutions, and a plotting import of the student's own
+    honest = {"ex03_4": "import matplotlib.pyplot as plt\n" + solution_sources()["ex03_4"]}
     return {kind: graded(folder, f"03_dmp_{kind}.ipynb", answers)
-            for kind, answers in (("honest", {}), ("tools", TOOLS), ("rigged", RIGGED))}
+            for kind, answers in (("honest", honest), ("tools", TOOLS), ("rigged", RIGGED))}
 
 
 def test_the_honest_solution_scores_full_marks(reports):
@@ -222,7 +224,11 @@ def test_a_function_that_patches_while_called_fails_and_is_restored():
 REPLAY = (
     "import re\n"
     "_seen = []\n"
-    "get_ipython().events.register('pre_run_cell', lambda info: _seen.append(info.raw_cell))\n\n\n"
+    "def _forge(info):\n"
+    "    _seen.append(info.raw_cell)\n"
+    "    for token in re.findall(r'minimanc-grade-[0-9a-f]+', info.raw_cell):\n"
+    "        print(token + ':[]')   # a forged 'nothing replaced' line\n\n\n"
+    "get_ipython().events.register('pre_run_cell', _forge)\n\n\n"
     "def _replay(shell, etype, value, tb, tb_offset=None):\n"
     "    for source in _seen[::-1]:\n"
     "        tokens = re.findall(r'minimanc-grade-[0-9a-f]+', source)\n"
@@ -235,8 +241,9 @@ REPLAY = (
 
 
 def test_a_hook_that_reads_the_grade_cell_and_hides_its_failure_is_removed(tmp_path):
-    """A pre_run_cell callback sees the grade cell's text (its token); a custom
-    exception handler prints that token instead of the failure."""
+    """A pre_run_cell callback sees the grade cell's text (its token) and forges the
+    restore cell's report; a custom exception handler prints the token instead of
+    the failure."""
     rows, report = graded(tmp_path, "03_dmp_replay.ipynb", {"ex03_5": REPLAY})
     row = rows["ex03_5_tests"]
     assert row.points == 0, report.format()

@@ -305,8 +305,12 @@ class _Slot:
 
 
 def _found(cell, token: str) -> list[str] | None:
-    """The names printed after ``token`` by a restore/check call, None if absent."""
-    for line in _stdout(cell).splitlines():
+    """The names printed after ``token`` by a restore/check call, None if absent.
+
+    The last such line counts: a ``pre_run_cell`` callback of the student's, run
+    before the restore removes it, may have printed a forged one earlier.
+    """
+    for line in reversed(_stdout(cell).splitlines()):
         if line.startswith(token + ":"):
             try:
                 names = json.loads(line[len(token) + 1:])

@@ -67,6 +67,9 @@ _MISSING = object()
 _IS_NOT = operator.is_not
 _ALWAYS = ("math", "cmath", "operator", "numpy", "numpy.linalg", "numpy.random", "numpy.testing")
 _EVENTS = ("pre_run_cell", "pre_execute")  # callbacks that would see a grade cell's text
+# callbacks after a cell could print a forged line after the grader's; removed without
+# a word (matplotlib's inline backend registers one on its first import)
+_QUIET_EVENTS = ("post_run_cell", "post_execute")
 _SYS_HOOKS = ("displayhook", "stdout", "stderr")  # the kernel sets sys.excepthook per cell
 
 
@@ -261,7 +264,7 @@ def _hooks() -> dict[str, Any]:
         for attr in _TRANSFORMERS:
             hooks[f"IPython.{attr}"] = list(getattr(ip, attr, []))
         callbacks = ip.events.callbacks
-        for event in _EVENTS:
+        for event in _EVENTS + _QUIET_EVENTS:
             hooks[f"IPython.events.{event}"] = list(callbacks.get(event, []))
         hooks["IPython.custom_exceptions"] = ip.custom_exceptions
         hooks["IPython.CustomTB"] = ip.CustomTB
@@ -302,10 +305,11 @@ def _restore_hooks(hooks: dict[str, Any], fix: bool) -> list[str]:
             out.append(f"IPython.{attr}")
             if fix:
                 current[:] = hooks[f"IPython.{attr}"]
-    for event in _EVENTS:
+    for event in _EVENTS + _QUIET_EVENTS:
         current = ip.events.callbacks.setdefault(event, [])
         if not _same_list(current, hooks[f"IPython.events.{event}"]):
-            out.append(f"IPython.events.{event}")
+            if event in _EVENTS:
+                out.append(f"IPython.events.{event}")
             if fix:
                 current[:] = hooks[f"IPython.events.{event}"]
     if (ip.custom_exceptions is not hooks["IPython.custom_exceptions"]
