@@ -139,7 +139,7 @@ def test_tools_patched_before_the_tests_are_restored_and_listed(reports):
     rows, _ = reports["tools"]
     assert rows["ex03_1_zeta_tests"].tampered == ["numpy.isclose"]
     assert rows["ex03_1_zeta_tests"].message.startswith(
-        "tampered: your code replaced numpy.isclose; restored for the tests; ")
+        "tampered: your code replaced numpy.isclose; the tests used the originals; ")
     # restored: the next grade cell of the same exercise sees nothing new and passes
     assert rows["ex03_1_tests"].points == 2 and not rows["ex03_1_tests"].tampered
     listed = {r["grade_id"]: r["tampered"] for r in reports["tools"][1].to_dict()["rows"]}

@@ -441,8 +441,8 @@ def grade(
                                                              else "")
         elif before:
             row.tampered = list(before)
-            row.message = (f"tampered: your code replaced {_listing(before)}; restored for "
-                           "the tests") + (f"; {row.message}" if row.message else "")
+            row.message = (f"tampered: your code replaced {_listing(before)}; the tests used "
+                           "the originals") + (f"; {row.message}" if row.message else "")
         report.rows.append(row)
     return report
 
