@@ -53,7 +53,7 @@ def _check_args(args: argparse.Namespace) -> None:
     from minimanc import models
     from minimanc.dagger import AGENTS, SIMS
 
-    check_choices([args.model], "--model", models.MODEL_NAMES, what="model")
+    check_choices([args.model], "--model", models.names(), what="model")
     check_choices([args.sim], "--sim", SIMS, what="simulator")
     check_choices([args.agents], "--agents", AGENTS, what="protocol")
     check_choices([args.setting], "--setting", SETTINGS, what="setting")

@@ -184,7 +184,7 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
            engine: Any = "jax", out: str | os.PathLike | None = None, seed: int = 0,
            progress: bool = True, evaluate: bool = True,
            on_round: Callable[[RoundResult], None] | None = None) -> DaggerResult:
-    """DAgger for model ``name`` (any of :data:`minimanc.models.MODEL_NAMES`) with ``teacher``.
+    """DAgger for model ``name`` (any of :func:`minimanc.models.names`) with ``teacher``.
 
     ``budget`` the expert-labelled samples (an int for :func:`plan_budget` over
     ``rounds``, or a :class:`Budget`); ``rounds ≥ 1`` DAgger rounds after round 0

@@ -19,6 +19,7 @@ import numpy as np
 
 from minimanc import metrics
 from minimanc.checks import check_int
+from minimanc.viz.style import METRIC_LABELS, model_colour, model_label
 
 __all__ = ["DAGGER_METRICS", "dagger_figures", "dagger_markdown", "run_dagger"]
 
@@ -95,8 +96,6 @@ def _cell(agg: dict, key: str, n: int) -> str:
 
 def dagger_markdown(res: dict, n_seeds: int, label: Any = str) -> list[str]:
     """The ``table1.md`` section of :func:`run_dagger`'s result (a list of lines)."""
-    from minimanc.plots import METRIC_LABELS
-
     keys = [k for k in DAGGER_METRICS
             if all(k in m["bc"] for m in res["models"].values())]
     lines = [f"## BC against DAgger at equal labels (agents `{res['agents']}`)", "",
@@ -116,9 +115,7 @@ def dagger_markdown(res: dict, n_seeds: int, label: Any = str) -> list[str]:
 
 def dagger_figures(res: dict, figdir: Path) -> list[Path]:
     """One figure per metric: DAgger's value by round, BC as a horizontal line."""
-    import matplotlib.pyplot as plt
-
-    from minimanc.plots import METRIC_LABELS, model_colour, model_label
+    import matplotlib.pyplot as plt  # optional until a figure is drawn
 
     figdir.mkdir(parents=True, exist_ok=True)
     paths = []
