@@ -254,7 +254,7 @@ axes[0].semilogy(history)
 axes[0].set_xlabel("gradient step")
 axes[0].set_title("training loss")
 plot_automaton(vagn.transition_matrix(np.array([0, 1.0, 0]), W_hand), ax=axes[1],
-                    labels=STATES)
+               labels=STATES)
 axes[1].set_title("teacher, 'lead close'")
 plot_automaton(vagn.transition_matrix(np.array([0, 1.0, 0]), W), ax=axes[2], labels=STATES)
 axes[2].set_title("learned, 'lead close'")

@@ -204,7 +204,7 @@ for row, i in zip(axes, show):
     row[0].axis("off")
     for j in range(3):
         overlay(X_test[i], maps_up[i, j], ax=row[j + 1],
-                    title=f"{PREDICATES[j]} (p={p_test[i, j]:.1f})")
+                title=f"{PREDICATES[j]} (p={p_test[i, j]:.1f})")
 plt.tight_layout()
 plt.show()
 

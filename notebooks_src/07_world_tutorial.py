@@ -269,7 +269,7 @@ print(ds.tags[scene]["kind"], ds.tags[scene]["turn"],
       "yield steps:", ds.tags[scene]["yield_steps"])
 fig, ax = plt.subplots(figsize=(5, 5))
 plot_map(ds.maps[scene], ax, ego=ds.ego[scene], ado=ds.ado[scene],
-             ado_valid=ds.ado_valid[scene])
+         ado_valid=ds.ado_valid[scene])
 plt.show()
 
 # %% [markdown]

@@ -397,7 +397,7 @@ print(f"argmax q carries {info['mi_bits']:.3f} bits about the human's mode "
 assert 0.0 <= info["mi_bits"] <= info["mode_entropy_bits"] + 1e-9
 assert q_open.shape == (len(val_ds), val_ds.n_steps, config.n_states)
 fig = viz.explain.plot_q_modes(q_open[scene], labels[scene],
-                         f"MANC open loop, scene {scene}: q above the human's mode")
+                               f"MANC open loop, scene {scene}: q above the human's mode")
 plt.show()
 
 # %% [markdown]
