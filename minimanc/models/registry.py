@@ -8,8 +8,8 @@ whether it ends in the ``dmp`` head of eqs. 10–11, and the three functions tha
 make it: ``init`` (its parameters after the shared backbone), ``encode`` (per
 frame, no recurrence) and ``head`` (one time step). Adding a model is one
 :func:`register` call; :func:`names` (and :func:`vagn_models`, :func:`lstm_models`,
-:func:`dmp_models`), the CLI choices, the
-window rule of :mod:`minimanc.train` and the plot labels follow.
+:func:`dmp_models`), the CLI choices, the window rule of :mod:`minimanc.train` and the
+plot labels follow.
 
 The registry lives with the models (it holds their functions) and imports
 only :mod:`minimanc.inputs`, for the observation keys and settings. ``inputs``
