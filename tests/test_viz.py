@@ -21,10 +21,10 @@ from hypothesis import strategies as st  # noqa: E402
 
 import minimanc.viz  # noqa: E402
 from minimanc import cam, vagn  # noqa: E402
-from minimanc.viz import automaton, explain, saliency, study, style  # noqa: E402
+from minimanc.viz import automaton, dagger, explain, saliency, study, style  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-VIZ_MODULES = ("style", "automaton", "saliency", "world", "study", "explain")
+VIZ_MODULES = ("style", "automaton", "saliency", "world", "study", "explain", "dagger")
 
 
 # --------------------------------------------------------------------- no plotting in the math
@@ -95,14 +95,14 @@ def _docstring_problems():
     return mod.problems
 
 
-@pytest.mark.parametrize("name", ["automaton", "saliency", "style"])
+@pytest.mark.parametrize("name", ["automaton", "saliency", "style", "dagger"])
 def test_viz_functions_carry_numpydoc_sections(name):
     # the figures of chapters 5-6 were checked through vagn's and cam's __all__ before the move
     module = importlib.import_module(f"minimanc.viz.{name}")
     assert module.__all__ and _docstring_problems()(module) == []
 
 
-@pytest.mark.parametrize("name", ["automaton", "saliency", "world", "study", "explain"])
+@pytest.mark.parametrize("name", ["automaton", "saliency", "world", "study", "explain", "dagger"])
 def test_viz_module_docstring_opens_with_its_chapter(name):
     doc = importlib.import_module(f"minimanc.viz.{name}").__doc__
     assert re.match(r"Chapter \d+ — ", doc), doc[:80]
@@ -274,3 +274,25 @@ def test_plot_families_bars_are_the_means_in_groups():
         assert ax.get_title() == style.METRIC_LABELS[metric]
     assert fig._suptitle.get_text() == "T"
     plt.close(fig)
+
+
+# --------------------------------------------------------------------- chapter 11 (DAgger)
+def test_plot_rounds_draws_each_run_over_its_rounds_and_bc_as_its_mean():
+    from types import SimpleNamespace as NS
+
+    run = NS(name="manc", rounds=[NS(round=0, metrics={"ade": 3.0}),
+                                  NS(round=1, metrics={"ade": 2.0}),
+                                  NS(round=2, metrics={})])  # a round without the metric
+    bc = [NS(metrics={"ade": 4.0}), NS(metrics={"ade": 2.0})]
+    ax = dagger.plot_rounds([run], "ade", bc)
+    line, mean = ax.get_lines()
+    np.testing.assert_array_equal(line.get_xdata(), [0, 1])
+    np.testing.assert_array_equal(line.get_ydata(), [3.0, 2.0])
+    np.testing.assert_array_equal(mean.get_ydata(), [3.0, 3.0])  # BC: the mean of the runs
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["DAgger manc",
+                                                                   "BC, same budget"]
+    assert ax.get_ylabel() == "ade"
+    plt.close(ax.figure)
+    ax = dagger.plot_rounds([run], "ade")
+    assert len(ax.get_lines()) == 1  # no BC line without BC runs
+    plt.close(ax.figure)

@@ -136,6 +136,7 @@ def cmd_dagger(args: argparse.Namespace) -> int:
     import matplotlib.pyplot as plt
 
     from minimanc import dagger, train
+    from minimanc.viz.dagger import plot_rounds
 
     _check_args(args)
     out = check_out_dir(args.out)
@@ -187,7 +188,7 @@ def cmd_dagger(args: argparse.Namespace) -> int:
     for key in keys:
         if not any(key in r.metrics for r in res.rounds):
             continue
-        ax = dagger.plot_rounds([res], key, [] if bc is None else [bc])
+        ax = plot_rounds([res], key, [] if bc is None else [bc])
         path = figs / f"dagger_{key}.png"
         ax.figure.savefig(path, dpi=120, bbox_inches="tight")
         plt.close(ax.figure)

@@ -16,9 +16,11 @@ library:
 * :mod:`minimanc.viz.study` — chapter 9: the study's figures (Table I, families, sample
   efficiency, model sizes, q-states, ablation);
 * :mod:`minimanc.viz.explain` — chapter 9: one closed-loop rollout (paths, speeds, q against
-  the human's modes, the Fig. 4 trace, Fig. 3 saliency, the GIF).
+  the human's modes, the Fig. 4 trace, Fig. 3 saliency, the GIF);
+* :mod:`minimanc.viz.dagger` — chapter 11: a metric over DAgger's rounds against behaviour
+  cloning at the same budget.
 """
 
-from minimanc.viz import automaton, explain, saliency, study, style, world
+from minimanc.viz import automaton, dagger, explain, saliency, study, style, world
 
-__all__ = ["automaton", "explain", "saliency", "study", "style", "world"]
+__all__ = ["automaton", "dagger", "explain", "saliency", "study", "style", "world"]
