@@ -296,3 +296,21 @@ def test_plot_rounds_draws_each_run_over_its_rounds_and_bc_as_its_mean():
     ax = dagger.plot_rounds([run], "ade")
     assert len(ax.get_lines()) == 1  # no BC line without BC runs
     plt.close(ax.figure)
+
+
+def test_plot_study_rounds_draws_dagger_by_round_and_bc_per_model():
+    res = {"models": {"manc": {"by_round": [{"ade": {"mean": 3.0}}, {"ade": {"mean": 2.5}}],
+                               "bc": {"ade": {"mean": 2.8}}},
+                      "cnn": {"by_round": [{"ade": {"mean": 4.0}}, {"ade": {"mean": 3.0}}],
+                              "bc": {"ade": {"mean": 3.5}}}}}
+    fig = dagger.plot_study_rounds(res, "ade")
+    ax = fig.axes[0]
+    lines = ax.get_lines()  # per model: DAgger by round, then BC
+    np.testing.assert_array_equal(lines[0].get_ydata(), [3.0, 2.5])
+    np.testing.assert_array_equal(lines[1].get_ydata(), [2.8, 2.8])
+    np.testing.assert_array_equal(lines[2].get_ydata(), [4.0, 3.0])
+    assert lines[0].get_color() == lines[1].get_color() == style.model_colour("manc")
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == [
+        "MANC DAgger", "MANC BC", "CNN DAgger", "CNN BC"]
+    assert ax.get_ylabel() == style.METRIC_LABELS["ade"]
+    plt.close(fig)
