@@ -24,7 +24,8 @@ from minimanc import cam, vagn  # noqa: E402
 from minimanc.viz import automaton, dagger, explain, saliency, study, style  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-VIZ_MODULES = ("style", "automaton", "saliency", "world", "study", "explain", "dagger")
+VIZ_MODULES = ("style", "graph", "automaton", "saliency", "world", "study", "explain",
+               "dagger")
 
 
 # --------------------------------------------------------------------- no plotting in the math
@@ -49,7 +50,8 @@ def test_the_world_imports_no_figure_module():
     assert out == "[]", out
 
 
-@pytest.mark.parametrize("path", ["minimanc/cam.py", "minimanc/vagn.py"])
+@pytest.mark.parametrize("path", ["minimanc/cam.py", "minimanc/vagn.py",
+                                  "minimanc/autodiff/graph.py", "minimanc/dagger/loop.py"])
 def test_math_modules_hold_no_plotting_code(path):
     tree = ast.parse((ROOT / path).read_text())
     imported = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
@@ -95,14 +97,15 @@ def _docstring_problems():
     return mod.problems
 
 
-@pytest.mark.parametrize("name", ["automaton", "saliency", "style", "dagger"])
+@pytest.mark.parametrize("name", ["automaton", "saliency", "style", "dagger", "graph"])
 def test_viz_functions_carry_numpydoc_sections(name):
     # the figures of chapters 5-6 were checked through vagn's and cam's __all__ before the move
     module = importlib.import_module(f"minimanc.viz.{name}")
     assert module.__all__ and _docstring_problems()(module) == []
 
 
-@pytest.mark.parametrize("name", ["automaton", "saliency", "world", "study", "explain", "dagger"])
+@pytest.mark.parametrize("name", ["graph", "automaton", "saliency", "world", "study", "explain",
+                                  "dagger"])
 def test_viz_module_docstring_opens_with_its_chapter(name):
     doc = importlib.import_module(f"minimanc.viz.{name}").__doc__
     assert re.match(r"Chapter \d+ — ", doc), doc[:80]

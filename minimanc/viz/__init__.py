@@ -7,6 +7,8 @@ library:
 
 * :mod:`minimanc.viz.style` — names and colours of the models and metrics, ``save``, and the
   pieces every figure shares (all chapters);
+* :mod:`minimanc.viz.graph` — chapter 1: a computation graph with the cotangent on each
+  edge;
 * :mod:`minimanc.viz.automaton` — chapter 5: the vAGN automaton graph and the
   q-distribution heat map;
 * :mod:`minimanc.viz.saliency` — chapter 6: the paper's colormap, CAM/saliency overlays and
@@ -21,6 +23,6 @@ library:
   cloning at the same budget.
 """
 
-from minimanc.viz import automaton, dagger, explain, saliency, study, style, world
+from minimanc.viz import automaton, dagger, explain, graph, saliency, study, style, world
 
-__all__ = ["automaton", "dagger", "explain", "saliency", "study", "style", "world"]
+__all__ = ["automaton", "dagger", "explain", "graph", "saliency", "study", "style", "world"]
