@@ -1,4 +1,5 @@
-"""Chapter 7 — ``minimanc data generate`` and ``minimanc data show`` (:mod:`minimanc.world`).
+"""Chapter 7 — ``minimanc data generate``, ``data show`` and ``data import-nuscenes``
+(:mod:`minimanc.world`, :mod:`minimanc.world.nuscenes`).
 
 ``register(subparsers)`` adds the ``data`` command to the parser of :mod:`minimanc.cli`;
 each subcommand sets ``func(args) -> int``.
@@ -13,10 +14,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-from minimanc.cli.common import check_int, check_out_dir, load_data
+from minimanc.cli.common import check_int, check_out_dir, check_out_file, load_data
 from minimanc.errors import UsageError
 
-__all__ = ["DISK_MARGIN", "cmd_generate", "cmd_show", "default_file", "register"]
+__all__ = ["DISK_MARGIN", "cmd_generate", "cmd_import_nuscenes", "cmd_show", "default_file",
+           "register"]
 
 DISK_MARGIN = 1.2
 """``data generate`` refuses to start unless the disk has this times the estimated size free."""
@@ -71,6 +73,41 @@ def cmd_generate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_import_nuscenes(args: argparse.Namespace) -> int:
+    """Import a nuScenes DATAROOT's scenes into a dataset file, after estimating the disk."""
+    from minimanc.world import nuscenes
+
+    if args.version not in nuscenes.VERSIONS:
+        raise UsageError(f"--version must be one of {', '.join(nuscenes.VERSIONS)}, got "
+                         f"{args.version!r}")
+    cfg = _raster(args.size)
+    path = check_out_file(args.out or Path("data") / f"nuscenes_{args.version}.npz")
+    try:
+        tables, expansions = nuscenes.Tables(args.dataroot, args.version), {}
+        est = nuscenes.estimate_import(args.dataroot, args.version, args.scenes, raster=cfg,
+                                       tables=tables, expansions=expansions)
+        free = shutil.disk_usage(path.parent).free
+        print(f"estimate for {est.n_scenes} scenes: {est}", file=sys.stderr)
+        if est.disk_bytes * DISK_MARGIN > free:
+            raise UsageError(f"not enough free disk space in {path.parent}: {est.n_scenes} "
+                             f"scenes need about {est.disk_bytes / 1e9:.2f} GB "
+                             f"(+{DISK_MARGIN - 1:.0%} margin), {free / 1e9:.2f} GB are free; "
+                             "import fewer --scenes or choose another --out")
+        report = nuscenes.import_nuscenes(args.dataroot, args.version, path, args.scenes,
+                                          raster=cfg, progress=not args.quiet, tables=tables,
+                                          expansions=expansions)
+    except nuscenes.NuScenesError as e:
+        raise UsageError(str(e)) from e
+    except OSError as e:  # e.g. the disk filled up: nothing is left behind
+        raise UsageError(f"cannot write {path}: {e.strerror or e}") from e
+    print(report)
+    from minimanc import world
+
+    print(f"  {path.stat().st_size / 1e6:.1f} MB, content hash "
+          f"{world.file_content_hash(path)[:16]}")
+    return 0
+
+
 def cmd_show(args: argparse.Namespace) -> int:
     """Write a raster gallery, a scene animation and a map plot of one scene."""
     import matplotlib
@@ -79,7 +116,7 @@ def cmd_show(args: argparse.Namespace) -> int:
     import matplotlib.pyplot as plt
 
     from minimanc import world
-    from minimanc.world import viz
+    from minimanc.viz.world import gallery, plot_map, save_gif, scene_frames
 
     if args.scene is not None:
         check_int(args.scene, "--scene", 0)
@@ -96,12 +133,12 @@ def cmd_show(args: argparse.Namespace) -> int:
     if not 0 <= scene < len(ds):
         raise UsageError(f"--scene must be in [0, {len(ds) - 1}] (the dataset has {len(ds)} "
                          f"scenes), got {scene}")
-    fig = viz.gallery(ds, range(min(len(ds), 12)))
+    fig = gallery(ds, range(min(len(ds), 12)))
     fig.savefig(out / "gallery.png", dpi=120)
     plt.close(fig)
-    viz.save_gif(viz.scene_frames(ds, scene), out / "scene.gif")
+    save_gif(scene_frames(ds, scene), out / "scene.gif")
     fig, ax = plt.subplots(figsize=(6, 6))
-    viz.plot_map(ds.maps[scene], ax, ego=ds.ego[scene], ado=ds.ado[scene],
+    plot_map(ds.maps[scene], ax, ego=ds.ego[scene], ado=ds.ado[scene],
                  ado_valid=ds.ado_valid[scene])
     fig.savefig(out / "scene_map.png", dpi=120)
     plt.close(fig)
@@ -111,7 +148,8 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: Any) -> None:
-    """Add ``data generate`` and ``data show`` to an argparse sub-parser collection."""
+    """Add ``data generate``, ``data show`` and ``data import-nuscenes`` to an argparse
+    sub-parser collection."""
     p = subparsers.add_parser("data", help="generate and inspect the BEV driving dataset")
     sub = p.add_subparsers(dest="data_command", required=True)
     g = sub.add_parser("generate", help="generate scenes and save them (.npz)",
@@ -133,4 +171,22 @@ def register(subparsers: Any) -> None:
     s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     s.add_argument("--scene", type=int, default=None, help="scene to animate")
     s.set_defaults(func=cmd_show)
+    n = sub.add_parser("import-nuscenes", help="import real nuScenes scenes (.npz)",
+                       description="Import the scenes of a nuScenes DATAROOT (the version's "
+                                   "JSON tables and maps/expansion/*.json) into the world's "
+                                   "dataset format, one shard at a time. Scenes of fewer "
+                                   "than 40 keyframes or with a dropped keyframe are skipped "
+                                   "and listed. The estimated disk size and time are printed "
+                                   "first; the command refuses to start if the disk lacks "
+                                   "the space.")
+    n.add_argument("dataroot", help="the nuScenes DATAROOT (holding <version>/ and maps/)")
+    n.add_argument("--version", required=True, help="dataset version: v1.0-mini or "
+                   "v1.0-trainval (minimanc.world.nuscenes.VERSIONS)")
+    n.add_argument("--out", default=None,
+                   help="output file (default ./data/nuscenes_<version>.npz)")
+    n.add_argument("--scenes", nargs="+", default=None, metavar="NAME",
+                   help="scene names (default: every scene of the version's splits)")
+    n.add_argument("--size", type=int, default=64, help="raster size in pixels (default 64)")
+    n.add_argument("--quiet", action="store_true", help="no progress bar")
+    n.set_defaults(func=cmd_import_nuscenes)
 

@@ -7,7 +7,9 @@
 ``arcline_path_utils.discretize_lane`` does (each path a sequence of three arcs or straight
 pieces of curvature ``sign / radius``; :func:`discretize_arcline`). :meth:`local_recipe`
 cuts what a scene sees (its ego track plus :data:`MARGIN`) into an *explicit* map recipe
-(:func:`minimanc.world.maps.build_map`): lanes (connectors marked as junction lanes) with
+(:func:`minimanc.world.maps.build_map`): lanes (connectors marked as junction lanes; their
+points thinned to within :data:`SIMPLIFY` by :func:`simplify_polyline`, since every scene's
+recipe is kept in the dataset's header) with
 their successors, the drivable polygons and their holes, walkways and pedestrian crossings
 (polygons clipped to the scene's box, :func:`clip_polygon`), and the route.
 
@@ -16,8 +18,11 @@ nearest lane point heading within 90 degrees of the ego (closer than :data:`MATC
 consecutive lanes are joined by the shortest path in the lane graph. At a lane change (the
 next lane is not reachable ahead) the route follows the lane changed into, back through its
 predecessors to the route so far, so the route is always one connected lane chain and the
-lane target (the points every 4 m ahead on it) is defined exactly as on the world. The route
-is then extended ahead through the straightest successors, up to :data:`ROUTE_EXTENSION`.
+lane target (the points every 4 m ahead on it) is defined exactly as on the world. A lane
+matched at one keyframe that is connected neither way to the route while a later matched lane
+is reachable ahead (at the end of a junction, where connectors from several arms converge on
+one lane, the nearest can be another arm's) is passed over. The route is then extended ahead
+through the straightest successors, up to :data:`ROUTE_EXTENSION`.
 """
 
 from __future__ import annotations
@@ -32,8 +37,8 @@ from minimanc.world.geometry import wrap_angle
 from minimanc.world.lanes import LANE_WIDTH
 from minimanc.world.nuscenes.tables import NuScenesError, read_json
 
-__all__ = ["LOCATIONS", "MARGIN", "MATCH_RADIUS", "ROUTE_EXTENSION", "MapExpansion",
-           "clip_polygon", "discretize_arcline", "route_of"]
+__all__ = ["LOCATIONS", "MARGIN", "MATCH_RADIUS", "ROUTE_EXTENSION", "SIMPLIFY", "MapExpansion",
+           "clip_polygon", "discretize_arcline", "route_of", "simplify_polyline"]
 
 LOCATIONS: tuple[str, ...] = ("boston-seaport", "singapore-onenorth",
                               "singapore-hollandvillage", "singapore-queenstown")
@@ -46,6 +51,32 @@ ROUTE_EXTENSION = 60.0
 """Route length added ahead of the ego's last keyframe through successor lanes (m)."""
 RESOLUTION = 1.0
 """Discretisation of the arcline centrelines (m), the world's lane spacing."""
+SIMPLIFY = 0.01
+"""Largest distance (m) a lane point left out of a recipe lies from the polyline kept."""
+
+
+def simplify_polyline(points: np.ndarray, tol: float = SIMPLIFY) -> np.ndarray:
+    """The points ``(N, 2)`` without those within ``tol`` of the polyline through the rest
+    (Douglas–Peucker; the ends are kept). A recipe's lanes are resampled every metre when
+    the map is built, so a straight lane needs its two ends only."""
+    p = np.asarray(points, dtype=np.float64)
+    keep = np.zeros(len(p), dtype=bool)
+    keep[[0, -1]] = True
+    todo = [(0, len(p) - 1)]
+    while todo:
+        a, b = todo.pop()
+        if b - a < 2:
+            continue
+        d = p[b] - p[a]
+        rel = p[a + 1:b] - p[a]
+        n = math.hypot(d[0], d[1])
+        dist = (np.abs(d[0] * rel[:, 1] - d[1] * rel[:, 0]) / n if n > 1e-12
+                else np.hypot(rel[:, 0], rel[:, 1]))
+        k = int(np.argmax(dist))
+        if dist[k] > tol:
+            keep[a + 1 + k] = True
+            todo += [(a, a + 1 + k), (a + 1 + k, b)]
+    return p[keep]
 
 
 def discretize_arcline(path: dict, resolution: float = RESOLUTION) -> np.ndarray:
@@ -196,21 +227,27 @@ class MapExpansion:
         def pts(a: np.ndarray) -> list[list[float]]:
             return np.round(a, 2).tolist()
 
-        lanes = [{"points": pts(self.centre[g][:, :2]), "width": LANE_WIDTH,
+        lanes = [{"points": pts(simplify_polyline(self.centre[g][:, :2])), "width": LANE_WIDTH,
                   "kind": self.lane_kind[g], "junction": 0 if self.lane_kind[g] == "connector"
                   else -1, "successors": [local[j] for j in self.successors[g] if j in local],
                   "token": self.lane_tokens[g]} for g in keep]
+        def cut(poly: np.ndarray) -> list[list[float]] | None:
+            """``poly`` clipped to the box (as is when inside it, None when outside it)."""
+            lo, hi = poly.min(axis=0), poly.max(axis=0)
+            if hi[0] < box[0] or lo[0] > box[2] or hi[1] < box[1] or lo[1] > box[3]:
+                return None
+            inside = lo[0] >= box[0] and hi[0] <= box[2] and lo[1] >= box[1] and hi[1] <= box[3]
+            c = poly if inside else clip_polygon(poly, box)
+            return pts(c) if len(c) >= 3 else None
+
         polygons, holes = [], []
         for ext, hs in self.drivable:
-            c = clip_polygon(ext, box)
-            if len(c) >= 3:
-                polygons.append(pts(c))
-                for h in hs:
-                    ch = clip_polygon(h, box)
-                    if len(ch) >= 3:
-                        holes.append(pts(ch))
-        walk = [pts(c) for c in (clip_polygon(w, box) for w in self.walkways) if len(c) >= 3]
-        cross = [pts(c) for c in (clip_polygon(w, box) for w in self.crossings) if len(c) >= 3]
+            c = cut(ext)
+            if c is not None:
+                polygons.append(c)
+                holes += [h for h in map(cut, hs) if h is not None]
+        walk = [c for c in map(cut, self.walkways) if c is not None]
+        cross = [c for c in map(cut, self.crossings) if c is not None]
         junction = any(self.lane_kind[g] == "connector" for g in route)
         return {"kind": "explicit", "map_kind": "intersection" if junction else map_kind,
                 "source": "nuscenes", "location": self.location, "lanes": lanes,
@@ -260,7 +297,7 @@ def route_of(m: MapExpansion, ego: np.ndarray, lanes: list[int]) -> list[int]:
     if not matched:
         return []
     route = [matched[0]]
-    for g in matched[1:]:
+    for i, g in enumerate(matched[1:], start=1):
         if g in route:
             continue
         ahead = _path(m.successors, route[-1], g)
@@ -273,6 +310,9 @@ def route_of(m: MapExpansion, ego: np.ndarray, lanes: list[int]) -> list[int]:
             if p is not None:
                 back = route[:j + 1] + p[::-1][1:]
                 break
+        if back is None and any(_path(m.successors, route[-1], h) is not None
+                                for h in matched[i + 1:]):
+            continue  # a connector converging on the lane ahead, matched by mistake
         if back is None:
             back, u = [g], g
             while m.predecessors[u] and len(back) < len(route) and m.predecessors[u][0] not in back:

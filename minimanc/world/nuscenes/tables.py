@@ -12,17 +12,25 @@ from __future__ import annotations
 
 import json
 import math
+import re
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from minimanc.world.nuscenes.splits import VERSIONS
 
-__all__ = ["TABLES", "NuScenesError", "Tables", "keyframe_poses", "read_json", "yaw_of"]
+__all__ = ["LOAD_ORDER", "TABLES", "NuScenesError", "Tables", "keyframe_poses", "read_json",
+           "read_records", "yaw_of"]
 
 TABLES: tuple[str, ...] = ("scene", "sample", "sample_data", "ego_pose", "sample_annotation",
                            "instance", "category", "log", "map", "calibrated_sensor", "sensor")
 """The tables the importer reads (``DATAROOT/<version>/<table>.json``)."""
+LOAD_ORDER: tuple[str, ...] = ("scene", "sample", "sensor", "calibrated_sensor", "sample_data",
+                               "ego_pose", "sample_annotation", "instance", "category", "log",
+                               "map")
+"""The order they are read in: the LIDAR_TOP sensors before ``sample_data`` (of which only
+their keyframes are kept), before ``ego_pose`` (only those keyframes' poses)."""
 
 
 class NuScenesError(ValueError):
@@ -44,6 +52,62 @@ def read_json(path: Path, what: str) -> object:
                             f"column {e.colno}") from None
 
 
+_SPACE = re.compile(r"[ \t\n\r]*")
+
+
+def read_records(path: Path, what: str, keep: Callable[[dict], bool] | None = None
+                 ) -> list[dict]:
+    """The records of the JSON table ``path`` (a list of objects with a ``"token"``) that
+    ``keep`` accepts (default: all), decoded one record at a time, so that the records
+    left out of a large table (trainval's sweeps) are never all in memory at once.
+
+    Raises :class:`NuScenesError` (one line, naming ``what`` and ``path``) if the file is
+    missing, is not valid JSON or is not such a list.
+    """
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise NuScenesError(f"{what} {path} is missing") from None
+    except OSError as e:
+        raise NuScenesError(f"cannot read {what} {path}: {e.strerror or e}") from None
+
+    def invalid(msg: str, pos: int) -> NuScenesError:
+        line = text.count("\n", 0, pos) + 1
+        return NuScenesError(f"{what} {path} is not valid JSON: {msg} at line {line} column "
+                             f"{pos - text.rfind(chr(10), 0, pos)}")
+
+    not_records = NuScenesError(f"{what} {path} must hold a list of records with a 'token'")
+    decoder = json.JSONDecoder()
+    i = _SPACE.match(text).end()
+    if i == len(text):
+        raise invalid("Expecting value", i)
+    if text[i] != "[":
+        raise not_records
+    i = _SPACE.match(text, i + 1).end()
+    out: list[dict] = []
+    while i < len(text) and text[i] != "]":
+        try:
+            rec, i = decoder.raw_decode(text, i)
+        except json.JSONDecodeError as e:
+            raise invalid(e.msg, e.pos) from None
+        if not isinstance(rec, dict) or "token" not in rec:
+            raise not_records
+        if keep is None or keep(rec):
+            out.append(rec)
+        i = _SPACE.match(text, i).end()
+        if i < len(text) and text[i] == ",":
+            i = _SPACE.match(text, i + 1).end()
+            if i < len(text) and text[i] == "]":
+                raise invalid("Illegal trailing comma before end of array", i)
+        elif i < len(text) and text[i] != "]":
+            raise invalid("Expecting ',' delimiter", i)
+    if i >= len(text):
+        raise invalid("Expecting ',' delimiter" if out else "Expecting value", i)
+    if _SPACE.match(text, i + 1).end() != len(text):
+        raise invalid("Extra data", _SPACE.match(text, i + 1).end())
+    return out
+
+
 def yaw_of(q) -> float:
     """Heading (rad) of the rotation quaternion ``q = [w, x, y, z]`` (nuScenes' order)."""
     w, x, y, z = (float(v) for v in q)
@@ -51,7 +115,11 @@ def yaw_of(q) -> float:
 
 
 class Tables:
-    """The JSON tables of ``DATAROOT/<version>/``, each a list of records, indexed by token."""
+    """The JSON tables of ``DATAROOT/<version>/``, each a list of records, indexed by token.
+
+    Of ``sample_data`` only the ``LIDAR_TOP`` keyframes are kept, and of ``ego_pose`` only
+    their poses (trainval's tables hold 2.6 million of each, nearly all sweeps): the rest
+    is decoded one record at a time and dropped (:func:`read_records`)."""
 
     def __init__(self, dataroot: str | Path, version: str) -> None:
         root = Path(dataroot)
@@ -66,23 +134,25 @@ class Tables:
             raise NuScenesError(f"DATAROOT {root} has no folder {version}/ of JSON tables{hint}")
         self.root, self.version = root, version
         self.rows: dict[str, list[dict]] = {}
-        for name in TABLES:
-            rows = read_json(folder / f"{name}.json", f"table {name!r}:")
-            if not isinstance(rows, list) or not all(isinstance(r, dict) and "token" in r
-                                                     for r in rows):
-                raise NuScenesError(f"table {name!r}: {folder / (name + '.json')} must hold a "
-                                    "list of records with a 'token'")
-            self.rows[name] = rows
-        self.by_token = {name: {r["token"]: r for r in rows} for name, rows in self.rows.items()}
+        self.by_token: dict[str, dict[str, dict]] = {}
+        lidar: set[str] = set()
+        poses: set[str] = set()
+        keep = {"sample_data": lambda r: bool(r.get("is_key_frame"))
+                and r.get("calibrated_sensor_token") in lidar,
+                "ego_pose": lambda r: r["token"] in poses}
+        for name in sorted(TABLES, key=LOAD_ORDER.index):
+            self.rows[name] = read_records(folder / f"{name}.json", f"table {name!r}:",
+                                           keep.get(name))
+            self.by_token[name] = {r["token"]: r for r in self.rows[name]}
+            if name == "calibrated_sensor":
+                lidar = {cs["token"] for cs in self.rows[name]
+                         if self.get("sensor", cs["sensor_token"]).get("channel") == "LIDAR_TOP"}
+            elif name == "sample_data":
+                poses = {sd["ego_pose_token"] for sd in self.rows[name]}
         self.annotations_of_sample: dict[str, list[dict]] = {}
         for ann in self.rows["sample_annotation"]:
             self.annotations_of_sample.setdefault(ann["sample_token"], []).append(ann)
-        channel = {cs["token"]: self.get("sensor", cs["sensor_token"])["channel"]
-                   for cs in self.rows["calibrated_sensor"]}
-        self.lidar_of_sample: dict[str, dict] = {}
-        for sd in self.rows["sample_data"]:
-            if sd.get("is_key_frame") and channel.get(sd["calibrated_sensor_token"]) == "LIDAR_TOP":
-                self.lidar_of_sample[sd["sample_token"]] = sd
+        self.lidar_of_sample = {sd["sample_token"]: sd for sd in self.rows["sample_data"]}
         self.map_of_log = {lt: m for m in self.rows["map"] for lt in m.get("log_tokens", [])}
 
     def get(self, table: str, token: str) -> dict:
