@@ -120,7 +120,7 @@ def main() -> None:
             f"trained {args.epochs} epochs, lr {args.lr:g}, seed 0)\n\n"
             f"{head}\n" + "|---" * (len(names) + 4) + "|\n" + "\n".join(rows) + "\n\n"
             "Target spread on the validation states (std): "
-            + ", ".join(f"{n} {s:.2f}" for n, s in zip(names, yv.std(0))) + ".\n")
+            + ", ".join(f"{n} {s:.2f}" for n, s in zip(names, yv.std(0))) + ".\n\n")
     results.publish(text, args.out, time.perf_counter() - t0)
 
 

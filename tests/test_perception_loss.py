@@ -38,7 +38,7 @@ def test_the_loss_adds_the_weighted_mean_square_of_the_read_out(data, name):
     cfg = models.ModelConfig()
     params = models.init(name, np.random.default_rng(0), cfg, dtype=np.float32)
     rng = np.random.default_rng(1)
-    n_in = cfg.feature_size ** 2 * cfg.channels[-1]
+    n_in = cfg.n_predicates if name == "manc" else cfg.feature_size ** 2 * cfg.channels[-1]
     params["perception"] = layers.init_dense(rng, n_in, len(NAMES))
     s = np.array([[0, 1, 2]])
     t = np.array([[3, 10, 20]])
@@ -53,7 +53,8 @@ def test_the_loss_adds_the_weighted_mean_square_of_the_read_out(data, name):
     _, _, aux = models.step(name, params, {k: v[0] for k, v in batch.items()
                                            if k not in ("controls", "q0")},
                             models.initial_state(name, 3, cfg), cfg, eng)
-    f = np.asarray(aux["features"], dtype=np.float64).reshape(3, -1)
+    seen = aux["predicates"] if name == "manc" else aux["features"]  # what MANC's head reads
+    f = np.asarray(seen, dtype=np.float64).reshape(3, -1)
     read = f @ np.asarray(params["perception"]["w"]) + np.asarray(params["perception"]["b"])
     want = 0.5 * np.mean((read - target[0]) ** 2)
     assert with_p - plain == pytest.approx(want, rel=1e-3)

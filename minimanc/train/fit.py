@@ -140,7 +140,9 @@ def start_run(name: str, train_ds: Any, cfg: models.ModelConfig, tc: TrainConfig
     ``resume``, the state of the checkpoint in ``checkpoint_dir`` (whose model and
     configuration must match, except ``epochs`` and ``lr``). With ``perception`` targets
     (:func:`standardised_perception`) the parameters gain ``"perception"``, the linear read-out
-    of the auxiliary loss (drawn from its own stream, so the model's draw is unchanged)."""
+    of the auxiliary loss (:func:`minimanc.train.step.loss_fn`: of the predicates where the
+    model has them, else of the backbone features), drawn from its own stream so that the
+    model's draw is unchanged."""
     dtype = DTYPES[tc.dtype]
     S, _ = dataset_shape(train_ds)
     scenes = subset_scenes(S, tc.subset, tc.seed)
@@ -152,7 +154,8 @@ def start_run(name: str, train_ds: Any, cfg: models.ModelConfig, tc: TrainConfig
         params = models.init(name, np.random.default_rng(tc.seed), cfg)
     targets = standardised_perception(perception, train_ds, tc, scenes)
     if targets is not None and "perception" not in params:
-        n_in = cfg.feature_size ** 2 * cfg.channels[-1]
+        n_in = cfg.n_predicates if "predicates" in params else \
+            cfg.feature_size ** 2 * cfg.channels[-1]
         params = {**params, "perception": layers.init_dense(
             np.random.default_rng([int(tc.seed), 7]), n_in, targets.shape[2])}
     params = cast_floats(params, dtype)

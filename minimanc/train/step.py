@@ -28,9 +28,11 @@ def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: 
     for vAGN models, ``q0 (b, N)`` (q'). ``inv_std`` is ``1/σ`` per control;
     ``motion_feedback`` see :func:`minimanc.models.sequence`. With ``perception (L, b, K)``
     in the batch (standardised targets of what the world's human perceives in each state)
-    and ``params["perception"]`` (a linear read-out of the flattened backbone features),
-    ``perception_weight · mean((read-out − target)²)`` is added: an auxiliary loss that
-    asks the backbone to hold those quantities (privileged supervision of the perception).
+    and ``params["perception"]`` (a linear read-out of the visual predicates of eq. 7 for the
+    models that have them, which is all their planner reads of the image, and of the
+    flattened backbone features for the others), ``perception_weight · mean((read-out −
+    target)²)`` is added: an auxiliary loss that asks the perception to hold those
+    quantities (privileged supervision of the perception).
     """
     xp = eng.xp
     obs = {k: v for k, v in batch.items() if k not in ("controls", "q0", "perception")}
@@ -54,7 +56,7 @@ def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: 
     if zeta:
         extra = zeta_weight * dmp.zeta_penalty(aux["alpha"], aux["beta"], xp=xp)
     if perceive:
-        f = aux["features"]
+        f = aux["predicates"] if "predicates" in aux else aux["features"]
         read = dense(params["perception"], xp.reshape(f, (L * b, -1)), eng)
         miss = read - xp.reshape(batch["perception"], (L * b, -1))
         extra = extra + perception_weight * xp.mean(miss * miss)
