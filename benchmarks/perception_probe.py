@@ -114,10 +114,10 @@ def main() -> None:
             print(f"[{time.perf_counter() - t0:6.0f} s] {rows[-1]}", flush=True)
     head = ("| model | representation (size) | " + " | ".join(f"R² {n}" for n in names)
             + " | R² gap, leader < 30 m (RMSE) | R² dv, leader < 30 m (RMSE) |")
-    text = (f"# What the image models perceive: linear probes of the backbone features "
-            f"(probe fitted on {len(X)} states of {args.probe_train} training scenes, scored on "
-            f"{len(Xv)} states of {N_VAL} validation scenes; models "
-            f"trained {args.epochs} epochs, lr {args.lr:g}, seed 0)\n\n"
+    text = (f"# What the image models perceive (models trained {args.epochs} epochs, lr "
+            f"{args.lr:g}, seed 0)\n\n## Linear probes\n\n"
+            f"Fitted on {len(X)} states of {args.probe_train} training scenes, scored on "
+            f"{len(Xv)} states of {N_VAL} validation scenes.\n\n"
             f"{head}\n" + "|---" * (len(names) + 4) + "|\n" + "\n".join(rows) + "\n\n"
             "Target spread on the validation states (std): "
             + ", ".join(f"{n} {s:.2f}" for n, s in zip(names, yv.std(0))) + ".\n\n")
