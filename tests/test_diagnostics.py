@@ -12,6 +12,7 @@ from minimanc.metrics.diagnostics import (
     REGIMES,
     collision_taxonomy,
     error_by_regime,
+    linear_probe,
     regimes,
 )
 
@@ -79,3 +80,20 @@ def test_taxonomy_refuses_another_shape():
     with pytest.raises(ValueError, match="human"):
         collision_taxonomy(np.zeros((1, 4, 3)), np.zeros((1, 4, 1, 5)),
                            np.zeros((1, 4, 1), bool), np.zeros((1, 5, 3)))
+
+
+def test_linear_probe_reads_a_linear_quantity_and_not_noise():
+    rng = np.random.default_rng(0)
+    z = rng.normal(size=(600, 20))
+    w = rng.normal(size=(20,))
+    y = np.stack([z @ w + 3.0, rng.normal(size=600)], axis=1)  # linear, and independent noise
+    out = linear_probe(z[:400], y[:400], z[400:], y[400:], ridge=1e-3)
+    assert out["r2"][0] > 0.999 and out["rmse"][0] < 0.05 * out["std"][0]
+    assert out["r2"][1] < 0.1
+    img = z.reshape(600, 5, 2, 2)  # features of any shape are flattened per state
+    same = linear_probe(img[:400], y[:400], img[400:], y[400:], ridge=1e-3)
+    np.testing.assert_allclose(same["r2"], out["r2"])
+    with pytest.raises(ValueError, match="must agree"):
+        linear_probe(z[:400], y[:300], z[400:], y[400:])
+    with pytest.raises(ValueError, match="finite"):
+        linear_probe(np.full((4, 2), np.nan), y[:4], z[:4, :2], y[:4])

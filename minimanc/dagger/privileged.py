@@ -67,7 +67,7 @@ from minimanc.world.traffic import B_MAX
 __all__ = [
     "AHEAD", "FAR", "FEATURES", "FEATURE_GROUPS", "V_MAX", "ExpertPolicy", "Privileged",
     "PrivilegedPolicy", "Round", "closed_loop", "dagger_rounds", "demonstrations", "features",
-    "fit", "kept", "predict",
+    "fit", "kept", "perceived", "predict",
 ]
 
 FAR: float = 60.0
@@ -113,6 +113,19 @@ def features(sit: Situation, a_prev: float = 0.0) -> np.ndarray:
         min(max(per["a_curve"], -B_MAX), 4.0),
         lateral, float(wrap_angle(pose[2] - h)), *ahead,
     ])
+
+
+def perceived(ds: Any, names: Sequence[str] = FEATURES, expert: HumanExpert | None = None
+              ) -> np.ndarray:
+    """What the human perceives in every logged state of ``ds``: the :data:`FEATURES`
+    ``names`` as ``(S, T, K)`` (the targets of the auxiliary perception loss of
+    :func:`minimanc.train.fit`)."""
+    bad = [n for n in names if n not in FEATURES]
+    if bad or not names:
+        raise ValueError(f"names must be some of {FEATURES}; got {list(names)!r}")
+    X, _ = demonstrations(ds, expert=expert)
+    S, T = np.asarray(ds.ego).shape[:2]
+    return X[:, [FEATURES.index(n) for n in names]].reshape(S, T, len(names))
 
 
 def demonstrations(ds: Any, scenes: Iterable[int] | None = None,

@@ -15,6 +15,13 @@ it applied, in this order:
 :func:`error_by_regime` splits the root-mean-square error of predicted controls by regime,
 so that an error concentrated where the human brakes or yields shows as such.
 
+**Perception.** :func:`linear_probe` asks whether a representation (a model's backbone
+features of each state) holds a quantity (the gap to the leader, say): a ridge regression
+``y ≈ [z, 1] w`` with ``z`` the features standardised on the training states and
+``w = (ZᵀZ + λI)⁻¹ Zᵀ y`` (intercept not penalised), scored by its coefficient of
+determination ``R² = 1 − Σ(y − ŷ)² / Σ(y − ȳ)²`` on held-out states. A quantity the
+features hold linearly has ``R²`` near 1; one they do not, near 0 (or below).
+
 **Collisions.** :func:`collision_taxonomy` counts the first contacts of
 :func:`minimanc.metrics.safety.collision_events` by kind (``front``: the ego ran into the
 vehicle ahead; ``stopped_ado``: into a standing one; ``lateral``: beside it, at fault when
@@ -35,7 +42,7 @@ from minimanc.metrics.safety import COLLISION_TYPES, collision_events
 from minimanc.world.geometry import DT
 
 __all__ = ["BRAKING", "FOLLOW_HEADWAY", "FOLLOW_MARGIN", "REGIMES", "YIELD_DISTANCE",
-           "collision_taxonomy", "error_by_regime", "regimes"]
+           "collision_taxonomy", "error_by_regime", "linear_probe", "regimes"]
 
 REGIMES: tuple[str, ...] = ("cruising", "following", "braking", "yielding")
 """The driving regimes, by label index."""
@@ -93,6 +100,40 @@ def error_by_regime(pred: Any, target: Any, labels: Any) -> dict[str, dict[str, 
             out[name] = {"states": float(m.sum()), "share": float(m.mean()),
                          **{f"rmse_{c}": float(r) for c, r in enumerate(rmse)}}
     return out
+
+
+def _matrix(name: str, x: Any) -> np.ndarray:
+    a = np.asarray(x, dtype=np.float64)
+    a = a.reshape(len(a), -1) if a.ndim >= 1 else a
+    if a.ndim != 2 or len(a) == 0 or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be a finite array with a leading axis of states; got "
+                         f"shape {np.shape(x)}")
+    return a
+
+
+def linear_probe(z_train: Any, y_train: Any, z_test: Any, y_test: Any, ridge: float = 1.0
+                 ) -> dict[str, np.ndarray]:
+    """The ridge read-out of the module docstring: fitted on ``z_train (N, …)`` (flattened
+    per state) → ``y_train (N, K)``, scored on ``z_test``, ``y_test``. Returns ``r2 (K,)``
+    and ``rmse (K,)`` on the test states and ``std (K,)`` of ``y_test``."""
+    Z, Zt = _matrix("z_train", z_train), _matrix("z_test", z_test)
+    Y, Yt = _matrix("y_train", y_train), _matrix("y_test", y_test)
+    if Z.shape[1] != Zt.shape[1] or Y.shape[1] != Yt.shape[1] or len(Z) != len(Y) \
+            or len(Zt) != len(Yt):
+        raise ValueError(f"z_train {Z.shape}, y_train {Y.shape}, z_test {Zt.shape} and y_test "
+                         f"{Yt.shape} must agree in states and columns")
+    if not (np.isfinite(ridge) and ridge >= 0):
+        raise ValueError(f"ridge must be >= 0, got {ridge!r}")
+    mu, sd = Z.mean(0), Z.std(0) + 1e-8
+    A = np.hstack([(Z - mu) / sd, np.ones((len(Z), 1))])
+    pen = np.full(A.shape[1], float(ridge))
+    pen[-1] = 0.0
+    w = np.linalg.solve(A.T @ A + np.diag(pen), A.T @ Y)
+    pred = np.hstack([(Zt - mu) / sd, np.ones((len(Zt), 1))]) @ w
+    res = ((Yt - pred) ** 2).sum(0)
+    tot = ((Yt - Yt.mean(0)) ** 2).sum(0)
+    return {"r2": 1.0 - res / np.where(tot > 0, tot, 1.0),
+            "rmse": np.sqrt(res / len(Yt)), "std": Yt.std(0)}
 
 
 def _speeds(ego: np.ndarray, dt: float) -> np.ndarray:

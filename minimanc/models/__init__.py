@@ -50,7 +50,14 @@ from __future__ import annotations
 
 from minimanc.models import registry
 from minimanc.models.backbone import backbone
-from minimanc.models.config import CONTROL_SCALE, DEFAULT_GAINS, ModelConfig, gain_logits
+from minimanc.models.config import (
+    CHANGE_SCALE,
+    CONTROL_SCALE,
+    DEFAULT_GAINS,
+    SPEED_OUTPUTS,
+    ModelConfig,
+    gain_logits,
+)
 from minimanc.models.dmp_head import dmp_head, lane_point, lane_points
 from minimanc.models.explain import explain, replay
 from minimanc.models.forward import (
@@ -76,8 +83,10 @@ from minimanc.models.zoo import BUILTIN
 
 __all__ = [
     "BUILTIN",
+    "CHANGE_SCALE",
     "CONTROL_SCALE",
     "DEFAULT_GAINS",
+    "SPEED_OUTPUTS",
     "ModelConfig",
     "ModelSpec",
     "backbone",

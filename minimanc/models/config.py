@@ -11,8 +11,8 @@ import numpy as np
 from minimanc import dmp, inputs
 from minimanc.checks import check_int
 
-__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "TARGET_SPACING", "ModelConfig", "gain_box_corners",
-           "gain_logits", "lookahead_rule"]
+__all__ = ["CHANGE_SCALE", "CONTROL_SCALE", "DEFAULT_GAINS", "SPEED_OUTPUTS", "TARGET_SPACING",
+           "ModelConfig", "gain_box_corners", "gain_logits", "lookahead_rule"]
 
 TARGET_SPACING: float = 4.0
 """Metres of route between the lane-target points the heads see (``obs["lane_target"]``,
@@ -21,6 +21,13 @@ that the models import nothing of the world (a test keeps the two equal)."""
 
 CONTROL_SCALE: tuple[float, float] = (10.0, 0.5)
 """Output scale of the direct heads: ``controls = o · (10 m/s, 0.5 rad/s)``."""
+
+SPEED_OUTPUTS: tuple[str, ...] = ("level", "change")
+"""What a direct head's first output is: the speed, or its change over one step."""
+
+CHANGE_SCALE: float = 2.0
+"""Output scale (m/s) of a direct head's speed change per step with ``speed_output="change"``
+(4 m/s² over a 0.5 s step)."""
 
 DEFAULT_GAINS: tuple[float, float, float, float] = (1.0, 0.45, 2.5, 1.15)
 """Initial ``(α_y, β_y, α_q, β_q)`` of the DMP heads (the bias of the gains FC):
@@ -137,6 +144,7 @@ class ModelConfig:
     gains_scale: float = 3.0
     vagn_scale: float = 4.0
     dt: float = dmp.DT
+    speed_output: str = "level"
 
     def __post_init__(self) -> None:
         for name in ("n_states", "n_predicates", "image_size", "hidden", "k_targets"):
@@ -174,6 +182,9 @@ class ModelConfig:
             raise ValueError(f"gains_scale must be > 0, got gains_scale={self.gains_scale!r}")
         if not self.vagn_scale > 0.0:
             raise ValueError(f"vagn_scale must be > 0, got vagn_scale={self.vagn_scale!r}")
+        if self.speed_output not in SPEED_OUTPUTS:
+            raise ValueError(f"speed_output must be one of {SPEED_OUTPUTS}, got "
+                             f"speed_output={self.speed_output!r}")
         self._check_dt()
 
     def _check_dt(self) -> None:
@@ -206,6 +217,8 @@ class ModelConfig:
         """A JSON-able dict (for checkpoints)."""
         d = asdict(self)
         d["channels"] = list(d["channels"])
+        if d["speed_output"] == "level":  # the form before the option: old checkpoints match
+            del d["speed_output"]
         return d
 
 

@@ -20,13 +20,14 @@ from minimanc import inputs, layers, vagn
 from minimanc.checks import check_int, check_rng
 from minimanc.models import registry
 from minimanc.models.backbone import backbone, dense
-from minimanc.models.config import ModelConfig
+from minimanc.models.config import CHANGE_SCALE, CONTROL_SCALE, ModelConfig
 from minimanc.models.registry import ModelSpec, get
 from minimanc.tree import leaves as tree_leaves
 from minimanc.tree import map as tree_map
 
 __all__ = [
     "cast_tree",
+    "changes_speed",
     "check_obs",
     "check_per_scene",
     "encode",
@@ -256,7 +257,20 @@ def encode(spec: ModelSpec, params: dict, obs: dict, cfg: ModelConfig, eng: Any)
         enc["predicates"] = eng.nn.sigmoid(z) if cfg.predicate_activation == "sigmoid" else z
     num = inputs.numeric_features(obs, spec.name, cfg.setting, xp=xp)
     enc.update(spec.encode(params, obs, f, num, cfg, eng))
+    if changes_speed(spec, cfg):
+        enc["speed_now"] = obs["motion"][:, :1]
     return enc
+
+
+def changes_speed(spec: ModelSpec, cfg: ModelConfig) -> bool:
+    """Whether ``spec``'s head predicts the change of speed (``cfg.speed_output="change"``,
+    a direct head); ValueError if it does not see the ``motion`` it changes."""
+    if cfg.speed_output != "change" or spec.dmp:
+        return False
+    if "motion" not in inputs.visible(spec.name, cfg.setting):
+        raise ValueError(f"speed_output='change' needs a model that sees 'motion'; "
+                         f"{spec.name!r} does not in setting {cfg.setting!r} (use 'parity')")
+    return True
 
 
 def run_head(spec: ModelSpec, params: dict, enc: dict, state: dict, cfg: ModelConfig,
@@ -281,6 +295,11 @@ def run_head(spec: ModelSpec, params: dict, enc: dict, state: dict, cfg: ModelCo
         The spec's ``aux`` and, for models with eq. 7, ``predicates`` ``(B, M)``.
     """
     controls, new_state, aux = spec.head(params, enc, state, cfg, eng)
+    if enc.get("speed_now") is not None:  # speed_output="change": v = v_now + Δv
+        xp = eng.xp
+        k = CHANGE_SCALE / CONTROL_SCALE[0]
+        controls = xp.concatenate([enc["speed_now"] + controls[:, :1] * k, controls[:, 1:]],
+                                  axis=-1)
     if "predicates" in enc:
         aux = {"predicates": enc["predicates"], **aux}
     return controls, new_state, aux
@@ -324,7 +343,8 @@ def step(name: str, params: dict, obs: dict, state: dict, cfg: ModelConfig | Non
 
 
 def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConfig | None,
-             eng: Any, feedback_motion: bool = False, return_aux: bool = False) -> tuple:
+             eng: Any, feedback_motion: bool = False, return_aux: bool = False,
+             with_features: bool = False) -> tuple:
     """Run ``L`` steps on time-major observations.
 
     Equal to ``L`` calls of :func:`step` (tested), but the backbone runs once on
@@ -346,7 +366,10 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
         integrates its own state, as in closed loop; only step 0 uses the logged motion).
     return_aux : bool
         Also return the per-step ``aux`` of :func:`step` stacked along time
-        (``features`` excluded).
+        (``features`` excluded unless ``with_features``).
+    with_features : bool
+        With ``return_aux``: ``aux["features"]`` holds the backbone features ``(L, B, h, w,
+        C)`` of every step (an auxiliary loss on what the backbone perceives reads them).
 
     Returns
     -------
@@ -367,7 +390,7 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
             xp.reshape(xp.asarray(v), (L * B,) + tuple(v.shape[2:]))
             for k, v in obs_seq.items() if k in seen}
     enc = encode(spec, params, flat, cfg, eng)
-    enc.pop("features")
+    features = enc.pop("features")
     feedback = feedback_motion and spec.dmp
     none_keys = [k for k, v in enc.items() if v is None]
     xs = {k: xp.reshape(v, (L, B) + tuple(v.shape[1:])) for k, v in enc.items() if v is not None}
@@ -388,5 +411,7 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
     (state, _, _), (outs, auxs) = eng.scan(body, (dict(state), prev0, 0), xs)
     if not return_aux:
         return outs, state
+    if with_features:
+        auxs = {**auxs, "features": xp.reshape(features, (L, B) + tuple(features.shape[1:]))}
     return outs, state, auxs
 

@@ -36,12 +36,19 @@ def subset_scenes(n_scenes: int, subset: float, seed: int) -> np.ndarray:
     return np.sort(perm[:n])
 
 
-def control_std(ds: Any, scenes: Any = None) -> np.ndarray:
-    """Standard deviation of ``[speed, yaw rate]`` over the given scenes (all by default)."""
+def control_std(ds: Any, scenes: Any = None, speed: str = "level") -> np.ndarray:
+    """Standard deviation of ``[speed, yaw rate]`` over the given scenes (all by default);
+    with ``speed="change"`` the first entry is that of the speed's change over one step,
+    ``controls[t] − motion[t]`` (:func:`minimanc.inputs.motion_at`)."""
     c = np.asarray(ds.controls, dtype=np.float64)
-    if scenes is not None:
-        c = c[np.asarray(scenes)]
+    idx = np.arange(len(c)) if scenes is None else np.asarray(scenes)
+    c = c[idx]
     sd = c.reshape(-1, 2).std(axis=0)
+    if speed == "change":
+        s, t = np.meshgrid(idx, np.arange(c.shape[1]), indexing="ij")
+        sd[0] = (c[..., 0] - inputs.motion_at(ds, s, t)[..., 0]).std()
+    elif speed != "level":
+        raise ValueError(f"speed must be 'level' or 'change', got speed={speed!r}")
     return np.where(sd > 1e-6, sd, 1.0)
 
 

@@ -1,0 +1,121 @@
+"""Fixes to the behaviour-cloning pipeline, measured one at a time: models trained by
+Algorithm 1 on the paper preset's draw under *variants* of what they see and how their
+speed is learned, driven closed loop under both protocols.
+
+A variant is ``model:setting:history:speed_output:speed_scale[:perception]``:
+
+* ``setting`` (:mod:`minimanc.inputs`): "paper" (what the paper gives each model) or
+  "parity" (every model also sees the lane target and its own motion);
+* ``history``: steps of faded history in the raster (:mod:`minimanc.world.history`);
+* ``speed_output`` (:class:`minimanc.models.ModelConfig`): the direct heads predict the
+  speed ("level") or its change over one step ("change");
+* ``speed_scale`` (:class:`minimanc.train.TrainConfig`): the loss divides the speed error by
+  the std of the speed ("level") or of its change over one step ("change");
+* ``perception`` (optional, default 0): the weight of the auxiliary perception loss
+  (``TrainConfig.perception_weight``) whose targets are :data:`PERCEIVE`, what the world's
+  human perceives in each state (:func:`minimanc.dagger.privileged.perceived`).
+
+The data is the paper preset's draw (data seed 0: 650 training, 40 tuning, 200 validation
+scenes, in that order; only the validation scenes are driven); each raster variant is
+generated once (``cache=True``). Training: ``--epochs`` epochs, learning rate ``--lr``,
+engine ``jax``, ``--seeds`` seeds (mean ± std).
+
+Run: ``python benchmarks/fixes.py --variants cnn:parity:0:change:change --out results/X.md``
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from minimanc import metrics, models, results, rollout, train, world
+from minimanc.dagger import privileged as P
+from minimanc.dagger.teachers import AGENTS
+
+N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
+SHOW = ("ade", "along_track", "collision_rate", "at_fault_collision_rate", "off_road_rate")
+PERCEIVE = tuple(f for f in P.FEATURES if f != "a_prev")
+"""The auxiliary loss's targets: every feature of the privileged learner a raster can hold
+(its last acceleration is the only one left out)."""
+HEAD = ("ADE m", "along m", "coll. %", "at fault %", "off road %")
+
+
+def parse(variant: str) -> tuple[str, str, int, str, str, float]:
+    """``model:setting:history:speed_output:speed_scale[:perception]`` → its six parts."""
+    parts = variant.split(":")
+    if len(parts) not in (5, 6):
+        raise ValueError(f"a variant is model:setting:history:speed_output:speed_scale"
+                         f"[:perception], got {variant!r}")
+    name, setting, history, out, scale = parts[:5]
+    return name, setting, int(history), out, scale, float(parts[5]) if len(parts) == 6 else 0.0
+
+
+def scores(traj, val) -> dict[str, float]:
+    m = metrics.evaluate(traj, val)
+    along, _ = metrics.along_cross_track(traj.ego, np.asarray(val.ego, dtype=np.float64))
+    m["along_track"] = float(np.abs(along).mean())
+    return m
+
+
+def cells(runs: list[dict]) -> str:
+    out = []
+    for k in SHOW:
+        v = np.array([r[k] for r in runs])
+        out.append(f"{v.mean():.2f}" if len(v) == 1 else f"{v.mean():.2f} ± {v.std():.2f}")
+    return " | ".join(out)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--variants", nargs="+", required=True)
+    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--epochs", type=int, default=6)
+    ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args()
+    variants = [parse(v) for v in args.variants]
+    t0 = time.perf_counter()
+    data: dict[int, tuple] = {}
+    rows = {a: [] for a in AGENTS}
+    perceived: dict[int, np.ndarray] = {}
+    for name, setting, h, out, scale, w in variants:
+        if h not in data:
+            ds = world.generate(N_TRAIN + N_TUNE + N_VAL, seed=0, cache=True,
+                                raster=world.RasterConfig(history=h), progress=True)
+            data[h] = (ds.subset(slice(0, N_TRAIN)), ds.subset(slice(N_TRAIN + N_TUNE, None)))
+        tr, val = data[h]
+        if w > 0 and h not in perceived:
+            perceived[h] = P.perceived(tr, PERCEIVE)
+        cfg = models.ModelConfig(setting=setting, speed_output=out)
+        runs = {a: [] for a in AGENTS}
+        for seed in range(args.seeds):
+            tc = train.TrainConfig(epochs=args.epochs, lr=args.lr, seed=seed, speed_scale=scale,
+                                   perception_weight=w)
+            res = train.fit(name, tr, cfg, tc, progress=False,
+                            perception=perceived[h] if w > 0 else None)
+            for a in AGENTS:
+                traj = rollout.closed_loop(name, res.params, val, cfg, progress=False, agents=a)
+                runs[a].append(scores(traj, val))
+            print(f"[{time.perf_counter() - t0:6.0f} s] {name}:{setting}:{h}:{out}:{scale}:{w:g} "
+                  f"seed {seed}: " + ", ".join(
+                      f"{a} {runs[a][-1]['at_fault_collision_rate']:.1f} % at fault, ADE "
+                      f"{runs[a][-1]['ade']:.2f}" for a in AGENTS), flush=True)
+        for a in AGENTS:
+            rows[a].append(f"| {models.spec(name).label} | {setting} | {h} | {out} | {scale} | "
+                           f"{w:g} | {cells(runs[a])} |")
+    text = (f"# Fixes, one at a time (paper preset draw: {N_TRAIN} training, {N_VAL} "
+            f"validation scenes; {args.epochs} epochs, lr {args.lr:g}, {args.seeds} seeds, "
+            "mean ± std)\n\n")
+    for a in AGENTS:
+        text += (f"## Agents `{a}`\n\n| model | setting | history | speed output | speed scale"
+                 " | perception loss | " + " | ".join(HEAD) + " |\n" + "|---" * (6 + len(HEAD))
+                 + "|\n"
+                 + "\n".join(rows[a]) + "\n\n")
+    results.publish(text, args.out, time.perf_counter() - t0)
+
+
+if __name__ == "__main__":
+    main()
