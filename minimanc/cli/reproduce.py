@@ -43,7 +43,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     if args.data is not None:
         try:
             config = data_config(config, args.data)
-        except (DatasetFileError, FileNotFoundError, ValueError) as e:
+        except (DatasetFileError, OSError, ValueError) as e:  # not readable, not fitting
             raise UsageError(f"--data {e}") from e
         default_out = Path("minimanc_results") / f"{preset}-{Path(args.data).stem}"
         if is_recorded(config):
