@@ -34,8 +34,9 @@ gradient, so ``J`` (and ``S``) only see the predicates that are active.
 Differentiable functions take ``xp`` (and the extractor the engine's ``nn``);
 they use only the operations listed in CONTRIBUTING.md.
 
-The display helpers ``paper_cmap``, ``PAPER_CMAP``, ``blend``, ``overlay`` and
-``plot_q_saliency`` live in :mod:`minimanc.viz.saliency`, forwarded from there on first use.
+The display helpers (:func:`~minimanc.viz.saliency.paper_cmap`, ``blend``, ``overlay`` and
+``plot_q_saliency``) are figures, in :mod:`minimanc.viz.saliency`; this module imports no
+plotting code.
 """
 
 from __future__ import annotations
@@ -47,7 +48,6 @@ import numpy as np
 
 from minimanc import layers, vagn
 from minimanc.checks import check_int
-from minimanc.viz.forward import forwarder
 
 __all__ = [
     "init_extractor",
@@ -62,12 +62,6 @@ __all__ = [
     "explain",
     "peak_location",
 ]
-
-
-# the display helpers, defined in minimanc.viz.saliency and imported on first access
-_SHOWN = dict.fromkeys(("paper_cmap", "PAPER_CMAP", "blend", "overlay", "plot_q_saliency"),
-                       "minimanc.viz.saliency")
-__getattr__, __dir__ = forwarder(__name__, globals(), _SHOWN)
 
 
 # ------------------------------------------------------------------ parameters

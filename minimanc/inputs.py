@@ -65,7 +65,7 @@ through their recurrent state; in "parity" every model also gets the lane
 target and the current motion as numbers, so any remaining gap is due to
 the architecture, not to information. The table is also data: each model's
 ``observes`` in the registry (:mod:`minimanc.models.registry`), read by
-:func:`visible` (and :data:`VISIBLE`, all of them).
+:func:`visible`.
 """
 
 from __future__ import annotations
@@ -123,19 +123,6 @@ def _spec(model: Any) -> Any:
     from minimanc.models import registry
 
     return registry.get(model, "model")
-
-
-def __getattr__(name: str) -> Any:
-    """``MODEL_NAMES`` (the registered models) and ``VISIBLE`` (their observation keys),
-    read from the model registry when asked, so a newly registered model appears."""
-    if name in ("MODEL_NAMES", "VISIBLE"):
-        from minimanc.models import registry
-
-        if name == "MODEL_NAMES":
-            return registry.names()
-        return {(s.name, setting): s.observes[setting]
-                for s in registry.specs() for setting in SETTINGS}
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def check_setting(setting: Any) -> str:

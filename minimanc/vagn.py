@@ -31,12 +31,12 @@ of ``W^p`` to zero, but a zero still becomes ``e^0 = 1`` inside the softmax, so
 **no transition ever has probability exactly zero**.  The smallest possible
 entry of a column is ``1 / (1 + Σ_{r≠i} e^{R_rj})`` with ``R = ReLU(W^p)``;
 the automaton graph is always complete and "impossible" transitions can only
-be read off by thresholding (see ``plot_automaton``'s ``min_prob``).  (In
+be read off by thresholding (see :func:`minimanc.viz.automaton.plot_automaton`'s ``min_prob``).  (In
 float64 an entry underflows to 0.0 only when its column's logits differ by
 more than ``−ln`` of the smallest subnormal, ≈ 745.)
 
-Figures live in :mod:`minimanc.viz.automaton`; ``plot_automaton`` and ``plot_q_heatmap``
-are forwarded from there (imported on first use, so this module imports no matplotlib).
+The figures (``plot_automaton``, ``plot_q_heatmap``) are in :mod:`minimanc.viz.automaton`;
+this module imports no plotting code.
 """
 
 from __future__ import annotations
@@ -54,7 +54,6 @@ from minimanc.checks import (
     is_concrete,
 )
 from minimanc.vagn_step import fused_step
-from minimanc.viz.forward import forwarder
 
 __all__ = [
     "check_weights",
@@ -71,12 +70,6 @@ __all__ = [
     "most_likely_path",
     "min_transition_probability",
 ]
-
-# the figures, defined in minimanc.viz.automaton and imported on first access
-__getattr__, __dir__ = forwarder(__name__, globals(), {
-    "plot_automaton": "minimanc.viz.automaton",
-    "plot_q_heatmap": "minimanc.viz.automaton",
-})
 
 # ---------------------------------------------------------------------------
 # input checks (concrete NumPy values only)

@@ -413,7 +413,7 @@ assert edge_cotangents(lone) == [], "a single input has no edges"
 # %% [markdown]
 # The library's `computation_graph(f, *args)` does the same on arrays (every
 # primitive of `minimanc.autodiff.numpy`, conv included) and prints one line per
-# edge; `Graph.draw(ax)` plots it (see the tutorial).
+# edge; `minimanc.viz.graph.plot_graph(graph, ax)` draws it (see the tutorial).
 
 # %%
 g_lib = computation_graph(lambda x, y: anp.sin(x * y) + x * anp.exp(y), np.array(0.4),

@@ -181,12 +181,14 @@ assert np.isclose(from_edges, float(x_bar)) and np.isclose(float(graph.gradients
 # %%
 import matplotlib.pyplot as plt
 
+from minimanc.viz.graph import plot_graph
+
 graph_h = computation_graph(lambda x, y: anp.sin(x * y) + x * anp.exp(y), np.array(0.4),
                             np.array(-1.2))
 fig, axes = plt.subplots(1, 2, figsize=(13, 3.6), gridspec_kw={"width_ratios": [1, 1.25]})
-graph.draw(axes[0])
+plot_graph(graph, axes[0])
 axes[0].set_title("sin(x·x) + x at x = 0.7")
-graph_h.draw(axes[1])
+plot_graph(graph_h, axes[1])
 axes[1].set_title("sin(x·y) + x·exp(y) at (0.4, −1.2)")
 plt.show()
 dh_dx = sum(float(e.cotangent) for e in graph_h.edges if e.parent == 0)

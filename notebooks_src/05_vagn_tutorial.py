@@ -28,6 +28,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import engine, vagn
+from minimanc.viz.automaton import plot_automaton, plot_q_heatmap
 
 np.set_printoptions(precision=3, suppress=True)
 rng = np.random.default_rng(0)
@@ -75,7 +76,7 @@ for p in ([1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1]):
 fig, axes = plt.subplots(1, 3, figsize=(12, 4))
 for ax, p, title in zip(axes, ([1, 0, 0], [0, 1, 0], [0, 0, 1]), PREDICATES):
     T = vagn.transition_matrix(np.array(p, float), W_hand)
-    vagn.plot_automaton(T, ax=ax, labels=STATES)
+    plot_automaton(T, ax=ax, labels=STATES)
     ax.set_title(f"only '{title}'")
 plt.show()
 
@@ -104,7 +105,7 @@ axes[0].imshow(ps.T, aspect="auto", cmap="Greys", vmin=0, vmax=1, interpolation=
 axes[0].set_yticks(range(3))
 axes[0].set_yticklabels(PREDICATES)
 axes[0].set_title("predicates $p_t$")
-vagn.plot_q_heatmap(qs, ax=axes[1], labels=STATES, colorbar=False)
+plot_q_heatmap(qs, ax=axes[1], labels=STATES, colorbar=False)
 axes[1].set_title("q-distribution $q_t$ (darker = more probable)")
 plt.tight_layout()
 plt.show()
@@ -160,9 +161,9 @@ assert np.all(T_cross >= bound[None, :] - 1e-15) and np.all(T_cross > 0)
 
 # %%
 fig, axes = plt.subplots(1, 2, figsize=(8, 4))
-vagn.plot_automaton(T_cross, ax=axes[0], labels=STATES)
+plot_automaton(T_cross, ax=axes[0], labels=STATES)
 axes[0].set_title("crossing: all edges")
-vagn.plot_automaton(T_cross, ax=axes[1], labels=STATES, min_prob=0.05)
+plot_automaton(T_cross, ax=axes[1], labels=STATES, min_prob=0.05)
 axes[1].set_title("crossing: edges with P ≥ 0.05")
 plt.show()
 
@@ -252,10 +253,10 @@ fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))
 axes[0].semilogy(history)
 axes[0].set_xlabel("gradient step")
 axes[0].set_title("training loss")
-vagn.plot_automaton(vagn.transition_matrix(np.array([0, 1.0, 0]), W_hand), ax=axes[1],
-                    labels=STATES)
+plot_automaton(vagn.transition_matrix(np.array([0, 1.0, 0]), W_hand), ax=axes[1],
+               labels=STATES)
 axes[1].set_title("teacher, 'lead close'")
-vagn.plot_automaton(vagn.transition_matrix(np.array([0, 1.0, 0]), W), ax=axes[2], labels=STATES)
+plot_automaton(vagn.transition_matrix(np.array([0, 1.0, 0]), W), ax=axes[2], labels=STATES)
 axes[2].set_title("learned, 'lead close'")
 plt.show()
 

@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import cam, vagn
+from minimanc.viz.saliency import overlay
 
 rng = np.random.default_rng(0)
 
@@ -268,7 +269,7 @@ assert 5 <= r < 11 and 18 <= c < 22
 fig, axes = plt.subplots(1, 2, figsize=(5, 2.6))
 axes[0].imshow(img, interpolation="nearest")
 axes[0].axis("off")
-cam.overlay(img, maps[0, 0], ax=axes[1], title="'vehicle' CAM")
+overlay(img, maps[0, 0], ax=axes[1], title="'vehicle' CAM")
 plt.show()
 
 # %% [markdown]

@@ -29,6 +29,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import cam, engine, optim, vagn
+from minimanc.viz.saliency import overlay, plot_q_saliency
 
 np.set_printoptions(precision=3, suppress=True)
 rng = np.random.default_rng(0)
@@ -192,7 +193,7 @@ maps_up = cam.upsample(maps, (S, S))
 
 # %% [markdown]
 # Overlays in the paper's colours: high → low is yellow → red → cyan → magenta
-# (`cam.PAPER_CMAP`); each map is min–max normalised first, so only the
+# (`minimanc.viz.saliency.paper_cmap()`); each map is min–max normalised first, so only the
 # *ranking* of pixels within one map is shown, not its scale.
 
 # %%
@@ -202,8 +203,8 @@ for row, i in zip(axes, show):
     row[0].imshow(X_test[i], interpolation="nearest")
     row[0].axis("off")
     for j in range(3):
-        cam.overlay(X_test[i], maps_up[i, j], ax=row[j + 1],
-                    title=f"{PREDICATES[j]} (p={p_test[i, j]:.1f})")
+        overlay(X_test[i], maps_up[i, j], ax=row[j + 1],
+                title=f"{PREDICATES[j]} (p={p_test[i, j]:.1f})")
 plt.tight_layout()
 plt.show()
 
@@ -269,8 +270,8 @@ assert all(rate >= 0.8 for rate, _ in rates) and rates[1][0] >= raw_rates[1][0]
 
 fig, axes = plt.subplots(2, 4, figsize=(9, 4.6))
 for k, i in enumerate(show):
-    cam.overlay(X_test[i], maps_up[i, 1], ax=axes[0, k], title="pedestrian, raw")
-    cam.overlay(X_test[i], centred_up[i, 1], ax=axes[1, k], title="pedestrian, centred")
+    overlay(X_test[i], maps_up[i, 1], ax=axes[0, k], title="pedestrian, raw")
+    overlay(X_test[i], centred_up[i, 1], ax=axes[1, k], title="pedestrian, centred")
 plt.tight_layout()
 plt.show()
 
@@ -331,7 +332,7 @@ assert out["saliency"].shape == (200, 3, 32, 32)
 assert np.allclose(out["q"].sum(-1), 1.0, atol=1e-5)  # float32 features
 
 for i in show[:2]:
-    cam.plot_q_saliency(X_test[i], out["saliency"][i], out["q"][i], labels=STATES)
+    plot_q_saliency(X_test[i], out["saliency"][i], out["q"][i], labels=STATES)
     plt.show()
 
 # %% [markdown]
@@ -386,7 +387,7 @@ for j, target in ((1, "vehicle"), (2, "pedestrian")):
 #   share of a map; we subtract the data-set mean CAM before reading maps.
 #   The paper's maps are raw CAMs as far as the text says.
 # * **Normalisation of the overlays.** The paper ranks colours yellow → red →
-#   cyan → magenta (we use the same ramp, `cam.PAPER_CMAP`) but does not say
+#   cyan → magenta (we use the same ramp, `minimanc.viz.saliency.paper_cmap()`) but does not say
 #   how a map is scaled; we min–max normalise each map on its own, so only
 #   the ranking within one map is shown, never its size.
 # * **Slips in the paper.** Eq. 8 sums over $i \in \{0, M-1\}$, a set of

@@ -30,7 +30,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import world
-from minimanc.world import viz
+from minimanc.viz.world import gallery, plot_map, scene_frames
 
 np.set_printoptions(precision=3, suppress=True)
 rng = np.random.default_rng(0)
@@ -90,7 +90,7 @@ assert np.allclose(world.controls_from_poses(traj), [8.0, 0.2])
 fig, axs = plt.subplots(1, 4, figsize=(16, 4))
 for ax, kind in zip(axs, ["straight", "curved", "intersection", "roundabout"]):
     m = world.random_map(np.random.default_rng(3), kind)
-    viz.plot_map(m, ax)
+    plot_map(m, ax)
     p0 = m.route_pose(m.start_s)[0]
     ax.plot(*p0, "r*", ms=12)
     lo = p0 - 90
@@ -248,7 +248,7 @@ print(len(train), len(val), ds.content_hash()[:16])
 # (blue dots) on top.
 
 # %%
-fig = viz.gallery(ds, range(12), cols=6)
+fig = gallery(ds, range(12), cols=6)
 plt.show()
 
 # %% [markdown]
@@ -258,7 +258,7 @@ plt.show()
 
 # %%
 scene = next(i for i, t in enumerate(ds.tags) if t["has_roundabout"])
-frames = viz.scene_frames(ds, scene, scale=2)
+frames = scene_frames(ds, scene, scale=2)
 fig, axs = plt.subplots(2, 5, figsize=(15, 6.5))
 for ax, t in zip(axs.flat, range(0, 40, 4)):
     ax.imshow(frames[t])
@@ -268,8 +268,8 @@ plt.show()
 print(ds.tags[scene]["kind"], ds.tags[scene]["turn"],
       "yield steps:", ds.tags[scene]["yield_steps"])
 fig, ax = plt.subplots(figsize=(5, 5))
-viz.plot_map(ds.maps[scene], ax, ego=ds.ego[scene], ado=ds.ado[scene],
-             ado_valid=ds.ado_valid[scene])
+plot_map(ds.maps[scene], ax, ego=ds.ego[scene], ado=ds.ado[scene],
+         ado_valid=ds.ado_valid[scene])
 plt.show()
 
 # %% [markdown]

@@ -22,7 +22,9 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-from minimanc import cam, dmp, engine, inputs, models, train, tree, vagn, world
+from minimanc import dmp, engine, inputs, models, train, tree, vagn, world
+from minimanc.viz.automaton import plot_q_heatmap
+from minimanc.viz.saliency import plot_q_saliency
 
 np.set_printoptions(precision=3, suppress=True)
 rng = np.random.default_rng(0)
@@ -54,7 +56,7 @@ print("map kinds:", [m.kind for m in ds.maps])
 # also gets the lane target and the motion as numbers.
 
 # %%
-for name in models.MODEL_NAMES:
+for name in models.names():
     print(f"{name:10s} paper: {', '.join(inputs.visible(name, 'paper')):38s} "
           f"parity: {', '.join(inputs.visible(name, 'parity'))}")
 
@@ -261,7 +263,7 @@ assert after < before
 # %% tags=["nbval-ignore-output"]
 tr = models.replay("manc", fit.params, val_ds, 0, cfg)
 fig, ax = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
-vagn.plot_q_heatmap(tr["q"], ax=ax[0], colorbar=False)
+plot_q_heatmap(tr["q"], ax=ax[0], colorbar=False)
 ax[0].set_title("q-distribution over time")
 for j, lab in enumerate(["position", "orientation"]):
     ax[1].plot(tr["alpha"][:, j], label=rf"$\alpha$ {lab}")
@@ -297,7 +299,7 @@ assert err[0] < 3.0 and err[1] < 0.2  # stored run: 0.51 m/s and 0.022 rad/s
 t = 20
 o = inputs.from_dataset(val_ds, 0, t, model="manc")
 ex = models.explain(fit.params, o, tr["q"][t - 1][None], cfg)
-cam.plot_q_saliency(val_ds.bev[0, t], ex["saliency"][0], ex["q"][0])
+plot_q_saliency(val_ds.bev[0, t], ex["saliency"][0], ex["q"][0])
 plt.show()
 print("q at step 20:", ex["q"][0].round(3))
 assert np.allclose(ex["q"][0], tr["q"][t], atol=1e-5)

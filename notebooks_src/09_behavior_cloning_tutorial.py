@@ -4,7 +4,7 @@
 # Modules built in this chapter: `minimanc.rollout` (the closed loop),
 # `minimanc.metrics` (the metrics of Table I), `minimanc.studies` (Table I and
 # the studies of section V, and the `minimanc reproduce` command) and
-# `minimanc.plots` (every figure). Training itself is `minimanc.train`
+# `minimanc.viz.study` and `minimanc.viz.explain` (its figures). Training itself is `minimanc.train`
 # (Algorithm 1, chapter 8).
 #
 # Behaviour cloning learns from **logged** samples: at every step of a
@@ -36,7 +36,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from minimanc import inputs, metrics, models, modes, plots, rollout, studies, train
+from minimanc import inputs, metrics, models, modes, rollout, studies, train, viz
 from minimanc.studies import jobs
 
 np.set_printoptions(precision=2, suppress=True)
@@ -123,7 +123,7 @@ assert np.allclose(traj.aux["q"].sum(-1), 1.0)
 assert np.allclose(traj.ego[:, 0], human.ego[:, 0])  # same start, then its own path
 
 # %%
-fig = plots.plot_trajectories({"MANC": traj}, human, val_ds, [0, 1, 2])
+fig = viz.explain.plot_trajectories({"MANC": traj}, human, val_ds, [0, 1, 2])
 plt.show()
 
 # %% [markdown]
@@ -286,7 +286,7 @@ for name, res in scored["families"].items():
           f"{res['cross_track']:9.2f}{res['at_fault_collision_rate']:12.2f}")
 assert all(res["n_scenes"] == int(families[f].sum()) for f, res in scored["families"].items())
 assert all(res["along_track"] <= res["ade"] + 1e-9 for res in scored["families"].values())
-fig = plots.plot_speeds({"manc": traj, "dmp_prior": prior}, human, [0, 1, 2])
+fig = viz.explain.plot_speeds({"manc": traj, "dmp_prior": prior}, human, [0, 1, 2])
 plt.show()
 
 # %% [markdown]
@@ -364,7 +364,7 @@ assert verdict == ("lowers" if parity["parity"]["ade"] < parity["paper"]["ade"] 
 
 # %%
 scene = studies.pick_scenes(val_ds, traj, 1)[0]
-fig = plots.plot_explain_trace(traj, human, val_ds, scene)
+fig = viz.explain.plot_explain_trace(traj, human, val_ds, scene)
 plt.show()
 
 # %% [markdown]
@@ -396,8 +396,8 @@ print(f"argmax q carries {info['mi_bits']:.3f} bits about the human's mode "
       f"{100 * info['switch_rate']:.0f} % of the steps")
 assert 0.0 <= info["mi_bits"] <= info["mode_entropy_bits"] + 1e-9
 assert q_open.shape == (len(val_ds), val_ds.n_steps, config.n_states)
-fig = plots.plot_q_modes(q_open[scene], labels[scene],
-                         f"MANC open loop, scene {scene}: q above the human's mode")
+fig = viz.explain.plot_q_modes(q_open[scene], labels[scene],
+                               f"MANC open loop, scene {scene}: q above the human's mode")
 plt.show()
 
 # %% [markdown]
@@ -419,11 +419,11 @@ plt.show()
 
 # %% tags=["nbval-ignore-output"]
 steps = studies.saliency_steps(traj, scene)
-maps_ = plots.saliency_maps(fit.params, manc_cfg, traj, val_ds, scene, steps)
+maps_ = viz.explain.saliency_maps(fit.params, manc_cfg, traj, val_ds, scene, steps)
 for m in maps_:  # the explanation reproduces the q the rollout recorded
     assert np.allclose(m["q"], traj.aux["q"][scene, m["step"]], atol=1e-4)
 print("steps", steps, "q:", [np.round(m["q"], 2).tolist() for m in maps_])
-fig = plots.plot_saliency_steps(fit.params, manc_cfg, traj, val_ds, scene, steps)
+fig = viz.explain.plot_saliency_steps(fit.params, manc_cfg, traj, val_ds, scene, steps)
 plt.show()
 
 # %% [markdown]
@@ -457,17 +457,17 @@ for f in results["findings"]:
 assert results["findings"] and all(isinstance(f["holds"], bool) for f in results["findings"])
 
 # %%
-fig = plots.plot_table1(results["table1"]["reactive"])
+fig = viz.study.plot_table1(results["table1"]["reactive"])
 plt.show()
-fig = plots.plot_families(results["families"]["reactive"]["paper"])
+fig = viz.study.plot_families(results["families"]["reactive"]["paper"])
 plt.show()
 
 # %%
-fig = plots.plot_sample_efficiency(results["sample_efficiency"])
+fig = viz.study.plot_sample_efficiency(results["sample_efficiency"])
 plt.show()
-fig = plots.plot_q_states(results["q_states"])
+fig = viz.study.plot_q_states(results["q_states"])
 plt.show()
-fig = plots.plot_ablation(results["ablation"])
+fig = viz.study.plot_ablation(results["ablation"])
 plt.show()
 print({k: v for k, v in results["param_counts"]["paper"].items()})
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from minimanc import inputs, world
+from minimanc import inputs, models, world
 
 
 @pytest.fixture(scope="module")
@@ -14,7 +14,7 @@ def ds():
 
 
 def test_visibility_table():
-    for name in inputs.MODEL_NAMES:
+    for name in models.names():
         paper, parity = inputs.visible(name, "paper"), inputs.visible(name, "parity")
         assert set(paper) <= set(parity)
         assert "bev" in paper
@@ -40,7 +40,7 @@ def test_numeric_features_size_and_scale():
     rng = np.random.default_rng(0)
     obs = {"goal": rng.normal(size=(4, 3)) * 50, "lane_target": rng.normal(size=(4, 10, 2)) * 40,
            "motion": rng.normal(size=(4, 2))}
-    for name in inputs.MODEL_NAMES:
+    for name in models.names():
         for setting in inputs.SETTINGS:
             f = inputs.numeric_features(obs, name, setting)
             n = inputs.numeric_size(name, setting)

@@ -38,7 +38,7 @@ def eng_jax():
 
 
 @pytest.mark.parametrize("setting", inputs.SETTINGS)
-@pytest.mark.parametrize("name", models.MODEL_NAMES)
+@pytest.mark.parametrize("name", models.names())
 def test_shapes(name, setting, eng_np):
     cfg = models.ModelConfig(**{**CFG.to_dict(), "channels": CFG.channels, "setting": setting})
     rng = np.random.default_rng(0)
@@ -51,9 +51,9 @@ def test_shapes(name, setting, eng_np):
     for k, v in state.items():
         assert new[k].shape == v.shape
     assert aux["features"].shape == (B, 4, 4, 8)  # 16 → 8 → 4
-    if name in models.VAGN_MODELS:
+    if name in models.vagn_models():
         assert aux["q"].shape == (B, cfg.n_states)
-    if name in models.DMP_MODELS:
+    if name in models.dmp_models():
         assert aux["alpha"].shape == aux["beta"].shape == (B, 2)
     if name in ("manc", "vagn_only", "dmp_only"):
         assert aux["predicates"].shape == (B, cfg.n_predicates)
@@ -63,13 +63,13 @@ def _sum_tree(params):
     return sum(np.sum(np.asarray(x, dtype=np.float64) ** 2) for x in tree.leaves(params))
 
 
-@pytest.mark.parametrize("name", models.MODEL_NAMES)
+@pytest.mark.parametrize("name", models.names())
 def test_gradients_numpy_equal_jax(name, eng_np, eng_jax):
     """The same model code differentiated by our engine and by JAX agrees to 1e-6 (float64)."""
     cfg = models.ModelConfig(**{**CFG.to_dict(), "channels": CFG.channels, "setting": "parity"})
     rng = np.random.default_rng(1)
     params = models.init(name, rng, cfg)
-    L = 2 if name in models.LSTM_MODELS + models.VAGN_MODELS else 1
+    L = 2 if name in models.lstm_models() + models.vagn_models() else 1
     obs = {k: v for k, v in _obs(rng, cfg, lead=(L, B)).items()}
     target = rng.normal(size=(L, B, 2))
 
@@ -88,7 +88,7 @@ def test_gradients_numpy_equal_jax(name, eng_np, eng_jax):
     assert _sum_tree(g_np) > 0.0  # gradients reach the parameters
 
 
-@pytest.mark.parametrize("name", models.MODEL_NAMES)
+@pytest.mark.parametrize("name", models.names())
 def test_sequence_equals_repeated_steps(name, eng_np):
     rng = np.random.default_rng(2)
     params = models.init(name, rng, CFG)
@@ -116,7 +116,7 @@ def test_sequence_encodes_the_goal_raster_once_per_window_and_refuses_one_that_c
         models.sequence("rvs_g", params, obs, state, CFG, eng_np)
 
 
-@pytest.mark.parametrize("name", models.DMP_MODELS)
+@pytest.mark.parametrize("name", models.dmp_models())
 def test_sequence_feeds_the_dmp_its_own_motion(name, eng_np):
     """With feedback, step i > 0 starts the DMP from the model's own previous controls."""
     rng = np.random.default_rng(8)
@@ -256,7 +256,7 @@ def test_param_count():
     M, N = cfg.n_predicates, cfg.n_states
     assert models.param_count(params) == conv + (8 * M + M) + M * N * N + (N * 4 + 4)
     counts = models.param_counts(models.ModelConfig())
-    assert set(counts) == set(models.MODEL_NAMES)
+    assert set(counts) == set(models.names())
     # the paper's claim (Fig. 7b): MANC is much smaller than the comparison models
     for other in ("cnn", "cnn_lstm", "rvs_g"):
         assert counts["manc"] < 0.7 * counts[other]
@@ -310,7 +310,7 @@ def test_bad_input_raises(eng_np):
 
 
 @pytest.mark.parametrize("feedback", [False, True])
-@pytest.mark.parametrize("name", models.MODEL_NAMES)
+@pytest.mark.parametrize("name", models.names())
 def test_sequence_scan_on_jax_equals_the_loop_on_numpy(name, feedback, eng_np, eng_jax):
     """On JAX the time loop of ``sequence`` is one ``lax.scan``: the same controls, final
     state and per-step aux as the Python loop, with and without the DMP's own-speed
@@ -331,7 +331,7 @@ def test_sequence_scan_on_jax_equals_the_loop_on_numpy(name, feedback, eng_np, e
         np.testing.assert_allclose(np.asarray(sb[k]), sa[k], rtol=1e-9, atol=1e-9)
     for k in xa:
         np.testing.assert_allclose(np.asarray(xb[k]), xa[k], rtol=1e-9, atol=1e-9)
-    if feedback and name in models.DMP_MODELS:  # the feedback changes steps 1.. only
+    if feedback and name in models.dmp_models():  # the feedback changes steps 1.. only
         c, _ = models.sequence(name, params, obs, state, cfg, eng_jax)
         np.testing.assert_allclose(np.asarray(c)[0], a[0], rtol=1e-9, atol=1e-9)
         assert np.abs(np.asarray(c)[1:] - a[1:]).max() > 1e-6

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from minimanc import engine, inputs, layers, models, plots, rollout, train, world
+from minimanc import engine, inputs, layers, models, rollout, train, world
 from minimanc.models import registry
 from minimanc.models.backbone import dense, flatten
+from minimanc.viz import style
 
 
 @pytest.fixture(scope="module")
@@ -35,14 +36,15 @@ TOY = models.ModelSpec("toy_linear", "Toy", "feedforward", registry.observes_goa
 def test_a_new_model_is_one_entry_and_runs_through_the_public_api(ds):
     cfg = models.ModelConfig(image_size=32, channels=(4, 8), setting="parity")
     eng = engine("numpy")
-    assert "toy_linear" not in models.MODEL_NAMES
+    assert "toy_linear" not in models.names()
     with models.registered(TOY):
-        assert models.MODEL_NAMES[-1] == "toy_linear" == inputs.MODEL_NAMES[-1]
-        assert "toy_linear" not in models.VAGN_MODELS + models.LSTM_MODELS + models.DMP_MODELS
+        assert models.names()[-1] == "toy_linear"
+        assert "toy_linear" not in models.vagn_models() + models.lstm_models() + models.dmp_models()
         assert inputs.visible("toy_linear", "parity") == ("bev", "goal", "lane_target", "motion")
         assert inputs.numeric_size("toy_linear", "parity", 10) == 25
-        assert plots.model_label("toy_linear") == "Toy"
-        assert plots.MODEL_LABELS["toy_linear"] == "Toy"
+        assert style.model_label("toy_linear") == "Toy"
+        assert style.model_labels()["toy_linear"] == "Toy"
+        assert style.model_colours()["toy_linear"] == "#000000"
         assert train.window_len("toy_linear", train.TrainConfig(seq_len=3)) == 3
 
         params = models.init("toy_linear", np.random.default_rng(0), cfg)
@@ -64,7 +66,7 @@ def test_a_new_model_is_one_entry_and_runs_through_the_public_api(ds):
         traj = rollout.closed_loop("toy_linear", res.params, ds, cfg, "numpy", steps=2,
                                    progress=False)
         assert traj.ego.shape == (3, 3, 3) and traj.aux == {}
-    assert "toy_linear" not in models.MODEL_NAMES and "toy_linear" not in inputs.MODEL_NAMES
+    assert "toy_linear" not in models.names() and "toy_linear" not in style.model_labels()
     with pytest.raises(ValueError, match="name must be one of"):
         models.init("toy_linear", np.random.default_rng(0), cfg)
     with pytest.raises(ValueError, match="model must be one of"):
@@ -72,16 +74,16 @@ def test_a_new_model_is_one_entry_and_runs_through_the_public_api(ds):
 
 
 def test_the_families_and_windows_of_the_six_models_come_from_their_specs():
-    assert models.MODEL_NAMES == ("cnn", "cnn_lstm", "rvs_g", "manc", "vagn_only", "dmp_only")
-    assert models.VAGN_MODELS == ("manc", "vagn_only")
-    assert models.LSTM_MODELS == ("cnn_lstm", "rvs_g")
-    assert models.DMP_MODELS == ("manc", "dmp_only")
+    assert models.names() == ("cnn", "cnn_lstm", "rvs_g", "manc", "vagn_only", "dmp_only")
+    assert models.vagn_models() == ("manc", "vagn_only")
+    assert models.lstm_models() == ("cnn_lstm", "rvs_g")
+    assert models.dmp_models() == ("manc", "dmp_only")
     tc = train.TrainConfig(seq_len=5, dmp_seq_len=7, q_seq_len=2)
-    assert {n: train.window_len(n, tc) for n in models.MODEL_NAMES} == {
+    assert {n: train.window_len(n, tc) for n in models.names()} == {
         "cnn": 1, "cnn_lstm": 5, "rvs_g": 5, "manc": 7, "vagn_only": 2, "dmp_only": 7}
-    assert [plots.model_label(n) for n in models.MODEL_NAMES] == [
+    assert [style.model_label(n) for n in models.names()] == [
         "CNN", "CNN-LSTM", "RvS-G", "MANC", "vAGN-only", "DMP-only"]
-    assert plots.model_label("human") == "Human" and plots.model_label("other") == "other"
+    assert style.model_label("human") == "Human" and style.model_label("other") == "other"
 
 
 def test_the_registry_refuses_bad_specs():
@@ -107,4 +109,4 @@ def test_the_registry_refuses_bad_specs():
                          _toy_encode, None)
     with pytest.raises(TypeError, match="ModelSpec"):
         models.register("toy")
-    assert models.MODEL_NAMES == ("cnn", "cnn_lstm", "rvs_g", "manc", "vagn_only", "dmp_only")
+    assert models.names() == ("cnn", "cnn_lstm", "rvs_g", "manc", "vagn_only", "dmp_only")

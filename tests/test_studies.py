@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from minimanc import metrics, studies
+from minimanc import metrics, studies, viz
 from minimanc.studies import jobs, report
 
 
@@ -342,14 +342,12 @@ def test_cli_agents_option():
 
 
 def test_new_plots_refuse_bad_input():
-    from minimanc import plots
-
     with pytest.raises(ValueError, match="q must have shape"):
-        plots.plot_q_modes(np.zeros((5, 3)), np.zeros(4, int))
+        viz.explain.plot_q_modes(np.zeros((5, 3)), np.zeros(4, int))
     with pytest.raises(ValueError, match="families"):
-        plots.plot_families({})
+        viz.study.plot_families({})
     with pytest.raises(ValueError, match="metrics"):
-        plots.plot_families({"manc": {}}, metrics=("speed",))
+        viz.study.plot_families({"manc": {}}, metrics=("speed",))
 
 
 def test_scene_families_follow_the_tags():

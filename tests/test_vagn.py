@@ -15,6 +15,7 @@ from hypothesis import strategies as st  # noqa: E402
 
 from minimanc import checks, engine, vagn  # noqa: E402
 from minimanc.autodiff.check import numerical_grad  # noqa: E402
+from minimanc.viz.automaton import plot_q_heatmap  # noqa: E402
 
 ENGINES = ["numpy", "jax"]
 
@@ -387,7 +388,7 @@ def test_float32_values_converted_to_float64_are_held_to_float64_with_a_hint():
         with pytest.raises(ValueError, match="float32 values converted to float64"):
             vagn.step(recorded, np.ones(3), W.astype(np.float64))
     vagn.step(recorded / recorded.sum(), np.ones(3), W.astype(np.float64))
-    vagn.plot_q_heatmap(q[None])
+    plot_q_heatmap(q[None])
     plt.close("all")
 
 

@@ -1,4 +1,4 @@
-"""Tests for minimanc.viz: the figures apart from the math, and the old names forwarded to them."""
+"""Tests for minimanc.viz: the figures apart from the math, behind one door."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ import importlib.util
 import re
 import subprocess
 import sys
-import types
 from pathlib import Path
 
 import matplotlib
@@ -20,38 +19,73 @@ import pytest  # noqa: E402
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from minimanc import cam, plots, vagn  # noqa: E402
-from minimanc.viz import automaton, explain, saliency, study, style  # noqa: E402
-from minimanc.viz.forward import forwarder  # noqa: E402
+import minimanc.viz  # noqa: E402
+from minimanc import cam, vagn  # noqa: E402
+from minimanc.viz import automaton, dagger, explain, saliency, study, style  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-
-FORWARDED = {
-    cam: (saliency, ("paper_cmap", "PAPER_CMAP", "blend", "overlay", "plot_q_saliency")),
-    vagn: (automaton, ("plot_automaton", "plot_q_heatmap")),
-    plots: (style, ("MODEL_LABELS", "MODEL_COLOURS")),
-}
+VIZ_MODULES = ("style", "graph", "automaton", "saliency", "world", "study", "explain",
+               "dagger")
 
 
 # --------------------------------------------------------------------- no plotting in the math
-def test_math_model_and_viz_modules_import_no_plotting_library():
-    code = ("import sys, minimanc.models, minimanc.cam, minimanc.vagn, minimanc.plots, "
-            "minimanc.viz.automaton, minimanc.viz.saliency, minimanc.viz.study, "
-            "minimanc.viz.explain; import minimanc.cam as c, minimanc.vagn as v; "
-            "c.blend, c.overlay, c.plot_q_saliency, v.plot_automaton, v.plot_q_heatmap; "
+def _plotting_modules_after(imports: str) -> str:
+    code = (f"import sys; {imports}; "
             "print(sorted({m.split('.')[0] for m in sys.modules} & {'matplotlib', 'PIL'}))")
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True, cwd=ROOT).stdout.strip()
+
+
+def test_math_model_world_and_viz_modules_import_no_plotting_library():
+    out = _plotting_modules_after("import minimanc.models, minimanc.cam, minimanc.vagn, "
+                                  "minimanc.world, minimanc.viz")
+    assert out == "[]", out
+
+
+def test_the_world_imports_no_figure_module():
+    code = ("import sys, minimanc.world; "
+            "print(sorted(m for m in sys.modules if m.startswith('minimanc.viz')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True, cwd=ROOT)
-    assert out.stdout.strip() == "[]", out.stdout
+                         check=True, cwd=ROOT).stdout.strip()
+    assert out == "[]", out
 
 
-@pytest.mark.parametrize("path", ["minimanc/cam.py", "minimanc/vagn.py"])
+@pytest.mark.parametrize("path", ["minimanc/cam.py", "minimanc/vagn.py",
+                                  "minimanc/autodiff/graph.py", "minimanc/dagger/loop.py"])
 def test_math_modules_hold_no_plotting_code(path):
     tree = ast.parse((ROOT / path).read_text())
     imported = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
     imported |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
-    assert not {m for m in imported if m.split(".")[0] in ("matplotlib", "PIL")}, imported
+    assert not {m for m in imported
+                if m.split(".")[0] in ("matplotlib", "PIL") or m.startswith("minimanc.viz")}
     assert "plt" not in {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+
+
+def _module_level_names(tree: ast.Module) -> list[str]:
+    names = []
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef):
+            names.append(node.name)
+        elif isinstance(node, ast.Assign | ast.AnnAssign):
+            names += [t.id for t in ast.walk(node)
+                      if isinstance(t, ast.Name) and isinstance(t.ctx, ast.Store)]
+    return names
+
+
+def test_no_module_defines_a_module_level_getattr_or_dir():
+    found = [f"{path.relative_to(ROOT)}: {name}"
+             for path in sorted((ROOT / "minimanc").rglob("*.py"))
+             for name in _module_level_names(ast.parse(path.read_text()))
+             if name in ("__getattr__", "__dir__")]
+    assert found == []
+
+
+def test_viz_is_the_one_door_for_figures():
+    assert minimanc.viz.__all__ == sorted(VIZ_MODULES)
+    for name in VIZ_MODULES:
+        assert getattr(minimanc.viz, name) is importlib.import_module(f"minimanc.viz.{name}")
+    for gone in ("plots.py", "viz/forward.py", "world/viz.py"):  # the old doors
+        assert not (ROOT / "minimanc" / gone).exists(), gone
 
 
 def _docstring_problems():
@@ -63,58 +97,29 @@ def _docstring_problems():
     return mod.problems
 
 
-@pytest.mark.parametrize("name", ["automaton", "saliency", "style", "forward"])
+@pytest.mark.parametrize("name", ["automaton", "saliency", "style", "dagger", "graph"])
 def test_viz_functions_carry_numpydoc_sections(name):
     # the figures of chapters 5-6 were checked through vagn's and cam's __all__ before the move
     module = importlib.import_module(f"minimanc.viz.{name}")
     assert module.__all__ and _docstring_problems()(module) == []
 
 
-@pytest.mark.parametrize("name", ["automaton", "saliency", "study", "explain"])
+@pytest.mark.parametrize("name", ["graph", "automaton", "saliency", "world", "study", "explain",
+                                  "dagger"])
 def test_viz_module_docstring_opens_with_its_chapter(name):
     doc = importlib.import_module(f"minimanc.viz.{name}").__doc__
     assert re.match(r"Chapter \d+ — ", doc), doc[:80]
 
 
-# --------------------------------------------------------------------- the old names
-@pytest.mark.parametrize("module", list(FORWARDED), ids=lambda m: m.__name__)
-def test_old_names_are_the_viz_objects_and_listed(module):
-    target, names = FORWARDED[module]
-    for name in names:
-        if name in ("PAPER_CMAP", "MODEL_LABELS", "MODEL_COLOURS"):  # built when asked
-            assert getattr(module, name) == getattr(target, name)
-        else:
-            assert getattr(module, name) is getattr(target, name)
-        assert name in dir(module)
-        assert name in module.__doc__
-    with pytest.raises(AttributeError, match=f"module '{module.__name__}' has no attribute"):
-        module.no_such_figure  # noqa: B018
+def test_model_labels_and_colours_list_every_registered_model_and_the_references():
+    from minimanc import models
 
-
-def test_plots_reexports_every_figure_of_the_viz_modules():
-    for mod in (study, explain, style):
-        for name in mod.__all__:
-            if name in plots.__all__:
-                assert getattr(plots, name) is getattr(mod, name)
-    shown = {n for mod in (study, explain) for n in mod.__all__ if n.startswith("plot_")}
-    assert shown <= set(plots.__all__)
-
-
-def test_forwarder_reads_the_target_on_every_access():
-    target = types.ModuleType("minimanc_fake_target")
-    target.value = 1
-    sys.modules[target.__name__] = target
-    try:
-        namespace = {"own": 0}
-        get, names = forwarder("fake", namespace, {"value": target.__name__})
-        assert get("value") == 1
-        target.value = 2
-        assert get("value") == 2  # not cached
-        assert names() == ["own", "value"]
-        with pytest.raises(AttributeError, match="module 'fake' has no attribute 'other'"):
-            get("other")
-    finally:
-        del sys.modules[target.__name__]
+    labels, colours = style.model_labels(), style.model_colours()
+    assert list(labels) == ["human", *models.names(), "dmp_prior"]
+    assert set(colours) == set(style.REFERENCE_COLOURS) | set(models.names())
+    for name in models.names():
+        assert labels[name] == style.model_label(name) == models.spec(name).label
+        assert colours[name] == style.model_colour(name) == models.spec(name).colour
 
 
 # --------------------------------------------------------------------- shared pieces
@@ -196,7 +201,7 @@ def test_plot_q_heatmap_shows_the_distribution():
 
 # --------------------------------------------------------------------- chapter 6 (CAM)
 def test_paper_cmap_ranks_yellow_red_cyan_magenta():
-    c = saliency.PAPER_CMAP
+    c = saliency.paper_cmap()
     assert c is saliency.paper_cmap()  # built once
     np.testing.assert_allclose(c(1.0)[:3], [1, 1, 0])  # high: yellow
     np.testing.assert_allclose(c(2 / 3)[:3], [1, 0, 0], atol=0.01)  # red
@@ -211,7 +216,7 @@ def test_blend_and_overlay():
     np.testing.assert_allclose(saliency.blend(img, sal, alpha=0.0), img / 255.0)
     full = saliency.blend(img, sal, alpha=1.0)
     up = cam.minmax_normalize(cam.upsample(sal, 8))
-    np.testing.assert_allclose(full, saliency.PAPER_CMAP(up)[..., :3])
+    np.testing.assert_allclose(full, saliency.paper_cmap()(up)[..., :3])
     r, c = cam.peak_location(up)
     np.testing.assert_allclose(full[r, c], [1, 1, 0])  # the peak is drawn yellow
     fig, ax = plt.subplots()
@@ -252,7 +257,7 @@ def test_plot_table1_bars_are_the_means_in_groups():
     centres = [b.get_x() + b.get_width() / 2 for b in bars]
     np.testing.assert_allclose(centres, [-0.2, 0.8, 1.8, 0.2, 1.2, 2.2])
     assert [b.get_hatch() or "" for b in bars] == [""] * 3 + ["//"] * 3
-    assert [t.get_text() for t in ax.get_xticklabels()][0] == plots.model_label("manc")
+    assert [t.get_text() for t in ax.get_xticklabels()][0] == style.model_label("manc")
     assert ax.get_title() == style.METRIC_LABELS["ade"]
     assert [t.get_text() for t in ax.get_legend().get_texts()] == ["paper", "privileged"]
     plt.close(fig)
@@ -271,4 +276,44 @@ def test_plot_families_bars_are_the_means_in_groups():
         assert [t.get_text() for t in ax.get_xticklabels()] == ["straight", "left-turn"]
         assert ax.get_title() == style.METRIC_LABELS[metric]
     assert fig._suptitle.get_text() == "T"
+    plt.close(fig)
+
+
+# --------------------------------------------------------------------- chapter 11 (DAgger)
+def test_plot_rounds_draws_each_run_over_its_rounds_and_bc_as_its_mean():
+    from types import SimpleNamespace as NS
+
+    run = NS(name="manc", rounds=[NS(round=0, metrics={"ade": 3.0}),
+                                  NS(round=1, metrics={"ade": 2.0}),
+                                  NS(round=2, metrics={})])  # a round without the metric
+    bc = [NS(metrics={"ade": 4.0}), NS(metrics={"ade": 2.0})]
+    ax = dagger.plot_rounds([run], "ade", bc)
+    line, mean = ax.get_lines()
+    np.testing.assert_array_equal(line.get_xdata(), [0, 1])
+    np.testing.assert_array_equal(line.get_ydata(), [3.0, 2.0])
+    np.testing.assert_array_equal(mean.get_ydata(), [3.0, 3.0])  # BC: the mean of the runs
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["DAgger manc",
+                                                                   "BC, same budget"]
+    assert ax.get_ylabel() == "ade"
+    plt.close(ax.figure)
+    ax = dagger.plot_rounds([run], "ade")
+    assert len(ax.get_lines()) == 1  # no BC line without BC runs
+    plt.close(ax.figure)
+
+
+def test_plot_study_rounds_draws_dagger_by_round_and_bc_per_model():
+    res = {"models": {"manc": {"by_round": [{"ade": {"mean": 3.0}}, {"ade": {"mean": 2.5}}],
+                               "bc": {"ade": {"mean": 2.8}}},
+                      "cnn": {"by_round": [{"ade": {"mean": 4.0}}, {"ade": {"mean": 3.0}}],
+                              "bc": {"ade": {"mean": 3.5}}}}}
+    fig = dagger.plot_study_rounds(res, "ade")
+    ax = fig.axes[0]
+    lines = ax.get_lines()  # per model: DAgger by round, then BC
+    np.testing.assert_array_equal(lines[0].get_ydata(), [3.0, 2.5])
+    np.testing.assert_array_equal(lines[1].get_ydata(), [2.8, 2.8])
+    np.testing.assert_array_equal(lines[2].get_ydata(), [4.0, 3.0])
+    assert lines[0].get_color() == lines[1].get_color() == style.model_colour("manc")
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == [
+        "MANC DAgger", "MANC BC", "CNN DAgger", "CNN BC"]
+    assert ax.get_ylabel() == style.METRIC_LABELS["ade"]
     plt.close(fig)

@@ -9,7 +9,8 @@
   ``reductions``, ``arrays``; ``dispatch`` makes traced values behave like arrays);
 * :mod:`minimanc.autodiff.check` — central-difference gradient checks;
 * :mod:`minimanc.autodiff.graph` — :func:`computation_graph`, the traced graph of a
-  function at a point with the cotangent on each edge (``Graph.draw`` plots it);
+  function at a point with the cotangent on each edge (drawn by
+  :func:`minimanc.viz.graph.plot_graph`);
 * :mod:`minimanc.autodiff.nn` — neural-net primitives (activations, conv2d).
 
 Converting a traced value to a plain number or array (``float(x)``, ``x.item()``,

@@ -12,7 +12,7 @@
 
 Each module has ``register(subparsers)``; choices come from the library's registries
 (:data:`minimanc.engine.ENGINES`, :data:`minimanc.inputs.SETTINGS`,
-:data:`minimanc.models.MODEL_NAMES`), never retyped. A command raises
+:func:`minimanc.models.names`), never retyped. A command raises
 :class:`~minimanc.errors.UsageError` for bad input, which :func:`main` prints as one line
 on stderr with exit code 2.
 """

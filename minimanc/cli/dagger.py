@@ -53,7 +53,7 @@ def _check_args(args: argparse.Namespace) -> None:
     from minimanc import models
     from minimanc.dagger import AGENTS, SIMS
 
-    check_choices([args.model], "--model", models.MODEL_NAMES, what="model")
+    check_choices([args.model], "--model", models.names(), what="model")
     check_choices([args.sim], "--sim", SIMS, what="simulator")
     check_choices([args.agents], "--agents", AGENTS, what="protocol")
     check_choices([args.setting], "--setting", SETTINGS, what="setting")
@@ -136,6 +136,7 @@ def cmd_dagger(args: argparse.Namespace) -> int:
     import matplotlib.pyplot as plt
 
     from minimanc import dagger, train
+    from minimanc.viz.dagger import plot_rounds
 
     _check_args(args)
     out = check_out_dir(args.out)
@@ -187,7 +188,7 @@ def cmd_dagger(args: argparse.Namespace) -> int:
     for key in keys:
         if not any(key in r.metrics for r in res.rounds):
             continue
-        ax = dagger.plot_rounds([res], key, [] if bc is None else [bc])
+        ax = plot_rounds([res], key, [] if bc is None else [bc])
         path = figs / f"dagger_{key}.png"
         ax.figure.savefig(path, dpi=120, bbox_inches="tight")
         plt.close(ax.figure)

@@ -116,7 +116,7 @@ def cmd_show(args: argparse.Namespace) -> int:
     import matplotlib.pyplot as plt
 
     from minimanc import world
-    from minimanc.world import viz
+    from minimanc.viz.world import gallery, plot_map, save_gif, scene_frames
 
     if args.scene is not None:
         check_int(args.scene, "--scene", 0)
@@ -133,12 +133,12 @@ def cmd_show(args: argparse.Namespace) -> int:
     if not 0 <= scene < len(ds):
         raise UsageError(f"--scene must be in [0, {len(ds) - 1}] (the dataset has {len(ds)} "
                          f"scenes), got {scene}")
-    fig = viz.gallery(ds, range(min(len(ds), 12)))
+    fig = gallery(ds, range(min(len(ds), 12)))
     fig.savefig(out / "gallery.png", dpi=120)
     plt.close(fig)
-    viz.save_gif(viz.scene_frames(ds, scene), out / "scene.gif")
+    save_gif(scene_frames(ds, scene), out / "scene.gif")
     fig, ax = plt.subplots(figsize=(6, 6))
-    viz.plot_map(ds.maps[scene], ax, ego=ds.ego[scene], ado=ds.ado[scene],
+    plot_map(ds.maps[scene], ax, ego=ds.ego[scene], ado=ds.ado[scene],
                  ado_valid=ds.ado_valid[scene])
     fig.savefig(out / "scene_map.png", dpi=120)
     plt.close(fig)

@@ -94,7 +94,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     if args.lr is not None:
         check_positive(args.lr, "--lr")
     check_int(args.seed, "--seed", 0)
-    check_choices(args.models, "--models", models.MODEL_NAMES, what="model(s)")
+    check_choices(args.models, "--models", models.names(), what="model(s)")
     given = {"epochs": args.epochs, "batch_size": args.batch_size, "lr": args.lr}
     try:
         tc = train.TrainConfig(seed=args.seed, **{k: v for k, v in given.items() if v is not None})

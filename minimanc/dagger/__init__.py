@@ -58,7 +58,6 @@ from minimanc.dagger.loop import (
     behaviour_cloning,
     dagger,
     default_config,
-    plot_rounds,
     round_dir,
 )
 from minimanc.dagger.schedule import Budget, beta_schedule, check_beta, mix, plan_budget
@@ -86,6 +85,5 @@ __all__ = [
     "default_config",
     "mix",
     "plan_budget",
-    "plot_rounds",
     "round_dir",
 ]

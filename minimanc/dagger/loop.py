@@ -1,5 +1,6 @@
-"""Chapter 11 — the DAgger loop with checkpoints per round, behaviour cloning at the same
-label budget, and the metric-vs-round figure (see :mod:`minimanc.dagger`)."""
+"""Chapter 11 — the DAgger loop with checkpoints per round and behaviour cloning at the same
+label budget (see :mod:`minimanc.dagger`; the metric-vs-round figure is
+:func:`minimanc.viz.dagger.plot_rounds`)."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from minimanc.rollout import ModelPolicy
 from minimanc.world.scenes import Dataset
 
 __all__ = ["FINGERPRINT_FILE", "ROUND_FILE", "DaggerResult", "RoundResult", "behaviour_cloning",
-           "dagger", "default_config", "plot_rounds", "round_dir"]
+           "dagger", "default_config", "round_dir"]
 
 ROUND_FILE = "round.json"
 """The file that marks a round as complete (written last, atomically)."""
@@ -184,7 +185,7 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
            engine: Any = "jax", out: str | os.PathLike | None = None, seed: int = 0,
            progress: bool = True, evaluate: bool = True,
            on_round: Callable[[RoundResult], None] | None = None) -> DaggerResult:
-    """DAgger for model ``name`` (any of :data:`minimanc.models.MODEL_NAMES`) with ``teacher``.
+    """DAgger for model ``name`` (any of :func:`minimanc.models.names`) with ``teacher``.
 
     ``budget`` the expert-labelled samples (an int for :func:`plan_budget` over
     ``rounds``, or a :class:`Budget`); ``rounds ≥ 1`` DAgger rounds after round 0
@@ -318,27 +319,3 @@ def behaviour_cloning(name: str, teacher: Teacher, budget: int | Budget, rounds:
     if where is not None:
         _atomic_json(where / ROUND_FILE, {"fingerprint": fp, "result": r.to_json()})
     return r
-
-
-# --------------------------------------------------------------------------- figure
-
-
-def plot_rounds(results: Sequence[DaggerResult], metric: str = "ade",
-                bc: Sequence[RoundResult] = (), ax: Any = None) -> Any:
-    """Metric vs round: one line per DAgger run, BC at the same budget as a dashed line
-    (the mean of ``bc``). Returns the matplotlib axes."""
-    import matplotlib.pyplot as plt
-
-    if ax is None:
-        _, ax = plt.subplots(figsize=(5, 3.2))
-    for res in results:
-        xs = [r.round for r in res.rounds if metric in r.metrics]
-        ys = [r.metrics[metric] for r in res.rounds if metric in r.metrics]
-        ax.plot(xs, ys, marker="o", label=f"DAgger {res.name}")
-    vals = [r.metrics[metric] for r in bc if metric in r.metrics]
-    if vals:
-        ax.axhline(float(np.mean(vals)), ls="--", color="k", label="BC, same budget")
-    ax.set_xlabel("round (0 = behaviour cloning)")
-    ax.set_ylabel(metric)
-    ax.legend(fontsize=8)
-    return ax

@@ -21,7 +21,9 @@ The graded notebooks follow nbgrader's conventions without its database:
   ``solutions/<assignment>.ipynb``, never against the notebook's own. A
   solution cell may list library functions it asks the student to write
   (``minimanc.forbids``); they raise while that exercise's grade cells run
-  (:func:`shadow`).
+  (:func:`shadow`). The tools grade cells rely on are captured before any student
+  cell runs and restored (and named) before each grade cell; answers must have
+  exact plain types (:mod:`~minimanc.exercises.integrity`).
 
 Notebooks are authored in the "percent" format (:func:`convert`), see
 CONTRIBUTING.md.
@@ -30,8 +32,9 @@ The package has one module per job, and every name is re-exported here:
 :mod:`~minimanc.exercises.markers` (markers, metadata, validation),
 :mod:`~minimanc.exercises.builder` (solutions → exercises),
 :mod:`~minimanc.exercises.conversion` (percent format, execution),
-:mod:`~minimanc.exercises.grading` (grading) and :mod:`~minimanc.exercises.shadowing`
-(library shadowing).
+:mod:`~minimanc.exercises.grading` (grading), :mod:`~minimanc.exercises.integrity`
+(pristine tools and strict answers while grading) and
+:mod:`~minimanc.exercises.shadowing` (library shadowing).
 """
 
 from __future__ import annotations
@@ -59,6 +62,10 @@ from minimanc.exercises.grading import (
     grade,
     instrument_grade_source,
     read_notebook,
+)
+from minimanc.exercises.integrity import (
+    RefusedAnswer,
+    TamperedDuringGrading,
 )
 from minimanc.exercises.markers import (
     BEGIN_HIDDEN,
@@ -98,8 +105,10 @@ __all__ = [
     "META_KEY",
     "NotebookFormatError",
     "RAISES_TAG",
+    "RefusedAnswer",
     "Shadow",
     "TIMEOUT_ENAME",
+    "TamperedDuringGrading",
     "assignment_name",
     "assignment_of",
     "build",

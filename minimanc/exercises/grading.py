@@ -3,7 +3,11 @@
 :func:`grade` executes a notebook and scores each grade cell against the grade
 cells (hidden tests included) of ``solutions/<assignment>.ipynb``, never
 against the notebook's own; while an exercise's grade cells run, the library
-functions it ``forbids`` raise (:func:`minimanc.exercises.shadow`).
+functions it ``forbids`` raise (:func:`minimanc.exercises.shadow`). Before any
+student cell runs, the tools grade cells rely on are captured; before each grade
+cell whatever student code replaced is restored and named on the grade cell's
+row, and the grade cell runs against the captured tools with strict answer types
+(:mod:`minimanc.exercises.integrity`).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import nbformat
 
 from minimanc.errors import UsageError
 from minimanc.exercises.conversion import TIMEOUT_ENAME, notebook_client
+from minimanc.exercises.integrity import defined_names, imported_names, read_names
 from minimanc.exercises.markers import (
     BEGIN_HIDDEN,
     END_HIDDEN,
@@ -66,6 +71,7 @@ class GradeRow:
     max_points: float
     message: str = ""
     hidden: bool = False
+    tampered: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -93,7 +99,7 @@ class GradeReport:
             "source": self.source,
             "total": self.total,
             "max_total": self.max_total,
-            "rows": [dict(r.__dict__) for r in self.rows],
+            "rows": [copy.deepcopy(r.__dict__) for r in self.rows],
             "notes": self.notes,
         }
 
@@ -249,21 +255,74 @@ def _setup_source(targets: list[str], exercise: str) -> str:
     )
 
 
-def _probe_source(nonce: str, guarded: bool) -> str:
+_INTEGRITY = "import minimanc.exercises.integrity as _minimanc_integrity\n"
+
+
+def _capture_source(reference) -> str:
+    """The first cell: capture the tools (the solutions notebook's imports) before
+    any student cell runs."""
+    plain = [cell_source(c) for c in reference.cells if c.cell_type == "code"
+             and not is_grade_cell(c) and not is_solution_cell(c)]
+    classes = [n for c in reference.cells if c.cell_type == "code" and not is_grade_cell(c)
+               for n in defined_names(cell_source(c))[1]]
+    return (_INTEGRITY + f"_minimanc_integrity.capture({imported_names(plain)!r}, "
+            f"{sorted(set(classes))!r})\ndel _minimanc_integrity")
+
+
+def _restore_source(token: str, read: list[str], answers: list[str]) -> str:
+    return (_INTEGRITY + f"_minimanc_integrity.restore({token!r}, globals(), {read!r}, "
+            f"{answers!r})\ndel _minimanc_integrity")
+
+
+def _run_source(source: str, answers: list[str], gid: str) -> str:
+    return (_INTEGRITY + f"_minimanc_integrity.run_grade({source!r}, globals(), {answers!r}, "
+            f"{f'<grade cell {gid}>'!r})")
+
+
+def _probe_source(nonce: str, token: str, guarded: bool) -> str:
     restore = f"    {_GUARD}.restore()\n" if guarded else "    pass\n"
     return (
         f"try:\n{restore}finally:\n"
+        f"    {_INTEGRITY}"
+        f"    _minimanc_integrity.check_after({token!r})\n"
         f"    print({nonce!r} + ':' + str(globals().get({_PART!r}, '?')))"
     )
 
 
 @dataclass
 class _Slot:
-    """Where one expected grade cell sits in the notebook being executed."""
+    """Where one expected grade cell sits in the notebook being executed, and the
+    tokens its cells print (fresh for each grade cell, so a token seen in one
+    cell's output cannot be replayed in another)."""
 
+    check: int
     grade: int
     probe: int
     labelled: bool
+    nonce: str
+    before: str
+    after: str
+
+
+def _found(cell, token: str) -> list[str] | None:
+    """The names printed after ``token`` by a restore/check call, None if absent.
+
+    The last such line counts: a ``pre_run_cell`` callback of the student's, run
+    before the restore removes it, may have printed a forged one earlier.
+    """
+    for line in reversed(_stdout(cell).splitlines()):
+        if line.startswith(token + ":"):
+            try:
+                names = json.loads(line[len(token) + 1:])
+            except json.JSONDecodeError:
+                return None
+            return [str(n) for n in names] if isinstance(names, list) else None
+    return None
+
+
+def _listing(names: list[str], limit: int = 6) -> str:
+    more = f" and {len(names) - limit} more" if len(names) > limit else ""
+    return ", ".join(names[:limit]) + more
 
 
 def grade(
@@ -330,7 +389,15 @@ def grade(
     exercise_of = exercise_of_grade_cells(reference_nb)
     forbids = forbidden_functions(reference_nb)
 
-    cells, slots, nonce = _grading_cells(student, reference, exercise_of, forbids, report)
+    answers = {grade_id(c): defined_names(cell_source(c))[0]
+               for c in reference_nb.cells if is_solution_cell(c)}
+    cells, slots = _grading_cells(student, reference, exercise_of, forbids, answers, report)
+    # importing the package (nbformat, ...) and capturing are two cells, each well
+    # inside the cell timeout
+    cells[:0] = [nbformat.v4.new_code_cell(_INTEGRITY + "del _minimanc_integrity"),
+                 nbformat.v4.new_code_cell(_capture_source(reference_nb))]
+    for slot in slots.values():
+        slot.check, slot.grade, slot.probe = slot.check + 2, slot.grade + 2, slot.probe + 2
     run_nb = nbformat.v4.new_notebook(metadata=copy.deepcopy(student.metadata))
     run_nb.cells = cells
     crashed, timed_out = _execute_for_grading(run_nb, path, timeout, report)
@@ -348,27 +415,42 @@ def grade(
             continue
         cell = run_nb.cells[slot.grade]
         probe = _stdout(run_nb.cells[slot.probe])
+        nonce = slot.nonce
         part = probe.rsplit(":", 1)[-1].strip() if nonce in probe else "?"
         error = _first_error(cell)
+        before = _found(run_nb.cells[slot.check], slot.before)
+        after = _found(run_nb.cells[slot.probe], slot.after)
         if slot.grade in timed_out:
-            report.rows.append(GradeRow(gid, 0.0, max_points, f"timeout after {timeout} s"))
+            row = GradeRow(gid, 0.0, max_points, f"timeout after {timeout} s")
         elif error:
             hidden = slot.labelled and part == "hidden"
             message = f"hidden test failed: {error}" if hidden else error
-            report.rows.append(GradeRow(gid, 0.0, max_points, message, hidden))
+            row = GradeRow(gid, 0.0, max_points, message, hidden)
         elif cell.execution_count is None:
-            report.rows.append(GradeRow(gid, 0.0, max_points, crashed or "not executed"))
+            row = GradeRow(gid, 0.0, max_points, crashed or "not executed")
         elif f"{nonce}\n" not in _stdout(cell):
-            report.rows.append(GradeRow(gid, 0.0, max_points, "the tests did not run to the end"))
+            row = GradeRow(gid, 0.0, max_points, "the tests did not run to the end")
+        elif before is None or after is None:
+            row = GradeRow(gid, 0.0, max_points, "the grader's integrity checks did not run")
         else:
-            report.rows.append(GradeRow(gid, max_points, max_points))
+            row = GradeRow(gid, max_points, max_points)
+        if after:
+            row.points, row.tampered = 0.0, list(after)
+            row.message = (f"tampered: your code replaced {_listing(after)} while the tests "
+                           "ran; the tests do not count") + (f" ({row.message})" if row.message
+                                                             else "")
+        elif before:
+            row.tampered = list(before)
+            row.message = (f"tampered: your code replaced {_listing(before)}; the tests used "
+                           "the originals") + (f"; {row.message}" if row.message else "")
+        report.rows.append(row)
     return report
 
 
-def _grading_cells(student, reference, exercise_of, forbids, report):
+def _grading_cells(student, reference, exercise_of, forbids, answers, report):
     """The cells to execute: the student's cells, with each expected grade cell
-    replaced by the authoritative one, wrapped in its shadowing set-up and probe."""
-    nonce = f"minimanc-grade-{secrets.token_hex(8)}"
+    replaced by the authoritative one, wrapped in the integrity check, its
+    shadowing set-up and its probe (see :func:`grade`)."""
     cells, slots = [], {}
     for cell in student.cells:
         gid = grade_id(cell) if is_grade_cell(cell) else None
@@ -384,13 +466,19 @@ def _grading_cells(student, reference, exercise_of, forbids, report):
             continue
         exercise = exercise_of.get(gid, gid)
         targets = forbids.get(exercise, [])
+        nonce, before, after = (f"minimanc-grade-{secrets.token_hex(8)}" for _ in range(3))
+        source = cell_source(reference[gid])
+        names = answers.get(exercise, [])
+        cells.append(nbformat.v4.new_code_cell(
+            _restore_source(before, sorted(read_names(source)), names)))
+        check = len(cells) - 1
         if targets:
             cells.append(nbformat.v4.new_code_cell(_setup_source(targets, exercise)))
-        src, labelled = instrument_grade_source(cell_source(reference[gid]), nonce)
-        cells.append(nbformat.v4.new_code_cell(src))
-        cells.append(nbformat.v4.new_code_cell(_probe_source(nonce, bool(targets))))
-        slots[gid] = _Slot(len(cells) - 2, len(cells) - 1, labelled)
-    return cells, slots, nonce
+        src, labelled = instrument_grade_source(source, nonce)
+        cells.append(nbformat.v4.new_code_cell(_run_source(src, names, gid)))
+        cells.append(nbformat.v4.new_code_cell(_probe_source(nonce, after, bool(targets))))
+        slots[gid] = _Slot(check, len(cells) - 2, len(cells) - 1, labelled, nonce, before, after)
+    return cells, slots
 
 
 def _execute_for_grading(nb, path: Path, timeout: int, report: GradeReport):

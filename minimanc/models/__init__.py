@@ -36,7 +36,9 @@ uses only ``eng.xp`` / ``eng.nn`` / ``eng.scan``: the same code runs on both, an
 gradients agree to 1e-6 in float64 (``tests/test_models.py``).
 
 Modules: :mod:`~minimanc.models.config` (:class:`ModelConfig`),
-:mod:`~minimanc.models.registry` (:class:`ModelSpec`, :func:`register`),
+:mod:`~minimanc.models.registry` (:class:`ModelSpec`, :func:`register`, and the registered
+names: :func:`names`, :func:`vagn_models`, :func:`lstm_models`, :func:`dmp_models`, read
+from the registry on every call),
 :mod:`~minimanc.models.backbone`, :mod:`~minimanc.models.dmp_head` (with
 :mod:`~minimanc.models.head_vjp`, its one-node VJP on the NumPy engine),
 :mod:`~minimanc.models.zoo` (the six specs), :mod:`~minimanc.models.forward`
@@ -45,8 +47,6 @@ Modules: :mod:`~minimanc.models.config` (:class:`ModelConfig`),
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 from minimanc.models import registry
 from minimanc.models.backbone import backbone
@@ -61,28 +61,37 @@ from minimanc.models.forward import (
     sequence,
     step,
 )
-from minimanc.models.registry import ModelSpec, check_name, register, registered, unregister
+from minimanc.models.registry import (
+    ModelSpec,
+    check_name,
+    dmp_models,
+    lstm_models,
+    names,
+    register,
+    registered,
+    unregister,
+    vagn_models,
+)
 from minimanc.models.zoo import BUILTIN
 
 __all__ = [
     "BUILTIN",
     "CONTROL_SCALE",
     "DEFAULT_GAINS",
-    "DMP_MODELS",
-    "LSTM_MODELS",
-    "MODEL_NAMES",
-    "VAGN_MODELS",
     "ModelConfig",
     "ModelSpec",
     "backbone",
     "check_name",
     "dmp_head",
+    "dmp_models",
     "explain",
     "gain_logits",
     "init",
     "initial_state",
     "lane_point",
     "lane_points",
+    "lstm_models",
+    "names",
     "param_count",
     "param_counts",
     "register",
@@ -92,22 +101,8 @@ __all__ = [
     "spec",
     "step",
     "unregister",
+    "vagn_models",
 ]
 
 spec = registry.get
 """``spec(name)``: the :class:`ModelSpec` of a registered model."""
-
-_GROUPS = {
-    "MODEL_NAMES": lambda s: True,
-    "VAGN_MODELS": lambda s: s.family == "vagn",
-    "LSTM_MODELS": lambda s: s.family == "lstm",
-    "DMP_MODELS": lambda s: s.dmp,
-}
-
-
-def __getattr__(name: str) -> Any:
-    """``MODEL_NAMES`` (every registered model), ``VAGN_MODELS`` / ``LSTM_MODELS`` (by
-    family) and ``DMP_MODELS`` (DMP head), read from the registry when asked."""
-    if name in _GROUPS:
-        return tuple(s.name for s in registry.specs() if _GROUPS[name](s))
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

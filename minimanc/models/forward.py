@@ -64,7 +64,7 @@ def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
     Parameters
     ----------
     name : str
-        A registered model (:data:`minimanc.models.MODEL_NAMES`).
+        A registered model (:func:`minimanc.models.names`).
     rng : numpy.random.Generator
         Draws the backbone's convolutions first, then the spec's own layers.
     cfg : ModelConfig, optional

@@ -7,8 +7,9 @@ the :class:`~minimanc.train.TrainConfig` field that sets its training ``window``
 whether it ends in the ``dmp`` head of eqs. 10–11, and the three functions that
 make it: ``init`` (its parameters after the shared backbone), ``encode`` (per
 frame, no recurrence) and ``head`` (one time step). Adding a model is one
-:func:`register` call; :data:`minimanc.models.MODEL_NAMES`, the CLI choices, the
-window rule of :mod:`minimanc.train` and the plot labels follow.
+:func:`register` call; :func:`names` (and :func:`vagn_models`, :func:`lstm_models`,
+:func:`dmp_models`), the CLI choices, the window rule of :mod:`minimanc.train` and the
+plot labels follow.
 
 The registry lives with the models (it holds their functions) and imports
 only :mod:`minimanc.inputs`, for the observation keys and settings. ``inputs``
@@ -29,7 +30,9 @@ __all__ = [
     "FAMILIES",
     "ModelSpec",
     "check_name",
+    "dmp_models",
     "get",
+    "lstm_models",
     "names",
     "observes_goal",
     "observes_structured",
@@ -37,6 +40,7 @@ __all__ = [
     "registered",
     "specs",
     "unregister",
+    "vagn_models",
 ]
 
 FAMILIES: tuple[str, ...] = ("feedforward", "lstm", "vagn")
@@ -232,6 +236,39 @@ def names() -> tuple[str, ...]:
         In registration order.
     """
     return tuple(_SPECS)
+
+
+def vagn_models() -> tuple[str, ...]:
+    """The registered models of the vAGN family (their state is q, eqs. 8–9).
+
+    Returns
+    -------
+    tuple of str
+        In registration order.
+    """
+    return tuple(s.name for s in _SPECS.values() if s.family == "vagn")
+
+
+def lstm_models() -> tuple[str, ...]:
+    """The registered models of the LSTM family (their state is the LSTM's ``(h, c)``).
+
+    Returns
+    -------
+    tuple of str
+        In registration order.
+    """
+    return tuple(s.name for s in _SPECS.values() if s.family == "lstm")
+
+
+def dmp_models() -> tuple[str, ...]:
+    """The registered models that end in the DMP head of eqs. 10–11.
+
+    Returns
+    -------
+    tuple of str
+        In registration order.
+    """
+    return tuple(s.name for s in _SPECS.values() if s.dmp)
 
 
 def specs() -> tuple[ModelSpec, ...]:

@@ -27,7 +27,7 @@ class BadControls(ValueError):
 class Policy(Protocol):
     """What :func:`simulate` needs from a driver.
 
-    ``model`` (a name of :data:`minimanc.inputs.MODEL_NAMES`, or ``None`` for
+    ``model`` (a name of :func:`minimanc.models.names`, or ``None`` for
     every key but ``goal_bev``) and ``setting`` choose which observation keys
     are built (:func:`minimanc.inputs.visible`); a policy may instead name them
     in an optional ``keys`` attribute (a driver that reads no image then costs

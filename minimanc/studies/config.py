@@ -115,8 +115,8 @@ class StudyConfig:
                 raise ValueError(f"settings must be from {inputs.SETTINGS}; got {s!r}")
         for group in ("table_models", "ablation_models", "sample_models"):
             for mdl in getattr(self, group):
-                if mdl not in models.MODEL_NAMES:
-                    raise ValueError(f"{group} must hold names from {models.MODEL_NAMES}; "
+                if mdl not in models.names():
+                    raise ValueError(f"{group} must hold names from {models.names()}; "
                                      f"got {mdl!r}")
 
     def train_config(self, model: str, lr: float, seed: int, fraction: float) -> Any:

@@ -19,6 +19,8 @@ import numpy as np
 
 from minimanc import metrics
 from minimanc.checks import check_int
+from minimanc.viz.dagger import plot_study_rounds
+from minimanc.viz.style import METRIC_LABELS, pyplot
 
 __all__ = ["DAGGER_METRICS", "dagger_figures", "dagger_markdown", "run_dagger"]
 
@@ -95,8 +97,6 @@ def _cell(agg: dict, key: str, n: int) -> str:
 
 def dagger_markdown(res: dict, n_seeds: int, label: Any = str) -> list[str]:
     """The ``table1.md`` section of :func:`run_dagger`'s result (a list of lines)."""
-    from minimanc.plots import METRIC_LABELS
-
     keys = [k for k in DAGGER_METRICS
             if all(k in m["bc"] for m in res["models"].values())]
     lines = [f"## BC against DAgger at equal labels (agents `{res['agents']}`)", "",
@@ -115,28 +115,16 @@ def dagger_markdown(res: dict, n_seeds: int, label: Any = str) -> list[str]:
 
 
 def dagger_figures(res: dict, figdir: Path) -> list[Path]:
-    """One figure per metric: DAgger's value by round, BC as a horizontal line."""
-    import matplotlib.pyplot as plt
-
-    from minimanc.plots import METRIC_LABELS, model_colour, model_label
-
+    """One figure per metric (:func:`minimanc.viz.dagger.plot_study_rounds`): DAgger's value
+    by round, BC as a horizontal line."""
     figdir.mkdir(parents=True, exist_ok=True)
     paths = []
     for key in DAGGER_METRICS:
         if not all(key in m["bc"] for m in res["models"].values()):
             continue
-        fig, ax = plt.subplots(figsize=(5, 3.5))
-        for model, m in res["models"].items():
-            y = [r[key]["mean"] for r in m["by_round"]]
-            c = model_colour(model)
-            ax.plot(range(len(y)), y, "o-", color=c, label=f"{model_label(model)} DAgger")
-            ax.axhline(m["bc"][key]["mean"], color=c, ls="--",
-                       label=f"{model_label(model)} BC")
-        ax.set_xlabel("round")
-        ax.set_ylabel(METRIC_LABELS.get(key, key))
-        ax.legend(fontsize=7)
+        fig = plot_study_rounds(res, key)
         path = figdir / f"dagger_{key}.png"
         fig.savefig(path, dpi=120, bbox_inches="tight")
-        plt.close(fig)
+        pyplot().close(fig)
         paths.append(path)
     return paths

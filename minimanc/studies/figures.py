@@ -10,28 +10,44 @@ from typing import Any
 
 import numpy as np
 
+from minimanc import engine, rollout, train
 from minimanc.studies.runner import Study
+from minimanc.viz.explain import (
+    plot_explain_trace,
+    plot_q_modes,
+    plot_saliency_steps,
+    plot_speeds,
+    plot_trajectories,
+    save_gif,
+)
+from minimanc.viz.study import (
+    plot_ablation,
+    plot_families,
+    plot_param_counts,
+    plot_q_states,
+    plot_sample_efficiency,
+    plot_table1,
+)
+from minimanc.viz.style import save
 
 
 def write_figures(study: Study, results: dict, figdir: Path) -> list[Path]:
     """Every PNG (and the GIF) of a finished study; returns the paths."""
-    from minimanc import plots
-
     paths = []
     for agents, t1 in results["table1"].items():
-        paths.append(plots.save(plots.plot_table1(t1), figdir / f"table1_{agents}.png"))
+        paths.append(save(plot_table1(t1), figdir / f"table1_{agents}.png"))
     for agents, by_setting in results.get("families", {}).items():
         setting = "paper" if "paper" in by_setting else next(iter(by_setting))
         title = f"Per scenario family ({agents} agents, setting {setting}); lower is better"
-        paths.append(plots.save(plots.plot_families(by_setting[setting], title=title),
+        paths.append(save(plot_families(by_setting[setting], title=title),
                                 figdir / f"families_{agents}.png"))
     paths += [
-        plots.save(plots.plot_sample_efficiency(results["sample_efficiency"]),
+        save(plot_sample_efficiency(results["sample_efficiency"]),
                    figdir / "sample_efficiency.png"),
-        plots.save(plots.plot_param_counts(results["param_counts"]["paper"]),
+        save(plot_param_counts(results["param_counts"]["paper"]),
                    figdir / "param_counts.png"),
-        plots.save(plots.plot_q_states(results["q_states"]), figdir / "q_states.png"),
-        plots.save(plots.plot_ablation(results["ablation"]), figdir / "ablation.png"),
+        save(plot_q_states(results["q_states"]), figdir / "q_states.png"),
+        save(plot_ablation(results["ablation"]), figdir / "ablation.png"),
     ]
     paths += write_speeds(study, figdir)
     paths += write_explanations(study, figdir)
@@ -41,8 +57,6 @@ def write_figures(study: Study, results: dict, figdir: Path) -> list[Path]:
 def write_speeds(study: Study, figdir: Path, k: int = 3) -> list[Path]:
     """Speed over time, each Table I model (paper setting, seed 0, primary protocol)
     against the human, on ``k`` scenes picked by :func:`pick_scenes`."""
-    from minimanc import plots, rollout
-
     c = study.config
     _, _, val = study.datasets()
     trajs = {}
@@ -53,15 +67,13 @@ def write_speeds(study: Study, figdir: Path, k: int = 3) -> list[Path]:
     if not trajs:
         return []
     scenes = pick_scenes(val, next(iter(trajs.values())), min(k, len(val)))
-    fig = plots.plot_speeds(trajs, rollout.human(val), scenes)
-    return [plots.save(fig, figdir / f"speeds_{study.primary}.png")]
+    fig = plot_speeds(trajs, rollout.human(val), scenes)
+    return [save(fig, figdir / f"speeds_{study.primary}.png")]
 
 
 def write_explanations(study: Study, figdir: Path) -> list[Path]:
     """Explainability figures for a few validation scenes of the MANC run (paper, seed 0):
     the closed-loop trace and saliency, a GIF, and the open-loop q above the human's mode."""
-    from minimanc import engine, plots, rollout, train
-
     c = study.config
     if c.explain_scenes == 0:
         return []
@@ -74,16 +86,16 @@ def write_explanations(study: Study, figdir: Path) -> list[Path]:
     fit = train.load(study.checkpoint(run))
     human = rollout.human(val)
     scenes = pick_scenes(val, traj, c.explain_scenes)
-    paths = [plots.save(plots.plot_trajectories({"MANC": traj}, human, val, scenes),
+    paths = [save(plot_trajectories({"MANC": traj}, human, val, scenes),
                         figdir / "trajectories.png")]
     for s in scenes:
-        paths.append(plots.save(plots.plot_explain_trace(traj, human, val, s),
+        paths.append(save(plot_explain_trace(traj, human, val, s),
                                 figdir / f"explain_scene{s:03d}.png"))
         steps = saliency_steps(traj, s)
-        paths.append(plots.save(
-            plots.plot_saliency_steps(fit.params, fit.cfg, traj, val, s, steps),
+        paths.append(save(
+            plot_saliency_steps(fit.params, fit.cfg, traj, val, s, steps),
             figdir / f"saliency_scene{s:03d}.png"))
-    paths.append(plots.save_gif(traj, human, val, scenes[0], figdir / "rollout.gif"))
+    paths.append(save_gif(traj, human, val, scenes[0], figdir / "rollout.gif"))
     if study.recorded:  # no human modes on recorded data (minimanc.studies.recorded)
         return paths
     labels = study.human_modes()
@@ -91,7 +103,7 @@ def write_explanations(study: Study, figdir: Path) -> list[Path]:
                           scenes=scenes)["q"]
     for k, s in enumerate(scenes):
         title = f"MANC open loop, scene {s} ({val.maps[s].kind}): q and the human's mode"
-        paths.append(plots.save(plots.plot_q_modes(q[k], labels[s], title),
+        paths.append(save(plot_q_modes(q[k], labels[s], title),
                                 figdir / f"q_modes_scene{s:03d}.png"))
     return paths
 

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from minimanc.studies.bounds import BOUND_ROWS
+from minimanc.viz.style import model_label
 
 
 def _mean(agg: dict, metric: str) -> float:
@@ -369,8 +370,6 @@ def contact_table(table: dict, agents: str, setting: str, label: Any = str) -> l
 def table_markdown(results: dict) -> str:
     """``table1.md``: Table I per protocol and setting, per scenario family, the studies as
     tables, the q-states against the human's modes, and the findings."""
-    from minimanc.plots import model_label
-
     c = results["config"]
     ns = int(c["n_seeds"])
     lab = model_label

@@ -1,19 +1,28 @@
 """Every figure and animation of the chapters, apart from the math that they show.
 
-One module per kind of figure; none imports matplotlib (or Pillow) until a figure is drawn,
-so importing the math and model modules never loads a plotting library:
+The one door for figures: ``minimanc.viz.X`` for each kind of figure, and no other module
+draws.  None of them imports matplotlib (or Pillow) until a figure is drawn, and no math,
+model or world module imports this package, so importing those never loads a plotting
+library:
 
 * :mod:`minimanc.viz.style` — names and colours of the models and metrics, ``save``, and the
   pieces every figure shares (all chapters);
+* :mod:`minimanc.viz.graph` — chapter 1: a computation graph with the cotangent on each
+  edge;
 * :mod:`minimanc.viz.automaton` — chapter 5: the vAGN automaton graph and the
   q-distribution heat map;
 * :mod:`minimanc.viz.saliency` — chapter 6: the paper's colormap, CAM/saliency overlays and
   the per-q-state saliency panel;
+* :mod:`minimanc.viz.world` — chapter 7: map plots, raster galleries with routes, scene
+  animations;
 * :mod:`minimanc.viz.study` — chapter 9: the study's figures (Table I, families, sample
   efficiency, model sizes, q-states, ablation);
 * :mod:`minimanc.viz.explain` — chapter 9: one closed-loop rollout (paths, speeds, q against
-  the human's modes, the Fig. 4 trace, Fig. 3 saliency, the GIF).
-
-The math modules forward their old figure names here (``vagn.plot_automaton``,
-``cam.blend``, ``plots.plot_explain_trace``, ...), imported on first use.
+  the human's modes, the Fig. 4 trace, Fig. 3 saliency, the GIF);
+* :mod:`minimanc.viz.dagger` — chapter 11: a metric over DAgger's rounds against behaviour
+  cloning at the same budget.
 """
+
+from minimanc.viz import automaton, dagger, explain, graph, saliency, study, style, world
+
+__all__ = ["automaton", "dagger", "explain", "graph", "saliency", "study", "style", "world"]

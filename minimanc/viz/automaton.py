@@ -4,7 +4,6 @@
 ``T = colsoftmax(ReLU(W^p))``), :func:`plot_q_heatmap` a q-distribution over time as in
 the paper's execution traces.  vAGN never produces an exact zero (see
 :mod:`minimanc.vagn`), so a sparse graph comes only from ``plot_automaton``'s ``min_prob``.
-Also reachable as ``minimanc.vagn.plot_automaton`` and ``minimanc.vagn.plot_q_heatmap``.
 """
 
 from __future__ import annotations

@@ -18,7 +18,13 @@ from typing import Any
 
 import numpy as np
 
+from minimanc import inputs, models, vagn, world
+from minimanc.modes import MODES
+from minimanc.viz.automaton import plot_q_heatmap
+from minimanc.viz.saliency import plot_q_saliency
 from minimanc.viz.style import model_colour, model_label, pyplot
+from minimanc.viz.world import plot_map
+from minimanc.world.geometry import EGO_LENGTH, EGO_WIDTH, box_corners, to_ego_frame
 
 __all__ = [
     "check_scene",
@@ -43,10 +49,8 @@ def check_scene(traj: Any, scene: int) -> int:
 
 
 def _draw_map(ax: Any, m: Any) -> None:
-    """The map under a world-frame plot (:func:`minimanc.world.viz.plot_map`)."""
-    from minimanc.world import viz
-
-    viz.plot_map(m, ax=ax)
+    """The map under a world-frame plot (:func:`minimanc.viz.world.plot_map`)."""
+    plot_map(m, ax=ax)
 
 
 def _frame_limits(ax: Any, xy: np.ndarray, margin: float = 15.0) -> None:
@@ -133,8 +137,6 @@ def plot_q_modes(q: Any, modes: Any, title: str = "", dt: float = 0.5) -> Any:
     ``q (T, N)`` (e.g. :func:`minimanc.rollout.open_loop`), ``modes (T,)`` integer labels
     of :data:`minimanc.modes.MODES` (:func:`minimanc.modes.human_modes`).
     """
-    from minimanc.modes import MODES
-
     q = np.asarray(q, dtype=np.float64)
     labels = np.asarray(modes)
     if q.ndim != 2 or labels.shape != q.shape[:1]:
@@ -168,8 +170,6 @@ def plot_q_modes(q: Any, modes: Any, title: str = "", dt: float = 0.5) -> Any:
 
 def _bev_at(traj: Any, ds: Any, scene: int, t: int) -> np.ndarray:
     """The BEV the policy saw at step ``t`` (re-rasterised from its own pose)."""
-    from minimanc import world
-
     return world.rasterize(ds.maps[scene], traj.ego[scene, t], ds.ado[scene, t],
                            ds.ado_valid[scene, t], ds.raster)
 
@@ -183,8 +183,6 @@ def plot_explain_trace(traj: Any, human: Any, ds: Any, scene: int,
     against the human's, (d) the BEV the policy saw at three steps. Panels
     the model has no data for (a direct head has no α, β or q) are left out.
     """
-    from minimanc.viz.automaton import plot_q_heatmap
-
     plt = pyplot()
     s = check_scene(traj, scene)
     aux = traj.aux
@@ -245,8 +243,6 @@ def saliency_maps(params: dict, cfg: Any, traj: Any, ds: Any, scene: int,
     Returns one dict per step: ``bev`` (H, W, 3) in [0, 1], ``q`` (N,),
     ``saliency`` (N, H, W), ``step``.
     """
-    from minimanc import inputs, models, vagn
-
     s = check_scene(traj, scene)
     if "q" not in traj.aux:
         raise ValueError("saliency needs a vAGN model's rollout (aux 'q'); "
@@ -278,8 +274,6 @@ def plot_saliency_steps(params: dict, cfg: Any, traj: Any, ds: Any, scene: int,
     titled with its probability (:func:`minimanc.viz.saliency.plot_q_saliency`;
     colours high → low: yellow, red, cyan, magenta).
     """
-    from minimanc.viz.saliency import plot_q_saliency
-
     plt = pyplot()
     maps_ = saliency_maps(params, cfg, traj, ds, scene, steps)
     N = maps_[0]["q"].shape[0]
@@ -296,8 +290,6 @@ def plot_saliency_steps(params: dict, cfg: Any, traj: Any, ds: Any, scene: int,
 
 
 def _to_pixels(points_world: np.ndarray, pose: np.ndarray, cfg: Any) -> list[tuple[float, float]]:
-    from minimanc.world.geometry import to_ego_frame
-
     p = to_ego_frame(np.asarray(points_world, dtype=np.float64), pose)
     row = (cfg.metres_ahead - p[:, 0]) / cfg.res_row
     col = (cfg.metres_side - p[:, 1]) / cfg.res_col
@@ -306,10 +298,7 @@ def _to_pixels(points_world: np.ndarray, pose: np.ndarray, cfg: Any) -> list[tup
 
 def gif_frames(traj: Any, human: Any, ds: Any, scene: int, size: int = 192) -> list[Any]:
     """The frames of :func:`save_gif` as Pillow images (one per pose of the rollout)."""
-    from PIL import Image, ImageDraw
-
-    from minimanc import world
-    from minimanc.world.geometry import EGO_LENGTH, EGO_WIDTH, box_corners
+    from PIL import Image, ImageDraw  # optional until a GIF is drawn
 
     s = check_scene(traj, scene)
     T = traj.ego.shape[1]

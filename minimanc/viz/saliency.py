@@ -1,11 +1,10 @@
 """Chapter 6 — saliency in the paper's colours: the colormap, overlays, the per-q-state panel.
 
 Display helpers for the maps of :mod:`minimanc.cam` (CAMs of eq. 7, per-q-state saliency
-``S_j``): :func:`paper_cmap` (high → low = yellow → red → cyan → magenta, also
-``PAPER_CMAP``), :func:`blend` (the overlay as data), :func:`overlay` (drawn on an axes) and
-:func:`plot_q_saliency` (the paper's Figures 3–4 panel).  Every map is min–max normalised
-(:func:`minimanc.cam.minmax_normalize`) before it is coloured.  Also reachable under the
-same names from :mod:`minimanc.cam`.
+``S_j``): :func:`paper_cmap` (high → low = yellow → red → cyan → magenta), :func:`blend`
+(the overlay as data), :func:`overlay` (drawn on an axes) and :func:`plot_q_saliency` (the
+paper's Figures 3–4 panel).  Every map is min–max normalised
+(:func:`minimanc.cam.minmax_normalize`) before it is coloured.
 """
 
 from __future__ import annotations
@@ -26,9 +25,8 @@ __all__ = ["paper_cmap", "blend", "overlay", "plot_q_saliency"]
 def paper_cmap() -> Any:
     """The colormap of the paper's saliency figures: high → low = yellow → red → cyan → magenta.
 
-    Built on first use, so that importing the math (:mod:`minimanc.cam` and every
-    module importing it) does not import matplotlib; also available as
-    ``PAPER_CMAP`` (here and in :mod:`minimanc.cam`).
+    Built on first use (and cached), so that importing this module does not import
+    matplotlib.
 
     Returns
     -------
@@ -41,12 +39,6 @@ def paper_cmap() -> Any:
     return LinearSegmentedColormap.from_list(
         "manc_paper", ["#ff00ff", "#00ffff", "#ff0000", "#ffff00"], N=256
     )
-
-
-def __getattr__(name: str) -> Any:
-    if name == "PAPER_CMAP":  # the colormap, built on first access (see paper_cmap)
-        return paper_cmap()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _as_rgb_float(image: Any) -> np.ndarray:

@@ -6,8 +6,8 @@
 * :func:`state_labels` (the ``q_0 … q_{N-1}`` of every q-state figure) and
   :func:`clear_ticks`.
 
-``MODEL_LABELS`` and ``MODEL_COLOURS`` are read from the registry when asked (module
-``__getattr__``), so a model registered later appears in them.
+:func:`model_labels` and :func:`model_colours` read the registry on every call, so a model
+registered later appears in them.
 """
 
 from __future__ import annotations
@@ -16,6 +16,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from minimanc.models import registry
+
 __all__ = [
     "METRIC_LABELS",
     "REFERENCE_COLOURS",
@@ -23,7 +25,9 @@ __all__ = [
     "check_metrics",
     "clear_ticks",
     "model_colour",
+    "model_colours",
     "model_label",
+    "model_labels",
     "pyplot",
     "save",
     "state_labels",
@@ -54,8 +58,6 @@ def model_label(name: str) -> str:
     label : str
         The model spec's ``label``, the :data:`REFERENCE_LABELS` entry, or ``name`` itself.
     """
-    from minimanc.models import registry
-
     if name in registry.names():
         return registry.get(name).label
     return REFERENCE_LABELS.get(name, name)
@@ -76,25 +78,35 @@ def model_colour(name: str, default: str | None = None) -> str | None:
     colour : str or None
         The model spec's ``colour``, the :data:`REFERENCE_COLOURS` entry, or ``default``.
     """
-    from minimanc.models import registry
-
     if name in registry.names():
         return registry.get(name).colour
     return REFERENCE_COLOURS.get(name, default)
 
 
-def __getattr__(name: str) -> Any:
-    """``MODEL_LABELS`` and ``MODEL_COLOURS``: ``{name: label}`` and ``{name: colour}`` of the
-    registered models and the reference rows, read from the registry when asked."""
-    if name in ("MODEL_LABELS", "MODEL_COLOURS"):
-        from minimanc.models import registry
+def model_labels() -> dict[str, str]:
+    """Display names of the logged human, every registered model and the fixed-gain DMP.
 
-        if name == "MODEL_LABELS":
-            return {"human": REFERENCE_LABELS["human"],
-                    **{s.name: s.label for s in registry.specs()},
-                    "dmp_prior": REFERENCE_LABELS["dmp_prior"]}
-        return {**REFERENCE_COLOURS, **{s.name: s.colour for s in registry.specs()}}
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    Returns
+    -------
+    labels : dict of str to str
+        ``{name: label}``: ``"human"`` first, then the models in registration order, then
+        ``"dmp_prior"``; read from the registry on every call.
+    """
+    return {"human": REFERENCE_LABELS["human"],
+            **{s.name: s.label for s in registry.specs()},
+            "dmp_prior": REFERENCE_LABELS["dmp_prior"]}
+
+
+def model_colours() -> dict[str, str]:
+    """Colours of the reference rows and of every registered model.
+
+    Returns
+    -------
+    colours : dict of str to str
+        ``{name: colour}``: :data:`REFERENCE_COLOURS`, then the models in registration order;
+        read from the registry on every call.
+    """
+    return {**REFERENCE_COLOURS, **{s.name: s.colour for s in registry.specs()}}
 
 
 METRIC_LABELS: dict[str, str] = {

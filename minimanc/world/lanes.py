@@ -14,7 +14,6 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
-from PIL import Image, ImageDraw
 
 from minimanc.world.geometry import (
     headings,
@@ -209,6 +208,9 @@ def class_grid(m: Map, res: float) -> tuple[np.ndarray, np.ndarray, float]:
     ``origin + res * ([ix, iy] + [0, 1))``. Drawn with Pillow in the nuScenes
     layer order: walkway, drivable area (strips, polygons, discs), crossings.
     """
+    # Pillow, loaded when a grid is first drawn: importing the world loads no imaging library
+    from PIL import Image, ImageDraw
+
     if not (res > 0):
         raise ValueError(f"res must be positive, got {res!r}")
     key = (m.key, float(res))
