@@ -144,6 +144,14 @@ def test_reproduce_data_on_an_imported_file(recorded, tmp_path, capsys, monkeypa
     assert sorted(p.name for p in recorded.parent.iterdir()) == ["ns.npz"]  # nothing beside it
     assert not list((out / "figures").glob("q_modes_*"))
     assert (out / "figures" / "trajectories.png").exists()
+    # --agents reactive alone: the same refusal, the run goes on under replay (from the cache)
+    models_before = sorted(p.name for p in (out / "cache").rglob("*.npz"))
+    assert main(["reproduce", "--preset", "tiny", "--data", str(recorded), "--engine", "numpy",
+                 "--workers", "0", "--no-progress", "--out", str(out),
+                 "--agents", "reactive"]) == 0
+    printed = capsys.readouterr().out
+    assert printed.startswith(refusal) and "agents replay, output" in printed
+    assert sorted(p.name for p in (out / "cache").rglob("*.npz")) == models_before
 
 
 def test_reproduce_data_bad_input_is_one_line_exit_2(recorded, tmp_path, capsys):
