@@ -96,8 +96,8 @@ def _recorded_split(meta: dict, path: Path) -> tuple[int, int, str, str]:
     pairs = [p for p in SPLITS_OF_VERSION.values() if splits[0] in p or splits[-1] in p]
     counts = Counter(splits)
     if len(pairs) != 1 or set(counts) - set(pairs[0]):
-        raise ValueError(f"{path}: the scenes' splits {sorted(map(str, counts))} are not one version's "
-                         "training and validation splits ("
+        raise ValueError(f"{path}: the scenes' splits {sorted(map(str, counts))} are not one "
+                         "version's training and validation splits ("
                          + "; ".join("/".join(p) for p in SPLITS_OF_VERSION.values()) + ")")
     train, val = pairs[0]
     n_tr, n_val = counts[train], counts[val]
