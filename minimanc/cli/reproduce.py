@@ -13,6 +13,9 @@ from minimanc.cli.common import add_engine_option, check_int, check_out_dir
 from minimanc.errors import UsageError
 from minimanc.studies import PRESETS, reproduce, table_markdown
 from minimanc.studies.executors import EXECUTORS
+from minimanc.studies.recorded import REACTIVE_REFUSAL, data_config, is_recorded
+from minimanc.studies.reproduction import with_data_notes
+from minimanc.world import DatasetFileError
 
 __all__ = ["cmd_reproduce", "register"]
 
@@ -36,11 +39,29 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     if args.ray_address is not None and args.executor != "ray":
         raise UsageError(f"--ray-address is for --executor ray; got --executor {args.executor}")
     agents = ("replay", "reactive") if args.agents == "both" else (args.agents,)
-    out = check_out_dir(Path(args.out) if args.out else Path("minimanc_results") / preset)
+    default_out = Path("minimanc_results") / preset
+    if args.data is not None:
+        try:
+            config = data_config(config, args.data)
+        except (DatasetFileError, OSError, ValueError) as e:  # not readable, not fitting
+            raise UsageError(f"--data {e}") from e
+        default_out = Path("minimanc_results") / f"{preset}-{Path(args.data).stem}"
+        if is_recorded(config):
+            if args.dagger:
+                raise UsageError("--dagger needs the world's expert in states the log never "
+                                 "visited; recorded data (--data) has none")
+            if "reactive" in agents:
+                print(f"minimanc reproduce: {REACTIVE_REFUSAL}; running agents replay only")
+                agents = ("replay",)
+    out = check_out_dir(Path(args.out) if args.out else default_out)
     progress = not args.no_progress
     t0 = time.perf_counter()
     print(f"minimanc reproduce: preset {preset}, engine {args.engine}, {config.n_seeds} "
           f"seed(s), agents {' and '.join(agents)}, output {out}")
+    if config.data_file:
+        print(f"data {config.data_file} ({config.data_source}): {config.n_train} training, "
+              f"{config.n_tune} tuning, {config.n_val} validation scenes, "
+              f"{config.image_size} px")
     log = (lambda msg: print(msg, flush=True)) if args.verbose else None
     results = reproduce(config, out, engine=args.engine, workers=args.workers,
                         command=getattr(args, "command_line", None),
@@ -48,7 +69,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
                         dagger=args.dagger,
                         progress=progress, log=log, agents=agents)
     dt = time.perf_counter() - t0
-    md = table_markdown(results)
+    md = with_data_notes(table_markdown(results), config)
     print(md.split("## Per scenario family")[0].split("## Sample efficiency")[0].rstrip())
     print()
     for f in results["findings"]:
@@ -68,7 +89,8 @@ def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "reproduce",
         help="train every model, run the closed loop, write Table I, the studies and figures",
-        description="Reproduce the paper's Table I and studies (section V) on generated data. "
+        description="Reproduce the paper's Table I and studies (section V) on generated data, "
+                    "or on a dataset file (--data, e.g. imported from nuScenes). "
                     "Cached under --out: a re-run is fast, an interrupted run resumes.",
     )
     p.add_argument("--quick", action="store_true",
@@ -76,8 +98,14 @@ def register(subparsers: Any) -> None:
     p.add_argument("--preset", choices=sorted(PRESETS), default=None,
                    help="a named configuration (overrides --quick)")
     add_engine_option(p)
+    p.add_argument("--data", default=None, metavar="FILE",
+                   help="train and evaluate on this dataset file instead of generating data: "
+                        "one imported by `minimanc data import-nuscenes` (its train/val "
+                        "splits; the last 5 %% of train tune; replay protocol only, no bound "
+                        "rows) or a generated one that fits the preset")
     p.add_argument("--out", default=None,
-                   help="output directory (default minimanc_results/<preset>)")
+                   help="output directory (default minimanc_results/<preset>, "
+                        "<preset>-<file name> with --data)")
     p.add_argument("--seeds", type=int, default=None, help="number of training seeds")
     p.add_argument("--epochs", type=int, default=None,
                    help="training epochs of every model (default: the preset's)")

@@ -42,7 +42,10 @@ class StudyConfig:
     (``StudyConfig(epochs=3)``, ``dataclasses.replace(c, dmp_seq_len=8)``) and
     read as attributes (``c.epochs``). Studies: ``n_states`` of MANC in Table I,
     ``q_states``, ``fractions``, ``settings``; ``explain_scenes`` scenes get
-    explainability figures.
+    explainability figures. A given dataset file
+    (:func:`minimanc.studies.recorded.data_config`): ``data_file`` (its path),
+    ``data_hash`` (its content hash) and ``data_source`` (``"world"``: generated,
+    ``"nuscenes"``: recorded); all ``""`` when the study generates its data.
     """
 
     preset: str = "custom"
@@ -62,6 +65,9 @@ class StudyConfig:
     ablation_models: tuple[str, ...] = ABLATION_MODELS
     sample_models: tuple[str, ...] = TABLE_MODELS
     explain_scenes: int = 3
+    data_file: str = ""
+    data_hash: str = ""
+    data_source: str = ""
 
     def __init__(self, **kwargs: Any) -> None:
         from minimanc import train
@@ -90,6 +96,12 @@ class StudyConfig:
         for name in ("n_train", "n_tune", "n_val", "image_size", "n_seeds", "n_states",
                      "explain_scenes"):
             check_int(name, getattr(self, name), 0 if name == "explain_scenes" else 1)
+        if bool(self.data_file) != bool(self.data_hash) or bool(self.data_file) != bool(
+                self.data_source):
+            raise ValueError("data_file, data_hash and data_source are given together "
+                             "(minimanc.studies.recorded.data_config); got "
+                             f"data_file={self.data_file!r}, data_hash={self.data_hash!r}, "
+                             f"data_source={self.data_source!r}")
         if self.n_train < 2:
             raise ValueError(f"n_train must be >= 2; got n_train={self.n_train!r}")
         if not self.lrs or any(not (np.isfinite(x) and x > 0) for x in self.lrs):
@@ -116,13 +128,17 @@ class StudyConfig:
     def fingerprint(self) -> str:
         """Hash of everything that changes data or training (not ``n_seeds`` or the figures).
 
-        Holds every field of :attr:`training` and the library's defaults of
-        :class:`minimanc.models.ModelConfig`, so that a cache written by a
-        version that trained differently is never reused.
+        A given data file enters by its content hash and source (not its path); without
+        one the hash is that of the configuration before the option. Holds every field of
+        :attr:`training` and the library's defaults of :class:`minimanc.models.ModelConfig`,
+        so that a cache written by a version that trained differently is never reused.
         """
         d = asdict(self)
-        for k in ("preset", "n_seeds", "explain_scenes"):
+        for k in ("preset", "n_seeds", "explain_scenes", "data_file"):
             d.pop(k)
+        for k in ("data_hash", "data_source"):
+            if not d[k]:
+                d.pop(k)
         d["model_defaults"] = models.ModelConfig().to_dict()
         d["default_gains"] = list(models.DEFAULT_GAINS)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]

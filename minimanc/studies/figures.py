@@ -96,6 +96,8 @@ def write_explanations(study: Study, figdir: Path) -> list[Path]:
             plot_saliency_steps(fit.params, fit.cfg, traj, val, s, steps),
             figdir / f"saliency_scene{s:03d}.png"))
     paths.append(save_gif(traj, human, val, scenes[0], figdir / "rollout.gif"))
+    if study.recorded:  # no human modes on recorded data (minimanc.studies.recorded)
+        return paths
     labels = study.human_modes()
     q = rollout.open_loop(fit.name, fit.params, val, fit.cfg, engine(study.engine),
                           scenes=scenes)["q"]

@@ -13,10 +13,22 @@ from minimanc.studies.config import StudyConfig
 from minimanc.studies.dagger_study import dagger_figures, run_dagger
 from minimanc.studies.figures import write_figures
 from minimanc.studies.jobs import write_json
+from minimanc.studies.recorded import data_notes, is_recorded
 from minimanc.studies.report import json_safe, table_markdown
 from minimanc.studies.runner import Study
 
-__all__ = ["reproduce"]
+__all__ = ["reproduce", "with_data_notes"]
+
+
+def with_data_notes(markdown: str, config: StudyConfig) -> str:
+    """``markdown`` (:func:`~minimanc.studies.report.table_markdown`) with the lines about
+    ``config``'s data file (:func:`~minimanc.studies.recorded.data_notes`) after the
+    introduction, before the first section."""
+    notes = data_notes(config)
+    if not notes:
+        return markdown
+    head, sep, rest = markdown.partition("\n## ")
+    return head.rstrip("\n") + "\n\n" + "\n".join(notes) + sep + rest
 
 
 def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers: int | None = None,
@@ -33,7 +45,16 @@ def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers
     ``"wall_time_s"``, which ``table1.md`` ends with). ``executor`` ("local" or "ray") and
     ``ray_address`` choose where the trainings run (:mod:`minimanc.studies.executors`);
     ``dagger`` adds behaviour cloning against DAgger for MANC and the CNN
-    (:mod:`minimanc.studies.dagger_study`, ``results["dagger"]``)."""
+    (:mod:`minimanc.studies.dagger_study`, ``results["dagger"]``).
+
+    On a given dataset file (``config`` from :func:`minimanc.studies.recorded.data_config`)
+    ``table1.md`` says so after its introduction; on recorded data ``agents`` must be
+    ``("replay",)``, ``dagger`` is refused and Table I has no bound rows (why:
+    :mod:`minimanc.studies.recorded`)."""
+    if dagger and is_recorded(config):
+        raise ValueError("dagger needs the world's expert in states the log never visited; "
+                         "recorded data has none (behaviour cloning against DAgger runs on "
+                         "generated data only)")
     started = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -59,7 +80,7 @@ def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers
     results["files"] = files
     results["provenance"] = provenance(command)
     results["wall_time_s"] = round(time.perf_counter() - started, 1)
-    write_text(out / "table1.md", table_markdown(results))
+    write_text(out / "table1.md", with_data_notes(table_markdown(results), config))
     write_json(out / "results.json", json_safe(results))
     return results
 

@@ -10,9 +10,9 @@ from dataclasses import asdict
 from typing import Any
 
 from minimanc import metrics
-from minimanc.studies.bounds import BOUND_ROWS
 from minimanc.studies.config import Run, canonical_setting, plan
 from minimanc.studies.jobs import read_json, write_json
+from minimanc.studies.recorded import MODES_OMITTED
 from minimanc.studies.report import findings
 from minimanc.studies.runs import THREAD_ENV, Runs, families_of
 
@@ -27,7 +27,7 @@ class Study(Runs):
     def table1(self) -> dict:
         """``{agents: {setting: {model: aggregate}}}`` (Table I under each protocol), with
         the rows ``"human"``, ``"dmp_prior"`` (the DMP head at fixed gains) and the bounds
-        (:data:`minimanc.studies.bounds.BOUND_ROWS`: the expert, the style floor) first."""
+        (:attr:`bound_rows`: the expert, the style floor; none on recorded data) first."""
         c = self.config
         for a in self.agents:
             for s in c.settings:
@@ -36,7 +36,7 @@ class Study(Runs):
         out = {}
         for a in self.agents:
             fixed = {"human": self.human(a), "dmp_prior": self.references(a)["dmp_prior"],
-                     **{b: metrics.aggregate([self.reference(b, a)]) for b in BOUND_ROWS}}
+                     **{b: metrics.aggregate([self.reference(b, a)]) for b in self.bound_rows}}
             out[a] = {s: {**fixed, **{m: self.aggregate(self.runs(m, s), a)
                                       for m in c.table_models}} for s in c.settings}
         return out
@@ -49,7 +49,7 @@ class Study(Runs):
         out: dict = {}
         for a in self.agents:
             fixed = {m: families_of([self.reference(m, a)])
-                     for m in ("human", "dmp_prior", *BOUND_ROWS)}
+                     for m in ("human", "dmp_prior", *self.bound_rows)}
             out[a] = {s: {**fixed, **{m: self.aggregate_families(self.runs(m, s), a)
                                       for m in c.table_models}} for s in c.settings}
         return out
@@ -69,7 +69,9 @@ class Study(Runs):
 
         from minimanc import modes
 
-        path = self.data_path.with_name(self.data_path.stem + "-val-modes.npy")
+        if self.recorded:
+            raise ValueError(MODES_OMITTED)
+        path = self.derived_path("-val-modes.npy")
         _, _, val = self.datasets()
         if path.exists():
             try:
@@ -95,6 +97,9 @@ class Study(Runs):
 
         from minimanc import engine, modes, rollout, train
 
+        if self.recorded:  # no human modes (minimanc.studies.recorded): nothing to measure
+            return {"setting": setting, "mode_counts": {}, "models": {},
+                    "omitted": MODES_OMITTED}
         labels = self.human_modes()
         counts = np.bincount(labels.ravel(), minlength=len(modes.MODES))
         out: dict = {"setting": setting,

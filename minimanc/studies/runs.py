@@ -38,6 +38,7 @@ from minimanc.studies.jobs import (
     read_json,
     score,
 )
+from minimanc.studies.recorded import REACTIVE_REFUSAL, is_recorded
 
 __all__ = ["THREAD_ENV", "Runs", "families_of"]
 
@@ -93,6 +94,8 @@ class Runs:
             raise ValueError("agents must be a non-empty sequence of distinct protocols; got "
                              f"agents={agents!r}")
         self.agents = tuple(check_agents(a) for a in agents)
+        if is_recorded(config) and "reactive" in self.agents:
+            raise ValueError(REACTIVE_REFUSAL)
         self.config = config
         self.out = Path(out)
         self.engine = engine
@@ -121,12 +124,38 @@ class Runs:
 
     @property
     def data_path(self) -> Path:
+        """The dataset file: the given one (``config.data_file``), else the one generated
+        under ``data/``."""
         c = self.config
+        if c.data_file:
+            return Path(c.data_file)
         n = c.n_train + c.n_tune + c.n_val
         return self.out / "data" / f"world-{n}x{c.data_seed}-{c.image_size}px.npz"
 
+    def derived_path(self, suffix: str) -> Path:
+        """Where data derived from the dataset file is cached: next to a generated file,
+        under ``data/`` (named by the content hash) for a given one."""
+        c = self.config
+        if not c.data_file:
+            return self.data_path.with_name(self.data_path.stem + suffix)
+        folder = self.out / "data"
+        folder.mkdir(parents=True, exist_ok=True)
+        return folder / f"{self.data_path.stem}-{c.data_hash[:12]}{suffix}"
+
+    @property
+    def recorded(self) -> bool:
+        """Whether the study runs on recorded data (:mod:`minimanc.studies.recorded`)."""
+        return is_recorded(self.config)
+
+    @property
+    def bound_rows(self) -> tuple[str, ...]:
+        """The bound rows of Table I (:data:`minimanc.studies.bounds.BOUND_ROWS`); none on
+        recorded data (:mod:`minimanc.studies.recorded`)."""
+        return () if self.recorded else bounds.BOUND_ROWS
+
     def datasets(self) -> tuple[Any, Any, Any]:
-        """``(train, tune, val)``: generated once (saved under ``data/``), then loaded."""
+        """``(train, tune, val)``: the given file's scenes, or generated once (saved under
+        ``data/``), then loaded."""
         if self._data is not None:
             return self._data
         from minimanc import world
@@ -135,7 +164,14 @@ class Runs:
         n = c.n_train + c.n_tune + c.n_val
         t0 = time.perf_counter()
         ds = None
-        if self.data_path.exists():
+        if c.data_file:
+            ds = world.load(self.data_path)
+            if ds.content_hash() != c.data_hash:
+                raise ValueError(f"{self.data_path}: the file changed since its study "
+                                 "configuration was made (another content hash); make the "
+                                 "configuration again (minimanc.studies.recorded.data_config)")
+            self.log(f"data: loaded {len(ds)} scenes from {self.data_path}")
+        elif self.data_path.exists():
             try:
                 ds = world.load(self.data_path)
                 self.log(f"data: loaded {n} scenes from {self.data_path}")
