@@ -204,6 +204,7 @@ def test_info_prints_the_chapter_map_of_minimanc_chapters(capsys):
     for chapter in CHAPTERS:
         assert f"  {chapter.code} {chapter.name} " in out, chapter.notebook
         assert chapter.title in out and all(m in out for m in chapter.modules)
+        assert f"exercises: {chapter.exercises}\n" in out
     assert "00_warmup" not in out
 
 

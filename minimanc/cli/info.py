@@ -103,6 +103,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         mark = "".join(present) or "-"
         modules = ", ".join(chapter.modules)
         print(f"  {chapter.code} {chapter.name:<17} [{mark:<3}] {chapter.title} — {modules}")
+        print(f"  {'':<26} exercises: {chapter.exercises}")
     print("  (T = tutorial, S = solutions, E = exercises present)")
     print("\nPieces the README uses:")
     missing: set[str | None] = set()
