@@ -4,8 +4,8 @@
 # Three small tools that later chapters build into the library: points into
 # the ego frame (chapter 7, `minimanc.world`), a column softmax (chapter 5,
 # `minimanc.vagn`) and one explicit Euler step (chapter 3, `minimanc.dmp`).
-# This chapter builds no module of them: what it builds is the course
-# machinery these exercises run on, `minimanc.exercises` (solutions →
+# Those chapters build the library's versions; this chapter builds the course
+# machinery these exercises run on: `minimanc.exercises` (solutions →
 # exercises, grading) and the `minimanc` command (`minimanc.cli`).
 # Replace each `raise NotImplementedError(...)` with your code, then run the
 # grade cell below it; `minimanc grade exercises/00_overview.ipynb` scores
