@@ -1,8 +1,8 @@
 """minimanc — the Multi-Abstractive Neural Controller rebuilt from first principles.
 
-Chapter map (tutorials/, solutions/, exercises/ share the file names):
-00 overview · 01 autodiff · 02 training · 03 dmp · 04 quaternions · 05 vagn ·
-06 cam · 07 world · 08 manc · 09 behavior_cloning · 10 highway_sandbox.
+The chapter map (number, notebook, title and the modules each chapter builds; tutorials/,
+solutions/ and exercises/ share the notebook names) is data: :mod:`minimanc.chapters`, which
+``minimanc info`` prints.
 """
 
 __version__ = "0.1.0"

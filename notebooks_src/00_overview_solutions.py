@@ -1,8 +1,12 @@
 # %% [markdown]
 # # Chapter 0 — Warm-up exercises
 #
-# Three small tools that later chapters need. Module built in this chapter:
-# `minimanc.exercises` (the grading machinery these exercises run on).
+# Three small tools that later chapters build into the library: points into
+# the ego frame (chapter 7, `minimanc.world`), a column softmax (chapter 5,
+# `minimanc.vagn`) and one explicit Euler step (chapter 3, `minimanc.dmp`).
+# Those chapters build the library's versions; this chapter builds the course
+# machinery these exercises run on: `minimanc.exercises` (solutions →
+# exercises, grading) and the `minimanc` command (`minimanc.cli`).
 # Replace each `raise NotImplementedError(...)` with your code, then run the
 # grade cell below it; `minimanc grade exercises/00_overview.ipynb` scores
 # the whole notebook.

@@ -5,7 +5,7 @@
 # Controller** (MANC) for interactive driving. Every piece is written by you in
 # a notebook and lives, finished, in the small library `minimanc`.
 # This chapter builds the course machinery itself: `minimanc.exercises`
-# (solutions → exercises, grading) and the `minimanc` command.
+# (solutions → exercises, grading) and the `minimanc` command (`minimanc.cli`).
 #
 # ## The driving stack
 # A classical autonomy stack splits driving into a **behaviour planner** (what
@@ -26,7 +26,7 @@
 import matplotlib.pyplot as plt
 from matplotlib.patches import FancyBboxPatch
 
-from minimanc.cli import CHAPTERS
+from minimanc.chapters import CHAPTERS
 
 
 def draw_chain(ax, labels, colours, y, title):
@@ -58,13 +58,14 @@ plt.show()
 # %% [markdown]
 # ## The chapter map
 # Each chapter has a narrative notebook in `tutorials/`, a graded set in
-# `exercises/` (with its solved twin in `solutions/`), and builds one module of
-# the library. Later chapters use the library's reference implementation, so
-# being stuck in chapter 4 does not stop you in chapter 5.
+# `exercises/` (with its solved twin in `solutions/`), and builds its modules of
+# the library. The map is data, `minimanc.chapters` (`minimanc info` prints it
+# too). Later chapters use the library's reference implementation, so being
+# stuck in chapter 4 does not stop you in chapter 5.
 
 # %%
-for number, name, what in CHAPTERS:
-    print(f"{number}  {name:<17} {what}")
+for chapter in CHAPTERS:
+    print(f"{chapter.code}  {chapter.name:<17} {chapter.title} — {', '.join(chapter.modules)}")
 
 # %% [markdown]
 # ## Working through the exercises

@@ -3,6 +3,7 @@ from the library's registries, one set of argument validators (minimanc.cli.comm
 
 from __future__ import annotations
 
+import importlib
 import math
 import re
 import subprocess
@@ -14,7 +15,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from minimanc import cli, inputs
+from minimanc.chapters import CHAPTERS, markdown_table
 from minimanc.cli import common
+from minimanc.cli import info as cli_info
 from minimanc.engine import ENGINES
 from minimanc.errors import UsageError
 
@@ -74,8 +77,8 @@ def test_a_command_whose_chapter_is_missing_is_left_out(monkeypatch, capsys):
     assert "invalid choice: 'data'" in capsys.readouterr().err
 
 
-def test_the_chapter_map_is_importable_from_the_command_package():
-    assert cli.CHAPTERS[0][0] == "00" and len(cli.CHAPTERS) == 12
+def test_the_command_package_keeps_no_chapter_map_of_its_own():
+    assert not hasattr(cli, "CHAPTERS") and cli_info.CHAPTERS is CHAPTERS
 
 
 @pytest.mark.parametrize("argv,expected", [
@@ -189,3 +192,59 @@ def test_reproduce_passes_the_executor_and_refuses_an_address_without_ray(monkey
                      "--ray-address", "auto"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "--ray-address is for --executor ray" in err[0]
+
+
+def _info_output(capsys, argv=("info",)) -> str:
+    assert cli.main(list(argv)) == 0
+    return capsys.readouterr().out
+
+
+def test_info_prints_the_chapter_map_of_minimanc_chapters(capsys):
+    out = _info_output(capsys)
+    for chapter in CHAPTERS:
+        assert f"  {chapter.code} {chapter.name} " in out, chapter.notebook
+        assert chapter.title in out and all(m in out for m in chapter.modules)
+        assert f"exercises: {chapter.exercises}\n" in out
+    assert "00_warmup" not in out
+
+
+@pytest.mark.parametrize("module,label,extra", [
+    ("jupyterlab", "JupyterLab", "lab"),
+    ("nbval", "nbval", "test"),
+    ("highway_env", "highway-env", "highway"),
+    ("nbclient", "notebook runner", None),
+])
+def test_info_reports_a_missing_piece_with_the_line_that_installs_it(
+        monkeypatch, capsys, module, label, extra):
+    real = importlib.import_module
+
+    def without(name, *args, **kwargs):
+        if name == module:
+            raise ModuleNotFoundError(f"No module named '{name}'")
+        return real(name, *args, **kwargs)
+
+    monkeypatch.setattr(cli_info.importlib, "import_module", without)
+    out = _info_output(capsys)
+    hint = f"pip install -e '.[{extra}]'" if extra else "pip install -e ."
+    [row] = [line for line in out.splitlines()
+             if line[:10] in ("  ok      ", "  MISSING ") and line[10:].startswith(f"{label} ")]
+    assert row.startswith("  MISSING") and row.endswith(f"install: {hint}"), row
+    last = out.rstrip().splitlines()[-1]
+    assert last.startswith("Some pieces are missing; to install them: pip install -e "), last
+    assert extra is None or extra in last.split("[")[1], last
+
+
+def test_info_says_when_a_command_of_the_readme_is_not_on_path(monkeypatch, capsys):
+    monkeypatch.setattr(cli_info.shutil, "which", lambda name: None)
+    out = _info_output(capsys)
+    assert ("absent  jupyter          not on PATH: activate the environment "
+            "(source .venv/bin/activate) or run `python -m jupyterlab`") in out
+
+
+def test_install_line_names_every_missing_extra_once():
+    assert cli_info.install_line({None}) == "pip install -e ."
+    assert cli_info.install_line({"test", None, "lab"}) == "pip install -e '.[lab,test]'"
+
+
+def test_info_prints_the_readme_table(capsys):
+    assert _info_output(capsys, ("info", "--readme-table")) == markdown_table()

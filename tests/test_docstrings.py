@@ -35,6 +35,7 @@ MODULES: tuple[str, ...] = (
     "minimanc.viz.automaton",
     "minimanc.viz.saliency",
     "minimanc.models.dmp_head",
+    "minimanc.chapters",
 )
 """Modules whose public functions must carry numpydoc sections."""
 

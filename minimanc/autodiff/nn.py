@@ -1,4 +1,4 @@
-"""Chapter 1/2 — neural-net primitives for the NumPy autodiff engine.
+"""Chapter 2 — neural-net primitives for the NumPy autodiff engine.
 
 Each primitive is a plain-NumPy function made traceable with
 :func:`minimanc.autodiff.core.primitive`, with its vector-Jacobian product

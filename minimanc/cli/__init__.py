@@ -1,6 +1,7 @@
-"""The ``minimanc`` command (chapter 0): one module per command group.
+"""Chapter 0 — the ``minimanc`` command: one module per command group.
 
-* :mod:`~minimanc.cli.info` — ``minimanc info`` (and :data:`CHAPTERS`, the chapter map);
+* :mod:`~minimanc.cli.info` — ``minimanc info`` (the chapter map of :mod:`minimanc.chapters`
+  and the pieces the README uses);
 * :mod:`~minimanc.cli.exercises` — ``minimanc exercises build|convert|run`` and ``grade``;
 * :mod:`~minimanc.cli.data` — ``minimanc data generate|show`` (chapter 7);
 * :mod:`~minimanc.cli.reproduce` — ``minimanc reproduce`` (chapter 9);
@@ -26,10 +27,9 @@ import os
 import sys
 
 from minimanc import __version__
-from minimanc.cli.info import CHAPTERS
 from minimanc.errors import EXIT_USAGE, UsageError
 
-__all__ = ["CHAPTERS", "CORE", "PLUGINS", "build_parser", "main"]
+__all__ = ["CORE", "PLUGINS", "build_parser", "main"]
 
 CORE = ("minimanc.cli.info", "minimanc.cli.exercises")
 """Command modules of chapter 0, always registered."""

@@ -1,4 +1,4 @@
-"""Chapter 10 — ask the world's driver: the human's controls in any state (a DAgger teacher).
+"""Chapter 11 — ask the world's driver: the human's controls in any state (a DAgger teacher).
 
 Behaviour cloning only ever sees the states the human visited; DAgger (Ross, Gordon &
 Bagnell 2011) asks an expert what to do in the states the *policy* visits. The world's
