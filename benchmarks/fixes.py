@@ -18,7 +18,8 @@ A variant is ``model:setting:history:speed_output:speed_scale[:perception]``:
 The data is the paper preset's draw (data seed 0: 650 training, 40 tuning, 200 validation
 scenes, in that order; only the validation scenes are driven); each raster variant is
 generated once (``cache=True``). Training: ``--epochs`` epochs, learning rate ``--lr``,
-engine ``jax``, ``--seeds`` seeds (mean ± std).
+engine ``jax``, ``--seeds`` seeds (mean ± std); ``--channels`` the backbone's stride-2
+convolutions (``ModelConfig.channels``: one more layer doubles the receptive field).
 
 Run: ``python benchmarks/fixes.py --variants cnn:parity:0:change:change --out results/X.md``
 """
@@ -74,6 +75,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--epochs", type=int, default=6)
     ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--channels", type=int, nargs="+", default=None)
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     variants = [parse(v) for v in args.variants]
@@ -89,7 +91,9 @@ def main() -> None:
         tr, val = data[h]
         if w > 0 and h not in perceived:
             perceived[h] = P.perceived(tr, PERCEIVE)
-        cfg = models.ModelConfig(setting=setting, speed_output=out)
+        cfg = models.ModelConfig(setting=setting, speed_output=out,
+                                 **({} if args.channels is None
+                                    else {"channels": tuple(args.channels)}))
         runs = {a: [] for a in AGENTS}
         for seed in range(args.seeds):
             tc = train.TrainConfig(epochs=args.epochs, lr=args.lr, seed=seed, speed_scale=scale,
@@ -108,7 +112,8 @@ def main() -> None:
                            f"{w:g} | {cells(runs[a])} |")
     text = (f"# Fixes, one at a time (paper preset draw: {N_TRAIN} training, {N_VAL} "
             f"validation scenes; {args.epochs} epochs, lr {args.lr:g}, {args.seeds} seeds, "
-            "mean ± std)\n\n")
+            + ("" if args.channels is None else f"backbone channels {tuple(args.channels)}, ")
+            + "mean ± std)\n\n")
     for a in AGENTS:
         text += (f"## Agents `{a}`\n\n| model | setting | history | speed output | speed scale"
                  " | perception loss | " + " | ".join(HEAD) + " |\n" + "|---" * (6 + len(HEAD))
