@@ -20,13 +20,13 @@ from nuscenes.prediction.input_representation.agents import (  # noqa: E402
 from nuscenes.prediction.input_representation.static_layers import (  # noqa: E402
     StaticLayerRasterizer,
 )
-from nuscenes_fixture import CENTRE, LOCATION, VERSION, token, write_fixture  # noqa: E402
 from pyquaternion import Quaternion  # noqa: E402
 
 from minimanc import world  # noqa: E402
 from minimanc.world.history import History, history_of  # noqa: E402
 from minimanc.world.maps import class_grid  # noqa: E402
 from minimanc.world.nuscenes import MapExpansion, import_nuscenes  # noqa: E402
+from minimanc.world.nuscenes.sample import CENTRE, LOCATION, VERSION, token, write_sample  # noqa: E402
 from minimanc.world.raster import VEHICLE  # noqa: E402
 
 RES = 0.25
@@ -35,7 +35,7 @@ RES = 0.25
 @pytest.fixture(scope="module")
 def both(tmp_path_factory):
     root = tmp_path_factory.mktemp("nuscenes-devkit")
-    write_fixture(root)
+    write_sample(root)
     import_nuscenes(root, VERSION, root / "out.npz")
     nusc = NuScenes(version=VERSION, dataroot=str(root), verbose=False)
     return root, nusc, world.load(root / "out.npz")
