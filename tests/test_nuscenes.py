@@ -1,9 +1,11 @@
-"""The nuScenes importer on a schema-exact fixture (``nuscenes_fixture``): the fixture's
-schema, ego poses, controls, boxes, map classes and the route against values computed
-here, skipped scenes, and one-line errors for bad input."""
+"""The nuScenes importer on the package's schema-exact sample
+(:mod:`minimanc.world.nuscenes.sample`): the sample's schema, ego poses, controls, boxes, map
+classes and the route against values computed here, skipped scenes, and one-line errors for
+bad input."""
 
 import json
 import math
+import re
 import shutil
 import tracemalloc
 import zipfile
@@ -11,7 +13,6 @@ from collections import namedtuple
 
 import numpy as np
 import pytest
-from nuscenes_fixture import CENTRE, LOCATION, VERSION, lane_token, write_fixture
 
 from minimanc import world
 from minimanc.cli import main
@@ -25,6 +26,7 @@ from minimanc.world.nuscenes import (
     keyframe_poses,
 )
 from minimanc.world.nuscenes.mapexp import MARGIN
+from minimanc.world.nuscenes.sample import CENTRE, LOCATION, VERSION, lane_token, write_sample
 
 SCHEMA = {  # the devkit's schema.md, every field of every table
     "attribute": {"token", "name", "description"},
@@ -57,7 +59,7 @@ EXPANSION_LAYERS = {"version", "canvas_edge", "polygon", "line", "node", "drivab
 @pytest.fixture(scope="module")
 def dataroot(tmp_path_factory):
     root = tmp_path_factory.mktemp("nuscenes")
-    return root, write_fixture(root)
+    return root, write_sample(root)
 
 
 def test_fixture_is_schema_exact(dataroot):
@@ -271,7 +273,7 @@ def _edit(root, table, fn):
 ])
 def test_bad_input_one_line_error_and_no_file(tmp_path, case, match):
     root = tmp_path / "root"
-    write_fixture(root)
+    write_sample(root)
     version, scenes = VERSION, None
     if case == "corrupt":
         path = root / VERSION / "sample_annotation.json"
@@ -362,7 +364,7 @@ def test_streaming_memory_does_not_grow_with_the_scenes(tmp_path):
     peaks = {}
     for copies in (2, 8):
         root = tmp_path / f"copies{copies}"
-        write_fixture(root, "v1.0-trainval", copies)
+        write_sample(root, "v1.0-trainval", copies)
         tables = Tables(root, "v1.0-trainval")
         tracemalloc.start()
         report = import_nuscenes(root, "v1.0-trainval", root / "o.npz", shard_scenes=2,
@@ -427,3 +429,16 @@ def test_train_and_drive_on_imported_scenes(dataroot, tmp_path):
     traj = rollout.simulate(policy, ds, progress=False, agents="replay")
     assert np.asarray(traj.ego).shape == ds.ego.shape and np.all(np.isfinite(traj.ego))
     assert np.isfinite(metrics.evaluate(traj, ds)["ade"])
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"version": "v1.0-test"}, "the sample has versions v1.0-mini, v1.0-trainval; got "
+                               "version='v1.0-test'"),
+    ({"copies": 2}, "copies=2 needs version='v1.0-trainval'"),
+    ({"version": "v1.0-trainval", "copies": 0}, "copies"),
+])
+def test_write_sample_refuses_bad_arguments(tmp_path, kwargs, message):
+    with pytest.raises(ValueError, match=re.escape(message)) as err:
+        write_sample(tmp_path / "root", **kwargs)
+    assert "\n" not in str(err.value)
+    assert not (tmp_path / "root").exists()

@@ -5,7 +5,8 @@
 ego's route through the lane graph) into the world's explicit map recipe,
 :mod:`~minimanc.world.nuscenes.splits` holds the devkit's official scene splits, and
 :mod:`~minimanc.world.nuscenes.importer` streams the scenes into the world's dataset file
-(:func:`import_nuscenes`).
+(:func:`import_nuscenes`). :mod:`~minimanc.world.nuscenes.sample` writes a tiny made-up
+DATAROOT in the exact schema (``write_sample``), to try the importer without the download.
 """
 
 from minimanc.world.nuscenes.importer import (
