@@ -3,7 +3,8 @@
     python benchmarks/nuscenes_import.py               # 20 copies of the fixture's scenes
     python benchmarks/nuscenes_import.py --copies 100  # larger
 
-Writes the tests' schema-exact DATAROOT (``tests/nuscenes_fixture.py``) with ``--copies``
+Writes the package's schema-exact sample DATAROOT (:mod:`minimanc.world.nuscenes.sample`) with
+``--copies``
 copies of each of its five scenes under the names of the v1.0-trainval splits (two of
 every five import, three are skipped: 39 keyframes, a dropped keyframe, no lane), then
 times :func:`minimanc.world.nuscenes.import_nuscenes` (tables, map expansion, rasters and
@@ -19,9 +20,7 @@ process's peak resident memory.
 from __future__ import annotations
 
 import argparse
-import importlib
 import resource
-import sys
 import tempfile
 import time
 import tracemalloc
@@ -29,15 +28,7 @@ from pathlib import Path
 
 from minimanc.world import RasterConfig
 from minimanc.world.nuscenes import Tables, import_nuscenes
-
-TESTS = Path(__file__).resolve().parent.parent / "tests"
-
-
-def write_fixture(root: Path, copies: int) -> None:
-    """The tests' fixture DATAROOT (v1.0-trainval names) under ``root``."""
-    if str(TESTS) not in sys.path:
-        sys.path.insert(0, str(TESTS))
-    importlib.import_module("nuscenes_fixture").write_fixture(root, "v1.0-trainval", copies)
+from minimanc.world.nuscenes.sample import write_sample
 
 
 def run(copies: int, size: int, shard_scenes: int | None) -> dict:
@@ -45,7 +36,7 @@ def run(copies: int, size: int, shard_scenes: int | None) -> dict:
     (which slows Python down) for the heap the tables hold and the import's peak."""
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "root"
-        write_fixture(root, copies)
+        write_sample(root, "v1.0-trainval", copies=copies)
 
         def once(name: str):
             return import_nuscenes(root, "v1.0-trainval", Path(tmp) / name,

@@ -1,5 +1,6 @@
 """``minimanc reproduce --data FILE``: the studies on an imported (recorded) nuScenes file
-(:mod:`minimanc.studies.recorded`), on the schema-exact fixture of ``nuscenes_fixture``."""
+(:mod:`minimanc.studies.recorded`), on the package's schema-exact sample
+(:mod:`minimanc.world.nuscenes.sample`)."""
 
 import hashlib
 import json
@@ -8,7 +9,6 @@ from dataclasses import asdict, replace
 
 import numpy as np
 import pytest
-from nuscenes_fixture import write_fixture
 
 from minimanc import models, world
 from minimanc.cli import main
@@ -22,6 +22,7 @@ from minimanc.studies.recorded import (
     data_config,
     is_recorded,
 )
+from minimanc.world.nuscenes.sample import write_sample
 
 SMALL = replace(PRESETS["tiny"], table_models=("cnn", "manc"), ablation_models=("manc",),
                 sample_models=("manc",), q_states=(3,), fractions=(1.0,))
@@ -34,7 +35,7 @@ def recorded(tmp_path_factory):
     trainval names: 5 ``train`` scenes (scene-0061's copies) and 5 ``val`` (scene-0103's)
     import, the others are skipped (39 keyframes, a gap, no lane)."""
     base = tmp_path_factory.mktemp("recorded")
-    write_fixture(base / "root", "v1.0-trainval", copies=5)
+    write_sample(base / "root", "v1.0-trainval", copies=5)
     path = base / "data" / "ns.npz"
     assert main(["data", "import-nuscenes", str(base / "root"), "--version", "v1.0-trainval",
                  "--out", str(path), "--size", "32", "--quiet"]) == 0
