@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from minimanc import dmp, engine
+from minimanc import dmp
 
 rng = np.random.default_rng(0)
 
@@ -360,7 +360,8 @@ assert math.isclose(got, 8 / 3, rel_tol=1e-9), f"beta=2, h=0.5: expected 8/3, go
 # ## Exercise 3.6 — a new integrator: the stable range of α for one RK2 step
 # The tutorial maps explicit Euler, semi-implicit Euler and RK4; the package
 # has no second-order Runge–Kutta. Take **Heun's method** (RK2) for the state
-# $x = [e, \dot e]$ of eq. (12), $\dot x = f(x)$ with $f(e, \dot e) = (\dot e, -\alpha\beta e - \alpha\dot e)$:
+# $x = [e, \dot e]$ of eq. (12), $\dot x = f(x)$ with
+# $f(e, \dot e) = (\dot e,\; -\alpha\beta e - \alpha\dot e)$:
 #
 # $$k_1 = f(x), \qquad k_2 = f(x + h k_1), \qquad x' = x + \tfrac{h}{2}(k_1 + k_2).$$
 #
@@ -427,7 +428,8 @@ for a, b, h in test_rng.uniform((0.5, 0.05, 0.01), (30.0, 5.0, 0.5), size=(30, 3
         got = np.asarray(M) @ x
         assert np.allclose(got, expected, rtol=1e-10, atol=1e-12), (
             f"alpha={a:.3f}, beta={b:.3f}, h={h:.3f}, x = {x.tolist()}: expected "
-            f"M @ x = {np.round(expected, 6).tolist()} (one Heun step), got {np.round(got, 6).tolist()}")
+            f"M @ x = {np.round(expected, 6).tolist()} (one Heun step), "
+            f"got {np.round(got, 6).tolist()}")
 ### END HIDDEN TESTS
 
 # %% grade id=ex03_6_bound_tests points=2
