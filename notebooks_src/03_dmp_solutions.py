@@ -434,16 +434,17 @@ for a, b, h in test_rng.uniform((0.5, 0.05, 0.01), (30.0, 5.0, 0.5), size=(30, 3
 
 # %% grade id=ex03_6_bound_tests points=2
 # checked by stepping Heun's method on the state by hand, not through your matrix
-a6 = max_stable_alpha_rk2(1.0, 0.5)
+a6 = max_stable_alpha_rk2(3.0, 0.5)  # h*beta = 1.5: explicit Euler has no stable alpha here
 for a, shrinks in ((0.98 * a6, True), (1.02 * a6, False)):
     x = np.array([1.0, 0.0])
     for _ in range(400):
-        f1 = np.array([x[1], -a * x[0] - a * x[1]])
-        f2 = np.array([x[1] + 0.5 * f1[1], -a * (x[0] + 0.5 * f1[0]) - a * (x[1] + 0.5 * f1[1])])
+        f1 = np.array([x[1], -3.0 * a * x[0] - a * x[1]])
+        xm = x + 0.5 * f1
+        f2 = np.array([xm[1], -3.0 * a * xm[0] - a * xm[1]])
         x = x + 0.25 * (f1 + f2)
     size = np.abs(x).max()
     assert (size < 1) == shrinks, (
-        f"beta=1, h=0.5: your bound {a6!r}; 400 Heun steps at alpha = {a:.4f} should "
+        f"beta=3, h=0.5: your bound {a6!r}; 400 Heun steps at alpha = {a:.4f} should "
         f"{'shrink' if shrinks else 'grow'} the error, |x| = {size:.3g}")
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(361)  # the tests' own draws, not the notebook's rng
