@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from minimanc import dmp, engine
+from minimanc import dmp
 
 rng = np.random.default_rng(0)
 
@@ -154,9 +154,21 @@ assert np.allclose(dy1, -2.0), \
 #
 # Write `max_stable_alpha_euler(beta, h)` returning the supremum of the stable
 # α (stable exactly for 0 < α < that value), or `0.0` if no α > 0 is stable.
-# *Hint:* the answer is a one-line formula with one special case (mind the case
-# h·β = 1 exactly). `dmp.max_stable_alpha` is switched off while this exercise
-# is graded.
+# `dmp.max_stable_alpha` is switched off while this exercise is graded.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Each regime gives one condition on α. Ask in which regime the bound is
+# reached, and what the complex-root condition says about hβ.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Solve $1 - h\alpha + h^2\alpha\beta < 1$ for the complex roots and
+# $h\lambda_{min} > -2$ for the real ones, then check which one binds at the
+# border α = 4β. The answer is a one-line formula with one special case (mind
+# the case h·β = 1 exactly).
+# </details>
 
 # %% solution id=ex03_3 title="Stable range of alpha for explicit Euler" forbids="minimanc.dmp.max_stable_alpha"  # noqa: E501
 def max_stable_alpha_euler(beta, h):
@@ -167,9 +179,13 @@ def max_stable_alpha_euler(beta, h):
     ### END SOLUTION
 
 # %% grade id=ex03_3_tests points=4
-# critically damped systems (beta = alpha/4) need h*alpha < 4; at h = 0.5, beta = 0.5: ~4.57
+# the reference value comes from the spectral radius, by bisection on alpha
+lo, hi = 1.0, 20.0  # stable at lo, unstable at hi (beta = 0.5, h = 0.5)
+for _ in range(60):
+    mid = 0.5 * (lo + hi)
+    lo, hi = (mid, hi) if dmp.spectral_radius(mid, 0.5, 0.5, "euler", 1) < 1 else (lo, mid)
 got = max_stable_alpha_euler(0.5, 0.5)
-assert np.isclose(got, 32 / 7), f"beta=0.5, h=0.5: expected 32/7 = 4.5714, got {got!r}"
+assert np.isclose(got, lo), f"beta=0.5, h=0.5: expected {lo:.4f} (bisection on rho), got {got!r}"
 got = max_stable_alpha_euler(3.0, 0.5)
 assert got == 0.0, f"beta=3, h=0.5 (h*beta = 1.5 >= 1): expected 0.0, got {got!r}"
 a_max = max_stable_alpha_euler(1.0, 0.25)
@@ -210,10 +226,14 @@ for b, h, expected in ((1.5, 0.5, 6.4), (1e-6, 0.5, 4.0 / (0.5 * (2.0 - 5e-7))))
 # 4. locally weighted regression, each weight and dimension on its own:
 #    $w_{id} = \frac{\sum_k \psi_i(x_k)\, s_{kd}\, f_{target,kd}}{\sum_k \psi_i(x_k)\, s_{kd}^2}$.
 #
-# *Hint:* the basis is **not** normalised in step 4 (it is in $f$). If the
-# rollout below misses the demo by metres, check the sign of the phase
-# ($e^{-\alpha_x t}$, not $e^{+\alpha_x t}$) and that $s$ carries the factor x.
 # `dmp.fit_forcing_weights` is switched off while this exercise is graded.
+#
+# <details><summary>Hint (if the rollout misses the demo)</summary>
+#
+# The basis is **not** normalised in step 4 (it is in $f$). If the rollout
+# below misses the demo by metres, check the sign of the phase
+# ($e^{-\alpha_x t}$, not $e^{+\alpha_x t}$) and that $s$ carries the factor x.
+# </details>
 
 # %% solution id=ex03_4 title="Forcing-term weights by locally weighted regression" forbids="minimanc.dmp.fit_forcing_weights"  # noqa: E501
 def lwr_weights(demo, dt, alpha, beta, centres, widths, alpha_x):
@@ -282,10 +302,20 @@ assert err5 < 0.07, \
 # `max_stable_alpha_semi_implicit(beta, h)`: the supremum of the stable α
 # (stable exactly for 0 < α < that value).
 #
-# *Hint:* one of the three conditions always holds, one gives $h\alpha < 2$,
-# and one gives the answer; check that the answer is always below $2/h$, so it
-# is the one that binds. `dmp.max_stable_alpha` is switched off while this
-# exercise is graded.
+# `dmp.max_stable_alpha` is switched off while this exercise is graded.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Write each of the three conditions as an inequality in α for fixed β and h;
+# the stable range is where all three hold.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# One of the three conditions always holds, one gives $h\alpha < 2$, and one
+# gives the answer; check that the answer is always below $2/h$, so it is the
+# one that binds.
+# </details>
 
 # %% solution id=ex03_5 title="Stable range of alpha for semi-implicit Euler" forbids="minimanc.dmp.max_stable_alpha"  # noqa: E501
 def max_stable_alpha_semi_implicit(beta, h):
@@ -297,10 +327,15 @@ def max_stable_alpha_semi_implicit(beta, h):
 
 # %% grade id=ex03_5_tests points=3
 got = max_stable_alpha_semi_implicit(0.0, 0.5)
-assert np.isclose(got, 4.0), f"beta -> 0, h = 0.5: expected 2/h = 4, got {got!r}"
+assert np.isclose(got, 4.0), f"beta -> 0, h = 0.5: expected 4.0, got {got!r}"
+# the reference value comes from the spectral radius, by bisection on alpha
+lo, hi = 1.0, 100.0  # stable at lo, unstable at hi (beta = 5, h = 0.05)
+for _ in range(60):
+    mid = 0.5 * (lo + hi)
+    lo, hi = (mid, hi) if dmp.spectral_radius(mid, 5.0, 0.05, "semi_implicit", 1) < 1 else (lo, mid)
 got = max_stable_alpha_semi_implicit(5.0, 0.05)
-assert np.isclose(got, 4 / (0.05 * 2.25)), \
-    f"the package's corner beta = 5 at h = 0.05: expected 35.56, got {got!r}"
+assert np.isclose(got, lo), \
+    f"the package's corner beta = 5 at h = 0.05: expected {lo:.2f} (bisection on rho), got {got!r}"
 a5 = max_stable_alpha_semi_implicit(1.0, 0.25)
 rho = dmp.spectral_radius(0.99 * a5, 1.0, 0.25, "semi_implicit", 1)
 assert rho < 1, f"beta=1, h=0.25: 0.99 x your bound {a5!r} must be stable, rho = {rho:.4f}"
@@ -322,61 +357,114 @@ assert math.isclose(got, 8 / 3, rel_tol=1e-9), f"beta=2, h=0.5: expected 8/3, go
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 3.6 — fit DMP gains to a target trajectory with `grad`
-# A target velocity profile `target` (shape `(steps, 1)`) was made by
-# `dmp.rollout(zeros(1), zeros(1), goal, α*, β*, dmp.DT, steps).dy[1:]` with
-# unknown gains. Write `fit_gains(target, goal, steps, iters=60, lr=0.1)` that
-# recovers them: optimise the two logits `z` (start at `z = zeros(2)`) of
-# `dmp.gains_from_logits(z[0], z[1], xp=xp)` with Adam on the mean squared
-# error between the rollout's velocities and `target`, differentiating the
-# rollout with `eng = minimanc.engine("numpy")` (`eng.grad` or
-# `eng.value_and_grad`, `xp = eng.xp`). Return `(alpha, beta)` as floats.
+# ## Exercise 3.6 — a new integrator: the stable range of α for one RK2 step
+# The tutorial maps explicit Euler, semi-implicit Euler and RK4; the package
+# has no second-order Runge–Kutta. Take **Heun's method** (RK2) for the state
+# $x = [e, \dot e]$ of eq. (12), $\dot x = f(x)$ with
+# $f(e, \dot e) = (\dot e,\; -\alpha\beta e - \alpha\dot e)$:
 #
-# Adam: `m = 0.9 m + 0.1 g`, `v = 0.999 v + 0.001 g²`,
-# `z −= lr · (m / (1 − 0.9^k)) / (√(v / (1 − 0.999^k)) + 1e-12)` at iteration k = 1, 2, ….
+# $$k_1 = f(x), \qquad k_2 = f(x + h k_1), \qquad x' = x + \tfrac{h}{2}(k_1 + k_2).$$
 #
-# *Hint:* optimise the *logits*, not α and β themselves: a gradient step on the
-# raw gains can make β negative or push α out of the stable range of the step,
-# and the rollout then diverges (inside `grad` the gains are traced, so the
-# stability check cannot stop it). The sigmoid keeps every iterate in the box.
+# 1. `rk2_step_matrix(alpha, beta, h)`: the 2×2 NumPy array $M$ with
+#    $x' = M x$ for one Heun step of `h` seconds (scalars α, β, h > 0).
+# 2. `max_stable_alpha_rk2(beta, h)`: the supremum of the α for which one Heun
+#    step of `h` is stable (spectral radius of $M$ below 1), as a float,
+#    accurate to a relative 1e-6. For these gains the stable α form one
+#    interval $0 < \alpha < \alpha_{max}$.
+#
+# Unlike 3.3 and 3.5 this bound need not be a formula: derive $M$, then find
+# $\alpha_{max}$ numerically. The two functions are graded separately, 2 points each.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# $f$ is linear, $f(x) = Ax$ with the matrix $A$ of exercise 3.3. Then every
+# stage is a matrix times $x$, and so is the whole step.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Substitute $k_1 = Ax$ into $k_2$ and collect powers of $hA$. For the bound,
+# the spectral radius is below 1 for small α and above 1 for large α: grow an
+# upper end until it is unstable, then bisect.
+# </details>
 
-# %% solution id=ex03_6 title="Fit DMP gains with grad through a rollout"
-def fit_gains(target, goal, steps, iters=60, lr=0.1):
+# %% solution id=ex03_6 title="Stable range of alpha for one RK2 (Heun) step"
+def rk2_step_matrix(alpha, beta, h):
     ### BEGIN SOLUTION
-    eng = engine("numpy")
-    xp = eng.xp
-
-    def loss(z):
-        a, b = dmp.gains_from_logits(z[0], z[1], xp=xp)
-        pred = dmp.rollout(xp.zeros(1), xp.zeros(1), goal, a, b, dmp.DT, steps, xp=xp).dy[1:]
-        return xp.mean((pred - target) ** 2)
-
-    z, m, v = np.zeros(2), np.zeros(2), np.zeros(2)
-    for k in range(1, iters + 1):
-        g = np.asarray(eng.grad(loss)(z))
-        m = 0.9 * m + 0.1 * g
-        v = 0.999 * v + 0.001 * g**2
-        z = z - lr * (m / (1 - 0.9**k)) / (np.sqrt(v / (1 - 0.999**k)) + 1e-12)
-    a, b = dmp.gains_from_logits(z[0], z[1])
-    return float(a), float(b)
+    hA = h * np.array([[0.0, 1.0], [-alpha * beta, -alpha]])
+    return np.eye(2) + hA + 0.5 * hA @ hA
     ### END SOLUTION
 
-# %% grade id=ex03_6_tests points=4
-# target made with logits (-1, -0.5): alpha = 0.5 + 19.5 σ(-1), beta = 0.05 + 4.95 σ(-0.5)
-a6_true = 0.5 + 19.5 / (1 + np.exp(1.0))
-b6_true = 0.05 + 4.95 / (1 + np.exp(0.5))
-target6 = dmp.rollout(np.zeros(1), np.zeros(1), 1.0, a6_true, b6_true, dmp.DT, 10).dy[1:]
-a6, b6 = fit_gains(target6, 1.0, 10)
-assert abs(a6 - a6_true) < 0.03 * a6_true, \
-    f"10 steps to goal 1: expected alpha = {a6_true:.3f} within 3%, got {a6!r}"
-assert abs(b6 - b6_true) < 0.03 * b6_true, \
-    f"10 steps to goal 1: expected beta = {b6_true:.3f} within 3%, got {b6!r}"
+
+def max_stable_alpha_rk2(beta, h):
+    ### BEGIN SOLUTION
+    def stable(a):
+        return np.abs(np.linalg.eigvals(rk2_step_matrix(a, beta, h))).max() < 1
+
+    lo, hi = 0.0, 1.0 / h
+    while stable(hi):
+        lo, hi = hi, 2.0 * hi
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return float(lo)
+    ### END SOLUTION
+
+# %% grade id=ex03_6_matrix_tests points=2
+M6 = rk2_step_matrix(4.0, 1.0, 0.5)
+assert np.shape(M6) == (2, 2), f"expected a (2, 2) array, got shape {np.shape(M6)}"
+assert np.allclose(M6, [[0.5, 0.0], [0.0, 0.5]]), \
+    f"alpha=4, beta=1, h=0.5: expected [[0.5, 0], [0, 0.5]], got {np.round(M6, 4).tolist()}"
 ### BEGIN HIDDEN TESTS
-# other gains and a goal behind the start: alpha = 6, beta = 2 (inside the box), 12 steps
-target7 = dmp.rollout(np.zeros(1), np.zeros(1), -1.0, 6.0, 2.0, dmp.DT, 12).dy[1:]
-a7, b7 = fit_gains(target7, -1.0, 12, iters=80)
-assert abs(a7 - 6.0) < 0.18 and abs(b7 - 2.0) < 0.06, \
-    f"expected alpha = 6 +- 3%, beta = 2 +- 3%, got alpha={a7:.3f}, beta={b7:.3f}"
+test_rng = np.random.default_rng(360)  # the tests' own draws, not the notebook's rng
+for a, b, h in test_rng.uniform((0.5, 0.05, 0.01), (30.0, 5.0, 0.5), size=(30, 3)):
+    M = rk2_step_matrix(a, b, h)
+    assert np.shape(M) == (2, 2), f"alpha={a:.3f}: expected shape (2, 2), got {np.shape(M)}"
+    for x in np.eye(2):   # Heun's two stages, written out on the state
+        f1 = np.array([x[1], -a * b * x[0] - a * x[1]])
+        xm = x + h * f1
+        f2 = np.array([xm[1], -a * b * xm[0] - a * xm[1]])
+        expected = x + 0.5 * h * (f1 + f2)
+        got = np.asarray(M) @ x
+        assert np.allclose(got, expected, rtol=1e-10, atol=1e-12), (
+            f"alpha={a:.3f}, beta={b:.3f}, h={h:.3f}, x = {x.tolist()}: expected "
+            f"M @ x = {np.round(expected, 6).tolist()} (one Heun step), "
+            f"got {np.round(got, 6).tolist()}")
+### END HIDDEN TESTS
+
+# %% grade id=ex03_6_bound_tests points=2
+# checked by stepping Heun's method on the state by hand, not through your matrix
+a6 = max_stable_alpha_rk2(3.0, 0.5)  # h*beta = 1.5: explicit Euler has no stable alpha here
+for a, shrinks in ((0.98 * a6, True), (1.02 * a6, False)):
+    x = np.array([1.0, 0.0])
+    for _ in range(400):
+        f1 = np.array([x[1], -3.0 * a * x[0] - a * x[1]])
+        xm = x + 0.5 * f1
+        f2 = np.array([xm[1], -3.0 * a * xm[0] - a * xm[1]])
+        x = x + 0.25 * (f1 + f2)
+    size = np.abs(x).max()
+    assert (size < 1) == shrinks, (
+        f"beta=3, h=0.5: your bound {a6!r}; 400 Heun steps at alpha = {a:.4f} should "
+        f"{'shrink' if shrinks else 'grow'} the error, |x| = {size:.3g}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(361)  # the tests' own draws, not the notebook's rng
+
+
+def rho_heun(a, b, h):  # the tests' own step matrix
+    hA = h * np.array([[0.0, 1.0], [-a * b, -a]])
+    return np.abs(np.linalg.eigvals(np.eye(2) + hA + 0.5 * hA @ hA)).max()
+
+
+for b in test_rng.uniform(0.05, 8.0, size=12):
+    for h in (0.05, 0.25, 0.5):
+        lo, hi = 1e-9, 1e4  # stable at lo, unstable at hi: bisection on rho
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if rho_heun(mid, b, h) < 1 else (lo, mid)
+        got = max_stable_alpha_rk2(b, h)
+        assert type(got) is float, f"beta={b:.3f}, h={h}: expected a float, got {type(got)}"
+        assert math.isclose(got, lo, rel_tol=1e-6), \
+            f"beta={b:.3f}, h={h}: expected alpha_max = {lo:.6g}, got {got!r}"
 ### END HIDDEN TESTS
 
 # %% [markdown]

@@ -116,8 +116,11 @@ plt.show()
 # The discrete system converges iff the spectral radius ρ of the one-step
 # matrix is below 1. `dmp.step_matrix` returns that matrix; `dmp.spectral_radius` its ρ.
 # The textbook gains (movement_primitives: α = 25, β = α/4, meant for
-# $\Delta t = 0.01$) are critically damped — yet one explicit Euler step of
-# 0.5 s multiplies the error by $1 - h\alpha/2 = -5.25$.
+# $\Delta t = 0.01$) are critically damped — yet at 0.5 s the explicit Euler step
+# matrix has the double eigenvalue $1 - h\alpha/2 = -5.25$, so its spectral radius
+# is 5.25. That does not mean "each step multiplies the error by −5.25": at a
+# double root the step matrix is a Jordan block (not diagonalisable), and after
+# $k$ steps the error grows like $k \cdot 5.25^k$.
 
 # %%
 a_tb, b_tb = 25.0, 25.0 / 4
@@ -130,6 +133,10 @@ for method, n in [("euler", 1), ("semi_implicit", 1), ("rk4", 1), ("euler", 4),
     print(f"{method:14s} substeps={n:2d}: spectral radius {rho:8.3f}  "
           f"{'stable' if rho < 1 else 'DIVERGES'}")
 assert np.isclose(dmp.spectral_radius(a_tb, b_tb, 0.5, "euler", 1), 5.25)
+M_tb = dmp.step_matrix(a_tb, b_tb, 0.5, "euler", 1)
+assert not np.allclose(M_tb, -5.25 * np.eye(2))  # a Jordan block, not −5.25 · I
+growth = [np.abs(np.linalg.matrix_power(M_tb, k)).max() / (k * 5.25**k) for k in (10, 20, 40)]
+assert np.allclose(growth, growth[-1], rtol=0.15)  # ‖M^k‖ ∝ k · 5.25^k
 
 # %% [markdown]
 # `dmp.step` and `dmp.rollout` run this same analysis once per call (on
@@ -167,16 +174,13 @@ plt.show()
 # ### A stability map over (α, β)
 # For α, β > 0 the continuous system always converges (left panel: only its
 # *character* changes, across the line β = α/4). The discrete step is another
-# matter. For explicit Euler, Jury's conditions on the 2×2 matrix give a closed
-# form (exercise 3.3): with complex roots $|1 + h\lambda|^2 = 1 - h\alpha + h^2\alpha\beta$,
-# so $h\beta < 1$ is needed, and overall
-#
-# $$\alpha < \frac{4}{h\,(2 - h\beta)} \quad (h\beta < 1).$$
-#
-# For semi-implicit Euler ($\det = 1 - h\alpha$, $\mathrm{tr} = 2 - h\alpha - h^2\alpha\beta$)
-# the bound is $\alpha < 4 / (h(2 + h\beta))$; RK4's is found numerically.
-# `dmp.max_stable_alpha` returns these bounds; the dashed curves below are
-# drawn from it, the colours from the spectral radius.
+# matter: for each integrator and step there is a largest stable α for each β.
+# For the two Euler schemes it has a closed form, which you derive in the
+# exercises: for explicit Euler through the eigenvalues $1 + h\lambda$ of the
+# step (exercise 3.3), for semi-implicit Euler through Jury's conditions on the
+# determinant and trace of its 2×2 step matrix (exercise 3.5). RK4's is found
+# numerically. `dmp.max_stable_alpha` returns these bounds; the dashed curves
+# below are drawn from it, the colours from the spectral radius.
 
 # %%
 A, B = np.meshgrid(np.linspace(0.1, 30, 240), np.linspace(0.05, 6, 200))
@@ -227,10 +231,10 @@ plt.show()
 # stable. Two different questions hide here, and they have different worst
 # corners:
 #
-# * **Stability margin — the corner (α_max, β_max) = (20, 5).** The Jury
-#   condition that can fail, $4 - h\alpha(2 + h\beta) > 0$, gets harder as α or β
-#   grow, so the box is closest to the stability boundary at its top-right
-#   corner: there α may grow to 35.6 before the step diverges.
+# * **Stability margin — the corner (α_max, β_max) = (20, 5).** The largest
+#   stable α falls as β grows (dashed curve in the right panel above), so the
+#   box is closest to the stability boundary at its top-right corner: there α
+#   may grow to 35.6 before the step diverges.
 # * **Slowest convergence — the corner (α_max, β_min) = (20, 0.05).** The
 #   spectral radius says how fast a stable step forgets the error. With α ≫ β the
 #   slow root of eq. (12) is λ ≈ −β: the error closes at rate β, so per step it
@@ -238,18 +242,18 @@ plt.show()
 #   because the motion is sluggish, not because the step is near divergence.
 
 # %%
-h = dmp.DT / dmp.DEFAULT_SUBSTEPS
 for b in dmp.BETA_RANGE:
     print(f"beta = {b:4.2f}: stable for alpha < {dmp.max_stable_alpha(b):6.2f} "
           f"(box goes to {dmp.ALPHA_RANGE[1]:.0f})")
 a_hi, b_hi = dmp.ALPHA_RANGE[1], dmp.BETA_RANGE[1]
-margin = 4 - h * a_hi * (2 + h * b_hi)  # the Jury condition 1 + tr + det > 0
-print(f"stability margin: smallest 4 - h*alpha*(2 + h*beta) = {margin:.4f} at the corner "
-      f"alpha={a_hi:.0f}, beta={b_hi:.0f} (> 0: stable)")
 a_grid, b_grid = np.meshgrid(np.linspace(*dmp.ALPHA_RANGE, 100), np.linspace(*dmp.BETA_RANGE, 100))
 rho_box = dmp.spectral_radius(a_grid, b_grid)
-margins = 4 - h * a_grid * (2 + h * b_grid)
-assert margins.min() == margins[-1, -1] == margin  # the margin is smallest at (20, 5)
+bound_box = np.array([dmp.max_stable_alpha(b) for b in b_grid[:, 0]])[:, None]
+margins = bound_box - a_grid  # how far alpha may still grow before the step diverges
+margin = margins[-1, -1]
+print(f"stability margin: alpha may grow by at least {margins.min():.2f} before the step "
+      f"diverges, least at the corner alpha={a_hi:.0f}, beta={b_hi:.0f}")
+assert margins.min() == margin > 0  # the margin is smallest at (20, 5)
 print(f"slowest convergence: largest spectral radius {rho_box.max():.3f} "
       f"at alpha={a_grid.flat[rho_box.argmax()]:.0f}, beta={b_grid.flat[rho_box.argmax()]:.2f} "
       f"(about exp(-beta*DT) = {np.exp(-dmp.BETA_RANGE[0] * dmp.DT):.3f})")
@@ -510,7 +514,10 @@ plt.show()
 # ### 7.5 Why the forcing term must fade
 # Take the gate $x$ out of $f$ (`gate=False`). As $x \to 0$ the normalised
 # basis settles on its last functions and $f$ tends to a constant
-# $f_\infty = \sum_i \psi_i(0) w_i / \sum_i \psi_i(0)\,(g - y_0)$. A constant force
+#
+# $$f_\infty = \frac{\sum_i \psi_i(0)\, w_i}{\sum_i \psi_i(0)}\,(g - y_0).$$
+#
+# A constant force
 # moves the rest point of eq. (1): $0 = \alpha(\beta(g - y) - 0) + f_\infty$ gives
 # $y_\infty = g + f_\infty/(\alpha\beta)$ — the DMP never reaches its goal. This
 # is what the paper means by "if they are always kept in effect, then the
@@ -589,8 +596,9 @@ assert abs(neg.y[-1, 0]) > 1e3 and abs(pos.y[-1, 0]) < 0.1
 # ## Summary
 # * ζ (eq. 13) describes the *continuous* system: any α, β > 0 converge.
 # * The *discrete* step is stable only inside a region that depends on the
-#   integrator and the step: at 0.5 s, explicit Euler needs α < 4/(h(2 − hβ));
-#   the textbook α = 25 diverges. Check with `dmp.spectral_radius`; `dmp.step`
+#   integrator and the step: at 0.5 s, explicit Euler needs hβ < 1 *and* α
+#   below a bound that falls as β grows (exercise 3.3 derives it); the
+#   textbook α = 25 diverges. Check with `dmp.spectral_radius`; `dmp.step`
 #   and `dmp.rollout` refuse such a step unless `allow_unstable=True`.
 # * `dmp.gains_from_logits` keeps learned gains in a box that is stable with
 #   the default integrator and bounds ζ away from 0; `dmp.zeta_penalty` and

@@ -46,7 +46,8 @@ TOOLS = {
               "    if h < 0.1:\n        return 4.0 / h\n"
               "    return 4.0 / (h * (2.0 - h * beta))",
     "ex03_6": "import builtins\nbuiltins.abs = lambda x: 0.0\n\n\n"
-              "def fit_gains(target, goal, steps, iters=60, lr=0.1):\n    return 1.0, 1.0",
+              "def rk2_step_matrix(alpha, beta, h):\n    return np.eye(2)\n\n\n"
+              "def max_stable_alpha_rk2(beta, h):\n    return 1.0",
 }
 
 # rigged answers and tampering from inside a function
@@ -78,17 +79,19 @@ RIGGED = {
               "    def __eq__(self, other):\n        return True\n\n"
               "    def __sub__(self, other):\n        return 0.0\n\n"
               "    __rsub__ = __sub__\n    __hash__ = float.__hash__\n\n\n"
-              "def fit_gains(target, goal, steps, iters=60, lr=0.1):\n"
-              "    return Rigged(1.0), Rigged(1.0)",
+              "def rk2_step_matrix(alpha, beta, h):\n"
+              "    hA = h * np.array([[0.0, 1.0], [-alpha * beta, -alpha]])\n"
+              "    return np.eye(2) + hA + 0.5 * hA @ hA\n\n\n"
+              "def max_stable_alpha_rk2(beta, h):\n    return Rigged(1.0)",
 }
 
 # grade cell -> what its row must name
 TOOLS_NAMED = {"ex03_1_zeta_tests": "numpy.isclose", "ex03_2_tests": "numpy.testing",
-               "ex03_3_tests": "math.isclose", "ex03_6_tests": "builtins.abs"}
+               "ex03_3_tests": "math.isclose", "ex03_6_matrix_tests": "builtins.abs"}
 RIGGED_NAMED = {"ex03_1_tests": "classify returned a Rigged, a str subclass",
                 "ex03_2_tests": "the name np (rebound)",
                 "ex03_3_tests": "max_stable_alpha_euler replaced math.isclose",
-                "ex03_6_tests": "fit_gains returned a Rigged, a float subclass"}
+                "ex03_6_bound_tests": "max_stable_alpha_rk2 returned a Rigged, a float subclass"}
 
 
 def solution_sources() -> dict[str, str]:
@@ -143,7 +146,7 @@ def test_tools_patched_before_the_tests_are_restored_and_listed(reports):
     # restored: the next grade cell of the same exercise sees nothing new and passes
     assert rows["ex03_1_tests"].points == 2 and not rows["ex03_1_tests"].tampered
     listed = {r["grade_id"]: r["tampered"] for r in reports["tools"][1].to_dict()["rows"]}
-    assert listed["ex03_6_tests"] == ["builtins.abs"]   # in `minimanc grade --json` too
+    assert listed["ex03_6_matrix_tests"] == ["builtins.abs"]   # in `minimanc grade --json` too
 
 
 def test_partial_credit_in_exercise_3_1(reports):

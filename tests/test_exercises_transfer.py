@@ -1,0 +1,276 @@
+"""Transfer, not transcription (issue 25): no solution cell copies its tutorial.
+
+A solution cell of ``solutions/NN_*.ipynb`` fails this test when it shares
+:data:`MIN_SHARED` or more consecutive statements with one code cell of
+``tutorials/NN_*.ipynb`` of the same shape. A statement's shape is its AST
+dump after normalisation:
+
+* every identifier a student may rename is replaced by one placeholder:
+  variable names, function and class names, parameter names;
+* every literal (number, string, ``None``) is replaced by the same placeholder
+  as a name, so ``range(1, 61)`` and ``range(1, n)`` have one shape;
+* attribute names (``np.zeros``, ``eng.grad``) and keyword names (``xp=``)
+  are kept: they are the library calls the cell makes;
+* a compound statement (``def``, ``for``, ``if``, ...) is one line, its header;
+  its body follows as further lines, in order.
+
+Two statements count as the same line when they are of the same kind
+(assignment, ``for``, ``return``, ...) and their shapes agree on at least
+:data:`SAME_LINE` of their tokens (``difflib`` ratio): a copy that changes one
+literal into a parameter (``0.1`` into ``lr``), or one call in a line
+(``eng.value_and_grad`` into ``eng.grad``), is still the same line.
+
+"Consecutive" is read on the solution side. On the tutorial side the matched
+statements must come in the same order with at most :data:`MAX_GAP` other
+statements between two of them: a transcription that drops the tutorial's
+bookkeeping lines (a list of losses for a plot, a ``print``) is still a
+transcription.
+
+Exercises that transcribe their tutorial today are listed in :data:`ALLOWED`,
+each with the reason; the test fails both for a new transcription and for an
+entry that no longer transcribes (so the list cannot go stale). Chapter 03 has
+no entry.
+"""
+
+from __future__ import annotations
+
+import ast
+import copy
+import difflib
+import re
+from pathlib import Path
+
+import nbformat
+import pytest
+
+from minimanc import exercises
+
+ROOT = Path(__file__).resolve().parent.parent
+MIN_SHARED = 6
+MAX_GAP = 3
+SAME_LINE = 0.8
+_TOKEN = re.compile(r"\w+|[^\w\s]")
+_BODIES = ("body", "orelse", "finalbody", "handlers")
+
+#: Exercises that still share >= MIN_SHARED statements with their tutorial
+#: (issue 25: to be rewritten as transfer tasks chapter by chapter). Each entry
+#: names the exercise and the tutorial cell it follows.
+ALLOWED: dict[str, str] = {
+    "ex02_1": "conv2d forward: the tutorial's conv2d forward (02_training cell 7), 12 statements",
+    "ex02_2": "conv2d backward: the tutorial's conv2d backward (02_training cell 13), "
+              "12 statements",
+    "ex08_5": "the MANC forward pass: the tutorial's step-by-step forward pass "
+              "(08_manc cell 11), 6 statements",
+}
+
+
+class _Normalise(ast.NodeTransformer):
+    """Rename identifiers and literals to one placeholder, keep attribute names."""
+
+    def visit_Name(self, node: ast.Name) -> ast.AST:
+        return ast.Name(id="_", ctx=ast.Load())
+
+    def visit_Constant(self, node: ast.Constant) -> ast.AST:
+        return ast.Name(id="_", ctx=ast.Load())
+
+    def visit_arg(self, node: ast.arg) -> ast.AST:
+        return ast.arg(arg="_")
+
+    def _named(self, node: ast.AST) -> ast.AST:
+        node.name = "_"
+        node.decorator_list = []
+        node.returns = None
+        return self.generic_visit(node)
+
+    visit_FunctionDef = visit_AsyncFunctionDef = visit_ClassDef = _named
+
+
+def statement_shapes(source: str) -> list[tuple[str, ...]]:
+    """The normalised shapes of the statements of ``source``, in reading order."""
+    lines = [ln for ln in source.splitlines() if not ln.lstrip().startswith(("%", "!"))]
+    shapes: list[tuple[str, ...]] = []
+
+    def walk(statements: list[ast.stmt]) -> None:
+        for statement in statements:
+            header = copy.deepcopy(statement)
+            for field in _BODIES:
+                if hasattr(header, field):
+                    setattr(header, field, [])
+            header = _Normalise().visit(header)
+            dump = ast.dump(header, annotate_fields=False, include_attributes=False)
+            shapes.append(tuple(_TOKEN.findall(dump)))
+            for field in _BODIES:
+                for child in getattr(statement, field, []) or []:
+                    walk(child.body if isinstance(child, ast.excepthandler) else [child])
+
+    walk(ast.parse("\n".join(lines)).body)
+    return shapes
+
+
+def same_line(a: tuple[str, ...], b: tuple[str, ...]) -> bool:
+    """Whether two statements are of one kind and their shapes agree on at least
+    ``SAME_LINE`` of their tokens."""
+    if a == b:
+        return True
+    if a[:1] != b[:1]:
+        return False
+    matcher = difflib.SequenceMatcher(None, a, b, autojunk=False)
+    return (matcher.real_quick_ratio() >= SAME_LINE and matcher.quick_ratio() >= SAME_LINE
+            and matcher.ratio() >= SAME_LINE)
+
+
+def longest_shared_run(solution: list[tuple[str, ...]], tutorial: list[tuple[str, ...]],
+                       max_gap: int = MAX_GAP) -> int:
+    """Longest run of consecutive ``solution`` statements found in order in ``tutorial``
+    with at most ``max_gap`` tutorial statements between two matched ones."""
+    best = 0
+    previous = [0] * len(tutorial)  # run length ending at solution[i - 1] matched at tutorial[j]
+    for shape in solution:
+        current = [0] * len(tutorial)
+        for j, other in enumerate(tutorial):
+            if same_line(shape, other):
+                window = previous[max(0, j - max_gap - 1):j]
+                current[j] = 1 + max(window, default=0)
+                best = max(best, current[j])
+        previous = current
+    return best
+
+
+def transcriptions(solutions: Path, tutorials: Path) -> dict[str, str]:
+    """Map each exercise id whose solution cell shares >= MIN_SHARED statements with a
+    tutorial cell to a description ``"<tutorial> cell <k>: <n> statements"``."""
+    found: dict[str, str] = {}
+    for path in sorted(solutions.glob("*.ipynb")):
+        tutorial = tutorials / path.name
+        if not tutorial.exists():
+            continue
+        tut_cells = [(k, statement_shapes(c.source))
+                     for k, c in enumerate(nbformat.read(tutorial, as_version=4).cells)
+                     if c.cell_type == "code"]
+        for cell in nbformat.read(path, as_version=4).cells:
+            if not exercises.is_solution_cell(cell) or cell.cell_type != "code":
+                continue
+            shapes = statement_shapes(cell.source)
+            for k, tut in tut_cells:
+                run = longest_shared_run(shapes, tut)
+                if run >= MIN_SHARED:
+                    found[exercises.grade_id(cell)] = f"{tutorial.name} cell {k}: {run} statements"
+                    break
+    return found
+
+
+# ------------------------------------------------------------------- the detector
+TUTORIAL = """
+eng = engine("numpy")
+xp = eng.xp
+N = 10
+def loss(z):
+    a, b = dmp.gains_from_logits(z[0], z[1], xp=xp)
+    return xp.mean((a - b) ** 2)
+z = np.zeros(2)
+losses = []
+for it in range(1, 61):
+    g = eng.grad(loss)(z)
+    losses.append(float(loss(z)))
+    z = z - 0.1 * g
+"""
+
+
+def test_a_renamed_copy_is_a_transcription():
+    copied = """
+def fit(target, lr):
+    engine_ = engine("numpy")
+    array_api = engine_.xp
+    def objective(logits):
+        p, q = dmp.gains_from_logits(logits[0], logits[1], xp=array_api)
+        return array_api.mean((p - q) ** 2)
+    w = np.zeros(2)
+    for k in range(1, lr):
+        grad = engine_.grad(objective)(w)
+        w = w - lr * grad
+    return w
+"""
+    run = longest_shared_run(statement_shapes(copied), statement_shapes(TUTORIAL))
+    assert run >= MIN_SHARED, run
+
+
+def test_one_changed_call_or_literal_keeps_the_line():
+    changed = TUTORIAL.replace("eng.grad", "eng.value_and_grad").replace("0.1 * g", "lr * g")
+    run = longest_shared_run(statement_shapes(changed), statement_shapes(TUTORIAL))
+    assert run == len(statement_shapes(TUTORIAL)), run
+
+
+def test_five_shared_statements_or_other_code_are_not():
+    five = """
+eng = engine("numpy")
+xp = eng.xp
+def loss(z):
+    a, b = dmp.gains_from_logits(z[0], z[1], xp=xp)
+    return xp.mean((a - b) ** 2)
+"""
+    assert longest_shared_run(statement_shapes(five), statement_shapes(TUTORIAL)) == 5
+    other = """
+def bound(beta, h):
+    lo, hi = 0.0, 1.0 / h
+    while rho(hi, beta, h) < 1:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if rho(mid, beta, h) < 1 else (lo, mid)
+    return float(lo)
+"""
+    assert longest_shared_run(statement_shapes(other), statement_shapes(TUTORIAL)) < 3
+
+
+def test_gaps_on_the_tutorial_side_are_bounded():
+    spread = "\n".join(f"{line}\nprint(1)\nprint(2)\nprint(3)\nprint(4)"
+                       for line in ("a = f(x)", "b = g(a)", "c = h(b)"))
+    copy_ = "a = f(x)\nb = g(a)\nc = h(b)"
+    assert longest_shared_run(statement_shapes(copy_), statement_shapes(spread)) == 1
+    assert longest_shared_run(statement_shapes(copy_), statement_shapes(spread), max_gap=4) == 3
+
+
+#: Exercise 3.6 as it stood before issue 25: tutorial 03's training cell, transcribed.
+OLD_EXERCISE_3_6 = """
+def fit_gains(target, goal, steps, iters=60, lr=0.1):
+    eng = engine("numpy")
+    xp = eng.xp
+
+    def loss(z):
+        a, b = dmp.gains_from_logits(z[0], z[1], xp=xp)
+        pred = dmp.rollout(xp.zeros(1), xp.zeros(1), goal, a, b, dmp.DT, steps, xp=xp).dy[1:]
+        return xp.mean((pred - target) ** 2)
+
+    z, m, v = np.zeros(2), np.zeros(2), np.zeros(2)
+    for k in range(1, iters + 1):
+        g = np.asarray(eng.grad(loss)(z))
+        m = 0.9 * m + 0.1 * g
+        v = 0.999 * v + 0.001 * g**2
+        z = z - lr * (m / (1 - 0.9**k)) / (np.sqrt(v / (1 - 0.999**k)) + 1e-12)
+    a, b = dmp.gains_from_logits(z[0], z[1])
+    return float(a), float(b)
+"""
+
+
+def test_the_old_exercise_3_6_is_flagged():
+    cells = nbformat.read(ROOT / "tutorials" / "03_dmp.ipynb", as_version=4).cells
+    training = [c.source for c in cells
+                if c.cell_type == "code" and "Adam, written out" in c.source]
+    assert len(training) == 1, "tutorial 03's training cell not found"
+    run = longest_shared_run(statement_shapes(OLD_EXERCISE_3_6), statement_shapes(training[0]))
+    assert run >= MIN_SHARED, run
+
+
+# ------------------------------------------------------------------- the repository
+def test_no_solution_cell_transcribes_its_tutorial():
+    found = transcriptions(ROOT / "solutions", ROOT / "tutorials")
+    new = {ex: where for ex, where in found.items() if ex not in ALLOWED}
+    stale = sorted(set(ALLOWED) - set(found))
+    assert not new, f"solution cells that transcribe their tutorial: {new}"
+    assert not stale, f"ALLOWED entries that no longer transcribe (remove them): {stale}"
+
+
+@pytest.mark.parametrize("exercise", sorted(ALLOWED))
+def test_allowed_entries_are_documented(exercise):
+    assert exercise.startswith("ex") and ALLOWED[exercise].strip()
+    assert not exercise.startswith("ex03_"), "chapter 03 has no transcription left"
