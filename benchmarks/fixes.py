@@ -31,8 +31,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scoring import cells, scores
 
-from minimanc import metrics, models, results, rollout, train, world
+from minimanc import models, results, rollout, train, world
 from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS
 
@@ -54,19 +55,8 @@ def parse(variant: str) -> tuple[str, str, int, str, str, float]:
     return name, setting, int(history), out, scale, float(parts[5]) if len(parts) == 6 else 0.0
 
 
-def scores(traj, val) -> dict[str, float]:
-    m = metrics.evaluate(traj, val)
-    along, _ = metrics.along_cross_track(traj.ego, np.asarray(val.ego, dtype=np.float64))
-    m["along_track"] = float(np.abs(along).mean())
-    return m
 
 
-def cells(runs: list[dict]) -> str:
-    out = []
-    for k in SHOW:
-        v = np.array([r[k] for r in runs])
-        out.append(f"{v.mean():.2f}" if len(v) == 1 else f"{v.mean():.2f} ± {v.std():.2f}")
-    return " | ".join(out)
 
 
 def main() -> None:
@@ -109,7 +99,7 @@ def main() -> None:
                       f"{runs[a][-1]['ade']:.2f}" for a in AGENTS), flush=True)
         for a in AGENTS:
             rows[a].append(f"| {models.spec(name).label} | {setting} | {h} | {out} | {scale} | "
-                           f"{w:g} | {cells(runs[a])} |")
+                           f"{w:g} | {cells(runs[a], SHOW)} |")
     text = (f"# Fixes, one at a time (paper preset draw: {N_TRAIN} training, {N_VAL} "
             f"validation scenes; {args.epochs} epochs, lr {args.lr:g}, {args.seeds} seeds, "
             + ("" if args.channels is None else f"backbone channels {tuple(args.channels)}, ")

@@ -16,9 +16,9 @@ import argparse
 import time
 from pathlib import Path
 
-import numpy as np
+from scoring import cells, scores
 
-from minimanc import metrics, models, results, rollout, train, world
+from minimanc import models, results, rollout, train, world
 from minimanc.dagger.teachers import AGENTS
 
 N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
@@ -26,19 +26,8 @@ SHOW = ("ade", "along_track", "collision_rate", "at_fault_collision_rate", "off_
 HEAD = ("ADE m", "along m", "coll. %", "at fault %", "off road %")
 
 
-def scores(traj, val) -> dict[str, float]:
-    m = metrics.evaluate(traj, val)
-    along, _ = metrics.along_cross_track(traj.ego, np.asarray(val.ego, dtype=np.float64))
-    m["along_track"] = float(np.abs(along).mean())
-    return m
 
 
-def cells(runs: list[dict]) -> str:
-    out = []
-    for k in SHOW:
-        v = np.array([r[k] for r in runs])
-        out.append(f"{v.mean():.2f}" if len(v) == 1 else f"{v.mean():.2f} ± {v.std():.2f}")
-    return " | ".join(out)
 
 
 def main() -> None:
@@ -73,7 +62,7 @@ def main() -> None:
                                   f"fault, ADE {runs[a][-1]['ade']:.2f}" for a in AGENTS),
                       flush=True)
             for a in AGENTS:
-                rows[a].append(f"| {models.spec(name).label} | {h} | {cells(runs[a])} |")
+                rows[a].append(f"| {models.spec(name).label} | {h} | {cells(runs[a], SHOW)} |")
     text = (f"# Faded history in the raster (paper preset draw: {N_TRAIN} training, {N_VAL} "
             f"validation scenes; {args.epochs} epochs, lr {args.lr:g}, {args.seeds} seeds, "
             "mean ± std)\n\n")

@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scoring import cells
 
 from minimanc import results, world
 from minimanc.dagger import privileged as P
@@ -46,16 +47,10 @@ INFORMATION: dict[str, tuple[str, ...]] = {
 """Features a raster cannot show, by what the image (and the setting) give."""
 
 
-def cells(runs: list[dict]) -> str:
-    out = []
-    for k in SHOW:
-        v = np.array([r[k] for r in runs])
-        out.append(f"{v.mean():.2f}" if len(v) == 1 else f"{v.mean():.2f} ± {v.std():.2f}")
-    return " | ".join(out)
 
 
 def row(name: str, runs: list[dict]) -> str:
-    return f"| {name} | {cells(runs)} |"
+    return f"| {name} | {cells(runs, SHOW)} |"
 
 
 def table(rows: list[str], first: str = "driver") -> list[str]:
@@ -155,7 +150,7 @@ def main() -> None:
                                  steps=args.steps)
         lines = ["| round | labels | " + " | ".join(HEAD) + " |", "|---" * (len(HEAD) + 2) + "|"]
         for i, r in enumerate(rounds):
-            lines.append(f"| {i} | {r.labels} | {cells([r.metrics])} |")
+            lines.append(f"| {i} | {r.labels} | {cells([r.metrics], SHOW)} |")
             log(f"dagger round {i}: {r.metrics['at_fault_collision_rate']:.1f} % at fault", t0)
         more = ds.subset(np.r_[np.arange(args.train), np.arange(n, n + extra)])
         Xm, Ym = P.demonstrations(more)
