@@ -19,7 +19,8 @@ The data is the paper preset's draw (data seed 0: 650 training, 40 tuning, 200 v
 scenes, in that order; only the validation scenes are driven); each raster variant is
 generated once (``cache=True``). Training: ``--epochs`` epochs, learning rate ``--lr``,
 engine ``jax``, ``--seeds`` seeds (mean ± std); ``--channels`` the backbone's stride-2
-convolutions (``ModelConfig.channels``: one more layer doubles the receptive field).
+convolutions (``ModelConfig.channels``: one more layer doubles the receptive field) and
+``--predicates`` the number of visual predicates of eq. 7 (``ModelConfig.n_predicates``).
 
 Run: ``python benchmarks/fixes.py --variants cnn:parity:0:change:change --out results/X.md``
 """
@@ -66,6 +67,7 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=6)
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--channels", type=int, nargs="+", default=None)
+    ap.add_argument("--predicates", type=int, default=None)
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     variants = [parse(v) for v in args.variants]
@@ -81,9 +83,10 @@ def main() -> None:
         tr, val = data[h]
         if w > 0 and h not in perceived:
             perceived[h] = P.perceived(tr, PERCEIVE)
-        cfg = models.ModelConfig(setting=setting, speed_output=out,
-                                 **({} if args.channels is None
-                                    else {"channels": tuple(args.channels)}))
+        shape = {} if args.channels is None else {"channels": tuple(args.channels)}
+        if args.predicates is not None:
+            shape["n_predicates"] = args.predicates
+        cfg = models.ModelConfig(setting=setting, speed_output=out, **shape)
         runs = {a: [] for a in AGENTS}
         for seed in range(args.seeds):
             tc = train.TrainConfig(epochs=args.epochs, lr=args.lr, seed=seed, speed_scale=scale,
@@ -103,6 +106,7 @@ def main() -> None:
     text = (f"# Fixes, one at a time (paper preset draw: {N_TRAIN} training, {N_VAL} "
             f"validation scenes; {args.epochs} epochs, lr {args.lr:g}, {args.seeds} seeds, "
             + ("" if args.channels is None else f"backbone channels {tuple(args.channels)}, ")
+            + ("" if args.predicates is None else f"{args.predicates} predicates, ")
             + "mean ± std)\n\n")
     for a in AGENTS:
         text += (f"## Agents `{a}`\n\n| model | setting | history | speed output | speed scale"
