@@ -118,7 +118,12 @@ class ModelConfig:
     ``orientation`` ("yaw": the orientation DMP on the yaw angle, or
     "quaternion": eq. 2 with unit quaternions — equal results for yaw-only
     driving), ``vagn_scale`` the std of vAGN's initial weights, ``dt`` the
-    step (s).
+    step (s), ``speed_output`` ("level": the direct heads predict the speed itself;
+    "change": its change over one step, added to the current speed of ``motion``, so the
+    model must see ``motion``; the DMP heads always integrate from ``motion``) and
+    ``predicate_pool`` ("global": eq. 7, ``p = σ(Linear(GAP(f)))``; "flat": the predicates
+    read the flattened feature map, ``p = σ(Linear(flatten(f)))``, which keeps *where* a
+    feature fires — not the paper's form, and CAM, eq. 7's saliency, is not defined for it).
 
     ``dt`` must keep the default DMP integrator (:data:`minimanc.dmp.DEFAULT_METHOD`,
     :data:`minimanc.dmp.DEFAULT_SUBSTEPS` sub-steps) stable at every corner of the gain
@@ -145,6 +150,7 @@ class ModelConfig:
     vagn_scale: float = 4.0
     dt: float = dmp.DT
     speed_output: str = "level"
+    predicate_pool: str = "global"
 
     def __post_init__(self) -> None:
         for name in ("n_states", "n_predicates", "image_size", "hidden", "k_targets"):
@@ -182,6 +188,9 @@ class ModelConfig:
             raise ValueError(f"gains_scale must be > 0, got gains_scale={self.gains_scale!r}")
         if not self.vagn_scale > 0.0:
             raise ValueError(f"vagn_scale must be > 0, got vagn_scale={self.vagn_scale!r}")
+        if self.predicate_pool not in ("global", "flat"):
+            raise ValueError(f"predicate_pool must be 'global' or 'flat', got "
+                             f"predicate_pool={self.predicate_pool!r}")
         if self.speed_output not in SPEED_OUTPUTS:
             raise ValueError(f"speed_output must be one of {SPEED_OUTPUTS}, got "
                              f"speed_output={self.speed_output!r}")
@@ -217,8 +226,9 @@ class ModelConfig:
         """A JSON-able dict (for checkpoints)."""
         d = asdict(self)
         d["channels"] = list(d["channels"])
-        if d["speed_output"] == "level":  # the form before the option: old checkpoints match
-            del d["speed_output"]
+        for k, default in (("speed_output", "level"), ("predicate_pool", "global")):
+            if d[k] == default:  # the form before the option: old checkpoints match
+                del d[k]
         return d
 
 

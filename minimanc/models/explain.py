@@ -56,6 +56,9 @@ def explain(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = None
 
     cfg = cfg or ModelConfig()
     eng = eng or _engine("numpy")
+    if cfg.predicate_pool != "global":
+        raise ValueError("explain (CAM, eq. 7) needs the predicates of global average pooling; "
+                         f"got predicate_pool={cfg.predicate_pool!r}")
     if "vagn" not in params or "predicates" not in params:
         raise ValueError("explain needs the parameters of a vAGN model (manc or vagn_only); "
                          f"got params with keys {sorted(params)}")

@@ -19,7 +19,7 @@ import numpy as np
 from minimanc import inputs, layers, vagn
 from minimanc.checks import check_int, check_rng
 from minimanc.models import registry
-from minimanc.models.backbone import backbone, dense
+from minimanc.models.backbone import backbone, dense, flatten
 from minimanc.models.config import CHANGE_SCALE, CONTROL_SCALE, ModelConfig
 from minimanc.models.registry import ModelSpec, get
 from minimanc.tree import leaves as tree_leaves
@@ -252,8 +252,11 @@ def encode(spec: ModelSpec, params: dict, obs: dict, cfg: ModelConfig, eng: Any)
     f = backbone(params["backbone"], obs["bev"], cfg, eng)
     enc: dict = {"features": f}
     if "predicates" in params:
-        gap = xp.mean(xp.mean(f, axis=1), axis=1)  # GAP of eq. 7
-        z = dense(params["predicates"], gap, eng)
+        if cfg.predicate_pool == "flat":
+            pooled = flatten(f, xp)
+        else:
+            pooled = xp.mean(xp.mean(f, axis=1), axis=1)  # GAP of eq. 7
+        z = dense(params["predicates"], pooled, eng)
         enc["predicates"] = eng.nn.sigmoid(z) if cfg.predicate_activation == "sigmoid" else z
     num = inputs.numeric_features(obs, spec.name, cfg.setting, xp=xp)
     enc.update(spec.encode(params, obs, f, num, cfg, eng))

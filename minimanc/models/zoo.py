@@ -32,7 +32,7 @@ from minimanc.models.config import CONTROL_SCALE, DEFAULT_GAINS, ModelConfig, ga
 from minimanc.models.dmp_head import dmp_head
 from minimanc.models.registry import ModelSpec, observes_goal, observes_structured, register
 
-__all__ = ["BUILTIN", "control_scale", "flat_size", "gains_layer"]
+__all__ = ["BUILTIN", "control_scale", "flat_size", "gains_layer", "predicate_layer"]
 
 
 def flat_size(cfg: ModelConfig) -> int:
@@ -63,6 +63,17 @@ def control_scale(eng: Any) -> Any:
         :data:`CONTROL_SCALE`, float32 (it never promotes a float32 output).
     """
     return eng.xp.asarray(np.asarray(CONTROL_SCALE, dtype=np.float32))
+
+
+def predicate_layer(rng: np.random.Generator, cfg: ModelConfig) -> dict:
+    """Eq. 7's predicate layer ``Linear(GAP(f))``: ``w`` ``(C, M)``, ``b`` ``(M,)``. With
+    ``cfg.predicate_pool="flat"`` it reads ``flatten(f)`` (``h·w·C`` inputs) and starts as
+    exactly the same function: the same draw, each cell's weights ``w / (h·w)``."""
+    p = layers.init_dense(rng, cfg.channels[-1], cfg.n_predicates)
+    if cfg.predicate_pool == "flat":
+        cells = cfg.feature_size ** 2
+        p = {**p, "w": np.tile(np.asarray(p["w"]), (cells, 1)) / cells}
+    return p
 
 
 def gains_layer(rng: np.random.Generator, n_in: int, cfg: ModelConfig) -> dict:
@@ -173,8 +184,8 @@ def _rvs_g_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig,
 
 
 def _manc_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
-    K, M, N = cfg.channels[-1], cfg.n_predicates, cfg.n_states
-    return {"predicates": layers.init_dense(rng, K, M),
+    M, N = cfg.n_predicates, cfg.n_states
+    return {"predicates": predicate_layer(rng, cfg),
             "vagn": {"W": vagn.init_vagn(rng, M, N, scale=cfg.vagn_scale)},
             "gains": gains_layer(rng, N, cfg)}
 
@@ -194,8 +205,8 @@ def _manc_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any)
 
 
 def _vagn_only_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
-    K, M, N, H = cfg.channels[-1], cfg.n_predicates, cfg.n_states, cfg.hidden
-    return {"predicates": layers.init_dense(rng, K, M),
+    M, N, H = cfg.n_predicates, cfg.n_states, cfg.hidden
+    return {"predicates": predicate_layer(rng, cfg),
             "vagn": {"W": vagn.init_vagn(rng, M, N, scale=cfg.vagn_scale)},
             "fc1": layers.init_dense(rng, N + n_num, H),
             "out": layers.init_dense(rng, H, 2)}
@@ -217,8 +228,9 @@ def _vagn_only_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng:
 
 
 def _dmp_only_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
-    K, M = cfg.channels[-1], cfg.n_predicates
-    return {"predicates": layers.init_dense(rng, K, M), "gains": gains_layer(rng, M, cfg)}
+    M = cfg.n_predicates
+    return {"predicates": predicate_layer(rng, cfg),
+            "gains": gains_layer(rng, M, cfg)}
 
 
 def _dmp_only_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
