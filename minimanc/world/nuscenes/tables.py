@@ -21,7 +21,7 @@ import numpy as np
 from minimanc.world.nuscenes.splits import VERSIONS
 
 __all__ = ["LOAD_ORDER", "TABLES", "NuScenesError", "Tables", "keyframe_poses", "read_json",
-           "read_records", "yaw_of"]
+           "read_records", "read_text", "yaw_of"]
 
 TABLES: tuple[str, ...] = ("scene", "sample", "sample_data", "ego_pose", "sample_annotation",
                            "instance", "category", "log", "map", "calibrated_sensor", "sensor")
@@ -37,14 +37,19 @@ class NuScenesError(ValueError):
     """A nuScenes DATAROOT that cannot be imported (one line: the file and what is wrong)."""
 
 
-def read_json(path: Path, what: str) -> object:
-    """``json.load`` of ``path``, or a :class:`NuScenesError` naming it (missing or corrupt)."""
+def read_text(path: Path, what: str) -> str:
+    """The text of ``path``, or a :class:`NuScenesError` naming ``what`` (missing, unreadable)."""
     try:
-        text = path.read_text(encoding="utf-8")
+        return path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise NuScenesError(f"{what} {path} is missing") from None
     except OSError as e:
         raise NuScenesError(f"cannot read {what} {path}: {e.strerror or e}") from None
+
+
+def read_json(path: Path, what: str) -> object:
+    """``json.load`` of ``path``, or a :class:`NuScenesError` naming it (missing or corrupt)."""
+    text = read_text(path, what)
     try:
         return json.loads(text)
     except json.JSONDecodeError as e:
@@ -64,12 +69,7 @@ def read_records(path: Path, what: str, keep: Callable[[dict], bool] | None = No
     Raises :class:`NuScenesError` (one line, naming ``what`` and ``path``) if the file is
     missing, is not valid JSON or is not such a list.
     """
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise NuScenesError(f"{what} {path} is missing") from None
-    except OSError as e:
-        raise NuScenesError(f"cannot read {what} {path}: {e.strerror or e}") from None
+    text = read_text(path, what)
 
     def invalid(msg: str, pos: int) -> NuScenesError:
         line = text.count("\n", 0, pos) + 1
