@@ -34,9 +34,14 @@ N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
 RIDGES = (1.0, 10.0, 100.0, 1000.0, 10000.0)
 TARGETS = ("v", "gap", "dv", "has_leader", "stop", "a_curve", "lateral", "heading")
 MODELS = {"untrained CNN backbone": None,
-          "CNN (parity, speed change)": ("cnn", "parity", "change", "change"),
-          "CNN (paper)": ("cnn", "paper", "level", "level"),
-          "MANC (paper)": ("manc", "paper", "level", "level")}
+          "CNN (parity, speed change)": ("cnn", "parity", "change", "change", "global", 0.0),
+          "CNN (paper)": ("cnn", "paper", "level", "level", "global", 0.0),
+          "MANC (paper)": ("manc", "paper", "level", "level", "global", 0.0),
+          "MANC (flat predicates, perception loss, speed scale)":
+              ("manc", "paper", "level", "change", "flat", 1.0)}
+"""label → (model, setting, speed_output, speed_scale, predicate_pool, perception_weight)."""
+PERCEIVE = tuple(f for f in P.FEATURES if f != "a_prev")
+"""The perception loss's targets (as in ``benchmarks/fixes.py``)."""
 
 
 def representations(name: str, params: dict, ds, cfg, batch: int = 500
@@ -75,6 +80,8 @@ def main() -> None:
     ap.add_argument("--probe-train", type=int, default=200)
     ap.add_argument("--epochs", type=int, default=6)
     ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--models", nargs="+", default=list(MODELS), metavar="LABEL",
+                    help="labels of MODELS to probe (default: all)")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     t0 = time.perf_counter()
@@ -92,15 +99,21 @@ def main() -> None:
     print(f"[{time.perf_counter() - t0:6.0f} s] {len(X)} probe-training, {len(Xv)} validation "
           f"states ({close.sum()} with a leader within 30 m)", flush=True)
     rows = []
-    for label, spec in MODELS.items():
+    bad = [m for m in args.models if m not in MODELS]
+    if bad:
+        ap.error(f"unknown --models {bad}; choose from {list(MODELS)}")
+    for label in args.models:
+        spec = MODELS[label]
         if spec is None:
             name, cfg = "cnn", models.ModelConfig()
             params = models.init(name, np.random.default_rng(0), cfg, dtype=np.float32)
         else:
-            name, setting, out, scale = spec
-            cfg = models.ModelConfig(setting=setting, speed_output=out)
-            tc = train.TrainConfig(epochs=args.epochs, lr=args.lr, seed=0, speed_scale=scale)
-            params = train.fit(name, tr, cfg, tc, progress=False).params
+            name, setting, out, scale, pool, w = spec
+            cfg = models.ModelConfig(setting=setting, speed_output=out, predicate_pool=pool)
+            tc = train.TrainConfig(epochs=args.epochs, lr=args.lr, seed=0, speed_scale=scale,
+                                   perception_weight=w)
+            targets = P.perceived(tr, PERCEIVE) if w > 0 else None
+            params = train.fit(name, tr, cfg, tc, progress=False, perception=targets).params
         reps, repsv = representations(name, params, ptr, cfg), representations(name, params,
                                                                                  val, cfg)
         for part in reps if spec is not None else ("backbone",):
