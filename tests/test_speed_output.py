@@ -25,17 +25,23 @@ def _obs(rng, b=3):
             "goal_bev": rng.random((b, 16, 16, 3))}
 
 
-@pytest.mark.parametrize("name", DIRECT)
-def test_change_output_is_the_current_speed_plus_a_scaled_head_output(name):
+def _both(name, seed):
+    """The observation and the controls of one step with speed_output "level" and "change"
+    (same parameters, same observation)."""
     eng = engine("numpy")
-    rng = np.random.default_rng(1)
+    rng = np.random.default_rng(seed)
     params = models.init(name, rng, CFG)
     obs = inputs.select(_obs(rng), name, "parity")
     state = models.initial_state(name, 3, CFG)
     level, _, _ = models.step(name, params, obs, state, CFG, eng)
     change, _, _ = models.step(name, params, obs, state, replace(CFG, speed_output="change"),
                                eng)
-    level, change = np.asarray(level), np.asarray(change)
+    return obs, np.asarray(level), np.asarray(change)
+
+
+@pytest.mark.parametrize("name", DIRECT)
+def test_change_output_is_the_current_speed_plus_a_scaled_head_output(name):
+    obs, level, change = _both(name, 1)
     k = models.CHANGE_SCALE / models.CONTROL_SCALE[0]
     np.testing.assert_allclose(change[:, 0], obs["motion"][:, 0] + k * level[:, 0], rtol=1e-5,
                                atol=1e-5)
@@ -44,14 +50,8 @@ def test_change_output_is_the_current_speed_plus_a_scaled_head_output(name):
 
 @pytest.mark.parametrize("name", models.dmp_models())
 def test_the_dmp_heads_do_not_change_with_the_option(name):
-    eng = engine("numpy")
-    rng = np.random.default_rng(2)
-    params = models.init(name, rng, CFG)
-    obs = inputs.select(_obs(rng), name, "parity")
-    state = models.initial_state(name, 3, CFG)
-    a, _, _ = models.step(name, params, obs, state, CFG, eng)
-    b, _, _ = models.step(name, params, obs, state, replace(CFG, speed_output="change"), eng)
-    np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    _, a, b = _both(name, 2)
+    np.testing.assert_array_equal(a, b)
 
 
 def test_change_output_refuses_a_model_that_does_not_see_its_motion():
