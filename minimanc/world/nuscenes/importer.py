@@ -65,6 +65,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from minimanc.checks import check_int
 from minimanc.world.datawriter import DatasetWriter
@@ -390,8 +391,6 @@ def import_nuscenes(dataroot: str | os.PathLike, version: str, path: str | os.Pa
     tables = _tables(dataroot, version, tables)
     chosen = select_scenes(tables, scenes)
     index = _scene_index(tables)
-    from tqdm import tqdm
-
     meta = empty_meta(0, cfg)
     expansions = {} if expansions is None else expansions
     imported: list[str] = []
