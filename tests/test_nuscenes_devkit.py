@@ -14,19 +14,14 @@ from nuscenes.map_expansion import arcline_path_utils  # noqa: E402
 from nuscenes.map_expansion.map_api import NuScenesMap  # noqa: E402
 from nuscenes.nuscenes import NuScenes  # noqa: E402
 from nuscenes.prediction import PredictHelper  # noqa: E402
-from nuscenes.prediction.input_representation.agents import (  # noqa: E402
-    AgentBoxesWithFadedHistory,
-)
-from nuscenes.prediction.input_representation.static_layers import (  # noqa: E402
-    StaticLayerRasterizer,
-)
+from nuscenes.prediction.input_representation import agents, static_layers  # noqa: E402
 from pyquaternion import Quaternion  # noqa: E402
 
 from minimanc import world  # noqa: E402
 from minimanc.world.history import History, history_of  # noqa: E402
 from minimanc.world.maps import class_grid  # noqa: E402
 from minimanc.world.nuscenes import MapExpansion, import_nuscenes  # noqa: E402
-from minimanc.world.nuscenes.sample import CENTRE, LOCATION, VERSION, token, write_sample  # noqa: E402
+from minimanc.world.nuscenes import sample as made_up  # noqa: E402
 from minimanc.world.raster import VEHICLE  # noqa: E402
 
 RES = 0.25
@@ -35,9 +30,9 @@ RES = 0.25
 @pytest.fixture(scope="module")
 def both(tmp_path_factory):
     root = tmp_path_factory.mktemp("nuscenes-devkit")
-    write_sample(root)
-    import_nuscenes(root, VERSION, root / "out.npz")
-    nusc = NuScenes(version=VERSION, dataroot=str(root), verbose=False)
+    made_up.write_sample(root)
+    import_nuscenes(root, made_up.VERSION, root / "out.npz")
+    nusc = NuScenes(version=made_up.VERSION, dataroot=str(root), verbose=False)
     return root, nusc, world.load(root / "out.npz")
 
 
@@ -76,8 +71,8 @@ def test_ego_poses_and_boxes_match_the_devkit(both):
 
 def test_lane_centrelines_match_discretize_lane(both):
     root, _, _ = both
-    nmap = NuScenesMap(dataroot=str(root), map_name=LOCATION)
-    m = MapExpansion(root, LOCATION)
+    nmap = NuScenesMap(dataroot=str(root), map_name=made_up.LOCATION)
+    m = MapExpansion(root, made_up.LOCATION)
     assert set(m.lane_tokens) == {r["token"] for r in nmap.lane + nmap.lane_connector}
     for tok, ours in zip(m.lane_tokens, m.centre, strict=True):
         theirs = np.array(arcline_path_utils.discretize_lane(nmap.arcline_path_3[tok], 1.0))
@@ -94,8 +89,8 @@ def test_lane_centrelines_match_discretize_lane(both):
 
 def test_class_grid_matches_the_devkit_map_masks(both):
     root, _, ds = both
-    nmap = NuScenesMap(dataroot=str(root), map_name=LOCATION)
-    cx, cy, size = CENTRE[0] + 20.0, CENTRE[1] - 30.0, 100.0
+    nmap = NuScenesMap(dataroot=str(root), map_name=made_up.LOCATION)
+    cx, cy, size = made_up.CENTRE[0] + 20.0, made_up.CENTRE[1] - 30.0, 100.0
     n = int(size / RES)
     drivable, crossing, walkway = nmap.get_map_mask(
         (cx, cy, size, size), 0.0, ["drivable_area", "ped_crossing", "walkway"],
@@ -116,12 +111,12 @@ def test_static_raster_matches_the_prediction_rasteriser(both):
     leave free. The devkit paints walkways over the drivable area; the importer draws them
     under it, so a devkit walkway pixel on the drivable area counts as agreeing."""
     root, nusc, ds = both
-    ras = StaticLayerRasterizer(PredictHelper(nusc), resolution=RES)
+    ras = static_layers.StaticLayerRasterizer(PredictHelper(nusc), resolution=RES)
     grid, origin, res = class_grid(ds.maps[0], RES)
     colours = {(255, 255, 255): 1, (119, 136, 153): 2, (0, 0, 255): 3, (0, 0, 0): 0}
     for k in (0, 20, 26):
-        sample, inst = token("scene-0061", "sample", k), token("scene-0061", "instance",
-                                                               "car_lead")
+        sample = made_up.token("scene-0061", "sample", k)
+        inst = made_up.token("scene-0061", "instance", "car_lead")
         img = ras.make_representation(inst, sample)
         ann = next(nusc.get("sample_annotation", a) for a in nusc.get("sample", sample)["anns"]
                    if nusc.get("sample_annotation", a)["instance_token"] == inst)
@@ -163,7 +158,7 @@ def grow(mask, px):
 
 def test_faded_history_boxes_match_agent_boxes_with_faded_history(both):
     """The ados drawn with faded history (``RasterConfig(history=4)``: the boxes of the last
-    2 s at 2 Hz) against the devkit's ``AgentBoxesWithFadedHistory(seconds_of_history=2)``,
+    2 s at 2 Hz) against the devkit's ``agents.AgentBoxesWithFadedHistory(seconds_of_history=2)``,
     both centred on the leading car's annotated pose, heading up, 0.25 m/px, 40 m ahead, 10 m
     behind, 25 m to each side. Compared: the union of the vehicles' boxes (current and past),
     as masks. The devkit fills corners truncated to whole pixels (``cv2.fillPoly``) and then
@@ -179,14 +174,14 @@ def test_faded_history_boxes_match_agent_boxes_with_faded_history(both):
     _, nusc, ds = both
     i = next(i for i, t in enumerate(ds.tags) if t["scene"] == "scene-0061")
     helper = PredictHelper(nusc)
-    ras = AgentBoxesWithFadedHistory(helper, seconds_of_history=2.0, resolution=RES,
+    ras = agents.AgentBoxesWithFadedHistory(helper, seconds_of_history=2.0, resolution=RES,
                                      color_mapping=vehicle_white)
     cfg = world.RasterConfig(size=200, history=4, draw_lanes=False, draw_walkways=False,
                              draw_crossings=False)
-    inst = token("scene-0061", "instance", "car_lead")
+    inst = made_up.token("scene-0061", "instance", "car_lead")
     past = history_of(ds.ego[i], ds.ado[i], ds.ado_valid[i], 4)
     for k in (2, 12, 26):
-        sample = token("scene-0061", "sample", k)
+        sample = made_up.token("scene-0061", "sample", k)
         ann = helper.get_sample_annotation(inst, sample)
         pose = [*ann["translation"][:2], quaternion_yaw(Quaternion(ann["rotation"]))]
         theirs_img = ras.make_representation(inst, sample)
