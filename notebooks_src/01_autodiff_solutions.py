@@ -8,14 +8,19 @@
 # cotangent back over broadcasting, the vector-Jacobian products (VJPs) of
 # `multiply`, `exp`, `sum` and `matmul`, the topological sort of the tape,
 # `grad` itself for a small scalar engine, and finally the computation graph
-# with the cotangent that flows along each of its edges. Every grade cell checks your
-# code against central differences or the library. Replace each
+# with the cotangent that flows along each of its edges. Then two things the
+# tutorial does not show: the VJPs of a linear solve (1.7, derived by you) and an
+# experiment on the step of a finite difference (1.8) with a written answer,
+# graded by hand. The last cell draws the chapter's graph figure from *your*
+# `edge_cotangents`. Every grade cell checks your code against central
+# differences or the library. Replace each
 # `raise NotImplementedError(...)` with your code and run the grade cell below
 # it; `minimanc grade exercises/01_autodiff.ipynb` scores the whole notebook.
 
 # %%
 import math
 
+import matplotlib.pyplot as plt
 import numpy as np
 
 import minimanc.autodiff.numpy as anp
@@ -28,6 +33,7 @@ from minimanc.autodiff import (
     toposort,
     unbroadcast,
 )
+from minimanc.viz.exercises import plot_edge_cotangents
 
 rng = np.random.default_rng(0)
 
@@ -439,3 +445,191 @@ gx, gy = grad(h_arrays, argnums=(0, 1))(np.array([0.4]), np.array([-1.2]))
 expected = (np.cos(0.4 * -1.2) * -1.2 + np.exp(-1.2), np.cos(0.4 * -1.2) * 0.4 + 0.4 * np.exp(-1.2))
 assert np.allclose([gx[0], gy[0]], expected)
 print(f"dh/dx = {gx[0]:.6f}, dh/dy = {gy[0]:.6f}")
+
+# %% [markdown]
+# ## Exercise 1.7 — a primitive the tutorial never differentiated: a linear solve
+# `np.linalg.solve(A, b)` returns $x$ with $A x = b$ ($A$ square and invertible,
+# $b$ of shape `(n,)` or `(n, k)`). Make it a primitive and write its two VJPs,
+# `solve_vjp_A(g, ans, A, b)` and `solve_vjp_b(g, ans, A, b)` (`ans` is $x$), each
+# with the shape of its argument. Do not form $A^{-1}$: a solve is cheaper and
+# more accurate. Two grade cells: the cotangent of $b$ (1 point), of $A$ (2 points).
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Differentiate the equation $A x = b$ itself, not a formula for $x$: a small change
+# $dA$, $db$ moves $x$ by a $dx$ that satisfies one linear equation.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# A VJP is the map $g \mapsto$ the coefficients of $db$ (and of $dA$) in
+# $\langle g, dx\rangle$. Write $dx$ from Hint 1, move the matrix that multiplies
+# it to the other side of the inner product (it becomes its transpose), and read
+# off both coefficients; one solve with $A^\top$ serves both VJPs.
+# </details>
+
+# %% solution id=ex01_7 title="VJPs of a linear solve"
+def solve_vjp_b(g, ans, A, b):
+    ### BEGIN SOLUTION
+    return np.linalg.solve(A.T, g)
+    ### END SOLUTION
+
+
+def solve_vjp_A(g, ans, A, b):
+    ### BEGIN SOLUTION
+    lam = np.linalg.solve(A.T, g)
+    return -(np.outer(lam, ans) if ans.ndim == 1 else lam @ ans.T)
+    ### END SOLUTION
+
+# %% grade id=ex01_7_b_tests points=1
+def fd_check(f, x, case):
+    """check_grads on argument 0, its failure restated with the case."""
+    try:
+        check_grads(f, x, argnums=0, verbose=False)
+    except AssertionError as exc:
+        raise AssertionError(f"{case}: expected the central differences, got: "
+                             f"{' '.join(str(exc).split())[:160]}") from None
+
+
+my_solve = primitive(np.linalg.solve)
+defvjp(my_solve, None, solve_vjp_b)
+A7 = np.array([[3.0, 1.0], [-1.0, 2.0]])  # not symmetric: A and its transpose differ
+b7 = np.array([1.0, -1.0])
+fd_check(lambda b: anp.sum(my_solve(A7, b) ** 2), b7, "A 2 x 2, b (2,), the cotangent of b")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(170)  # the tests' own draws, not the notebook's rng
+for shape in [(4,), (4, 3), (1,), (1, 2)]:
+    n = shape[0]
+    Ah = test_rng.normal(size=(n, n)) + n * np.eye(n)
+    bh = test_rng.normal(size=shape)
+    gh = test_rng.normal(size=shape)
+    got = solve_vjp_b(gh, np.linalg.solve(Ah, bh), Ah, bh)
+    assert np.shape(got) == shape, \
+        f"b of shape {shape}: expected the shape of b, {shape}, got {np.shape(got)}"
+    fd_check(lambda b, A=Ah, g=gh: anp.sum(my_solve(A, b) * g), bh, f"b of shape {shape}")
+### END HIDDEN TESTS
+
+# %% grade id=ex01_7_tests points=2
+def fd_check(f, x, case):
+    """check_grads on argument 0, its failure restated with the case."""
+    try:
+        check_grads(f, x, argnums=0, verbose=False)
+    except AssertionError as exc:
+        raise AssertionError(f"{case}: expected the central differences, got: "
+                             f"{' '.join(str(exc).split())[:160]}") from None
+
+
+my_solve_A = primitive(np.linalg.solve)
+defvjp(my_solve_A, solve_vjp_A, None)
+A7 = np.array([[3.0, 1.0], [-1.0, 2.0]])  # not symmetric: A and its transpose differ
+b7 = np.array([1.0, -1.0])
+fd_check(lambda A: anp.sum(my_solve_A(A, b7) ** 2), A7, "A 2 x 2, b (2,), the cotangent of A")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(171)
+for shape in [(4,), (4, 3), (1,), (3, 1)]:
+    n = shape[0]
+    Ah = test_rng.normal(size=(n, n)) + n * np.eye(n)
+    bh = test_rng.normal(size=shape)
+    gh = test_rng.normal(size=shape)
+    got = solve_vjp_A(gh, np.linalg.solve(Ah, bh), Ah, bh)
+    assert np.shape(got) == (n, n), \
+        f"b of shape {shape}: expected the shape of A, {(n, n)}, got {np.shape(got)}"
+    fd_check(lambda A, b=bh, g=gh: anp.sum(my_solve_A(A, b) * g), Ah,
+             f"A {n} x {n}, b of shape {shape}")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 1.8 — an open experiment: the step of a finite difference
+# Every gradient check of this chapter compares with a finite difference at
+# $\varepsilon = 10^{-6}$. Is that a good step? Experiment with $f = \exp$ at $x = 1$
+# (where $f' = e$), in float64:
+#
+# 1. `fd_errors(eps)`: return `(forward, central)`, the absolute errors
+#    $|(f(1+\varepsilon) - f(1))/\varepsilon - e|$ and
+#    $|(f(1+\varepsilon) - f(1-\varepsilon))/(2\varepsilon) - e|$ as floats (use `math.exp`).
+# 2. `best_steps()`: return `(eps_forward, eps_central)`, the steps you would use
+#    for each formula, found by your own scan (plot the errors over
+#    $\varepsilon = 10^{-12} \dots 10^{-1}$ on log–log axes if you like).
+#
+# The grade cell recomputes the errors at your steps with its own formulas: the
+# forward error must be below $2\cdot 10^{-7}$ and the central one below
+# $10^{-9}$ (3 points).
+
+# %% solution id=ex01_8 title="The step of a finite difference"
+def fd_errors(eps):
+    ### BEGIN SOLUTION
+    forward = (math.exp(1.0 + eps) - math.exp(1.0)) / eps
+    central = (math.exp(1.0 + eps) - math.exp(1.0 - eps)) / (2.0 * eps)
+    return abs(forward - math.e), abs(central - math.e)
+    ### END SOLUTION
+
+
+def best_steps():
+    ### BEGIN SOLUTION
+    grid = np.logspace(-12, -1, 221)
+    errors = np.array([fd_errors(float(e)) for e in grid])
+    # the noisy minimum of each column; its neighbourhood decides, not one lucky point
+    smooth = np.array([np.convolve(errors[:, k], np.ones(9) / 9, mode="same") for k in (0, 1)])
+    return float(grid[np.argmin(smooth[0])]), float(grid[np.argmin(smooth[1])])
+    ### END SOLUTION
+
+# %% grade id=ex01_8_tests points=3
+got8 = fd_errors(1e-3)
+want8 = (abs((math.exp(1.001) - math.e) / 1e-3 - math.e),
+         abs((math.exp(1.001) - math.exp(0.999)) / 2e-3 - math.e))
+assert isinstance(got8, tuple) and len(got8) == 2, f"expected a pair of floats, got {got8!r}"
+assert all(math.isclose(g, w, rel_tol=1e-6) for g, w in zip(got8, want8)), \
+    f"eps = 1e-3: expected (forward, central) = ({want8[0]:.6g}, {want8[1]:.6g}), got {got8}"
+eps_f, eps_c = best_steps()
+err_f = abs((math.exp(1.0 + eps_f) - math.e) / eps_f - math.e)
+err_c = abs((math.exp(1.0 + eps_c) - math.exp(1.0 - eps_c)) / (2.0 * eps_c) - math.e)
+assert err_f < 2e-7, \
+    f"forward difference at eps = {eps_f:.3g}: expected an error < 2e-7, got {err_f:.3g}"
+assert err_c < 1e-9, \
+    f"central difference at eps = {eps_c:.3g}: expected an error < 1e-9, got {err_c:.3g}"
+### BEGIN HIDDEN TESTS
+for eps_h in (1e-1, 1e-2, 3e-3):
+    want_h = (abs((math.exp(1.0 + eps_h) - math.e) / eps_h - math.e),
+              abs((math.exp(1.0 + eps_h) - math.exp(1.0 - eps_h)) / (2.0 * eps_h) - math.e))
+    got_h = fd_errors(eps_h)
+    assert all(math.isclose(g, w, rel_tol=1e-6) for g, w in zip(got_h, want_h)), \
+        f"eps = {eps_h}: expected ({want_h[0]:.6g}, {want_h[1]:.6g}), got {got_h}"
+assert type(eps_f) is float and type(eps_c) is float, \
+    f"expected two floats, got {type(eps_f).__name__}, {type(eps_c).__name__}"
+assert eps_f < eps_c, \
+    f"expected the forward step below the central one, got {eps_f:.3g} >= {eps_c:.3g}"
+### END HIDDEN TESTS
+
+# %% [markdown]
+# **Written question (graded by hand, 2 points).** Why does the error grow again
+# when $\varepsilon$ gets small? Estimate the best step of each formula from the two
+# sources of error (in terms of the machine epsilon $\approx 2.2\cdot10^{-16}$) and
+# compare with what you found. Is $10^{-6}$ a sensible default for `check_grads`?
+
+# %% [markdown] answer id=ex01_w title="Truncation against rounding" points=2
+# ### BEGIN SOLUTION
+# Two errors compete. Truncation: Taylor gives $f''\varepsilon/2$ for the forward
+# difference and $f'''\varepsilon^2/6$ for the central one. Rounding: $f(1\pm\varepsilon)$
+# carry a relative error $\approx u = 2.2\cdot10^{-16}$, so the difference carries
+# $\approx u|f|$, divided by $\varepsilon$: it grows like $u|f|/\varepsilon$. Minimising
+# $f''\varepsilon/2 + u f/\varepsilon$ gives $\varepsilon \approx \sqrt{u} \approx 10^{-8}$
+# (error $\approx 10^{-8}$); minimising $f'''\varepsilon^2/6 + u f/\varepsilon$ gives
+# $\varepsilon \approx u^{1/3} \approx 6\cdot10^{-6}$ (error $\approx 10^{-11}$), as the scan
+# shows. $10^{-6}$ is close to the central optimum, with errors far below the
+# `check_grads` tolerances ($10^{-6}$ absolute); for a forward difference it would be
+# ≈ 100× too large.
+# ### END SOLUTION
+
+# %% [markdown]
+# ## Your figure
+# The tutorial's computation graph of $h(x, y) = \sin(xy) + x e^y$ at $(0.4, -1.2)$,
+# drawn twice: by the library's `computation_graph` (left) and from **your**
+# `edge_cotangents` of exercise 1.6 on the scalar engine (right). Every edge label of
+# yours must equal the library's; a wrong cotangent shows as a different label, a
+# function that still raises is named in the title.
+
+# %%
+xv, yv = Var(0.4), Var(-1.2)
+hv = vsin(xv * yv) + xv * vexp(yv)
+plot_edge_cotangents(edge_cotangents, hv, {id(xv): "arg0", id(yv): "arg1"}, g_lib)
+plt.show()
