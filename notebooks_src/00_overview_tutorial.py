@@ -21,6 +21,15 @@
 #   **DMP**, a stable point attractor towards the goal (eqs. 1–2, 10–11) —
 #   the motion controller;
 # * integrating the DMP once gives the controls: speed and yaw rate.
+#
+# **Objectives.** After this chapter you can
+# - describe the MANC stack (CNN predicates → vAGN automaton → DMP) and the chapter that
+#   builds each piece
+# - work an exercises notebook and grade it with `minimanc grade`
+#
+# **Prerequisites.** Python and NumPy basics; no earlier chapter.
+#
+# **Time.** About 15 minutes for the tutorial and 15 for the exercises.
 
 # %%
 import matplotlib.pyplot as plt
