@@ -144,9 +144,10 @@ assert "NotImplementedError" in stub and not top_level
 #   and ζ → 0 needs β ≫ α (chapter 3).
 # * **Positive gains are not enough.** The paper argues stability from ζ > 0
 #   (sigmoid outputs); that holds for the continuous system, but the step of
-#   0.5 s can diverge (α = 25, β = α/4, one explicit Euler step multiplies the
-#   error by −5.25). The course confines the gains to a box in which its
-#   integrator is stable (chapter 3).
+#   0.5 s can diverge (α = 25, β = α/4: the explicit Euler step matrix has
+#   spectral radius 5.25 — a Jordan block with the double eigenvalue −5.25, so
+#   the error grows like k·5.25ᵏ after k steps). The course confines the gains to
+#   a box in which its integrator is stable (chapter 3).
 # * **The goals of eq. 10** are "a moving target along the center lane"
 #   without a rule; ours are a lane point 4 m + 2 s · v₀ ahead and the
 #   pure-pursuit heading, and the control is the mean velocity over one DMP
