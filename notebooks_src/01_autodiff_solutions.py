@@ -66,7 +66,9 @@ assert np.allclose(out, g.sum(axis=(0, 2))[:, None]), "(3, 1): sum over axis 0 (
 assert np.allclose(my_unbroadcast((4,), g), g.sum(axis=(0, 1))), "(4,): sum over axes 0, 1"
 assert np.allclose(my_unbroadcast((2, 3, 4), g), g), "same shape: g unchanged"
 ### BEGIN HIDDEN TESTS
-assert np.isclose(my_unbroadcast((), g), g.sum()), "shape (): the sum of all of g"
+got0 = my_unbroadcast((), g)
+assert np.shape(got0) == () and np.isclose(got0, g.sum()), \
+    f"shape (): expected the sum of all of g, {g.sum():g}, got {got0!r}"
 # the sums written out by hand: new leading axes go, stretched axes of size one stay
 expected = {(1, 1, 4): g.sum(axis=(0, 1), keepdims=True),
             (2, 1, 1): g.sum(axis=(1, 2), keepdims=True),
@@ -74,9 +76,12 @@ expected = {(1, 1, 4): g.sum(axis=(0, 1), keepdims=True),
             (1, 3, 1): g.sum(axis=(0, 2), keepdims=True)}
 for shape, want in expected.items():
     got = my_unbroadcast(shape, g)
-    assert np.shape(got) == shape and np.allclose(got, want), f"shape {shape}: wrong sum"
-assert np.allclose(my_unbroadcast((1, 3, 1), g)[0, :, 0], [g[:, i].sum() for i in range(3)]), \
-    "(1, 3, 1): entry i is the sum of g[:, i]"
+    assert np.shape(got) == shape, f"shape {shape}: expected shape {shape}, got {np.shape(got)}"
+    assert np.allclose(got, want), \
+        f"shape {shape}: expected {want.ravel().tolist()}, got {np.ravel(got).tolist()}"
+got13 = my_unbroadcast((1, 3, 1), g)[0, :, 0]
+want13 = [float(g[:, i].sum()) for i in range(3)]
+assert np.allclose(got13, want13), f"shape (1, 3, 1): expected {want13}, got {got13.tolist()}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -136,13 +141,20 @@ check_grads(lambda a, b: my_sum(my_exp(my_multiply(a, b)) * a), a, b, verbose=Fa
 check_grads(lambda x: anp.sum(my_sum(my_exp(x), axis=1) ** 2), rng.normal(size=(2, 3)),
             verbose=False)
 ### BEGIN HIDDEN TESTS
-check_grads(lambda x: anp.sum(my_sum(x * x, axis=(0, 2), keepdims=True) ** 2),
-            rng.normal(size=(2, 3, 2)), verbose=False)
-check_grads(lambda x: anp.sum(my_sum(x, axis=-1) * np.arange(2.0)), rng.normal(size=(2, 3)),
-            verbose=False)
-report = check_grads(lambda a, b: my_sum(my_multiply(a, b) ** 2), rng.normal(size=(2, 1, 3)),
-                     rng.normal(size=(4, 1)), verbose=False)
-assert report.passed, "gradient of sum((a b)^2) must match central differences"
+test_rng = np.random.default_rng(120)  # the tests' own draws, not the notebook's rng
+cases2 = [("sum(x * x, axis=(0, 2), keepdims=True), x (2, 3, 2)",
+           lambda x: anp.sum(my_sum(x * x, axis=(0, 2), keepdims=True) ** 2),
+           (test_rng.normal(size=(2, 3, 2)),)),
+          ("sum(x, axis=-1), x (2, 3)", lambda x: anp.sum(my_sum(x, axis=-1) * np.arange(2.0)),
+           (test_rng.normal(size=(2, 3)),)),
+          ("sum((a b)^2), a (2, 1, 3), b (4, 1)", lambda a, b: my_sum(my_multiply(a, b) ** 2),
+           (test_rng.normal(size=(2, 1, 3)), test_rng.normal(size=(4, 1))))]
+for case2, f2, args2 in cases2:
+    try:
+        check_grads(f2, *args2, verbose=False)
+    except AssertionError as exc:
+        raise AssertionError(f"{case2}: expected the central differences, got: "
+                             f"{' '.join(str(exc).split())[:160]}") from None
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -173,10 +185,14 @@ W = rng.normal(size=(3, 2))
 ref_A = np.array([[sum(W[i, j] * B[l, j] for j in range(2)) for l in range(4)] for i in range(3)])
 ref_B = np.array([[sum(A[i, l] * W[i, j] for i in range(3)) for j in range(2)] for l in range(4)])
 mine = grad(lambda A, B: anp.sum(my_matmul(A, B) * W), argnums=(0, 1))(A, B)
-assert np.allclose(ref_A, mine[0]) and np.allclose(ref_B, mine[1]), \
-    "grad through my_matmul: W B^T, A^T W"
+for name3, want3, got3 in (("A", ref_A, mine[0]), ("B", ref_B, mine[1])):
+    assert np.shape(got3) == want3.shape and np.allclose(got3, want3), \
+        (f"grad of sum((A B) * W) for A (3, 4), B (4, 2), the cotangent of {name3}: expected "
+         f"{np.round(want3, 4).tolist()}, got {np.round(np.asarray(got3), 4).tolist()}")
 gA, gB = matmul_vjps(W, A, B)
-assert np.allclose(gA, ref_A) and np.allclose(gB, ref_B), "matmul_vjps(W, A, B) = (W B^T, A^T W)"
+assert np.allclose(gA, ref_A) and np.allclose(gB, ref_B), \
+    (f"matmul_vjps(W, A, B), W (3, 2): expected a max error 0, got "
+     f"{max(np.abs(gA - ref_A).max(), np.abs(gB - ref_B).max()):.3g}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -278,9 +294,13 @@ for _ in range(10_000):
     deep = deep * 1.0001 + 0.0
 deep_order = topo_order(deep)
 check_order(deep_order, deep)
-assert deep_order[-1] is x and len(deep_order) == 1 + 4 * 10_000, \
-    "a chain of 10,000 steps: 40,001 nodes, the input last"
-assert [id(n) for n in topo_order(y)] == [id(n) for n in order], "deterministic"
+assert len(deep_order) == 1 + 4 * 10_000, \
+    f"a chain of 10,000 steps: expected 40,001 nodes, got {len(deep_order)}"
+assert deep_order[-1] is x, \
+    f"a chain of 10,000 steps: expected the input last, got {deep_order[-1]}"
+again = topo_order(y)
+assert [id(n) for n in again] == [id(n) for n in order], \
+    f"the same graph twice: expected the same order, got {order} then {again}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -327,7 +347,8 @@ assert np.isclose(var_grad(lambda x: x * x)(3.0)[0], 6.0), "d(x x)/dx = 2x = 6: 
 assert np.allclose(var_grad(h)(0.4, -1.2), central(h, [0.4, -1.2]), atol=1e-8), \
     "gradient of h must match central differences"
 ### BEGIN HIDDEN TESTS
-assert var_grad(lambda x, y: x * 2.0)(1.0, 5.0) == (2.0, 0.0), "(2.0, 0.0): y is unused"
+got5 = var_grad(lambda x, y: x * 2.0)(1.0, 5.0)
+assert got5 == (2.0, 0.0), f"f(x, y) = 2 x at (1, 5), y unused: expected (2.0, 0.0), got {got5}"
 
 
 def long_chain(x):
@@ -336,10 +357,14 @@ def long_chain(x):
     return x
 
 
-assert np.isclose(var_grad(long_chain)(1.0)[0], 0.9999**5000), "0.9999^5000 through 5000 steps"
+got5 = var_grad(long_chain)(1.0)[0]
+assert np.isclose(got5, 0.9999**5000), \
+    f"5000 steps x <- 0.9999 x + 0.001: expected {0.9999 ** 5000:.6f}, got {got5!r}"
 k = lambda a, b, c: vexp(a * b) * c + vsin(c * c - a)  # noqa: E731
-assert np.allclose(var_grad(k)(0.1, 0.2, 0.3), central(k, [0.1, 0.2, 0.3]), atol=1e-8), \
-    "gradient of k must match central differences"
+got5, want5 = var_grad(k)(0.1, 0.2, 0.3), central(k, [0.1, 0.2, 0.3])
+assert np.allclose(got5, want5, atol=1e-8), \
+    (f"k(a, b, c) = exp(a b) c + sin(c c - a) at (0.1, 0.2, 0.3): expected "
+     f"{np.round(want5, 6).tolist()} (central differences), got {got5}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -409,11 +434,14 @@ node = chain_x
 for _ in range(3000):
     node = node * 0.999
 chain_edges = edge_cotangents(node)
-assert len(chain_edges) == 6000, "each product has two edges (the constant is a Var too)"
+assert len(chain_edges) == 6000, \
+    f"3000 products (the constant is a Var too): expected 6000 edges, got {len(chain_edges)}"
 into_x = [ct for p, _, ct in chain_edges if p is chain_x]
-assert len(into_x) == 1 and abs(into_x[0] - 0.999 ** 3000) < 1e-12, "d/dx of 0.999^3000 x"
+assert len(into_x) == 1 and abs(into_x[0] - 0.999 ** 3000) < 1e-12, \
+    f"0.999^3000 x: expected one edge from x carrying {0.999 ** 3000:.6g}, got {into_x}"
 lone = Var(2.0)
-assert edge_cotangents(lone) == [], "a single input has no edges"
+got6 = edge_cotangents(lone)
+assert got6 == [], f"a single input: expected no edges, got {got6}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
