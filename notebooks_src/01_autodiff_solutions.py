@@ -161,9 +161,21 @@ for case2, f2, args2 in cases2:
 # ## Exercise 1.3 — VJP of a matrix product
 # For $Y = AB$ with $A \in \mathbb{R}^{n\times k}$, $B \in \mathbb{R}^{k\times m}$ and
 # cotangent $\bar Y$, derive $\bar A$ and $\bar B$ from
-# $Y_{ij} = \sum_l A_{il} B_{lj}$ (hint: $\partial L/\partial A_{il} =
-# \sum_j \bar Y_{ij} B_{lj}$). Return both as a tuple. Never build the
+# $Y_{ij} = \sum_l A_{il} B_{lj}$. Return both as a tuple. Never build the
 # Jacobian.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# One entry $A_{il}$ enters every $Y_{ij}$ of row $i$: its cotangent is a sum over
+# $j$ of $\bar Y_{ij}$ times the local derivative $\partial Y_{ij}/\partial A_{il}$.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# A sum over a shared index of two arrays is a matrix product. Write the sum of
+# Hint 1 out, then find the product of $\bar Y$ and $B$ (transposed or not) whose
+# shape is $A$'s; do the same for $\bar B$.
+# </details>
 
 # %% solution id=ex01_3 title="VJP of matmul" forbids="minimanc.autodiff.numpy._matmul_vjp_x,minimanc.autodiff.numpy._matmul_vjp_y"  # noqa: E501
 def matmul_vjps(g, A, B):
@@ -382,8 +394,17 @@ assert np.allclose(got5, want5, atol=1e-8), \
 # cotangent is complete when the walk reaches it (that is what the topological
 # order guarantees), so each edge's value is known at that moment.
 #
-# *Hint.* If the input's edges do not add up to the derivative, check that you
-# multiply the child's **total** cotangent (not 1) by the local derivative.
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Compare your edges into `x` with the derivative of the grade cell: if their sum
+# is off, some edge forgot what flowed into its child.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# An edge carries the child's **total** cotangent (the sum over the edges that
+# left the child, 1 at the output) times the local derivative — not 1 times it.
+# </details>
 
 # %% solution id=ex01_6 title="Cotangent on each edge" forbids="minimanc.autodiff.graph.computation_graph"  # noqa: E501
 def edge_cotangents(end):

@@ -484,8 +484,18 @@ assert np.allclose(vn, [2.5]) and np.allclose(thn, [0.675]), \
 # `(N, Ho Wo, kh kw, C)`) and reshapes to `(N Ho Wo, kh kw C)`, so that
 # `im2col(x, ...) @ w.reshape(kh * kw * C, O)` is the convolution.
 #
-# *Hint.* `np.arange(ho)` repeated `wo` times gives $i$ for every row,
-# `np.tile(np.arange(wo), ho)` gives $j$; broadcast them against the offsets.
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Row $i W_o + j$ and column $u k_w + v$ of both index arrays are fixed by four
+# integers; build an array of $i$ (and of $j$) for every row and of $u$ (and of
+# $v$) for every column, and let broadcasting add them.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# `np.repeat(np.arange(ho), wo)` counts $i$ row by row, `np.tile(np.arange(wo), ho)`
+# counts $j$; make them columns (`[:, None]`) and the offsets rows (`[None, :]`).
+# </details>
 
 # %% solution id=ex02_7 title="im2col indices" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv2d,minimanc.autodiff.nn._im2col,minimanc.autodiff.nn._conv_fwd"  # noqa: E501
 def im2col_indices(h, w, kh, kw, stride=1, padding=0):
