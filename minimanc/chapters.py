@@ -89,7 +89,8 @@ class Chapter:
 
 CHAPTERS: tuple[Chapter, ...] = (
     Chapter(0, "00_overview", "the stack, the chapter map, grading",
-            ("minimanc.exercises", "minimanc.cli"), ("minimanc.chapters", "minimanc.viz.exercises"),
+            ("minimanc.exercises", "minimanc.cli"),
+            ("minimanc.chapters", "minimanc.viz.exercises"),
             "warm-up tools of later chapters: an ego-frame transform (ch. 7), "
             "a column softmax (ch. 5), an explicit Euler step (ch. 3)",
             objectives=(
@@ -139,7 +140,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             minutes=(60, 150)),
     Chapter(4, "04_quaternions", "quaternion log/exp and DMP",
             ("minimanc.quaternion",), (),
-            "quaternion product, log, exp, orientation error, integration, a turning goal",
+            "quaternion product, log, exp, orientation error, integration",
             objectives=(
                 "compute quaternion products, log and exp maps (eqs. 3–6) and orientation "
                 "errors",
@@ -150,7 +151,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             minutes=(60, 120)),
     Chapter(5, "05_vagn", "the soft automaton",
             ("minimanc.vagn",), ("minimanc.vagn_step", "minimanc.viz.automaton"),
-            "the vAGN soft automaton, learning it from the DMP's actions alone",
+            "the vAGN soft automaton",
             objectives=(
                 "build the vAGN transition matrix from predicates (eqs. 8–9) and step the soft "
                 "automaton",
@@ -163,7 +164,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             minutes=(60, 120)),
     Chapter(6, "06_cam", "visual predicates and CAM saliency",
             ("minimanc.cam",), ("minimanc.viz.saliency",),
-            "class activation maps, Grad-CAM, baselines, q-state saliency, a ReLU head",
+            "class activation maps, Grad-CAM, baselines, q-state saliency",
             objectives=(
                 "compute visual predicates with conv → global average pooling → linear (eq. 7)",
                 "split a predicate into a class activation map and compare it with Grad-CAM "
