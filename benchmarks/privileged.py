@@ -32,9 +32,10 @@ from pathlib import Path
 import numpy as np
 from scoring import cells
 
-from minimanc import results, world
+from minimanc import world
 from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS, WorldTeacher
+from minimanc.studies import provenance
 
 N_TUNE = 40
 SHOW = ("ade", "along_track", "cross_track", "collision_rate", "at_fault_collision_rate",
@@ -166,7 +167,7 @@ def main() -> None:
             f"{args.val} validation scenes; {args.steps} Adam steps)\n\n")
     for title, lines in sections.items():
         text += f"## {title}\n\n" + "\n".join(lines) + "\n\n"
-    results.publish(text, args.out, time.perf_counter() - t0)
+    provenance.publish(text, args.out, time.perf_counter() - t0)
 
 
 if __name__ == "__main__":

@@ -89,8 +89,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             "assembling MANC"),
     Chapter(9, "09_behavior_cloning", "training, closed loop, the paper's studies",
             ("minimanc.rollout", "minimanc.metrics", "minimanc.studies"),
-            ("minimanc.modes", "minimanc.results", "minimanc.world.reactive",
-             "minimanc.viz.study", "minimanc.viz.explain", "minimanc.cli.reproduce",
+            ("minimanc.viz.study", "minimanc.viz.explain", "minimanc.cli.reproduce",
              "minimanc.cli.results"),
             "the MANC step, the closed loop, a metric"),
     Chapter(10, "10_highway_sandbox", "the controller in highway-env",
@@ -98,8 +97,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             "the controller in a real driving simulator"),
     Chapter(11, "11_dagger", "behaviour cloning's drift and DAgger",
             ("minimanc.dagger",),
-            ("minimanc.world.expert", "minimanc.studies.dagger_study", "minimanc.viz.dagger",
-             "minimanc.cli.dagger"),
+            ("minimanc.studies.dagger_study", "minimanc.viz.dagger", "minimanc.cli.dagger"),
             "the DAgger schedule, the mixture, aggregation, the budget"),
 )
 """Every chapter, in order."""

@@ -64,14 +64,14 @@ DMP's goal and initial state. In "paper" the LSTM models see history only
 through their recurrent state; in "parity" every model also gets the lane
 target and the current motion as numbers, so any remaining gap is due to
 the architecture, not to information. The table is also data: each model's
-``observes`` in the registry (:mod:`minimanc.models.registry`), read by
-:func:`visible`.
+``observes`` in its spec (:mod:`minimanc.models.registry`); the caller passes the spec
+and :func:`visible` reads it (this module sits below the models and imports none of them).
 """
 
 from __future__ import annotations
 
 import weakref
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -115,16 +115,6 @@ MOTION_SCALE: tuple[float, float] = (10.0, 0.5)
 # --------------------------------------------------------------------------- checks
 
 
-def _spec(model: Any) -> Any:
-    """The registered :class:`~minimanc.models.ModelSpec` of ``model`` (ValueError naming it).
-
-    The registry lives with the models, a layer above this module: it is imported when a
-    model is first looked up, never while this module loads."""
-    from minimanc.models import registry
-
-    return registry.get(model, "model")
-
-
 def check_setting(setting: Any) -> str:
     """``setting`` if it is one of :data:`SETTINGS`, else a ValueError naming it."""
     if setting not in SETTINGS:
@@ -132,32 +122,46 @@ def check_setting(setting: Any) -> str:
     return setting
 
 
-def visible(model: str, setting: str = "paper") -> tuple[str, ...]:
-    """Observation keys ``model`` receives in ``setting`` (the table of the module docstring)."""
-    spec = _spec(model)
-    return spec.observes[check_setting(setting)]
+def visible(model: Any, setting: str = "paper") -> tuple[str, ...]:
+    """Observation keys ``model`` receives in ``setting`` (the table of the module docstring).
+
+    ``model`` is the model's spec (:class:`minimanc.models.ModelSpec`, e.g.
+    ``minimanc.models.get("manc")``): its ``observes`` maps each setting to its keys. The
+    caller looks the spec up; this module, below the models, never reads the registry.
+    """
+    observes = getattr(model, "observes", None)
+    if not isinstance(observes, Mapping):
+        raise ValueError("model must be a model spec with its observation keys "
+                         f"(minimanc.models.get(name)), got model={model!r}")
+    return tuple(observes[check_setting(setting)])
 
 
-def select(obs: dict, model: str, setting: str = "paper") -> dict:
-    """The sub-dict of ``obs`` that ``model`` may see; a missing key raises ValueError."""
+def _name(model: Any) -> str:
+    return getattr(model, "name", repr(model))
+
+
+def select(obs: dict, model: Any, setting: str = "paper") -> dict:
+    """The sub-dict of ``obs`` that ``model`` (a spec, see :func:`visible`) may see; a missing
+    key raises ValueError."""
     keys = visible(model, setting)
     missing = [k for k in keys if k not in obs]
     if missing:
         raise ValueError(
-            f"observation lacks {missing} needed by model={model!r} in setting={setting!r}; "
+            f"observation lacks {missing} needed by model={_name(model)!r} in "
+            f"setting={setting!r}; "
             f"got keys {sorted(obs)}"
         )
     return {k: obs[k] for k in keys}
 
 
-def numeric_size(model: str, setting: str = "paper", k_targets: int = 10) -> int:
+def numeric_size(model: Any, setting: str = "paper", k_targets: int = 10) -> int:
     """Length of :func:`numeric_features` for ``model`` in ``setting``."""
     keys = visible(model, setting)
     return (3 * ("goal" in keys) + 2 * int(k_targets) * ("lane_target" in keys)
             + 2 * ("motion" in keys))
 
 
-def numeric_features(obs: dict, model: str, setting: str = "paper", xp: Any = np) -> Any:
+def numeric_features(obs: dict, model: Any, setting: str = "paper", xp: Any = np) -> Any:
     """The numbers a model's dense layers receive, scaled to about unit size: ``(B, F)``.
 
     Concatenates, in this order and only where ``model`` sees them in
@@ -264,13 +268,13 @@ def from_dataset(
     scene_idx: Any,
     t_idx: Any,
     setting: str = "paper",
-    model: str | None = None,
+    model: Any = None,
 ) -> dict:
     """Observations of samples ``(scene_idx[b], t_idx[b])`` of a :mod:`minimanc.world` dataset.
 
     ``scene_idx`` and ``t_idx`` are integers or equal-length 1-D integer
     arrays (an integer or length-1 array broadcasts against the other).
-    With ``model`` given, only the keys that model sees in ``setting`` are
+    With ``model`` (a spec, see :func:`visible`) given, only the keys it sees in ``setting`` are
     returned (``goal_bev`` only for RvS-G: the dataset's own goal rasters, or
     rendered once per dataset); without it, every key except ``goal_bev``.
     """
@@ -329,7 +333,7 @@ def from_state(
     setting: str = "paper",
     *,
     motion: Any,
-    model: str | None = None,
+    model: Any = None,
     k_targets: int | None = None,
     keys: Sequence[str] | None = None,
     history: Any = None,

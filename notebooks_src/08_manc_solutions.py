@@ -25,7 +25,7 @@ ds = world.generate(3, seed=0, raster=world.RasterConfig(size=64))
 cfg = models.ModelConfig()
 eng = engine("numpy")
 params = models.init("manc", np.random.default_rng(0), cfg)
-obs = inputs.from_dataset(ds, [0, 1, 2, 2], [4, 17, 9, 33], model="manc")
+obs = inputs.from_dataset(ds, [0, 1, 2, 2], [4, 17, 9, 33], model=models.get("manc"))
 q_prev = vagn.random_state(rng, cfg.n_states, size=4)
 print({k: v.shape for k, v in obs.items()})
 
@@ -341,7 +341,7 @@ u2, q2 = manc_step(p2, obs, q, cfg)  # q carried over from the first step
 u2_ref, q2_ref = manc_reference(p2, obs, q_ref)
 assert np.allclose(u2, u2_ref, atol=1e-6) and np.allclose(q2, q2_ref, atol=1e-9), \
     "second step (other weights, q carried over)"
-obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model="manc")
+obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model=models.get("manc"))
 q3 = vagn.random_state(rng, cfg.n_states, size=2)
 u3, q3_out = manc_step(params, obs3, q3, cfg)
 u3_ref, q3_ref = manc_reference(params, obs3, q3)

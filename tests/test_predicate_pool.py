@@ -28,7 +28,7 @@ def _obs(rng, b=3):
 def test_flat_predicates_start_as_the_global_ones(name):
     eng = engine("numpy")
     rng = np.random.default_rng(3)
-    obs = inputs.select(_obs(rng), name, "paper")
+    obs = inputs.select(_obs(rng), models.get(name), "paper")
     pg = models.init(name, np.random.default_rng(0), CFG)
     pf = models.init(name, np.random.default_rng(0), FLAT)
     cells = CFG.feature_size ** 2
@@ -48,7 +48,7 @@ def test_flat_predicates_start_as_the_global_ones(name):
 
 def test_both_engines_agree_on_flat_predicates():
     rng = np.random.default_rng(4)
-    obs = inputs.select(_obs(rng), "manc", "paper")
+    obs = inputs.select(_obs(rng), models.get("manc"), "paper")
     params = models.init("manc", np.random.default_rng(1), FLAT)
     state = models.initial_state("manc", 3, FLAT)
     a, _, _ = models.step("manc", params, obs, state, FLAT, engine("numpy"))

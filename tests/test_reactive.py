@@ -1,4 +1,4 @@
-"""Chapter 9 — reactive traffic (minimanc.world.reactive): the human's controls give back the
+"""Chapter 9 — reactive traffic (minimanc.rollout.reactive): the human's controls give back the
 log, a policy's ego is seen by the ados, arrivals are the log's."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from minimanc import metrics, rollout, world
-from minimanc.world import reactive
+from minimanc.rollout import reactive
 
 ADO_TOL = 1e-4
 """Oracle tolerance (m, rad): the reactive human replay starts from the dataset's float32

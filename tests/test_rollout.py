@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from minimanc import metrics, rollout, world
+from minimanc import metrics, models, rollout, world
 
 
 @pytest.fixture(scope="module")
@@ -287,7 +287,7 @@ def _replay_loop(name, params, ds, scene, cfg, eng, q_mode):
     state = models.initial_state(name, 1, cfg, xp=eng.xp, rng=rng, mode=q_mode)
     keep = {"controls": []}
     for t in range(np.asarray(ds.ego).shape[1]):
-        obs = inputs.from_dataset(ds, scene, t, cfg.setting, model=name)
+        obs = inputs.from_dataset(ds, scene, t, cfg.setting, model=models.get(name))
         controls, state, aux = models.step(name, params, obs, state, cfg, eng)
         keep["controls"].append(np.asarray(controls)[0])
         for k in rollout.AUX_KEYS:
@@ -341,7 +341,7 @@ def test_log_replay_that_follows_the_log_shows_the_logged_observations(ds):
     np.testing.assert_array_equal(sim.trajectory(), np.asarray(ds.ego)[[1, 3]])
     assert np.all(run.controls == 99.0)  # what the policy said, not what the ego did
     for t, obs in enumerate(pol.seen):
-        want = inputs.from_dataset(ds, [1, 3], [t, t], "parity", model="rvs_g")
+        want = inputs.from_dataset(ds, [1, 3], [t, t], "parity", model=models.get("rvs_g"))
         assert set(obs) == set(want)
         for k in want:
             np.testing.assert_array_equal(obs[k], want[k], err_msg=f"{k} at t={t}")

@@ -217,7 +217,7 @@ def test_evaluate_matches_training_loss_definition(ds):
     from minimanc import engine, inputs
 
     obs = inputs.from_dataset(ds, np.repeat(np.arange(3), 40), np.tile(np.arange(40), 3),
-                              model="cnn")
+                              model=models.get("cnn"))
     pred, _, _ = models.step("cnn", params, obs, {}, CFG, engine("numpy"))
     ref = np.mean(((pred - ds.controls.reshape(-1, 2)) / std) ** 2)
     assert val == pytest.approx(ref, rel=1e-6)
@@ -232,7 +232,7 @@ def test_evaluate_runs_dmp_models_on_whole_scenes_with_their_own_speed(ds):
     std = train.control_std(ds)
     S, T = ds.ego.shape[:2]
     obs = inputs.from_dataset(ds, np.tile(np.arange(S), T), np.repeat(np.arange(T), S),
-                              model="manc")
+                              model=models.get("manc"))
     obs = {k: v.reshape((T, S) + v.shape[1:]) for k, v in obs.items()}
     target = np.swapaxes(np.asarray(ds.controls), 0, 1)
     for feedback in (True, False):

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from minimanc import inputs, models
 from minimanc.dagger.schedule import check_beta, mix
 from minimanc.dagger.teachers import Teacher
 from minimanc.rollout import SceneState, drive
@@ -80,9 +81,7 @@ class MixturePolicy:
         elif getattr(policy, "keys", None) is not None:
             self.keys = tuple(policy.keys)
         else:
-            from minimanc import inputs
-
-            self.keys = inputs.visible(policy.model, policy.setting)
+            self.keys = inputs.visible(models.get(policy.model), policy.setting)
         self.states: list[SceneState] = []
         self.labels: list[np.ndarray] = []
         self.refused: list[list[str | None]] = []

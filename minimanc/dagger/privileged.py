@@ -7,7 +7,7 @@ inputs separates them (the "privileged agent" of Chen et al. 2019, *Learning by
 Cheating*): if it drives like the expert, learning works and what the image-based models
 lack is information.
 
-**Perception.** :meth:`minimanc.world.expert.HumanExpert.situation` puts the ego at the
+**Perception.** :meth:`minimanc.dagger.expert.HumanExpert.situation` puts the ego at the
 simulator's pose and speed among the step's ados and returns what the world's human
 perceives there. :func:`features` turns it into :data:`FEATURES`, grouped as
 :data:`FEATURE_GROUPS`:
@@ -58,9 +58,9 @@ from minimanc import layers, metrics, optim, rollout
 from minimanc.autodiff import numpy as anp
 from minimanc.autodiff import value_and_grad
 from minimanc.checks import check_int
+from minimanc.dagger.expert import HumanExpert, Situation
 from minimanc.dagger.teachers import WorldTeacher
 from minimanc.metrics.trajectory import along_cross_track
-from minimanc.world.expert import HumanExpert, Situation
 from minimanc.world.geometry import DT, wrap_angle
 from minimanc.world.traffic import B_MAX
 

@@ -54,12 +54,13 @@ AGENTS: tuple[str, ...] = ("replay", "reactive")
 
 
 class WorldTeacher:
-    """The world's human driver as a :class:`Teacher` (:class:`~minimanc.world.expert.HumanExpert`).
+    """The world's human driver as a :class:`Teacher`
+    (:class:`~minimanc.dagger.expert.HumanExpert`).
 
     ``pool`` a dataset made by :func:`minimanc.world.generate` (the demonstrations),
     ``val`` an optional validation dataset for :meth:`evaluate`, ``agents`` the
     protocol of the ados while the policy drives and is evaluated: ``"reactive"``
-    (:class:`~minimanc.world.reactive.ReactiveSim`, default) or ``"replay"``
+    (:class:`~minimanc.rollout.reactive.ReactiveSim`, default) or ``"replay"``
     (:class:`~minimanc.rollout.LogReplay`, the paper's).
     """
 
@@ -67,7 +68,7 @@ class WorldTeacher:
 
     def __init__(self, pool: Dataset, val: Dataset | None = None,
                  agents: str = "reactive") -> None:
-        from minimanc.world.expert import HumanExpert
+        from minimanc.dagger.expert import HumanExpert
 
         if agents not in AGENTS:
             raise ValueError(f"agents must be one of {AGENTS}, got agents={agents!r}")
@@ -82,7 +83,7 @@ class WorldTeacher:
 
     def simulator(self, scenes: np.ndarray) -> Simulator:
         if self.agents == "reactive":
-            from minimanc.world.reactive import ReactiveSim
+            from minimanc.rollout.reactive import ReactiveSim
 
             return ReactiveSim(self.pool, scenes)
         return LogReplay(self.pool, scenes)
@@ -123,7 +124,7 @@ class WorldTeacher:
         from minimanc import metrics, rollout
 
         if self.agents == "reactive":
-            from minimanc.world.reactive import simulate_reactive
+            from minimanc.rollout.reactive import simulate_reactive
 
             traj = simulate_reactive(policy, self.val, progress=progress)
         else:

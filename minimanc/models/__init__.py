@@ -36,7 +36,8 @@ uses only ``eng.xp`` / ``eng.nn`` / ``eng.scan``: the same code runs on both, an
 gradients agree to 1e-6 in float64 (``tests/test_models.py``).
 
 Modules: :mod:`~minimanc.models.config` (:class:`ModelConfig`),
-:mod:`~minimanc.models.registry` (:class:`ModelSpec`, :func:`register`, and the registered
+:mod:`~minimanc.models.registry` (:class:`ModelSpec`, :func:`register`, :func:`get` (a spec by
+name), and the registered
 names: :func:`names`, :func:`vagn_models`, :func:`lstm_models`, :func:`dmp_models`, read
 from the registry on every call),
 :mod:`~minimanc.models.backbone`, :mod:`~minimanc.models.dmp_head` (with
@@ -72,6 +73,7 @@ from minimanc.models.registry import (
     ModelSpec,
     check_name,
     dmp_models,
+    get,
     lstm_models,
     names,
     register,
@@ -95,6 +97,7 @@ __all__ = [
     "dmp_models",
     "explain",
     "gain_logits",
+    "get",
     "init",
     "initial_state",
     "lane_point",

@@ -32,7 +32,7 @@ the learned part adds.
 **Two protocols for the ados** (``agents=`` on :func:`simulate`, :func:`closed_loop`,
 :func:`fixed_gains`, :func:`human`; :data:`AGENTS`): ``"replay"`` is the paper's, above;
 ``"reactive"`` drives them by the world's own IDM / yielding / gap-acceptance rules,
-reacting to the policy's ego from the logged start (:mod:`minimanc.world.reactive`, as
+reacting to the policy's ego from the logged start (:mod:`minimanc.rollout.reactive`, as
 nuPlan's reactive agents). A reactive :class:`Rollout` holds the ados it simulated
 (``ado``, ``ado_valid``), and :func:`minimanc.metrics.evaluate` scores it on them.
 

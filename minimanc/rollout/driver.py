@@ -10,7 +10,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from minimanc import inputs
+from minimanc import inputs, models
 from minimanc.checks import check_int
 
 __all__ = ["AUX_KEYS", "BadControls", "Drive", "Policy", "SceneState", "Simulator",
@@ -137,7 +137,8 @@ def observation(policy: Policy, scene: SceneState, motion: np.ndarray, raster: A
     """
     return inputs.from_state(
         scene.maps, scene.pose, scene.ado, scene.ado_valid, scene.goal, raster, policy.setting,
-        motion=motion, model=policy.model, k_targets=k_targets,
+        motion=motion, model=None if policy.model is None else models.get(policy.model),
+        k_targets=k_targets,
         keys=getattr(policy, "keys", None), history=scene.history,
     )
 

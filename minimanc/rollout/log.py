@@ -24,7 +24,7 @@ BATCH_SIZE: int = 8
 
 AGENTS: tuple[str, ...] = ("replay", "reactive")
 """The closed-loop protocols for the ados: ``"replay"`` from the log (the paper's,
-:class:`LogReplay`) or ``"reactive"`` (:mod:`minimanc.world.reactive`: the world's own
+:class:`LogReplay`) or ``"reactive"`` (:mod:`minimanc.rollout.reactive`: the world's own
 IDM / yielding / gap-acceptance rules react to the policy's ego)."""
 
 
@@ -177,11 +177,11 @@ def human(ds: Any, scenes: Any = None, agents: str = "replay") -> Rollout:
     Its controls are the logged ones from ``t`` to ``t + 1``; replaying them
     with the unicycle reproduces ``ds.ego`` (the world's logging rule).  With
     ``agents="reactive"`` these controls drive the ego among reactive ados
-    (:func:`minimanc.world.reactive.human`): the same poses, and the ados as the
+    (:func:`minimanc.rollout.reactive.human`): the same poses, and the ados as the
     reactive simulation moved them (equal to the log to float32 rounding).
     """
     if check_agents(agents) == "reactive":
-        from minimanc.world import reactive
+        from minimanc.rollout import reactive
 
         return reactive.human(ds, scenes=scenes)
     S, T = check_dataset(ds)
@@ -272,11 +272,11 @@ def simulate(
     :func:`drive` in a :class:`LogReplay`; see the module docstring for what
     one step does.  ``agents="reactive"`` drives the ados by the world's rules
     instead, reacting to the policy's ego
-    (:func:`minimanc.world.reactive.simulate_reactive`, same arguments; the
+    (:func:`minimanc.rollout.reactive.simulate_reactive`, same arguments; the
     rollout then holds the simulated ados).
     """
     if check_agents(agents) == "reactive":
-        from minimanc.world.reactive import ReactiveSim as make_sim  # imports this module
+        from minimanc.rollout.reactive import ReactiveSim as make_sim  # imports this module
     else:
         make_sim = LogReplay
     S_all, T = check_dataset(ds)

@@ -195,7 +195,8 @@ class Run:
 
 def canonical_setting(model: str, setting: str) -> str:
     """``"paper"`` when ``model`` sees the same inputs in both settings (MANC, DMP-only)."""
-    if inputs.visible(model, "paper") == inputs.visible(model, setting):
+    spec = models.get(model)
+    if inputs.visible(spec, "paper") == inputs.visible(spec, setting):
         return "paper"
     return setting
 

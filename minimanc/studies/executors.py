@@ -267,7 +267,8 @@ def train_runs(ds: Any, job: dict) -> list[str]:
     from pathlib import Path
 
     from minimanc import train
-    from minimanc.studies.jobs import enable_jax_cache, write_json
+    from minimanc.studies.jobs import enable_jax_cache
+    from minimanc.studies.provenance import write_json
 
     if job["engine"] == "jax" and job.get("jax_cache"):
         enable_jax_cache(job["jax_cache"])

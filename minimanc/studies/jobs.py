@@ -7,9 +7,6 @@ broken)."""
 
 from __future__ import annotations
 
-import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +14,7 @@ import numpy as np
 
 from minimanc import metrics
 from minimanc.metrics.diagnostics import collision_taxonomy
+from minimanc.studies.provenance import write_json
 
 _WORKER_DATA: dict[str, Any] = {}
 
@@ -165,27 +163,3 @@ def evaluate_job(job: dict) -> dict:
     res = score(traj, ds)
     write_json(job["metrics"], res)
     return res
-
-
-def write_json(path: str | Path, obj: Any) -> None:
-    """Write ``obj`` as JSON atomically (temporary file in the same directory, removed on
-    failure, then :func:`os.replace`)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(obj, indent=1, sort_keys=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
-def read_json(path: Path) -> Any:
-    """The JSON in ``path``, or ``None`` if it is missing or unreadable (a broken cache entry)."""
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError, UnicodeDecodeError):
-        return None

@@ -11,7 +11,7 @@ from typing import Any
 
 from minimanc import metrics
 from minimanc.studies.config import Run, canonical_setting, plan
-from minimanc.studies.jobs import read_json, write_json
+from minimanc.studies.provenance import read_json, write_json
 from minimanc.studies.recorded import MODES_OMITTED
 from minimanc.studies.report import findings
 from minimanc.studies.runs import THREAD_ENV, Runs, families_of
@@ -64,10 +64,10 @@ class Study(Runs):
 
     def human_modes(self) -> Any:
         """The human's mode at each step of every validation scene
-        (:func:`minimanc.modes.human_modes`, ``(S, T)``), cached next to the dataset."""
+        (:func:`minimanc.metrics.modes.human_modes`, ``(S, T)``), cached next to the dataset."""
         import numpy as np
 
-        from minimanc import modes
+        from minimanc.metrics import modes
 
         if self.recorded:
             raise ValueError(MODES_OMITTED)
@@ -91,11 +91,12 @@ class Study(Runs):
         """Are vAGN's q-states driving modes? For each model of :meth:`vagn_models` and
         seed, the open-loop q over the validation scenes (:func:`minimanc.rollout.open_loop`:
         the model sees the human's observations) against the human's modes
-        (:meth:`human_modes`) by :func:`minimanc.modes.mode_information`, aggregated over
+        (:meth:`human_modes`) by :func:`minimanc.metrics.modes.mode_information`, aggregated over
         seeds: ``{"setting", "mode_counts", "models": {model: aggregate}}``."""
         import numpy as np
 
-        from minimanc import engine, modes, rollout, train
+        from minimanc import engine, rollout, train
+        from minimanc.metrics import modes
 
         if self.recorded:  # no human modes (minimanc.studies.recorded): nothing to measure
             return {"setting": setting, "mode_counts": {}, "models": {},

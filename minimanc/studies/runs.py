@@ -35,9 +35,9 @@ from minimanc.studies.jobs import (
     STUDY_METRICS,
     enable_jax_cache,
     failed,
-    read_json,
     score,
 )
+from minimanc.studies.provenance import read_json
 from minimanc.studies.recorded import REACTIVE_REFUSAL, is_recorded
 
 __all__ = ["THREAD_ENV", "Runs", "families_of"]

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import inputs, models, vagn, world
-from minimanc.modes import MODES
+from minimanc.metrics.modes import MODES
 from minimanc.viz.automaton import plot_q_heatmap
 from minimanc.viz.saliency import plot_q_saliency
 from minimanc.viz.style import model_colour, model_label, pyplot
@@ -135,7 +135,7 @@ def plot_q_modes(q: Any, modes: Any, title: str = "", dt: float = 0.5) -> Any:
     (bottom): if the q-states were driving modes, q's bands would change where the modes do.
 
     ``q (T, N)`` (e.g. :func:`minimanc.rollout.open_loop`), ``modes (T,)`` integer labels
-    of :data:`minimanc.modes.MODES` (:func:`minimanc.modes.human_modes`).
+    of :data:`minimanc.metrics.modes.MODES` (:func:`minimanc.metrics.modes.human_modes`).
     """
     q = np.asarray(q, dtype=np.float64)
     labels = np.asarray(modes)
@@ -257,7 +257,7 @@ def saliency_maps(params: dict, cfg: Any, traj: Any, ds: Any, scene: int,
                   else traj.controls[s:s + 1, t - 1].astype(np.float32))
         obs = inputs.from_state([ds.maps[s]], traj.ego[s:s + 1, t], ds.ado[s:s + 1, t],
                                 ds.ado_valid[s:s + 1, t], ds.ego[s:s + 1, -1], ds.raster,
-                                cfg.setting, motion=motion, model="manc")
+                                cfg.setting, motion=motion, model=models.get("manc"))
         q_prev = (vagn.uniform_state(n_states)[None] if t == 0
                   else traj.aux["q"][s:s + 1, t - 1])
         ex = models.explain(params, obs, q_prev, cfg)

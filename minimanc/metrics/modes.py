@@ -63,7 +63,7 @@ def scene_modes(ds: Any, i: int) -> np.ndarray:
     """The human's mode at each step of scene ``i`` of a :mod:`minimanc.world` dataset.
 
     Re-runs the scene from its seed with the human driving
-    (:func:`minimanc.world.reactive.start_run`) and checks that the run reproduces the
+    (:func:`minimanc.rollout.reactive.start_run`) and checks that the run reproduces the
     logged ego poses.
 
     Parameters
@@ -84,7 +84,7 @@ def scene_modes(ds: Any, i: int) -> np.ndarray:
         When the dataset was not made by :func:`minimanc.world.generate` or the run does
         not reproduce its log.
     """
-    from minimanc.world import reactive
+    from minimanc.rollout import reactive
 
     key = reactive.scene_key(ds, i)
     run = reactive.start_run(key, ds.maps[i], ds.meta["recipes"][i])
