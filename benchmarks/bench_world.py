@@ -90,7 +90,7 @@ def main() -> None:
     print(f"dataset bev: {ds.bev.nbytes / 1e6:.0f} MB in memory")
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        path = ds.save(Path(tmp) / "world.npz")
+        path = world.save(ds, Path(tmp) / "world.npz")
         ts = time.perf_counter() - t0
         t0 = time.perf_counter()
         dataset.load(path)

@@ -76,6 +76,10 @@ from typing import Any
 
 import numpy as np
 
+from minimanc.world import maps as world_maps
+from minimanc.world.geometry import goal_in_ego_frame
+from minimanc.world.raster import RasterConfig, rasterize_batch, rasterize_goal
+
 __all__ = [
     "GOAL_SCALE",
     "KEYS",
@@ -224,8 +228,6 @@ def _dataset_goal_bevs(ds: Any) -> np.ndarray:
     given = getattr(ds, "goal_bev", None)
     if given is not None:  # a dataset may carry its goal rasters
         return np.asarray(given)
-    from minimanc.world.raster import rasterize_goal
-
     S, T = np.asarray(ds.ego).shape[:2]
     H, W = np.asarray(ds.bev).shape[2:4]
     cfg = _raster_config(ds, H)
@@ -239,8 +241,6 @@ def _dataset_goal_bevs(ds: Any) -> np.ndarray:
 
 
 def _raster_config(ds: Any, size: int) -> Any:
-    from minimanc.world.raster import RasterConfig
-
     cfg = getattr(ds, "raster", None) or getattr(ds, "raster_config", None)
     if cfg is None:
         cfg = RasterConfig(size=int(size))
@@ -310,8 +310,6 @@ _STATE_GOAL_BEV: dict = {}
 
 
 def _goal_bev_from_state(m: Any, goal: np.ndarray, cfg: Any) -> np.ndarray:
-    from minimanc.world.raster import rasterize_goal
-
     key = (id(m), tuple(np.round(goal, 6)), cfg)
     hit = _STATE_GOAL_BEV.get(key)
     if hit is not None and hit[0] is m:
@@ -354,10 +352,6 @@ def from_state(
     ``history``: the rows' past boxes (:class:`minimanc.world.history.History`), drawn when
     ``cfg.history > 0``.
     """
-    from minimanc.world import maps as world_maps
-    from minimanc.world.geometry import goal_in_ego_frame
-    from minimanc.world.raster import RasterConfig, rasterize_batch
-
     check_setting(setting)
     poses = np.asarray(ego_poses, dtype=np.float64)
     if poses.ndim != 2 or poses.shape[1] != 3:

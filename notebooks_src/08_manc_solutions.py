@@ -17,7 +17,7 @@
 # %%
 import numpy as np
 
-from minimanc import dmp, engine, inputs, models, vagn, world
+from minimanc import dmp, engine, inputs, models, rollout, vagn, world
 
 np.set_printoptions(precision=3, suppress=True)
 rng = np.random.default_rng(0)
@@ -271,11 +271,11 @@ for c, manc_total, cnn_total in ((models.ModelConfig(n_states=3, channels=(8, 16
 # 5. `models.dmp_head(logits, lane_target, motion, cfg)` (eqs. 10–11).
 #
 # Return `(controls (B, 2), q (B, N))`. `models.step` (and `models.sequence`,
-# `models.replay`) are disabled while grading; the test rebuilds the step from
+# `rollout.replay`) are disabled while grading; the test rebuilds the step from
 # the equations alone (its own convolution, eq. 8–9 with `einsum`, and the DMP
 # as a matrix power).
 
-# %% solution id=ex08_5 title="The MANC forward pass" forbids="minimanc.models.step,minimanc.models.sequence,minimanc.models.replay"  # noqa: E501
+# %% solution id=ex08_5 title="The MANC forward pass" forbids="minimanc.models.step,minimanc.models.sequence,minimanc.rollout.replay"  # noqa: E501
 def manc_step(params, obs, q_prev, cfg):
     ### BEGIN SOLUTION
     f = models.backbone(params["backbone"], obs["bev"], cfg, eng)
@@ -497,6 +497,6 @@ for bad in (("lstm", "paper"), ("cnn", "Paper")):
 # every control is finite and every q a distribution.
 
 # %%
-tr = models.replay("manc", params, ds, 1, cfg)
+tr = rollout.replay("manc", params, ds, 1, cfg)
 print("controls at steps 0-4:\n", tr["controls"][:5])
 assert np.all(np.isfinite(tr["controls"])) and np.allclose(tr["q"].sum(axis=1), 1.0)

@@ -22,7 +22,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-from minimanc import dmp, engine, inputs, models, train, tree, vagn, world
+from minimanc import dmp, engine, inputs, models, rollout, train, tree, vagn, world
 from minimanc.viz.automaton import plot_q_heatmap
 from minimanc.viz.saliency import plot_q_saliency
 
@@ -256,12 +256,12 @@ assert after < before
 # closed-loop quality poorly: what matters is where the car ends up.)
 #
 # ## 7. Explainability traces
-# `models.replay` runs the trained MANC through a logged validation scene,
+# `rollout.replay` runs the trained MANC through a logged validation scene,
 # carrying q from step to step as in closed loop, and records q, the gains
 # and the controls (the paper's Figure 4).
 
 # %% tags=["nbval-ignore-output"]
-tr = models.replay("manc", fit.params, val_ds, 0, cfg)
+tr = rollout.replay("manc", fit.params, val_ds, 0, cfg)
 fig, ax = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
 plot_q_heatmap(tr["q"], ax=ax[0], colorbar=False)
 ax[0].set_title("q-distribution over time")

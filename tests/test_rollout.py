@@ -279,8 +279,8 @@ def test_check_controls_names_the_policy_and_the_step():
 
 
 def _replay_loop(name, params, ds, scene, cfg, eng, q_mode):
-    """The open-loop trace written as its own loop (how models.replay was written before it
-    ran on rollout.drive): the dataset's observations, one models.step per time step."""
+    """The open-loop trace written as its own loop (as it was written before it ran on
+    rollout.drive): the dataset's observations, one models.step per time step."""
     from minimanc import inputs, models
 
     rng = None if q_mode == "uniform" else np.random.default_rng(0)
@@ -312,7 +312,7 @@ def test_replay_is_drive_following_the_log_and_equals_the_step_loop(ds, name, se
     cfg = models.ModelConfig(image_size=32, setting=setting, n_states=4, channels=(4, 8))
     params = models.init(name, np.random.default_rng(1), cfg, dtype=dtype)
     want = _replay_loop(name, params, ds, 2, cfg, eng, q_mode)
-    got = models.replay(name, params, ds, 2, cfg, eng, q_mode=q_mode)
+    got = rollout.replay(name, params, ds, 2, cfg, eng, q_mode=q_mode)
     assert set(got) == set(want)
     for k in want:
         assert got[k].dtype == want[k].dtype and got[k].shape == want[k].shape, k
@@ -367,7 +367,7 @@ def test_rollout_keeps_the_models_dtype_and_explain_needs_no_dtype_guess(ds, tmp
     assert back.aux["q"].dtype == np.float32
     np.testing.assert_array_equal(back.aux["q"], traj.aux["q"])
     checks.check_distribution("q", traj.aux["q"], 5)
-    trace = models.replay("manc", params, ds, 1, cfg)  # the logged observations, float32
+    trace = rollout.replay("manc", params, ds, 1, cfg)  # the logged observations, float32
     assert trace["q"].dtype == np.float32
     obs = {"bev": np.asarray(ds.bev[[1], 3], dtype=np.float32) / np.float32(255.0)}
     q_prev = trace["q"][None, 2]

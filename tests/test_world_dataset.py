@@ -411,7 +411,7 @@ def test_build_is_what_generate_assembles_and_save_round_trips(ds, tmp_path):
     built = world.Dataset.build(scenes, meta, maps=[s["map"] for s in scenes])
     assert built.content_hash() == ds.subset(slice(0, 3)).content_hash()
     assert built.maps[2] is scenes[2]["map"]  # maps given are kept, not rebuilt
-    path = built.save(tmp_path / "b.npz", shard_scenes=2)
+    path = world.save(built, tmp_path / "b.npz", shard_scenes=2)
     assert world.file_content_hash(path) == built.content_hash()
 
 

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from minimanc import inputs, models
 from minimanc.dagger.schedule import check_beta, mix
@@ -192,8 +193,6 @@ def collect(policy: Any, teacher: Teacher, scenes: Any, beta: float, seed: Any =
     groups = teacher.groups(idx)
     bar = None
     if progress:
-        from tqdm import tqdm
-
         bar = tqdm(total=len(groups) * T, desc=f"dagger drive (beta {beta:.3f})", unit="step",
                    leave=False)
     rng = np.random.default_rng(seed)

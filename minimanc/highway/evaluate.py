@@ -20,7 +20,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
+from minimanc import metrics
 from minimanc.highway.env import DEFAULT_STEPS, MAX_ADO, POLICY_FREQUENCY, check_scenario
 from minimanc.highway.episodes import Episode, HighwaySim, PlainPolicy, PolicyFn, run_episode
 from minimanc.highway.render import save_gif, save_png
@@ -52,8 +54,6 @@ class ClosedLoopResult:
         * ``mean_speed``: mean of the ego's speed over all recorded steps;
         * ``episodes_per_second``: wall clock, environment and policy included.
         """
-        from minimanc import metrics
-
         ego = np.stack([ep.poses for ep in self.episodes])
         ref = np.stack([ep.poses for ep in self.experts])
         return {
@@ -105,8 +105,6 @@ def closed_loop(
                      k_targets=experts[0].lane_target.shape[1])
     bar = None
     if progress:
-        from tqdm import tqdm
-
         bar = tqdm(total=T - 1, desc=f"{scenario} {policy.model}", leave=False)
     drive(policy, sim, T - 1, None if bar is None else lambda t: bar.update(1))
     if bar is not None:

@@ -37,6 +37,7 @@ import numpy as np
 
 from minimanc.metrics.boxes import check_dt, check_ego_and_human, check_maps, check_poses
 from minimanc.world.geometry import DT, controls_from_poses
+from minimanc.world.maps import project_to_route
 
 __all__ = [
     "PROGRESS_MIN",
@@ -242,8 +243,6 @@ def route_progress(ego: Any, human: Any, maps: Sequence[Any]) -> np.ndarray:
         If a pose array is not finite of shape ``(S, T, 3)``, the two shapes differ, or
         ``maps`` does not hold one map per scene.
     """
-    from minimanc.world.maps import project_to_route
-
     e, h = check_ego_and_human(ego, human)
     check_maps(maps, e.shape[0])
     out = np.ones(e.shape[0])

@@ -44,7 +44,8 @@ from the registry on every call),
 :mod:`~minimanc.models.head_vjp`, its one-node VJP on the NumPy engine),
 :mod:`~minimanc.models.zoo` (the six specs), :mod:`~minimanc.models.forward`
 (:func:`init`, :func:`initial_state`, :func:`step`, :func:`sequence`) and
-:mod:`~minimanc.models.explain` (:func:`explain`, :func:`replay`).
+:mod:`~minimanc.models.explain` (:func:`explain`; the open-loop trace of a logged scene is
+:func:`minimanc.rollout.replay`).
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ from minimanc.models.config import (
     gain_logits,
 )
 from minimanc.models.dmp_head import dmp_head, lane_point, lane_points
-from minimanc.models.explain import explain, replay
+from minimanc.models.explain import explain
 from minimanc.models.forward import (
     init,
     initial_state,
@@ -108,7 +109,6 @@ __all__ = [
     "param_counts",
     "register",
     "registered",
-    "replay",
     "sequence",
     "spec",
     "step",

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import inputs, models
+from minimanc import inputs, models, train
 from minimanc.checks import check_int
 
 TABLE_MODELS: tuple[str, ...] = ("cnn", "cnn_lstm", "rvs_g", "manc")
@@ -70,8 +70,6 @@ class StudyConfig:
     data_source: str = ""
 
     def __init__(self, **kwargs: Any) -> None:
-        from minimanc import train
-
         given = {k: kwargs.pop(k) for k in TRAIN_FIELDS if k in kwargs}
         unknown = sorted(set(kwargs) - {f.name for f in fields(self)})
         if unknown:

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import metrics
+from minimanc import engine, metrics, rollout, train, world
 from minimanc.metrics.diagnostics import collision_taxonomy
 from minimanc.studies.provenance import write_json
 
@@ -111,8 +111,6 @@ def score(traj: Any, ds: Any) -> dict:
 
 
 def _load_split(data_path: str, lo: int, hi: int) -> Any:
-    from minimanc import world
-
     ds = _WORKER_DATA.get(data_path)
     if ds is None:
         ds = world.load(data_path)
@@ -130,7 +128,7 @@ def enable_jax_cache(directory: str | Path) -> None:
     """Persist JAX compilations under ``directory`` (unless the user set a cache already):
     runs that differ only by their seed, learning rate or data fraction then compile once
     (:func:`minimanc.train.fit` passes the last two to its jitted step as arguments)."""
-    import jax
+    import jax  # JAX only for the jax engine
 
     if jax.config.jax_compilation_cache_dir:
         return
@@ -145,8 +143,6 @@ def evaluate_job(job: dict) -> dict:
     ``job``: ``data`` (the dataset file), ``lo``/``hi`` (the split's rows), ``checkpoint``,
     ``engine``, ``rollout`` and ``metrics`` (the files written), optionally ``agents``
     (the protocol, default ``"replay"``) and ``jax_cache``."""
-    from minimanc import engine, rollout, train
-
     if job["engine"] == "jax" and job.get("jax_cache"):
         enable_jax_cache(job["jax_cache"])
     ds = _load_split(job["data"], job["lo"], job["hi"])

@@ -12,6 +12,8 @@ from typing import Any
 import numpy as np
 
 from minimanc.studies.bounds import BOUND_ROWS
+from minimanc.studies.dagger_study import dagger_markdown
+from minimanc.studies.provenance import provenance_markdown
 from minimanc.viz.style import model_label
 
 
@@ -491,8 +493,6 @@ def table_markdown(results: dict) -> str:
         lines += [f"- {k}: {v:g}" for k, v in results["lr"].items()]
         lines.append("")
     if results.get("dagger"):
-        from minimanc.studies.dagger_study import dagger_markdown
-
         lines += dagger_markdown(results["dagger"], ns, lab)
     lines += ["## The paper's claims, checked", ""]
     if ns == 1:
@@ -503,8 +503,6 @@ def table_markdown(results: dict) -> str:
         lines.append(f"- **{f['claim']}** — {mark}. {f['detail']}.")
     lines.append("")
     if results.get("provenance"):
-        from minimanc.studies.provenance import provenance_markdown
-
         lines.append(provenance_markdown(results["provenance"], results.get("wall_time_s")))
     return "\n".join(lines)
 

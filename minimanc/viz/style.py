@@ -152,7 +152,7 @@ def pyplot() -> Any:
     plt : module
         ``matplotlib.pyplot``.
     """
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib only when a figure is drawn
 
     return plt
 

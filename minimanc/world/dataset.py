@@ -31,7 +31,7 @@ This module gathers the dataset's public names; each part lives in its own modul
   (:func:`empty_meta`, :func:`append_scenes`, :func:`check_meta`), finite
   checks, member names and checksums;
 * :mod:`~minimanc.world.scenes` — :class:`Dataset` in memory (:meth:`Dataset.build`,
-  :meth:`Dataset.save`, subset, split, content hash) and :class:`LazyMaps`;
+  subset, split, content hash) and :class:`LazyMaps`;
 * :mod:`~minimanc.world.datawriter` — :class:`DatasetWriter` and :func:`save`;
 * :mod:`~minimanc.world.datareader` — :func:`load`, :func:`read_meta`,
   :func:`file_content_hash` (verifying every checksum);

@@ -2,7 +2,7 @@
 
 :meth:`Dataset.build` is the one place a dataset is assembled from per-scene
 arrays (the world's generator and the highway-env demonstrations both use it),
-:meth:`Dataset.save` writes it (:func:`minimanc.world.datawriter.save`), and
+:func:`minimanc.world.save` writes it (:mod:`minimanc.world.datawriter`), and
 :meth:`Dataset.subset` / :meth:`Dataset.split` select scenes (the paper's
 650 / 200 split). Maps are rebuilt from their recipes on first access
 (:class:`LazyMaps`).
@@ -10,10 +10,8 @@ arrays (the world's generator and the highway-env demonstrations both use it),
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -149,9 +147,3 @@ class Dataset:
         arrays = [getattr(self, name) for name in ARRAY_FIELDS]
         return content_digest(((name, a.dtype, a.shape, [a])
                                for name, a in zip(ARRAY_FIELDS, arrays, strict=True)), self.meta)
-
-    def save(self, path: str | os.PathLike, shard_scenes: int | None = None) -> Path:
-        """Write the dataset to the file ``path``: :func:`minimanc.world.datawriter.save`."""
-        from minimanc.world.datawriter import save
-
-        return save(self, path, shard_scenes)
