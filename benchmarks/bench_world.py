@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from minimanc import world
-from minimanc.world import dataset, driver, maps
+from minimanc.world import dataset, driver, maps, roads
 
 
 def raster_timing(n_scenes: int = 10) -> tuple[float, float, float]:
@@ -53,7 +53,7 @@ def stage_timing(n: int = 12) -> dict[str, float]:
     for i in range(n):
         rng = np.random.default_rng([99, i, 0])
         t0 = time.process_time()
-        m = maps.build_map(maps.random_recipe(rng))
+        m = roads.build_map(maps.random_recipe(rng))
         t1 = time.process_time()
         log = driver.simulate_scene(m, rng)
         t2 = time.process_time()

@@ -52,8 +52,8 @@ from minimanc import autodiff
 from minimanc.autodiff import nn as autodiff_nn
 from minimanc.checks import check_int
 
-__all__ = ["ENGINES", "XLA_THREADS_VAR", "Engine", "engine_of", "get_engine", "start_jax",
-           "xla_threads"]
+__all__ = ["ENGINES", "XLA_THREADS_VAR", "Engine", "engine_of", "fused_kernel", "get_engine",
+           "start_jax", "xla_threads"]
 
 ENGINES = ("numpy", "jax")
 
@@ -290,3 +290,20 @@ def engine_of(xp: Any) -> Engine | None:
     if jnp is not None and xp is jnp:
         return get_engine("jax")
     return None
+
+
+def fused_kernel(xp: Any, *values: Any) -> Engine | None:
+    """The engine whose hand-written one-node kernel should compute on ``values``, or
+    ``None`` for the operation-by-operation code: the one rule every fused kernel follows.
+
+    The fused kernels of :mod:`minimanc.vagn.fused` and :mod:`minimanc.models.head_vjp` are
+    the NumPy engine's: they serve when that engine's tape records one of ``values`` (one
+    tape node instead of dozens). JAX differentiates the plain operations, and plain
+    arrays (nothing traced) take them too, so a forward pass gives the same numbers traced
+    or not. :mod:`minimanc.dmp` asks :func:`engine_of` directly: its flow has a kernel on
+    both engines.
+    """
+    eng = engine_of(xp)
+    if eng is None or eng.name != "numpy":
+        return None
+    return eng if any(isinstance(v, autodiff.Box) for v in values) else None

@@ -10,7 +10,7 @@ key             dtype, shape      meaning (ego frame: +x forward, +y left, metre
 ``goal``        float32 (B,3)     the goal: the human's final pose ``[x, y, yaw]`` in the
                                   *current* ego frame (re-expressed every step)
 ``lane_target`` float32 (B,K,2)   the moving lane target: route centre points every
-                                  :data:`~minimanc.world.maps.TARGET_SPACING` = 4 m of arc
+                                  :data:`~minimanc.world.lanes.TARGET_SPACING` = 4 m of arc
                                   length ahead of the ego's *own* projection on the route
                                   (never indexed by the human's time: that would leak the
                                   human's future speed)
@@ -76,8 +76,9 @@ from typing import Any
 
 import numpy as np
 
-from minimanc.world import maps as world_maps
 from minimanc.world.geometry import goal_in_ego_frame
+from minimanc.world.lanes import K_TARGETS, Map
+from minimanc.world.maps import lane_targets
 from minimanc.world.raster import RasterConfig, rasterize_batch, rasterize_goal
 
 __all__ = [
@@ -345,7 +346,7 @@ def from_state(
     own previous controls (keyword-only and required: the DMP models start
     from it; at the first step use :func:`initial_motion`). The BEV is
     re-rasterised, the goal and the lane targets (``k_targets`` points,
-    default :data:`minimanc.world.maps.K_TARGETS`) re-expressed from each
+    default :data:`minimanc.world.lanes.K_TARGETS`) re-expressed from each
     ego pose. ``model`` restricts the keys as in :func:`from_dataset`;
     ``keys`` (a subset of :data:`KEYS`) overrides that choice, e.g. for a
     driver that reads no image (the BEV, the costly part, is then not drawn).
@@ -364,14 +365,14 @@ def from_state(
     mot = np.asarray(motion, dtype=np.float32)
     if mot.shape != (B, 2):
         raise ValueError(f"motion must have shape ({B}, 2), got motion with shape {mot.shape}")
-    if isinstance(maps, world_maps.Map):
+    if isinstance(maps, Map):
         map_list = [maps] * B
     else:
         map_list = [maps[i] for i in range(len(maps))]
         if len(map_list) != B:
             raise ValueError(f"maps must have {B} entries, got {len(map_list)}")
     cfg = cfg if cfg is not None else RasterConfig()
-    k = world_maps.K_TARGETS if k_targets is None else int(k_targets)
+    k = K_TARGETS if k_targets is None else int(k_targets)
     if keys is not None:
         unknown = [k for k in keys if k not in KEYS]
         if unknown:
@@ -386,7 +387,7 @@ def from_state(
         obs["goal"] = goal_in_ego_frame(goals, poses).astype(np.float32)
     if "lane_target" in keys:
         obs["lane_target"] = np.stack(
-            [world_maps.lane_targets(map_list[b], poses[b], k) for b in range(B)]
+            [lane_targets(map_list[b], poses[b], k) for b in range(B)]
         ).astype(np.float32)
     if "motion" in keys:
         obs["motion"] = mot

@@ -170,11 +170,11 @@ def test_temporary_checkpoint_files_are_cleaned(ds, tmp_path, monkeypatch):
     def crash(fh, **arrays):
         fh.write(b"PK\x03\x04half")
         raise OSError(28, "No space left on device")
-    monkeypatch.setattr(train.np, "savez", crash)
+    monkeypatch.setattr(np, "savez", crash)  # what train.checkpoint writes with
     with pytest.raises(OSError, match="No space"):
         train.fit("cnn", ds, CFG, _tc(epochs=2), engine="numpy", checkpoint_dir=d, resume=True,
                   progress=False)
-    monkeypatch.setattr(train.np, "savez", real)
+    monkeypatch.setattr(np, "savez", real)
     assert sorted(os.listdir(d)) == [train.CHECKPOINT_NAME, "notes.txt"]
     assert train.load_checkpoint(d / train.CHECKPOINT_NAME)["epoch"] == 1
 

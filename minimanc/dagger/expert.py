@@ -41,7 +41,8 @@ from minimanc.checks import check_int
 from minimanc.rollout.reactive import record_human, scene_key, start_run
 from minimanc.world.driver import HumanDriver, project_on_path
 from minimanc.world.geometry import wrap_angle
-from minimanc.world.maps import LANE_WIDTH, project_to_route
+from minimanc.world.lanes import LANE_WIDTH
+from minimanc.world.maps import project_to_route
 from minimanc.world.traffic import Path, Traffic, Vehicle
 
 __all__ = ["MAX_OFFSET", "DriverStep", "HumanExpert", "Situation"]

@@ -9,7 +9,7 @@ anything:
 
 * **Map adapter** (:func:`road_map`): each lane of highway-env's road network
   is sampled once per episode with ``lane.position(s, 0)`` (every ~1 m) and
-  ``lane.width_at(s)`` into a :class:`minimanc.world.maps.Map` — lane
+  ``lane.width_at(s)`` into a :class:`minimanc.world.lanes.Map` — lane
   centrelines, one drivable strip per lane (half width = half the lane width,
   so "off-road" means what highway-env's ``on_road`` means) and the ego's route.
   The chapter-7 rasteriser then draws it unchanged.

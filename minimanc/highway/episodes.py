@@ -31,7 +31,8 @@ from minimanc.highway.mapping import RouteTracker, road_map
 from minimanc.highway.render import render_frame
 from minimanc.rollout import SceneState, check_controls, drive, observation
 from minimanc.world.geometry import DT, goal_in_ego_frame, wrap_angle
-from minimanc.world.maps import K_TARGETS, Map, lane_targets
+from minimanc.world.lanes import K_TARGETS, Map
+from minimanc.world.maps import lane_targets
 from minimanc.world.raster import RasterConfig, rasterize
 
 

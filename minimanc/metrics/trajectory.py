@@ -190,7 +190,7 @@ def off_road(ego: Any, maps: Sequence[Any]) -> np.ndarray:
     """Per scene, 1.0 if the ego centre leaves the map's drivable area at some step. ``(S,)``.
 
     ``maps[s].is_drivable(points (N, 2)) -> bool (N,)`` decides (the
-    :class:`minimanc.world.maps.Map`; pedestrian crossings count as drivable).
+    :class:`minimanc.world.lanes.Map`; pedestrian crossings count as drivable).
 
     Parameters
     ----------
@@ -230,7 +230,7 @@ def route_progress(ego: Any, human: Any, maps: Sequence[Any]) -> np.ndarray:
     ego, human : array, shape (S, T, 3)
         The policy's and the logged human's poses ``[x, y, yaw]`` (m, m, rad).
     maps : sequence of Map, length S
-        The scene's :class:`minimanc.world.maps.Map` (its route).
+        The scene's :class:`minimanc.world.lanes.Map` (its route).
 
     Returns
     -------

@@ -51,8 +51,9 @@ from minimanc.world.driver import SceneRun
 from minimanc.world.generation import scene_stream
 from minimanc.world.geometry import DT
 from minimanc.world.history import latest_history
-from minimanc.world.maps import Map, build_map
+from minimanc.world.lanes import Map
 from minimanc.world.paths import Vehicle
+from minimanc.world.roads import build_map
 
 __all__ = [
     "AGENTS",

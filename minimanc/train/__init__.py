@@ -61,8 +61,6 @@ Modules: :mod:`~minimanc.train.config`, :mod:`~minimanc.train.batches`,
 
 from __future__ import annotations
 
-import numpy as np  # noqa: F401  (``train.np``: tests patch numpy's savez through it)
-
 from minimanc.train.batches import (
     batches,
     control_std,

@@ -14,7 +14,7 @@ import numpy as np
 
 from minimanc.world.dataset import Dataset
 from minimanc.world.geometry import to_ego_frame
-from minimanc.world.maps import Map, class_grid
+from minimanc.world.lanes import Map, class_grid
 from minimanc.world.raster import RasterConfig
 
 

@@ -64,17 +64,8 @@ from minimanc.world.geometry import (
     unicycle_step,
     wrap_angle,
 )
-from minimanc.world.maps import (
-    K_TARGETS,
-    TARGET_SPACING,
-    Lane,
-    Map,
-    build_map,
-    lane_targets,
-    project_to_route,
-    random_map,
-    random_recipe,
-)
+from minimanc.world.lanes import K_TARGETS, TARGET_SPACING, Lane, Map
+from minimanc.world.maps import lane_targets, project_to_route, random_map, random_recipe
 from minimanc.world.raster import (
     RasterConfig,
     box_mask,
@@ -83,6 +74,7 @@ from minimanc.world.raster import (
     rasterize_batch,
     rasterize_goal,
 )
+from minimanc.world.roads import build_map
 from minimanc.world.traffic import idm_acceleration
 
 __all__ = [

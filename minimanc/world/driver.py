@@ -41,7 +41,7 @@ from minimanc.world.geometry import (
     unicycle_step,
     wrap_angle,
 )
-from minimanc.world.maps import Map
+from minimanc.world.lanes import Map
 from minimanc.world.traffic import B_MAX, Path, Traffic, Vehicle
 
 T_STEPS = 40

@@ -44,8 +44,10 @@ from minimanc.world.fileformat import (
 )
 from minimanc.world.geometry import goal_in_ego_frame
 from minimanc.world.history import history_of
-from minimanc.world.maps import K_TARGETS, Map, build_map, lane_targets, random_recipe
+from minimanc.world.lanes import K_TARGETS, Map
+from minimanc.world.maps import lane_targets, random_recipe
 from minimanc.world.raster import RasterConfig, rasterize_batch, rasterize_goal
+from minimanc.world.roads import build_map
 from minimanc.world.scenes import Dataset
 
 __all__ = [

@@ -24,8 +24,9 @@ from minimanc.world.fileformat import (
     content_digest,
 )
 from minimanc.world.geometry import DT
-from minimanc.world.maps import Map, build_map
+from minimanc.world.lanes import Map
 from minimanc.world.raster import RasterConfig
+from minimanc.world.roads import build_map
 
 __all__ = ["Dataset", "LazyMaps"]
 
@@ -57,7 +58,7 @@ class LazyMaps(Sequence):
 class Dataset:
     """S scenes of T steps. Arrays are NumPy; see the field comments for shapes.
 
-    ``maps[i]`` is scene ``i``'s :class:`~minimanc.world.maps.Map` (with the
+    ``maps[i]`` is scene ``i``'s :class:`~minimanc.world.lanes.Map` (with the
     ego's route; built from its recipe on first access, see :class:`LazyMaps`);
     ``meta`` holds ``seed``, ``version``, ``raster`` (the :class:`RasterConfig`
     as a dict), ``recipes``, ``tags`` (per scene: kind,

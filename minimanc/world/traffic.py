@@ -45,7 +45,7 @@ from minimanc.world.car_following import (
     idm_acceleration,
 )
 from minimanc.world.geometry import project_to_polyline, wrap_angle
-from minimanc.world.maps import LANE_WIDTH, Map
+from minimanc.world.lanes import LANE_WIDTH, Map
 from minimanc.world.paths import (
     Path,
     PathBank,
