@@ -289,7 +289,7 @@ assert err[0] < 3.0 and err[1] < 0.2  # stored run: 0.51 m/s and 0.022 rad/s
 
 # %% [markdown]
 # ### Per-q-state saliency
-# Where does each q-state look? `models.explain` splits each predicate into
+# Where does each q-state look? `models.saliency` splits each predicate into
 # its class activation map (chapter 6) and weighs the maps by how much each
 # predicate moves each q-state, $S_j = \sum_i \partial q_j/\partial z_i\, M_i$
 # (Figures 3–4 of the paper). Positive (yellow) regions push probability into
@@ -298,7 +298,7 @@ assert err[0] < 3.0 and err[1] < 0.2  # stored run: 0.51 m/s and 0.022 rad/s
 # %% tags=["nbval-ignore-output"]
 t = 20
 o = inputs.from_dataset(val_ds, 0, t, model=models.get("manc"))
-ex = models.explain(fit.params, o, tr["q"][t - 1][None], cfg)
+ex = models.saliency(fit.params, o, tr["q"][t - 1][None], cfg)
 plot_q_saliency(val_ds.bev[0, t], ex["saliency"][0], ex["q"][0])
 plt.show()
 print("q at step 20:", ex["q"][0].round(3))

@@ -268,7 +268,7 @@ def test_explain_saliency_identity():
     params = models.init("manc", rng, CFG)
     obs = _obs(rng)
     q_prev = np.full((B, CFG.n_states), 1.0 / CFG.n_states)
-    ex = models.explain(params, obs, q_prev, CFG, upsample_to_input=False)
+    ex = models.saliency(params, obs, q_prev, CFG, upsample_to_input=False)
     N, M = CFG.n_states, CFG.n_predicates
     assert ex["saliency"].shape == (B, N, 4, 4) and ex["cams"].shape == (B, M, 4, 4)
     # mean over pixels of S_j = sum_i J_ji (z_i - b_i), z the predicate logits (chapter 6)
@@ -286,10 +286,10 @@ def test_explain_saliency_identity():
     J = np.stack([jax.jacrev(q_of)(ex["logits"][i]) for i in range(B)])
     np.testing.assert_allclose(ex["jacobian"], J, rtol=1e-7, atol=1e-10)
     np.testing.assert_allclose(lhs, rhs, rtol=1e-9, atol=1e-12)
-    up = models.explain(params, obs, q_prev, CFG)
+    up = models.saliency(params, obs, q_prev, CFG)
     assert up["saliency"].shape == (B, N, 16, 16)
     with pytest.raises(ValueError, match="vAGN"):
-        models.explain(models.init("cnn", rng, CFG), obs, q_prev, CFG)
+        models.saliency(models.init("cnn", rng, CFG), obs, q_prev, CFG)
 
 
 def test_bad_input_raises(eng_np):

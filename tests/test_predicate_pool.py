@@ -63,4 +63,4 @@ def test_bad_pool_and_cam_refuse_and_the_default_keeps_the_config_dict():
     assert models.ModelConfig(predicate_pool="flat").to_dict()["predicate_pool"] == "flat"
     params = models.init("manc", np.random.default_rng(0), FLAT)
     with pytest.raises(ValueError, match="needs the predicates of global average pooling"):
-        models.explain(params, {"bev": np.zeros((1, 16, 16, 3))}, np.full((1, 4), 0.25), FLAT)
+        models.saliency(params, {"bev": np.zeros((1, 16, 16, 3))}, np.full((1, 4), 0.25), FLAT)

@@ -371,7 +371,7 @@ def test_rollout_keeps_the_models_dtype_and_explain_needs_no_dtype_guess(ds, tmp
     assert trace["q"].dtype == np.float32
     obs = {"bev": np.asarray(ds.bev[[1], 3], dtype=np.float32) / np.float32(255.0)}
     q_prev = trace["q"][None, 2]
-    out = models.explain(params, obs, q_prev, cfg)
+    out = models.saliency(params, obs, q_prev, cfg)
     q64 = q_prev.astype(np.float64) / q_prev.astype(np.float64).sum(axis=-1, keepdims=True)
     np.testing.assert_allclose(out["q"], vagn.step(q64, out["predicates"],
                                                    np.asarray(params["vagn"]["W"], np.float64)),
@@ -379,7 +379,7 @@ def test_rollout_keeps_the_models_dtype_and_explain_needs_no_dtype_guess(ds, tmp
     np.testing.assert_allclose(out["q"].sum(axis=-1), 1.0, rtol=0, atol=1e-12)
     np.testing.assert_allclose(out["q"][0], trace["q"][3], rtol=0, atol=1e-5)  # float32 path
     with pytest.raises(ValueError, match="q_prev"):
-        models.explain(params, obs, np.full((1, 5), 0.3, dtype=np.float32), cfg)
+        models.saliency(params, obs, np.full((1, 5), 0.3, dtype=np.float32), cfg)
 
 
 # --------------------------------------------------------------------------- protocols

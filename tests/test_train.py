@@ -122,7 +122,7 @@ def test_exploded_parameters_are_never_checkpointed(ds, tmp_path, name):
     params = models.init("cnn", np.random.default_rng(0), CFG)
     params["out"]["b"] = np.full_like(params["out"]["b"], np.nan)
     with pytest.raises(ValueError, match="non-finite value in 'out/b'"):
-        train.save(tmp_path / "x.npz", "cnn", params, CFG)
+        train.save_checkpoint(tmp_path / "x.npz", "cnn", params, CFG)
     assert not list(tmp_path.glob("x.npz*"))
 
 

@@ -17,7 +17,7 @@ from typing import Any
 from minimanc import world
 from minimanc.cli.common import check_int, check_out_dir, check_out_file, load_data
 from minimanc.errors import UsageError
-from minimanc.viz.world import gallery, plot_map, save_gif, scene_frames
+from minimanc.viz.world import gallery, plot_map, save_scene_gif, scene_frames
 from minimanc.world import nuscenes
 
 __all__ = ["DISK_MARGIN", "cmd_generate", "cmd_import_nuscenes", "cmd_show", "default_file",
@@ -128,7 +128,7 @@ def cmd_show(args: argparse.Namespace) -> int:
     fig = gallery(ds, range(min(len(ds), 12)))
     fig.savefig(out / "gallery.png", dpi=120)
     plt.close(fig)
-    save_gif(scene_frames(ds, scene), out / "scene.gif")
+    save_scene_gif(scene_frames(ds, scene), out / "scene.gif")
     fig, ax = plt.subplots(figsize=(6, 6))
     plot_map(ds.maps[scene], ax, ego=ds.ego[scene], ado=ds.ado[scene],
                  ado_valid=ds.ado_valid[scene])

@@ -146,7 +146,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         rows = {"expert": hw.expert_result(sc, experts).metrics}
         for label, pol in policies:
             cfg = world.RasterConfig(size=pol.cfg.image_size)
-            rows[label] = hw.closed_loop(pol, sc, experts, cfg=cfg).metrics
+            rows[label] = hw.drive_episodes(pol, sc, experts, cfg=cfg).metrics
         report[sc] = {"expert_seeds_tried": tries, **rows}
         for label, m in rows.items():
             print(f"{sc:<13} {label:<16} {m['collision_rate']:>11.1f} {m['off_road_rate']:>10.1f} "

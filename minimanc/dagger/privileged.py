@@ -66,7 +66,7 @@ from minimanc.world.traffic import B_MAX
 
 __all__ = [
     "AHEAD", "FAR", "FEATURES", "FEATURE_GROUPS", "V_MAX", "ExpertPolicy", "Privileged",
-    "PrivilegedPolicy", "Round", "closed_loop", "dagger_rounds", "demonstrations", "features",
+    "PrivilegedPolicy", "Round", "dagger_rounds", "demonstrations", "evaluate_policy", "features",
     "fit", "kept", "perceived", "predict",
 ]
 
@@ -323,8 +323,8 @@ class PrivilegedPolicy(_Reader):
         return np.asarray(self.X).reshape(-1, len(FEATURES)), np.asarray(self.Y).reshape(-1, 2)
 
 
-def closed_loop(policy: _Reader, ds: Any, agents: str, progress: bool = False
-                ) -> dict[str, float]:
+def evaluate_policy(policy: _Reader, ds: Any, agents: str, progress: bool = False
+                    ) -> dict[str, float]:
     """Drive ``policy`` (its teacher built on ``ds``) on every scene of ``ds`` under
     ``agents``: :func:`minimanc.metrics.evaluate`'s metrics, the mean along- and
     cross-track errors (:func:`minimanc.metrics.trajectory.along_cross_track`) and the
@@ -363,7 +363,7 @@ def dagger_rounds(train: Any, val: Any, rounds: int, per_round: int, agents: str
     vteacher = WorldTeacher(val, agents=agents)
     X, Y = demonstrations(train, expert=teacher.expert)
     model = fit(X, Y, drop=drop, steps=steps, seed=seed)
-    out = [Round(len(X), closed_loop(PrivilegedPolicy(model, vteacher), val, agents))]
+    out = [Round(len(X), evaluate_policy(PrivilegedPolicy(model, vteacher), val, agents))]
     order = np.random.default_rng(seed).permutation(len(np.asarray(train.ego)))
     for r in range(rounds):
         pick = order[(np.arange(per_round) + r * per_round) % len(order)]
@@ -373,5 +373,5 @@ def dagger_rounds(train: Any, val: Any, rounds: int, per_round: int, agents: str
         Xn, Yn = policy.visited()
         X, Y = np.concatenate([X, Xn]), np.concatenate([Y, Yn])
         model = fit(X, Y, steps=steps, seed=seed + r + 1, init=model)
-        out.append(Round(len(X), closed_loop(PrivilegedPolicy(model, vteacher), val, agents)))
+        out.append(Round(len(X), evaluate_policy(PrivilegedPolicy(model, vteacher), val, agents)))
     return out

@@ -137,7 +137,7 @@ class HighwayTeacher:
     label is the speed it reaches and its mean yaw rate over the step, the format of
     :attr:`minimanc.highway.Episode.controls`. ``val`` optional expert episodes
     (:func:`minimanc.highway.expert_episodes`, one scenario) for :meth:`evaluate`
-    (:func:`minimanc.highway.closed_loop`).
+    (:func:`minimanc.highway.drive_episodes`).
     """
 
     name = "highway"
@@ -194,7 +194,7 @@ class HighwayTeacher:
             return {}
         from minimanc import highway as hw  # optional: needs highway-env
 
-        res = hw.closed_loop(policy, self.val[0].scenario, self.val, cfg=self.pool.raster,
+        res = hw.drive_episodes(policy, self.val[0].scenario, self.val, cfg=self.pool.raster,
                              progress=progress)
         out = res.metrics
         out.pop("episodes_per_second", None)  # wall clock, not a property of the policy

@@ -320,7 +320,7 @@ def run_episode(
     highway-env's frames in ``Episode.frames``. A policy is driven by
     :func:`minimanc.rollout.drive` in a one-row :class:`HighwaySim` (a
     chapter-9 policy wrapped by :func:`minimanc.highway.plain_policy` directly,
-    with the observation of :func:`minimanc.highway.closed_loop`).
+    with the observation of :func:`minimanc.highway.drive_episodes`).
     """
     check_scenario(scenario)
     check_steps(steps)

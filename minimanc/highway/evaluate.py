@@ -1,6 +1,6 @@
 """Chapter 10 — the closed loop: a chapter-9 policy drives the ego in highway-env.
 
-:func:`closed_loop` runs any chapter-9 policy (:class:`minimanc.rollout.ModelPolicy`
+:func:`drive_episodes` runs any chapter-9 policy (:class:`minimanc.rollout.ModelPolicy`
 for MANC and the baselines) from the seeds of expert episodes, observations
 from :func:`minimanc.inputs.from_state`; :attr:`ClosedLoopResult.metrics`
 reports collision rate (highway-env's ``crashed``), off-road rate
@@ -67,7 +67,7 @@ class ClosedLoopResult:
         }
 
 
-def closed_loop(
+def drive_episodes(
     policy: Any,
     scenario: str,
     experts: Sequence[Episode],
@@ -124,7 +124,7 @@ def plain_policy(policy: Any, goal: np.ndarray, cfg: RasterConfig | None = None)
     :data:`PolicyFn` for :func:`run_episode` / :func:`render_episode` (one ego).
 
     The observation is built with :func:`minimanc.inputs.from_state` exactly
-    as :func:`closed_loop` does (``goal`` a world pose, ``cfg`` the raster of
+    as :func:`drive_episodes` does (``goal`` a world pose, ``cfg`` the raster of
     the model) and the policy's recurrent state is carried (:class:`PlainPolicy`).
     """
     return PlainPolicy(policy, goal, cfg)

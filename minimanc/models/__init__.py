@@ -44,7 +44,7 @@ from the registry on every call),
 :mod:`~minimanc.models.head_vjp`, its one-node VJP on the NumPy engine),
 :mod:`~minimanc.models.zoo` (the six specs), :mod:`~minimanc.models.forward`
 (:func:`init`, :func:`initial_state`, :func:`step`, :func:`sequence`) and
-:mod:`~minimanc.models.explain` (:func:`explain`; the open-loop trace of a logged scene is
+:mod:`~minimanc.models.explain` (:func:`saliency`; the open-loop trace of a logged scene is
 :func:`minimanc.rollout.replay`).
 """
 
@@ -61,7 +61,7 @@ from minimanc.models.config import (
     gain_logits,
 )
 from minimanc.models.dmp_head import dmp_head, lane_point, lane_points
-from minimanc.models.explain import explain
+from minimanc.models.explain import saliency
 from minimanc.models.forward import (
     init,
     initial_state,
@@ -79,7 +79,6 @@ from minimanc.models.registry import (
     names,
     register,
     registered,
-    unregister,
     vagn_models,
 )
 from minimanc.models.zoo import BUILTIN
@@ -96,7 +95,6 @@ __all__ = [
     "check_name",
     "dmp_head",
     "dmp_models",
-    "explain",
     "gain_logits",
     "get",
     "init",
@@ -108,11 +106,11 @@ __all__ = [
     "param_count",
     "param_counts",
     "register",
+    "saliency",
     "registered",
     "sequence",
     "spec",
     "step",
-    "unregister",
     "vagn_models",
 ]
 

@@ -1,4 +1,4 @@
-"""Chapter 8 — what a trained controller shows: per-q-state saliency (:func:`explain`, paper
+"""Chapter 8 — what a trained controller shows: per-q-state saliency (:func:`saliency`, paper
 Figs. 3–4). The open-loop trace of a logged scene is :func:`minimanc.rollout.replay`."""
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from minimanc.models.backbone import backbone
 from minimanc.models.config import ModelConfig
 from minimanc.models.forward import cast_tree
 
-__all__ = ["explain"]
+__all__ = ["saliency"]
 
 
-def explain(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = None,
-            eng: Any = None, upsample_to_input: bool = True) -> dict:
+def saliency(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = None,
+             eng: Any = None, upsample_to_input: bool = True) -> dict:
     """Per-q-state saliency of a vAGN model (paper Figs. 3–4), NumPy float64 arrays.
 
     Runs eq. 7 on ``obs["bev"]`` and one vAGN step (eqs. 8–9) from ``q_prev``.
@@ -56,10 +56,10 @@ def explain(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = None
     cfg = cfg or ModelConfig()
     eng = eng or get_engine("numpy")
     if cfg.predicate_pool != "global":
-        raise ValueError("explain (CAM, eq. 7) needs the predicates of global average pooling; "
+        raise ValueError("saliency (CAM, eq. 7) needs the predicates of global average pooling; "
                          f"got predicate_pool={cfg.predicate_pool!r}")
     if "vagn" not in params or "predicates" not in params:
-        raise ValueError("explain needs the parameters of a vAGN model (manc or vagn_only); "
+        raise ValueError("saliency needs the parameters of a vAGN model (manc or vagn_only); "
                          f"got params with keys {sorted(params)}")
     p64 = cast_tree(params, np.float64)
     bev = np.asarray(obs["bev"], dtype=np.float64)

@@ -28,14 +28,14 @@ CONTACT_PREFIX: str = "contacts_"
 """Prefix of the collision-taxonomy keys of :func:`score`."""
 """Every metric a study reports for a rollout (a failed run has them all ``inf``)."""
 
-FAMILIES: tuple[str, ...] = ("free", "junction", "roundabout", "cut_in")
+SCENE_FAMILIES: tuple[str, ...] = ("free", "junction", "roundabout", "cut_in")
 """Scenario families, from the world's scene tags: ``free`` = a straight or curved road
 without a cut-in, ``junction`` = an intersection, ``roundabout``, ``cut_in`` = a scene with
 a cut-in (on any map, so it overlaps the others)."""
 
 
 def scene_families(ds: Any) -> dict[str, np.ndarray]:
-    """``{family: (S,) bool}``: which scenes of ``ds`` belong to each of :data:`FAMILIES`
+    """``{family: (S,) bool}``: which scenes of ``ds`` belong to each of :data:`SCENE_FAMILIES`
     (from ``ds.tags``; ValueError when the dataset has none)."""
     tags = getattr(ds, "tags", None)
     if tags is None or len(tags) != len(ds.ego):
@@ -51,7 +51,7 @@ def failed(error: str | None = None) -> dict:
     """The scores of a run that could not be evaluated: every :data:`STUDY_METRICS` ``inf``
     (also per family, so that :func:`minimanc.metrics.aggregate` keeps every key)."""
     res: dict[str, Any] = {k: float("inf") for k in STUDY_METRICS}
-    res["families"] = {f: {k: float("inf") for k in STUDY_METRICS} for f in FAMILIES}
+    res["families"] = {f: {k: float("inf") for k in STUDY_METRICS} for f in SCENE_FAMILIES}
     if error is not None:
         res["error"] = error
     return res
@@ -92,7 +92,7 @@ def score(traj: Any, ds: Any) -> dict:
     :func:`minimanc.metrics.evaluate`, and :data:`TRACK_METRICS`), the collisions by kind
     (:func:`minimanc.metrics.diagnostics.collision_taxonomy`, keys prefixed
     :data:`CONTACT_PREFIX`), and ``"families"``:
-    the same averages over the scenes of each of :data:`FAMILIES` present (with
+    the same averages over the scenes of each of :data:`SCENE_FAMILIES` present (with
     ``n_scenes``)."""
     per = scene_scores(traj, ds)
     res: dict[str, Any] = {k: float(v.mean()) for k, v in per.items()}

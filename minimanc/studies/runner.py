@@ -47,7 +47,7 @@ class Study(Runs):
 
     def families(self) -> dict:
         """``{agents: {setting: {model: {family: aggregate}}}}``: Table I's rows per scenario
-        family (:data:`minimanc.studies.jobs.FAMILIES`; a family with no validation scene
+        family (:data:`minimanc.studies.jobs.SCENE_FAMILIES`; a family with no validation scene
         is left out)."""
         c = self.config
         out: dict = {}

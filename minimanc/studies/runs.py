@@ -33,7 +33,7 @@ from minimanc.studies.executors import (
     usable_cpus,
 )
 from minimanc.studies.jobs import (
-    FAMILIES,
+    SCENE_FAMILIES,
     STUDY_METRICS,
     enable_jax_cache,
     failed,
@@ -471,6 +471,6 @@ class Runs:
 
 def families_of(per_seed: Sequence[dict]) -> dict:
     """``{family: aggregate}`` over the seeds' :func:`minimanc.studies.jobs.score` dicts (the
-    families every seed has, in the order of :data:`minimanc.studies.jobs.FAMILIES`)."""
-    return {f: metrics.aggregate([r["families"][f] for r in per_seed]) for f in FAMILIES
+    families every seed has, in the order of :data:`minimanc.studies.jobs.SCENE_FAMILIES`)."""
+    return {f: metrics.aggregate([r["families"][f] for r in per_seed]) for f in SCENE_FAMILIES
             if all(f in r.get("families", {}) for r in per_seed)}

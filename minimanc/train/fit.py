@@ -24,7 +24,13 @@ from minimanc.train.batches import (
     make_batch,
     subset_scenes,
 )
-from minimanc.train.checkpoint import bad_params, load_checkpoint, restore_opt, save, to_numpy
+from minimanc.train.checkpoint import (
+    bad_params,
+    load_checkpoint,
+    restore_opt,
+    save_checkpoint,
+    to_numpy,
+)
 from minimanc.train.config import CHECKPOINT_NAME, DTYPES, FitResult, TrainConfig, TrainingDiverged
 from minimanc.train.step import loss_fn, make_step
 from minimanc.tree import cast_floats
@@ -209,7 +215,7 @@ def end_epoch(st: RunState, epoch: int, mean_loss: float, eng: Any, val_ds: Any 
                                        std=st.std, q_init=st.tc.q_init,
                                        dtype=DTYPES[st.tc.dtype]))
     if st.ck_path is not None:
-        save(st.ck_path, st.name, st.params, st.cfg, st.tc, st.opt_state, epoch + 1,
+        save_checkpoint(st.ck_path, st.name, st.params, st.cfg, st.tc, st.opt_state, epoch + 1,
              st.history, st.val_history, st.steps, st.std)
         st.saved_epoch = epoch + 1
 

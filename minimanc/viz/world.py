@@ -3,7 +3,7 @@
 Everything here draws existing data (no simulation): :func:`plot_map` (a
 top-down map with lanes, route and the logged trajectory), :func:`gallery`
 (BEV rasters with the human's future path and the lane target on top),
-:func:`scene_frames` / :func:`save_gif` (one scene as an animation).
+:func:`scene_frames` / :func:`save_scene_gif` (one scene as an animation).
 """
 
 from __future__ import annotations
@@ -115,7 +115,7 @@ def scene_frames(ds: Dataset, i: int, scale: int = 4, goal: bool = True) -> np.n
     return frames
 
 
-def save_gif(frames: np.ndarray, path: str | os.PathLike, fps: float = 2.0) -> None:
+def save_scene_gif(frames: np.ndarray, path: str | os.PathLike, fps: float = 2.0) -> None:
     """Write frames ``(T, H, W, 3)`` uint8 as an animated GIF (real time at 2 Hz by default)."""
     from PIL import Image  # Pillow only when an image is written
 

@@ -90,7 +90,7 @@ MIN_GAP = 0.3
 """Shortest time between two keyframes a scene may hold (s)."""
 MAX_GAP = 0.7
 """Longest time between two keyframes a scene may hold (s); a longer one is a dropped frame."""
-VEHICLE = "vehicle."
+VEHICLE_PREFIX = "vehicle."
 """Category prefix of the annotations imported as ados."""
 PEDESTRIAN = "human.pedestrian."
 """Category prefix of the annotations counted as pedestrians."""
@@ -219,7 +219,7 @@ def vehicle_boxes(tables: Tables, samples: Sequence[dict], ego: np.ndarray,
             name = category[inst]
             if name.startswith(PEDESTRIAN):
                 pedestrians.add(inst)
-            elif name.startswith(VEHICLE):
+            elif name.startswith(VEHICLE_PREFIX):
                 (x, y, _), (w, ln, _) = ann["translation"], ann["size"]
                 boxes.setdefault(inst, {})[t] = (float(x), float(y), yaw_of(ann["rotation"]),
                                                  float(ln), float(w))
