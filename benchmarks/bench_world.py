@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from minimanc import world
-from minimanc.world import dataset, driver, maps, roads
+from minimanc.world import driver, maps, roads
 
 
 def raster_timing(n_scenes: int = 10) -> tuple[float, float, float]:
@@ -93,7 +93,7 @@ def main() -> None:
         path = world.save(ds, Path(tmp) / "world.npz")
         ts = time.perf_counter() - t0
         t0 = time.perf_counter()
-        dataset.load(path)
+        world.load(path)
         tl = time.perf_counter() - t0
         size = path.stat().st_size
     print(f"save {ts:.1f} s, load {tl:.1f} s, file {size / 1e6:.0f} MB "

@@ -410,7 +410,8 @@ def test_demonstrations_are_built_by_the_world_builder(monkeypatch):
                                                           real(cls, *a, **k))[1]))
     ds = hw.to_dataset(eps, seed=0)
     assert calls == ["demonstrations"]
-    assert list(ds.meta)[:8] == list(world.dataset.META_KEYS) and ds.meta["source"] == "highway-env"
+    assert list(ds.meta)[:8] == list(world.fileformat.META_KEYS)
+    assert ds.meta["source"] == "highway-env"
     assert ds.meta["scene_index"] == [ep.seed for ep in eps]
     assert all(ds.maps[i] is ep.map for i, ep in enumerate(eps))
     eps[0].speeds[1] = np.nan  # controls[0, 0] is the speed reached at step 1

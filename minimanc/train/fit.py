@@ -34,7 +34,8 @@ from minimanc.train.checkpoint import (
 from minimanc.train.config import CHECKPOINT_NAME, DTYPES, FitResult, TrainConfig, TrainingDiverged
 from minimanc.train.step import loss_fn, make_step
 from minimanc.tree import cast_floats
-from minimanc.world.dataset import describe_non_finite, first_non_finite, remove_temp_files
+from minimanc.world.datawriter import remove_temp_files
+from minimanc.world.fileformat import describe_non_finite, first_non_finite
 
 __all__ = ["RunState", "SweepResult", "cast_floats", "check_fit_args", "diverged_loss", "end_epoch",
            "as_engine", "epoch_plan", "evaluate", "fit", "result_of", "start_run", "step_batch",

@@ -12,10 +12,10 @@ import os
 
 import numpy as np
 
-from minimanc.world.dataset import Dataset
 from minimanc.world.geometry import to_ego_frame
 from minimanc.world.lanes import Map, class_grid
 from minimanc.world.raster import RasterConfig
+from minimanc.world.scenes import Dataset
 
 
 def ego_to_image_xy(points_ego: np.ndarray, cfg: RasterConfig) -> tuple[np.ndarray, np.ndarray]:

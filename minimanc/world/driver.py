@@ -19,7 +19,7 @@ at ``DT``) along the map's route with a per-scene :class:`HumanStyle`:
 :func:`simulate_scene` runs one scene: it places the ego and the ados, steps
 everything ``T`` times and returns the log (ego poses and controls, ado boxes)
 with tags. Scenes where the ego leaves the drivable area or touches an ado
-are rejected by the dataset generator (:mod:`minimanc.world.dataset`), which
+are rejected by the dataset generator (:mod:`minimanc.world.generation`), which
 then draws the scene again from the next sub-seed.
 """
 
