@@ -24,11 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from minimanc import engine, inputs, models, results, train, world
+from minimanc import engine, inputs, models, train, world
 from minimanc.dagger import privileged as P
 from minimanc.metrics.diagnostics import linear_probe
 from minimanc.models.backbone import activate, dense
 from minimanc.models.forward import encode
+from minimanc.studies import provenance as results
 
 N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
 RIDGES = (1.0, 10.0, 100.0, 1000.0, 10000.0)

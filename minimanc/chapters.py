@@ -101,7 +101,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             prerequisites="Python and NumPy basics; no earlier chapter.",
             minutes=(15, 15)),
     Chapter(1, "01_autodiff", "reverse-mode autodiff on NumPy",
-            ("minimanc.autodiff", "minimanc.engine"), ("minimanc.viz.graph",),
+            ("minimanc.autodiff", "minimanc.engine"), ("minimanc.tree", "minimanc.viz.graph"),
             "unbroadcasting, VJPs, the tape's topological order, grad, the computation graph",
             objectives=(
                 "derive and write vector-Jacobian products, also across broadcasting",
@@ -111,7 +111,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             prerequisites="Chapter 0; NumPy broadcasting; the chain rule.",
             minutes=(60, 120)),
     Chapter(2, "02_training", "layers, conv2d, Adam",
-            ("minimanc.layers", "minimanc.optim", "minimanc.autodiff.nn"), ("minimanc.tree",),
+            ("minimanc.layers", "minimanc.optim", "minimanc.autodiff.nn"), (),
             "convolution, pooling, initialisation and optimisers",
             objectives=(
                 "write a convolution's forward and backward passes (by loops and by im2col)",
@@ -150,7 +150,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             prerequisites="Chapter 3 (the point-attractor DMP); rotations in 3-D.",
             minutes=(60, 120)),
     Chapter(5, "05_vagn", "the soft automaton",
-            ("minimanc.vagn",), ("minimanc.vagn_step", "minimanc.viz.automaton"),
+            ("minimanc.vagn",), ("minimanc.viz.automaton",),
             "the vAGN soft automaton",
             objectives=(
                 "build the vAGN transition matrix from predicates (eqs. 8–9) and step the soft "
@@ -196,8 +196,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             minutes=(60, 90)),
     Chapter(9, "09_behavior_cloning", "training, closed loop, the paper's studies",
             ("minimanc.rollout", "minimanc.metrics", "minimanc.studies"),
-            ("minimanc.modes", "minimanc.results", "minimanc.world.reactive",
-             "minimanc.viz.study", "minimanc.viz.explain", "minimanc.cli.reproduce",
+            ("minimanc.viz.study", "minimanc.viz.explain", "minimanc.cli.reproduce",
              "minimanc.cli.results"),
             "the MANC step, the closed loop, a metric",
             objectives=(
@@ -222,8 +221,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             minutes=(40, 60)),
     Chapter(11, "11_dagger", "behaviour cloning's drift and DAgger",
             ("minimanc.dagger",),
-            ("minimanc.world.expert", "minimanc.studies.dagger_study", "minimanc.viz.dagger",
-             "minimanc.cli.dagger"),
+            ("minimanc.studies.dagger_study", "minimanc.viz.dagger", "minimanc.cli.dagger"),
             "the DAgger schedule, the mixture, aggregation, the budget",
             objectives=(
                 "explain why behaviour cloning drifts in closed loop",

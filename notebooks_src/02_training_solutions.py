@@ -201,7 +201,7 @@ def correlate(x, k):
             y = y + x[:, u:u + ho, v:v + wo, :] @ k[u, v]
     return y
 
-# %% solution id=ex02_2 title="Transposed convolution" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv2d,minimanc.autodiff.nn._conv_fwd,minimanc.autodiff.nn._conv_bwd,minimanc.autodiff.core.backward"  # noqa: E501
+# %% solution id=ex02_2 title="Transposed convolution" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv2d,minimanc.autodiff.nn._conv_fwd,minimanc.autodiff.nn._conv_bwd,minimanc.autodiff.api.backward"  # noqa: E501
 def conv2d_transpose(z, w, stride=1, padding=0):
     ### BEGIN SOLUTION
     n, ho, wo, _ = z.shape

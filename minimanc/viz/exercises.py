@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc.autodiff.core import toposort
+from minimanc.autodiff import toposort
 from minimanc.autodiff.graph import Edge, Graph, Node
 from minimanc.viz.graph import plot_graph
 from minimanc.viz.style import pyplot
