@@ -13,9 +13,11 @@
 # %%
 import math
 
+import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import dmp
+from minimanc.viz.exercises import plot_stability_boundary
 
 rng = np.random.default_rng(0)
 
@@ -468,6 +470,88 @@ for b in test_rng.uniform(0.05, 8.0, size=12):
 ### END HIDDEN TESTS
 
 # %% [markdown]
+# ## Exercise 3.7 — an open experiment: defend a gain box for one sub-step at dt = 0.5 s
+# The library keeps the learned gains inside a box (`dmp.ALPHA_RANGE`,
+# `dmp.BETA_RANGE`) and integrates with several sub-steps. Suppose the controller
+# may take **one** sub-step of $h = 0.5$ s. Design the box yourself:
+# `gain_box()` returns `(method, (alpha_lo, alpha_hi), (beta_lo, beta_hi))` with
+# `method` one of `"euler"`, `"semi_implicit"`, `"rk2"` (Heun, 3.6), such that
+#
+# * every gain pair of the box (edges and corners included) is stable for one
+#   step of `method` with $h = 0.5$;
+# * the box holds a critically damped pair ($\alpha = 4\beta$ for some $\beta$ in it);
+# * its area $(\alpha_\text{hi} - \alpha_\text{lo})(\beta_\text{hi} - \beta_\text{lo})$ is at
+#   least 4 (in 1/s²), with $\alpha_\text{lo}, \beta_\text{lo} > 0$.
+#
+# Use your own bounds of 3.3, 3.5 and 3.6 to choose (3 points; the grade cell
+# checks the box with its own step matrices). Then defend your choice in the
+# written answer below.
+
+# %% solution id=ex03_7 title="A stable gain box for one sub-step"
+def gain_box():
+    ### BEGIN SOLUTION
+    betas = np.linspace(0.1, 4.0, 40)
+    # the RK2 bound over the box's beta range; stay 2 % inside its lowest point
+    alpha_hi = 0.98 * min(max_stable_alpha_rk2(float(b), 0.5) for b in betas)
+    return "rk2", (0.1, float(alpha_hi)), (0.1, 4.0)
+    ### END SOLUTION
+
+# %% grade id=ex03_7_tests points=3
+def step_matrix7(a, b, h, method):
+    """The tests' own one-step matrices on the state (e, de/dt)."""
+    hA = h * np.array([[0.0, 1.0], [-a * b, -a]])
+    if method == "euler":
+        return np.eye(2) + hA
+    if method == "rk2":
+        return np.eye(2) + hA + 0.5 * hA @ hA
+    return np.array([[1.0 - h * h * a * b, h * (1.0 - h * a)], [-h * a * b, 1.0 - h * a]])
+
+
+box7 = gain_box()
+assert isinstance(box7, tuple) and len(box7) == 3, \
+    f"expected (method, (alpha_lo, alpha_hi), (beta_lo, beta_hi)), got {box7!r}"
+method7, (a_lo, a_hi), (b_lo, b_hi) = box7
+assert method7 in ("euler", "semi_implicit", "rk2"), \
+    f"expected 'euler', 'semi_implicit' or 'rk2', got {method7!r}"
+assert 0 < a_lo < a_hi and 0 < b_lo < b_hi, \
+    f"expected 0 < lo < hi for both gains, got alpha {(a_lo, a_hi)}, beta {(b_lo, b_hi)}"
+area7 = (a_hi - a_lo) * (b_hi - b_lo)
+assert area7 >= 4, f"expected an area of at least 4, got {area7:.3f}"
+assert 4 * b_lo <= a_hi and a_lo <= 4 * b_hi, (
+    f"alpha {(a_lo, a_hi)}, beta {(b_lo, b_hi)}: expected a pair with alpha = 4 beta, got none")
+worst7 = max((np.abs(np.linalg.eigvals(step_matrix7(a, b, 0.5, method7))).max(), a, b)
+             for a in np.linspace(a_lo, a_hi, 25) for b in np.linspace(b_lo, b_hi, 25))
+assert worst7[0] < 1, (f"{method7}, h = 0.5: expected every pair stable, got a spectral radius "
+                       f"{worst7[0]:.4f} at alpha = {worst7[1]:.3f}, beta = {worst7[2]:.3f}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(370)  # the tests' own draws, not the notebook's rng
+for a, b in zip(test_rng.uniform(a_lo, a_hi, 400), test_rng.uniform(b_lo, b_hi, 400)):
+    rho7 = np.abs(np.linalg.eigvals(step_matrix7(a, b, 0.5, method7))).max()
+    assert rho7 < 1, (f"{method7}, h = 0.5, alpha = {a:.4f}, beta = {b:.4f}: expected a "
+                      f"spectral radius < 1, got {rho7:.4f}")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# **Written question (graded by hand, 2 points).** Defend your box: why this
+# integrator, and what limits each edge of the box? What would explicit Euler's
+# best box lose, and why do the Euler and RK2 bounds coincide while $h\beta < 1$?
+
+# %% [markdown] answer id=ex03_w title="Defend the gain box" points=2
+# ### BEGIN SOLUTION
+# RK2 (Heun): one sub-step of $h = 0.5$ s costs two evaluations but keeps a stable α
+# range for every β, where explicit Euler has none once $h\beta \ge 1$ (β ≥ 2 here)
+# and semi-implicit Euler's bound $4/(h(2 + h\beta))$ is below 3 from β ≈ 1.3 on.
+# The upper α edge is the lowest RK2 bound over the β range (it falls with β once
+# hβ > 1, so it is set at β_hi = 4: 4.0, kept 2 % inside: 3.92); the lower edges only keep
+# the gains positive (α, β > 0 is the continuous system's condition); β_hi trades area
+# against α_hi. Euler's best box stops at β < 2 and loses everything with β ≥ 2. For
+# $h\beta < 1$ both lose stability the same way: the eigenvalues of $hA$ are real and
+# one reaches $z = -2$, where $1 + z = -1$ and $1 + z + z^2/2 = 1$, so both step
+# polynomials have modulus 1 at the same α; only RK2 stays stable when the roots are
+# complex ($h\beta \ge 1$), where Euler's $|1 + z| < 1$ fails.
+# ### END SOLUTION
+
+# %% [markdown]
 # ## Putting it together
 # The library versions (`dmp.damping_ratio`, `dmp.classify`, `dmp.step`,
 # `dmp.max_stable_alpha`) are used from here on, so this cell runs even while
@@ -487,3 +571,23 @@ for _ in range(6):  # six explicit Euler steps of dt = 0.5, written out
     errors.append(y)
 print("errors:", " ".join(f"{e:.1f}" for e in errors))
 assert abs(errors[-1]) > 1e3
+
+# %% [markdown]
+# ## Your figure
+# The stability boundary at dt = 0.5 s with one sub-step, drawn from **your**
+# bounds of 3.3 (explicit Euler), 3.5 (semi-implicit Euler) and 3.6 (RK2) as
+# markers over the library's `dmp.max_stable_alpha` (lines; RK2 has no library
+# line: compare it with Euler's). A gain pair is stable below its curve. A wrong
+# bound shows as markers off their line; a function that still raises is named
+# in the title.
+
+# %%
+plot_stability_boundary(
+    {"your explicit Euler": lambda b: max_stable_alpha_euler(b, 0.5),
+     "your semi-implicit Euler": lambda b: max_stable_alpha_semi_implicit(b, 0.5),
+     "your RK2 (Heun)": lambda b: max_stable_alpha_rk2(b, 0.5)},
+    {"explicit Euler": lambda b: dmp.max_stable_alpha(b, 0.5, "euler", 1),
+     "semi-implicit Euler": lambda b: dmp.max_stable_alpha(b, 0.5, "semi_implicit", 1)},
+    np.linspace(0.1, 8.0, 40), 0.5,
+)
+plt.show()

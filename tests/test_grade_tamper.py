@@ -124,7 +124,7 @@ def reports(tmp_path_factory):
 
 def test_the_honest_solution_scores_full_marks(reports):
     rows, report = reports["honest"]
-    assert report.total == report.max_total == 20, report.format()
+    assert report.total == report.max_total == 23, report.format()
     assert not any(r.tampered or r.message for r in rows.values()), report.format()
 
 
