@@ -1,5 +1,5 @@
 # %% [markdown]
-# # Chapter 4 — Graded exercises: quaternion product, log, exp, orientation error, integration
+# # Chapter 4 — Graded exercises: quaternion algebra, orientation error, integration, a turning goal
 #
 # Module built in this chapter: **`minimanc.quaternion`**. Read the tutorial
 # `tutorials/04_quaternions.ipynb` first. Replace each
@@ -13,8 +13,10 @@
 # %%
 import warnings
 
+import matplotlib.pyplot as plt
 import numpy as np
 
+from minimanc import dmp
 from minimanc import quaternion as Q
 
 rng = np.random.default_rng(0)
@@ -279,6 +281,179 @@ assert np.allclose(long[k + 1], Q.multiply(Q.exp(0.05 * etas_r[k]), long[k])), (
 ### END HIDDEN TESTS
 
 # %% [markdown]
+# ## Exercise 4.7 — a turning goal: how far behind does the DMP stay?
+# The tutorial's goals stand still. Let the goal turn at a constant angular
+# velocity $\omega_g$ (rad/s, world frame), $g(t) = \exp(\tfrac t2\,\omega_g) * g_0$,
+# and run the quaternion DMP of section 5 against it (τ = 1, no forcing term):
+# $\dot{\boldsymbol\eta} = \alpha(\beta\, e - \boldsymbol\eta)$ with
+# $e$ = `orientation_error(g(t), q)`, $\dot q = \tfrac12\eta * q$. After the start
+# is forgotten, the DMP follows the goal at a constant offset: the error
+# rotation vector tends to a constant $e_\infty$.
+#
+# Write `steady_lag(omega_g, alpha, beta)`: $e_\infty$ as an array `(3,)`, for
+# gains in the stable box and $\lVert\omega_g\rVert/\beta < \pi/2$. The tests
+# compare it with long simulations (the integrator of section 5, the goal
+# evaluated at the start of every sub-step).
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# In the steady state nothing changes any more: neither η nor the error. What
+# must η be so that q keeps pace with the goal?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Put $\dot{\boldsymbol\eta} = 0$ in the first line of eq. 2 and use the answer
+# to hint 1. Check the direction of your $e_\infty$ too: which way does q
+# trail the goal? Does α enter?
+# </details>
+
+# %% solution id=ex04_7 title="The steady lag behind a turning goal"
+def steady_lag(omega_g, alpha, beta):
+    ### BEGIN SOLUTION
+    # steady state: q turns with the goal, eta = omega_g, and eta' = 0 gives beta e = eta
+    return np.asarray(omega_g, dtype=float) / beta
+    ### END SOLUTION
+
+# %%
+def goal_path(g0, omega_g, times):
+    """The turning goal exp(t/2 omega_g) * g0 at each of ``times``, shape (len(times), 4)."""
+    return Q.multiply(Q.exp(0.5 * np.asarray(times)[:, None] * omega_g), g0)
+
+# %% grade id=ex04_7_tests points=3
+# the reference is a simulation: the library's DMP, one sub-step of h per step, fed the
+# goal at the start of each sub-step (30 s, the start is forgotten by then)
+h7, n7 = 0.05, 600
+om7, g07 = np.array([0.0, 0.0, 0.6]), Q.from_yaw(0.3)
+sim7 = Q.quaternion_rollout(ID, np.zeros(3), goal_path(g07, om7, h7 * np.arange(n7)), 4.0, 2.0,
+                            h7, n7, substeps=1, per_step=("g_q",))
+ref7 = Q.orientation_error(goal_path(g07, om7, [h7 * n7])[0], sim7.q[-1])
+got7 = steady_lag(om7, 4.0, 2.0)
+assert np.shape(got7) == (3,), f"expected an array of shape (3,); got shape {np.shape(got7)}"
+assert np.allclose(got7, ref7, atol=1e-6), (
+    f"goal turning at omega_g = [0, 0, 0.6] rad/s, alpha = 4, beta = 2: expected "
+    f"e_inf = {np.round(ref7, 4).tolist()} (the simulation's error after 30 s); "
+    f"got {np.round(got7, 4).tolist()}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(470)  # the tests' own draws, not the notebook's rng
+for _ in range(6):
+    om = test_rng.normal(size=3)
+    om *= test_rng.uniform(0.1, 1.0) / np.linalg.norm(om)
+    a, b = test_rng.uniform(2.0, 10.0), test_rng.uniform(1.0, 4.0)
+    g0 = Q.normalize(test_rng.normal(size=4))
+    q0 = Q.normalize(test_rng.normal(size=4))
+    sim = Q.quaternion_rollout(q0, np.zeros(3), goal_path(g0, om, h7 * np.arange(n7)), a, b,
+                               h7, n7, substeps=1, per_step=("g_q",))
+    ref = Q.orientation_error(goal_path(g0, om, [h7 * n7])[0], sim.q[-1])
+    got = steady_lag(om, a, b)
+    assert np.allclose(got, ref, atol=1e-6), (
+        f"omega_g = {np.round(om, 3).tolist()}, alpha = {a:.3f}, beta = {b:.3f}: expected "
+        f"e_inf = {np.round(ref, 6).tolist()} (simulated, 30 s); got {np.round(got, 6).tolist()}")
+got = steady_lag(np.zeros(3), 4.0, 1.0)
+assert np.allclose(got, 0.0), f"a goal at rest (omega_g = 0): expected no lag, got {got}"
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 4.8 — open experiment: follow a turning goal without lag
+# A car that must match the heading of a lane through a curve wants no lag at
+# all. Design a DMP that follows the turning goal of 4.7 with **zero steady
+# error**, knowing $\omega_g$. Write
+# `tracking_rollout(q0, g0, omega_g, alpha, beta, dt, steps)`: η starts at 0,
+# every step of `dt` is `dmp.DEFAULT_SUBSTEPS` semi-implicit sub-steps of
+# $h$ = `dt / dmp.DEFAULT_SUBSTEPS` (first η, then $q \leftarrow \exp(\tfrac h2\eta) * q$,
+# as `Q.quaternion_rollout` does), with the goal $g(t)$ taken at the start of each
+# sub-step; return the orientations after every step, shape `(steps + 1, 4)`.
+# How you change the η-equation is yours to choose. Checked automatically:
+#
+# * for $\omega_g = 0$ your rollout **is** the DMP of section 5
+#   (`Q.quaternion_rollout` with the same arguments, to 1e-9);
+# * for turning goals, the error to the goal after 30 s is below 1e-4 rad;
+# * the orientation moves from `q0` like a DMP: started 2.5 rad from the goal
+#   with α = 4, β = 1, it is still more than a quarter of that away after the
+#   first step (returning the goal itself does not count).
+#
+# Then answer the written question below the grade cell.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# In 4.7 the error had to be nonzero to keep η at $\omega_g$. What could
+# supply that η instead of the error?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Write the η-equation with a term that is zero when $\omega_g = 0$, and check
+# that $e = 0$, $\eta = \omega_g$ is a steady state of your discrete update.
+# </details>
+
+# %% solution id=ex04_8 title="Open experiment: a DMP that tracks a turning goal"
+def tracking_rollout(q0, g0, omega_g, alpha, beta, dt, steps):
+    ### BEGIN SOLUTION
+    h = dt / dmp.DEFAULT_SUBSTEPS
+    omega_g = np.asarray(omega_g, dtype=float)
+    q, eta, qs = np.asarray(q0, dtype=float), np.zeros(3), [np.asarray(q0, dtype=float)]
+    times = h * np.arange(steps * dmp.DEFAULT_SUBSTEPS)
+    for n, g in enumerate(goal_path(g0, omega_g, times)):
+        # feedforward: the goal's own angular velocity drives eta, the error only corrects
+        eta = eta + h * alpha * (beta * Q.orientation_error(g, q) + omega_g - eta)
+        q = Q.integrate(q, eta, h)
+        if (n + 1) % dmp.DEFAULT_SUBSTEPS == 0:
+            qs.append(q)
+    return np.array(qs)
+    ### END SOLUTION
+
+# %% grade id=ex04_8_tests points=3
+q08, g08 = Q.from_yaw(-1.0), Q.from_axis_angle(np.array([1.0, 0.0, 2.0]), 0.7)
+rest = tracking_rollout(q08, g08, np.zeros(3), 4.0, 1.0, dmp.DT, 12)
+lib8 = Q.quaternion_rollout(q08, np.zeros(3), g08, 4.0, 1.0, dmp.DT, 12).q
+assert np.shape(rest) == (13, 4), f"12 steps: expected shape (13, 4); got {np.shape(rest)}"
+assert np.allclose(rest, lib8, atol=1e-9, rtol=0), (
+    f"omega_g = 0, alpha = 4, beta = 1: expected the DMP of section 5 (Q.quaternion_rollout); "
+    f"largest difference {np.abs(np.asarray(rest) - lib8).max():.2e}")
+om8 = np.array([0.0, 0.0, np.deg2rad(30.0)])          # a lane turning at 30 deg/s
+track = tracking_rollout(q08, g08, om8, 4.0, 1.0, dmp.DT, 60)
+err8 = np.linalg.norm(Q.orientation_error(goal_path(g08, om8, [60 * dmp.DT])[0], track[-1]))
+assert err8 < 1e-4, (
+    f"goal turning at 30 deg/s about z, alpha = 4, beta = 1: expected an error below 1e-4 rad "
+    f"after 30 s; got {err8:.2e} rad (the plain DMP of 4.7 keeps a steady lag)")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(480)  # the tests' own draws, not the notebook's rng
+for _ in range(4):
+    om = test_rng.normal(size=3)
+    om *= test_rng.uniform(0.2, 1.0) / np.linalg.norm(om)
+    a, b = test_rng.uniform(2.0, 10.0), test_rng.uniform(1.0, 4.0)
+    g0, q0 = Q.normalize(test_rng.normal(size=(2, 4)))
+    out = np.asarray(tracking_rollout(q0, g0, om, a, b, dmp.DT, 60))
+    assert out.shape == (61, 4), f"60 steps: expected shape (61, 4), got {out.shape}"
+    assert np.allclose(out[0], q0), f"the first orientation must be q0; got {out[0]}"
+    err = np.linalg.norm(Q.orientation_error(goal_path(g0, om, [60 * dmp.DT])[0], out[-1]))
+    assert err < 1e-4, (
+        f"omega_g = {np.round(om, 3).tolist()}, alpha = {a:.3f}, beta = {b:.3f}: expected an "
+        f"error below 1e-4 rad after 30 s; got {err:.2e} rad")
+    g0r = Q.normalize(test_rng.normal(size=4))
+    rest = np.asarray(tracking_rollout(q0, g0r, np.zeros(3), a, b, dmp.DT, 8))
+    lib = Q.quaternion_rollout(q0, np.zeros(3), g0r, a, b, dmp.DT, 8).q
+    assert np.allclose(rest, lib, atol=1e-9, rtol=0), (
+        f"omega_g = 0, alpha = {a:.3f}, beta = {b:.3f}: expected Q.quaternion_rollout; "
+        f"largest difference {np.abs(rest - lib).max():.2e}")
+axis = Q.normalize(np.concatenate([[0.0], test_rng.normal(size=3)]))[1:]
+q0 = Q.multiply(Q.from_axis_angle(axis, -2.5), g08)    # 2.5 rad from the goal
+out = np.asarray(tracking_rollout(q0, g08, om8, 4.0, 1.0, dmp.DT, 60))
+e0, e1 = (np.linalg.norm(Q.orientation_error(goal_path(g08, om8, [k * dmp.DT])[0], out[k]))
+          for k in (0, 1))
+assert e1 > 0.25 * e0, (
+    f"start 2.5 rad from the goal, alpha = 4, beta = 1: after one step of 0.5 s the DMP is "
+    f"still about 1.8 rad away; expected at least {0.25 * e0:.2f} rad, got {e1:.2f} rad "
+    f"(the rollout must move from q0 like a DMP, not jump to the goal)")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# **Written question (4.8).** What did you add to the η-equation, and why does
+# it remove the lag of 4.7? Write the equation the error obeys now for a goal
+# turning about a fixed axis, and compare it with eq. 12. What would MANC's
+# network have to output, or know, to use your DMP on a curving road?
+
+# %% [markdown]
 # ## Putting it together
 # The library's quaternion DMP uses exactly this error. From here on the cells
 # use `minimanc.quaternion`, so they run even while the exercises are open: the
@@ -290,3 +465,72 @@ r = Q.quaternion_rollout(Q.from_yaw(np.deg2rad(170.0)), np.zeros(3),
 yaw = np.rad2deg(np.unwrap(Q.to_yaw(r.q)))
 print("yaw (deg):", np.round(yaw, 1))
 assert np.isclose(yaw[-1], 190.0, atol=0.1) and np.all(np.diff(yaw) >= 0)
+
+# %% [markdown]
+# ## Your functions draw the chapter's figure
+# Left: the turn from 170° to −170° of section 3, with the DMP's error computed
+# by **your** `orientation_error` (a wrong sign choice turns the long way).
+# Right: a goal turning at 30°/s; the plain DMP trails it by **your**
+# `steady_lag` (dashed) and **your** `tracking_rollout` should sit on the goal.
+# A function you have not written yet is left out of the figure.
+
+# %%
+def yours(fn, *args):
+    """fn(*args), or None while fn is still the exercise's stub."""
+    try:
+        return fn(*args)
+    except NotImplementedError:
+        return None
+
+
+def dmp_with_error(error, q, g, alpha, beta, steps, substeps=dmp.DEFAULT_SUBSTEPS):
+    """The DMP of section 5, its error term computed by ``error``; None if ``error`` is a stub."""
+    eta, out, h = np.zeros(3), [q], dmp.DT / substeps
+    for _ in range(steps * substeps):
+        e = yours(error, g, q)
+        if e is None:
+            return None
+        eta = eta + h * alpha * (beta * np.asarray(e) - eta)
+        q = Q.integrate(q, eta, h)
+        out.append(q)
+    return np.array(out[::substeps])
+
+
+fig, axes = plt.subplots(1, 2, figsize=(12, 3.6))
+t16 = np.arange(17) * dmp.DT
+turn = dmp_with_error(orientation_error, Q.from_yaw(np.deg2rad(170.0)),
+                      Q.from_yaw(np.deg2rad(-170.0)), 4.0, 1.0, 16)
+if turn is not None:
+    axes[0].plot(t16, np.rad2deg(np.unwrap(Q.to_yaw(turn))), "o-", label="your orientation_error")
+for level in (190, -170):
+    axes[0].axhline(level, color="k", lw=0.6, ls="--")
+axes[0].set_xlabel("t (s)")
+axes[0].set_ylabel("unwrapped yaw (deg)")
+axes[0].set_title("170° → −170°: the short way is +20°")
+
+om_fig, g_fig, n_fig = np.array([0.0, 0.0, np.deg2rad(30.0)]), Q.from_yaw(0.0), 24
+t_fig = np.arange(n_fig + 1) * dmp.DT
+goal_yaw = np.rad2deg(np.unwrap(Q.to_yaw(goal_path(g_fig, om_fig, t_fig))))
+h_fig = dmp.DT / dmp.DEFAULT_SUBSTEPS
+plain = Q.quaternion_rollout(ID, np.zeros(3),
+                             goal_path(g_fig, om_fig, h_fig * np.arange(10 * n_fig)), 4.0, 1.0,
+                             h_fig, 10 * n_fig, substeps=1, per_step=("g_q",)).q[::10]
+axes[1].plot(t_fig, goal_yaw, "k-", lw=1, label="goal")
+axes[1].plot(t_fig, np.rad2deg(np.unwrap(Q.to_yaw(plain))), "o-", ms=3, label="plain DMP")
+lag = yours(steady_lag, om_fig, 4.0, 1.0)
+if lag is not None:
+    axes[1].plot(t_fig, goal_yaw - np.rad2deg(np.asarray(lag)[2]), "--",
+                 label="goal − your steady_lag")
+track = yours(tracking_rollout, ID, g_fig, om_fig, 4.0, 1.0, dmp.DT, n_fig)
+if track is not None:
+    axes[1].plot(t_fig, np.rad2deg(np.unwrap(Q.to_yaw(np.asarray(track)))), "s-", ms=3,
+                 label="your tracking_rollout")
+axes[1].set_xlabel("t (s)")
+axes[1].set_ylabel("unwrapped yaw (deg)")
+axes[1].set_title("a goal turning at 30°/s")
+for ax in axes:
+    ax.legend(fontsize=8)
+plt.show()
+gap = np.rad2deg(np.unwrap(Q.to_yaw(plain)))[-1] - goal_yaw[-1]
+print(f"plain DMP after {n_fig * dmp.DT:.0f} s: {gap:.1f} deg from the goal")
+assert abs(gap + 30.0) < 0.5   # it trails by 30 deg/s over beta = 1
