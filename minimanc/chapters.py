@@ -60,7 +60,7 @@ class Chapter:
 
 CHAPTERS: tuple[Chapter, ...] = (
     Chapter(0, "00_overview", "the stack, the chapter map, grading",
-            ("minimanc.exercises", "minimanc.cli"), ("minimanc.chapters",),
+            ("minimanc.exercises", "minimanc.cli"), ("minimanc.chapters", "minimanc.viz.exercises"),
             "warm-up tools of later chapters: an ego-frame transform (ch. 7), "
             "a column softmax (ch. 5), an explicit Euler step (ch. 3)"),
     Chapter(1, "01_autodiff", "reverse-mode autodiff on NumPy",

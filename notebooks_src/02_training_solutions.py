@@ -3,9 +3,12 @@
 #
 # Modules built in this chapter: `minimanc.layers`, `minimanc.optim` and the
 # primitives of `minimanc.autodiff.nn` (paper eq. 7: conv → GAP → linear).
-# You will write the convolution forward and backward, global average pooling,
-# Adam, He initialisation, SGD with momentum, the index computation of im2col
-# and the gradient of the softmax cross-entropy.
+# You will write two convolutions the tutorial does not show (a dilated one and
+# the transposed one, derived as the adjoint), global average pooling, Adam, He
+# initialisation, SGD with momentum, the index computation of im2col and the
+# gradient of the softmax cross-entropy; then you design a small experiment
+# (2.9: tune the heavy ball) and answer a written question, graded by hand. The
+# last cell draws the tutorial's optimiser figure with *your* momentum and Adam.
 # Replace each `raise NotImplementedError(...)` with your code and run the
 # grade cell below it; `minimanc grade exercises/02_training.ipynb` scores the
 # notebook. Plain NumPy is enough everywhere; loops are fine, speed is not graded.
@@ -16,39 +19,86 @@
 # %%
 import math
 
+import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import engine, layers, optim
 from minimanc.autodiff import nn
+from minimanc.viz.exercises import plot_valley_paths
 
 rng = np.random.default_rng(0)
+eng = engine("numpy")
+xp = eng.xp
 
 # %% [markdown]
-# ## Exercise 2.1 — the convolution, forward
-# Return `y` of shape `(N, Ho, Wo, O)` with
-# $y[n,i,j,o] = b[o] + \sum_{u,v,c} x_\text{pad}[n, s i + u, s j + v, c]\, w[u,v,c,o]$.
-# `np.pad` builds $x_\text{pad}$; a loop over output pixels with
-# `np.tensordot(window, w, axes=3)`, or an im2col with one matrix product, both work.
+# ## Exercise 2.1 — a dilated convolution, forward
+# The tutorial's convolution reads a *compact* window: kernel offset $(u, v)$
+# reads pixel $(s i + u,\ s j + v)$. A **dilated** (atrous) convolution with
+# dilation $d$ spreads the same $k_h \times k_w$ weights over a wider window,
+# reading pixel $(s i + d u,\ s j + d v)$:
+# $y[n,i,j,o] = b[o] + \sum_{u,v,c} x_\text{pad}[n,\ s i + d u,\ s j + d v,\ c]\, w[u,v,c,o]$.
+# It sees farther with no extra weights (WaveNet, DeepLab). Write
+# `conv2d_dilated(x, w, b, stride, padding, dilation)`; with `dilation=1` it is
+# the tutorial's convolution. You need the output size first: how many window
+# positions fit into the padded image when a window spans more than $k_h$ rows?
+# Two grade cells: the output shape (1 point), then the values (2 points).
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Count the rows the window spans, from its first pixel to its last: that number
+# plays the role $k_h$ plays in the tutorial's output-size formula.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Loop over the kernel offsets $(u, v)$, not over the output pixels: for a fixed
+# offset, the pixels read by all outputs form one strided slice of
+# $x_\text{pad}$ (start $d u$, step $s$, $H_\text{out}$ rows), and `slice @ w[u, v]`
+# adds that offset's share to every output at once.
+# </details>
 
-# %% solution id=ex02_1 title="conv2d forward" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv2d,minimanc.autodiff.nn._conv_fwd,minimanc.autodiff.nn._conv_bwd"  # noqa: E501
-def conv2d_forward(x, w, b, stride=1, padding=0):
+# %% solution id=ex02_1 title="Dilated convolution, forward" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv2d,minimanc.autodiff.nn._conv_fwd,minimanc.autodiff.nn._conv_bwd"  # noqa: E501
+def conv2d_dilated(x, w, b, stride=1, padding=0, dilation=1):
     ### BEGIN SOLUTION
-    n, h, wd, c = x.shape
     kh, kw, _, o = w.shape
     xpad = np.pad(x, ((0, 0), (padding, padding), (padding, padding), (0, 0)))
-    ho = (h + 2 * padding - kh) // stride + 1
-    wo = (wd + 2 * padding - kw) // stride + 1
-    y = np.empty((n, ho, wo, o))
-    for i in range(ho):
-        for j in range(wo):
-            window = xpad[:, stride * i:stride * i + kh, stride * j:stride * j + kw, :]
-            y[:, i, j, :] = np.tensordot(window, w, axes=3) + b
+    span_h, span_w = dilation * (kh - 1) + 1, dilation * (kw - 1) + 1  # rows, cols a window covers
+    ho = (xpad.shape[1] - span_h) // stride + 1
+    wo = (xpad.shape[2] - span_w) // stride + 1
+    y = np.zeros((x.shape[0], ho, wo, o)) + b
+    for u in range(kh):
+        for v in range(kw):
+            r0, c0 = dilation * u, dilation * v
+            rows = slice(r0, r0 + stride * (ho - 1) + 1, stride)
+            cols = slice(c0, c0 + stride * (wo - 1) + 1, stride)
+            read = xpad[:, rows, cols, :]
+            y = y + read @ w[u, v]
     return y
     ### END SOLUTION
 
-# %% grade id=ex02_1_tests points=3
+# %% grade id=ex02_1_shape_tests points=1
+x9 = rng.standard_normal((1, 9, 9, 1))
+w9 = rng.standard_normal((3, 3, 1, 1))
+shape9 = conv2d_dilated(x9, w9, np.zeros(1), stride=1, padding=0, dilation=2).shape
+assert shape9 == (1, 5, 5, 1), ("9 x 9 image, 3 x 3 kernel, dilation 2, stride 1, no padding: "
+                                f"expected (1, 5, 5, 1), got {shape9}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(210)  # the tests' own draws, not the notebook's rng
+for (kh, kw), s, p, d in [((3, 3), 1, 0, 3), ((3, 2), 2, 1, 2), ((2, 3), 3, 2, 2),
+                          ((1, 1), 2, 0, 5), ((3, 3), 2, 3, 4)]:
+    xs = test_rng.standard_normal((2, 11, 10, 2))
+    ws = test_rng.standard_normal((kh, kw, 2, 3))
+    # count the window positions that fit, one by one (no size formula)
+    ho = sum(1 for i in range(40) if s * i + d * (kh - 1) < 11 + 2 * p)
+    wo = sum(1 for j in range(40) if s * j + d * (kw - 1) < 10 + 2 * p)
+    got = conv2d_dilated(xs, ws, np.zeros(3), s, p, d).shape
+    assert got == (2, ho, wo, 3), (f"11 x 10 image, kernel ({kh}, {kw}), stride {s}, padding {p}, "
+                                   f"dilation {d}: expected shape {(2, ho, wo, 3)}, got {got}")
+### END HIDDEN TESTS
+
+# %% grade id=ex02_1_tests points=2
 def slow_conv(x, w, b, stride, padding):
-    """The definition, one output element at a time (an independent reference)."""
+    """The tutorial's definition (dilation 1), one output element at a time."""
     n, h, wd, c = x.shape
     kh, kw, _, o = w.shape
     ho, wo = (h + 2 * padding - kh) // stride + 1, (wd + 2 * padding - kw) // stride + 1
@@ -60,104 +110,157 @@ def slow_conv(x, w, b, stride, padding):
                     r, q = stride * i + u - padding, stride * j + v - padding
                     if 0 <= r < h and 0 <= q < wd:  # outside: a zero of the padding
                         y[:, i, j, :] += x[:, r, q, :] @ w[u, v]
-    return y + (0.0 if b is None else b)
+    return y + b
 
 
-x = rng.standard_normal((2, 6, 5, 3))
+x = rng.standard_normal((2, 7, 9, 3))
 w = rng.standard_normal((3, 3, 3, 4))
 b = rng.standard_normal(4)
-y = conv2d_forward(x, w, b, stride=1, padding=0)
-assert y.shape == (2, 4, 3, 4), f"(N, Ho, Wo, O) = (2, 4, 3, 4) expected, got {y.shape}"
-assert np.allclose(y[0, 0, 0], np.tensordot(x[0, :3, :3], w, axes=3) + b), \
-    "y[0, 0, 0] is the top-left 3x3 window contracted with w, plus b"
-assert np.allclose(y, slow_conv(x, w, b, stride=1, padding=0)), "stride 1, no padding"
-assert np.allclose(conv2d_forward(x, w, b, 2, 1), slow_conv(x, w, b, 2, 1)), "stride 2, padding 1"
+y1, ref1 = conv2d_dilated(x, w, b, stride=2, padding=1, dilation=1), slow_conv(x, w, b, 2, 1)
+assert y1.shape == ref1.shape and np.allclose(y1, ref1), (
+    f"dilation 1 is the tutorial's convolution (stride 2, padding 1): expected shape "
+    f"{ref1.shape}, got {y1.shape}" + (f", max error {np.abs(y1 - ref1).max():.3g}"
+                                        if y1.shape == ref1.shape else ""))
+x9 = rng.standard_normal((1, 9, 9, 1))
+w9 = rng.standard_normal((3, 3, 1, 1))
+y9 = conv2d_dilated(x9, w9, np.zeros(1), stride=1, padding=0, dilation=2)
+corner = float(np.sum(x9[0, 0:5:2, 0:5:2, 0] * w9[:, :, 0, 0]))
+assert math.isclose(y9[0, 0, 0, 0], corner, rel_tol=1e-9, abs_tol=1e-12), (
+    f"dilation 2: output (0, 0) reads rows 0, 2, 4 and columns 0, 2, 4: expected {corner:.6f}, "
+    f"got {y9[0, 0, 0, 0]:.6f}")
 ### BEGIN HIDDEN TESTS
-for kh, kw, s, p in [(1, 1, 1, 0), (2, 3, 2, 1), (3, 3, 3, 2), (4, 2, 1, 1)]:
-    xh = rng.standard_normal((3, 7, 8, 2))
-    wh = rng.standard_normal((kh, kw, 2, 5))
-    bh = rng.standard_normal(5)
-    assert np.allclose(conv2d_forward(xh, wh, bh, s, p), slow_conv(xh, wh, bh, s, p)), \
-        f"kernel ({kh}, {kw}), stride {s}, padding {p}: the definition"
-### END HIDDEN TESTS
-
-# %% [markdown]
-# ## Exercise 2.2 — the convolution, backward
-# Given the cotangent `g` of the output (shape `(N, Ho, Wo, O)`), return
-# `(dx, dw, db)`, the cotangents of `x`, `w` and `b`. Think of the forward pass
-# as one matrix product per kernel offset $(u, v)$: the strided slice
-# `xpad[:, u::s, v::s, :]` (cut to `Ho × Wo`) times `w[u, v]`. Each offset
-# contributes to `dw[u, v]` and **adds** `g @ w[u, v].T` back onto the
-# input pixels it read. Remember to drop the padding from `dx`.
-
-# %% solution id=ex02_2 title="conv2d backward" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv2d,minimanc.autodiff.nn._conv_fwd,minimanc.autodiff.nn._conv_bwd"  # noqa: E501
-def conv2d_backward(x, w, g, stride=1, padding=0):
-    ### BEGIN SOLUTION
-    xpad = np.pad(x, ((0, 0), (padding, padding), (padding, padding), (0, 0)))
-    dxpad, dw = np.zeros_like(xpad), np.zeros_like(w)
-    ho, wo = g.shape[1:3]
-    for u in range(w.shape[0]):
-        for v in range(w.shape[1]):
-            rows = slice(u, u + stride * (ho - 1) + 1, stride)
-            cols = slice(v, v + stride * (wo - 1) + 1, stride)
-            dw[u, v] = np.einsum("nhwc,nhwo->co", xpad[:, rows, cols, :], g)
-            dxpad[:, rows, cols, :] += g @ w[u, v].T
-    dx = dxpad[:, padding:padding + x.shape[1], padding:padding + x.shape[2], :]
-    return dx, dw, g.sum(axis=(0, 1, 2))
-    ### END SOLUTION
-
-# %% grade id=ex02_2_tests points=3
-def slow_conv_vjp(x, w, g, stride, padding):
-    """Reference cotangents from the definition: each output element
-    y[n, i, j, o] += x[n, r, q, c] w[u, v, c, o] sends g back to both factors."""
-    dx, dw = np.zeros_like(x), np.zeros_like(w)
-    h, wd = x.shape[1:3]
-    for i in range(g.shape[1]):
-        for j in range(g.shape[2]):
-            for u in range(w.shape[0]):
-                for v in range(w.shape[1]):
-                    r, q = stride * i + u - padding, stride * j + v - padding
-                    if 0 <= r < h and 0 <= q < wd:
-                        dx[:, r, q, :] += g[:, i, j, :] @ w[u, v].T
-                        dw[u, v] += x[:, r, q, :].T @ g[:, i, j, :]
-    return dx, dw, g.sum(axis=(0, 1, 2))
-
-
-eng = engine("numpy")
-xp = eng.xp
-x = rng.standard_normal((2, 5, 6, 3))
-w = rng.standard_normal((3, 3, 3, 2))
-b = rng.standard_normal(2)
-g = rng.standard_normal((2, 3, 3, 2))  # (5 + 2 - 3) // 2 + 1 = 3, (6 + 2 - 3) // 2 + 1 = 3
-dx, dw, db = conv2d_backward(x, w, g, stride=2, padding=1)
-assert dx.shape == x.shape and dw.shape == w.shape and db.shape == b.shape, \
-    "dx, dw, db have the shapes of x, w, b"
-ref = slow_conv_vjp(x, w, g, 2, 1)
-assert np.allclose(db, ref[2]), "db: sum of g over batch and pixels"
-assert np.allclose(dw, ref[1]), "dw[u, v] = sum over windows of x_window^T g"
-assert np.allclose(dx, ref[0]), "dx: add back onto the pixels each window read"
-### BEGIN HIDDEN TESTS
-for kh, kw, s, p in [(1, 1, 1, 0), (2, 3, 3, 2), (3, 3, 1, 1)]:
-    xh = rng.standard_normal((2, 7, 6, 2))
-    wh = rng.standard_normal((kh, kw, 2, 3))
-    ho, wo = (7 + 2 * p - kh) // s + 1, (6 + 2 * p - kw) // s + 1
-    gh = rng.standard_normal((2, ho, wo, 3))
-    got = conv2d_backward(xh, wh, gh, s, p)
-    rh = slow_conv_vjp(xh, wh, gh, s, p)
-    assert np.allclose(got[0], rh[0]) and np.allclose(got[1], rh[1]), \
-        f"dx, dw for kernel ({kh}, {kw}), stride {s}, padding {p}"
-    # the adjoint identity <conv(dx0, w), g> = <dx0, dx> (conv is linear in x, bias 0)
-    # is checked with the forward pass written in the ex02_1 grade cell's style
-    x0 = rng.standard_normal(xh.shape)
-    fwd = np.zeros(gh.shape)
+def slow_dilated(x, w, b, s, p, d):
+    """The definition with dilation, one output element at a time; output positions
+    counted one by one."""
+    n, h, wd, c = x.shape
+    kh, kw, _, o = w.shape
+    ho = sum(1 for i in range(4 * h + 4 * p) if s * i + d * (kh - 1) < h + 2 * p)
+    wo = sum(1 for j in range(4 * wd + 4 * p) if s * j + d * (kw - 1) < wd + 2 * p)
+    y = np.zeros((n, ho, wo, o))
     for i in range(ho):
         for j in range(wo):
             for u in range(kh):
                 for v in range(kw):
-                    r, q = s * i + u - p, s * j + v - p
-                    if 0 <= r < 7 and 0 <= q < 6:
-                        fwd[:, i, j, :] += x0[:, r, q, :] @ wh[u, v]
-    assert np.isclose(np.sum(fwd * gh), np.sum(x0 * got[0])), "<conv(x0), g> = <x0, dx>"
+                    r, q = s * i + d * u - p, s * j + d * v - p
+                    if 0 <= r < h and 0 <= q < wd:
+                        y[:, i, j, :] += x[:, r, q, :] @ w[u, v]
+    return y + b
+
+
+test_rng = np.random.default_rng(211)
+for (kh, kw), s, p, d in [((3, 3), 1, 0, 2), ((3, 3), 1, 2, 2), ((2, 3), 2, 1, 3),
+                          ((3, 2), 3, 2, 2), ((1, 1), 1, 0, 4)]:
+    xh = test_rng.standard_normal((2, 10, 11, 2))
+    wh = test_rng.standard_normal((kh, kw, 2, 3))
+    bh = test_rng.standard_normal(3)
+    want, got = slow_dilated(xh, wh, bh, s, p, d), conv2d_dilated(xh, wh, bh, s, p, d)
+    case = f"kernel ({kh}, {kw}), stride {s}, padding {p}, dilation {d}"
+    assert got.shape == want.shape, f"{case}: expected shape {want.shape}, got {got.shape}"
+    err = np.abs(got - want).max()
+    assert err < 1e-9, f"{case}: expected the definition, got a max error of {err:.3g}"
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 2.2 — the transposed convolution
+# A decoder (or a segmentation head) must go the other way: from a small map
+# `z` of shape `(N, Ho, Wo, O)` back up to an image of shape `(N, H, W, C)`.
+# The **transposed convolution** is the adjoint of the convolution: for every
+# image `x` of that shape,
+# $\langle \mathrm{conv}(x; w, s, p),\ z\rangle
+#  = \langle x,\ \mathrm{conv}^\top(z; w, s, p)\rangle$.
+# Write `conv2d_transpose(z, w, stride, padding)`: it returns the image of the
+# **smallest** size $H \times W$ whose convolution (same `w`, stride and
+# padding) has shape `(N, Ho, Wo, O)`; there is no bias. The plain cell below
+# gives you `correlate(x, k)`, a stride-1 correlation without padding; the
+# tutorial never wrote the adjoint as a convolution — derive it.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Output pixel $(i, j)$ of the convolution read input pixel $s i + u - p$ with
+# weight $w[u]$. So input pixel $r$ receives $w[u]^\top z[i]$ from every pair
+# $(i, u)$ with $s i + u = r + p$: as $r$ grows, $u$ runs backwards through the
+# kernel.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Put $s - 1$ zeros between neighbouring pixels of `z`, pad the result with
+# $k - 1$ zeros on each side, flip the kernel in both spatial axes and swap its
+# input and output channels; one `correlate` then gives the cotangent of the
+# *padded* image. Crop the padding. Check the size against the forward formula.
+# </details>
+
+# %%
+def correlate(x, k):
+    """Stride-1 correlation without padding, from the definition: y[i] = sum_u x[i + u] k[u]."""
+    kh, kw = k.shape[:2]
+    ho, wo = x.shape[1] - kh + 1, x.shape[2] - kw + 1
+    y = np.zeros((x.shape[0], ho, wo, k.shape[3]))
+    for u in range(kh):
+        for v in range(kw):
+            y = y + x[:, u:u + ho, v:v + wo, :] @ k[u, v]
+    return y
+
+# %% solution id=ex02_2 title="Transposed convolution" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv2d,minimanc.autodiff.nn._conv_fwd,minimanc.autodiff.nn._conv_bwd,minimanc.autodiff.core.backward"  # noqa: E501
+def conv2d_transpose(z, w, stride=1, padding=0):
+    ### BEGIN SOLUTION
+    n, ho, wo, _ = z.shape
+    kh, kw = w.shape[:2]
+    spread = np.zeros((n, stride * (ho - 1) + 1, stride * (wo - 1) + 1, z.shape[3]))
+    spread[:, ::stride, ::stride, :] = z
+    spread = np.pad(spread, ((0, 0), (kh - 1, kh - 1), (kw - 1, kw - 1), (0, 0)))
+    full = correlate(spread, w[::-1, ::-1].transpose(0, 1, 3, 2))  # the padded image's cotangent
+    return full[:, padding:full.shape[1] - padding, padding:full.shape[2] - padding, :]
+    ### END SOLUTION
+
+# %% grade id=ex02_2_tests points=3
+def slow_conv_nb(x, w, stride, padding):
+    """The convolution's definition without bias, one output element at a time."""
+    n, h, wd, c = x.shape
+    kh, kw, _, o = w.shape
+    ho, wo = (h + 2 * padding - kh) // stride + 1, (wd + 2 * padding - kw) // stride + 1
+    y = np.zeros((n, ho, wo, o))
+    for i in range(ho):
+        for j in range(wo):
+            for u in range(kh):
+                for v in range(kw):
+                    r, q = stride * i + u - padding, stride * j + v - padding
+                    if 0 <= r < h and 0 <= q < wd:
+                        y[:, i, j, :] += x[:, r, q, :] @ w[u, v]
+    return y
+
+
+z = rng.standard_normal((2, 3, 4, 2))
+w = rng.standard_normal((3, 3, 5, 2))
+up = conv2d_transpose(z, w, stride=2, padding=1)
+assert up.shape == (2, 5, 7, 5), \
+    f"z (2, 3, 4, 2), 3 x 3 kernel, stride 2, padding 1: expected (2, 5, 7, 5), got {up.shape}"
+x0 = rng.standard_normal(up.shape)
+lhs, rhs = float(np.sum(slow_conv_nb(x0, w, 2, 1) * z)), float(np.sum(x0 * up))
+assert math.isclose(lhs, rhs, rel_tol=1e-9), \
+    f"stride 2, padding 1: expected <conv(x0), z> = {lhs:.6f} = <x0, conv_T(z)>, got {rhs:.6f}"
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(220)
+for (kh, kw), s, p in [((1, 1), 1, 0), ((3, 3), 1, 1), ((2, 3), 3, 1), ((3, 2), 2, 0),
+                       ((4, 4), 2, 2)]:
+    zh = test_rng.standard_normal((2, 4, 3, 3))
+    wh = test_rng.standard_normal((kh, kw, 2, 3))
+    # the smallest image whose convolution has 4 x 3 outputs: search, no size formula
+    hh = next(h for h in range(1, 40) if (h + 2 * p - kh) >= 0 and (h + 2 * p - kh) // s + 1 == 4)
+    ww = next(v for v in range(1, 40) if (v + 2 * p - kw) >= 0 and (v + 2 * p - kw) // s + 1 == 3)
+    got = conv2d_transpose(zh, wh, s, p)
+    case = f"kernel ({kh}, {kw}), stride {s}, padding {p}"
+    assert got.shape == (2, hh, ww, 2), f"{case}: expected shape {(2, hh, ww, 2)}, got {got.shape}"
+    # the adjoint, column by column: conv of each basis image, dotted with z
+    want = np.zeros(got.shape)
+    for idx in np.ndindex(1, hh, ww, 2):
+        e = np.zeros((1, hh, ww, 2))
+        e[idx] = 1.0
+        want[:, idx[1], idx[2], idx[3]] = np.einsum("nhwo,hwo->n", zh,
+                                                    slow_conv_nb(e, wh, s, p)[0])
+    err = np.abs(got - want).max()
+    assert err < 1e-9, \
+        f"{case}: expected the adjoint of the convolution, got a max error of {err:.3g}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -464,6 +567,100 @@ assert np.allclose(dz8.sum(axis=1), 0), "each row of (softmax - onehot) sums to 
 ### END HIDDEN TESTS
 
 # %% [markdown]
+# ## Exercise 2.9 — an open experiment: tune the heavy ball
+# The tutorial ran momentum on the valley $f(\theta) = \tfrac12(100\,\theta_0^2 + \theta_1^2)$
+# with $\gamma = 0.01$, $\mu = 0.9$, and plain gradient descent with
+# $\gamma = 0.019$, from $\theta = (1, 1)$. Design the run yourself:
+#
+# 1. `steps_to_converge(lr, mu, tol=1e-6, max_steps=2000)`: starting at $(1, 1)$
+#    with zero velocity, apply **your** `momentum_step` of 2.6 until
+#    $\lVert\theta\rVert < $ `tol`; return the number of steps taken (an `int`;
+#    `max_steps` if it never gets there).
+# 2. `heavy_ball_choice()`: return your `(lr, mu)`, two floats with
+#    $0 < \mu < 1$, that reach `tol` in **at most 120 steps** (plain gradient
+#    descent needs about 700 at best). Find them by experiment, or by
+#    reasoning about the two coordinates separately — your choice.
+#
+# The grade cell recounts your steps with its own heavy ball (3 points).
+
+# %% solution id=ex02_9 title="Tune the heavy ball"
+def steps_to_converge(lr, mu, tol=1e-6, max_steps=2000):
+    ### BEGIN SOLUTION
+    scales = np.array([100.0, 1.0])
+    theta, velocity = np.array([1.0, 1.0]), np.zeros(2)
+    for step in range(1, max_steps + 1):
+        theta, velocity = momentum_step(theta, scales * theta, velocity, lr, mu)
+        if np.linalg.norm(theta) < tol:
+            return step
+    return max_steps
+    ### END SOLUTION
+
+
+def heavy_ball_choice():
+    ### BEGIN SOLUTION
+    # per coordinate, the heavy ball contracts like sqrt(mu) when both roots are complex;
+    # the best (lr, mu) balance the steep and flat coordinates (see the written answer)
+    root_steep, root_flat = math.sqrt(100.0), 1.0
+    lr = 4.0 / (root_steep + root_flat) ** 2
+    mu = ((root_steep - root_flat) / (root_steep + root_flat)) ** 2
+    return lr, mu
+    ### END SOLUTION
+
+# %% grade id=ex02_9_tests points=3
+def heavy_ball_steps(lr, mu, tol=1e-6, max_steps=2000):
+    """The tests' own count: v <- mu v + g, theta <- theta - lr v on the valley."""
+    theta, vel = np.array([1.0, 1.0]), np.zeros(2)
+    for k in range(1, max_steps + 1):
+        vel = mu * vel + np.array([100.0, 1.0]) * theta
+        theta = theta - lr * vel
+        if math.hypot(theta[0], theta[1]) < tol:
+            return k
+    return max_steps
+
+
+got9 = steps_to_converge(0.019, 0.0)
+want9 = heavy_ball_steps(0.019, 0.0)
+assert type(got9) is int, f"steps_to_converge returns an int, got {type(got9).__name__}"
+assert abs(got9 - want9) <= 1, \
+    f"plain gradient descent, lr = 0.019: expected {want9} steps, got {got9}"
+lr9, mu9 = heavy_ball_choice()
+assert 0 < lr9 and 0 < mu9 < 1, f"expected lr > 0 and 0 < mu < 1, got lr = {lr9}, mu = {mu9}"
+mine9 = heavy_ball_steps(lr9, mu9)
+assert mine9 <= 120, f"lr = {lr9:.4g}, mu = {mu9:.4g}: expected at most 120 steps, took {mine9}"
+### BEGIN HIDDEN TESTS
+for lr_h, mu_h in [(0.01, 0.9), (0.019, 0.5), (0.03, 0.7), (0.001, 0.0)]:
+    want_h, got_h = heavy_ball_steps(lr_h, mu_h), steps_to_converge(lr_h, mu_h)
+    assert abs(got_h - want_h) <= 1, \
+        f"lr = {lr_h}, mu = {mu_h}: expected {want_h} steps, got {got_h}"
+got_cap = steps_to_converge(0.03, 0.0, max_steps=50)  # lr > 2/100: the steep coordinate diverges
+assert got_cap == 50, f"lr = 0.03, mu = 0 diverges: expected max_steps = 50, got {got_cap}"
+assert abs(steps_to_converge(lr9, mu9) - mine9) <= 1, \
+    f"your choice: expected {mine9} steps from steps_to_converge, got {steps_to_converge(lr9, mu9)}"
+### END HIDDEN TESTS
+
+# %% [markdown]
+# **Written question (graded by hand, 2 points).** Why can plain gradient descent
+# not reach `tol` in much fewer than 700 steps on this valley, and what does the
+# momentum change? How would you choose $(\gamma, \mu)$ if the steep curvature
+# were 1000 instead of 100, and about how many steps would you expect then?
+# Answer in a few sentences in the cell below (numbers welcome).
+
+# %% [markdown] answer id=ex02_w title="Why momentum wins on the valley" points=2
+# ### BEGIN SOLUTION
+# Plain gradient descent multiplies coordinate $k$ by $1 - \gamma\lambda_k$ per step.
+# The steep one ($\lambda = 100$) is stable only for $\gamma < 2/100$, so the flat one
+# ($\lambda = 1$) shrinks by at least $1 - 0.02 = 0.98$ per step:
+# $\ln 10^{-6} / \ln 0.98 \approx 690$ steps. With momentum each coordinate is a
+# second-order recursion whose two roots have modulus $\sqrt\mu$ when they are complex;
+# $\gamma = 4/(\sqrt{L} + \sqrt{m})^2 \approx 0.033$, $\mu = ((\sqrt{L} - \sqrt{m}) /
+# (\sqrt{L} + \sqrt{m}))^2 \approx 0.67$ makes both coordinates contract by
+# $(\sqrt\kappa - 1)/(\sqrt\kappa + 1) = 9/11$ per step (about 70–90 steps): the rate
+# depends on $\sqrt\kappa$ instead of $\kappa$. For $\kappa = 1000$:
+# $\gamma \approx 4/(31.6 + 1)^2 \approx 0.0038$, $\mu \approx 0.88$, rate $\approx 0.939$,
+# a few hundred steps (≈ 230 + transient) against ≈ 6900 for gradient descent.
+# ### END SOLUTION
+
+# %% [markdown]
 # ## Putting it together
 # With the library's versions (so this runs even with unfinished exercises):
 # eq. 7 as a model — two convolutions, global average pooling, a linear layer
@@ -495,3 +692,41 @@ for _ in range(150):
     history.append(float(loss))
 print(f"loss: first {history[0]:.4f}   last {history[-1]:.6f}")
 assert history[-1] < history[0] / 100
+
+# %% [markdown]
+# ## Your figure
+# The tutorial's valley figure, drawn with **your** `momentum_step` (2.6, the
+# tutorial's $\gamma = 0.01$, $\mu = 0.9$ and your own choice of 2.9) and `adam_step`
+# (2.4, $\gamma = 0.1$) as solid lines over the library's `optim` (dashed). A wrong
+# step shows as a solid path that leaves its dashed twin; a function that still
+# raises is named in the title.
+
+# %%
+def my_momentum(theta, g, velocity, t):
+    return momentum_step(theta, g, velocity, 0.01, 0.9)
+
+
+def my_tuned(theta, g, velocity, t):
+    return momentum_step(theta, g, velocity, *heavy_ball_choice())
+
+
+def my_adam(theta, g, state, t):
+    theta, m, v = adam_step(theta, g, *state, t, lr=0.1)
+    return theta, (m, v)
+
+
+def library(update, **kw):
+    def step(theta, g, state, t):
+        new, state = update({"theta": g}, state, {"theta": theta}, **kw)
+        return new["theta"], state
+    return step
+
+
+start = {"theta": np.ones(2)}
+plot_valley_paths(
+    {"your momentum": (my_momentum, np.zeros(2)), "your tuned momentum": (my_tuned, np.zeros(2)),
+     "your Adam": (my_adam, (np.zeros(2), np.zeros(2)))},
+    {"momentum": (library(optim.sgd_update, lr=0.01, momentum=0.9), optim.sgd_init(start)),
+     "Adam": (library(optim.adam_update, lr=0.1), optim.adam_init(start))},
+)
+plt.show()

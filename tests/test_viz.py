@@ -25,7 +25,7 @@ from minimanc.viz import automaton, dagger, explain, saliency, study, style  # n
 
 ROOT = Path(__file__).resolve().parent.parent
 VIZ_MODULES = ("style", "graph", "automaton", "saliency", "world", "study", "explain",
-               "dagger")
+               "dagger", "exercises")
 
 
 # --------------------------------------------------------------------- no plotting in the math

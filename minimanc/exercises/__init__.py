@@ -16,6 +16,10 @@ The graded notebooks follow nbgrader's conventions without its database:
 * Every graded notebook carries notebook metadata ``minimanc.assignment`` (its
   solutions file's stem); exercise notebooks also carry ``source_sha256``, the
   fingerprint of the tests they were built from.
+* A written answer graded by hand is a markdown *answer cell* (nbgrader's manually
+  graded answer: ``solution`` and ``grade`` true, ``task`` false, ``points``); its
+  model answer sits between the solution markers and :func:`build` replaces it
+  with ``YOUR ANSWER HERE``.
 * :func:`grade` executes a notebook and scores each grade cell against the
   authoritative grade cells (hidden tests included) of
   ``solutions/<assignment>.ipynb``, never against the notebook's own. A
@@ -23,7 +27,8 @@ The graded notebooks follow nbgrader's conventions without its database:
   (``minimanc.forbids``); they raise while that exercise's grade cells run
   (:func:`shadow`). The tools grade cells rely on are captured before any student
   cell runs and restored (and named) before each grade cell; answers must have
-  exact plain types (:mod:`~minimanc.exercises.integrity`).
+  exact plain types (:mod:`~minimanc.exercises.integrity`). Written answers are
+  listed apart, "to grade by hand", never in the automatic total.
 
 Notebooks are authored in the "percent" format (:func:`convert`), see
 CONTRIBUTING.md.
@@ -52,6 +57,7 @@ from minimanc.exercises.conversion import (
 )
 from minimanc.exercises.grading import (
     DEFAULT_TIMEOUT,
+    AnswerRow,
     GradeRefused,
     GradeReport,
     GradeRow,
@@ -68,6 +74,7 @@ from minimanc.exercises.integrity import (
     TamperedDuringGrading,
 )
 from minimanc.exercises.markers import (
+    ANSWER_PLACEHOLDER,
     BEGIN_HIDDEN,
     BEGIN_SOLUTION,
     END_HIDDEN,
@@ -75,12 +82,15 @@ from minimanc.exercises.markers import (
     META_KEY,
     RAISES_TAG,
     NotebookFormatError,
+    answer_written,
     assignment_name,
     grade_id,
+    is_answer_cell,
     is_grade_cell,
     is_solution_cell,
     source_fingerprint,
     strip_hidden,
+    stub_answer,
     stub_solution,
     validate,
 )
@@ -92,6 +102,8 @@ from minimanc.exercises.shadowing import (
 )
 
 __all__ = [
+    "ANSWER_PLACEHOLDER",
+    "AnswerRow",
     "BEGIN_HIDDEN",
     "BEGIN_SOLUTION",
     "DEFAULT_TIMEOUT",
@@ -109,6 +121,7 @@ __all__ = [
     "Shadow",
     "TIMEOUT_ENAME",
     "TamperedDuringGrading",
+    "answer_written",
     "assignment_name",
     "assignment_of",
     "build",
@@ -120,6 +133,7 @@ __all__ = [
     "grade",
     "grade_id",
     "instrument_grade_source",
+    "is_answer_cell",
     "is_grade_cell",
     "is_solution_cell",
     "make_exercise",
@@ -129,6 +143,7 @@ __all__ = [
     "shadow",
     "source_fingerprint",
     "strip_hidden",
+    "stub_answer",
     "stub_solution",
     "validate",
 ]

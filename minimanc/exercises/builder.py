@@ -1,7 +1,8 @@
 """Chapter 0 — solutions → exercises: the student version of each solutions notebook.
 
 :func:`make_exercise` turns every solution region into
-``raise NotImplementedError("Exercise <id>: <title>")``, removes hidden tests,
+``raise NotImplementedError("Exercise <id>: <title>")``, every model answer of a
+written-answer cell into ``YOUR ANSWER HERE``, removes hidden tests,
 clears outputs and tags the cells that will raise; :func:`build` regenerates
 ``exercises/`` from ``solutions/`` (or, with ``check``, lists what is stale).
 """
@@ -19,10 +20,12 @@ from minimanc.exercises.markers import (
     assignment_name,
     cell_source,
     grade_id,
+    is_answer_cell,
     is_grade_cell,
     is_solution_cell,
     source_fingerprint,
     strip_hidden,
+    stub_answer,
     stub_solution,
     validate,
 )
@@ -43,6 +46,8 @@ def make_exercise(nb, name: str):
     }
     for index, cell in enumerate(out.cells):
         where = f"{name}: cell {index}"
+        if is_answer_cell(cell):
+            cell.source = stub_answer(cell_source(cell), where)
         if cell.cell_type != "code":
             continue
         cell.outputs = []

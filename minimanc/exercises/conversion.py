@@ -17,6 +17,7 @@ from minimanc.exercises.markers import (
     META_KEY,
     RAISES_TAG,
     NotebookFormatError,
+    is_answer_cell,
     is_grade_cell,
     is_solution_cell,
     validate,
@@ -51,8 +52,13 @@ def _parse_header(text: str, where: str) -> tuple[str, dict]:
     if text.startswith("[markdown]"):
         kind, text = "markdown", text[len("[markdown]"):].strip()
     attrs: dict = {}
-    if text.split(" ")[0] in ("solution", "grade"):
+    if text.split(" ")[0] in ("solution", "grade", "answer"):
         attrs["role"], _, text = text.partition(" ")
+        if (attrs["role"] == "answer") != (kind == "markdown"):
+            raise NotebookFormatError(
+                f"{where}: '{attrs['role']}' needs a "
+                + ("'# %% [markdown]' header" if attrs["role"] == "answer" else "code cell")
+            )
     rest = _ATTR.sub("", text).strip()
     if rest:
         raise NotebookFormatError(f"{where}: cannot read cell header attribute {rest!r}")
@@ -92,7 +98,15 @@ def cells_from_percent(text: str, name: str = "<source>") -> list:
     cells = []
     for number, (kind, attrs, lines) in enumerate(chunks):
         if kind == "markdown":
-            cells.append(nbformat.v4.new_markdown_cell(_markdown(lines), id=f"c{number:03d}"))
+            cell = nbformat.v4.new_markdown_cell(_markdown(lines), id=f"c{number:03d}")
+            if attrs.get("role") == "answer":
+                cell.metadata["nbgrader"] = {
+                    "solution": True, "grade": True, "task": False, "locked": False,
+                    "grade_id": attrs.get("id", ""), "points": attrs.get("points", 1),
+                    "schema_version": 3,
+                }
+                cell.metadata[META_KEY] = {"title": attrs.get("title", "")}
+            cells.append(cell)
             continue
         cell = nbformat.v4.new_code_cell("\n".join(lines).strip("\n"), id=f"c{number:03d}")
         if attrs.get("tags"):
@@ -128,7 +142,7 @@ def convert(source: Path, target: Path, execute: bool = True, timeout: int = 600
     }
     nb.metadata["language_info"] = {"name": "python"}
     nb.cells = cells_from_percent(source.read_text(), source.name)
-    if any(is_grade_cell(c) or is_solution_cell(c) for c in nb.cells):
+    if any(is_grade_cell(c) or is_solution_cell(c) or is_answer_cell(c) for c in nb.cells):
         nb.metadata[META_KEY] = {"assignment": target.stem}
         validate(nb, target.name)
     target.parent.mkdir(parents=True, exist_ok=True)

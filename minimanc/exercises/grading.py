@@ -7,7 +7,9 @@ functions it ``forbids`` raise (:func:`minimanc.exercises.shadow`). Before any
 student cell runs, the tools grade cells rely on are captured; before each grade
 cell whatever student code replaced is restored and named on the grade cell's
 row, and the grade cell runs against the captured tools with strict answer types
-(:mod:`minimanc.exercises.integrity`).
+(:mod:`minimanc.exercises.integrity`). Written answers (markdown answer cells) are
+graded by hand: the report lists them apart, with their points and whether the
+student wrote anything, and never adds them to the automatic total.
 """
 
 from __future__ import annotations
@@ -31,16 +33,20 @@ from minimanc.exercises.markers import (
     END_HIDDEN,
     META_KEY,
     NotebookFormatError,
+    answer_written,
     cell_source,
     grade_id,
+    is_answer_cell,
     is_grade_cell,
     is_solution_cell,
     nbgrader_metadata,
     source_fingerprint,
+    stub_answer,
     validate,
 )
 
 __all__ = [
+    "AnswerRow",
     "DEFAULT_TIMEOUT",
     "GradeRefused",
     "GradeReport",
@@ -72,17 +78,33 @@ class GradeRow:
     message: str = ""
     hidden: bool = False
     tampered: list[str] = field(default_factory=list)
+    title: str = ""
+
+
+@dataclass
+class AnswerRow:
+    """One written answer to grade by hand: its points (never in the automatic
+    total) and whether the student's cell differs from ``YOUR ANSWER HERE``;
+    ``found`` is False when the cell was deleted or lost its metadata."""
+
+    grade_id: str
+    max_points: float
+    title: str = ""
+    written: bool = False
+    found: bool = True
 
 
 @dataclass
 class GradeReport:
-    """Points per grade cell, plus notes on what went wrong with the notebook."""
+    """Points per grade cell, the written answers to grade by hand, and notes on
+    what went wrong with the notebook."""
 
     notebook: str
     assignment: str = ""
     source: str = ""
     rows: list[GradeRow] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    answers: list[AnswerRow] = field(default_factory=list)
 
     @property
     def total(self) -> float:
@@ -90,7 +112,18 @@ class GradeReport:
 
     @property
     def max_total(self) -> float:
+        """The automatic maximum (written answers are not in it)."""
         return sum(r.max_points for r in self.rows)
+
+    @property
+    def percent(self) -> float:
+        """The automatic total as a percentage of its maximum (0 when there is none)."""
+        return 100.0 * self.total / self.max_total if self.max_total else 0.0
+
+    @property
+    def hand_max_total(self) -> float:
+        """The points of the written answers, graded by hand."""
+        return sum(a.max_points for a in self.answers)
 
     def to_dict(self) -> dict:
         return {
@@ -99,20 +132,35 @@ class GradeReport:
             "source": self.source,
             "total": self.total,
             "max_total": self.max_total,
+            "percent": self.percent,
             "rows": [copy.deepcopy(r.__dict__) for r in self.rows],
+            "to_grade_by_hand": [copy.deepcopy(a.__dict__) for a in self.answers],
+            "hand_max_total": self.hand_max_total,
             "notes": self.notes,
         }
 
     def format(self) -> str:
-        width = max([len(r.grade_id) for r in self.rows] + [8])
+        width = max([len(r.grade_id) for r in self.rows + self.answers] + [8])
+        titles = max([len(r.title) for r in self.rows + self.answers] + [0])
         head = f"{self.notebook} (assignment {self.assignment})" if self.assignment else ""
         lines = [head or self.notebook]
         for r in self.rows:
             mark = "ok  " if r.points == r.max_points else "FAIL"
             tail = f"  {r.message}" if r.message else ""
-            lines.append(f"  {mark} {r.grade_id:<{width}} {r.points:g}/{r.max_points:g}{tail}")
+            title = f" {r.title:<{titles}}" if titles else ""
+            lines.append(f"  {mark} {r.grade_id:<{width}}{title} "
+                         f"{r.points:g}/{r.max_points:g}{tail}")
         lines.extend(f"  note: {n}" for n in self.notes)
-        lines.append(f"  total {self.total:g}/{self.max_total:g}")
+        lines.append(f"  total {self.total:g}/{self.max_total:g} ({self.percent:.0f}%) automatic")
+        if self.answers:
+            lines.append(f"  to grade by hand (not in the total): {self.hand_max_total:g} "
+                         "point(s)")
+            for a in self.answers:
+                state = ("written" if a.written else "empty: YOUR ANSWER HERE") if a.found \
+                    else "missing: answer cell deleted or its metadata removed"
+                title = f" {a.title:<{titles}}" if titles else ""
+                lines.append(f"       {a.grade_id:<{width}}{title} {a.max_points:g} point(s)  "
+                             f"{state}")
         return "\n".join(lines)
 
 
@@ -388,6 +436,9 @@ def grade(
                             "the current ones")
     exercise_of = exercise_of_grade_cells(reference_nb)
     forbids = forbidden_functions(reference_nb)
+    titles = {grade_id(c): str(c.metadata.get(META_KEY, {}).get("title", ""))
+              for c in reference_nb.cells if is_solution_cell(c)}
+    report.answers = _answer_rows(student, reference_nb, source.name)
 
     answers = {grade_id(c): defined_names(cell_source(c))[0]
                for c in reference_nb.cells if is_solution_cell(c)}
@@ -434,6 +485,7 @@ def grade(
             row = GradeRow(gid, 0.0, max_points, "the grader's integrity checks did not run")
         else:
             row = GradeRow(gid, max_points, max_points)
+        row.title = titles.get(exercise_of.get(gid, gid), "")
         if after:
             row.points, row.tampered = 0.0, list(after)
             row.message = (f"tampered: your code replaced {_listing(after)} while the tests "
@@ -445,6 +497,28 @@ def grade(
                            "the originals") + (f"; {row.message}" if row.message else "")
         report.rows.append(row)
     return report
+
+
+def _answer_rows(student, reference_nb, name: str) -> list[AnswerRow]:
+    """The written answers of the solutions notebook, matched by ``grade_id`` in the
+    student's notebook (points and title always from the solutions)."""
+    mine: dict[str, str] = {}
+    for cell in student.cells:
+        gid = grade_id(cell) if is_answer_cell(cell) else None
+        if gid and gid not in mine:
+            mine[gid] = cell_source(cell)
+    rows = []
+    for index, cell in enumerate(reference_nb.cells):
+        if not is_answer_cell(cell):
+            continue
+        gid = grade_id(cell)
+        stub = stub_answer(cell_source(cell), f"{name}: cell {index}")
+        rows.append(AnswerRow(
+            gid, float(nbgrader_metadata(cell).get("points", 0)),
+            str(cell.metadata.get(META_KEY, {}).get("title", "")),
+            written=gid in mine and answer_written(mine[gid], stub), found=gid in mine,
+        ))
+    return rows
 
 
 def _grading_cells(student, reference, exercise_of, forbids, answers, report):

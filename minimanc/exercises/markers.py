@@ -2,10 +2,13 @@
 
 A solution region sits between ``### BEGIN SOLUTION`` and ``### END SOLUTION``
 in a solution cell; hidden tests between ``### BEGIN HIDDEN TESTS`` and
-``### END HIDDEN TESTS`` in a grade cell (nbgrader's conventions).
-:func:`validate` checks a solutions notebook, :func:`stub_solution` and
-:func:`strip_hidden` rewrite one cell, :func:`source_fingerprint` hashes what
-grading takes from it.
+``### END HIDDEN TESTS`` in a grade cell (nbgrader's conventions). A written
+answer graded by hand is a markdown *answer cell* (nbgrader's manually graded
+answer: ``solution`` and ``grade`` true, ``task`` false, ``points``); its model
+answer sits between the solution markers and becomes ``YOUR ANSWER HERE``.
+:func:`validate` checks a solutions notebook, :func:`stub_solution`,
+:func:`stub_answer` and :func:`strip_hidden` rewrite one cell,
+:func:`source_fingerprint` hashes what grading takes from it.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import re
 from pathlib import Path
 
 __all__ = [
+    "ANSWER_PLACEHOLDER",
     "BEGIN_HIDDEN",
     "BEGIN_SOLUTION",
     "END_HIDDEN",
@@ -25,12 +29,15 @@ __all__ = [
     "RAISES_TAG",
     "assignment_name",
     "cell_source",
+    "answer_written",
     "grade_id",
+    "is_answer_cell",
     "is_grade_cell",
     "is_solution_cell",
     "nbgrader_metadata",
     "source_fingerprint",
     "strip_hidden",
+    "stub_answer",
     "stub_solution",
     "validate",
 ]
@@ -40,6 +47,8 @@ END_SOLUTION = "### END SOLUTION"
 BEGIN_HIDDEN = "### BEGIN HIDDEN TESTS"
 END_HIDDEN = "### END HIDDEN TESTS"
 RAISES_TAG = "raises-exception"
+ANSWER_PLACEHOLDER = "YOUR ANSWER HERE"
+"""What replaces a written answer's model answer in the student's notebook (nbgrader's text)."""
 META_KEY = "minimanc"
 """Key of the notebook- and cell-level metadata this module writes."""
 _DOTTED = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)+$")
@@ -56,13 +65,21 @@ def nbgrader_metadata(cell) -> dict:
 
 
 def is_grade_cell(cell) -> bool:
-    """True for a cell whose tests earn points."""
-    return bool(nbgrader_metadata(cell).get("grade"))
+    """True for a code cell whose tests earn points."""
+    return cell.get("cell_type") == "code" and bool(nbgrader_metadata(cell).get("grade"))
 
 
 def is_solution_cell(cell) -> bool:
-    """True for a cell with a solution region to hide."""
-    return bool(nbgrader_metadata(cell).get("solution"))
+    """True for a code cell with a solution region to hide."""
+    return cell.get("cell_type") == "code" and bool(nbgrader_metadata(cell).get("solution"))
+
+
+def is_answer_cell(cell) -> bool:
+    """True for a written answer graded by hand: a markdown cell that is both
+    solution and grade (nbgrader's manually graded answer)."""
+    meta = nbgrader_metadata(cell)
+    return (cell.get("cell_type") == "markdown" and bool(meta.get("solution"))
+            and bool(meta.get("grade")))
 
 
 def grade_id(cell) -> str | None:
@@ -144,6 +161,24 @@ def stub_solution(source: str, exercise: str, title: str, where: str) -> tuple[s
     return "\n".join(out), top_level
 
 
+def stub_answer(source: str, where: str) -> str:
+    """Replace each model-answer region (markers included) of an answer cell by
+    ``YOUR ANSWER HERE``."""
+    lines = source.split("\n")
+    out, last = [], 0
+    for start, stop in _regions(lines, BEGIN_SOLUTION, END_SOLUTION, where):
+        out.extend(lines[last:start])
+        out.append(ANSWER_PLACEHOLDER)
+        last = stop + 1
+    out.extend(lines[last:])
+    return "\n".join(out)
+
+
+def answer_written(source: str, stub: str) -> bool:
+    """True when an answer cell's text differs from its stub (whitespace aside)."""
+    return " ".join(source.split()) != " ".join(stub.split())
+
+
 def strip_hidden(source: str, where: str) -> str:
     """Remove hidden-test regions (markers included)."""
     lines = source.split("\n")
@@ -167,8 +202,25 @@ def validate(nb, name: str) -> list[str]:
         has_solution = bool(_regions(lines, BEGIN_SOLUTION, END_SOLUTION, where))
         has_hidden = bool(_regions(lines, BEGIN_HIDDEN, END_HIDDEN, where))
         gid = grade_id(cell)
-        if (has_solution or has_hidden) and cell.cell_type != "code":
-            raise NotebookFormatError(f"{where}: markers are only allowed in code cells")
+        if cell.cell_type != "code" and not is_answer_cell(cell):
+            meta = nbgrader_metadata(cell)
+            if meta.get("solution") or meta.get("grade"):
+                raise NotebookFormatError(
+                    f"{where}: a {cell.cell_type} cell marked solution or grade must be an "
+                    "answer cell (markdown, solution and grade both true)"
+                )
+            if has_solution or has_hidden:
+                raise NotebookFormatError(
+                    f"{where}: markers are only allowed in code cells and answer cells"
+                )
+        if is_answer_cell(cell):
+            _check_answer(cell, gid, has_solution, has_hidden, where)
+            if gid in seen:
+                raise NotebookFormatError(
+                    f"{where}: duplicate grade_id {gid!r} (first in cell {seen[gid]})"
+                )
+            seen[gid] = index
+            continue
         if has_solution and not is_solution_cell(cell):
             raise NotebookFormatError(f"{where}: solution markers in a cell not marked solution")
         if has_hidden and not is_grade_cell(cell):
@@ -199,9 +251,29 @@ def validate(nb, name: str) -> list[str]:
     return exercises
 
 
+def _check_answer(cell, gid, has_solution: bool, has_hidden: bool, where: str) -> None:
+    """An answer cell: a grade_id, positive points, a model answer, no hidden tests."""
+    meta = nbgrader_metadata(cell)
+    if not gid:
+        raise NotebookFormatError(f"{where}: answer cell without a grade_id")
+    if meta.get("task"):
+        raise NotebookFormatError(f"{where}: answer cell {gid!r} cannot be a task (task: false)")
+    points = meta.get("points")
+    if isinstance(points, bool) or not isinstance(points, int | float) or points <= 0:
+        raise NotebookFormatError(f"{where}: answer cell {gid!r} needs positive points")
+    if not has_solution:
+        raise NotebookFormatError(
+            f"{where}: answer cell {gid!r} without a model answer between "
+            f"'{BEGIN_SOLUTION}' and '{END_SOLUTION}'"
+        )
+    if has_hidden:
+        raise NotebookFormatError(f"{where}: answer cell {gid!r} cannot hold hidden tests")
+
+
 def source_fingerprint(nb) -> str:
     """sha256 of what grading takes from a solutions notebook: the grade cells
-    (id, points, source) and each exercise's forbidden functions."""
+    (id, points, source), each exercise's forbidden functions and the answer
+    cells (id, points)."""
     items = []
     for cell in nb.cells:
         if is_grade_cell(cell):
@@ -210,6 +282,8 @@ def source_fingerprint(nb) -> str:
         elif is_solution_cell(cell):
             items.append(["forbids", grade_id(cell),
                           cell.metadata.get(META_KEY, {}).get("forbids", [])])
+        elif is_answer_cell(cell):
+            items.append(["answer", grade_id(cell), nbgrader_metadata(cell).get("points")])
     return hashlib.sha256(json.dumps(items, sort_keys=True).encode()).hexdigest()
 
 

@@ -7,6 +7,8 @@ library:
 
 * :mod:`minimanc.viz.style` — names and colours of the models and metrics, ``save``, and the
   pieces every figure shares (all chapters);
+* :mod:`minimanc.viz.exercises` — chapter 0: each exercises notebook's last figure, drawn
+  from the student's own functions over the library's (chapters 1, 2, 3);
 * :mod:`minimanc.viz.graph` — chapter 1: a computation graph with the cotangent on each
   edge;
 * :mod:`minimanc.viz.automaton` — chapter 5: the vAGN automaton graph and the
@@ -23,6 +25,17 @@ library:
   cloning at the same budget.
 """
 
-from minimanc.viz import automaton, dagger, explain, graph, saliency, study, style, world
+from minimanc.viz import (
+    automaton,
+    dagger,
+    exercises,
+    explain,
+    graph,
+    saliency,
+    study,
+    style,
+    world,
+)
 
-__all__ = ["automaton", "dagger", "explain", "graph", "saliency", "study", "style", "world"]
+__all__ = ["automaton", "dagger", "exercises", "explain", "graph", "saliency", "study", "style",
+           "world"]

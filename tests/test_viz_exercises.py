@@ -1,0 +1,113 @@
+"""minimanc.viz.exercises: the exercises notebooks' last figures, drawn from a student's
+functions over the library's, naming a function that raises instead of failing."""
+
+from __future__ import annotations
+
+import math
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import minimanc.autodiff.numpy as anp  # noqa: E402
+from minimanc import dmp, optim  # noqa: E402
+from minimanc.autodiff import computation_graph  # noqa: E402
+from minimanc.viz import exercises as vx  # noqa: E402
+
+
+class Var:
+    """Chapter 1's scalar node: a value, its parents and the local derivatives."""
+
+    def __init__(self, value, parents=(), local=()):
+        self.value, self.parents, self.local = float(value), parents, local
+
+
+def mul(a, b):
+    return Var(a.value * b.value, (a, b), (b.value, a.value))
+
+
+def add(a, b):
+    return Var(a.value + b.value, (a, b), (1.0, 1.0))
+
+
+def vsin(a):
+    return Var(math.sin(a.value), (a,), (math.cos(a.value),))
+
+
+def edges_right(end):
+    cot, out = {id(end): 1.0}, []
+    order = [end]
+    seen = {id(end)}
+    k = 0
+    while k < len(order):   # breadth first is a valid order for this small tree-like graph
+        for p in order[k].parents:
+            if id(p) not in seen:
+                seen.add(id(p))
+                order.append(p)
+        k += 1
+    for node in order:
+        for p, loc in zip(node.parents, node.local):
+            out.append((p, node, cot[id(node)] * loc))
+            cot[id(p)] = cot.get(id(p), 0.0) + cot[id(node)] * loc
+    return out
+
+
+def test_attempt_returns_the_value_or_names_the_error():
+    assert vx.attempt(lambda a, b: a + b, 1, 2) == (3, "")
+
+    def stub(x):
+        raise NotImplementedError("Exercise ex01_6: Cotangent on each edge")
+
+    assert vx.attempt(stub, 1) == (None, "NotImplementedError: Exercise ex01_6: Cotangent on "
+                                         "each edge")
+
+
+def test_graph_of_edges_is_the_library_graph_of_the_same_computation():
+    x = Var(0.7)
+    y = add(vsin(mul(x, x)), x)
+    graph = vx.graph_of_edges(edges_right(y), {id(x): "x"})
+    ref = computation_graph(lambda x: anp.sin(x * x) + x, np.array(0.7))
+    assert [n.name for n in graph.nodes] == ["x", "v1", "v2", "v3"]
+    assert len(graph.edges) == len(ref.edges) == 5 and graph.inputs == (0,)
+    assert graph.output == 3
+    assert math.isclose(float(graph.gradients()[0]), float(ref.gradients()[0]), rel_tol=1e-12)
+    with pytest.raises(ValueError, match="at least one"):
+        vx.graph_of_edges([], {})
+
+
+def test_the_three_figures_draw_yours_over_the_reference_and_name_a_stub():
+    def stub(*_):
+        raise NotImplementedError("Exercise exNN: stub")
+
+    x = Var(0.7)
+    y = add(vsin(mul(x, x)), x)
+    ref = computation_graph(lambda x: anp.sin(x * x) + x, np.array(0.7))
+    fig = vx.plot_edge_cotangents(edges_right, y, {id(x): "x"}, ref)
+    assert fig.axes[1].get_title().startswith("yours")
+    fig = vx.plot_edge_cotangents(stub, y, {id(x): "x"}, ref)
+    assert "NotImplementedError: Exercise exNN: stub" in fig.axes[1].get_title()
+
+    def sgd(theta, g, state, t):
+        return theta - 0.01 * g, state
+
+    def lib_sgd(theta, g, state, t):
+        new, state = optim.sgd_update({"t": g}, state, {"t": theta}, lr=0.01, momentum=0.0)
+        return new["t"], state
+
+    fig = vx.plot_valley_paths({"your SGD": (sgd, None), "stub": (stub, None)},
+                               {"SGD": (lib_sgd, optim.sgd_init({"t": np.ones(2)}))}, steps=20)
+    lines = fig.axes[0].get_lines()
+    assert len(lines) == 2                              # the library's and yours; not the stub
+    assert np.allclose(lines[0].get_xydata(), lines[1].get_xydata())
+    assert "stub: NotImplementedError" in fig.axes[0].get_title()
+
+    euler = lambda b: dmp.max_stable_alpha(b, 0.5, "euler", 1)  # noqa: E731
+    fig = vx.plot_stability_boundary({"yours": euler, "stub": stub}, {"Euler": euler},
+                                     np.linspace(0.1, 3, 7), 0.5)
+    ref_line, mine = fig.axes[0].get_lines()
+    assert np.allclose(ref_line.get_ydata(), mine.get_ydata())
+    assert "stub: NotImplementedError" in fig.axes[0].get_title()
+    plt.close("all")
