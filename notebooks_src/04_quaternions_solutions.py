@@ -18,6 +18,7 @@ import numpy as np
 
 from minimanc import dmp
 from minimanc import quaternion as Q
+from minimanc.viz import exercises as vx
 
 rng = np.random.default_rng(0)
 ID = np.array([1.0, 0.0, 0.0, 0.0])
@@ -453,6 +454,20 @@ assert e1 > 0.25 * e0, (
 # turning about a fixed axis, and compare it with eq. 12. What would MANC's
 # network have to output, or know, to use your DMP on a curving road?
 
+# %% [markdown] answer id=ex04_8_w title="Why the feedforward removes the lag" points=2
+# ### BEGIN SOLUTION
+# The plain DMP can keep η = ω_g only if the error supplies it: η̇ = 0 needs
+# βe = η = ω_g, so e∞ = ω_g/β (4.7). Adding the goal's own angular velocity,
+# η̇ = α(βe + ω_g − η), makes e = 0, η = ω_g a steady state: the feedforward
+# supplies the turning rate and the error is left to correct deviations only.
+# About a fixed axis (everything commutes), with ε = ψ_g − ψ and ε̇ = ω_g − η,
+# ε̈ = −η̇ = −α(βε + ε̇): exactly eq. 12, ε̈ + αε̇ + αβε = 0, so the error
+# decays as for a goal at rest, with the same damping ratio and the same
+# stability box. MANC would have to know ω_g — the goal's rate (e.g. the lane's
+# curvature times the speed), as an extra output of the head or an input
+# (a velocity goal next to the orientation goal).
+# ### END SOLUTION
+
 # %% [markdown]
 # ## Putting it together
 # The library's quaternion DMP uses exactly this error. From here on the cells
@@ -467,70 +482,50 @@ print("yaw (deg):", np.round(yaw, 1))
 assert np.isclose(yaw[-1], 190.0, atol=0.1) and np.all(np.diff(yaw) >= 0)
 
 # %% [markdown]
-# ## Your functions draw the chapter's figure
-# Left: the turn from 170° to −170° of section 3, with the DMP's error computed
-# by **your** `orientation_error` (a wrong sign choice turns the long way).
-# Right: a goal turning at 30°/s; the plain DMP trails it by **your**
-# `steady_lag` (dashed) and **your** `tracking_rollout` should sit on the goal.
-# A function you have not written yet is left out of the figure.
+# ## Your figure
+# Left: the turn from 170° to −170° of section 3, the DMP's error computed by
+# **your** `orientation_error` (solid) over the library's (dashed): a wrong sign
+# choice turns the long way, −340°. Right: a goal turning at 30°/s. The plain
+# DMP (dashed) trails it; goal − **your** `steady_lag` must run on top of it
+# once the start is forgotten, and **your** `tracking_rollout` on the goal
+# (dashed). A function that raises is named in the title.
 
 # %%
-def yours(fn, *args):
-    """fn(*args), or None while fn is still the exercise's stub."""
-    try:
-        return fn(*args)
-    except NotImplementedError:
-        return None
+def yaw_deg(qs):
+    return np.rad2deg(np.unwrap(Q.to_yaw(np.asarray(qs))))
 
 
 def dmp_with_error(error, q, g, alpha, beta, steps, substeps=dmp.DEFAULT_SUBSTEPS):
-    """The DMP of section 5, its error term computed by ``error``; None if ``error`` is a stub."""
+    """Section 5's DMP with its error term computed by ``error``; yaw (deg) after each step."""
     eta, out, h = np.zeros(3), [q], dmp.DT / substeps
-    for _ in range(steps * substeps):
-        e = yours(error, g, q)
-        if e is None:
-            return None
-        eta = eta + h * alpha * (beta * np.asarray(e) - eta)
+    for n in range(steps * substeps):
+        eta = eta + h * alpha * (beta * np.asarray(error(g, q)) - eta)
         q = Q.integrate(q, eta, h)
-        out.append(q)
-    return np.array(out[::substeps])
+        if (n + 1) % substeps == 0:
+            out.append(q)
+    return yaw_deg(out)
 
 
-fig, axes = plt.subplots(1, 2, figsize=(12, 3.6))
-t16 = np.arange(17) * dmp.DT
-turn = dmp_with_error(orientation_error, Q.from_yaw(np.deg2rad(170.0)),
-                      Q.from_yaw(np.deg2rad(-170.0)), 4.0, 1.0, 16)
-if turn is not None:
-    axes[0].plot(t16, np.rad2deg(np.unwrap(Q.to_yaw(turn))), "o-", label="your orientation_error")
-for level in (190, -170):
-    axes[0].axhline(level, color="k", lw=0.6, ls="--")
-axes[0].set_xlabel("t (s)")
-axes[0].set_ylabel("unwrapped yaw (deg)")
-axes[0].set_title("170° → −170°: the short way is +20°")
-
-om_fig, g_fig, n_fig = np.array([0.0, 0.0, np.deg2rad(30.0)]), Q.from_yaw(0.0), 24
+q170, g170 = Q.from_yaw(np.deg2rad(170.0)), Q.from_yaw(np.deg2rad(-170.0))
+om_fig, n_fig, h_fig = np.array([0.0, 0.0, np.deg2rad(30.0)]), 24, dmp.DT / dmp.DEFAULT_SUBSTEPS
 t_fig = np.arange(n_fig + 1) * dmp.DT
-goal_yaw = np.rad2deg(np.unwrap(Q.to_yaw(goal_path(g_fig, om_fig, t_fig))))
-h_fig = dmp.DT / dmp.DEFAULT_SUBSTEPS
-plain = Q.quaternion_rollout(ID, np.zeros(3),
-                             goal_path(g_fig, om_fig, h_fig * np.arange(10 * n_fig)), 4.0, 1.0,
-                             h_fig, 10 * n_fig, substeps=1, per_step=("g_q",)).q[::10]
-axes[1].plot(t_fig, goal_yaw, "k-", lw=1, label="goal")
-axes[1].plot(t_fig, np.rad2deg(np.unwrap(Q.to_yaw(plain))), "o-", ms=3, label="plain DMP")
-lag = yours(steady_lag, om_fig, 4.0, 1.0)
-if lag is not None:
-    axes[1].plot(t_fig, goal_yaw - np.rad2deg(np.asarray(lag)[2]), "--",
-                 label="goal − your steady_lag")
-track = yours(tracking_rollout, ID, g_fig, om_fig, 4.0, 1.0, dmp.DT, n_fig)
-if track is not None:
-    axes[1].plot(t_fig, np.rad2deg(np.unwrap(Q.to_yaw(np.asarray(track)))), "s-", ms=3,
-                 label="your tracking_rollout")
-axes[1].set_xlabel("t (s)")
-axes[1].set_ylabel("unwrapped yaw (deg)")
-axes[1].set_title("a goal turning at 30°/s")
+goal_yaw = yaw_deg(goal_path(ID, om_fig, t_fig))
+plain = yaw_deg(Q.quaternion_rollout(ID, np.zeros(3), goal_path(ID, om_fig, h_fig * np.arange(
+    10 * n_fig)), 4.0, 1.0, h_fig, 10 * n_fig, substeps=1, per_step=("g_q",)).q[::10])
+fig, axes = plt.subplots(1, 2, figsize=(12, 3.8))
+vx.plot_curve_attempts(np.arange(17) * dmp.DT, [
+    ("orientation_error", lambda: dmp_with_error(orientation_error, q170, g170, 4.0, 1.0, 16),
+     dmp_with_error(Q.orientation_error, q170, g170, 4.0, 1.0, 16))],
+    ax=axes[0], title="170° → −170°: the short way is +20°")
+vx.plot_curve_attempts(t_fig, [
+    ("goal − steady_lag", lambda: goal_yaw - np.rad2deg(np.asarray(steady_lag(om_fig, 4.0,
+                                                                              1.0))[2]), plain),
+    ("tracking_rollout", lambda: yaw_deg(tracking_rollout(ID, ID, om_fig, 4.0, 1.0, dmp.DT,
+                                                          n_fig)), goal_yaw)],
+    ax=axes[1], title="a goal turning at 30°/s (dashed: plain DMP, goal)")
 for ax in axes:
-    ax.legend(fontsize=8)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("unwrapped yaw (deg)")
 plt.show()
-gap = np.rad2deg(np.unwrap(Q.to_yaw(plain)))[-1] - goal_yaw[-1]
-print(f"plain DMP after {n_fig * dmp.DT:.0f} s: {gap:.1f} deg from the goal")
-assert abs(gap + 30.0) < 0.5   # it trails by 30 deg/s over beta = 1
+print(f"plain DMP after {n_fig * dmp.DT:.0f} s: {plain[-1] - goal_yaw[-1]:.1f} deg from the goal")
+assert abs(plain[-1] - goal_yaw[-1] + 30.0) < 0.5   # it trails by 30 deg/s over beta = 1

@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import engine, optim, vagn
-from minimanc.viz.automaton import plot_automaton, plot_q_heatmap
+from minimanc.viz.automaton import plot_automaton_attempts, plot_q_heatmap
 
 rng = np.random.default_rng(0)
 
@@ -574,6 +574,28 @@ assert a_b < 0.85, (
 # only through the action loss? Name one change to the action model (not to
 # the data) that would make your `G_blind` experiment identifiable again.
 
+# %% [markdown] answer id=ex05_7_w title="When the action identifies the states" points=3
+# ### BEGIN SOLUTION
+# The loss sees q only through the scalar goal g_t = Σ_j q_t[j] G_j. With
+# distinct goal speeds each state changes the speed differently, so the only
+# way to reproduce the teacher's speeds over many scenes is (nearly) the
+# teacher's q, and the argmax agrees in ≈ 99 % of the steps. With
+# G_blind = (1, 0.5, 0.5) *follow* and *yield* ask for the same speed: any split
+# of their mass gives the same g_t, the speeds fit as well (held-out error
+# ≈ 1e-5) and the learned automaton labels the two states arbitrarily
+# (agreement ≈ 0.4). The paper's claim holds only as far as the action
+# distinguishes the states: q-states are interpretable when they *do*
+# different things; states with the same action are not identifiable from
+# behaviour cloning, whatever their meaning for a human. (Even with distinct
+# goals one scalar per step leaves a two-dimensional q underdetermined at a
+# single step; it is the dynamics over many scenes that pins it down, and a
+# small data set can end in a local minimum: B = 32 with another seed gave
+# 0.72.) A fix in the action model: give each state its own *vector* of
+# actions — e.g. a goal speed and a goal yaw (or different gains α_j, β_j per
+# state, as MANC's head outputs them), so that no two states produce the same
+# action.
+# ### END SOLUTION
+
 # %% [markdown]
 # ## Putting it together
 # From here on the library's versions are used, so this cell runs even with
@@ -593,43 +615,40 @@ for q0 in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])):
 print("pi =", np.round(pi, 4))
 
 # %% [markdown]
-# ## Your functions draw the chapter's figure
+# ## Your figure
 # Top: **your** `transition_matrix` draws the automaton under each predicate
-# (as in section 1 of the tutorial). Bottom: the drive of tutorial section 2,
-# q of the teacher and of **your** `W_distinct` and `W_blind` (5.7), learned
-# from speeds only.
-# A function or result you have not made yet is left out.
+# (tutorial section 1): the arrows must match the library's. Bottom: q on the
+# tutorial's drive for the teacher and for **your** `W_distinct` and `W_blind`
+# of 5.7, learned from speeds only: with distinct goal speeds the learned q
+# should look like the teacher's, with `G_blind` it need not. A function that
+# raises (or a result not made yet) is named, and the library's reference drawn.
 
 # %%
-def yours(fn, *args):
-    """fn(*args), or None while fn is still the exercise's stub."""
-    try:
-        return fn(*args)
-    except NotImplementedError:
-        return None
-
-
 STATES, PREDICATES = ["cruise", "follow", "yield"], ["road clear", "lead close", "crossing"]
 drive = np.zeros((30, 3))
 drive[:, 0] = 1.0
 drive[8:18, 1] = np.minimum(1.0, np.arange(1, 11) / 4)
 drive[8:18, 0] = 1.0 - drive[8:18, 1]
 drive[20:25, 2], drive[20:25, 0] = 1.0, 0.0
-fig, axes = plt.subplots(2, 3, figsize=(12, 7))
-for ax, p, name in zip(axes[0], np.eye(3), PREDICATES):
-    T_yours = yours(transition_matrix, p, W_true)
-    if T_yours is not None:
-        plot_automaton(np.asarray(T_yours), ax=ax, labels=STATES)
-    ax.set_title(f"your T, only '{name}'" if T_yours is not None else "transition_matrix: to do")
-shown = ((W_true, "teacher"), (globals().get("W_distinct"), "your W_distinct"),
-         (globals().get("W_blind"), "your W_blind"))
-for ax, (W_show, name) in zip(axes[1], shown):
-    if W_show is not None:
-        plot_q_heatmap(vagn.rollout(vagn.uniform_state(3), drive, np.asarray(W_show)), ax=ax,
-                       labels=STATES, colorbar=False)
-    ax.set_title(f"q on the drive: {name}" if W_show is not None else f"{name[5:]}: to do")
+q_teacher = vagn.rollout(vagn.uniform_state(3), drive, W_true)
+
+
+def q_of(name):
+    """q on the drive for the automaton this notebook bound to ``name`` (5.7)."""
+    return vagn.rollout(vagn.uniform_state(3), drive, np.asarray(globals()[name]))
+
+
+fig, axes = plt.subplots(2, 3, figsize=(12, 7.5))
+plot_automaton_attempts(
+    [(f"only '{name}'", "T", lambda p=p: transition_matrix(p, W_true),
+      vagn.transition_matrix(p, W_true)) for p, name in zip(np.eye(3), PREDICATES)],
+    labels=STATES, axes=axes[0])
+plot_q_heatmap(q_teacher, ax=axes[1, 0], labels=STATES, colorbar=False)
+axes[1, 0].set_title("q: the teacher (library)")
+plot_automaton_attempts([("q: W_distinct", "q", lambda: q_of("W_distinct"), None),
+                         ("q: W_blind", "q", lambda: q_of("W_blind"), None)],
+                        labels=STATES, axes=axes[1, 1:])
 plt.tight_layout()
 plt.show()
-q_drive = vagn.rollout(vagn.uniform_state(3), drive, W_true)
-print("teacher's most probable states:", "".join("CFY"[s] for s in q_drive.argmax(-1)))
-assert q_drive[15].argmax() == 1 and q_drive[23].argmax() == 2
+print("teacher's most probable states:", "".join("CFY"[s] for s in q_teacher.argmax(-1)))
+assert q_teacher[15].argmax() == 1 and q_teacher[23].argmax() == 2

@@ -15,7 +15,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import cam, vagn
-from minimanc.viz.saliency import overlay
+from minimanc.viz.saliency import overlay, plot_overlay_attempts
 
 rng = np.random.default_rng(0)
 
@@ -248,6 +248,237 @@ for n in range(5):
 ### END HIDDEN TESTS
 
 # %% [markdown]
+# ## Exercise 6.6 — CAMs for a head with a hidden ReLU layer
+# The CAM identity needs a *linear* head after the pooling. Put a hidden ReLU
+# layer in it:
+#
+# $$z = \mathrm{gap}(f)\,U + b_1,\qquad p = \mathrm{ReLU}(z)\,V + c,$$
+#
+# with `U` `(K, D)`, `b1` `(D,)`, `V` `(D, M)`, `c` `(M,)`. This head is not
+# linear, yet for **each image** it is exactly linear in $\mathrm{gap}(f)$ near
+# that image (ReLU is piecewise linear), so each image has its own head weights
+# $w^{(n)}$ `(K, M)` and bias $b^{(n)}$ `(M,)` with
+# $p^{(n)} = \mathrm{gap}(f^{(n)})\, w^{(n)} + b^{(n)}$ and
+# $w^{(n)} = \partial p^{(n)} / \partial\, \mathrm{gap}(f^{(n)})$ (a unit with
+# $z_d = 0$ exactly counts as inactive).
+#
+# 1. `effective_head(features, U, b1, V, c)`: return `(w_eff, b_eff)`, shapes
+#    `(B, K, M)` and `(B, M)`. (2 points)
+# 2. `mlp_cams(features, U, b1, V, c)`: the CAMs of this head, shape
+#    `(B, M, H, W)`, built from each image's own weights, so that
+#    $\mathrm{mean}_{xy} M_i + b^{(n)}_i = p_i$ for every image. (2 points)
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Which hidden units pass their input on for this image, and which output 0
+# whatever small change you make to it?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Write ReLU(z) as $m \odot z$ with the image's 0/1 mask $m = [z > 0]$ and
+# expand $(m \odot (gU + b_1))V + c$; separate the part that multiplies $g$.
+# The batch axis now sits on the weights too (`np.einsum` with three operands).
+# </details>
+
+# %% solution id=ex06_6 title="CAMs for a head with a hidden ReLU layer"
+def effective_head(features, U, b1, V, c):
+    ### BEGIN SOLUTION
+    g = np.asarray(features, float).mean(axis=(1, 2))            # (B, K)
+    active = (g @ U + b1 > 0).astype(float)                      # (B, D)
+    w_eff = np.einsum("kd,bd,dm->bkm", U, active, V)
+    return w_eff, (active * b1) @ V + c
+    ### END SOLUTION
+
+
+def mlp_cams(features, U, b1, V, c):
+    ### BEGIN SOLUTION
+    w_eff, _ = effective_head(features, U, b1, V, c)
+    return np.einsum("bhwk,bkm->bmhw", np.asarray(features, float), w_eff)
+    ### END SOLUTION
+
+# %%
+def mlp_head(features, U, b1, V, c):
+    """The head of 6.6: p = ReLU(gap(f) U + b1) V + c, shape (B, M)."""
+    return np.maximum(np.asarray(features).mean(axis=(1, 2)) @ U + b1, 0.0) @ V + c
+
+# %% grade id=ex06_6_head_tests points=2
+U6, b16 = np.array([[1.0, -1.0], [0.0, 2.0]]), np.array([0.0, -3.0])
+V6, c6 = np.array([[1.0], [5.0]]), np.array([0.5])
+f6 = np.zeros((1, 1, 2, 2))              # B = 1, H = 1, W = 2, K = 2
+f6[0, 0, 0] = [2.0, 0.0]                 # gap(f) = (1, 0): z = (1, -4), only unit 0 is on
+w6, b6 = effective_head(f6, U6, b16, V6, c6)
+assert np.shape(w6) == (1, 2, 1) and np.shape(b6) == (1, 1), (
+    f"B = 1, K = 2, M = 1: expected shapes (1, 2, 1) and (1, 1); got {np.shape(w6)}, "
+    f"{np.shape(b6)}")
+assert np.allclose(w6[0, :, 0], [1.0, 0.0]) and np.allclose(b6, 0.5), (
+    f"gap(f) = (1, 0), z = (1, -4): expected w = [1, 0], b = 0.5 (unit 1 is off); "
+    f"got w = {np.ravel(w6)}, b = {np.ravel(b6)}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(660)  # the tests' own draws, not the notebook's rng
+fr = test_rng.normal(size=(6, 4, 5, 3))
+Ur, b1r = test_rng.normal(size=(3, 7)), test_rng.normal(size=7)
+Vr, cr = test_rng.normal(size=(7, 2)), test_rng.normal(size=2)
+w, b = (np.asarray(x) for x in effective_head(fr, Ur, b1r, Vr, cr))
+assert w.shape == (6, 3, 2) and b.shape == (6, 2), (
+    f"B = 6, K = 3, M = 2: expected (6, 3, 2) and (6, 2); got {w.shape}, {b.shape}")
+g = fr.mean(axis=(1, 2))
+for n in range(6):   # the Jacobian of the head at this image, by central differences
+    jac = np.stack([(mlp_head(fr[n:n + 1] + e, Ur, b1r, Vr, cr)
+                     - mlp_head(fr[n:n + 1] - e, Ur, b1r, Vr, cr))[0] / 2e-6
+                    for e in 1e-6 * np.eye(3)])
+    assert np.allclose(w[n], jac, atol=1e-6), (
+        f"image {n}: expected w_eff = dp/d gap(f) = {np.round(jac, 4).tolist()}; "
+        f"got {np.round(w[n], 4).tolist()}")
+    p_n = mlp_head(fr[n:n + 1], Ur, b1r, Vr, cr)[0]
+    assert np.allclose(g[n] @ w[n] + b[n], p_n), (
+        f"image {n}: expected gap(f) w_eff + b_eff = p = {np.round(p_n, 4).tolist()}; "
+        f"got {np.round(g[n] @ w[n] + b[n], 4).tolist()}")
+### END HIDDEN TESTS
+
+# %% grade id=ex06_6_cams_tests points=2
+M6 = np.asarray(mlp_cams(f6, U6, b16, V6, c6))
+assert M6.shape == (1, 1, 1, 2), (
+    f"B = 1, M = 1, a 1 x 2 feature map: expected CAMs of shape (1, 1, 1, 2); got {M6.shape}")
+assert np.allclose(M6[0, 0], [[2.0, 0.0]]), (
+    f"pixels f = (2, 0) and (0, 0), w_eff = (1, 0): expected [[2, 0]]; got {M6[0, 0]}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(661)  # the tests' own draws, not the notebook's rng
+fr = test_rng.normal(size=(5, 3, 4, 3))
+Ur, b1r = test_rng.normal(size=(3, 6)), test_rng.normal(size=6)
+Vr, cr = test_rng.normal(size=(6, 2)), test_rng.normal(size=2)
+got = np.asarray(mlp_cams(fr, Ur, b1r, Vr, cr))
+assert got.shape == (5, 2, 3, 4), f"B = 5, M = 2, 3 x 4: expected (5, 2, 3, 4); got {got.shape}"
+for n in range(5):   # the tests' own per-image weights: the units that are on, written out
+    z = fr[n].mean(axis=(0, 1)) @ Ur + b1r
+    w_n = sum(np.outer(Ur[:, d], Vr[d]) for d in range(6) if z[d] > 0)
+    ref = np.einsum("hwk,km->mhw", fr[n], w_n)
+    assert np.allclose(got[n], ref), (
+        f"image {n}: expected the CAMs sum_k w_eff[k, i] f_k with its own active units; "
+        f"largest difference {np.abs(got[n] - ref).max():.3g}")
+    b_n = sum(b1r[d] * Vr[d] for d in range(6) if z[d] > 0) + cr
+    p_n = mlp_head(fr[n:n + 1], Ur, b1r, Vr, cr)[0]
+    assert np.allclose(got[n].mean(axis=(1, 2)) + b_n, p_n), (
+        f"image {n}: expected mean_xy M + b_eff = p = {np.round(p_n, 4).tolist()}; "
+        f"got {np.round(got[n].mean(axis=(1, 2)) + b_n, 4).tolist()}")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 6.7 — open experiment: a head that looks at the ego
+# The tutorial's CNN put most of its pedestrian CAM on the ego vehicle and
+# called the map *ambiguous*. Make that ambiguity yourself. Below are scenes
+# with a road, the ego (red, always at the same place) and, in most, a vehicle
+# (yellow), and the hand-made features of "Putting it together": channel 0
+# fires on yellow, channel 1 on red. The head `W_VEH = [[2], [0]]`, `B_VEH = [0]`
+# predicts *vehicle present* and its CAM sits on the vehicle.
+#
+# Write `ego_head()` returning `(w, b)`, shapes `(2, 1)` and `(1,)`: a head that
+# makes **the same predictions** as `W_VEH`, `B_VEH` on every such scene (to
+# 1e-9; the tests draw scenes of their own), but whose raw CAM **peaks on the
+# ego** in every scene. Then check with your `centre_on_baseline` (6.4) where
+# the centred maps of your head peak. Checked automatically: the predictions,
+# the raw peaks on the ego, and the centred peaks back on the vehicle.
+# Then answer the written question below the grade cell.
+
+# %%
+EGO_BOX = (24, 14, 30, 18)    # rows 24-29, columns 14-17
+W_VEH, B_VEH = np.array([[2.0], [0.0]]), np.array([0.0])
+
+
+def ego_scene(rng, vehicle=True):
+    """A 32 x 32 raster: road, ego, and a 6 x 4 yellow vehicle at a random free place."""
+    img = np.zeros((32, 32, 3), np.uint8)
+    img[:, 8:24] = 255
+    img[24:30, 14:18] = (255, 0, 0)
+    box = None
+    if vehicle:
+        r, c = rng.integers(0, 18), rng.integers(8, 20)   # above the ego, on the road
+        img[r:r + 6, c:c + 4] = (255, 255, 0)
+        box = (int(r), int(c), int(r + 6), int(c + 4))
+    return img, box
+
+
+def hand_features(images):
+    """Channel 0: yellow pixels, channel 1: red pixels; shape (B, 32, 32, 2)."""
+    x = np.asarray(images) / 255.0
+    return np.stack([x[..., 0] * x[..., 1] * (1 - x[..., 2]), x[..., 0] * (1 - x[..., 1])],
+                    axis=-1)
+
+
+rng_e = np.random.default_rng(67)
+scenes = [ego_scene(rng_e, vehicle=k % 4 != 0) for k in range(40)]
+X_ego = np.stack([s[0] for s in scenes])
+F_ego = hand_features(X_ego)
+p_veh = F_ego.mean(axis=(1, 2)) @ W_VEH + B_VEH
+print("scenes:", X_ego.shape, "| with a vehicle:", sum(s[1] is not None for s in scenes))
+assert np.allclose(p_veh[:, 0][[s[1] is None for s in scenes]], 0.0)
+
+# %% solution id=ex06_7 title="Open experiment: a head whose CAM looks at the ego"
+def ego_head():
+    ### BEGIN SOLUTION
+    # the ego's red mass is the same in every scene (24 of 1024 pixels): any weight on
+    # the red channel adds a constant to p, which the bias takes back
+    w_red = 5.0                                   # above the yellow weight 2: the ego wins
+    return np.array([[2.0], [w_red]]), np.array([-w_red * 24 / 1024])
+    ### END SOLUTION
+
+# %% grade id=ex06_7_tests points=3
+w7, b7 = (np.asarray(x, dtype=float) for x in ego_head())
+assert w7.shape == (2, 1) and b7.shape == (1,), (
+    f"expected w of shape (2, 1) and b of shape (1,); got {w7.shape}, {b7.shape}")
+p7 = F_ego.mean(axis=(1, 2)) @ w7 + b7
+assert np.allclose(p7, p_veh, atol=1e-9, rtol=0), (
+    f"the 40 scenes: expected the predictions of W_VEH, B_VEH; largest difference "
+    f"{np.abs(p7 - p_veh).max():.2e}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(670)  # the tests' own scenes
+held = [ego_scene(test_rng, vehicle=k % 5 != 0) for k in range(30)]
+F_h = hand_features(np.stack([s[0] for s in held]))
+p_h = F_h.mean(axis=(1, 2)) @ w7 + b7
+ref_h = F_h.mean(axis=(1, 2)) @ W_VEH + B_VEH
+assert np.allclose(p_h, ref_h, atol=1e-9, rtol=0), (
+    f"the tests' own 30 scenes: expected the predictions of W_VEH, B_VEH; largest "
+    f"difference {np.abs(p_h - ref_h).max():.2e}")
+raw = F_h @ w7[:, 0]                              # (30, 32, 32), the CAMs written out
+centred = raw - raw.mean(axis=0)                  # the data-set baseline, written out
+r0, c0, r1, c1 = EGO_BOX
+for k, (_, box) in enumerate(held):
+    r, c = np.unravel_index(np.argmax(raw[k]), raw[k].shape)
+    assert r0 <= r < r1 and c0 <= c < c1, (
+        f"scene {k}: expected the raw CAM's peak on the ego (rows 24-29, cols 14-17); "
+        f"got ({r}, {c})")
+    if box is not None:
+        r, c = np.unravel_index(np.argmax(centred[k]), centred[k].shape)
+        assert box[0] <= r < box[2] and box[1] <= c < box[3], (
+            f"scene {k}: expected the centred CAM's peak on the vehicle {box}; got ({r}, {c})")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# **Written question (6.7).** Your head and `W_VEH` make the same predictions
+# on every scene; their raw CAMs disagree completely. Which one is "right", and
+# what does that say about reading a raw CAM as the answer to "where does the
+# network look"? Why does the data-set baseline (6.4) repair your head here,
+# and describe a data set on which it would *not* (where would the baseline
+# fail to tell the ego from the object)?
+
+# %% [markdown] answer id=ex06_7_w title="Which CAM is right" points=2
+# ### BEGIN SOLUTION
+# Neither is more right: the two heads are the same predictor on this data,
+# because the ego's red mass is identical in every scene, so w_red·(red mass) is
+# a constant that the bias cancels. The CAM splits p over pixels, but only up to
+# a map common to all images (6.4), so a raw CAM answers "where is the evidence
+# *in this decomposition*", not "where does the network look"; a reading needs
+# a reference. The data-set baseline subtracts the mean CAM, which contains the
+# ego's contribution exactly (it is the same in every scene): what remains is
+# what makes this scene differ from the average one — the vehicle. It fails
+# when the nuisance is not constant: an ego that moves or changes size, or an
+# object that is present in (almost) every training image, or correlated with
+# the label (e.g. the vehicle always next to a lane marking): its mean is then
+# not its value in the image, and the centred map keeps (or removes) mass that
+# does (or does not) belong to the object.
+# ### END SOLUTION
+
+# %% [markdown]
 # ## Putting it together
 # The library's versions from here on. A hand-made feature extractor with two
 # maps — "yellow pixels" (vehicles) and "red pixels" (the ego) — and a head
@@ -287,3 +518,31 @@ S = cam.q_state_saliency(maps, J)
 print("dq/dp =", np.round(J[0, :, 0], 4))
 assert J[0, 1, 0] > 0 and np.isclose(J[0, 0, 0], -J[0, 1, 0])
 assert tuple(cam.peak_location(S[0, 1])) == (int(r), int(c))
+
+# %% [markdown]
+# ## Your figure
+# One scene of 6.7, with maps made by **your** functions: the vehicle head's CAM
+# (your `class_activation_maps`, normalised by your `normalise`), your
+# `ego_head`'s raw CAM (it should sit on the ego) and the same map centred by
+# your `centre_on_baseline` over the 40 scenes (back on the vehicle). A
+# function that raises is named, and the library's map (where there is one) drawn.
+
+# %%
+k_fig = next(k for k, (_, box) in enumerate(scenes) if box is not None)
+
+
+def ego_cams():
+    """CAMs (40, 1, 32, 32) of your ego_head over the 40 scenes, and its bias."""
+    w, b = ego_head()
+    return class_activation_maps(F_ego, np.asarray(w)), np.asarray(b)
+
+
+plot_overlay_attempts(X_ego[k_fig], [
+    ("vehicle CAM", lambda: normalise(class_activation_maps(F_ego[k_fig:k_fig + 1], W_VEH)[0, 0]),
+     cam.class_activation_maps(F_ego[k_fig:k_fig + 1], W_VEH)[0, 0]),
+    ("ego head, raw", lambda: ego_cams()[0][k_fig, 0], None),
+    ("ego head, centred", lambda: centre_on_baseline(*ego_cams()[:1], ego_cams()[0],
+                                                     ego_cams()[1])[0][k_fig, 0], None)])
+plt.show()
+print("the vehicle in this scene:", scenes[k_fig][1])
+
