@@ -42,19 +42,25 @@ assert maps.shape == (2, 2, 4, 5), (
     f"expected CAMs of shape (B, M, H, W) = (2, 2, 4, 5); got {maps.shape}")
 p = f.mean(axis=(1, 2)) @ w + b
 assert np.allclose(maps.mean(axis=(2, 3)) + b, p), (
-    "the CAM identity mean_xy M_i + b_i = p_i must hold (p = gap(f) @ w + b)")
+    f"random f (2, 4, 5, 3): expected the CAM identity mean_xy M_i + b_i = p_i = "
+    f"{np.round(p, 4).tolist()}; got {np.round(maps.mean(axis=(2, 3)) + b, 4).tolist()}")
 assert np.allclose(maps[1, 0], f[1] @ w[:, 0]), (
-    "M_0 of image 1 must be sum_k w[k, 0] f_k, i.e. f[1] @ w[:, 0]")
+    f"image 1, predicate 0: expected sum_k w[k, 0] f_k = f[1] @ w[:, 0], e.g. pixel (0, 0) "
+    f"{f[1, 0, 0] @ w[:, 0]:.4f}; got {maps[1, 0, 0, 0]:.4f}")
 ### BEGIN HIDDEN TESTS
-fr, wr = rng.normal(size=(3, 6, 2, 5)), rng.normal(size=(5, 4))
+test_rng = np.random.default_rng(610)  # the tests' own draws, not the notebook's rng
+fr, wr = test_rng.normal(size=(3, 6, 2, 5)), test_rng.normal(size=(5, 4))
 ref = np.stack([[fr[n] @ wr[:, m] for m in range(4)] for n in range(3)])
-assert np.allclose(class_activation_maps(fr, wr), ref), (
-    "CAMs of random features must equal f[n] @ w[:, m] for every image n and predicate m")
+got = np.asarray(class_activation_maps(fr, wr))
+assert got.shape == ref.shape and np.allclose(got, ref), (
+    f"random f (3, 6, 2, 5), w (5, 4): expected f[n] @ w[:, m] for every image n and "
+    f"predicate m, shape {ref.shape}; got shape {got.shape}"
+    + (f", largest difference {np.abs(got - ref).max():.3g}" if got.shape == ref.shape else ""))
 one = np.zeros((1, 2, 2, 2))
 one[0, 1, 0] = [1.0, 2.0]
-assert np.allclose(class_activation_maps(one, np.array([[3.0], [-1.0]]))[0, 0],
-                   [[0.0, 0.0], [1.0, 0.0]]), (
-    "one pixel with f = (1, 2) and w = (3, -1): M = 3 - 2 = 1 there, 0 elsewhere")
+got = np.asarray(class_activation_maps(one, np.array([[3.0], [-1.0]])))[0, 0]
+assert np.allclose(got, [[0.0, 0.0], [1.0, 0.0]]), (
+    f"one pixel with f = (1, 2) and w = (3, -1): expected [[0, 0], [1, 0]]; got {got.tolist()}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -78,16 +84,22 @@ s = np.array([[1.0, 3.0], [5.0, 2.0]])
 assert np.allclose(normalise(s), [[0.0, 0.5], [1.0, 0.25]]), (
     f"(s - 1) / (5 - 1) = [[0, 0.5], [1, 0.25]]; got {normalise(s)}")
 stack = np.stack([s, 10 * s - 4])
-assert np.allclose(normalise(stack), normalise(s)[None]), (
-    "each map of a stack is normalised separately: 10 s - 4 normalises like s")
-flat = normalise(np.full((3, 3), 7.0))
+got = np.asarray(normalise(stack))
+assert np.allclose(got, normalise(s)[None]), (
+    f"the stack [s, 10 s - 4], each map on its own: expected both [[0, 0.5], [1, 0.25]]; "
+    f"got {np.round(got, 4).tolist()}")
+flat = np.asarray(normalise(np.full((3, 3), 7.0)))
 assert np.all(np.isfinite(flat)) and np.allclose(flat, 0.0), (
-    "a constant map must become zeros, not nan")
+    f"a constant 3 x 3 map: expected zeros (not nan); got {flat.tolist()}")
 ### BEGIN HIDDEN TESTS
-sr = rng.normal(size=(2, 3, 6, 5))
+test_rng = np.random.default_rng(620)  # the tests' own draws, not the notebook's rng
+sr = test_rng.normal(size=(2, 3, 6, 5))
 lo, hi = sr.min(axis=(2, 3), keepdims=True), sr.max(axis=(2, 3), keepdims=True)
-assert np.allclose(normalise(sr), (sr - lo) / (hi - lo)), (
-    "a (2, 3, 6, 5) stack must be normalised over its last two axes only")
+got, ref = np.asarray(normalise(sr)), (sr - lo) / (hi - lo)
+assert got.shape == ref.shape and np.allclose(got, ref), (
+    f"a (2, 3, 6, 5) stack, over the last two axes only: expected map (0, 0) to span "
+    f"[0, 1]; got shape {got.shape}, map (0, 0) from {got[0, 0].min():.3f} to "
+    f"{got[0, 0].max():.3f}" if got.ndim == 4 else f"expected shape (2, 3, 6, 5); got {got.shape}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -124,18 +136,25 @@ assert np.allclose(gc, [[[1.0, 0.0], [0.0, 0.0]]]), (
 fr = rng.random((3, 4, 5, 6))
 wr = rng.normal(size=(6, 2))
 gr = np.broadcast_to(wr[:, 1] / 20, fr.shape)   # d p_1 / d f for conv -> GAP -> linear
-assert np.allclose(grad_cam(fr, gr), np.maximum(fr @ wr[:, 1], 0) / 20), (
-    "with the gradient of conv -> GAP -> linear, Grad-CAM must equal ReLU(CAM_1) / (H W)")
+got, ref = np.asarray(grad_cam(fr, gr)), np.maximum(fr @ wr[:, 1], 0) / 20
+assert got.shape == ref.shape and np.allclose(got, ref), (
+    f"the gradient of conv -> GAP -> linear (4 x 5 features): expected ReLU(CAM_1) / (H W), "
+    f"e.g. image 0, pixel (0, 0): {ref[0, 0, 0]:.4f}; got "
+    f"{got[0, 0, 0] if got.ndim == 3 else got.shape}")
 ### BEGIN HIDDEN TESTS
-fr, gr = rng.normal(size=(2, 3, 4, 5)), rng.normal(size=(2, 3, 4, 5))
+test_rng = np.random.default_rng(630)  # the tests' own draws, not the notebook's rng
+fr, gr = test_rng.normal(size=(2, 3, 4, 5)), test_rng.normal(size=(2, 3, 4, 5))
 ref = np.zeros((2, 3, 4))
 for n in range(2):
     a = [gr[n, :, :, k].sum() / 12 for k in range(5)]
     for y in range(3):
         for x in range(4):
             ref[n, y, x] = max(0.0, sum(a[k] * fr[n, y, x, k] for k in range(5)))
-assert np.allclose(grad_cam(fr, gr), ref), (
-    "random features and gradients: each image uses its own alpha_k = mean_xy g_k")
+got = np.asarray(grad_cam(fr, gr))
+assert got.shape == ref.shape and np.allclose(got, ref), (
+    f"random features and gradients, each image with its own alpha_k = mean_xy g_k: expected "
+    f"image 1 = {np.round(ref[1], 3).tolist()}; got "
+    f"{np.round(got[1], 3).tolist() if got.shape == ref.shape else got.shape}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -168,15 +187,23 @@ assert np.allclose(b_new, [3.5]), f"new bias = 0.5 + mean(baseline) = 0.5 + 3 = 
 cams_r, train_r = rng.normal(size=(4, 3, 5, 6)), rng.normal(size=(9, 3, 5, 6))
 b_r = rng.normal(size=3)
 c, b_new = centre_on_baseline(cams_r, train_r, b_r)
-assert np.allclose(c.mean(axis=(-2, -1)) + b_new, cams_r.mean(axis=(-2, -1)) + b_r), (
-    "the predictions must not change: mean_xy(centred) + new bias = mean_xy(cams) + b")
+p_before = cams_r.mean(axis=(-2, -1)) + b_r
+p_after = np.asarray(c).mean(axis=(-2, -1)) + b_new
+assert np.allclose(p_after, p_before), (
+    f"random CAMs: expected unchanged predictions mean_xy(centred) + new bias = "
+    f"{np.round(p_before[0], 4)} for image 0; got {np.round(p_after[0], 4)}")
 ### BEGIN HIDDEN TESTS
 c_tr, _ = centre_on_baseline(train_r, train_r, b_r)
-assert np.allclose(c_tr.mean(axis=0), 0.0), "the centred training CAMs must average to zero"
-ego = rng.normal(size=(3, 5, 6))                 # a map common to every image
+worst = np.abs(np.asarray(c_tr).mean(axis=0)).max()
+assert worst < 1e-9, (
+    f"the training CAMs centred on their own baseline: expected mean 0; got up to {worst:.3g}")
+test_rng = np.random.default_rng(640)  # the tests' own draws, not the notebook's rng
+ego = test_rng.normal(size=(3, 5, 6))            # a map common to every image
 c2, b2 = centre_on_baseline(cams_r + ego, train_r + ego, b_r - ego.mean(axis=(-2, -1)))
 assert np.allclose(c2, c) and np.allclose(b2, b_new), (
-    "adding the same map to every CAM (and its mean to -b) must not change the centred result")
+    f"the same map added to every CAM (its mean taken from b): expected the same centred "
+    f"CAMs and bias {np.round(b_new, 4)}; got bias {np.round(b2, 4)}, CAMs off by up to "
+    f"{np.abs(np.asarray(c2) - c).max():.3g}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -195,10 +222,20 @@ assert np.allclose(c2, c) and np.allclose(b2, b_new), (
 # $h = 10^{-6}$, every image at once since the rows of `p` are independent —
 # or with `engine("numpy").grad` of $\sum_{batch} q_j$, one $j$ at a time.
 #
-# *Hint.* Two checks you can do yourself: every $\sum_j S_j(x, y)$ is zero
-# (the $q_j$ sum to one whatever $p$ is, so $\sum_j J_{ji} = 0$); and with
-# $N = 2$, $M = 1$, $W_0 = \begin{pmatrix}1 & 0\\ 0 & 0\end{pmatrix}$,
-# $q_{prev} = (1, 0)$ you get $q_0 = \sigma(p)$, so $J_{00} = \sigma(p)(1 - \sigma(p))$.
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# $J$ has one column per predicate: how much does q move when only $p_i$
+# moves? The rows of `p` are independent images, so one perturbed call of
+# `vagn.step` serves the whole batch.
+# </details>
+#
+# <details><summary>Hint 2 (two checks you can do yourself)</summary>
+#
+# Every $\sum_j S_j(x, y)$ is zero (the $q_j$ sum to one whatever $p$ is, so
+# $\sum_j J_{ji} = 0$); and with $N = 2$, $M = 1$,
+# $W_0 = \begin{pmatrix}1 & 0\\ 0 & 0\end{pmatrix}$, $q_{prev} = (1, 0)$ you get
+# $q_0 = \sigma(p)$, so $J_{00} = \sigma(p)(1 - \sigma(p))$.
+# </details>
 
 # %% solution id=ex06_5 title="Per-q-state saliency" forbids="minimanc.cam.vagn_jacobian,minimanc.cam.q_state_saliency,minimanc.cam.explain,minimanc.models.explain"  # noqa: E501
 def q_saliency(q_prev, p, W, cams):
@@ -228,8 +265,10 @@ assert np.allclose(S1[0, 1], -0.1875 * M1[0, 0], atol=1e-6), (
 Wr, pr = rng.normal(size=(3, 4, 4)), rng.normal(size=(5, 3))
 cams_r = rng.normal(size=(5, 3, 6, 7))
 Sr = q_saliency(vagn.uniform_state(4), pr, Wr, cams_r)
-assert np.allclose(Sr.sum(axis=1), 0.0, atol=1e-6), (
-    "sum_j S_j must vanish at every pixel: the q_j sum to one, so sum_j dq_j/dp_i = 0")
+worst = np.abs(np.asarray(Sr).sum(axis=1)).max()
+assert worst < 1e-6, (
+    f"random W (3, 4, 4), 5 images: expected sum_j S_j = 0 at every pixel (the q_j sum to "
+    f"one, so sum_j dq_j/dp_i = 0); got up to {worst:.3g}")
 ### BEGIN HIDDEN TESTS
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
@@ -237,14 +276,15 @@ import jax.numpy as jnp  # noqa: E402
 from minimanc import engine  # noqa: E402
 
 engine("jax")                               # turns on float64 in JAX
-q0 = rng.dirichlet(np.ones(4))
-Sr = q_saliency(q0, pr, Wr, cams_r)
+q0 = np.random.default_rng(650).dirichlet(np.ones(4))
+Sr = np.asarray(q_saliency(q0, pr, Wr, cams_r))
 for n in range(5):
     J = np.asarray(jax.jacobian(lambda pp: vagn.step(q0, pp, Wr, xp=jnp))(jnp.asarray(pr[n])))
-    assert J.shape == (4, 3)
     ref = np.einsum("ji,ihw->jhw", J, cams_r[n])
     assert np.allclose(Sr[n], ref, atol=1e-6), (
-        f"image {n}: S_j must equal sum_i (dq_j/dp_i) M_i with JAX's Jacobian of eq. 9")
+        f"image {n}, a random q_prev: expected S_j = sum_i (dq_j/dp_i) M_i (JAX's Jacobian of "
+        f"eq. 9), e.g. S at pixel (0, 0) = {np.round(ref[:, 0, 0], 5)}; got "
+        f"{np.round(Sr[n][:, 0, 0], 5)}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
