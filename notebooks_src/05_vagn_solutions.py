@@ -655,6 +655,8 @@ q_teacher = vagn.rollout(vagn.uniform_state(3), drive, W_true)
 
 def q_of(name):
     """q on the drive for the automaton this notebook bound to ``name`` (5.7)."""
+    if name not in globals():
+        raise NotImplementedError(f"{name} comes from 5.7's grade cell (blind_experiment)")
     return vagn.rollout(vagn.uniform_state(3), drive, np.asarray(globals()[name]))
 
 

@@ -50,7 +50,7 @@ def test_automaton_panels_fall_back_to_the_reference():
     titles = [ax.get_title() for ax in axes]
     assert titles[0] == "T (yours)" and titles[3] == "q (yours)"
     assert titles[1].startswith("todo: reference\nyours: NotImplementedError")
-    assert titles[2].startswith("bad: reference\nyours: ")       # not a distribution
+    assert titles[2].startswith("bad: nothing\nyours: ")         # not a distribution
     assert axes[1].patches or axes[1].collections               # the reference was drawn
 
 

@@ -243,7 +243,10 @@ def plot_automaton_attempts(
             ax.clear()
             if reference is not None:
                 draw(np.asarray(reference), ax=ax, labels=labels, **extra)
-            ax.set_title(f"{title}: reference\nyours: {error[:60]}", fontsize=7)
+            else:
+                ax.set_axis_off()
+            ax.set_title(f"{title}: {'reference' if reference is not None else 'nothing'}"
+                         f"\nyours: {error[:60]}", fontsize=7)
         else:
             ax.set_title(f"{title} (yours)")
     return axes
