@@ -21,6 +21,15 @@
 #   **DMP**, a stable point attractor towards the goal (eqs. 1–2, 10–11) —
 #   the motion controller;
 # * integrating the DMP once gives the controls: speed and yaw rate.
+#
+# **Objectives.** After this chapter you can
+# - describe the MANC stack (CNN predicates → vAGN automaton → DMP) and the chapter that
+#   builds each piece
+# - work an exercises notebook and grade it with `minimanc grade`
+#
+# **Prerequisites.** Python and NumPy basics; no earlier chapter.
+#
+# **Time.** About 15 minutes for the tutorial and 15 for the exercises.
 
 # %%
 import matplotlib.pyplot as plt
@@ -135,9 +144,10 @@ assert "NotImplementedError" in stub and not top_level
 #   and ζ → 0 needs β ≫ α (chapter 3).
 # * **Positive gains are not enough.** The paper argues stability from ζ > 0
 #   (sigmoid outputs); that holds for the continuous system, but the step of
-#   0.5 s can diverge (α = 25, β = α/4, one explicit Euler step multiplies the
-#   error by −5.25). The course confines the gains to a box in which its
-#   integrator is stable (chapter 3).
+#   0.5 s can diverge (α = 25, β = α/4: the explicit Euler step matrix has
+#   spectral radius 5.25 — a Jordan block with the double eigenvalue −5.25, so
+#   the error grows like k·5.25ᵏ after k steps). The course confines the gains to
+#   a box in which its integrator is stable (chapter 3).
 # * **The goals of eq. 10** are "a moving target along the center lane"
 #   without a rule; ours are a lane point 4 m + 2 s · v₀ ahead and the
 #   pure-pursuit heading, and the control is the mean velocity over one DMP

@@ -17,6 +17,15 @@
 # (3) broadcasting, (4) the tape, (5) the topological sort, (6) writing a
 # primitive, (7) pytrees and a tiny training loop, (8) side by side with JAX,
 # (9) what the engine does not do.
+#
+# **Objectives.** After this chapter you can
+# - derive and write vector-Jacobian products, also across broadcasting
+# - build reverse-mode `grad` from a tape and its topological order
+# - check any gradient against central differences
+#
+# **Prerequisites.** Chapter 0; NumPy broadcasting; the chain rule.
+#
+# **Time.** About 60 minutes for the tutorial and 120 for the exercises.
 
 # %%
 import math

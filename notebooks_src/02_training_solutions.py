@@ -297,8 +297,13 @@ assert np.allclose(dfeat, np.repeat(np.repeat(gy[:, None, None, :], 4, 1), 5, 2)
 assert np.isclose(np.sum(gap_forward(feat) * gy), np.sum(feat * dfeat)), "<gap(f), g> = <f, dfeat>"
 ### BEGIN HIDDEN TESTS
 one = rng.standard_normal((1, 1, 1, 4))
-assert np.allclose(gap_forward(one), one[:, 0, 0]), "a 1x1 image is its own mean"
-assert np.allclose(gap_backward(np.ones((2, 3)), (2, 8, 2, 3)), 1 / 16), "1 / (8 * 2) everywhere"
+got3 = gap_forward(one)
+assert np.allclose(got3, one[:, 0, 0]), \
+    f"a 1 x 1 image: expected its own pixel {one[:, 0, 0].round(4).tolist()}, got {got3}"
+got3 = gap_backward(np.ones((2, 3)), (2, 8, 2, 3))
+assert np.shape(got3) == (2, 8, 2, 3) and np.allclose(got3, 1 / 16), \
+    (f"g = ones (2, 3), x (2, 8, 2, 3): expected 0.0625 at every pixel, got shape "
+     f"{np.shape(got3)}, values {np.unique(np.round(got3, 6))[:4].tolist()}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -353,7 +358,9 @@ for t in range(1, 8):
     theta, m, v = adam_step(theta, gs[t - 1], m, v, t, lr=0.01, b1=0.5, b2=0.9, eps=1e-3)
 for k in range(3):
     ref = adam_reference(1.0, gs[:, k], 0.01, 0.5, 0.9, 1e-3)
-    assert np.allclose([theta[k], m[k], v[k]], ref), f"coordinate {k}: theta, m, v after 7 steps"
+    assert np.allclose([theta[k], m[k], v[k]], ref), \
+        (f"lr=0.01, b1=0.5, b2=0.9, eps=1e-3, coordinate {k} after 7 steps: expected (theta, m, v) "
+         f"= {np.round(ref, 6).tolist()}, got {np.round([theta[k], m[k], v[k]], 6).tolist()}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -365,9 +372,21 @@ for k in range(3):
 # element sums over. Draw `w` with **one** call
 # `rng.standard_normal((kh, kw, c_in, c_out))` and scale it.
 #
-# *Hint.* If the depth test of the grade cell finds the signal dying (or
-# exploding) after ten layers, your $n_\text{in}$ is $c_\text{in}$ alone (or
-# $c_\text{out}$): the window is $k_h k_w c_\text{in}$ numbers.
+# The grade cell checks what He promises: a convolution of a standard-normal
+# image multiplies the second moment of every output by 2 (ReLU then halves it).
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# $n_\text{in}$ is the number of products summed into **one** output element,
+# $y[n, i, j, o]$ — not the number of channels.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Write one output element as a sum (the formula of the tutorial's section 3)
+# and count its terms; then ask which of $k_h, k_w, c_\text{in}, c_\text{out}$
+# the count does not depend on.
+# </details>
 
 # %% solution id=ex02_5 title="He initialisation" forbids="minimanc.layers.init_conv"
 def he_conv_init(rng, kh, kw, c_in, c_out):
@@ -379,24 +398,32 @@ def he_conv_init(rng, kh, kw, c_in, c_out):
 # %% grade id=ex02_5_tests points=2
 p5 = he_conv_init(np.random.default_rng(0), 3, 3, 3, 8)
 assert set(p5) == {"w", "b"}, f"keys 'w' and 'b' expected, got {sorted(p5)}"
-assert p5["w"].shape == (3, 3, 3, 8) and p5["b"].shape == (8,), "w (3, 3, 3, 8) HWIO, b (8,)"
-assert np.all(p5["b"] == 0), "the bias starts at zero"
-# sigma = sqrt(2 / (3 * 3 * 3)): one output sums over a 3x3 window of 3 channels
-same_draws = math.sqrt(2 / 27) * np.random.default_rng(0).standard_normal((3, 3, 3, 8))
-assert np.allclose(p5["w"], same_draws), "w = sqrt(2 / (kh kw c_in)) * standard normal draws"
+assert p5["w"].shape == (3, 3, 3, 8) and p5["b"].shape == (8,), \
+    f"kh = kw = c_in = 3, c_out = 8: expected w (3, 3, 3, 8), b (8,), got {p5['w'].shape}, " \
+    f"{p5['b'].shape}"
+assert np.all(p5["b"] == 0), f"expected a zero bias, got {p5['b']}"
+unit = np.random.default_rng(0).standard_normal((3, 3, 3, 8))
+scale5 = p5["w"] / unit
+assert np.allclose(scale5, scale5.flat[0]), \
+    "expected one rng.standard_normal((kh, kw, c_in, c_out)) draw times one number"
 big = he_conv_init(np.random.default_rng(1), 3, 3, 64, 128)["w"]
-assert abs(big.std() / math.sqrt(2 / 576) - 1) < 0.03, \
-    f"std sqrt(2/576) = 0.0589 expected, got {big.std():.4f}"
+# E[y^2] for a standard-normal image: the squared norm of one output's weights
+gain = float(np.mean(np.sum(big ** 2, axis=(0, 1, 2))))
+assert abs(gain - 2) < 0.06, \
+    f"3 x 3 kernel, 64 -> 128 channels: expected E[y^2] / E[x^2] = 2 (He), got {gain:.3f}"
 ### BEGIN HIDDEN TESTS
 rng5 = np.random.default_rng(2)
 h5 = rng5.standard_normal((256, 128))
 for _ in range(10):  # ten 1x1 convolutions with ReLU: He keeps the scale of the signal
     h5 = np.maximum(h5 @ he_conv_init(rng5, 1, 1, 128, 128)["w"][0, 0], 0)
-assert 0.3 < h5.std() < 3, f"after 10 ReLU layers the std should stay O(1), got {h5.std():.3g}"
+assert 0.3 < h5.std() < 3, \
+    f"ten 1 x 1 convolutions 128 -> 128 with ReLU: expected a std of order 1, got {h5.std():.3g}"
 tall = he_conv_init(np.random.default_rng(3), 5, 1, 40, 7)["w"]
-assert tall.shape == (5, 1, 40, 7), "kh=5, kw=1: shape (5, 1, 40, 7)"
-assert np.allclose(tall, math.sqrt(2 / 200) * np.random.default_rng(3).standard_normal(
-    (5, 1, 40, 7))), "n_in = kh kw c_in = 200 (c_out does not enter)"
+assert tall.shape == (5, 1, 40, 7), f"kh=5, kw=1: expected shape (5, 1, 40, 7), got {tall.shape}"
+want5 = math.sqrt(2 / 200) * np.random.default_rng(3).standard_normal((5, 1, 40, 7))
+assert np.allclose(tall, want5), \
+    (f"kh=5, kw=1, c_in=40, c_out=7: expected the draws times {math.sqrt(2 / 200):.5f}, got "
+     f"times {float(tall.flat[0] / want5.flat[0] * math.sqrt(2 / 200)):.5f}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -431,12 +458,18 @@ c6, lr6, mu6 = np.array([1.0, -3.0]), 0.05, 0.8
 th6, v6 = np.zeros(2), np.zeros(2)
 for t6 in range(1, 21):
     th6, v6 = momentum_step(th6, c6, v6, lr6, mu6)
-    assert np.allclose(v6, c6 * (1 - mu6 ** t6) / (1 - mu6)), f"velocity at step {t6}"
+    want6 = c6 * (1 - mu6 ** t6) / (1 - mu6)
+    assert np.allclose(v6, want6), \
+        (f"constant gradient {c6.tolist()}, mu = 0.8, step {t6}: expected the velocity "
+         f"{want6.round(6).tolist()}, got {np.round(v6, 6).tolist()}")
 want6 = -lr6 * c6 * sum((1 - mu6 ** k) / (1 - mu6) for k in range(1, 21))
-assert np.allclose(th6, want6), "theta after 20 steps of a constant gradient"
+assert np.allclose(th6, want6), \
+    (f"constant gradient, lr = 0.05, mu = 0.8: expected theta {want6.round(6).tolist()} after 20 "
+     f"steps, got {np.round(th6, 6).tolist()}")
 thn, vn = momentum_step(np.array([1.0]), np.array([2.0]), np.array([1.0]), 0.1, 0.5, True)
-assert np.allclose(vn, [2.5]) and np.allclose(thn, [1 - 0.1 * (2 + 0.5 * 2.5)]), \
-    "Nesterov: v = 0.5 * 1 + 2 = 2.5, theta = 1 - 0.1 (2 + 0.5 * 2.5) = 0.675"
+assert np.allclose(vn, [2.5]) and np.allclose(thn, [0.675]), \
+    (f"Nesterov, theta = 1, g = 2, v = 1, lr = 0.1, mu = 0.5: expected (theta, v) = "
+     f"(0.675, 2.5), got ({float(thn[0]):.6g}, {float(vn[0]):.6g})")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -451,8 +484,18 @@ assert np.allclose(vn, [2.5]) and np.allclose(thn, [1 - 0.1 * (2 + 0.5 * 2.5)]),
 # `(N, Ho Wo, kh kw, C)`) and reshapes to `(N Ho Wo, kh kw C)`, so that
 # `im2col(x, ...) @ w.reshape(kh * kw * C, O)` is the convolution.
 #
-# *Hint.* `np.arange(ho)` repeated `wo` times gives $i$ for every row,
-# `np.tile(np.arange(wo), ho)` gives $j$; broadcast them against the offsets.
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Row $i W_o + j$ and column $u k_w + v$ of both index arrays are fixed by four
+# integers; build an array of $i$ (and of $j$) for every row and of $u$ (and of
+# $v$) for every column, and let broadcasting add them.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# `np.repeat(np.arange(ho), wo)` counts $i$ row by row, `np.tile(np.arange(wo), ho)`
+# counts $j$; make them columns (`[:, None]`) and the offsets rows (`[None, :]`).
+# </details>
 
 # %% solution id=ex02_7 title="im2col indices" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv2d,minimanc.autodiff.nn._im2col,minimanc.autodiff.nn._conv_fwd"  # noqa: E501
 def im2col_indices(h, w, kh, kw, stride=1, padding=0):
@@ -511,9 +554,13 @@ for kh, kw, s, p in [(3, 3, 1, 1), (2, 3, 2, 0), (3, 2, 3, 2), (1, 1, 1, 0)]:
     w7 = rng.standard_normal((kh, kw, 3, 4))
     col7 = im2col(x7, kh, kw, s, p)
     ho7, wo7 = (7 + 2 * p - kh) // s + 1, (6 + 2 * p - kw) // s + 1
-    assert col7.shape == (2 * ho7 * wo7, kh * kw * 3), f"col shape for k=({kh},{kw}) s={s}"
+    assert col7.shape == (2 * ho7 * wo7, kh * kw * 3), \
+        (f"x (2, 7, 6, 3), kernel ({kh}, {kw}), stride {s}, padding {p}: expected col shape "
+         f"{(2 * ho7 * wo7, kh * kw * 3)}, got {col7.shape}")
     y7 = (col7 @ w7.reshape(kh * kw * 3, 4)).reshape(2, ho7, wo7, 4)
-    assert np.allclose(y7, loop_conv7(x7, w7, s, p)), f"col @ W is the conv, k=({kh},{kw}) s={s}"
+    err7 = np.abs(y7 - loop_conv7(x7, w7, s, p)).max()
+    assert err7 < 1e-9, (f"kernel ({kh}, {kw}), stride {s}, padding {p}: expected col @ W to be "
+                         f"the convolution, got a max error of {err7:.3g}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -556,14 +603,18 @@ def xent_plain(z):  # the definition, with a row-wise log-sum-exp written out
     return -np.mean([z[b, y8[b]] - math.log(sum(math.exp(v) for v in z[b])) for b in range(5)])
 
 
-assert np.isclose(loss8, xent_plain(z8)), "the loss is the mean of -log softmax(z_b)[y_b]"
+assert np.isclose(loss8, xent_plain(z8)), \
+    f"5 x 4 logits: expected the loss {xent_plain(z8):.6f}, got {loss8!r}"
 fd8 = np.zeros_like(z8)
 for idx in np.ndindex(z8.shape):
     e8 = np.zeros_like(z8)
     e8[idx] = 1e-6
     fd8[idx] = (xent_plain(z8 + e8) - xent_plain(z8 - e8)) / 2e-6
-assert np.allclose(dz8, fd8, atol=1e-7), "dz must match central differences of the loss"
-assert np.allclose(dz8.sum(axis=1), 0), "each row of (softmax - onehot) sums to zero"
+assert np.allclose(dz8, fd8, atol=1e-7), \
+    (f"5 x 4 logits: expected dz = the central differences, got a max error of "
+     f"{np.abs(dz8 - fd8).max():.3g}")
+assert np.allclose(dz8.sum(axis=1), 0), \
+    f"5 x 4 logits: expected rows of dz summing to 0, got {np.round(dz8.sum(axis=1), 6).tolist()}"
 ### END HIDDEN TESTS
 
 # %% [markdown]

@@ -22,6 +22,16 @@
 # loops, (4) im2col, (5) the backward pass of a convolution, (6) global average
 # pooling, (7) optimisers: SGD, momentum, Adam, (8) a toy BEV task,
 # (9) training, (10) the same model on JAX.
+#
+# **Objectives.** After this chapter you can
+# - write a convolution's forward and backward passes (by loops and by im2col)
+# - initialise layers so that the signal survives depth (He, Glorot)
+# - implement SGD, momentum and Adam on pytrees and train a small CNN
+#
+# **Prerequisites.** Chapter 1 (VJPs, `grad`); matrix products; what a loss and a gradient
+# step are.
+#
+# **Time.** About 60 minutes for the tutorial and 150 for the exercises.
 
 # %%
 import time

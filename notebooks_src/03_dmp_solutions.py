@@ -13,9 +13,11 @@
 # %%
 import math
 
+import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import dmp
+from minimanc.viz.exercises import plot_stability_boundary
 
 rng = np.random.default_rng(0)
 
@@ -487,3 +489,23 @@ for _ in range(6):  # six explicit Euler steps of dt = 0.5, written out
     errors.append(y)
 print("errors:", " ".join(f"{e:.1f}" for e in errors))
 assert abs(errors[-1]) > 1e3
+
+# %% [markdown]
+# ## Your figure
+# The stability boundary at dt = 0.5 s with one sub-step, drawn from **your**
+# bounds of 3.3 (explicit Euler), 3.5 (semi-implicit Euler) and 3.6 (RK2) as
+# markers over the library's `dmp.max_stable_alpha` (lines; RK2 has no library
+# line: compare it with Euler's). A gain pair is stable below its curve. A wrong
+# bound shows as markers off their line; a function that still raises is named
+# in the title.
+
+# %%
+plot_stability_boundary(
+    {"your explicit Euler": lambda b: max_stable_alpha_euler(b, 0.5),
+     "your semi-implicit Euler": lambda b: max_stable_alpha_semi_implicit(b, 0.5),
+     "your RK2 (Heun)": lambda b: max_stable_alpha_rk2(b, 0.5)},
+    {"explicit Euler": lambda b: dmp.max_stable_alpha(b, 0.5, "euler", 1),
+     "semi-implicit Euler": lambda b: dmp.max_stable_alpha(b, 0.5, "semi_implicit", 1)},
+    np.linspace(0.1, 8.0, 40), 0.5,
+)
+plt.show()

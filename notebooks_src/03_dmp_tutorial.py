@@ -29,6 +29,17 @@
 # how do α and β shape the motion; when does the *continuous* system converge;
 # and when does the *discrete* step we actually compute (at the data rate,
 # $\Delta t = 0.5$ s) converge — which is a different question.
+#
+# **Objectives.** After this chapter you can
+# - read the damping ratio and the convergence of the DMP's point attractor (eqs. 10–13)
+# - decide when a discrete integrator step is stable (its spectral radius) and bound the
+#   gains
+# - fit a forcing term by locally weighted regression
+#
+# **Prerequisites.** Chapter 1; linear second-order ODEs and the eigenvalues of a 2×2
+# matrix.
+#
+# **Time.** About 60 minutes for the tutorial and 150 for the exercises.
 
 # %%
 import warnings

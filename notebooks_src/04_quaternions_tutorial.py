@@ -28,6 +28,15 @@
 # Convention: arrays `(..., 4)` in the order **(w, x, y, z)** (scipy uses
 # (x, y, z, w)); a rotation by angle θ about the unit axis n is
 # $q = (\cos\tfrac\theta2, \sin\tfrac\theta2\, n)$.
+#
+# **Objectives.** After this chapter you can
+# - compute quaternion products, log and exp maps (eqs. 3–6) and orientation errors
+# - integrate the quaternion DMP (eq. 2) and avoid its traps (two quaternions per rotation,
+#   the log at −1, NaN gradients)
+#
+# **Prerequisites.** Chapter 3 (the point-attractor DMP); rotations in 3-D.
+#
+# **Time.** About 60 minutes for the tutorial and 120 for the exercises.
 
 # %%
 import warnings

@@ -22,6 +22,15 @@
 # **Convention.** $T_{ij} = P(q_t = i \mid q_{t-1} = j)$: column $j$ holds the
 # transitions *out of* state $j$, so every column sums to one and a step is the
 # matrix–vector product $q_t = T q_{t-1}$.
+#
+# **Objectives.** After this chapter you can
+# - build the vAGN transition matrix from predicates (eqs. 8–9) and step the soft automaton
+# - train it by gradient descent and read its q-states
+#
+# **Prerequisites.** Chapter 2 (softmax, training); Markov chains and column-stochastic
+# matrices.
+#
+# **Time.** About 60 minutes for the tutorial and 120 for the exercises.
 
 # %%
 import matplotlib.pyplot as plt

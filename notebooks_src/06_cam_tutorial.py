@@ -21,6 +21,15 @@
 # **Layouts.** Images and features are channels-last (NHWC: batch, height,
 # width, channels), kernels HWIO, and the linear head stores $W$ as `(K, M)` so
 # that `p = gap(f) @ w + b`. CAMs come out as `(B, M, H, W)`.
+#
+# **Objectives.** After this chapter you can
+# - compute visual predicates with conv → global average pooling → linear (eq. 7)
+# - split a predicate into a class activation map and compare it with Grad-CAM and baselines
+#
+# **Prerequisites.** Chapter 2 (convolution, global average pooling); chapter 5 for what the
+# predicates drive.
+#
+# **Time.** About 45 minutes for the tutorial and 90 for the exercises.
 
 # %%
 import time

@@ -21,6 +21,15 @@
 # The data must make learning from images worth it: the human meets junctions,
 # roundabouts, queues and vehicles cutting in, and different scenes are driven
 # by differently styled humans.
+#
+# **Objectives.** After this chapter you can
+# - convert between world and ego frames and step the unicycle at Δt = 0.5 s
+# - generate maps, IDM traffic and a styled human driver
+# - rasterise the bird's-eye view and build a split dataset
+#
+# **Prerequisites.** Chapter 0; plane geometry (frames, headings).
+#
+# **Time.** About 45 minutes for the tutorial and 90 for the exercises.
 
 # %%
 import tempfile

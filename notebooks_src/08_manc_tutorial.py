@@ -17,6 +17,14 @@
 # build the comparison models on the same CNN backbone, check the gradients on
 # both engines, train, and open the controller up: q-distribution, DMP gains
 # and per-q-state saliency over a scene.
+#
+# **Objectives.** After this chapter you can
+# - assemble MANC and its rival models as pure functions (the paper's Figure 1)
+# - train them by behaviour cloning (Algorithm 1) on both engines
+#
+# **Prerequisites.** Chapters 2–7.
+#
+# **Time.** About 60 minutes for the tutorial and 90 for the exercises.
 
 # %%
 import matplotlib.pyplot as plt

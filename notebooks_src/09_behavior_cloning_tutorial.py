@@ -28,6 +28,14 @@
 # Everything here uses a reduced configuration so that the notebook runs in
 # a few minutes on a laptop CPU; the numbers are therefore small-sample
 # numbers. The paper-sized run is `minimanc reproduce` (section 8).
+#
+# **Objectives.** After this chapter you can
+# - drive a learned controller in closed loop and measure it like Table I
+# - explain the information-parity lesson and test whether MANC's q-states are driving modes
+#
+# **Prerequisites.** Chapter 8 (the models, behaviour cloning).
+#
+# **Time.** About 60 minutes for the tutorial and 90 for the exercises.
 
 # %%
 import tempfile

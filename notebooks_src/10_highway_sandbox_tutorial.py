@@ -22,6 +22,15 @@
 # Three scenarios: `roundabout` (highway-env's `roundabout-v1`), `intersection`
 # (`intersection-v2`) and `highway-fast` (`highway-fast-v0`). One action every
 # $\Delta t = 0.5$ s as in the logs; highway-env integrates at 10 Hz.
+#
+# **Objectives.** After this chapter you can
+# - run the same controller in highway-env, among traffic that reacts
+# - collect expert demonstrations and measure collisions, leaving the road and ADE
+#
+# **Prerequisites.** Chapter 9 (policies, the closed loop); the optional highway-env
+# install.
+#
+# **Time.** About 40 minutes for the tutorial and 60 for the exercises.
 
 # %%
 import tempfile

@@ -23,6 +23,14 @@
 # | label | `dagger.WorldTeacher`, `dagger.HighwayTeacher` | the expert's controls there |
 # | aggregate | `dagger.concat` | all labelled states so far; retrain |
 # | budget | `dagger.plan_budget`, `dagger.Budget` | BC and DAgger at equal expert-label counts |
+#
+# **Objectives.** After this chapter you can
+# - explain why behaviour cloning drifts in closed loop
+# - run DAgger's rounds with a β-mixture and a label budget, and compare at an equal budget
+#
+# **Prerequisites.** Chapter 9 (behaviour cloning, the closed-loop metrics).
+#
+# **Time.** About 45 minutes for the tutorial and 60 for the exercises.
 
 # %%
 import tempfile

@@ -116,3 +116,32 @@ def test_the_readme_chapter_table_is_the_map():
     assert table == markdown_table(), (
         "README.md's '## Chapters' table differs from minimanc.chapters: "
         "paste the output of `minimanc info --readme-table`")
+
+
+@pytest.mark.parametrize("chapter", CHAPTERS, ids=lambda c: c.notebook)
+def test_each_tutorial_opens_with_its_objectives_prerequisites_and_time(chapter):
+    assert chapter.objectives and all(o.strip() for o in chapter.objectives)
+    assert chapter.prerequisites.strip()
+    assert len(chapter.minutes) == 2 and all(isinstance(m, int) and m > 0
+                                             for m in chapter.minutes)
+    text = first_markdown(ROOT / "tutorials" / f"{chapter.notebook}.ipynb")
+    assert text.rstrip().endswith(chapter.opening()), (
+        f"tutorials/{chapter.notebook}: the first cell must end with the chapter's "
+        "objectives, prerequisites and time (minimanc.chapters, Chapter.opening)")
+    for line in chapter.opening().splitlines():
+        assert len(line) <= 98, f"{chapter.notebook}: an opening line too long for the source"
+
+
+def test_the_opening_text_is_made_of_the_fields():
+    chapter = CHAPTERS[3]
+    text = chapter.opening()
+    assert text.startswith("**Objectives.** After this chapter you can\n- ")
+    assert "**Prerequisites.** Chapter 1;" in text
+    assert text.endswith("**Time.** About 60 minutes for the tutorial and 150 for the exercises.")
+    assert text.count("\n- ") == len(chapter.objectives)
+
+
+def test_the_readme_quotes_chapter_zeros_time():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    taking = readme.split("\n## Taking the course\n", 1)[1].split("\n## ", 1)[0]
+    assert f"chapter 00\ntakes about {sum(CHAPTERS[0].minutes)} minutes" in taking

@@ -98,7 +98,9 @@ def test_answer_written_ignores_whitespace_only():
     stub = "Before.\nYOUR ANSWER HERE\nAfter."
     assert not exercises.answer_written("Before.\n  YOUR ANSWER HERE \n\nAfter.", stub)
     assert exercises.answer_written("Before.\nThe step is unstable.\nAfter.", stub)
-    assert exercises.answer_written("", stub)   # deleting the question is not the stub
+    assert not exercises.answer_written("", stub)                 # emptied: nothing written
+    assert not exercises.answer_written("YOUR ANSWER HERE", stub)  # the prompt lines deleted
+    assert exercises.answer_written("YOUR ANSWER HERE. It diverges.", stub)
 
 
 # ------------------------------------------------------------------ validation

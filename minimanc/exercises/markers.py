@@ -175,8 +175,10 @@ def stub_answer(source: str, where: str) -> str:
 
 
 def answer_written(source: str, stub: str) -> bool:
-    """True when an answer cell's text differs from its stub (whitespace aside)."""
-    return " ".join(source.split()) != " ".join(stub.split())
+    """True when the student wrote something into an answer cell: its text differs
+    from the stub (whitespace aside) and is more than ``YOUR ANSWER HERE``."""
+    text = " ".join(source.split())
+    return text != " ".join(stub.split()) and bool(text.replace(ANSWER_PLACEHOLDER, "").strip())
 
 
 def strip_hidden(source: str, where: str) -> str:

@@ -192,20 +192,24 @@ def plot_valley_paths(
     plt = pyplot()
     scale, theta0 = np.asarray(scales, float), np.asarray(start, float)
     fig, ax = plt.subplots(figsize=(6.5, 4))
-    t0, t1 = np.meshgrid(np.linspace(-1.2, 1.2, 100), np.linspace(-0.3, 1.2, 100))
-    ax.contour(t0, t1, scale[0] * t0 ** 2 + scale[1] * t1 ** 2, levels=20, colors="0.85")
-    errors = []
+    errors, drawn = [], [np.array([[-1.2, -0.3], [1.2, 1.2]])]
     for label, (step, state) in reference.items():
         path = _path(step, state, scale, theta0, steps)
-        ax.plot(path[:, 0], path[:, 1], "--", lw=1.5, alpha=0.7, label=f"{label} (library)")
+        drawn.append(path)
+        ax.plot(path[:, 0], path[:, 1], "--", lw=2.5, alpha=0.6, label=f"{label} (library)")
     for label, (step, state) in yours.items():
         path, error = attempt(_path, step, state, scale, theta0, steps)
         if error:
             errors.append(f"{label}: {error}")
         else:
-            ax.plot(path[:, 0], path[:, 1], ".-", ms=3, label=label)
-    ax.set_xlim(-1.2, 1.2)
-    ax.set_ylim(-0.3, 1.2)
+            drawn.append(path[np.all(np.isfinite(path), axis=1)])
+            ax.plot(path[:, 0], path[:, 1], ".-", lw=1, ms=3, label=label)
+    every = np.concatenate(drawn)
+    lo, hi = np.clip(every.min(axis=0), -10, 0), np.clip(every.max(axis=0), 0, 10)
+    t0, t1 = np.meshgrid(np.linspace(lo[0], hi[0], 120), np.linspace(lo[1], hi[1], 120))
+    ax.contour(t0, t1, scale[0] * t0 ** 2 + scale[1] * t1 ** 2, levels=20, colors="0.85")
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
     ax.set_xlabel("θ0 (steep)")
     ax.set_ylabel("θ1 (flat)")
     ax.set_title("\n".join(errors) or "your steps (solid) over the library's (dashed)",
