@@ -660,6 +660,8 @@ def q_of(name):
     return vagn.rollout(vagn.uniform_state(3), drive, np.asarray(globals()[name]))
 
 
+print("teacher's most probable states:", "".join("CFY"[s] for s in q_teacher.argmax(-1)))
+assert q_teacher[15].argmax() == 1 and q_teacher[23].argmax() == 2
 fig, axes = plt.subplots(2, 3, figsize=(12, 7.5))
 plot_automaton_attempts(
     [(f"only '{name}'", "T", lambda p=p: transition_matrix(p, W_true),
@@ -672,5 +674,3 @@ plot_automaton_attempts([("q: W_distinct", "q", lambda: q_of("W_distinct"), None
                         labels=STATES, axes=axes[1, 1:])
 plt.tight_layout()
 plt.show()
-print("teacher's most probable states:", "".join("CFY"[s] for s in q_teacher.argmax(-1)))
-assert q_teacher[15].argmax() == 1 and q_teacher[23].argmax() == 2

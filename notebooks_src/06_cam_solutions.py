@@ -577,6 +577,7 @@ def ego_cams():
     return class_activation_maps(F_ego, np.asarray(w)), np.asarray(b)
 
 
+print("the vehicle in this scene:", scenes[k_fig][1])
 plot_overlay_attempts(X_ego[k_fig], [
     ("vehicle CAM", lambda: normalise(class_activation_maps(F_ego[k_fig:k_fig + 1], W_VEH)[0, 0]),
      cam.class_activation_maps(F_ego[k_fig:k_fig + 1], W_VEH)[0, 0]),
@@ -584,5 +585,4 @@ plot_overlay_attempts(X_ego[k_fig], [
     ("ego head, centred", lambda: centre_on_baseline(*ego_cams()[:1], ego_cams()[0],
                                                      ego_cams()[1])[0][k_fig, 0], None)])
 plt.show()
-print("the vehicle in this scene:", scenes[k_fig][1])
 
