@@ -140,7 +140,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             minutes=(60, 150)),
     Chapter(4, "04_quaternions", "quaternion log/exp and DMP",
             ("minimanc.quaternion",), (),
-            "quaternion product, log, exp, orientation error, integration",
+            "quaternion product, log, exp, orientation error, integration, a turning goal",
             objectives=(
                 "compute quaternion products, log and exp maps (eqs. 3–6) and orientation "
                 "errors",
@@ -151,7 +151,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             minutes=(60, 120)),
     Chapter(5, "05_vagn", "the soft automaton",
             ("minimanc.vagn",), ("minimanc.viz.automaton",),
-            "the vAGN soft automaton",
+            "the vAGN soft automaton, learning it from the DMP's actions alone",
             objectives=(
                 "build the vAGN transition matrix from predicates (eqs. 8–9) and step the soft "
                 "automaton",
@@ -164,7 +164,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             minutes=(60, 120)),
     Chapter(6, "06_cam", "visual predicates and CAM saliency",
             ("minimanc.cam",), ("minimanc.viz.saliency",),
-            "class activation maps, Grad-CAM, baselines, q-state saliency",
+            "class activation maps, Grad-CAM, baselines, q-state saliency, a ReLU head",
             objectives=(
                 "compute visual predicates with conv → global average pooling → linear (eq. 7)",
                 "split a predicate into a class activation map and compare it with Grad-CAM "

@@ -354,11 +354,12 @@ assert gaps[0] > 0.6 and gaps[8] < 1e-3 and np.all(np.diff(gaps) <= 1e-12)
 #   train on windows spanning whole scenes, resetting $q'$ once per window,
 #   and the vAGN-only baseline keeps Algorithm 1's single step
 #   (`q_seq_len=1`).
-# * **Learning from q-targets (section 5, exercise 5.6) is a teaching device.**
+# * **Learning from q-targets (section 5) is a teaching device.**
 #   The paper never observes q; it trains vAGN only through the DMP's action
 #   loss. With known q-targets we can check that `grad` recovers the
 #   teacher's transition matrices (not its weights: $W$ is not identifiable
-#   through the ReLU).
+#   through the ReLU). Exercises 5.6 and 5.7 train from the action alone, as
+#   the paper does, and test when q then recovers the teacher's states.
 # * **Algorithm 1's update** is $\theta \leftarrow \theta - \gamma\frac1m\nabla L$
 #   with $L$ already a mean (MSE) over the minibatch; the extra $\frac1m$ only
 #   rescales the learning rate $\gamma$. We average once.

@@ -26,6 +26,14 @@ statements between two of them: a transcription that drops the tutorial's
 bookkeeping lines (a list of losses for a plot, a ``print``) is still a
 transcription.
 
+A transcription may also *reorder* the tutorial (move a definition up, swap two
+independent lines), which breaks every run. So a solution cell also fails when
+at least :data:`MIN_REORDERED` of its statements, and at least
+:data:`REORDERED_SHARE` of them, are matched one to one (in any order) by
+statements of one stretch of a tutorial cell at most :data:`WINDOW` times the
+solution's length: the matched lines must come from one place, so generic lines
+scattered over a long cell (``np.zeros``, ``for``, ``return``) do not add up.
+
 Exercises that transcribe their tutorial today are listed in :data:`ALLOWED`,
 each with the reason; the test fails both for a new transcription and for an
 entry that no longer transcribes (so the list cannot go stale). Chapters 01, 02
@@ -49,6 +57,9 @@ ROOT = Path(__file__).resolve().parent.parent
 MIN_SHARED = 6
 MAX_GAP = 3
 SAME_LINE = 0.8
+MIN_REORDERED = 9
+REORDERED_SHARE = 2 / 3
+WINDOW = 2
 _TOKEN = re.compile(r"\w+|[^\w\s]")
 _BODIES = ("body", "orelse", "finalbody", "handlers")
 
@@ -133,6 +144,32 @@ def longest_shared_run(solution: list[tuple[str, ...]], tutorial: list[tuple[str
     return best
 
 
+def reordered_shared(solution: list[tuple[str, ...]], tutorial: list[tuple[str, ...]],
+                     window: float = WINDOW) -> int:
+    """Most ``solution`` statements matched one to one, in any order, by the statements
+    of one stretch of ``tutorial`` of ``window`` times the solution's length."""
+    if not solution or not tutorial:
+        return 0
+    same = [[same_line(a, b) for b in tutorial] for a in solution]
+    length = max(1, int(window * len(solution)))
+    best = 0
+    for start in range(max(1, len(tutorial) - length + 1)):
+        used: set[int] = set()
+        for row in same:
+            j = next((j for j in range(start, min(len(tutorial), start + length))
+                      if row[j] and j not in used), None)
+            if j is not None:
+                used.add(j)
+        best = max(best, len(used))
+    return best
+
+
+def is_reordered_copy(solution: list[tuple[str, ...]], tutorial: list[tuple[str, ...]]) -> bool:
+    """Whether ``solution`` is a reordered copy of a stretch of ``tutorial``."""
+    shared = reordered_shared(solution, tutorial)
+    return shared >= MIN_REORDERED and shared >= REORDERED_SHARE * len(solution)
+
+
 def transcriptions(solutions: Path, tutorials: Path) -> dict[str, str]:
     """Map each exercise id whose solution cell shares >= MIN_SHARED statements with a
     tutorial cell to a description ``"<tutorial> cell <k>: <n> statements"``."""
@@ -152,6 +189,11 @@ def transcriptions(solutions: Path, tutorials: Path) -> dict[str, str]:
                 run = longest_shared_run(shapes, tut)
                 if run >= MIN_SHARED:
                     found[exercises.grade_id(cell)] = f"{tutorial.name} cell {k}: {run} statements"
+                    break
+                if is_reordered_copy(shapes, tut):
+                    found[exercises.grade_id(cell)] = (
+                        f"{tutorial.name} cell {k}: {reordered_shared(shapes, tut)} of "
+                        f"{len(shapes)} statements, reordered")
                     break
     return found
 
@@ -256,6 +298,52 @@ def test_the_old_exercise_3_6_is_flagged():
     assert len(training) == 1, "tutorial 03's training cell not found"
     run = longest_shared_run(statement_shapes(OLD_EXERCISE_3_6), statement_shapes(training[0]))
     assert run >= MIN_SHARED, run
+
+
+#: Exercise 5.6 as it stood before issue 25: tutorial 05's training cell, reordered
+#: (``eng = engine(...)`` above ``def loss``, the loss with one argument instead of five).
+OLD_EXERCISE_5_6 = """
+from minimanc import engine
+
+
+def fit_W(ps, targets, W0, steps=300, lr=20.0):
+    eng = engine("numpy")
+
+    def loss(W):
+        qs = vagn.rollout(targets[0], ps, W, xp=eng.xp)
+        return eng.xp.mean(eng.xp.sum((qs[1:] - targets[1:]) ** 2, axis=-1))
+
+    value_and_grad = eng.value_and_grad(loss)
+    W, losses = np.array(W0, dtype=float), []
+    for _ in range(steps):
+        L, g = value_and_grad(W)
+        W = W - lr * np.asarray(g)
+        losses.append(float(L))
+    return W, losses
+"""
+
+
+def test_the_old_exercise_5_6_is_flagged_as_a_reordered_copy():
+    cells = nbformat.read(ROOT / "tutorials" / "05_vagn.ipynb", as_version=4).cells
+    training = [c.source for c in cells
+                if c.cell_type == "code" and "eng.value_and_grad(loss)" in c.source]
+    assert len(training) == 1, "tutorial 05's training cell not found"
+    old, tut = statement_shapes(OLD_EXERCISE_5_6), statement_shapes(training[0])
+    assert longest_shared_run(old, tut) < MIN_SHARED     # the run rule alone misses it
+    assert is_reordered_copy(old, tut), reordered_shared(old, tut)
+
+
+def test_a_shuffled_copy_is_caught_and_scattered_generic_lines_are_not():
+    lines = ["a = np.zeros((3, 4))", "b, c = a.shape", "d = a.sum(axis=0) / b",
+             "e = [x ** 2 for x in d]", "f = dict(zip(e, d))", "g = sorted(f, key=abs)",
+             "h = np.linalg.norm(a, ord=2)", "k = {i: j for i, j in f.items()}",
+             "m = a.T @ a + h * np.eye(4)", "n = max(g, default=None) if g else 0"]
+    shuffled = "\n".join(lines[5:] + lines[:5])
+    assert longest_shared_run(statement_shapes(shuffled), statement_shapes("\n".join(lines))) == 5
+    assert is_reordered_copy(statement_shapes(shuffled), statement_shapes("\n".join(lines)))
+    scattered = "\n".join(f"{line}\n" + "\n".join(f"print({j})" for j in range(30))
+                          for line in lines)
+    assert not is_reordered_copy(statement_shapes(shuffled), statement_shapes(scattered))
 
 
 # ------------------------------------------------------------------- the repository

@@ -2,21 +2,26 @@
 
 :func:`plot_automaton` draws the automaton of one transition matrix (eq. 9's
 ``T = colsoftmax(ReLU(W^p))``), :func:`plot_q_heatmap` a q-distribution over time as in
-the paper's execution traces.  vAGN never produces an exact zero (see
-:mod:`minimanc.vagn`), so a sparse graph comes only from ``plot_automaton``'s ``min_prob``.
+the paper's execution traces; :func:`plot_automaton_attempts` draws both from a
+student's functions, or the library's (the exercises' last figure).  vAGN never produces
+an exact zero (see :mod:`minimanc.vagn`), so a sparse graph comes only from
+``plot_automaton``'s ``min_prob``.
 """
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
 from minimanc.checks import check_stochastic_columns
 from minimanc.vagn import check_state
+from minimanc.viz.exercises import attempt
 from minimanc.viz.style import pyplot, state_labels
 
-__all__ = ["plot_automaton", "plot_q_heatmap"]
+__all__ = ["plot_automaton", "plot_automaton_attempts", "plot_q_heatmap"]
 
 
 def plot_automaton(
@@ -185,3 +190,64 @@ def plot_q_heatmap(
     if colorbar:
         ax.figure.colorbar(im, ax=ax, label="P(q-state)")
     return ax
+
+
+def plot_automaton_attempts(
+    panels: Sequence[tuple[str, str, Callable[[], Any], Any]],
+    labels: list[str] | None = None,
+    axes: Any = None,
+) -> Any:
+    """One panel per entry, drawn from a student's function; the reference if it raises.
+
+    Parameters
+    ----------
+    panels : sequence of (title, kind, fn, reference)
+        ``kind`` ``"T"``: ``fn()`` returns a transition matrix ``(N, N)`` drawn by
+        :func:`plot_automaton`; ``kind`` ``"q"``: ``fn()`` returns q over time
+        ``(T + 1, N)`` drawn by :func:`plot_q_heatmap`. When ``fn`` raises (a stub or a
+        bug) or returns what the plot refuses, ``reference`` (the library's, or None) is
+        drawn and the title names the error.
+    labels : list of str, optional (default: None)
+        State names.
+    axes : sequence of matplotlib Axes, optional (default: None)
+        One per panel; a new row of axes when None.
+
+    Returns
+    -------
+    axes : list of matplotlib Axes
+        The panels' axes.
+
+    Raises
+    ------
+    ValueError
+        If a kind is not ``"T"`` or ``"q"``, or ``axes`` has another length than ``panels``.
+    """
+    kinds = {"T": plot_automaton, "q": plot_q_heatmap}
+    bad = [kind for _, kind, _, _ in panels if kind not in kinds]
+    if bad:
+        raise ValueError(f"panel kinds must be 'T' or 'q', got {bad!r}")
+    if axes is None:
+        _, axes = pyplot().subplots(1, len(panels), figsize=(4 * len(panels), 3.8),
+                                    squeeze=False)
+        axes = axes[0]
+    axes = list(axes)
+    if len(axes) != len(panels):
+        raise ValueError(f"expected {len(panels)} axes, got {len(axes)}")
+    for ax, (title, kind, fn, reference) in zip(axes, panels):
+        draw = kinds[kind]
+        extra = {"colorbar": False} if kind == "q" else {}
+        value, error = attempt(fn)
+        if not error:
+            _, error = attempt(functools.partial(draw, ax=ax, labels=labels, **extra), value)
+        if error:
+            ax.clear()
+            if reference is not None:
+                draw(np.asarray(reference), ax=ax, labels=labels, **extra)
+            else:
+                ax.set_axis_off()
+            ax.set_title(f"{title}: {'reference' if reference is not None else 'nothing'}"
+                         f"\nyours: {error[:60]}", fontsize=7)
+        else:
+            ax.set_title(f"{title} (yours)")
+    return axes
+

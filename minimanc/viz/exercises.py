@@ -14,7 +14,11 @@ with the error, and only the reference is drawn: the notebook runs to the end.
   ½(100 θ₀² + θ₁²) (the student's momentum and Adam steps next to
   :mod:`minimanc.optim`);
 * chapter 3: :func:`plot_stability_boundary` — the largest stable α over β for one
-  sub-step of each integrator (the student's bounds next to the library's).
+  sub-step of each integrator (the student's bounds next to the library's);
+* chapter 4 (and any chapter whose figure is curves over time):
+  :func:`plot_curve_attempts` — each of the student's curves solid over its reference
+  dashed (the yaw of the quaternion DMP of eq. 2 turning the short way, trailing and
+  tracking a turning goal).
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ from minimanc.viz.style import pyplot
 __all__ = [
     "attempt",
     "graph_of_edges",
+    "plot_curve_attempts",
     "plot_edge_cotangents",
     "plot_stability_boundary",
     "plot_valley_paths",
@@ -256,3 +261,55 @@ def plot_stability_boundary(
                  fontsize=9)
     ax.legend(fontsize=8)
     return fig
+
+
+def plot_curve_attempts(
+    x: Any,
+    curves: Sequence[tuple[str, Callable[[], Any], Any]],
+    ax: Any = None,
+    title: str = "",
+) -> Any:
+    """Draw each of a student's curves (solid) over its reference (dashed).
+
+    Parameters
+    ----------
+    x : array-like, shape (n,)
+        Abscissa shared by every curve.
+    curves : sequence of (label, fn, reference)
+        ``fn()`` returns the student's ``n`` values; ``reference`` is the library's
+        (or None: nothing to compare with). A ``fn`` that raises is named in the title
+        and only its reference is drawn.
+    ax : matplotlib Axes, optional (default: None)
+        Axes to draw on; a new figure when None.
+    title : str, optional (default: "")
+        Title when no function raised.
+
+    Returns
+    -------
+    ax : matplotlib Axes
+        The axes with one line per curve that could be drawn, and a legend if any.
+    """
+    plt = pyplot()
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6.5, 3.5))
+    x = np.asarray(x, dtype=float)
+    errors = []
+    for k, (label, fn, reference) in enumerate(curves):
+        colour = f"C{k}"
+        if reference is not None:
+            ax.plot(x, np.asarray(reference, dtype=float), "--", color=colour, lw=1,
+                    label=f"{label}: reference")
+        values, error = attempt(fn)
+        if error:
+            errors.append(f"{label}: {error}")
+            continue
+        values = np.asarray(values, dtype=float)
+        if values.shape != x.shape:
+            errors.append(f"{label}: expected {x.shape[0]} values, got shape {values.shape}")
+            continue
+        ax.plot(x, values, "o-", color=colour, ms=3, label=f"{label}: yours")
+    ax.set_title("\n".join(errors) or title, fontsize=7 if errors else None)
+    if ax.get_lines():
+        ax.legend(fontsize=8)
+    return ax
+

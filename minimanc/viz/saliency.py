@@ -3,22 +3,24 @@
 Display helpers for the maps of :mod:`minimanc.cam` (CAMs of eq. 7, per-q-state saliency
 ``S_j``): :func:`paper_cmap` (high → low = yellow → red → cyan → magenta), :func:`blend`
 (the overlay as data), :func:`overlay` (drawn on an axes) and :func:`plot_q_saliency` (the
-paper's Figures 3–4 panel).  Every map is min–max normalised
+paper's Figures 3–4 panel); :func:`plot_overlay_attempts` overlays a student's maps (the
+exercises' last figure).  Every map is min–max normalised
 (:func:`minimanc.cam.minmax_normalize`) before it is coloured.
 """
 
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
 from minimanc.cam import minmax_normalize, upsample
+from minimanc.viz.exercises import attempt
 from minimanc.viz.style import clear_ticks, pyplot, state_labels
 
-__all__ = ["paper_cmap", "blend", "overlay", "plot_q_saliency"]
+__all__ = ["paper_cmap", "blend", "overlay", "plot_overlay_attempts", "plot_q_saliency"]
 
 
 @functools.cache
@@ -195,3 +197,54 @@ def plot_q_saliency(
         overlay(image, saliency[j], ax=axes[j + 1], alpha=alpha,
                 title=f"{labels[j]}: P = {q[j]:.2f}")
     return axes
+
+
+def plot_overlay_attempts(
+    image: Any,
+    panels: Sequence[tuple[str, Callable[[], Any], Any]],
+    axes: Any = None,
+) -> Any:
+    """The image, then one :func:`overlay` per entry, drawn from a student's function.
+
+    Parameters
+    ----------
+    image : array-like, shape (H, W, 3)
+        The BEV raster under every map.
+    panels : sequence of (title, fn, reference)
+        ``fn()`` returns the student's map ``(h, w)``; when it raises (a stub or a bug)
+        or returns what :func:`overlay` refuses, ``reference`` (the library's map, or
+        None) is overlaid and the title names the error.
+    axes : sequence of matplotlib Axes, optional (default: None)
+        ``len(panels) + 1`` axes; a new row when None.
+
+    Returns
+    -------
+    axes : list of matplotlib Axes
+        The image's axes, then one per panel.
+
+    Raises
+    ------
+    ValueError
+        If ``axes`` has another length than ``len(panels) + 1``.
+    """
+    if axes is None:
+        _, axes = pyplot().subplots(1, len(panels) + 1, figsize=(2.6 * (len(panels) + 1), 2.9),
+                                    squeeze=False)
+        axes = axes[0]
+    axes = list(axes)
+    if len(axes) != len(panels) + 1:
+        raise ValueError(f"expected {len(panels) + 1} axes, got {len(axes)}")
+    axes[0].imshow(np.asarray(image), interpolation="nearest")
+    clear_ticks(axes[0])
+    for ax, (title, fn, reference) in zip(axes[1:], panels):
+        value, error = attempt(fn)
+        if not error:
+            _, error = attempt(functools.partial(overlay, image, ax=ax, title=title), value)
+        if error:
+            ax.clear()
+            if reference is not None:
+                overlay(image, reference, ax=ax)
+            clear_ticks(ax)
+            ax.set_title(f"{title}: reference\nyours: {error[:40]}", fontsize=6)
+    return axes
+
