@@ -50,6 +50,7 @@ import numpy as np  # noqa: E402  (after the thread settings)
 
 from minimanc import layers, optim  # noqa: E402
 from minimanc.engine import get_engine  # noqa: E402
+from minimanc.tree import tree_flatten  # noqa: E402
 
 
 def init_params(rng: np.random.Generator, dtype: Any) -> dict:
@@ -82,7 +83,7 @@ def make_step(eng: Any):
 
 
 def _block(tree: Any) -> None:
-    for leaf in optim.tree_flatten(tree)[0]:
+    for leaf in tree_flatten(tree)[0]:
         if hasattr(leaf, "block_until_ready"):
             leaf.block_until_ready()
 

@@ -111,7 +111,8 @@ def bench_steps(ds, cfg, batch: int, rounds: int, steps: int) -> None:
 def bench_latency(ds, cfg, calls: int) -> None:
     eng = engine("jax")
     params = models.init("manc", np.random.default_rng(0), cfg, dtype=np.float32)
-    obs = {k: v.astype(np.float32) for k, v in inputs.from_dataset(ds, 0, 5, model="manc").items()}
+    obs = inputs.from_dataset(ds, 0, 5, model=models.get("manc"))
+    obs = {k: v.astype(np.float32) for k, v in obs.items()}
     state = models.initial_state("manc", 1, cfg)
     step = eng.jit(lambda p, o, s: models.step("manc", p, o, s, cfg, eng)[:2])
     t0 = time.perf_counter()

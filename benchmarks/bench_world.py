@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from minimanc import world
-from minimanc.world import dataset, driver, maps
+from minimanc.world import driver, maps, roads
 
 
 def raster_timing(n_scenes: int = 10) -> tuple[float, float, float]:
@@ -53,7 +53,7 @@ def stage_timing(n: int = 12) -> dict[str, float]:
     for i in range(n):
         rng = np.random.default_rng([99, i, 0])
         t0 = time.process_time()
-        m = maps.build_map(maps.random_recipe(rng))
+        m = roads.build_map(maps.random_recipe(rng))
         t1 = time.process_time()
         log = driver.simulate_scene(m, rng)
         t2 = time.process_time()
@@ -90,10 +90,10 @@ def main() -> None:
     print(f"dataset bev: {ds.bev.nbytes / 1e6:.0f} MB in memory")
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        path = ds.save(Path(tmp) / "world.npz")
+        path = world.save(ds, Path(tmp) / "world.npz")
         ts = time.perf_counter() - t0
         t0 = time.perf_counter()
-        dataset.load(path)
+        world.load(path)
         tl = time.perf_counter() - t0
         size = path.stat().st_size
     print(f"save {ts:.1f} s, load {tl:.1f} s, file {size / 1e6:.0f} MB "

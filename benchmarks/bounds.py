@@ -29,9 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from minimanc import metrics, results, world
+from minimanc import metrics, world
 from minimanc.dagger.teachers import AGENTS
 from minimanc.metrics.trajectory import ade, along_cross_track
+from minimanc.studies import provenance
 from minimanc.studies.bounds import expert_rollout, floor_rollout, median_style
 from minimanc.world.geometry import DT
 
@@ -87,7 +88,7 @@ def main() -> None:
     text = f"# Bounds of Table I ({args.scenes} scenes of data seed {args.seed})\n\n"
     for title, lines in parts.items():
         text += f"## {title}\n\n```\n" + "\n".join(lines) + "\n```\n\n"
-    results.publish(text, args.out, time.perf_counter() - t0)
+    provenance.publish(text, args.out, time.perf_counter() - t0)
 
 
 if __name__ == "__main__":

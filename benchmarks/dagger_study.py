@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from minimanc import cli, results
+from minimanc import cli
+from minimanc.studies import provenance
 
 WORLD = ["--sim", "world", "--scenes", "32", "--val-scenes", "16"]
 SIMS = {
@@ -82,7 +83,7 @@ def markdown(runs: dict, seeds: int, seconds: float) -> str:
                 cell([r["rounds"][i]["metrics"]["ade"] for r in rs])
                 for i in range(len(first["rounds"]))) + " |")
         lines.append("")
-    return "\n".join(lines) + "\n" + results.provenance_markdown(results.provenance(),
+    return "\n".join(lines) + "\n" + provenance.provenance_markdown(provenance.provenance(),
                                                                  wall_time_s=seconds)
 
 
@@ -103,8 +104,8 @@ def main() -> None:
                 print(f"{sim} {model} seed {seed}: done at "
                       f"{(time.perf_counter() - t0) / 60:.1f} min", flush=True)
     out = Path(args.out)
-    results.write_text(out, markdown(runs, args.seeds, time.perf_counter() - t0))
-    results.write_text(out.with_suffix(".json"), json.dumps(runs, indent=1) + "\n")
+    provenance.write_text(out, markdown(runs, args.seeds, time.perf_counter() - t0))
+    provenance.write_text(out.with_suffix(".json"), json.dumps(runs, indent=1) + "\n")
     print(f"wrote {out}")
 
 

@@ -35,9 +35,10 @@ from pathlib import Path
 import numpy as np
 from scoring import cells, scores
 
-from minimanc import models, results, rollout, train, world
+from minimanc import models, rollout, train, world
 from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS
+from minimanc.studies import provenance as results
 
 N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
 SHOW = ("ade", "along_track", "collision_rate", "at_fault_collision_rate", "off_road_rate")

@@ -18,8 +18,9 @@ from pathlib import Path
 
 from scoring import cells, scores
 
-from minimanc import models, results, rollout, train, world
+from minimanc import models, rollout, train, world
 from minimanc.dagger.teachers import AGENTS
+from minimanc.studies import provenance
 
 N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
 SHOW = ("ade", "along_track", "collision_rate", "at_fault_collision_rate", "off_road_rate")
@@ -69,7 +70,7 @@ def main() -> None:
     for a in AGENTS:
         text += (f"## Agents `{a}`\n\n| model | history steps | " + " | ".join(HEAD) + " |\n"
                  + "|---" * (len(HEAD) + 2) + "|\n" + "\n".join(rows[a]) + "\n\n")
-    results.publish(text, args.out, time.perf_counter() - t0)
+    provenance.publish(text, args.out, time.perf_counter() - t0)
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 
 ``minimanc reproduce`` measures whether vAGN's most likely state says anything about the
 human's mode (free road, following, yielding, junction, roundabout;
-:func:`minimanc.modes.mode_information`, the rule of
+:func:`minimanc.metrics.modes.mode_information`, the rule of
 :data:`minimanc.studies.report.MODE_MIN_EXCESS`). This script trains MANC on the paper
 preset's data (650 training scenes, 6 epochs, its tuned learning rate) under a few
 training variants, a few seeds each, and measures the same thing on the 200 validation
@@ -31,7 +31,9 @@ from dataclasses import replace
 from multiprocessing import get_context
 from pathlib import Path
 
-from minimanc import metrics, models, modes, results, rollout, train, world
+from minimanc import metrics, models, rollout, train, world
+from minimanc.metrics import modes
+from minimanc.studies import provenance
 from minimanc.studies.config import PRESETS
 from minimanc.studies.report import MODE_MIN_EXCESS
 
@@ -95,7 +97,7 @@ def markdown(rows: dict, n_seeds: int, lr: float, prov: dict, wall: float) -> st
             "validation scenes. Modes? applies the rule of `minimanc reproduce` (above the "
             f"shuffled baseline's 95th percentile and at least {MODE_MIN_EXCESS:g} bits above "
             "its mean).\n\n## Modes by training variant\n\n" + head + "\n".join(lines) + "\n\n"
-            + results.provenance_markdown(prov, wall))
+            + provenance.provenance_markdown(prov, wall))
 
 
 def main() -> None:
@@ -112,7 +114,7 @@ def main() -> None:
     if unknown or args.seeds < 1 or args.workers < 1:
         raise SystemExit(f"modes_training: bad arguments (variants {unknown}, seeds "
                          f"{args.seeds}, workers {args.workers})")
-    prov = results.provenance()
+    prov = provenance.provenance()
     t0 = time.perf_counter()
     data()  # generate (or load) the cached splits once, before the workers read them
     jobs = [(v, s) for v in names for s in range(args.seeds)]
@@ -125,8 +127,8 @@ def main() -> None:
     print(text)
     if args.out:
         out = Path(args.out)
-        results.write_text(out, text)
-        results.write_text(out.with_suffix(".json"), json.dumps(
+        provenance.write_text(out, text)
+        provenance.write_text(out.with_suffix(".json"), json.dumps(
             {"variants": VARIANTS, "lr": args.lr, "seeds": args.seeds,
              "runs": {f"{v}-{s}": r for (v, s), r in per.items()},
              "provenance": prov, "wall_time_s": wall}, indent=1, default=float) + "\n")

@@ -21,7 +21,8 @@ import time
 
 import numpy as np
 
-from minimanc import metrics, models, results, rollout, train, world
+from minimanc import metrics, models, rollout, train, world
+from minimanc.studies import provenance
 
 COLUMNS = ("close_encounters", "max_acceleration", "ade", "goal_distance", "collision_rate")
 HEADS = ("% close enc.", "max |a| (m/s²)", "ADE (m)", "goal dist. (m)", "% collisions",
@@ -43,7 +44,7 @@ def markdown(rows: list[list[str]], args: argparse.Namespace, seconds: float) ->
              "", "| controller | " + " | ".join(HEADS) + " |",
              "|---" * (len(HEADS) + 1) + "|"]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines) + "\n\n" + results.provenance_markdown(results.provenance(),
+    return "\n".join(lines) + "\n\n" + provenance.provenance_markdown(provenance.provenance(),
                                                                     wall_time_s=seconds)
 
 
@@ -68,7 +69,7 @@ def main() -> None:
                         rollout.closed_loop(name, res.params, val, cfg, progress=False), val))
         print(f"  trained and driven in {time.perf_counter() - t0:.0f} s", flush=True)
     if args.out:
-        path = results.write_text(args.out, markdown(rows, args,
+        path = provenance.write_text(args.out, markdown(rows, args,
                                                      time.perf_counter() - t_start))
         print(f"wrote {path}")
 

@@ -24,10 +24,11 @@ from pathlib import Path
 import numpy as np
 from scoring import cells
 
-from minimanc import results, world
+from minimanc import world
 from minimanc.dagger import perceiving as M
 from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS
+from minimanc.studies import provenance
 
 N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
 SHOW = ("ade", "along_track", "cross_track", "collision_rate", "at_fault_collision_rate",
@@ -71,7 +72,7 @@ def main() -> None:
             f"{n} R² {a:.2f}" for n, a in zip(M.PERCEIVE, r2[-1])), t0)
         driver = M.fit_driver(perception, tr, seed=seed, read=read_tr)
         for a in AGENTS:
-            runs[a].append(P.closed_loop(M.PerceivingPolicy(perception, driver), val, a))
+            runs[a].append(P.evaluate_policy(M.PerceivingPolicy(perception, driver), val, a))
             log(f"seed {seed} {a}: {runs[a][-1]['at_fault_collision_rate']:.1f} % at fault, "
                 f"ADE {runs[a][-1]['ade']:.2f}", t0)
     r2, rmse, close_rmse = (np.mean(x, axis=0) for x in (r2, rmse, close_rmse))
@@ -89,7 +90,7 @@ def main() -> None:
             "30 m.\n\n## Closed loop\n\n| agents | " + " | ".join(HEAD) + " |\n"
             + "|---" * (len(HEAD) + 1) + "|\n"
             + "\n".join(f"| `{a}` | {cells(runs[a], SHOW)} |" for a in AGENTS) + "\n\n")
-    results.publish(text, args.out, time.perf_counter() - t0)
+    provenance.publish(text, args.out, time.perf_counter() - t0)
 
 
 if __name__ == "__main__":

@@ -24,11 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from minimanc import engine, inputs, models, results, train, world
+from minimanc import engine, inputs, models, train, world
 from minimanc.dagger import privileged as P
 from minimanc.metrics.diagnostics import linear_probe
 from minimanc.models.backbone import activate, dense
 from minimanc.models.forward import encode
+from minimanc.studies import provenance as results
 
 N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
 RIDGES = (1.0, 10.0, 100.0, 1000.0, 10000.0)
@@ -54,7 +55,7 @@ def representations(name: str, params: dict, ds, cfg, batch: int = 500
     s, t = np.divmod(np.arange(S * T), T)
     out: dict[str, list] = {"backbone": [], "head input": []}
     for i in range(0, S * T, batch):
-        obs = inputs.from_dataset(ds, s[i:i + batch], t[i:i + batch], cfg.setting, name)
+        obs = inputs.from_dataset(ds, s[i:i + batch], t[i:i + batch], cfg.setting, models.get(name))
         enc = encode(spec, params, obs, cfg, eng)
         f = np.asarray(enc["features"], dtype=np.float32)
         out["backbone"].append(f.reshape(len(f), -1))

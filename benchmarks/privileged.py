@@ -36,9 +36,10 @@ from pathlib import Path
 import numpy as np
 from scoring import cells
 
-from minimanc import results, world
+from minimanc import world
 from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS, WorldTeacher
+from minimanc.studies import provenance
 
 N_TUNE = 40
 SHOW = ("ade", "along_track", "cross_track", "collision_rate", "at_fault_collision_rate",
@@ -113,12 +114,12 @@ def main() -> None:
     if "bc" in parts:
         lines = []
         for agents in AGENTS:
-            ex = P.closed_loop(P.ExpertPolicy(teachers[agents]), val, agents)
+            ex = P.evaluate_policy(P.ExpertPolicy(teachers[agents]), val, agents)
             runs, rmse = [], []
             for seed in range(args.seeds):
                 model = P.fit(X, Y, steps=args.steps, seed=seed)
                 rmse.append(np.sqrt(((P.predict(model, Xv) - Yv) ** 2).mean(0)))
-                runs.append(P.closed_loop(P.PrivilegedPolicy(model, teachers[agents]), val,
+                runs.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers[agents]), val,
                                           agents))
                 log(f"bc {agents} seed {seed}: {runs[-1]['at_fault_collision_rate']:.1f} % "
                     f"at fault, ADE {runs[-1]['ade']:.2f}", t0)
@@ -137,7 +138,7 @@ def main() -> None:
             runs = []
             for seed in range(args.ablation_seeds):
                 model = P.fit(X, Y, drop=drop, steps=args.steps, seed=seed)
-                runs.append(P.closed_loop(P.PrivilegedPolicy(model, teachers["reactive"]), val,
+                runs.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"]), val,
                                           "reactive"))
             name = "all inputs" if not drop else f"without `{drop[0]}`"
             rows.append(row(name, runs))
@@ -153,7 +154,7 @@ def main() -> None:
             for seed in range(args.ablation_seeds):
                 model = P.fit(X, Y, without=without, steps=args.steps, seed=seed)
                 for a in AGENTS:
-                    runs[a].append(P.closed_loop(P.PrivilegedPolicy(model, teachers[a]), val,
+                    runs[a].append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers[a]), val,
                                                  a))
             for a in AGENTS:
                 rows.append(row(f"{name}, `{a}`", runs[a]))
@@ -174,7 +175,7 @@ def main() -> None:
             for seed in range(args.ablation_seeds):
                 Xn = P.blur(X, noise, np.random.default_rng([seed, 1]))
                 model = P.fit(Xn, Y, steps=args.steps, seed=seed)
-                runs.append(P.closed_loop(P.PrivilegedPolicy(model, teachers["reactive"],
+                runs.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"],
                                                              noise=noise, seed=seed),
                                           val, "reactive"))
             rows.append(row(name, runs))
@@ -195,7 +196,7 @@ def main() -> None:
         more = ds.subset(np.r_[np.arange(args.train), np.arange(n, n + extra)])
         Xm, Ym = P.demonstrations(more)
         model = P.fit(Xm, Ym, steps=args.steps, seed=0)
-        bc = P.closed_loop(P.PrivilegedPolicy(model, teachers["reactive"]), val, "reactive")
+        bc = P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"]), val, "reactive")
         lines += ["", "Behaviour cloning at equal labels (the demonstrations of "
                   f"{args.train + extra} scenes, {len(Xm)} states):", "",
                   *table([row("BC, equal labels", [bc])])]
@@ -206,7 +207,7 @@ def main() -> None:
             f"{args.val} validation scenes; {args.steps} Adam steps)\n\n")
     for title, lines in sections.items():
         text += f"## {title}\n\n" + "\n".join(lines) + "\n\n"
-    results.publish(text, args.out, time.perf_counter() - t0)
+    provenance.publish(text, args.out, time.perf_counter() - t0)
 
 
 if __name__ == "__main__":

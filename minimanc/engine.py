@@ -40,7 +40,6 @@ finds its engine with :func:`engine_of`, e.g. to use ``engine_of(xp).custom_vjp`
 from __future__ import annotations
 
 import functools
-import importlib
 import os
 import sys
 import types
@@ -49,10 +48,12 @@ from typing import Any
 
 import numpy as np
 
+from minimanc import autodiff
+from minimanc.autodiff import nn as autodiff_nn
 from minimanc.checks import check_int
 
-__all__ = ["ENGINES", "XLA_THREADS_VAR", "Engine", "engine_of", "get_engine", "start_jax",
-           "xla_threads"]
+__all__ = ["ENGINES", "XLA_THREADS_VAR", "Engine", "engine_of", "fused_kernel", "get_engine",
+           "start_jax", "xla_threads"]
 
 ENGINES = ("numpy", "jax")
 
@@ -116,19 +117,16 @@ def _identity_jit(fun: Callable | None = None, **kwargs) -> Callable:
 
 
 def _numpy_engine() -> Engine:
-    from minimanc import autodiff
-    from minimanc.autodiff import core
-
     return Engine(
         name="numpy",
         xp=autodiff.numpy,
         grad=autodiff.grad,
         value_and_grad=autodiff.value_and_grad,
         jit=_identity_jit,
-        nn_loader=lambda: importlib.import_module("minimanc.autodiff.nn"),
-        scan=core.scan,
+        nn_loader=lambda: autodiff_nn,
+        scan=autodiff.scan,
         device_put=lambda tree: tree,
-        custom_vjp=core.custom_vjp,
+        custom_vjp=autodiff.custom_vjp,
     )
 
 
@@ -243,7 +241,7 @@ def start_jax(jax: Any, threads: int) -> None:
 
 def _jax_engine() -> Engine:
     try:
-        import jax
+        import jax  # JAX only for the jax engine
     except ImportError as err:  # pragma: no cover - jax is a dependency
         raise ImportError(
             "the 'jax' engine needs JAX: install it with  pip install 'jax[cpu]'"
@@ -292,3 +290,20 @@ def engine_of(xp: Any) -> Engine | None:
     if jnp is not None and xp is jnp:
         return get_engine("jax")
     return None
+
+
+def fused_kernel(xp: Any, *values: Any) -> Engine | None:
+    """The engine whose hand-written one-node kernel should compute on ``values``, or
+    ``None`` for the operation-by-operation code: the one rule every fused kernel follows.
+
+    The fused kernels of :mod:`minimanc.vagn.fused` and :mod:`minimanc.models.head_vjp` are
+    the NumPy engine's: they serve when that engine's tape records one of ``values`` (one
+    tape node instead of dozens). JAX differentiates the plain operations, and plain
+    arrays (nothing traced) take them too, so a forward pass gives the same numbers traced
+    or not. :mod:`minimanc.dmp` asks :func:`engine_of` directly: its flow has a kernel on
+    both engines.
+    """
+    eng = engine_of(xp)
+    if eng is None or eng.name != "numpy":
+        return None
+    return eng if any(isinstance(v, autodiff.Box) for v in values) else None

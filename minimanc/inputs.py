@@ -10,7 +10,7 @@ key             dtype, shape      meaning (ego frame: +x forward, +y left, metre
 ``goal``        float32 (B,3)     the goal: the human's final pose ``[x, y, yaw]`` in the
                                   *current* ego frame (re-expressed every step)
 ``lane_target`` float32 (B,K,2)   the moving lane target: route centre points every
-                                  :data:`~minimanc.world.maps.TARGET_SPACING` = 4 m of arc
+                                  :data:`~minimanc.world.lanes.TARGET_SPACING` = 4 m of arc
                                   length ahead of the ego's *own* projection on the route
                                   (never indexed by the human's time: that would leak the
                                   human's future speed)
@@ -64,17 +64,22 @@ DMP's goal and initial state. In "paper" the LSTM models see history only
 through their recurrent state; in "parity" every model also gets the lane
 target and the current motion as numbers, so any remaining gap is due to
 the architecture, not to information. The table is also data: each model's
-``observes`` in the registry (:mod:`minimanc.models.registry`), read by
-:func:`visible`.
+``observes`` in its spec (:mod:`minimanc.models.registry`); the caller passes the spec
+and :func:`visible` reads it (this module sits below the models and imports none of them).
 """
 
 from __future__ import annotations
 
 import weakref
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
+
+from minimanc.world.geometry import goal_in_ego_frame
+from minimanc.world.lanes import K_TARGETS, Map
+from minimanc.world.maps import lane_targets
+from minimanc.world.raster import RasterConfig, rasterize_batch, rasterize_goal
 
 __all__ = [
     "GOAL_SCALE",
@@ -115,16 +120,6 @@ MOTION_SCALE: tuple[float, float] = (10.0, 0.5)
 # --------------------------------------------------------------------------- checks
 
 
-def _spec(model: Any) -> Any:
-    """The registered :class:`~minimanc.models.ModelSpec` of ``model`` (ValueError naming it).
-
-    The registry lives with the models, a layer above this module: it is imported when a
-    model is first looked up, never while this module loads."""
-    from minimanc.models import registry
-
-    return registry.get(model, "model")
-
-
 def check_setting(setting: Any) -> str:
     """``setting`` if it is one of :data:`SETTINGS`, else a ValueError naming it."""
     if setting not in SETTINGS:
@@ -132,32 +127,46 @@ def check_setting(setting: Any) -> str:
     return setting
 
 
-def visible(model: str, setting: str = "paper") -> tuple[str, ...]:
-    """Observation keys ``model`` receives in ``setting`` (the table of the module docstring)."""
-    spec = _spec(model)
-    return spec.observes[check_setting(setting)]
+def visible(model: Any, setting: str = "paper") -> tuple[str, ...]:
+    """Observation keys ``model`` receives in ``setting`` (the table of the module docstring).
+
+    ``model`` is the model's spec (:class:`minimanc.models.ModelSpec`, e.g.
+    ``minimanc.models.get("manc")``): its ``observes`` maps each setting to its keys. The
+    caller looks the spec up; this module, below the models, never reads the registry.
+    """
+    observes = getattr(model, "observes", None)
+    if not isinstance(observes, Mapping):
+        raise ValueError("model must be a model spec with its observation keys "
+                         f"(minimanc.models.get(name)), got model={model!r}")
+    return tuple(observes[check_setting(setting)])
 
 
-def select(obs: dict, model: str, setting: str = "paper") -> dict:
-    """The sub-dict of ``obs`` that ``model`` may see; a missing key raises ValueError."""
+def _name(model: Any) -> str:
+    return getattr(model, "name", repr(model))
+
+
+def select(obs: dict, model: Any, setting: str = "paper") -> dict:
+    """The sub-dict of ``obs`` that ``model`` (a spec, see :func:`visible`) may see; a missing
+    key raises ValueError."""
     keys = visible(model, setting)
     missing = [k for k in keys if k not in obs]
     if missing:
         raise ValueError(
-            f"observation lacks {missing} needed by model={model!r} in setting={setting!r}; "
+            f"observation lacks {missing} needed by model={_name(model)!r} in "
+            f"setting={setting!r}; "
             f"got keys {sorted(obs)}"
         )
     return {k: obs[k] for k in keys}
 
 
-def numeric_size(model: str, setting: str = "paper", k_targets: int = 10) -> int:
+def numeric_size(model: Any, setting: str = "paper", k_targets: int = 10) -> int:
     """Length of :func:`numeric_features` for ``model`` in ``setting``."""
     keys = visible(model, setting)
     return (3 * ("goal" in keys) + 2 * int(k_targets) * ("lane_target" in keys)
             + 2 * ("motion" in keys))
 
 
-def numeric_features(obs: dict, model: str, setting: str = "paper", xp: Any = np) -> Any:
+def numeric_features(obs: dict, model: Any, setting: str = "paper", xp: Any = np) -> Any:
     """The numbers a model's dense layers receive, scaled to about unit size: ``(B, F)``.
 
     Concatenates, in this order and only where ``model`` sees them in
@@ -220,8 +229,6 @@ def _dataset_goal_bevs(ds: Any) -> np.ndarray:
     given = getattr(ds, "goal_bev", None)
     if given is not None:  # a dataset may carry its goal rasters
         return np.asarray(given)
-    from minimanc.world.raster import rasterize_goal
-
     S, T = np.asarray(ds.ego).shape[:2]
     H, W = np.asarray(ds.bev).shape[2:4]
     cfg = _raster_config(ds, H)
@@ -235,8 +242,6 @@ def _dataset_goal_bevs(ds: Any) -> np.ndarray:
 
 
 def _raster_config(ds: Any, size: int) -> Any:
-    from minimanc.world.raster import RasterConfig
-
     cfg = getattr(ds, "raster", None) or getattr(ds, "raster_config", None)
     if cfg is None:
         cfg = RasterConfig(size=int(size))
@@ -264,13 +269,13 @@ def from_dataset(
     scene_idx: Any,
     t_idx: Any,
     setting: str = "paper",
-    model: str | None = None,
+    model: Any = None,
 ) -> dict:
     """Observations of samples ``(scene_idx[b], t_idx[b])`` of a :mod:`minimanc.world` dataset.
 
     ``scene_idx`` and ``t_idx`` are integers or equal-length 1-D integer
     arrays (an integer or length-1 array broadcasts against the other).
-    With ``model`` given, only the keys that model sees in ``setting`` are
+    With ``model`` (a spec, see :func:`visible`) given, only the keys it sees in ``setting`` are
     returned (``goal_bev`` only for RvS-G: the dataset's own goal rasters, or
     rendered once per dataset); without it, every key except ``goal_bev``.
     """
@@ -306,8 +311,6 @@ _STATE_GOAL_BEV: dict = {}
 
 
 def _goal_bev_from_state(m: Any, goal: np.ndarray, cfg: Any) -> np.ndarray:
-    from minimanc.world.raster import rasterize_goal
-
     key = (id(m), tuple(np.round(goal, 6)), cfg)
     hit = _STATE_GOAL_BEV.get(key)
     if hit is not None and hit[0] is m:
@@ -329,7 +332,7 @@ def from_state(
     setting: str = "paper",
     *,
     motion: Any,
-    model: str | None = None,
+    model: Any = None,
     k_targets: int | None = None,
     keys: Sequence[str] | None = None,
     history: Any = None,
@@ -343,17 +346,13 @@ def from_state(
     own previous controls (keyword-only and required: the DMP models start
     from it; at the first step use :func:`initial_motion`). The BEV is
     re-rasterised, the goal and the lane targets (``k_targets`` points,
-    default :data:`minimanc.world.maps.K_TARGETS`) re-expressed from each
+    default :data:`minimanc.world.lanes.K_TARGETS`) re-expressed from each
     ego pose. ``model`` restricts the keys as in :func:`from_dataset`;
     ``keys`` (a subset of :data:`KEYS`) overrides that choice, e.g. for a
     driver that reads no image (the BEV, the costly part, is then not drawn).
     ``history``: the rows' past boxes (:class:`minimanc.world.history.History`), drawn when
     ``cfg.history > 0``.
     """
-    from minimanc.world import maps as world_maps
-    from minimanc.world.geometry import goal_in_ego_frame
-    from minimanc.world.raster import RasterConfig, rasterize_batch
-
     check_setting(setting)
     poses = np.asarray(ego_poses, dtype=np.float64)
     if poses.ndim != 2 or poses.shape[1] != 3:
@@ -366,14 +365,14 @@ def from_state(
     mot = np.asarray(motion, dtype=np.float32)
     if mot.shape != (B, 2):
         raise ValueError(f"motion must have shape ({B}, 2), got motion with shape {mot.shape}")
-    if isinstance(maps, world_maps.Map):
+    if isinstance(maps, Map):
         map_list = [maps] * B
     else:
         map_list = [maps[i] for i in range(len(maps))]
         if len(map_list) != B:
             raise ValueError(f"maps must have {B} entries, got {len(map_list)}")
     cfg = cfg if cfg is not None else RasterConfig()
-    k = world_maps.K_TARGETS if k_targets is None else int(k_targets)
+    k = K_TARGETS if k_targets is None else int(k_targets)
     if keys is not None:
         unknown = [k for k in keys if k not in KEYS]
         if unknown:
@@ -388,7 +387,7 @@ def from_state(
         obs["goal"] = goal_in_ego_frame(goals, poses).astype(np.float32)
     if "lane_target" in keys:
         obs["lane_target"] = np.stack(
-            [world_maps.lane_targets(map_list[b], poses[b], k) for b in range(B)]
+            [lane_targets(map_list[b], poses[b], k) for b in range(B)]
         ).astype(np.float32)
     if "motion" in keys:
         obs["motion"] = mot

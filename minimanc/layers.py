@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from minimanc.checks import check_float_dtype, check_int, check_rng
+from minimanc.engine import engine_of, get_engine
 
 __all__ = [
     "init_dense",
@@ -47,8 +48,6 @@ def _default_nn(nn: Any, xp: Any = np) -> Any:
     """
     if nn is not None:
         return nn
-    from minimanc.engine import engine_of, get_engine
-
     return (engine_of(xp) or get_engine("numpy")).nn
 
 

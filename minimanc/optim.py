@@ -8,7 +8,7 @@ a pair of pure functions::
     params, state = adam_update(grads, state, params, lr=1e-3)
 
 ``params``, ``grads`` and the state are pytrees (nested dicts / lists /
-tuples of arrays, see :func:`minimanc.autodiff.tree_flatten`). The updates
+tuples of arrays, see :mod:`minimanc.tree`). The updates
 use arithmetic only, so they run unchanged on NumPy arrays, on JAX arrays and
 inside ``jax.jit``; float32 parameters stay float32 (the hyper-parameters are
 Python floats, which never promote an array).
@@ -22,34 +22,14 @@ from typing import Any
 
 import numpy as np
 
-from minimanc.autodiff import tree_flatten
+from minimanc.tree import map as tree_map
 
 __all__ = [
-    "tree_map",
     "sgd_init",
     "sgd_update",
     "adam_init",
     "adam_update",
 ]
-
-
-def tree_map(fun: Callable, tree: Any, *rest: Any) -> Any:
-    """Apply ``fun`` leaf by leaf: ``fun(leaf, *matching leaves of rest)``; same structure.
-
-    All trees must have the same structure (same dict keys, list lengths); ``None``
-    is an empty subtree, as in JAX.
-    """
-    leaves, paths, rebuild = tree_flatten(tree)
-    others = []
-    for k, other in enumerate(rest):
-        o_leaves, o_paths, _ = tree_flatten(other)
-        if o_paths != paths:
-            raise ValueError(
-                f"tree_map: tree {k + 1} has leaves at {o_paths[:4]}... but the first tree "
-                f"has them at {paths[:4]}...; the structures differ"
-            )
-        others.append(o_leaves)
-    return rebuild([fun(*args) for args in zip(leaves, *others)])
 
 
 def _zeros_like(xp: Any) -> Callable:

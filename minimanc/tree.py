@@ -1,7 +1,10 @@
-"""Chapter 2 — pytrees: the nested dicts and lists that hold a model's parameters.
+"""Chapter 1 — pytrees: the nested dicts and lists that hold a model's parameters.
 
 A pytree is an array (any leaf), or a dict / list / tuple (named tuples included) of
-pytrees; ``None`` is an empty subtree, as in JAX and :func:`minimanc.autodiff.tree_flatten`.
+pytrees; ``None`` is an empty subtree, as in JAX. :func:`tree_flatten` lists the leaves
+with readable paths and returns the function that rebuilds the tree, as
+``jax.tree_util`` does (:func:`minimanc.autodiff.grad` differentiates with respect to
+every leaf; :func:`tree_unflatten` is its inverse).
 :func:`leaves` visits dict entries in sorted key order, so it sees the leaves in one
 order whatever the insertion order was (the order :mod:`minimanc.optim` and the
 checkpoints of :mod:`minimanc.train` rely on); :func:`map` and :func:`cast_floats`
@@ -12,12 +15,12 @@ tree as flat ``"a/b/#0/w"`` keys, the layout of a checkpoint file.
 from __future__ import annotations
 
 import builtins
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
-__all__ = ["cast_floats", "flatten", "leaves", "map", "unflatten"]
+__all__ = ["cast_floats", "flatten", "leaves", "map", "tree_flatten", "tree_unflatten", "unflatten"]
 
 
 def leaves(tree: Any) -> list:
@@ -186,3 +189,68 @@ def _lists(node: Any) -> Any:
     if node and all(k.startswith("#") for k in node):
         return [_lists(node[f"#{i}"]) for i in range(len(node))]
     return {k: _lists(v) for k, v in node.items()}
+
+
+def _dict_keys(d: dict) -> list:
+    try:
+        return sorted(d)
+    except TypeError:
+        return list(d)
+
+
+def tree_flatten(tree) -> tuple[list, list[str], Callable[[Sequence], Any]]:
+    """The leaves of ``tree``, their paths and the function that rebuilds the tree.
+
+    Parameters
+    ----------
+    tree : pytree
+        An array (a leaf), ``None`` (no leaf), or a dict / list / tuple (named tuples
+        included) of pytrees. Dicts are visited in sorted key order when their keys sort.
+
+    Returns
+    -------
+    leaves : list
+        The leaves, each the object itself.
+    paths : list of str
+        Their readable locations, such as ``"['layers'][1]['w']"``.
+    rebuild : callable
+        ``rebuild(new_leaves)`` is the tree with ``new_leaves`` in place of ``leaves``.
+    """
+    leaves: list = []
+    paths: list[str] = []
+
+    def build(node, path):
+        if node is None:
+            return lambda it: None
+        if isinstance(node, dict):
+            keys = _dict_keys(node)
+            subs = [build(node[k], f"{path}[{k!r}]") for k in keys]
+            return lambda it: type(node)(zip(keys, [s(it) for s in subs]))
+        if isinstance(node, (list, tuple)):
+            subs = [build(c, f"{path}[{i}]") for i, c in enumerate(node)]
+            if hasattr(node, "_fields"):  # namedtuple
+                return lambda it: type(node)(*[s(it) for s in subs])
+            return lambda it: type(node)([s(it) for s in subs])
+        leaves.append(node)
+        paths.append(path)
+        return lambda it: next(it)
+
+    rebuilder = build(tree, "")
+    return leaves, paths, lambda new: rebuilder(iter(new))
+
+
+def tree_unflatten(rebuild: Callable[[Sequence], Any], leaves: Sequence):
+    """Inverse of :func:`tree_flatten`: the tree ``rebuild`` makes of ``leaves``.
+
+    Parameters
+    ----------
+    rebuild : callable
+        The third value :func:`tree_flatten` returned.
+    leaves : sequence
+        One leaf per leaf of the flattened tree, in :func:`tree_flatten`'s order.
+
+    Returns
+    -------
+    pytree
+    """
+    return rebuild(leaves)

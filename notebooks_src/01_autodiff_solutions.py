@@ -1,8 +1,9 @@
 # %% [markdown]
 # # Chapter 1 — Exercises: build reverse-mode autodiff
 #
-# Modules built in this chapter: `minimanc.autodiff` (`core.py`, `numpy.py`,
-# `check.py`) and `minimanc.engine`. Read `tutorials/01_autodiff.ipynb` first.
+# Modules built in this chapter: `minimanc.autodiff` (its `__init__.py`, `numpy.py`,
+# `check.py`), its pytrees `minimanc.tree` and `minimanc.engine`. Read
+# `tutorials/01_autodiff.ipynb` first.
 #
 # You will write the pieces of a reverse-mode engine yourself: summing a
 # cotangent back over broadcasting, the vector-Jacobian products (VJPs) of
@@ -39,7 +40,7 @@ rng = np.random.default_rng(0)
 # Example: `shape=(3, 1)`, `g.shape == (2, 3, 4)` → sum over axis 0 (new) and
 # axis 2 (stretched, keeping it with size one).
 
-# %% solution id=ex01_1 title="Unbroadcast a cotangent" forbids="minimanc.autodiff.core.unbroadcast"  # noqa: E501
+# %% solution id=ex01_1 title="Unbroadcast a cotangent" forbids="minimanc.autodiff.unbroadcast"  # noqa: E501
 def my_unbroadcast(shape, g):
     ### BEGIN SOLUTION
     g = np.asarray(g)
@@ -231,7 +232,7 @@ print(z, "parents:", z.parents)
 # visited nodes by `id(node)` (a `Var` is not hashable by value), and visit
 # parents in their tuple order so the result is deterministic.
 
-# %% solution id=ex01_4 title="Topological sort" forbids="minimanc.autodiff.core.toposort"  # noqa: E501
+# %% solution id=ex01_4 title="Topological sort" forbids="minimanc.autodiff.toposort"  # noqa: E501
 def topo_order(end):
     ### BEGIN SOLUTION
     order, seen = [], set()

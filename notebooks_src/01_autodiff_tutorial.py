@@ -1,8 +1,8 @@
 # %% [markdown]
 # # Chapter 1 — Automatic differentiation from scratch
 #
-# Modules built in this chapter: `minimanc.autodiff` (`core.py`, `numpy.py`,
-# `check.py`) and `minimanc.engine`.
+# Modules built in this chapter: `minimanc.autodiff` (its `__init__.py`, `numpy.py`,
+# `check.py`), its pytrees `minimanc.tree` and `minimanc.engine`.
 #
 # Every model of the MANC paper — the predicate CNN (eq. 7), the soft automaton
 # (eqs. 8–9), the DMP head with learned gains (eqs. 10–11) — is trained by
@@ -121,7 +121,7 @@ assert np.allclose(gb, g.sum(axis=0))
 # arguments and its **parents** — in a tuple, so the order is fixed.
 #
 # The code of `primitive` is a dozen lines (open `minimanc/autodiff/primitives.py`;
-# `minimanc.autodiff.core` gathers the engine's pieces, one module each); each VJP
+# the package `minimanc.autodiff` gathers the engine's pieces, one module each); each VJP
 # sits right next to its forward definition in the modules behind
 # `minimanc/autodiff/numpy.py` (here `elementwise.py`), e.g.
 #
@@ -133,7 +133,7 @@ assert np.allclose(gb, g.sum(axis=0))
 # Let us trace $y = \sin(x \cdot x) + x$ by hand and look at the graph.
 
 # %%
-from minimanc.autodiff.core import Box, backward, toposort
+from minimanc.autodiff import Box, backward, toposort
 
 xb = Box(np.array(0.7))
 yb = anp.sin(xb * xb) + xb

@@ -200,7 +200,7 @@ assert np.allclose(c2, c) and np.allclose(b2, b_new), (
 # $N = 2$, $M = 1$, $W_0 = \begin{pmatrix}1 & 0\\ 0 & 0\end{pmatrix}$,
 # $q_{prev} = (1, 0)$ you get $q_0 = \sigma(p)$, so $J_{00} = \sigma(p)(1 - \sigma(p))$.
 
-# %% solution id=ex06_5 title="Per-q-state saliency" forbids="minimanc.cam.vagn_jacobian,minimanc.cam.q_state_saliency,minimanc.cam.explain,minimanc.models.explain"  # noqa: E501
+# %% solution id=ex06_5 title="Per-q-state saliency" forbids="minimanc.cam.vagn_jacobian,minimanc.cam.q_state_saliency,minimanc.cam.explain,minimanc.models.saliency"  # noqa: E501
 def q_saliency(q_prev, p, W, cams):
     ### BEGIN SOLUTION
     p = np.asarray(p, float)

@@ -28,7 +28,7 @@ import time
 import matplotlib.pyplot as plt
 import numpy as np
 
-from minimanc import cam, engine, optim, vagn
+from minimanc import cam, engine, optim, tree, vagn
 from minimanc.viz.saliency import overlay, plot_q_saliency
 
 np.set_printoptions(precision=3, suppress=True)
@@ -163,7 +163,7 @@ for it in range(600):
     params, state, L = train_step(params, state, X_train_f[idx], Y_train_f[idx])
     if it % 150 == 0 or it == 599:
         print(f"step {it:3d}  loss {float(L):.3f}")
-params = optim.tree_map(np.asarray, params)
+params = tree.map(np.asarray, params)
 print(f"training took {time.perf_counter() - t0:.1f} s")
 
 p_test, f_test = cam.predicate_extractor(params, X_test, npe.nn, npe.xp, return_features=True)

@@ -16,7 +16,8 @@
 # | traffic | `world.traffic` | ado vehicles on lanes: IDM, junction priority, cut-ins |
 # | the human | `world.driver` | the ego driver, with a per-scene style |
 # | raster | `world.raster` | ego-centric, heading-up BEV with the devkit's colours |
-# | dataset | `world.dataset` | generate / split / save / load, checksums |
+# | dataset | `world.generation`, `world.scenes` | generate the scenes; split, subset |
+# | files | `world.datawriter`, `world.datareader` | save / load: sharded, checksummed |
 #
 # The data must make learning from images worth it: the human meets junctions,
 # roundabouts, queues and vehicles cutting in, and different scenes are driven

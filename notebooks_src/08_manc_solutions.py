@@ -17,7 +17,7 @@
 # %%
 import numpy as np
 
-from minimanc import dmp, engine, inputs, models, vagn, world
+from minimanc import dmp, engine, inputs, models, rollout, vagn, world
 
 np.set_printoptions(precision=3, suppress=True)
 rng = np.random.default_rng(0)
@@ -25,7 +25,7 @@ ds = world.generate(3, seed=0, raster=world.RasterConfig(size=64))
 cfg = models.ModelConfig()
 eng = engine("numpy")
 params = models.init("manc", np.random.default_rng(0), cfg)
-obs = inputs.from_dataset(ds, [0, 1, 2, 2], [4, 17, 9, 33], model="manc")
+obs = inputs.from_dataset(ds, [0, 1, 2, 2], [4, 17, 9, 33], model=models.get("manc"))
 q_prev = vagn.random_state(rng, cfg.n_states, size=4)
 print({k: v.shape for k, v in obs.items()})
 
@@ -271,11 +271,11 @@ for c, manc_total, cnn_total in ((models.ModelConfig(n_states=3, channels=(8, 16
 # 5. `models.dmp_head(logits, lane_target, motion, cfg)` (eqs. 10–11).
 #
 # Return `(controls (B, 2), q (B, N))`. `models.step` (and `models.sequence`,
-# `models.replay`) are disabled while grading; the test rebuilds the step from
+# `rollout.replay`) are disabled while grading; the test rebuilds the step from
 # the equations alone (its own convolution, eq. 8–9 with `einsum`, and the DMP
 # as a matrix power).
 
-# %% solution id=ex08_5 title="The MANC forward pass" forbids="minimanc.models.step,minimanc.models.sequence,minimanc.models.replay"  # noqa: E501
+# %% solution id=ex08_5 title="The MANC forward pass" forbids="minimanc.models.step,minimanc.models.sequence,minimanc.rollout.replay"  # noqa: E501
 def manc_step(params, obs, q_prev, cfg):
     ### BEGIN SOLUTION
     f = models.backbone(params["backbone"], obs["bev"], cfg, eng)
@@ -341,7 +341,7 @@ u2, q2 = manc_step(p2, obs, q, cfg)  # q carried over from the first step
 u2_ref, q2_ref = manc_reference(p2, obs, q_ref)
 assert np.allclose(u2, u2_ref, atol=1e-6) and np.allclose(q2, q2_ref, atol=1e-9), \
     "second step (other weights, q carried over)"
-obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model="manc")
+obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model=models.get("manc"))
 q3 = vagn.random_state(rng, cfg.n_states, size=2)
 u3, q3_out = manc_step(params, obs3, q3, cfg)
 u3_ref, q3_ref = manc_reference(params, obs3, q3)
@@ -497,6 +497,6 @@ for bad in (("lstm", "paper"), ("cnn", "Paper")):
 # every control is finite and every q a distribution.
 
 # %%
-tr = models.replay("manc", params, ds, 1, cfg)
+tr = rollout.replay("manc", params, ds, 1, cfg)
 print("controls at steps 0-4:\n", tr["controls"][:5])
 assert np.all(np.isfinite(tr["controls"])) and np.allclose(tr["q"].sum(axis=1), 1.0)

@@ -22,7 +22,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-from minimanc import dmp, engine, inputs, models, train, tree, vagn, world
+from minimanc import dmp, engine, inputs, models, rollout, train, tree, vagn, world
 from minimanc.viz.automaton import plot_q_heatmap
 from minimanc.viz.saliency import plot_q_saliency
 
@@ -57,8 +57,8 @@ print("map kinds:", [m.kind for m in ds.maps])
 
 # %%
 for name in models.names():
-    print(f"{name:10s} paper: {', '.join(inputs.visible(name, 'paper')):38s} "
-          f"parity: {', '.join(inputs.visible(name, 'parity'))}")
+    print(f"{name:10s} paper: {', '.join(inputs.visible(models.get(name), 'paper')):38s} "
+          f"parity: {', '.join(inputs.visible(models.get(name), 'parity'))}")
 
 # %%
 obs = inputs.from_dataset(ds, scene_idx=[0, 1], t_idx=[10, 10])
@@ -106,7 +106,7 @@ assert all(counts["manc"] < 0.7 * counts[m] for m in ("cnn", "cnn_lstm", "rvs_g"
 # %%
 eng = engine("numpy")
 params = models.init("manc", np.random.default_rng(0), cfg)
-obs = inputs.from_dataset(ds, scene_idx=[0, 3, 6], t_idx=[5, 20, 30], model="manc")
+obs = inputs.from_dataset(ds, scene_idx=[0, 3, 6], t_idx=[5, 20, 30], model=models.get("manc"))
 q_prev = models.initial_state("manc", 3, cfg, dtype=np.float64)["q"]
 
 f = models.backbone(params["backbone"], obs["bev"], cfg, eng)          # ConvEncoder
@@ -181,7 +181,7 @@ assert speeds[0] < 8.0 < speeds[-1] and yaws[0] < 0.0
 # %%
 S, T = ds.ego.shape[:2]
 s_idx, t_idx = np.repeat(np.arange(S), T - 1), np.tile(np.arange(1, T), S)
-o = inputs.from_dataset(ds, s_idx, t_idx, model="dmp_only")
+o = inputs.from_dataset(ds, s_idx, t_idx, model=models.get("dmp_only"))
 z0 = params["gains"]["b"][None].repeat(len(s_idx), 0)  # the initial gains, models.DEFAULT_GAINS
 u_dmp, _ = models.dmp_head(z0, o["lane_target"], o["motion"], cfg)
 human = ds.controls[s_idx, t_idx]
@@ -198,7 +198,7 @@ assert rmse(u_dmp)[1] < rmse(o["motion"])[1]
 # (chapter 1) and by JAX, in float64: the same numbers to 1e-6.
 
 # %%
-batch_obs = inputs.from_dataset(ds, [0, 4, 8], [3, 15, 27], model="manc")
+batch_obs = inputs.from_dataset(ds, [0, 4, 8], [3, 15, 27], model=models.get("manc"))
 target = ds.controls[[0, 4, 8], [3, 15, 27]]
 
 
@@ -256,12 +256,12 @@ assert after < before
 # closed-loop quality poorly: what matters is where the car ends up.)
 #
 # ## 7. Explainability traces
-# `models.replay` runs the trained MANC through a logged validation scene,
+# `rollout.replay` runs the trained MANC through a logged validation scene,
 # carrying q from step to step as in closed loop, and records q, the gains
 # and the controls (the paper's Figure 4).
 
 # %% tags=["nbval-ignore-output"]
-tr = models.replay("manc", fit.params, val_ds, 0, cfg)
+tr = rollout.replay("manc", fit.params, val_ds, 0, cfg)
 fig, ax = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
 plot_q_heatmap(tr["q"], ax=ax[0], colorbar=False)
 ax[0].set_title("q-distribution over time")
@@ -289,7 +289,7 @@ assert err[0] < 3.0 and err[1] < 0.2  # stored run: 0.51 m/s and 0.022 rad/s
 
 # %% [markdown]
 # ### Per-q-state saliency
-# Where does each q-state look? `models.explain` splits each predicate into
+# Where does each q-state look? `models.saliency` splits each predicate into
 # its class activation map (chapter 6) and weighs the maps by how much each
 # predicate moves each q-state, $S_j = \sum_i \partial q_j/\partial z_i\, M_i$
 # (Figures 3–4 of the paper). Positive (yellow) regions push probability into
@@ -297,8 +297,8 @@ assert err[0] < 3.0 and err[1] < 0.2  # stored run: 0.51 m/s and 0.022 rad/s
 
 # %% tags=["nbval-ignore-output"]
 t = 20
-o = inputs.from_dataset(val_ds, 0, t, model="manc")
-ex = models.explain(fit.params, o, tr["q"][t - 1][None], cfg)
+o = inputs.from_dataset(val_ds, 0, t, model=models.get("manc"))
+ex = models.saliency(fit.params, o, tr["q"][t - 1][None], cfg)
 plot_q_saliency(val_ds.bev[0, t], ex["saliency"][0], ex["q"][0])
 plt.show()
 print("q at step 20:", ex["q"][0].round(3))

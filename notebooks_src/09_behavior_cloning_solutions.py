@@ -63,7 +63,7 @@ def manc_step(params, obs, q_prev, cfg, eng):
 # %% grade id=ex09_1_tests points=3
 # expected values: literals computed once with models.step (float64 NumPy, the untrained
 # seed-0 parameters above), rounded to 6 decimals
-obs = inputs.from_dataset(ds, [0, 1, 2], [0, 5, 10], "paper", model="manc")
+obs = inputs.from_dataset(ds, [0, 1, 2], [0, 5, 10], "paper", model=models.get("manc"))
 q0 = np.full((3, 4), 0.25)
 u, q, alpha, beta = manc_step(params, obs, q0, cfg, eng)
 u_ref = [[10.584588, 0.007875], [10.15597, 0.052751], [10.990746, -0.005967]]
@@ -95,7 +95,8 @@ assert np.allclose(qq, [[0.019958, 0.014246, 0.174789, 0.791007],
 # `motion` (B, 2), the policy's state and the time step `t`:
 #
 # 1. build the observation with `inputs.from_state(maps, pose, ado, ado_valid,
-#    goal_world, ds.raster, policy.setting, motion=motion, model=policy.model)`
+#    goal_world, ds.raster, policy.setting, motion=motion,
+#    model=models.get(policy.model))`
 #    — the ados at their *logged* boxes of step `t`, the goal is the human's
 #    final pose `ds.ego[scenes, -1]`;
 # 2. call `policy(obs, state, t, scenes)`, which returns `(controls, state, aux)`;
@@ -108,7 +109,7 @@ def closed_loop_step(policy, ds, scenes, pose, motion, state, t):
     ### BEGIN SOLUTION
     obs = inputs.from_state([ds.maps[s] for s in scenes], pose, ds.ado[scenes, t],
                             ds.ado_valid[scenes, t], ds.ego[scenes, -1], ds.raster,
-                            policy.setting, motion=motion, model=policy.model)
+                            policy.setting, motion=motion, model=models.get(policy.model))
     controls, state, _ = policy(obs, state, t, scenes)
     return world.unicycle_step(pose, controls, world.DT), controls, state
     ### END SOLUTION

@@ -36,7 +36,8 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from minimanc import inputs, metrics, models, modes, rollout, studies, train, viz
+from minimanc import inputs, metrics, models, rollout, studies, train, viz
+from minimanc.metrics import modes
 from minimanc.studies import jobs
 
 np.set_printoptions(precision=2, suppress=True)
@@ -215,7 +216,7 @@ plt.show()
 # the log they *reacted to the human*: a follower that braked for the human rear-ends
 # a policy ego that is a little slower, and counts as the policy's collision. nuPlan,
 # the planning benchmark, reports a second protocol for that reason, and so do we:
-# with `agents="reactive"` (`minimanc.world.reactive`) the ados are driven by the same
+# with `agents="reactive"` (`minimanc.rollout.reactive`) the ados are driven by the same
 # IDM / yielding / gap-acceptance rules that generated the data, starting from the
 # logged state, and react to the *policy's* ego. Every closed loop of
 # `minimanc.rollout` takes `agents=`.
@@ -330,7 +331,7 @@ plt.show()
 print(f"{'model':<14}{'setting':<8} inputs")
 for name in ("cnn", "manc"):
     for setting in inputs.SETTINGS:
-        print(f"{name:<14}{setting:<8} {', '.join(inputs.visible(name, setting))}")
+        print(f"{name:<14}{setting:<8} {', '.join(inputs.visible(models.get(name), setting))}")
 
 # %% tags=["nbval-ignore-output"]
 parity = {}

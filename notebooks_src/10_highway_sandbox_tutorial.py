@@ -16,7 +16,7 @@
 # | BEV | `hw.BEVObservation` | gymnasium wrapper: the chapter-7 raster of the live scene |
 # | actions | `hw.controls_to_action` | `[speed, yaw rate]` → `[acceleration, steering]` |
 # | expert | `hw.collect` | IDM/MOBIL demonstrations in the chapter-7 dataset format |
-# | closed loop | `hw.closed_loop` | any chapter-9 policy drives; collision, off-road, ADE, speed |
+# | closed loop | `hw.drive_episodes` | a chapter-9 policy drives; collision, off-road, ADE, speed |
 # | video | `hw.render_episode` | headless frames → PNG and GIF |
 #
 # Three scenarios: `roundabout` (highway-env's `roundabout-v1`), `intersection`
@@ -178,7 +178,7 @@ for name, fit in fits.items():
 # ## 5. Drive them in highway-env
 # Evaluation seeds start at `hw.EVAL_SEED` (never seen in training). For each seed the
 # expert drives first: its last pose is the goal, its trajectory the reference for the
-# ADE. `hw.closed_loop` then runs every episode in lock-step, building each step's
+# ADE. `hw.drive_episodes` then runs every episode in lock-step, building each step's
 # observation with `minimanc.inputs.from_state` from the ego's *own* pose — the same
 # code as the chapter-9 closed loop — except that the ados are live highway-env
 # vehicles that react to the ego.
@@ -193,7 +193,7 @@ experts, tries = hw.expert_episodes("roundabout", 3, seed=hw.EVAL_SEED, steps=20
 results = {"expert": hw.expert_result("roundabout", experts)}
 for name, fit in fits.items():
     policy = rollout.ModelPolicy(name, fit.params, fit.cfg, "jax")
-    results[name] = hw.closed_loop(policy, "roundabout", experts, cfg=cfg)
+    results[name] = hw.drive_episodes(policy, "roundabout", experts, cfg=cfg)
 print(f"{'driver':<8} {'collision %':>11} {'off-road %':>10} {'ADE m':>7} {'speed m/s':>9}")
 for name, res in results.items():
     m = res.metrics
@@ -221,7 +221,7 @@ assert all(res.metrics["episodes_per_second"] > 0 for res in results.values())
 
 # %%
 manc = rollout.ModelPolicy("manc", fits["manc"].params, fits["manc"].cfg, "jax")
-goal = experts[0].poses[experts[0].steps - 1]   # as in hw.closed_loop
+goal = experts[0].poses[experts[0].steps - 1]   # as in hw.drive_episodes
 paths = hw.render_episode("roundabout", experts[0].seed, workdir / "manc",
                           hw.plain_policy(manc, goal, cfg), steps=19, goal=goal, cfg=cfg)
 frames = sorted(p.name for p in (workdir / "manc").glob("frame_*.png"))
@@ -253,7 +253,7 @@ wroll = rollout.closed_loop("manc", wfit.params, wval, wfit.cfg, "jax", progress
 wm = metrics.evaluate(wroll, wval)
 print(f"world-trained MANC in the world (ados replayed): collision {wm['collision_rate']:.1f} %"
       f", off-road {wm['off_road_rate']:.1f} %, ADE {wm['ade']:.2f} m")
-transfer = hw.closed_loop(rollout.ModelPolicy("manc", wfit.params, wfit.cfg, "jax"),
+transfer = hw.drive_episodes(rollout.ModelPolicy("manc", wfit.params, wfit.cfg, "jax"),
                           "roundabout", experts, cfg=cfg)
 for label, res in (("highway-trained", results["manc"]), ("world-trained", transfer)):
     m = res.metrics

@@ -12,7 +12,7 @@
 # for a horizon $T$ and a per-step imitation error $\epsilon$). Their fix, **DAgger**
 # (*dataset aggregation*), needs what the paper's nuScenes logs cannot give and our
 # world can: an **expert that can be asked what to do in any state**. Here the
-# expert is the world's own human driver (`minimanc.world.expert.HumanExpert`, the
+# expert is the world's own human driver (`minimanc.dagger.expert.HumanExpert`, the
 # same `HumanDriver.act` that generated the data) and, in highway-env, its IDM/MOBIL
 # expert.
 #
@@ -32,7 +32,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import dagger, rollout, train, world
-from minimanc.world.reactive import simulate_reactive
+from minimanc.rollout.reactive import simulate_reactive
 
 np.set_printoptions(precision=2, suppress=True)
 workdir = Path(tempfile.mkdtemp(prefix="minimanc11_"))
@@ -41,7 +41,7 @@ workdir = Path(tempfile.mkdtemp(prefix="minimanc11_"))
 # ## 1. Data and the teacher
 # 24 training scenes (the *pool* of demonstrations) and 8 validation scenes of the
 # chapter-7 world, 32 × 32 rasters. The teacher drives and evaluates with **reactive**
-# ados (chapter 9's second protocol, `minimanc.world.reactive`): the other vehicles
+# ados (chapter 9's second protocol, `minimanc.rollout.reactive`): the other vehicles
 # react to the policy's ego with the same IDM / yielding / gap-acceptance rules that
 # generated the data, so that a policy ego a little slower than the human is not
 # rear-ended by a follower that braked for the human in the log.

@@ -84,7 +84,7 @@ def test_each_module_docstring_names_the_chapter_the_map_gives_it(module):
 
 def test_chapter_of_takes_the_longest_owner():
     assert chapter_of("minimanc.world.raster").number == 7
-    assert chapter_of("minimanc.world.expert").number == 11
+    assert chapter_of("minimanc.dagger.expert").number == 11
     assert chapter_of("minimanc.autodiff.nn").number == 2
     assert chapter_of("minimanc.autodiff.nnx").number == 1
     assert chapter_of("minimanc.worlds") is None

@@ -13,9 +13,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from minimanc import dagger, rollout, train, world
+from minimanc.dagger.expert import HumanExpert
 from minimanc.errors import UsageError
-from minimanc.world.expert import HumanExpert
-from minimanc.world.reactive import simulate_reactive
+from minimanc.rollout.reactive import simulate_reactive
 
 SIZE = 16
 TINY = dict(image_size=SIZE, channels=(4, 4, 4), hidden=8)

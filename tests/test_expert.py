@@ -1,4 +1,4 @@
-"""Chapter 10 — ask the world's driver (minimanc.world.expert): the logged controls on the
+"""Chapter 10 — ask the world's driver (minimanc.dagger.expert): the logged controls on the
 logged states, sensible answers elsewhere, a clear refusal where it cannot answer."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from minimanc import world
-from minimanc.world import reactive
-from minimanc.world.expert import HumanExpert
+from minimanc.dagger.expert import HumanExpert
+from minimanc.rollout import reactive
 
 EXACT = 1e-9
 """On the run's own float64 states at t >= 1 the expert is the run's driver: equal to

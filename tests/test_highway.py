@@ -250,7 +250,7 @@ def test_closed_loop_replaying_the_expert_matches_it():
                                         record_bev=False)
     assert tries >= 2 and all(not ep.collided for ep in experts)
     controls = np.stack([ep.controls for ep in experts])
-    res = hw.closed_loop(_Replay(controls), "highway-fast", experts)
+    res = hw.drive_episodes(_Replay(controls), "highway-fast", experts)
     m = res.metrics
     assert set(m) == {"collision_rate", "off_road_rate", "ade", "goal_distance", "mean_speed",
                       "episodes_per_second"}
@@ -259,7 +259,7 @@ def test_closed_loop_replaying_the_expert_matches_it():
     ref = hw.expert_result("highway-fast", experts).metrics
     assert ref["ade"] == 0.0 and ref["collision_rate"] == 0.0
     # a policy that veers off is far from the expert
-    res2 = hw.closed_loop(_Replay(controls + np.array([0.0, 0.2])), "highway-fast", experts)
+    res2 = hw.drive_episodes(_Replay(controls + np.array([0.0, 0.2])), "highway-fast", experts)
     assert res2.metrics["ade"] > 2.0 and res2.metrics["ade"] > 4 * m["ade"]
 
 
@@ -278,7 +278,7 @@ def test_plain_policy_drives_like_the_closed_loop():
     experts, _ = hw.expert_episodes("roundabout", 1, seed=hw.EVAL_SEED, steps=5,
                                     record_bev=False)
     pol = _Replay(np.stack([ep.controls for ep in experts]) + np.array([1.0, 0.05]))
-    res = hw.closed_loop(pol, "roundabout", experts)
+    res = hw.drive_episodes(pol, "roundabout", experts)
     goal = experts[0].poses[experts[0].steps - 1]
     ep = hw.run_episode("roundabout", experts[0].seed, hw.plain_policy(pol, goal), steps=4,
                         goal=goal, record_bev=False)
@@ -410,7 +410,8 @@ def test_demonstrations_are_built_by_the_world_builder(monkeypatch):
                                                           real(cls, *a, **k))[1]))
     ds = hw.to_dataset(eps, seed=0)
     assert calls == ["demonstrations"]
-    assert list(ds.meta)[:8] == list(world.dataset.META_KEYS) and ds.meta["source"] == "highway-env"
+    assert list(ds.meta)[:8] == list(world.fileformat.META_KEYS)
+    assert ds.meta["source"] == "highway-env"
     assert ds.meta["scene_index"] == [ep.seed for ep in eps]
     assert all(ds.maps[i] is ep.map for i, ep in enumerate(eps))
     eps[0].speeds[1] = np.nan  # controls[0, 0] is the speed reached at step 1
@@ -432,11 +433,11 @@ def test_highway_closed_loop_honours_keys_and_checks_controls():
     experts, _ = hw.expert_episodes("roundabout", 1, seed=hw.EVAL_SEED, steps=4,
                                     record_bev=False)
     controls = np.stack([ep.controls for ep in experts])
-    res = hw.closed_loop(_NoImage(controls), "roundabout", experts)
-    ref = hw.closed_loop(_Replay(controls), "roundabout", experts)
+    res = hw.drive_episodes(_NoImage(controls), "roundabout", experts)
+    ref = hw.drive_episodes(_Replay(controls), "roundabout", experts)
     assert np.array_equal(res.episodes[0].poses, ref.episodes[0].poses)
     with pytest.raises(rollout.BadControls, match="step 0"):
-        hw.closed_loop(_Replay(controls * np.nan), "roundabout", experts)
+        hw.drive_episodes(_Replay(controls * np.nan), "roundabout", experts)
     with pytest.raises(rollout.BadControls, match="step 0"):
         hw.run_episode("roundabout", 0, lambda o: np.array([np.inf, 0.0]), steps=3)
 

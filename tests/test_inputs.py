@@ -15,7 +15,8 @@ def ds():
 
 def test_visibility_table():
     for name in models.names():
-        paper, parity = inputs.visible(name, "paper"), inputs.visible(name, "parity")
+        spec = models.get(name)
+        paper, parity = inputs.visible(spec, "paper"), inputs.visible(spec, "parity")
         assert set(paper) <= set(parity)
         assert "bev" in paper
         if name in ("manc", "dmp_only"):
@@ -29,11 +30,11 @@ def test_visibility_table():
 
 def test_bad_names_raise():
     with pytest.raises(ValueError, match="setting"):
-        inputs.visible("cnn", "oracle")
-    with pytest.raises(ValueError, match="model"):
-        inputs.visible("resnet", "paper")
+        inputs.visible(models.get("cnn"), "oracle")
+    with pytest.raises(ValueError, match="model must be a model spec"):
+        inputs.visible("cnn", "paper")  # a name: the caller looks its spec up (models.get)
     with pytest.raises(ValueError, match="goal"):
-        inputs.select({"bev": np.zeros((1, 4, 4, 3))}, "cnn")
+        inputs.select({"bev": np.zeros((1, 4, 4, 3))}, models.get("cnn"))
 
 
 def test_numeric_features_size_and_scale():
@@ -42,13 +43,13 @@ def test_numeric_features_size_and_scale():
            "motion": rng.normal(size=(4, 2))}
     for name in models.names():
         for setting in inputs.SETTINGS:
-            f = inputs.numeric_features(obs, name, setting)
-            n = inputs.numeric_size(name, setting)
+            f = inputs.numeric_features(obs, models.get(name), setting)
+            n = inputs.numeric_size(models.get(name), setting)
             if n == 0:
                 assert f is None
             else:
                 assert f.shape == (4, n)
-    f = inputs.numeric_features(obs, "cnn", "paper")
+    f = inputs.numeric_features(obs, models.get("cnn"), "paper")
     np.testing.assert_allclose(f, obs["goal"] / np.array(inputs.GOAL_SCALE), rtol=1e-6)
 
 
@@ -71,10 +72,10 @@ def test_from_dataset_shapes_and_values(ds):
 
 
 def test_from_dataset_respects_the_model(ds):
-    assert set(inputs.from_dataset(ds, 0, 3, "paper", model="cnn")) == {"bev", "goal"}
-    rvs = inputs.from_dataset(ds, [0, 1], [3, 3], "paper", model="rvs_g")
+    assert set(inputs.from_dataset(ds, 0, 3, "paper", model=models.get("cnn"))) == {"bev", "goal"}
+    rvs = inputs.from_dataset(ds, [0, 1], [3, 3], "paper", model=models.get("rvs_g"))
     np.testing.assert_array_equal(rvs["goal_bev"], ds.goal_bev[[0, 1]] / np.float32(255))
-    assert set(inputs.from_dataset(ds, 0, 3, "parity", model="manc")) == {
+    assert set(inputs.from_dataset(ds, 0, 3, "parity", model=models.get("manc"))) == {
         "bev", "lane_target", "motion"}
 
 
@@ -97,8 +98,9 @@ def test_from_state_at_the_logged_pose_reproduces_the_log(ds):
     s = np.arange(3)
     goal_world = ds.ego[:, -1]
     obs = inputs.from_state(ds.maps, ds.ego[s, t], ds.ado[s, t], ds.ado_valid[s, t], goal_world,
-                            ds.raster, "parity", motion=ds.controls[s, t - 1], model="rvs_g")
-    ref = inputs.from_dataset(ds, s, np.full(3, t), "parity", model="rvs_g")
+                            ds.raster, "parity", motion=ds.controls[s, t - 1],
+                            model=models.get("rvs_g"))
+    ref = inputs.from_dataset(ds, s, np.full(3, t), "parity", model=models.get("rvs_g"))
     assert set(obs) == set(ref)
     np.testing.assert_array_equal(obs["bev"], ref["bev"])
     np.testing.assert_allclose(obs["lane_target"], ref["lane_target"], atol=1e-3)

@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from minimanc import layers
-from minimanc.autodiff import tree_flatten
 from minimanc.engine import get_engine
+from minimanc.tree import tree_flatten
 
 NP = get_engine("numpy")
 JX = get_engine("jax")

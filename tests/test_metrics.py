@@ -434,7 +434,8 @@ def test_time_to_collision_matches_the_closing_speed(v, gap, v_ado):
 
 
 def test_route_progress_relative_to_the_human():
-    from minimanc.world.maps import build_map, random_recipe
+    from minimanc.world.maps import random_recipe
+    from minimanc.world.roads import build_map
 
     m = build_map(random_recipe(np.random.default_rng(0), kind="straight"))
 

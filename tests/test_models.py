@@ -43,7 +43,7 @@ def test_shapes(name, setting, eng_np):
     cfg = models.ModelConfig(**{**CFG.to_dict(), "channels": CFG.channels, "setting": setting})
     rng = np.random.default_rng(0)
     params = models.init(name, rng, cfg)
-    obs = inputs.select(_obs(rng, cfg), name, setting)
+    obs = inputs.select(_obs(rng, cfg), models.get(name), setting)
     state = models.initial_state(name, B, cfg)
     controls, new, aux = models.step(name, params, obs, state, cfg, eng_np)
     assert controls.shape == (B, 2) and np.all(np.isfinite(controls))
@@ -94,9 +94,10 @@ def test_sequence_equals_repeated_steps(name, eng_np):
     params = models.init(name, rng, CFG)
     obs = _obs(rng, CFG, lead=(3, B))
     state = models.initial_state(name, B, CFG, dtype=np.float64)
-    seq, final = models.sequence(name, params, inputs.select(obs, name), state, CFG, eng_np)
+    seq, final = models.sequence(name, params, inputs.select(obs, models.get(name)), state, CFG,
+                                 eng_np)
     for t in range(3):
-        one = inputs.select({k: v[t] for k, v in obs.items()}, name)
+        one = inputs.select({k: v[t] for k, v in obs.items()}, models.get(name))
         out, state, _ = models.step(name, params, one, state, CFG, eng_np)
         np.testing.assert_allclose(seq[t], out, rtol=1e-12, atol=1e-12)
     for k in state:
@@ -108,7 +109,7 @@ def test_sequence_encodes_the_goal_raster_once_per_window_and_refuses_one_that_c
     window (equal to the steps, above); a raster that changes over the window is refused."""
     rng = np.random.default_rng(3)
     params = models.init("rvs_g", rng, CFG)
-    obs = inputs.select(_obs(rng, CFG, lead=(3, B)), "rvs_g")
+    obs = inputs.select(_obs(rng, CFG, lead=(3, B)), models.get("rvs_g"))
     state = models.initial_state("rvs_g", B, CFG, dtype=np.float64)
     models.sequence("rvs_g", params, obs, state, CFG, eng_np)
     obs["goal_bev"][2, 0, 0, 0, 0] += 0.5
@@ -121,7 +122,7 @@ def test_sequence_feeds_the_dmp_its_own_motion(name, eng_np):
     """With feedback, step i > 0 starts the DMP from the model's own previous controls."""
     rng = np.random.default_rng(8)
     params = models.init(name, rng, CFG)
-    obs = inputs.select(_obs(rng, CFG, lead=(3, B)), name)
+    obs = inputs.select(_obs(rng, CFG, lead=(3, B)), models.get(name))
     state = models.initial_state(name, B, CFG, dtype=np.float64)
     seq, _, aux = models.sequence(name, params, obs, state, CFG, eng_np, feedback_motion=True,
                                   return_aux=True)
@@ -140,7 +141,7 @@ def test_sequence_feeds_the_dmp_its_own_motion(name, eng_np):
 def test_step_under_jit(eng_jax):
     rng = np.random.default_rng(3)
     params = models.init("manc", rng, CFG, dtype=np.float32)
-    obs = {k: v.astype(np.float32) for k, v in inputs.select(_obs(rng), "manc").items()}
+    obs = {k: v.astype(np.float32) for k, v in inputs.select(_obs(rng), models.get("manc")).items()}
     state = models.initial_state("manc", B, CFG)
     f = eng_jax.jit(lambda p, o, s: models.step("manc", p, o, s, CFG, eng_jax)[0])
     out = f(params, obs, state)
@@ -159,7 +160,7 @@ def test_q_stays_a_distribution(seed, scale, steps):
     params["vagn"]["W"] = params["vagn"]["W"] * scale
     state = models.initial_state("manc", B, CFG, rng=rng, mode="random", dtype=np.float64)
     for _ in range(steps):
-        obs = inputs.select(_obs(rng), "manc")
+        obs = inputs.select(_obs(rng), models.get("manc"))
         _, state, aux = models.step("manc", params, obs, state, CFG, eng)
         q = np.asarray(aux["q"])
         assert np.all(q >= 0.0)
@@ -230,7 +231,7 @@ def test_predicates_match_cam(eng_np):
     """MANC's eq. 7 is the chapter-6 predicate extractor (then a sigmoid) with our backbone."""
     rng = np.random.default_rng(5)
     params = models.init("manc", rng, CFG)
-    obs = inputs.select(_obs(rng), "manc")
+    obs = inputs.select(_obs(rng), models.get("manc"))
     _, _, aux = models.step("manc", params, obs, models.initial_state("manc", B, CFG), CFG,
                             eng_np)
     ext = {"convs": params["backbone"]["convs"], "head": params["predicates"]}
@@ -244,8 +245,8 @@ def test_the_heads_lane_spacing_is_the_worlds():
 
     assert models.config.TARGET_SPACING == world.TARGET_SPACING
     ds = world.generate(1, seed=0, progress=False)
-    steps = np.linalg.norm(np.diff(inputs.from_dataset(ds, 0, 5, model="manc")["lane_target"],
-                                   axis=-2), axis=-1)
+    lane = inputs.from_dataset(ds, 0, 5, model=models.get("manc"))["lane_target"]
+    steps = np.linalg.norm(np.diff(lane, axis=-2), axis=-1)
     np.testing.assert_allclose(np.median(steps), models.config.TARGET_SPACING, rtol=0.05)
 
 
@@ -267,7 +268,7 @@ def test_explain_saliency_identity():
     params = models.init("manc", rng, CFG)
     obs = _obs(rng)
     q_prev = np.full((B, CFG.n_states), 1.0 / CFG.n_states)
-    ex = models.explain(params, obs, q_prev, CFG, upsample_to_input=False)
+    ex = models.saliency(params, obs, q_prev, CFG, upsample_to_input=False)
     N, M = CFG.n_states, CFG.n_predicates
     assert ex["saliency"].shape == (B, N, 4, 4) and ex["cams"].shape == (B, M, 4, 4)
     # mean over pixels of S_j = sum_i J_ji (z_i - b_i), z the predicate logits (chapter 6)
@@ -285,10 +286,10 @@ def test_explain_saliency_identity():
     J = np.stack([jax.jacrev(q_of)(ex["logits"][i]) for i in range(B)])
     np.testing.assert_allclose(ex["jacobian"], J, rtol=1e-7, atol=1e-10)
     np.testing.assert_allclose(lhs, rhs, rtol=1e-9, atol=1e-12)
-    up = models.explain(params, obs, q_prev, CFG)
+    up = models.saliency(params, obs, q_prev, CFG)
     assert up["saliency"].shape == (B, N, 16, 16)
     with pytest.raises(ValueError, match="vAGN"):
-        models.explain(models.init("cnn", rng, CFG), obs, q_prev, CFG)
+        models.saliency(models.init("cnn", rng, CFG), obs, q_prev, CFG)
 
 
 def test_bad_input_raises(eng_np):
@@ -318,7 +319,7 @@ def test_sequence_scan_on_jax_equals_the_loop_on_numpy(name, feedback, eng_np, e
     cfg = models.ModelConfig(**{**CFG.to_dict(), "channels": CFG.channels, "setting": "parity"})
     rng = np.random.default_rng(4)
     params = models.init(name, rng, cfg)
-    obs = inputs.select(_obs(rng, cfg, lead=(5, B)), name, "parity")
+    obs = inputs.select(_obs(rng, cfg, lead=(5, B)), models.get(name), "parity")
     state = models.initial_state(name, B, cfg, dtype=np.float64)
     a, sa, xa = models.sequence(name, params, obs, state, cfg, eng_np, feedback_motion=feedback,
                                 return_aux=True)

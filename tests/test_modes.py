@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from minimanc import modes, world
+from minimanc import world
+from minimanc.metrics import modes
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ import pytest
 
 from minimanc import world
 from minimanc.cli import main
-from minimanc.world.maps import class_grid
+from minimanc.world.lanes import class_grid
 from minimanc.world.nuscenes import (
     MapExpansion,
     NuScenesError,

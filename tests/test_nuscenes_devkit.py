@@ -19,7 +19,7 @@ from pyquaternion import Quaternion  # noqa: E402
 
 from minimanc import world  # noqa: E402
 from minimanc.world.history import History, history_of  # noqa: E402
-from minimanc.world.maps import class_grid  # noqa: E402
+from minimanc.world.lanes import class_grid  # noqa: E402
 from minimanc.world.nuscenes import MapExpansion, import_nuscenes  # noqa: E402
 from minimanc.world.nuscenes import sample as made_up  # noqa: E402
 from minimanc.world.raster import VEHICLE  # noqa: E402

@@ -28,7 +28,7 @@ def _obs(rng, b=3):
 def test_flat_predicates_start_as_the_global_ones(name):
     eng = engine("numpy")
     rng = np.random.default_rng(3)
-    obs = inputs.select(_obs(rng), name, "paper")
+    obs = inputs.select(_obs(rng), models.get(name), "paper")
     pg = models.init(name, np.random.default_rng(0), CFG)
     pf = models.init(name, np.random.default_rng(0), FLAT)
     cells = CFG.feature_size ** 2
@@ -48,7 +48,7 @@ def test_flat_predicates_start_as_the_global_ones(name):
 
 def test_both_engines_agree_on_flat_predicates():
     rng = np.random.default_rng(4)
-    obs = inputs.select(_obs(rng), "manc", "paper")
+    obs = inputs.select(_obs(rng), models.get("manc"), "paper")
     params = models.init("manc", np.random.default_rng(1), FLAT)
     state = models.initial_state("manc", 3, FLAT)
     a, _, _ = models.step("manc", params, obs, state, FLAT, engine("numpy"))
@@ -63,4 +63,4 @@ def test_bad_pool_and_cam_refuse_and_the_default_keeps_the_config_dict():
     assert models.ModelConfig(predicate_pool="flat").to_dict()["predicate_pool"] == "flat"
     params = models.init("manc", np.random.default_rng(0), FLAT)
     with pytest.raises(ValueError, match="needs the predicates of global average pooling"):
-        models.explain(params, {"bev": np.zeros((1, 16, 16, 3))}, np.full((1, 4), 0.25), FLAT)
+        models.saliency(params, {"bev": np.zeros((1, 16, 16, 3))}, np.full((1, 4), 0.25), FLAT)

@@ -1,4 +1,4 @@
-"""Chapter 9 — reactive traffic (minimanc.world.reactive): the human's controls give back the
+"""Chapter 9 — reactive traffic (minimanc.rollout.reactive): the human's controls give back the
 log, a policy's ego is seen by the ados, arrivals are the log's."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from minimanc import metrics, rollout, world
-from minimanc.world import reactive
+from minimanc.rollout import reactive
 
 ADO_TOL = 1e-4
 """Oracle tolerance (m, rad): the reactive human replay starts from the dataset's float32
@@ -38,7 +38,7 @@ class Still:
 
 
 def test_human_controls_reproduce_the_logged_ados(ds):
-    run = reactive.human(ds)
+    run = rollout.human(ds, agents="reactive")
     assert isinstance(run, rollout.Rollout) and run.agents == "reactive"
     assert run.ado.shape == ds.ado.shape
     # the same ados exist at the same steps, arrivals included
@@ -129,14 +129,15 @@ def test_refuses_datasets_it_cannot_regenerate(ds):
 
 def test_a_split_regenerates_from_its_scene_index(ds):
     _, val = ds.split(10)
-    run = reactive.human(val, scenes=[0, 3])
+    run = rollout.human(val, scenes=[0, 3], agents="reactive")
     np.testing.assert_array_equal(run.ado_valid, val.ado_valid[[0, 3]])
 
 
-def test_simulate_protocol_dispatches_on_agents(ds):
-    rep = reactive.simulate_protocol(Still(), ds, "replay", scenes=[1], progress=False)
-    rea = reactive.simulate_protocol(Still(), ds, "reactive", scenes=[1], progress=False)
-    assert not isinstance(rep, reactive.ReactiveRollout) and rea.agents == "reactive"
+def test_simulate_dispatches_on_agents(ds):
+    rep = rollout.simulate(Still(), ds, scenes=[1], progress=False, agents="replay")
+    rea = rollout.simulate(Still(), ds, scenes=[1], progress=False, agents="reactive")
+    assert rep.agents == "replay" and rep.ado is None
+    assert rea.agents == "reactive" and rea.ado.shape[:2] == rea.ego.shape[:2]
     np.testing.assert_array_equal(rep.ego, rea.ego)  # a still ego does not see the ados
     with pytest.raises(ValueError, match="agents"):
-        reactive.simulate_protocol(Still(), ds, "ghost", progress=False)
+        rollout.simulate(Still(), ds, progress=False, agents="ghost")

@@ -40,8 +40,9 @@ def test_a_new_model_is_one_entry_and_runs_through_the_public_api(ds):
     with models.registered(TOY):
         assert models.names()[-1] == "toy_linear"
         assert "toy_linear" not in models.vagn_models() + models.lstm_models() + models.dmp_models()
-        assert inputs.visible("toy_linear", "parity") == ("bev", "goal", "lane_target", "motion")
-        assert inputs.numeric_size("toy_linear", "parity", 10) == 25
+        toy = models.get("toy_linear")
+        assert inputs.visible(toy, "parity") == ("bev", "goal", "lane_target", "motion")
+        assert inputs.numeric_size(toy, "parity", 10) == 25
         assert style.model_label("toy_linear") == "Toy"
         assert style.model_labels()["toy_linear"] == "Toy"
         assert style.model_colours()["toy_linear"] == "#000000"
@@ -49,10 +50,10 @@ def test_a_new_model_is_one_entry_and_runs_through_the_public_api(ds):
 
         params = models.init("toy_linear", np.random.default_rng(0), cfg)
         assert params["out"]["w"].shape == (8 * 8 * 8 + 25, 2)  # 32 → 16 → 8, 8 channels
-        obs = inputs.from_dataset(ds, [0, 1], [3, 7], "parity", model="toy_linear")
+        obs = inputs.from_dataset(ds, [0, 1], [3, 7], "parity", model=toy)
         u, state, aux = models.step("toy_linear", params, obs, {}, cfg, eng)
         assert np.asarray(u).shape == (2, 2) and state == {} and "features" in aux
-        seq = inputs.from_dataset(ds, [0, 0, 0], [0, 1, 2], "parity", model="toy_linear")
+        seq = inputs.from_dataset(ds, [0, 0, 0], [0, 1, 2], "parity", model=toy)
         seq = {k: v[:, None] for k, v in seq.items()}  # (L = 3, B = 1, ...)
         out, _ = models.sequence("toy_linear", params, seq, {}, cfg, eng)
         one = [np.asarray(models.step("toy_linear", params, {k: v[i] for k, v in seq.items()},
@@ -69,8 +70,8 @@ def test_a_new_model_is_one_entry_and_runs_through_the_public_api(ds):
     assert "toy_linear" not in models.names() and "toy_linear" not in style.model_labels()
     with pytest.raises(ValueError, match="name must be one of"):
         models.init("toy_linear", np.random.default_rng(0), cfg)
-    with pytest.raises(ValueError, match="model must be one of"):
-        inputs.visible("toy_linear")
+    with pytest.raises(ValueError, match="name must be one of"):
+        models.get("toy_linear")
 
 
 def test_the_families_and_windows_of_the_six_models_come_from_their_specs():

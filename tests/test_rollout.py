@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from minimanc import metrics, rollout, world
+from minimanc import metrics, models, rollout, world
 
 
 @pytest.fixture(scope="module")
@@ -279,15 +279,15 @@ def test_check_controls_names_the_policy_and_the_step():
 
 
 def _replay_loop(name, params, ds, scene, cfg, eng, q_mode):
-    """The open-loop trace written as its own loop (how models.replay was written before it
-    ran on rollout.drive): the dataset's observations, one models.step per time step."""
+    """The open-loop trace written as its own loop (as it was written before it ran on
+    rollout.drive): the dataset's observations, one models.step per time step."""
     from minimanc import inputs, models
 
     rng = None if q_mode == "uniform" else np.random.default_rng(0)
     state = models.initial_state(name, 1, cfg, xp=eng.xp, rng=rng, mode=q_mode)
     keep = {"controls": []}
     for t in range(np.asarray(ds.ego).shape[1]):
-        obs = inputs.from_dataset(ds, scene, t, cfg.setting, model=name)
+        obs = inputs.from_dataset(ds, scene, t, cfg.setting, model=models.get(name))
         controls, state, aux = models.step(name, params, obs, state, cfg, eng)
         keep["controls"].append(np.asarray(controls)[0])
         for k in rollout.AUX_KEYS:
@@ -312,7 +312,7 @@ def test_replay_is_drive_following_the_log_and_equals_the_step_loop(ds, name, se
     cfg = models.ModelConfig(image_size=32, setting=setting, n_states=4, channels=(4, 8))
     params = models.init(name, np.random.default_rng(1), cfg, dtype=dtype)
     want = _replay_loop(name, params, ds, 2, cfg, eng, q_mode)
-    got = models.replay(name, params, ds, 2, cfg, eng, q_mode=q_mode)
+    got = rollout.replay(name, params, ds, 2, cfg, eng, q_mode=q_mode)
     assert set(got) == set(want)
     for k in want:
         assert got[k].dtype == want[k].dtype and got[k].shape == want[k].shape, k
@@ -341,7 +341,7 @@ def test_log_replay_that_follows_the_log_shows_the_logged_observations(ds):
     np.testing.assert_array_equal(sim.trajectory(), np.asarray(ds.ego)[[1, 3]])
     assert np.all(run.controls == 99.0)  # what the policy said, not what the ego did
     for t, obs in enumerate(pol.seen):
-        want = inputs.from_dataset(ds, [1, 3], [t, t], "parity", model="rvs_g")
+        want = inputs.from_dataset(ds, [1, 3], [t, t], "parity", model=models.get("rvs_g"))
         assert set(obs) == set(want)
         for k in want:
             np.testing.assert_array_equal(obs[k], want[k], err_msg=f"{k} at t={t}")
@@ -367,11 +367,11 @@ def test_rollout_keeps_the_models_dtype_and_explain_needs_no_dtype_guess(ds, tmp
     assert back.aux["q"].dtype == np.float32
     np.testing.assert_array_equal(back.aux["q"], traj.aux["q"])
     checks.check_distribution("q", traj.aux["q"], 5)
-    trace = models.replay("manc", params, ds, 1, cfg)  # the logged observations, float32
+    trace = rollout.replay("manc", params, ds, 1, cfg)  # the logged observations, float32
     assert trace["q"].dtype == np.float32
     obs = {"bev": np.asarray(ds.bev[[1], 3], dtype=np.float32) / np.float32(255.0)}
     q_prev = trace["q"][None, 2]
-    out = models.explain(params, obs, q_prev, cfg)
+    out = models.saliency(params, obs, q_prev, cfg)
     q64 = q_prev.astype(np.float64) / q_prev.astype(np.float64).sum(axis=-1, keepdims=True)
     np.testing.assert_allclose(out["q"], vagn.step(q64, out["predicates"],
                                                    np.asarray(params["vagn"]["W"], np.float64)),
@@ -379,7 +379,7 @@ def test_rollout_keeps_the_models_dtype_and_explain_needs_no_dtype_guess(ds, tmp
     np.testing.assert_allclose(out["q"].sum(axis=-1), 1.0, rtol=0, atol=1e-12)
     np.testing.assert_allclose(out["q"][0], trace["q"][3], rtol=0, atol=1e-5)  # float32 path
     with pytest.raises(ValueError, match="q_prev"):
-        models.explain(params, obs, np.full((1, 5), 0.3, dtype=np.float32), cfg)
+        models.saliency(params, obs, np.full((1, 5), 0.3, dtype=np.float32), cfg)
 
 
 # --------------------------------------------------------------------------- protocols

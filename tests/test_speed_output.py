@@ -31,7 +31,7 @@ def _both(name, seed):
     eng = engine("numpy")
     rng = np.random.default_rng(seed)
     params = models.init(name, rng, CFG)
-    obs = inputs.select(_obs(rng), name, "parity")
+    obs = inputs.select(_obs(rng), models.get(name), "parity")
     state = models.initial_state(name, 3, CFG)
     level, _, _ = models.step(name, params, obs, state, CFG, eng)
     change, _, _ = models.step(name, params, obs, state, replace(CFG, speed_output="change"),
@@ -58,7 +58,7 @@ def test_change_output_refuses_a_model_that_does_not_see_its_motion():
     cfg = replace(CFG, setting="paper", speed_output="change")
     rng = np.random.default_rng(0)
     params = models.init("cnn", rng, cfg)
-    obs = inputs.select(_obs(rng), "cnn", "paper")
+    obs = inputs.select(_obs(rng), models.get("cnn"), "paper")
     with pytest.raises(ValueError, match="needs a model that sees 'motion'"):
         models.step("cnn", params, obs, {}, cfg, engine("numpy"))
 

@@ -276,7 +276,7 @@ def test_reproduce_tiny_writes_everything(tmp_path, capsys):
             assert row_["cross_track"]["mean"] <= row_["ade"]["mean"] + 1e-9
         fams = res["families"][agents]["paper"]
         assert set(fams) == set(t1["paper"])
-        assert all(set(f) <= set(jobs.FAMILIES) and f for f in fams.values())
+        assert all(set(f) <= set(jobs.SCENE_FAMILIES) and f for f in fams.values())
     assert res["table1"]["replay"]["paper"]["human"]["ade"]["mean"] == 0.0
     assert [len(v) for v in res["sample_efficiency"]["models"].values()] == [2] * 4
     assert res["q_states"]["n_states"] == [3, 6]
@@ -360,7 +360,7 @@ def test_scene_families_follow_the_tags():
 
     DS.tags = tags
     fam = jobs.scene_families(DS)
-    assert list(fam) == list(jobs.FAMILIES)
+    assert list(fam) == list(jobs.SCENE_FAMILIES)
     assert fam["free"].tolist() == [True, False, False, False]
     assert fam["junction"].tolist() == [False, False, True, False]
     assert fam["roundabout"].tolist() == [False, False, False, True]
@@ -391,7 +391,7 @@ def test_score_splits_the_error_and_scores_each_family_on_its_scenes():
         one = metrics.evaluate(traj.subset(idx), ds.subset(idx))
         for k, v in one.items():
             assert np.isclose(f[k], v), (name, k)
-    absent = [n for n in jobs.FAMILIES if not fam[n].any()]
+    absent = [n for n in jobs.SCENE_FAMILIES if not fam[n].any()]
     assert all(n not in res["families"] for n in absent)
 
 
@@ -408,7 +408,7 @@ def test_run_files_are_distinct_per_lr_seed_and_split(tmp_path):
 def test_a_closed_loop_that_blows_up_scores_inf(tmp_path, monkeypatch):
     from minimanc import models, train, world
 
-    # train.save/load refuse non-finite parameters; let them through to reach the closed loop
+    # train.save_checkpoint/load refuse non-finite parameters; let them through to the closed loop
     monkeypatch.setattr(train.checkpoint, "bad_params", lambda *a, **k: None)
 
     ds = world.generate(2, seed=5, raster=world.RasterConfig(size=32), workers=1)
@@ -416,7 +416,7 @@ def test_a_closed_loop_that_blows_up_scores_inf(tmp_path, monkeypatch):
     cfg = models.ModelConfig(image_size=32)
     params = models.init("cnn", np.random.default_rng(0), cfg)
     params["out"]["b"] = params["out"]["b"] * np.nan
-    ck = train.save(tmp_path / "ck.npz", "cnn", params, cfg)
+    ck = train.save_checkpoint(tmp_path / "ck.npz", "cnn", params, cfg)
     job = {"data": str(data), "lo": 0, "hi": 2, "checkpoint": str(ck), "engine": "numpy",
            "rollout": str(tmp_path / "r.npz"), "metrics": str(tmp_path / "m.json")}
     res = jobs.evaluate_job(job)
@@ -426,7 +426,7 @@ def test_a_closed_loop_that_blows_up_scores_inf(tmp_path, monkeypatch):
     assert "diverged" in report.cell(agg, "ade", 1)
     # every metric of the study is there (aggregate keeps only the keys of every seed)
     assert set(agg) == set(jobs.STUDY_METRICS)
-    assert set(res["families"]) == set(jobs.FAMILIES)
+    assert set(res["families"]) == set(jobs.SCENE_FAMILIES)
     from minimanc.studies.runner import families_of
 
     assert set(families_of([res])["free"]) == set(jobs.STUDY_METRICS)

@@ -122,7 +122,7 @@ def test_exploded_parameters_are_never_checkpointed(ds, tmp_path, name):
     params = models.init("cnn", np.random.default_rng(0), CFG)
     params["out"]["b"] = np.full_like(params["out"]["b"], np.nan)
     with pytest.raises(ValueError, match="non-finite value in 'out/b'"):
-        train.save(tmp_path / "x.npz", "cnn", params, CFG)
+        train.save_checkpoint(tmp_path / "x.npz", "cnn", params, CFG)
     assert not list(tmp_path.glob("x.npz*"))
 
 
@@ -170,11 +170,11 @@ def test_temporary_checkpoint_files_are_cleaned(ds, tmp_path, monkeypatch):
     def crash(fh, **arrays):
         fh.write(b"PK\x03\x04half")
         raise OSError(28, "No space left on device")
-    monkeypatch.setattr(train.np, "savez", crash)
+    monkeypatch.setattr(np, "savez", crash)  # what train.checkpoint writes with
     with pytest.raises(OSError, match="No space"):
         train.fit("cnn", ds, CFG, _tc(epochs=2), engine="numpy", checkpoint_dir=d, resume=True,
                   progress=False)
-    monkeypatch.setattr(train.np, "savez", real)
+    monkeypatch.setattr(np, "savez", real)
     assert sorted(os.listdir(d)) == [train.CHECKPOINT_NAME, "notes.txt"]
     assert train.load_checkpoint(d / train.CHECKPOINT_NAME)["epoch"] == 1
 
@@ -217,7 +217,7 @@ def test_evaluate_matches_training_loss_definition(ds):
     from minimanc import engine, inputs
 
     obs = inputs.from_dataset(ds, np.repeat(np.arange(3), 40), np.tile(np.arange(40), 3),
-                              model="cnn")
+                              model=models.get("cnn"))
     pred, _, _ = models.step("cnn", params, obs, {}, CFG, engine("numpy"))
     ref = np.mean(((pred - ds.controls.reshape(-1, 2)) / std) ** 2)
     assert val == pytest.approx(ref, rel=1e-6)
@@ -232,7 +232,7 @@ def test_evaluate_runs_dmp_models_on_whole_scenes_with_their_own_speed(ds):
     std = train.control_std(ds)
     S, T = ds.ego.shape[:2]
     obs = inputs.from_dataset(ds, np.tile(np.arange(S), T), np.repeat(np.arange(T), S),
-                              model="manc")
+                              model=models.get("manc"))
     obs = {k: v.reshape((T, S) + v.shape[1:]) for k, v in obs.items()}
     target = np.swapaxes(np.asarray(ds.controls), 0, 1)
     for feedback in (True, False):

@@ -126,3 +126,12 @@ def test_train_cast_floats_is_the_tree_function():
     fit_module = importlib.import_module("minimanc.train.fit")
     assert train.cast_floats is tree.cast_floats
     assert fit_module.cast_floats is tree.cast_floats
+
+
+def test_tree_flatten_paths_and_rebuild():
+    t = {"b": [1.0, (2.0, 3.0)], "a": None, "c": {"x": 4.0}}
+    leaves, paths, rebuild = tree.tree_flatten(t)
+    assert leaves == [1.0, 2.0, 3.0, 4.0]
+    assert paths == ["['b'][0]", "['b'][1][0]", "['b'][1][1]", "['c']['x']"]
+    assert tree.tree_unflatten(rebuild, [2 * x for x in leaves]) == {
+        "a": None, "b": [2.0, (4.0, 6.0)], "c": {"x": 8.0}}

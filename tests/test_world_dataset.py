@@ -2,6 +2,7 @@
 
 import base64
 import hashlib
+import importlib
 import json
 import zipfile
 from pathlib import Path
@@ -10,8 +11,7 @@ import numpy as np
 import pytest
 
 from minimanc import world
-from minimanc.world import dataset as dsmod
-from minimanc.world import datawriter, fileformat, generation
+from minimanc.world import datareader, datawriter, fileformat, generation, scenes
 
 N = 40
 
@@ -289,7 +289,7 @@ def test_missing_meta_key_names_the_file_and_the_key(ds, tmp_path, monkeypatch):
     meta = dict(small.meta)
     del meta["raster"]
     with pytest.raises(ValueError, match="'raster' missing"):
-        world.save(dsmod.Dataset(**{f: getattr(small, f) for f in dsmod.ARRAY_FIELDS},
+        world.save(scenes.Dataset(**{f: getattr(small, f) for f in fileformat.ARRAY_FIELDS},
                                  maps=small.maps, meta=meta), tmp_path / "x.npz")
     assert not list(tmp_path.glob("x.npz*"))
 
@@ -342,8 +342,8 @@ def test_shards_round_trip_for_every_shard_size(ds, tmp_path):
 
 def test_generate_file_streams_shards_and_matches_generate(ds, tmp_path, monkeypatch):
     added = []
-    real_add = dsmod.DatasetWriter.add
-    monkeypatch.setattr(dsmod.DatasetWriter, "add",
+    real_add = datawriter.DatasetWriter.add
+    monkeypatch.setattr(datawriter.DatasetWriter, "add",
                         lambda self, arrays: (added.append(len(arrays["ego"])),
                                               real_add(self, arrays))[1])
     path = world.generate_file(tmp_path / "w.npz", 5, seed=5, workers=1, shard_scenes=2)
@@ -391,7 +391,7 @@ def test_estimate_scales_with_the_scene_count():
     e = world.estimate(100_000, seed=0, workers=2)
     assert e.n_scenes == 100_000 and e.workers == 2
     # compressed rasters: far below the 0.54 MB a 64 px scene takes in memory
-    assert 5e3 < e.bytes_per_scene < dsmod.scene_nbytes()
+    assert 5e3 < e.bytes_per_scene < generation.scene_nbytes()
     assert e.disk_bytes == pytest.approx(100_000 * e.bytes_per_scene)
     assert e.seconds == pytest.approx(50_000 * e.seconds_per_scene)
     assert "GB on disk" in str(e)
@@ -404,22 +404,22 @@ def test_estimate_scales_with_the_scene_count():
 
 def test_build_is_what_generate_assembles_and_save_round_trips(ds, tmp_path):
     cfg = ds.raster
-    scenes = [dsmod.generate_scene(5, i, cfg) for i in range(3)]
-    meta = dsmod.empty_meta(5, cfg)
-    dsmod.append_scenes(meta, [s["recipe"] for s in scenes], [s["tags"] for s in scenes],
+    scenes = [generation.generate_scene(5, i, cfg) for i in range(3)]
+    meta = fileformat.empty_meta(5, cfg)
+    fileformat.append_scenes(meta, [s["recipe"] for s in scenes], [s["tags"] for s in scenes],
                         [s["attempts"] for s in scenes], range(3))
     built = world.Dataset.build(scenes, meta, maps=[s["map"] for s in scenes])
     assert built.content_hash() == ds.subset(slice(0, 3)).content_hash()
     assert built.maps[2] is scenes[2]["map"]  # maps given are kept, not rebuilt
-    path = built.save(tmp_path / "b.npz", shard_scenes=2)
+    path = world.save(built, tmp_path / "b.npz", shard_scenes=2)
     assert world.file_content_hash(path) == built.content_hash()
 
 
 def test_build_refuses_what_would_make_a_bad_dataset(ds):
     cfg = ds.raster
-    one = {f: getattr(ds, f)[0] for f in dsmod.ARRAY_FIELDS}
-    meta = dsmod.empty_meta(0, cfg)
-    dsmod.append_scenes(meta, ds.meta["recipes"][:1], ds.tags[:1], [1], [0])
+    one = {f: getattr(ds, f)[0] for f in fileformat.ARRAY_FIELDS}
+    meta = fileformat.empty_meta(0, cfg)
+    fileformat.append_scenes(meta, ds.meta["recipes"][:1], ds.tags[:1], [1], [0])
     assert len(world.Dataset.build([one], meta)) == 1
     with pytest.raises(ValueError, match="at least one scene"):
         world.Dataset.build([], meta)
@@ -520,9 +520,9 @@ def _header(path: Path) -> dict:
 
 
 def test_the_format_constants_are_those_of_version_2():
-    assert dsmod.ARRAY_FIELDS == FIELDS_V2 and dsmod.META_KEYS == META_V2
+    assert fileformat.ARRAY_FIELDS == FIELDS_V2 and fileformat.META_KEYS == META_V2
     assert (world.FILE_FORMAT_VERSION, world.FORMAT_VERSION) == (2, 1)
-    assert list(dsmod.empty_meta(7, world.RasterConfig(size=8))) == list(META_V2)
+    assert list(fileformat.empty_meta(7, world.RasterConfig(size=8))) == list(META_V2)
 
 
 def test_a_file_written_before_the_split_still_loads(tmp_path):
@@ -557,8 +557,8 @@ def test_the_writer_keeps_the_v2_layout_and_header(tmp_path):
     assert header == _header(old)
 
 
-def test_every_public_name_of_the_dataset_module_stays_importable():
-    before_split = [
+def test_every_public_name_of_the_dataset_lives_in_one_module():
+    names = [
         "ARRAY_FIELDS", "Dataset", "DatasetFileError", "DatasetWriter", "Estimate",
         "FILE_FORMAT_VERSION", "FLOAT_FIELDS", "FORMAT_VERSION", "LazyMaps", "MAX_ATTEMPTS",
         "META_KEYS", "PER_SCENE_KEYS", "SHARD_BYTES", "append_scenes", "check_finite",
@@ -567,10 +567,11 @@ def test_every_public_name_of_the_dataset_module_stays_importable():
         "generate_splits", "load", "read_meta", "remove_temp_files", "save", "scene_nbytes",
         "temp_files",
     ]
-    missing = [n for n in before_split if not hasattr(dsmod, n)]
-    assert not missing
+    modules = (fileformat, scenes, datawriter, datareader, generation)
+    homes = {n: [m.__name__ for m in modules if n in m.__all__] for n in names}
+    assert {n: h for n, h in homes.items() if len(h) != 1} == {}
     for n in ("Dataset", "DatasetWriter", "load", "save", "generate", "generate_file"):
-        assert getattr(world, n) is getattr(dsmod, n)
+        assert getattr(world, n) is getattr(importlib.import_module(homes[n][0]), n)
 
 
 OLD_FILE_V2 = (  # base64 of tiny.npz as the pre-split writer wrote it

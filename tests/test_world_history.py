@@ -10,9 +10,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from minimanc import world
+from minimanc.rollout import reactive
 from minimanc.rollout.driver import observation
 from minimanc.rollout.log import LogReplay
-from minimanc.world import reactive
 from minimanc.world.history import MAX_HISTORY, History, fade, history_of, latest_history
 from minimanc.world.raster import EGO, VEHICLE, rasterize_batch
 

@@ -6,24 +6,24 @@ import numpy as np
 import pytest
 
 from minimanc import world
-from minimanc.world import maps
+from minimanc.world import lanes
 
 
 @pytest.fixture(scope="module")
 def some_maps():
     out = []
-    for i, kind in enumerate(maps.KINDS * 3):
+    for i, kind in enumerate(lanes.KINDS * 3):
         out.append(world.random_map(np.random.default_rng([7, i]), kind))
     return out
 
 
 def test_every_kind_builds_with_a_long_continuous_route(some_maps):
     for m in some_maps:
-        assert m.kind in maps.KINDS
+        assert m.kind in lanes.KINDS
         # the route is one continuous polyline, ~1 m spacing, long enough for 20 s of driving
         steps = np.linalg.norm(np.diff(m.route_points, axis=0), axis=1)
         assert steps.max() < 1.3 and steps.min() > 0.05
-        assert m.route_s[-1] - m.start_s >= maps.ROUTE_AHEAD - 1.0
+        assert m.route_s[-1] - m.start_s >= lanes.ROUTE_AHEAD - 1.0
         # headings agree with the polyline's direction
         d = np.diff(m.route_points, axis=0)
         dirs = np.arctan2(d[:, 1], d[:, 0])

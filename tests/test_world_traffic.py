@@ -134,7 +134,8 @@ def test_scene_simulation_is_unchanged():
     import json
 
     from minimanc.world.driver import simulate_scene
-    from minimanc.world.maps import build_map, random_recipe
+    from minimanc.world.maps import random_recipe
+    from minimanc.world.roads import build_map
 
     h = hashlib.sha256()
     for i in range(6):
@@ -152,7 +153,8 @@ def test_scene_simulation_is_unchanged():
 def test_scene_run_steps_are_simulate_scene():
     """Stepping a SceneRun by hand with the human's controls is simulate_scene."""
     from minimanc.world.driver import SceneRun, simulate_scene
-    from minimanc.world.maps import build_map, random_recipe
+    from minimanc.world.maps import random_recipe
+    from minimanc.world.roads import build_map
 
     rng = np.random.default_rng([3, 7, 0])
     m = build_map(random_recipe(rng))

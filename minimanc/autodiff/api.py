@@ -12,8 +12,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from minimanc.autodiff.boxes import TRACING, Box, strip_boxes, unbox
-from minimanc.autodiff.pytrees import tree_flatten
 from minimanc.autodiff.reverse import backward
+from minimanc.tree import tree_flatten
 
 __all__ = ["grad", "value_and_grad"]
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from minimanc.autodiff.pytrees import tree_flatten
+from minimanc.tree import tree_flatten
 
 __all__ = [
     "FRAMES",

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from minimanc.autodiff.core import grad, tree_flatten
+from minimanc.autodiff.api import grad
+from minimanc.tree import tree_flatten
 
 __all__ = ["GradCheckReport", "check_grads", "numerical_grad"]
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from minimanc.autodiff.boxes import FRAMES, Box, unbox
 from minimanc.autodiff.primitives import Outputs, primitive, select
-from minimanc.autodiff.pytrees import tree_flatten
+from minimanc.tree import tree_flatten
 
 __all__ = ["custom_vjp"]
 

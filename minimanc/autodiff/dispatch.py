@@ -252,7 +252,7 @@ def _no_derivative(display: str, name: str) -> TypeError:
              "use the functions of minimanc.autodiff.numpy (the `xp` namespace)")
     return TypeError(
         f"{display} has no derivative in minimanc.autodiff: {where} or write the primitive "
-        "(@primitive with defvjp, see minimanc.autodiff.core)"
+        "(@primitive with defvjp, see minimanc.autodiff)"
     )
 
 

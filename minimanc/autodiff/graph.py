@@ -1,8 +1,8 @@
 """Chapter 1 — the computation graph of a function at a point, with a cotangent on each edge.
 
 :func:`computation_graph` runs ``f(*args)`` once with every argument traced (a
-:class:`~minimanc.autodiff.core.Box`), then walks the tape the way
-:func:`~minimanc.autodiff.core.backward` does, but records what ``backward``
+:class:`~minimanc.autodiff.Box`), then walks the tape the way
+:func:`~minimanc.autodiff.backward` does, but records what ``backward``
 throws away: the cotangent that travels along **each edge**. An edge
 ``parent → child`` carries ``∂L/∂parent`` *through that one use*, i.e. the VJP
 of ``child``'s primitive applied to ``child``'s cotangent; a node's cotangent
@@ -27,7 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from minimanc.autodiff.core import Box, backward, toposort
+from minimanc.autodiff.boxes import Box
+from minimanc.autodiff.reverse import backward, toposort
 from minimanc.checks import check_int
 
 __all__ = ["Node", "Edge", "Graph", "computation_graph"]

@@ -10,9 +10,9 @@ import numpy as np
 
 from minimanc.autodiff.boxes import FRAMES, TRACING, Box, unbox
 from minimanc.autodiff.primitives import Outputs, defvjp_fwd, primitive, select
-from minimanc.autodiff.pytrees import tree_flatten
 from minimanc.autodiff.reverse import add_cotangents, parent_cotangents
 from minimanc.checks import check_int
+from minimanc.tree import tree_flatten
 
 __all__ = ["scan"]
 

@@ -1,7 +1,7 @@
 """Chapter 2 — neural-net primitives for the NumPy autodiff engine.
 
 Each primitive is a plain-NumPy function made traceable with
-:func:`minimanc.autodiff.core.primitive`, with its vector-Jacobian product
+:func:`minimanc.autodiff.primitive`, with its vector-Jacobian product
 written right beside it:
 
 - activations ``relu``, ``sigmoid``, ``silu`` (the paper's main model uses SiLU);
@@ -45,7 +45,8 @@ from numbers import Integral
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
-from minimanc.autodiff.core import Box, defvjp, defvjp_fwd, primitive
+from minimanc.autodiff.boxes import Box
+from minimanc.autodiff.primitives import defvjp, defvjp_fwd, primitive
 from minimanc.checks import check_int
 
 __all__ = [

@@ -6,7 +6,7 @@ Import it as ``anp`` (it is the ``xp`` of ``engine("numpy")``)::
     from minimanc.autodiff import grad
     grad(lambda w: anp.sum(anp.tanh(w @ w.T)))(w0)
 
-Every differentiable function is a :func:`~minimanc.autodiff.core.primitive`
+Every differentiable function is a :func:`~minimanc.autodiff.primitive`
 with its vector-Jacobian product (VJP) registered right below it: the
 element-wise ones in :mod:`~minimanc.autodiff.elementwise`, the reductions in
 :mod:`~minimanc.autodiff.reductions`, shapes, indexing and joining in

@@ -38,7 +38,7 @@ PLUGINS = {
     "minimanc.cli.data": "minimanc.world",
     "minimanc.cli.reproduce": "minimanc.studies",
     "minimanc.cli.highway": "minimanc.highway",
-    "minimanc.cli.results": "minimanc.results",
+    "minimanc.cli.results": "minimanc.studies.provenance",
     "minimanc.cli.dagger": "minimanc.dagger",
 }
 """Command module -> the chapter package it drives. A command is registered only when its

@@ -14,6 +14,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from minimanc import world
 from minimanc.engine import ENGINES
 from minimanc.errors import UsageError
 
@@ -105,8 +106,6 @@ def check_out_file(path: str | Path, option: str = "--out") -> Path:
 
 def load_data(path: str | Path, option: str = "--data") -> Any:
     """``world.load(path)``; a missing or unusable file is a :class:`UsageError`."""
-    from minimanc import world
-
     try:
         return world.load(path)
     except FileNotFoundError as e:

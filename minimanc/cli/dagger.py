@@ -19,10 +19,12 @@ table) and ``figures/dagger_<metric>.png``. Bad arguments are one line on stderr
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
 from typing import Any
 
+from minimanc import dagger, models, train, world
 from minimanc.cli.common import (
     add_engine_option,
     check_choices,
@@ -31,8 +33,10 @@ from minimanc.cli.common import (
     check_positive,
     load_data,
 )
+from minimanc.dagger import AGENTS, SIMS
 from minimanc.errors import UsageError
 from minimanc.inputs import SETTINGS
+from minimanc.viz.dagger import plot_rounds
 
 __all__ = ["SIM_METRICS", "cmd_dagger", "register"]
 
@@ -50,9 +54,6 @@ def _check_beta(value: Any) -> float:
 
 
 def _check_args(args: argparse.Namespace) -> None:
-    from minimanc import models
-    from minimanc.dagger import AGENTS, SIMS
-
     check_choices([args.model], "--model", models.names(), what="model")
     check_choices([args.sim], "--sim", SIMS, what="simulator")
     check_choices([args.agents], "--agents", AGENTS, what="protocol")
@@ -79,8 +80,6 @@ def _check_args(args: argparse.Namespace) -> None:
 
 
 def _world_teacher(args: argparse.Namespace) -> Any:
-    from minimanc import dagger, world
-
     if args.data is not None:
         ds = load_data(args.data)
         if args.val_scenes >= len(ds):
@@ -100,14 +99,10 @@ def _world_teacher(args: argparse.Namespace) -> Any:
 
 
 def _highway_teacher(args: argparse.Namespace) -> Any:
-    import importlib
-
     try:
         hw = importlib.import_module("minimanc.highway")
     except ImportError as e:
         raise UsageError(str(e)) from e
-    from minimanc import dagger, world
-
     check_choices([args.scenario], "--scenario", tuple(hw.SCENARIOS), what="scenario")
     cfg = world.RasterConfig(size=args.size)
     if args.data is not None:
@@ -130,13 +125,10 @@ def _highway_teacher(args: argparse.Namespace) -> Any:
 
 def cmd_dagger(args: argparse.Namespace) -> int:
     """DAgger rounds and behaviour cloning at the same budget; table, JSON and figures."""
-    import matplotlib
+    import matplotlib  # matplotlib only when a figure is drawn
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from minimanc import dagger, train
-    from minimanc.viz.dagger import plot_rounds
+    import matplotlib.pyplot as plt  # matplotlib only when a figure is drawn
 
     _check_args(args)
     out = check_out_dir(args.out)

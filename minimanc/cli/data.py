@@ -14,8 +14,11 @@ import time
 from pathlib import Path
 from typing import Any
 
+from minimanc import world
 from minimanc.cli.common import check_int, check_out_dir, check_out_file, load_data
 from minimanc.errors import UsageError
+from minimanc.viz.world import gallery, plot_map, save_scene_gif, scene_frames
+from minimanc.world import nuscenes
 
 __all__ = ["DISK_MARGIN", "cmd_generate", "cmd_import_nuscenes", "cmd_show", "default_file",
            "register"]
@@ -30,16 +33,12 @@ def default_file(out: str | Path, n_scenes: int, seed: int) -> Path:
 
 
 def _raster(size: Any, option: str = "--size") -> Any:
-    from minimanc import world
-
     check_int(size, option, 8)
     return world.RasterConfig(size=size)
 
 
 def cmd_generate(args: argparse.Namespace) -> int:
     """Generate scenes straight to a file, after checking the arguments and the free disk."""
-    from minimanc import world
-
     check_int(args.scenes, "--scenes", 1)
     check_int(args.seed, "--seed", 0)
     cfg = _raster(args.size)
@@ -75,8 +74,6 @@ def cmd_generate(args: argparse.Namespace) -> int:
 
 def cmd_import_nuscenes(args: argparse.Namespace) -> int:
     """Import a nuScenes DATAROOT's scenes into a dataset file, after estimating the disk."""
-    from minimanc.world import nuscenes
-
     if args.version not in nuscenes.VERSIONS:
         raise UsageError(f"--version must be one of {', '.join(nuscenes.VERSIONS)}, got "
                          f"{args.version!r}")
@@ -101,8 +98,6 @@ def cmd_import_nuscenes(args: argparse.Namespace) -> int:
     except OSError as e:  # e.g. the disk filled up: nothing is left behind
         raise UsageError(f"cannot write {path}: {e.strerror or e}") from e
     print(report)
-    from minimanc import world
-
     print(f"  {path.stat().st_size / 1e6:.1f} MB, content hash "
           f"{world.file_content_hash(path)[:16]}")
     return 0
@@ -110,13 +105,10 @@ def cmd_import_nuscenes(args: argparse.Namespace) -> int:
 
 def cmd_show(args: argparse.Namespace) -> int:
     """Write a raster gallery, a scene animation and a map plot of one scene."""
-    import matplotlib
+    import matplotlib  # matplotlib only when a figure is drawn
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from minimanc import world
-    from minimanc.viz.world import gallery, plot_map, save_gif, scene_frames
+    import matplotlib.pyplot as plt  # matplotlib only when a figure is drawn
 
     if args.scene is not None:
         check_int(args.scene, "--scene", 0)
@@ -136,7 +128,7 @@ def cmd_show(args: argparse.Namespace) -> int:
     fig = gallery(ds, range(min(len(ds), 12)))
     fig.savefig(out / "gallery.png", dpi=120)
     plt.close(fig)
-    save_gif(scene_frames(ds, scene), out / "scene.gif")
+    save_scene_gif(scene_frames(ds, scene), out / "scene.gif")
     fig, ax = plt.subplots(figsize=(6, 6))
     plot_map(ds.maps[scene], ax, ego=ds.ego[scene], ado=ds.ado[scene],
                  ado_valid=ds.ado_valid[scene])

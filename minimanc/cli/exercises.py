@@ -23,7 +23,7 @@ __all__ = ["cmd_exercises", "cmd_grade", "parse_fail_under", "register"]
 
 def cmd_exercises(args: argparse.Namespace) -> int:
     """``exercises build|convert|run``: exit 0 done, 1 ``build --check`` found stale files."""
-    from minimanc import exercises
+    from minimanc import exercises  # optional at start-up: nbformat/jsonschema take ~2 s to import
 
     root = project_root()
     if args.action == "build":
@@ -78,7 +78,7 @@ def parse_fail_under(text: str) -> tuple[float, bool]:
 
 def cmd_grade(args: argparse.Namespace) -> int:
     """Exit codes: 0 graded, 1 graded below ``--fail-under``, 2 could not grade."""
-    from minimanc import exercises
+    from minimanc import exercises  # optional at start-up: nbformat/jsonschema take ~2 s to import
 
     threshold = parse_fail_under(args.fail_under) if args.fail_under is not None else None
     check_int(args.timeout, "--timeout", 1)

@@ -29,6 +29,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from minimanc import models, rollout, train, world
 from minimanc.cli.common import (
     add_engine_option,
     check_choices,
@@ -72,8 +73,6 @@ def cmd_collect(args: argparse.Namespace) -> int:
     hw = _highway()
     if hw is None:
         return 2
-    from minimanc import world
-
     cfg = world.RasterConfig(size=args.size)
     ds = hw.collect(args.scenarios, n_episodes=args.episodes, seed=args.seed, steps=args.steps,
                     cfg=cfg, progress=not args.quiet)
@@ -86,8 +85,6 @@ def cmd_collect(args: argparse.Namespace) -> int:
 
 def cmd_train(args: argparse.Namespace) -> int:
     """Behaviour cloning (``minimanc.train.fit``) on collected demonstrations."""
-    from minimanc import models, train
-
     for option in ("epochs", "batch_size"):
         if getattr(args, option) is not None:
             check_int(getattr(args, option), "--" + option.replace("_", "-"), 1)
@@ -122,8 +119,6 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def _policy(path: str, engine: str, option: str = "--checkpoints") -> Any:
-    from minimanc import rollout, train
-
     try:
         fit = train.load(path)
     except ValueError as e:  # missing (ValueError) or unreadable (CheckpointError)
@@ -139,8 +134,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
     hw = _highway()
     if hw is None:
         return 2
-    from minimanc import world
-
     policies = [(Path(p).parent.name or Path(p).stem, _policy(p, args.engine))
                 for p in args.checkpoints]
     report: dict[str, dict] = {}
@@ -153,7 +146,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         rows = {"expert": hw.expert_result(sc, experts).metrics}
         for label, pol in policies:
             cfg = world.RasterConfig(size=pol.cfg.image_size)
-            rows[label] = hw.closed_loop(pol, sc, experts, cfg=cfg).metrics
+            rows[label] = hw.drive_episodes(pol, sc, experts, cfg=cfg).metrics
         report[sc] = {"expert_seeds_tried": tries, **rows}
         for label, m in rows.items():
             print(f"{sc:<13} {label:<16} {m['collision_rate']:>11.1f} {m['off_road_rate']:>10.1f} "
@@ -172,8 +165,6 @@ def cmd_render(args: argparse.Namespace) -> int:
     if hw is None:
         return 2
     if args.checkpoint:
-        from minimanc import world
-
         pol = _policy(args.checkpoint, args.engine, option="--checkpoint")
         experts, _ = hw.expert_episodes(args.scenario, 1, seed=args.seed, steps=args.steps,
                                         record_bev=False)

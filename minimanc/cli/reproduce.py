@@ -22,7 +22,7 @@ __all__ = ["cmd_reproduce", "register"]
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
     """Run a preset's studies, print Table I and the findings, and list the files written."""
-    import matplotlib
+    import matplotlib  # matplotlib only when a figure is drawn
 
     matplotlib.use("Agg")
     preset = args.preset or ("quick" if args.quick else "full")

@@ -1,5 +1,5 @@
 """Chapter 9 — ``minimanc results check|update [README.md]``: the README's quoted results
-(:mod:`minimanc.results`) against the files that measured them."""
+(:mod:`minimanc.studies.provenance`) against the files that measured them."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import argparse
 import sys
 from typing import Any
 
-from minimanc import results
 from minimanc.errors import EXIT_OK, UsageError
+from minimanc.studies import provenance
 
 __all__ = ["cmd_results", "register"]
 
@@ -20,9 +20,9 @@ def cmd_results(args: argparse.Namespace) -> int:
     """Check (or update, then check) the quotes of ``args.readme``; one line per problem."""
     try:
         if args.results_command == "update":
-            changed = results.update_readme(args.readme)
+            changed = provenance.update_readme(args.readme)
             print(f"{args.readme}: {'updated' if changed else 'already up to date'}")
-        problems = results.check_readme(args.readme)
+        problems = provenance.check_readme(args.readme)
     except (OSError, KeyError, ValueError) as exc:
         raise UsageError(f"{args.readme}: {exc}") from exc
     for p in problems:

@@ -17,10 +17,10 @@ aggregation*) asks the expert what to do in the states the policy visits:
   (:func:`concat`) and trains ``π_i`` on the aggregate.
 
 The expert is a :class:`Teacher`: :class:`WorldTeacher` asks the world's human
-driver (:class:`minimanc.world.expert.HumanExpert`, the same
+driver (:class:`minimanc.dagger.expert.HumanExpert`, the same
 :meth:`~minimanc.world.driver.HumanDriver.act` that generated the data) with the
 ados of the simulation step, replayed (``agents="replay"``) or reactive
-(``agents="reactive"``, :class:`minimanc.world.reactive.ReactiveSim`);
+(``agents="reactive"``, :class:`minimanc.rollout.reactive.ReactiveSim`);
 :class:`HighwayTeacher` asks highway-env's IDM/MOBIL expert
 (:class:`minimanc.highway.ExpertVehicle`) by installing it on a copy of the env at
 the policy's state and stepping the copy once. Both label in the format of their

@@ -8,7 +8,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
+from minimanc import inputs, models
 from minimanc.dagger.schedule import check_beta, mix
 from minimanc.dagger.teachers import Teacher
 from minimanc.rollout import SceneState, drive
@@ -80,9 +82,7 @@ class MixturePolicy:
         elif getattr(policy, "keys", None) is not None:
             self.keys = tuple(policy.keys)
         else:
-            from minimanc import inputs
-
-            self.keys = inputs.visible(policy.model, policy.setting)
+            self.keys = inputs.visible(models.get(policy.model), policy.setting)
         self.states: list[SceneState] = []
         self.labels: list[np.ndarray] = []
         self.refused: list[list[str | None]] = []
@@ -193,8 +193,6 @@ def collect(policy: Any, teacher: Teacher, scenes: Any, beta: float, seed: Any =
     groups = teacher.groups(idx)
     bar = None
     if progress:
-        from tqdm import tqdm
-
         bar = tqdm(total=len(groups) * T, desc=f"dagger drive (beta {beta:.3f})", unit="step",
                    leave=False)
     rng = np.random.default_rng(seed)

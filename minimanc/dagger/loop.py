@@ -14,12 +14,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
+from minimanc import models, train
 from minimanc.checks import check_int
 from minimanc.dagger.aggregate import Collected, collect, concat
 from minimanc.dagger.schedule import Budget, beta_schedule, check_beta, plan_budget
 from minimanc.dagger.teachers import SIMS, Teacher
+from minimanc.engine import ENGINES
 from minimanc.rollout import ModelPolicy
+from minimanc.world.datareader import load
+from minimanc.world.datawriter import save
 from minimanc.world.scenes import Dataset
 
 __all__ = ["FINGERPRINT_FILE", "ROUND_FILE", "DaggerResult", "RoundResult", "behaviour_cloning",
@@ -86,8 +91,6 @@ class DaggerResult:
 def default_config(pool: Dataset, **kw: Any) -> Any:
     """The :class:`~minimanc.models.ModelConfig` that fits ``pool``: its BEV size and
     lane-target points (``kw`` sets other fields)."""
-    from minimanc import models
-
     return models.ModelConfig(image_size=int(np.asarray(pool.bev).shape[2]),
                               k_targets=int(np.asarray(pool.lane_target).shape[2]), **kw)
 
@@ -113,9 +116,6 @@ def _fingerprint(name: str, teacher: Teacher, budget: Budget, betas: list[float]
 
 
 def _check_common(name: Any, teacher: Any, engine: Any) -> tuple[str, str]:
-    from minimanc import models
-    from minimanc.engine import ENGINES
-
     name = models.check_name(name)
     if getattr(teacher, "name", None) not in SIMS or not hasattr(teacher, "label"):
         raise ValueError(f"teacher must be a WorldTeacher or HighwayTeacher, got {teacher!r}")
@@ -144,8 +144,6 @@ def _budget_for(teacher: Teacher, budget: int | Budget, rounds: int) -> Budget:
 
 def _train(name: str, data: Dataset, cfg: Any, tc: Any, engine: Any, where: Path | None,
            progress: bool) -> Any:
-    from minimanc import train
-
     return train.fit(name, data, cfg, tc, engine=engine, checkpoint_dir=where,
                      resume=where is not None, progress=progress)
 
@@ -172,8 +170,6 @@ def _load_round(where: Path, fp: dict) -> tuple[RoundResult, dict] | None:
         _atomic_json(claim, fp)
     if not f.exists():
         return None
-    from minimanc import train
-
     saved = json.loads(f.read_text())
     res = train.load(where / "checkpoint.npz")
     r = RoundResult(**saved["result"], loaded=True, params=res.params)
@@ -199,8 +195,6 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
     ``evaluate`` runs :meth:`Teacher.evaluate` after each round; ``on_round`` is
     called with each finished round.
     """
-    from minimanc import train
-
     name, eng_name = _check_common(name, teacher, engine)
     rounds = check_int("rounds", rounds, 1)
     if isinstance(beta, Sequence) and not isinstance(beta, str):
@@ -223,8 +217,6 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
     params = None
     bar = None
     if progress:
-        from tqdm import tqdm
-
         bar = tqdm(total=rounds + 1, desc=f"dagger {name}", unit="round")
     try:
         for i in range(rounds + 1):
@@ -239,8 +231,6 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
                 new = pool.subset(np.sort(scenes))
                 col = Collected(new, scenes, np.sort(scenes), int(len(scenes) * plan.steps), 1.0)
             elif loaded is not None or (where is not None and (where / "data.npz").exists()):
-                from minimanc.world import load
-
                 new = load(where / "data.npz") if (where / "data.npz").exists() else None
                 col = None
             else:
@@ -249,7 +239,7 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
                               progress=progress, tags={"round": i})
                 new = col.data
                 if where is not None and new is not None:
-                    new.save(where / "data.npz")
+                    save(new, where / "data.npz")
             if new is not None:
                 parts.append(new)
             data = concat(parts)
@@ -293,8 +283,6 @@ def behaviour_cloning(name: str, teacher: Teacher, budget: int | Budget, rounds:
     demonstrations of the pool's scene order (the scenes :func:`dagger` drives with the
     same ``budget``, ``rounds`` and ``seed``), so both use :attr:`Budget.used` labelled
     samples. Checkpointed in ``out/bc`` and loaded from there on a rerun."""
-    from minimanc import train
-
     name, eng_name = _check_common(name, teacher, engine)
     rounds = check_int("rounds", rounds, 1)
     plan = _budget_for(teacher, budget, rounds)

@@ -94,7 +94,7 @@ def read_dataset(perception: Perception, ds: Any, batch: int = 500) -> np.ndarra
     S, T = np.asarray(ds.ego).shape[:2]
     s, t = np.divmod(np.arange(S * T), T)
     out = [perception.read(inputs.from_dataset(ds, s[i:i + batch], t[i:i + batch],
-                                               "paper", "cnn")["bev"])
+                                               "paper", models.get("cnn"))["bev"])
            for i in range(0, S * T, batch)]
     return np.concatenate(out).reshape(S, T, len(perception.names))
 

@@ -7,7 +7,7 @@ inputs separates them (the "privileged agent" of Chen et al. 2019, *Learning by
 Cheating*): if it drives like the expert, learning works and what the image-based models
 lack is information.
 
-**Perception.** :meth:`minimanc.world.expert.HumanExpert.situation` puts the ego at the
+**Perception.** :meth:`minimanc.dagger.expert.HumanExpert.situation` puts the ego at the
 simulator's pose and speed among the step's ados and returns what the world's human
 perceives there. :func:`features` turns it into :data:`FEATURES`, grouped as
 :data:`FEATURE_GROUPS`:
@@ -64,16 +64,16 @@ from minimanc import layers, metrics, optim, rollout
 from minimanc.autodiff import numpy as anp
 from minimanc.autodiff import value_and_grad
 from minimanc.checks import check_int
+from minimanc.dagger.expert import HumanExpert, Situation
 from minimanc.dagger.teachers import WorldTeacher
 from minimanc.metrics.trajectory import along_cross_track
-from minimanc.world.expert import HumanExpert, Situation
 from minimanc.world.geometry import DT, wrap_angle
 from minimanc.world.traffic import B_MAX
 
 __all__ = [
     "AHEAD", "FAR", "FEATURES", "FEATURE_GROUPS", "V_MAX", "ExpertPolicy", "Privileged",
-    "PrivilegedPolicy", "Round", "closed_loop", "dagger_rounds", "demonstrations", "features",
-    "blur", "fit", "kept", "perceived", "predict",
+    "PrivilegedPolicy", "Round", "blur", "dagger_rounds", "demonstrations", "evaluate_policy",
+    "features", "fit", "kept", "perceived", "predict",
 ]
 
 FAR: float = 60.0
@@ -359,8 +359,8 @@ class PrivilegedPolicy(_Reader):
         return np.asarray(self.X).reshape(-1, len(FEATURES)), np.asarray(self.Y).reshape(-1, 2)
 
 
-def closed_loop(policy: _Reader, ds: Any, agents: str, progress: bool = False
-                ) -> dict[str, float]:
+def evaluate_policy(policy: _Reader, ds: Any, agents: str, progress: bool = False
+                    ) -> dict[str, float]:
     """Drive ``policy`` (its teacher built on ``ds``) on every scene of ``ds`` under
     ``agents``: :func:`minimanc.metrics.evaluate`'s metrics, the mean along- and
     cross-track errors (:func:`minimanc.metrics.trajectory.along_cross_track`) and the
@@ -399,7 +399,7 @@ def dagger_rounds(train: Any, val: Any, rounds: int, per_round: int, agents: str
     vteacher = WorldTeacher(val, agents=agents)
     X, Y = demonstrations(train, expert=teacher.expert)
     model = fit(X, Y, drop=drop, steps=steps, seed=seed)
-    out = [Round(len(X), closed_loop(PrivilegedPolicy(model, vteacher), val, agents))]
+    out = [Round(len(X), evaluate_policy(PrivilegedPolicy(model, vteacher), val, agents))]
     order = np.random.default_rng(seed).permutation(len(np.asarray(train.ego)))
     for r in range(rounds):
         pick = order[(np.arange(per_round) + r * per_round) % len(order)]
@@ -409,5 +409,5 @@ def dagger_rounds(train: Any, val: Any, rounds: int, per_round: int, agents: str
         Xn, Yn = policy.visited()
         X, Y = np.concatenate([X, Xn]), np.concatenate([Y, Yn])
         model = fit(X, Y, steps=steps, seed=seed + r + 1, init=model)
-        out.append(Round(len(X), closed_loop(PrivilegedPolicy(model, vteacher), val, agents)))
+        out.append(Round(len(X), evaluate_policy(PrivilegedPolicy(model, vteacher), val, agents)))
     return out

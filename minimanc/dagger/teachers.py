@@ -10,11 +10,15 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from minimanc.rollout import BATCH_SIZE, LogReplay, Simulator
+from minimanc import metrics, rollout
+from minimanc.dagger.expert import HumanExpert
+from minimanc.rollout import AGENTS, BATCH_SIZE, LogReplay, Simulator
+from minimanc.rollout.reactive import ReactiveSim, simulate_reactive
 from minimanc.world.geometry import DT, wrap_angle
 from minimanc.world.scenes import Dataset
 
 __all__ = ["AGENTS", "SIMS", "HighwayTeacher", "Teacher", "WorldTeacher"]
+# AGENTS (the ados' protocols a WorldTeacher takes) is minimanc.rollout's, re-exported here.
 
 SIMS: tuple[str, ...] = ("world", "highway")
 """The simulators a :class:`Teacher` exists for."""
@@ -49,17 +53,15 @@ class Teacher(Protocol):
     def evaluate(self, policy: Any, progress: bool = False) -> dict[str, float]: ...
 
 
-AGENTS: tuple[str, ...] = ("replay", "reactive")
-"""The protocols of the world's ados while a policy drives (see :class:`WorldTeacher`)."""
-
 
 class WorldTeacher:
-    """The world's human driver as a :class:`Teacher` (:class:`~minimanc.world.expert.HumanExpert`).
+    """The world's human driver as a :class:`Teacher`
+    (:class:`~minimanc.dagger.expert.HumanExpert`).
 
     ``pool`` a dataset made by :func:`minimanc.world.generate` (the demonstrations),
     ``val`` an optional validation dataset for :meth:`evaluate`, ``agents`` the
     protocol of the ados while the policy drives and is evaluated: ``"reactive"``
-    (:class:`~minimanc.world.reactive.ReactiveSim`, default) or ``"replay"``
+    (:class:`~minimanc.rollout.reactive.ReactiveSim`, default) or ``"replay"``
     (:class:`~minimanc.rollout.LogReplay`, the paper's).
     """
 
@@ -67,8 +69,6 @@ class WorldTeacher:
 
     def __init__(self, pool: Dataset, val: Dataset | None = None,
                  agents: str = "reactive") -> None:
-        from minimanc.world.expert import HumanExpert
-
         if agents not in AGENTS:
             raise ValueError(f"agents must be one of {AGENTS}, got agents={agents!r}")
         if not isinstance(pool, Dataset):
@@ -82,8 +82,6 @@ class WorldTeacher:
 
     def simulator(self, scenes: np.ndarray) -> Simulator:
         if self.agents == "reactive":
-            from minimanc.world.reactive import ReactiveSim
-
             return ReactiveSim(self.pool, scenes)
         return LogReplay(self.pool, scenes)
 
@@ -120,11 +118,7 @@ class WorldTeacher:
     def evaluate(self, policy: Any, progress: bool = False) -> dict[str, float]:
         if self.val is None:
             return {}
-        from minimanc import metrics, rollout
-
         if self.agents == "reactive":
-            from minimanc.world.reactive import simulate_reactive
-
             traj = simulate_reactive(policy, self.val, progress=progress)
         else:
             traj = rollout.simulate(policy, self.val, progress=progress)
@@ -143,13 +137,13 @@ class HighwayTeacher:
     label is the speed it reaches and its mean yaw rate over the step, the format of
     :attr:`minimanc.highway.Episode.controls`. ``val`` optional expert episodes
     (:func:`minimanc.highway.expert_episodes`, one scenario) for :meth:`evaluate`
-    (:func:`minimanc.highway.closed_loop`).
+    (:func:`minimanc.highway.drive_episodes`).
     """
 
     name = "highway"
 
     def __init__(self, pool: Dataset, val: Sequence[Any] | None = None) -> None:
-        from minimanc import highway  # noqa: F401  (a clear ImportError without highway-env)
+        from minimanc import highway  # noqa: F401  (optional highway-env: a clear ImportError)
 
         if not isinstance(pool, Dataset):
             raise ValueError(f"pool must be a minimanc.world.Dataset, got {type(pool)!r}")
@@ -167,7 +161,7 @@ class HighwayTeacher:
         return out
 
     def simulator(self, scenes: np.ndarray) -> Simulator:
-        from minimanc import highway as hw
+        from minimanc import highway as hw  # optional: needs highway-env
 
         tags = [self.pool.tags[int(s)] for s in scenes]
         if len({t["scenario"] for t in tags}) != 1:
@@ -182,7 +176,7 @@ class HighwayTeacher:
 
     def label(self, sim: Any, t: int, prev: np.ndarray | None
               ) -> tuple[np.ndarray, list[str | None]]:
-        from minimanc import highway as hw
+        from minimanc import highway as hw  # optional: needs highway-env
 
         out = np.full((len(sim.runs), 2), np.nan)
         for b, (run, s) in enumerate(zip(sim.runs, np.asarray(sim.scenes))):
@@ -198,9 +192,9 @@ class HighwayTeacher:
     def evaluate(self, policy: Any, progress: bool = False) -> dict[str, float]:
         if not self.val:
             return {}
-        from minimanc import highway as hw
+        from minimanc import highway as hw  # optional: needs highway-env
 
-        res = hw.closed_loop(policy, self.val[0].scenario, self.val, cfg=self.pool.raster,
+        res = hw.drive_episodes(policy, self.val[0].scenario, self.val, cfg=self.pool.raster,
                              progress=progress)
         out = res.metrics
         out.pop("episodes_per_second", None)  # wall clock, not a property of the policy

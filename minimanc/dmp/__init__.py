@@ -77,7 +77,7 @@ from minimanc.dmp.forcing import (
     phase,
 )
 from minimanc.dmp.gains import gains_from_logits, logits_from_gains, zeta_penalty
-from minimanc.dmp.integrate import Rollout, rollout, step
+from minimanc.dmp.integrate import DMPRollout, rollout, step
 from minimanc.dmp.params import (
     ALPHA_RANGE,
     BETA_RANGE,
@@ -106,7 +106,7 @@ __all__ = [
     "Forcing",
     "METHODS",
     "PHASE_END",
-    "Rollout",
+    "DMPRollout",
     "acceleration",
     "basis_centres",
     "basis_functions",

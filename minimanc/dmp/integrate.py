@@ -35,13 +35,13 @@ from minimanc.dmp.stability import check_step_stability
 from minimanc.engine import engine_of
 
 __all__ = [
-    "Rollout",
+    "DMPRollout",
     "rollout",
     "step",
 ]
 
 
-class Rollout(NamedTuple):
+class DMPRollout(NamedTuple):
     """Result of :func:`rollout`: time is the leading axis.
 
     ``y`` and ``dy`` hold ``steps + 1`` states (the initial one first); ``ddy``
@@ -195,7 +195,7 @@ def rollout(
     forcing: Forcing | None = None,
     tau: float = 1.0,
     gate: bool = True,
-) -> Rollout:
+) -> DMPRollout:
     """Integrate eq. (10) — or, with ``forcing``, eq. (1) — for ``steps`` steps of ``dt`` seconds.
 
     ``y0``, ``dy0``: shape ``(..., D)`` for any dimension ``D`` and batch ``...``.
@@ -203,7 +203,7 @@ def rollout(
     scalar or ``(..., 1)``). Names listed in ``per_step`` (a subset of
     ``("goal", "alpha", "beta")``) carry a leading time axis of length
     ``steps`` instead: a moving goal, or gains that a network changes every
-    step. Returns a :class:`Rollout` with ``y``, ``dy`` of shape
+    step. Returns a :class:`DMPRollout` with ``y``, ``dy`` of shape
     ``(steps + 1, ...)`` and ``ddy`` of shape ``(steps, ...)``.
     Differentiable: ``xp`` provides ``stack``.
 
@@ -251,7 +251,7 @@ def rollout(
 
     Returns
     -------
-    Rollout
+    DMPRollout
         ``y``, ``dy`` (per s) of shape ``(steps + 1, ...)``, ``ddy`` (per s²) of shape
         ``(steps, ...)``.
 
@@ -307,11 +307,12 @@ def rollout(
         ddys.append(ddy)
     if steps == 0:
         shape = np.broadcast_shapes(tuple(ys[0].shape), tuple(dys[0].shape))
-        return Rollout(xp.stack([ys[0] + xp.zeros(shape)]), xp.stack([dys[0] + xp.zeros(shape)]),
-                       xp.zeros((0,) + tuple(shape)))
+        return DMPRollout(xp.stack([ys[0] + xp.zeros(shape)]),
+                          xp.stack([dys[0] + xp.zeros(shape)]),
+                          xp.zeros((0,) + tuple(shape)))
     # the initial state may broadcast to a larger batch (e.g. one start, many goals)
     full = tuple(ys[-1].shape)
     ys[0] = ys[0] + xp.zeros(full)
     dys[0] = dys[0] + xp.zeros(full)
     ddy_all = xp.stack(ddys)
-    return Rollout(xp.stack(ys), xp.stack(dys), ddy_all)
+    return DMPRollout(xp.stack(ys), xp.stack(dys), ddy_all)

@@ -141,7 +141,7 @@ def convert(source: Path, target: Path, execute: bool = True, timeout: int = 600
 # ------------------------------------------------------------------------ execution
 def notebook_client(nb, folder: Path, timeout: int, allow_errors: bool):
     """An nbclient ``NotebookClient`` running ``nb`` in ``folder`` with the kernel flags."""
-    from nbclient import NotebookClient
+    from nbclient import NotebookClient  # Jupyter only when a notebook is executed
 
     return NotebookClient(
         nb,

@@ -486,8 +486,8 @@ def _execute_for_grading(nb, path: Path, timeout: int, report: GradeReport):
 
     Returns (reason execution stopped early or None, indices of timed-out cells).
     """
-    from jupyter_client.kernelspec import NoSuchKernel
-    from nbclient.exceptions import DeadKernelError
+    from jupyter_client.kernelspec import NoSuchKernel  # Jupyter only when a notebook is executed
+    from nbclient.exceptions import DeadKernelError  # Jupyter only when a notebook is executed
 
     timed_out: set[int] = set()
 

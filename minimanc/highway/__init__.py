@@ -9,7 +9,7 @@ anything:
 
 * **Map adapter** (:func:`road_map`): each lane of highway-env's road network
   is sampled once per episode with ``lane.position(s, 0)`` (every ~1 m) and
-  ``lane.width_at(s)`` into a :class:`minimanc.world.maps.Map` — lane
+  ``lane.width_at(s)`` into a :class:`minimanc.world.lanes.Map` — lane
   centrelines, one drivable strip per lane (half width = half the lane width,
   so "off-road" means what highway-env's ``on_road`` means) and the ego's route.
   The chapter-7 rasteriser then draws it unchanged.
@@ -35,7 +35,7 @@ anything:
   ``world.load`` and ``minimanc.train`` work unchanged). The logged controls
   are the speed reached at ``t + 1`` and the mean yaw rate over the step —
   what the action adapter realises (:attr:`Episode.controls`).
-* **Closed loop** (:func:`closed_loop`): any chapter-9 policy
+* **Closed loop** (:func:`drive_episodes`): any chapter-9 policy
   (:class:`minimanc.rollout.ModelPolicy` for MANC and the baselines) drives
   the ego, observations from :func:`minimanc.inputs.from_state`; metrics
   (:attr:`ClosedLoopResult.metrics`): collision rate (highway-env's
@@ -121,7 +121,7 @@ from minimanc.highway.episodes import (
 from minimanc.highway.episodes import PolicyFn as PolicyFn
 from minimanc.highway.evaluate import (
     ClosedLoopResult,
-    closed_loop,
+    drive_episodes,
     expert_result,
     plain_policy,
     render_episode,
@@ -162,7 +162,7 @@ __all__ = [
     "to_dataset",
     "collect",
     "ClosedLoopResult",
-    "closed_loop",
+    "drive_episodes",
     "expert_result",
     "plain_policy",
     "render_frame",

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from tqdm import tqdm
 
 from minimanc.checks import check_int
 from minimanc.highway.env import (
@@ -58,8 +59,6 @@ def expert_episodes(
     tries = 0
     bar = None
     if progress:
-        from tqdm import tqdm
-
         bar = tqdm(total=int(n), desc=f"expert {scenario}", leave=False)
     try:
         while len(out) < n:

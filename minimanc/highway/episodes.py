@@ -31,7 +31,8 @@ from minimanc.highway.mapping import RouteTracker, road_map
 from minimanc.highway.render import render_frame
 from minimanc.rollout import SceneState, check_controls, drive, observation
 from minimanc.world.geometry import DT, goal_in_ego_frame, wrap_angle
-from minimanc.world.maps import K_TARGETS, Map, lane_targets
+from minimanc.world.lanes import K_TARGETS, Map
+from minimanc.world.maps import lane_targets
 from minimanc.world.raster import RasterConfig, rasterize
 
 
@@ -319,7 +320,7 @@ def run_episode(
     highway-env's frames in ``Episode.frames``. A policy is driven by
     :func:`minimanc.rollout.drive` in a one-row :class:`HighwaySim` (a
     chapter-9 policy wrapped by :func:`minimanc.highway.plain_policy` directly,
-    with the observation of :func:`minimanc.highway.closed_loop`).
+    with the observation of :func:`minimanc.highway.drive_episodes`).
     """
     check_scenario(scenario)
     check_steps(steps)

@@ -1,6 +1,6 @@
 """Chapter 10 — the closed loop: a chapter-9 policy drives the ego in highway-env.
 
-:func:`closed_loop` runs any chapter-9 policy (:class:`minimanc.rollout.ModelPolicy`
+:func:`drive_episodes` runs any chapter-9 policy (:class:`minimanc.rollout.ModelPolicy`
 for MANC and the baselines) from the seeds of expert episodes, observations
 from :func:`minimanc.inputs.from_state`; :attr:`ClosedLoopResult.metrics`
 reports collision rate (highway-env's ``crashed``), off-road rate
@@ -20,7 +20,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
+from minimanc import metrics
 from minimanc.highway.env import DEFAULT_STEPS, MAX_ADO, POLICY_FREQUENCY, check_scenario
 from minimanc.highway.episodes import Episode, HighwaySim, PlainPolicy, PolicyFn, run_episode
 from minimanc.highway.render import save_gif, save_png
@@ -52,8 +54,6 @@ class ClosedLoopResult:
         * ``mean_speed``: mean of the ego's speed over all recorded steps;
         * ``episodes_per_second``: wall clock, environment and policy included.
         """
-        from minimanc import metrics
-
         ego = np.stack([ep.poses for ep in self.episodes])
         ref = np.stack([ep.poses for ep in self.experts])
         return {
@@ -67,7 +67,7 @@ class ClosedLoopResult:
         }
 
 
-def closed_loop(
+def drive_episodes(
     policy: Any,
     scenario: str,
     experts: Sequence[Episode],
@@ -105,8 +105,6 @@ def closed_loop(
                      k_targets=experts[0].lane_target.shape[1])
     bar = None
     if progress:
-        from tqdm import tqdm
-
         bar = tqdm(total=T - 1, desc=f"{scenario} {policy.model}", leave=False)
     drive(policy, sim, T - 1, None if bar is None else lambda t: bar.update(1))
     if bar is not None:
@@ -126,7 +124,7 @@ def plain_policy(policy: Any, goal: np.ndarray, cfg: RasterConfig | None = None)
     :data:`PolicyFn` for :func:`run_episode` / :func:`render_episode` (one ego).
 
     The observation is built with :func:`minimanc.inputs.from_state` exactly
-    as :func:`closed_loop` does (``goal`` a world pose, ``cfg`` the raster of
+    as :func:`drive_episodes` does (``goal`` a world pose, ``cfg`` the raster of
     the model) and the policy's recurrent state is carried (:class:`PlainPolicy`).
     """
     return PlainPolicy(policy, goal, cfg)

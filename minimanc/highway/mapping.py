@@ -3,7 +3,7 @@
 Each lane of the road network is sampled once per episode with
 ``lane.position(s, 0)`` (every ~1 m) and ``lane.width_at(s)`` into an
 explicit recipe (:func:`map_recipe`) and built into a
-:class:`minimanc.world.maps.Map` (:func:`explicit_map`, :func:`road_map`):
+:class:`minimanc.world.lanes.Map` (:func:`explicit_map`, :func:`road_map`):
 lane centrelines, one drivable strip per lane (half width = half the lane
 width, so "off-road" means what highway-env's ``on_road`` means) and the
 ego's route. :class:`RouteTracker` moves the lane target with the ego's own
@@ -20,16 +20,9 @@ import numpy as np
 from highway_env.road.lane import CircularLane, SineLane, StraightLane
 
 from minimanc.highway.env import ENV_IDS, ego_pose, scenario_of, to_world
-from minimanc.world.maps import (
-    EXPLICIT_KIND,
-    K_TARGETS,
-    Lane,
-    Map,
-    build_map,
-    concat_lanes,
-    lane_targets,
-    project_to_route,
-)
+from minimanc.world.lanes import K_TARGETS, Lane, Map
+from minimanc.world.maps import lane_targets, project_to_route
+from minimanc.world.roads import EXPLICIT_KIND, build_map, concat_lanes
 
 
 def _lane_table(network) -> list[tuple]:

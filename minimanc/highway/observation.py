@@ -17,7 +17,7 @@ from gymnasium import spaces
 from minimanc.checks import check_int
 from minimanc.highway.env import MAX_ADO, ado_boxes, ego_pose
 from minimanc.highway.mapping import road_map
-from minimanc.world.maps import Map
+from minimanc.world.lanes import Map
 from minimanc.world.raster import RasterConfig, rasterize
 
 
@@ -26,7 +26,7 @@ class BEVObservation(gym.ObservationWrapper):
 
     ``observation_space`` is ``Box(0, 255, (H, W, 3), uint8)`` with ``H = W =
     cfg.size``. On ``reset`` the road network is sampled once into a
-    :class:`minimanc.world.maps.Map` (:func:`road_map`, kept as ``self.map``);
+    :class:`minimanc.world.lanes.Map` (:func:`road_map`, kept as ``self.map``);
     every observation is :func:`minimanc.world.raster.rasterize` of that map
     from the ego's pose with the ``max_ado`` nearest vehicles: drivable area
     white, lane centrelines coloured by heading, vehicles yellow, the ego red

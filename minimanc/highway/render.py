@@ -34,7 +34,7 @@ def render_frame(env) -> np.ndarray:
 
 def save_png(frame: np.ndarray, path: str | Path, scale: int = 1) -> Path:
     """Save an ``(H, W, 3)`` uint8 frame as PNG, optionally upscaled ``scale`` times (nearest)."""
-    from PIL import Image
+    from PIL import Image  # Pillow only when an image is written
 
     f = _check_frame(frame)
     img = Image.fromarray(f)
@@ -49,7 +49,7 @@ def save_png(frame: np.ndarray, path: str | Path, scale: int = 1) -> Path:
 def save_gif(frames: Sequence[np.ndarray], path: str | Path, fps: float = 2.0,
              scale: int = 1) -> Path:
     """Save frames ``(H, W, 3)`` uint8 as a looping GIF at ``fps`` frames per second."""
-    from PIL import Image
+    from PIL import Image  # Pillow only when an image is written
 
     if len(frames) == 0:
         raise ValueError("frames must hold at least one frame, got 0")

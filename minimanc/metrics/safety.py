@@ -241,7 +241,7 @@ def ego_in_lane(poses: Any, m: Any) -> np.ndarray:
     Inside: the centre is on the drivable area and within :data:`IN_LANE` m of a lane
     centreline sample (every 0.25 m) whose heading is within 45° of the ego's.
     ``m`` needs ``lane_samples(spacing)`` (a :class:`minimanc.world.lanes.LaneSamples`)
-    and ``is_drivable(points)`` (a :class:`minimanc.world.maps.Map`).
+    and ``is_drivable(points)`` (a :class:`minimanc.world.lanes.Map`).
 
     Parameters
     ----------
@@ -285,7 +285,7 @@ def collision_events(ego: Any, ado: Any, ado_valid: Any, maps: Sequence[Any] | N
     ado_valid : array of bool, shape (S, T, A)
         Which ado boxes exist (only valid ones count).
     maps : sequence of Map, length S, or None
-        The scene's :class:`minimanc.world.maps.Map`, for the in-lane test of lateral
+        The scene's :class:`minimanc.world.lanes.Map`, for the in-lane test of lateral
         contacts.
     dt : float
         Time between logged steps in seconds (finite, > 0).
@@ -353,7 +353,7 @@ def at_fault_collisions(ego: Any, ado: Any, ado_valid: Any, maps: Sequence[Any] 
     ado_valid : array of bool, shape (S, T, A)
         Which ado boxes exist (only valid ones count).
     maps : sequence of Map, length S, or None
-        The scene's :class:`minimanc.world.maps.Map`, for the in-lane test of lateral
+        The scene's :class:`minimanc.world.lanes.Map`, for the in-lane test of lateral
         contacts.
     dt : float
         Time between logged steps in seconds (finite, > 0).

@@ -37,6 +37,7 @@ import numpy as np
 
 from minimanc.metrics.boxes import check_dt, check_ego_and_human, check_maps, check_poses
 from minimanc.world.geometry import DT, controls_from_poses
+from minimanc.world.maps import project_to_route
 
 __all__ = [
     "PROGRESS_MIN",
@@ -189,7 +190,7 @@ def off_road(ego: Any, maps: Sequence[Any]) -> np.ndarray:
     """Per scene, 1.0 if the ego centre leaves the map's drivable area at some step. ``(S,)``.
 
     ``maps[s].is_drivable(points (N, 2)) -> bool (N,)`` decides (the
-    :class:`minimanc.world.maps.Map`; pedestrian crossings count as drivable).
+    :class:`minimanc.world.lanes.Map`; pedestrian crossings count as drivable).
 
     Parameters
     ----------
@@ -229,7 +230,7 @@ def route_progress(ego: Any, human: Any, maps: Sequence[Any]) -> np.ndarray:
     ego, human : array, shape (S, T, 3)
         The policy's and the logged human's poses ``[x, y, yaw]`` (m, m, rad).
     maps : sequence of Map, length S
-        The scene's :class:`minimanc.world.maps.Map` (its route).
+        The scene's :class:`minimanc.world.lanes.Map` (its route).
 
     Returns
     -------
@@ -242,8 +243,6 @@ def route_progress(ego: Any, human: Any, maps: Sequence[Any]) -> np.ndarray:
         If a pose array is not finite of shape ``(S, T, 3)``, the two shapes differ, or
         ``maps`` does not hold one map per scene.
     """
-    from minimanc.world.maps import project_to_route
-
     e, h = check_ego_and_human(ego, human)
     check_maps(maps, e.shape[0])
     out = np.ones(e.shape[0])

@@ -36,14 +36,16 @@ uses only ``eng.xp`` / ``eng.nn`` / ``eng.scan``: the same code runs on both, an
 gradients agree to 1e-6 in float64 (``tests/test_models.py``).
 
 Modules: :mod:`~minimanc.models.config` (:class:`ModelConfig`),
-:mod:`~minimanc.models.registry` (:class:`ModelSpec`, :func:`register`, and the registered
+:mod:`~minimanc.models.registry` (:class:`ModelSpec`, :func:`register`, :func:`get` (a spec by
+name), and the registered
 names: :func:`names`, :func:`vagn_models`, :func:`lstm_models`, :func:`dmp_models`, read
 from the registry on every call),
 :mod:`~minimanc.models.backbone`, :mod:`~minimanc.models.dmp_head` (with
 :mod:`~minimanc.models.head_vjp`, its one-node VJP on the NumPy engine),
 :mod:`~minimanc.models.zoo` (the six specs), :mod:`~minimanc.models.forward`
 (:func:`init`, :func:`initial_state`, :func:`step`, :func:`sequence`) and
-:mod:`~minimanc.models.explain` (:func:`explain`, :func:`replay`).
+:mod:`~minimanc.models.explain` (:func:`saliency`; the open-loop trace of a logged scene is
+:func:`minimanc.rollout.replay`).
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ from minimanc.models.config import (
     gain_logits,
 )
 from minimanc.models.dmp_head import dmp_head, lane_point, lane_points
-from minimanc.models.explain import explain, replay
+from minimanc.models.explain import saliency
 from minimanc.models.forward import (
     init,
     initial_state,
@@ -72,11 +74,11 @@ from minimanc.models.registry import (
     ModelSpec,
     check_name,
     dmp_models,
+    get,
     lstm_models,
     names,
     register,
     registered,
-    unregister,
     vagn_models,
 )
 from minimanc.models.zoo import BUILTIN
@@ -93,8 +95,8 @@ __all__ = [
     "check_name",
     "dmp_head",
     "dmp_models",
-    "explain",
     "gain_logits",
+    "get",
     "init",
     "initial_state",
     "lane_point",
@@ -104,12 +106,11 @@ __all__ = [
     "param_count",
     "param_counts",
     "register",
+    "saliency",
     "registered",
-    "replay",
     "sequence",
     "spec",
     "step",
-    "unregister",
     "vagn_models",
 ]
 

@@ -10,14 +10,13 @@ import numpy as np
 
 from minimanc import dmp, inputs
 from minimanc.checks import check_int
+from minimanc.world.lanes import TARGET_SPACING
 
 __all__ = ["CHANGE_SCALE", "CONTROL_SCALE", "DEFAULT_GAINS", "SPEED_OUTPUTS", "TARGET_SPACING",
            "ModelConfig", "gain_box_corners", "gain_logits", "lookahead_rule"]
 
-TARGET_SPACING: float = 4.0
-"""Metres of route between the lane-target points the heads see (``obs["lane_target"]``,
-points at ``4 · (1 … K)`` m): :data:`minimanc.world.TARGET_SPACING`, restated here so
-that the models import nothing of the world (a test keeps the two equal)."""
+# TARGET_SPACING (the metres of route between the lane-target points the heads see,
+# obs["lane_target"] at 4 · (1 … K) m) is the world's, re-exported for the heads.
 
 CONTROL_SCALE: tuple[float, float] = (10.0, 0.5)
 """Output scale of the direct heads: ``controls = o · (10 m/s, 0.5 rad/s)``."""

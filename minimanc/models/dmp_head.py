@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import dmp, quaternion
-from minimanc.autodiff import Box
+from minimanc.engine import fused_kernel
 from minimanc.models.config import TARGET_SPACING, ModelConfig, lookahead_rule
 from minimanc.models.head_vjp import fused_head
 
@@ -140,7 +140,7 @@ def dmp_head(logits: Any, lane_target: Any, motion: Any, cfg: ModelConfig,
         ``alpha``, ``beta`` ``(B, 2)`` = (position, orientation) gains, the
         position goal ``g`` ``(B, 2)`` and the yaw goal ``psi_g`` ``(B,)``.
     """
-    if cfg.orientation == "yaw" and any(isinstance(a, Box) for a in (logits, lane_target, motion)):
+    if cfg.orientation == "yaw" and fused_kernel(xp, logits, lane_target, motion) is not None:
         controls, alpha, beta, g, psi_g = fused_head(xp.asarray(logits), xp.asarray(lane_target),
                                                      xp.asarray(motion), cfg)
         return controls, {"alpha": alpha, "beta": beta, "g": g, "psi_g": psi_g}

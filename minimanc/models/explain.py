@@ -1,5 +1,5 @@
-"""Chapter 8 — what a trained controller shows: per-q-state saliency (:func:`explain`, paper
-Figs. 3–4) and the open-loop trace of a logged scene (:func:`replay`)."""
+"""Chapter 8 — what a trained controller shows: per-q-state saliency (:func:`saliency`, paper
+Figs. 3–4). The open-loop trace of a logged scene is :func:`minimanc.rollout.replay`."""
 
 from __future__ import annotations
 
@@ -8,15 +8,16 @@ from typing import Any
 import numpy as np
 
 from minimanc import cam, checks, vagn
+from minimanc.engine import get_engine
 from minimanc.models.backbone import backbone
 from minimanc.models.config import ModelConfig
 from minimanc.models.forward import cast_tree
 
-__all__ = ["explain", "replay"]
+__all__ = ["saliency"]
 
 
-def explain(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = None,
-            eng: Any = None, upsample_to_input: bool = True) -> dict:
+def saliency(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = None,
+             eng: Any = None, upsample_to_input: bool = True) -> dict:
     """Per-q-state saliency of a vAGN model (paper Figs. 3–4), NumPy float64 arrays.
 
     Runs eq. 7 on ``obs["bev"]`` and one vAGN step (eqs. 8–9) from ``q_prev``.
@@ -52,15 +53,13 @@ def explain(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = None
     ValueError
         If ``params`` are not a vAGN model's, or ``q_prev`` is not a distribution.
     """
-    from minimanc import engine as _engine
-
     cfg = cfg or ModelConfig()
-    eng = eng or _engine("numpy")
+    eng = eng or get_engine("numpy")
     if cfg.predicate_pool != "global":
-        raise ValueError("explain (CAM, eq. 7) needs the predicates of global average pooling; "
+        raise ValueError("saliency (CAM, eq. 7) needs the predicates of global average pooling; "
                          f"got predicate_pool={cfg.predicate_pool!r}")
     if "vagn" not in params or "predicates" not in params:
-        raise ValueError("explain needs the parameters of a vAGN model (manc or vagn_only); "
+        raise ValueError("saliency needs the parameters of a vAGN model (manc or vagn_only); "
                          f"got params with keys {sorted(params)}")
     p64 = cast_tree(params, np.float64)
     bev = np.asarray(obs["bev"], dtype=np.float64)
@@ -85,37 +84,3 @@ def explain(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = None
         size = tuple(bev.shape[1:3])
         cams, S = cam.upsample(cams, size), cam.upsample(S, size)
     return {"logits": z, "predicates": p, "q": q, "cams": cams, "jacobian": J, "saliency": S}
-
-
-def replay(name: str, params: dict, ds: Any, scene: int, cfg: ModelConfig | None = None,
-           eng: Any = None, q_mode: str = "uniform") -> dict:
-    """Open-loop trace of one logged scene (:func:`minimanc.rollout.replay`).
-
-    The model sees the human's observations step by step and its recurrent state
-    carries over.
-
-    Parameters
-    ----------
-    name : str
-        A registered model.
-    params : dict
-        Its parameters; it runs in their dtype.
-    ds : dataset
-        A :mod:`minimanc.world` dataset.
-    scene : int
-    cfg : ModelConfig, optional
-    eng : Engine or str, optional
-        Default: the NumPy engine.
-    q_mode : str
-        "uniform" or "random": vAGN models' initial q.
-
-    Returns
-    -------
-    dict
-        NumPy arrays over the ``T`` steps, in the parameters' dtype: ``controls``
-        ``(T, 2)`` and, where the model has them, ``q`` ``(T, N)``, ``alpha``/``beta``
-        ``(T, 2)``, ``predicates`` ``(T, M)``; ``human`` ``(T, 2)`` float64.
-    """
-    from minimanc import rollout
-
-    return rollout.replay(name, params, ds, scene, cfg, eng, q_mode=q_mode)

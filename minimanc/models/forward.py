@@ -91,7 +91,7 @@ def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
         convs.append(layers.init_conv(rng, 3, 3, c_in, c))
         c_in = c
     params: dict = {"backbone": {"convs": convs}}
-    params.update(spec.init(rng, cfg, inputs.numeric_size(name, cfg.setting, cfg.k_targets)))
+    params.update(spec.init(rng, cfg, inputs.numeric_size(spec, cfg.setting, cfg.k_targets)))
     return cast_tree(params, dtype)
 
 
@@ -198,7 +198,7 @@ def check_obs(name: str, obs: dict, cfg: ModelConfig, lead: int) -> None:
         For a missing key, a BEV not ``(..., image_size, image_size, 3)`` or a lane
         target not ending in ``(k_targets, 2)``.
     """
-    keys = inputs.visible(name, cfg.setting)
+    keys = inputs.visible(get(name), cfg.setting)
     missing = [k for k in keys if k not in obs]
     if missing:
         raise ValueError(f"obs lacks {missing} needed by model {name!r} in setting "
@@ -258,7 +258,7 @@ def encode(spec: ModelSpec, params: dict, obs: dict, cfg: ModelConfig, eng: Any)
             pooled = xp.mean(xp.mean(f, axis=1), axis=1)  # GAP of eq. 7
         z = dense(params["predicates"], pooled, eng)
         enc["predicates"] = eng.nn.sigmoid(z) if cfg.predicate_activation == "sigmoid" else z
-    num = inputs.numeric_features(obs, spec.name, cfg.setting, xp=xp)
+    num = inputs.numeric_features(obs, spec, cfg.setting, xp=xp)
     enc.update(spec.encode(params, obs, f, num, cfg, eng))
     if changes_speed(spec, cfg):
         enc["speed_now"] = obs["motion"][:, :1]
@@ -270,7 +270,7 @@ def changes_speed(spec: ModelSpec, cfg: ModelConfig) -> bool:
     a direct head); ValueError if it does not see the ``motion`` it changes."""
     if cfg.speed_output != "change" or spec.dmp:
         return False
-    if "motion" not in inputs.visible(spec.name, cfg.setting):
+    if "motion" not in inputs.visible(spec, cfg.setting):
         raise ValueError(f"speed_output='change' needs a model that sees 'motion'; "
                          f"{spec.name!r} does not in setting {cfg.setting!r} (use 'parity')")
     return True
@@ -387,7 +387,7 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
     check_obs(name, obs_seq, cfg, 2)
     xp = eng.xp
     L, B = obs_seq["bev"].shape[:2]
-    seen = inputs.visible(name, cfg.setting)
+    seen = inputs.visible(spec, cfg.setting)
     per_scene = check_per_scene(obs_seq, seen)
     flat = {k: xp.asarray(v)[0] if k in per_scene else
             xp.reshape(xp.asarray(v), (L * B,) + tuple(v.shape[2:]))

@@ -39,7 +39,6 @@ __all__ = [
     "register",
     "registered",
     "specs",
-    "unregister",
     "vagn_models",
 ]
 
@@ -188,22 +187,6 @@ def register(spec: ModelSpec, replace: bool = False) -> ModelSpec:
                          "(pass replace=True to replace it)")
     _SPECS[spec.name] = spec
     return spec
-
-
-def unregister(name: str) -> ModelSpec:
-    """Remove a model from the registry.
-
-    Parameters
-    ----------
-    name : str
-        A registered model.
-
-    Returns
-    -------
-    ModelSpec
-        Its spec.
-    """
-    return _SPECS.pop(check_name(name))
 
 
 @contextmanager

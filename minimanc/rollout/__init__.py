@@ -32,9 +32,10 @@ the learned part adds.
 **Two protocols for the ados** (``agents=`` on :func:`simulate`, :func:`closed_loop`,
 :func:`fixed_gains`, :func:`human`; :data:`AGENTS`): ``"replay"`` is the paper's, above;
 ``"reactive"`` drives them by the world's own IDM / yielding / gap-acceptance rules,
-reacting to the policy's ego from the logged start (:mod:`minimanc.world.reactive`, as
-nuPlan's reactive agents). A reactive :class:`Rollout` holds the ados it simulated
-(``ado``, ``ado_valid``), and :func:`minimanc.metrics.evaluate` scores it on them.
+reacting to the policy's ego from the logged start (:mod:`minimanc.rollout.reactive`, as
+nuPlan's reactive agents); :mod:`minimanc.rollout.protocols` picks the simulator. A
+reactive :class:`Rollout` holds the ados it simulated (``ado``, ``ado_valid``), and
+:func:`minimanc.metrics.evaluate` scores it on them.
 
 Any object with ``model``, ``setting``, ``initial_state(scenes)`` and
 ``__call__(obs, state, t, scenes) -> (controls, state, aux)`` can drive
@@ -63,15 +64,7 @@ from minimanc.rollout.driver import (
     drive,
     observation,
 )
-from minimanc.rollout.log import (
-    AGENTS,
-    BATCH_SIZE,
-    LogReplay,
-    Rollout,
-    check_agents,
-    human,
-    simulate,
-)
+from minimanc.rollout.log import AGENTS, BATCH_SIZE, LogReplay, Rollout, check_agents
 from minimanc.rollout.policies import (
     FixedGainsPolicy,
     ModelPolicy,
@@ -80,6 +73,7 @@ from minimanc.rollout.policies import (
     open_loop,
     replay,
 )
+from minimanc.rollout.protocols import human, simulate
 
 __all__ = [
     "AGENTS",

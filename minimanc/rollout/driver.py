@@ -10,7 +10,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from minimanc import inputs
+from minimanc import inputs, models
 from minimanc.checks import check_int
 
 __all__ = ["AUX_KEYS", "BadControls", "Drive", "Policy", "SceneState", "Simulator",
@@ -52,7 +52,7 @@ class Policy(Protocol):
 class SceneState:
     """What a :class:`Simulator` shows at one step, for a batch of ``B`` scenes.
 
-    ``maps`` one :class:`minimanc.world.maps.Map` per row, ``pose (B, 3)`` the
+    ``maps`` one :class:`minimanc.world.lanes.Map` per row, ``pose (B, 3)`` the
     ego's world pose ``[x, y, yaw]``, ``ado (B, A, 5)`` the ado boxes
     ``[x, y, yaw, length, width]`` at this step with ``ado_valid (B, A)`` bool,
     ``goal (B, 3)`` the goal world pose, and ``history`` the past boxes of every row when
@@ -73,7 +73,7 @@ class Simulator(Protocol):
     Attributes: ``scenes (B,)`` the integer ids of the rows (passed to the
     policy), ``raster`` the :class:`minimanc.world.RasterConfig` the BEV is
     drawn with, ``k_targets`` the number of lane-target points (``None``: the
-    default :data:`minimanc.world.maps.K_TARGETS`).
+    default :data:`minimanc.world.lanes.K_TARGETS`).
 
     * ``reset()`` puts every row at its start and returns the ego's motion
       there, ``(B, 2)`` float32 ``[speed, yaw rate]`` (the ``motion`` input at
@@ -128,7 +128,7 @@ def observation(policy: Policy, scene: SceneState, motion: np.ndarray, raster: A
     raster : RasterConfig, optional
         How the BEV is drawn.
     k_targets : int, optional
-        Lane-target points (default :data:`minimanc.world.maps.K_TARGETS`).
+        Lane-target points (default :data:`minimanc.world.lanes.K_TARGETS`).
 
     Returns
     -------
@@ -137,7 +137,8 @@ def observation(policy: Policy, scene: SceneState, motion: np.ndarray, raster: A
     """
     return inputs.from_state(
         scene.maps, scene.pose, scene.ado, scene.ado_valid, scene.goal, raster, policy.setting,
-        motion=motion, model=policy.model, k_targets=k_targets,
+        motion=motion, model=None if policy.model is None else models.get(policy.model),
+        k_targets=k_targets,
         keys=getattr(policy, "keys", None), history=scene.history,
     )
 

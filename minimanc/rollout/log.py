@@ -1,30 +1,34 @@
 """Chapter 9 — the paper's protocol on the log: :class:`LogReplay` (the ego moves by the
-unicycle, the ados replay their logged boxes), :func:`simulate` (a policy on many scenes, in
-batches), :class:`Rollout` (the trajectories and what the model showed) and :func:`human`."""
+unicycle, the ados replay their logged boxes), :func:`run_batches` (a policy on many scenes,
+in batches, in the simulator of a protocol) and :class:`Rollout` (the trajectories and what
+the model showed)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from minimanc import inputs
 from minimanc.checks import check_int
-from minimanc.rollout.driver import Policy, SceneState, drive
+from minimanc.rollout.driver import Policy, SceneState, Simulator, drive
 from minimanc.world.geometry import DT, unicycle_step
 from minimanc.world.history import latest_history
+from minimanc.world.raster import RasterConfig
 
 __all__ = ["AGENTS", "BATCH_SIZE", "LogReplay", "Rollout", "check_agents", "check_dataset",
-           "human", "k_targets_of", "raster_config", "scene_index", "simulate"]
+           "k_targets_of", "raster_config", "run_batches", "scene_index"]
 
 BATCH_SIZE: int = 8
 """Default number of scenes driven together (see :func:`simulate`)."""
 
 AGENTS: tuple[str, ...] = ("replay", "reactive")
 """The closed-loop protocols for the ados: ``"replay"`` from the log (the paper's,
-:class:`LogReplay`) or ``"reactive"`` (:mod:`minimanc.world.reactive`: the world's own
+:class:`LogReplay`) or ``"reactive"`` (:mod:`minimanc.rollout.reactive`: the world's own
 IDM / yielding / gap-acceptance rules react to the policy's ego)."""
 
 
@@ -159,9 +163,7 @@ def raster_config(ds: Any) -> Any:
     """The :class:`minimanc.world.RasterConfig` the dataset was drawn with."""
     cfg = getattr(ds, "raster", None)
     if cfg is None:
-        from minimanc import world
-
-        cfg = world.RasterConfig(size=int(np.asarray(ds.bev).shape[2]))
+        cfg = RasterConfig(size=int(np.asarray(ds.bev).shape[2]))
     return cfg
 
 
@@ -169,26 +171,6 @@ def k_targets_of(ds: Any) -> int | None:
     """The dataset's number of lane-target points (``None``: unknown)."""
     lt = getattr(ds, "lane_target", None)
     return None if lt is None else int(np.asarray(lt).shape[2])
-
-
-def human(ds: Any, scenes: Any = None, agents: str = "replay") -> Rollout:
-    """The logged human ego as a :class:`Rollout` (Table I's "Human" row).
-
-    Its controls are the logged ones from ``t`` to ``t + 1``; replaying them
-    with the unicycle reproduces ``ds.ego`` (the world's logging rule).  With
-    ``agents="reactive"`` these controls drive the ego among reactive ados
-    (:func:`minimanc.world.reactive.human`): the same poses, and the ados as the
-    reactive simulation moved them (equal to the log to float32 rounding).
-    """
-    if check_agents(agents) == "reactive":
-        from minimanc.world import reactive
-
-        return reactive.human(ds, scenes=scenes)
-    S, T = check_dataset(ds)
-    idx = scene_index(scenes, S)
-    ego = np.asarray(ds.ego, dtype=np.float64)[idx]
-    controls = np.asarray(ds.controls, dtype=np.float64)[idx, : T - 1]
-    return Rollout("human", "log", ego, controls, {}, idx)
 
 
 class LogReplay:
@@ -252,33 +234,30 @@ class LogReplay:
         return np.stack(self._poses, axis=1)
 
 
-def simulate(
+def run_batches(
     policy: Policy,
     ds: Any,
+    make_sim: Callable[[Any, np.ndarray], Simulator],
+    agents: str = "replay",
     scenes: Any = None,
     batch_size: int | None = None,
     steps: int | None = None,
     progress: bool = True,
     desc: str | None = None,
-    agents: str = "replay",
 ) -> Rollout:
-    """Run ``policy`` in closed loop on the scenes ``scenes`` of ``ds`` (default: all).
+    """Run ``policy`` in closed loop on the scenes ``scenes`` of ``ds`` (default: all), each
+    batch of scenes in the simulator ``make_sim(ds, batch_scenes)`` of the protocol ``agents``.
 
     Scenes are processed ``batch_size`` at a time (default
     :data:`BATCH_SIZE` = 8: the world keeps the class grids of 8 maps cached,
     and a larger batch would rebuild every grid at every step); a row's
     result does not depend on the batch it is in.  ``steps`` limits the
     number of decisions (default ``T − 1``, the whole log).  Each batch is
-    :func:`drive` in a :class:`LogReplay`; see the module docstring for what
-    one step does.  ``agents="reactive"`` drives the ados by the world's rules
-    instead, reacting to the policy's ego
-    (:func:`minimanc.world.reactive.simulate_reactive`, same arguments; the
-    rollout then holds the simulated ados).
+    :func:`drive` in its simulator; see the module docstring for what one step does.
+    Under ``agents="reactive"`` the rollout holds the ados as the simulator moved them
+    (its ``ado_trajectory()``). :func:`minimanc.rollout.simulate` chooses the simulator.
     """
-    if check_agents(agents) == "reactive":
-        from minimanc.world.reactive import ReactiveSim as make_sim  # imports this module
-    else:
-        make_sim = LogReplay
+    check_agents(agents)
     S_all, T = check_dataset(ds)
     idx = scene_index(scenes, S_all)
     n_steps = T - 1 if steps is None else check_int("steps", steps, 1)
@@ -289,8 +268,6 @@ def simulate(
     chunks = [idx[i: i + bs] for i in range(0, len(idx), bs)]
     bar = None
     if progress:
-        from tqdm import tqdm
-
         what = "reactive closed loop" if agents == "reactive" else "closed loop"
         bar = tqdm(total=len(chunks) * n_steps, desc=desc or f"{what} {policy.model}",
                    unit="step", leave=False)

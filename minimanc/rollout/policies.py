@@ -8,16 +8,21 @@ from typing import Any
 
 import numpy as np
 
+from minimanc import models
 from minimanc.checks import check_int
+from minimanc.engine import get_engine
+from minimanc.models.forward import cast_tree
 from minimanc.rollout.driver import AUX_KEYS, drive
 from minimanc.rollout.log import (
+    BATCH_SIZE,
     LogReplay,
     Rollout,
     check_agents,
     check_dataset,
     scene_index,
-    simulate,
 )
+from minimanc.rollout.protocols import simulate
+from minimanc.tree import leaves
 
 __all__ = ["FixedGainsPolicy", "ModelPolicy", "closed_loop", "fixed_gains", "open_loop",
            "replay"]
@@ -41,16 +46,11 @@ class ModelPolicy:
     def __init__(self, name: str, params: dict, cfg: Any, eng: Any,
                  q_init: str = "uniform", seed: int = 0, dtype: Any = np.float32,
                  initial: dict | None = None, jit: bool = True) -> None:
-        from minimanc import models
-        from minimanc.models.forward import cast_tree
-
         models.check_name(name)
         if q_init not in ("uniform", "random"):
             raise ValueError(f"q_init must be 'uniform' or 'random'; got q_init={q_init!r}")
         if isinstance(eng, str):
-            from minimanc import engine
-
-            eng = engine(eng)
+            eng = get_engine(eng)
         self.model = name
         self.setting = cfg.setting
         self.cfg = cfg
@@ -69,8 +69,6 @@ class ModelPolicy:
         self._step = eng.jit(_fn) if jit else _fn  # jit is the identity on the NumPy engine
 
     def initial_state(self, scenes: np.ndarray) -> dict:
-        from minimanc import models
-
         if self.initial is not None:
             return {k: self.eng.xp.asarray(np.repeat(np.asarray(v), len(scenes), axis=0))
                     for k, v in self.initial.items()}
@@ -130,13 +128,9 @@ def replay(name: str, params: dict, ds: Any, scene: int, cfg: Any = None, eng: A
     ValueError
         For an unknown model, scene or ``q_mode``.
     """
-    from minimanc import engine as _engine
-    from minimanc import models
-    from minimanc.tree import leaves
-
     name = models.check_name(name)
     cfg = cfg or models.ModelConfig()
-    eng = _engine(eng) if isinstance(eng, str) else (eng or _engine("numpy"))
+    eng = get_engine(eng) if isinstance(eng, str) else (eng or get_engine("numpy"))
     S, T = check_dataset(ds)
     idx = scene_index(check_int("scene", scene, 0), S)
     if q_mode not in ("uniform", "random"):
@@ -182,8 +176,6 @@ def open_loop(name: str, params: dict, ds: Any, cfg: Any, eng: Any = "numpy",
         ``controls`` ``(S, T, 2)`` and the model's aux outputs (``q`` ``(S, T, N)``,
         ``alpha``, ``beta``, ``predicates``) over all ``T`` logged steps, in float32.
     """
-    from minimanc.rollout.log import BATCH_SIZE
-
     S, T = check_dataset(ds)
     idx = scene_index(scenes, S)
     bs = BATCH_SIZE if batch_size is None else check_int("batch_size", batch_size, 1)
@@ -271,8 +263,6 @@ class FixedGainsPolicy:
     keys = ("lane_target", "motion")
 
     def __init__(self, cfg: Any = None, gains: Any = None) -> None:
-        from minimanc import models
-
         self.cfg = cfg or models.ModelConfig()
         self.logits = models.gain_logits(models.DEFAULT_GAINS if gains is None else gains)
 
@@ -281,8 +271,6 @@ class FixedGainsPolicy:
 
     def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
                  ) -> tuple[np.ndarray, Any, dict]:
-        from minimanc import models
-
         logits = np.tile(self.logits, (len(scenes), 1))
         u, aux = models.dmp_head(logits, np.asarray(obs["lane_target"], np.float64),
                                  np.asarray(obs["motion"], np.float64), self.cfg)

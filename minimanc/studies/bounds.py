@@ -1,7 +1,7 @@
 """Chapter 9 — the bounds every closed-loop number is read against: the expert and the style
 floor (rows of Table I).
 
-**Expert.** The world's human (:class:`minimanc.world.expert.HumanExpert`) asked in every
+**Expert.** The world's human (:class:`minimanc.dagger.expert.HumanExpert`) asked in every
 state the closed loop reaches (:class:`minimanc.dagger.privileged.ExpertPolicy`), driving
 through the same simulators and the same time loop as the learned policies, under either
 protocol: :func:`expert_rollout`. The upper bound of every learner.

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import inputs, models
+from minimanc import inputs, models, train
 from minimanc.checks import check_int
 
 TABLE_MODELS: tuple[str, ...] = ("cnn", "cnn_lstm", "rvs_g", "manc")
@@ -70,8 +70,6 @@ class StudyConfig:
     data_source: str = ""
 
     def __init__(self, **kwargs: Any) -> None:
-        from minimanc import train
-
         given = {k: kwargs.pop(k) for k in TRAIN_FIELDS if k in kwargs}
         unknown = sorted(set(kwargs) - {f.name for f in fields(self)})
         if unknown:
@@ -195,7 +193,8 @@ class Run:
 
 def canonical_setting(model: str, setting: str) -> str:
     """``"paper"`` when ``model`` sees the same inputs in both settings (MANC, DMP-only)."""
-    if inputs.visible(model, "paper") == inputs.visible(model, setting):
+    spec = models.get(model)
+    if inputs.visible(spec, "paper") == inputs.visible(spec, setting):
         return "paper"
     return setting
 

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import metrics
+from minimanc import dagger, metrics
 from minimanc.checks import check_int
 from minimanc.viz.dagger import plot_study_rounds
 from minimanc.viz.style import METRIC_LABELS, pyplot
@@ -52,8 +52,6 @@ def run_dagger(study: Any, models: Sequence[str] = ("manc", "cnn"), rounds: int 
         "by_round": [aggregate per round]}}`` (:func:`minimanc.metrics.aggregate` over
         the seeds).
     """
-    from minimanc import dagger
-
     rounds = check_int("rounds", rounds, 1)
     train_ds, _, val = study.datasets()
     agents = study.agents[0]

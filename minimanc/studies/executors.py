@@ -23,13 +23,20 @@ Ray is an optional dependency (``pip install 'minimanc[ray]'``).
 
 from __future__ import annotations
 
+import multiprocessing as mp
 import os
+import threading
 import warnings
 from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor
+from pathlib import Path
 from typing import Any
 
+from minimanc import train, world
 from minimanc.checks import check_int
 from minimanc.errors import UsageError
+from minimanc.studies.jobs import enable_jax_cache, evaluate_job, failed
+from minimanc.studies.provenance import write_json
 
 __all__ = ["EXECUTORS", "RAY_MISSING", "Done", "LocalExecutor", "RayExecutor", "RayFuture",
            "check_ray", "evaluate_trained", "executor", "is_future", "load_scenes", "train_job",
@@ -107,9 +114,6 @@ class LocalExecutor:
         pool = self._ensure_pool()
         if all(a.done() for a in args if is_future(a)):
             return pool.submit(fn, *_resolved(args))
-        import threading
-        from concurrent.futures import Future
-
         out: Future = Future()
 
         def start_when_ready() -> None:
@@ -123,9 +127,6 @@ class LocalExecutor:
 
     def _ensure_pool(self) -> Any:
         if self._pool is None:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor
-
             self._pool = ProcessPoolExecutor(max_workers=self.workers,
                                              mp_context=mp.get_context("spawn"))
         return self._pool
@@ -144,12 +145,12 @@ class RayFuture:
         self.ref = ref
 
     def result(self) -> Any:
-        import ray
+        import ray  # Ray is optional (the [ray] extra)
 
         return ray.get(self.ref)
 
     def done(self) -> bool:
-        import ray
+        import ray  # Ray is optional (the [ray] extra)
 
         ready, _ = ray.wait([self.ref], timeout=0)
         return bool(ready)
@@ -174,7 +175,7 @@ class RayExecutor:
     def __init__(self, workers: int = 2, address: str | None = None, max_retries: int = 3,
                  env: dict[str, str] | None = None) -> None:
         check_ray()
-        import ray
+        import ray  # Ray is optional (the [ray] extra)
 
         self.workers = check_int("workers", workers, 1)
         self.max_retries = check_int("max_retries", max_retries, 0)
@@ -198,7 +199,7 @@ class RayExecutor:
     def submit(self, fn: Callable, *args: Any) -> RayFuture:
         """Start ``fn(*args)`` as a Ray task (one CPU); a :class:`RayFuture` among ``args`` is
         passed as its object reference, so the task runs after it, on its value."""
-        import ray
+        import ray  # Ray is optional (the [ray] extra)
 
         task = self._remote.get(fn)
         if task is None:
@@ -209,7 +210,7 @@ class RayExecutor:
 
     def shutdown(self) -> None:
         """Disconnect; a Ray this executor started is stopped."""
-        import ray
+        import ray  # Ray is optional (the [ray] extra)
 
         if self._started and ray.is_initialized():
             ray.shutdown()
@@ -237,8 +238,6 @@ _DATA: dict[str, Any] = {}
 
 def load_scenes(data: str, lo: int, hi: int) -> Any:
     """Scenes ``lo:hi`` of the dataset file ``data`` (loaded once per worker process)."""
-    from minimanc import world
-
     if data not in _DATA:
         _DATA.clear()
         _DATA[data] = world.load(data)
@@ -264,11 +263,6 @@ def train_runs(ds: Any, job: dict) -> list[str]:
     ``"checkpoints"`` (one path per run), ``"engine", "jax_cache"}`` and optionally
     ``"progress"``; for :func:`train_job` also ``"data", "lo", "hi"``.
     """
-    from pathlib import Path
-
-    from minimanc import train
-    from minimanc.studies.jobs import enable_jax_cache, write_json
-
     if job["engine"] == "jax" and job.get("jax_cache"):
         enable_jax_cache(job["jax_cache"])
     paths = [Path(p) for p in job["checkpoints"]]
@@ -297,10 +291,6 @@ def evaluate_trained(checkpoints: list[str], index: int, job: dict) -> dict:
     """:func:`minimanc.studies.jobs.evaluate_job` of ``job`` with the checkpoint
     ``checkpoints[index]`` (the result of :func:`train_job`); a diverged run scores
     :func:`minimanc.studies.jobs.failed`."""
-    from pathlib import Path
-
-    from minimanc.studies.jobs import evaluate_job, failed
-
     checkpoint = checkpoints[index]
     if (Path(checkpoint).parent / "diverged.json").exists():
         return failed("training diverged")

@@ -18,7 +18,7 @@ from minimanc.viz.explain import (
     plot_saliency_steps,
     plot_speeds,
     plot_trajectories,
-    save_gif,
+    save_rollout_gif,
 )
 from minimanc.viz.study import (
     plot_ablation,
@@ -28,26 +28,26 @@ from minimanc.viz.study import (
     plot_sample_efficiency,
     plot_table1,
 )
-from minimanc.viz.style import save
+from minimanc.viz.style import save_figure
 
 
 def write_figures(study: Study, results: dict, figdir: Path) -> list[Path]:
     """Every PNG (and the GIF) of a finished study; returns the paths."""
     paths = []
     for agents, t1 in results["table1"].items():
-        paths.append(save(plot_table1(t1), figdir / f"table1_{agents}.png"))
+        paths.append(save_figure(plot_table1(t1), figdir / f"table1_{agents}.png"))
     for agents, by_setting in results.get("families", {}).items():
         setting = "paper" if "paper" in by_setting else next(iter(by_setting))
         title = f"Per scenario family ({agents} agents, setting {setting}); lower is better"
-        paths.append(save(plot_families(by_setting[setting], title=title),
+        paths.append(save_figure(plot_families(by_setting[setting], title=title),
                                 figdir / f"families_{agents}.png"))
     paths += [
-        save(plot_sample_efficiency(results["sample_efficiency"]),
+        save_figure(plot_sample_efficiency(results["sample_efficiency"]),
                    figdir / "sample_efficiency.png"),
-        save(plot_param_counts(results["param_counts"]["paper"]),
+        save_figure(plot_param_counts(results["param_counts"]["paper"]),
                    figdir / "param_counts.png"),
-        save(plot_q_states(results["q_states"]), figdir / "q_states.png"),
-        save(plot_ablation(results["ablation"]), figdir / "ablation.png"),
+        save_figure(plot_q_states(results["q_states"]), figdir / "q_states.png"),
+        save_figure(plot_ablation(results["ablation"]), figdir / "ablation.png"),
     ]
     paths += write_speeds(study, figdir)
     paths += write_explanations(study, figdir)
@@ -68,7 +68,7 @@ def write_speeds(study: Study, figdir: Path, k: int = 3) -> list[Path]:
         return []
     scenes = pick_scenes(val, next(iter(trajs.values())), min(k, len(val)))
     fig = plot_speeds(trajs, rollout.human(val), scenes)
-    return [save(fig, figdir / f"speeds_{study.primary}.png")]
+    return [save_figure(fig, figdir / f"speeds_{study.primary}.png")]
 
 
 def write_explanations(study: Study, figdir: Path) -> list[Path]:
@@ -86,16 +86,16 @@ def write_explanations(study: Study, figdir: Path) -> list[Path]:
     fit = train.load(study.checkpoint(run))
     human = rollout.human(val)
     scenes = pick_scenes(val, traj, c.explain_scenes)
-    paths = [save(plot_trajectories({"MANC": traj}, human, val, scenes),
+    paths = [save_figure(plot_trajectories({"MANC": traj}, human, val, scenes),
                         figdir / "trajectories.png")]
     for s in scenes:
-        paths.append(save(plot_explain_trace(traj, human, val, s),
+        paths.append(save_figure(plot_explain_trace(traj, human, val, s),
                                 figdir / f"explain_scene{s:03d}.png"))
         steps = saliency_steps(traj, s)
-        paths.append(save(
+        paths.append(save_figure(
             plot_saliency_steps(fit.params, fit.cfg, traj, val, s, steps),
             figdir / f"saliency_scene{s:03d}.png"))
-    paths.append(save_gif(traj, human, val, scenes[0], figdir / "rollout.gif"))
+    paths.append(save_rollout_gif(traj, human, val, scenes[0], figdir / "rollout.gif"))
     if study.recorded:  # no human modes on recorded data (minimanc.studies.recorded)
         return paths
     labels = study.human_modes()
@@ -103,7 +103,7 @@ def write_explanations(study: Study, figdir: Path) -> list[Path]:
                           scenes=scenes)["q"]
     for k, s in enumerate(scenes):
         title = f"MANC open loop, scene {s} ({val.maps[s].kind}): q and the human's mode"
-        paths.append(save(plot_q_modes(q[k], labels[s], title),
+        paths.append(save_figure(plot_q_modes(q[k], labels[s], title),
                                 figdir / f"q_modes_scene{s:03d}.png"))
     return paths
 

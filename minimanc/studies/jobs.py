@@ -7,16 +7,14 @@ broken)."""
 
 from __future__ import annotations
 
-import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from minimanc import metrics
+from minimanc import engine, metrics, rollout, train, world
 from minimanc.metrics.diagnostics import collision_taxonomy
+from minimanc.studies.provenance import write_json
 
 _WORKER_DATA: dict[str, Any] = {}
 
@@ -30,14 +28,14 @@ CONTACT_PREFIX: str = "contacts_"
 """Prefix of the collision-taxonomy keys of :func:`score`."""
 """Every metric a study reports for a rollout (a failed run has them all ``inf``)."""
 
-FAMILIES: tuple[str, ...] = ("free", "junction", "roundabout", "cut_in")
+SCENE_FAMILIES: tuple[str, ...] = ("free", "junction", "roundabout", "cut_in")
 """Scenario families, from the world's scene tags: ``free`` = a straight or curved road
 without a cut-in, ``junction`` = an intersection, ``roundabout``, ``cut_in`` = a scene with
 a cut-in (on any map, so it overlaps the others)."""
 
 
 def scene_families(ds: Any) -> dict[str, np.ndarray]:
-    """``{family: (S,) bool}``: which scenes of ``ds`` belong to each of :data:`FAMILIES`
+    """``{family: (S,) bool}``: which scenes of ``ds`` belong to each of :data:`SCENE_FAMILIES`
     (from ``ds.tags``; ValueError when the dataset has none)."""
     tags = getattr(ds, "tags", None)
     if tags is None or len(tags) != len(ds.ego):
@@ -53,7 +51,7 @@ def failed(error: str | None = None) -> dict:
     """The scores of a run that could not be evaluated: every :data:`STUDY_METRICS` ``inf``
     (also per family, so that :func:`minimanc.metrics.aggregate` keeps every key)."""
     res: dict[str, Any] = {k: float("inf") for k in STUDY_METRICS}
-    res["families"] = {f: {k: float("inf") for k in STUDY_METRICS} for f in FAMILIES}
+    res["families"] = {f: {k: float("inf") for k in STUDY_METRICS} for f in SCENE_FAMILIES}
     if error is not None:
         res["error"] = error
     return res
@@ -94,7 +92,7 @@ def score(traj: Any, ds: Any) -> dict:
     :func:`minimanc.metrics.evaluate`, and :data:`TRACK_METRICS`), the collisions by kind
     (:func:`minimanc.metrics.diagnostics.collision_taxonomy`, keys prefixed
     :data:`CONTACT_PREFIX`), and ``"families"``:
-    the same averages over the scenes of each of :data:`FAMILIES` present (with
+    the same averages over the scenes of each of :data:`SCENE_FAMILIES` present (with
     ``n_scenes``)."""
     per = scene_scores(traj, ds)
     res: dict[str, Any] = {k: float(v.mean()) for k, v in per.items()}
@@ -113,8 +111,6 @@ def score(traj: Any, ds: Any) -> dict:
 
 
 def _load_split(data_path: str, lo: int, hi: int) -> Any:
-    from minimanc import world
-
     ds = _WORKER_DATA.get(data_path)
     if ds is None:
         ds = world.load(data_path)
@@ -132,7 +128,7 @@ def enable_jax_cache(directory: str | Path) -> None:
     """Persist JAX compilations under ``directory`` (unless the user set a cache already):
     runs that differ only by their seed, learning rate or data fraction then compile once
     (:func:`minimanc.train.fit` passes the last two to its jitted step as arguments)."""
-    import jax
+    import jax  # JAX only for the jax engine
 
     if jax.config.jax_compilation_cache_dir:
         return
@@ -147,8 +143,6 @@ def evaluate_job(job: dict) -> dict:
     ``job``: ``data`` (the dataset file), ``lo``/``hi`` (the split's rows), ``checkpoint``,
     ``engine``, ``rollout`` and ``metrics`` (the files written), optionally ``agents``
     (the protocol, default ``"replay"``) and ``jax_cache``."""
-    from minimanc import engine, rollout, train
-
     if job["engine"] == "jax" and job.get("jax_cache"):
         enable_jax_cache(job["jax_cache"])
     ds = _load_split(job["data"], job["lo"], job["hi"])
@@ -165,27 +159,3 @@ def evaluate_job(job: dict) -> dict:
     res = score(traj, ds)
     write_json(job["metrics"], res)
     return res
-
-
-def write_json(path: str | Path, obj: Any) -> None:
-    """Write ``obj`` as JSON atomically (temporary file in the same directory, removed on
-    failure, then :func:`os.replace`)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(obj, indent=1, sort_keys=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
-def read_json(path: Path) -> Any:
-    """The JSON in ``path``, or ``None`` if it is missing or unreadable (a broken cache entry)."""
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError, UnicodeDecodeError):
-        return None

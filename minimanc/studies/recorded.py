@@ -21,7 +21,7 @@ Recorded data has logged boxes, not drivers: nothing can re-drive its scenes. So
 * Table I has no **Expert** and **Style floor** rows (:mod:`minimanc.studies.bounds`): both
   re-drive each scene from the world's generator (map, traffic and driver drawn from the
   dataset's seed), which a recorded scene does not have (:data:`BOUNDS_OMITTED`);
-* the human's driving modes (:func:`minimanc.modes.human_modes`, what vAGN's q-states are
+* the human's driving modes (:func:`minimanc.metrics.modes.human_modes`, what vAGN's q-states are
   measured against) come from re-driving the scene too: no modes study and no q-versus-mode
   figures (:data:`MODES_OMITTED`);
 * behaviour cloning against DAgger (``--dagger``) asks the world's expert in states the
@@ -72,7 +72,7 @@ BOUNDS_OMITTED: str = (
 
 MODES_OMITTED: str = (
     "No study of vAGN's q-states against the human's driving modes: the modes come from "
-    "re-driving each scene with the world's driver (minimanc.modes), which recorded data "
+    "re-driving each scene with the world's driver (minimanc.metrics.modes), which recorded data "
     "does not have.")
 """Why recorded data has no modes study (one line of ``table1.md``)."""
 

@@ -12,6 +12,8 @@ from typing import Any
 import numpy as np
 
 from minimanc.studies.bounds import BOUND_ROWS
+from minimanc.studies.dagger_study import dagger_markdown
+from minimanc.studies.provenance import provenance_markdown
 from minimanc.viz.style import model_label
 
 
@@ -44,7 +46,7 @@ the expert, the style floor)."""
 MODE_MIN_EXCESS: float = 0.05
 """The explainability claim holds for a model when the mutual information between its most
 likely q-state and the human's mode exceeds the shuffled-scene baseline's 95th percentile
-and its mean by at least this many bits (:func:`minimanc.modes.mode_information`)."""
+and its mean by at least this many bits (:func:`minimanc.metrics.modes.mode_information`)."""
 
 
 def protocols(results: dict) -> dict:
@@ -464,7 +466,7 @@ def table_markdown(results: dict) -> str:
                   "observations; q starts uniform): the mutual information between q's most "
                   "likely state and the human's mode at each step, against a shuffled-scene "
                   "baseline (each scene's q paired with another scene's modes; "
-                  "`minimanc.modes.mode_information`). Human modes: "
+                  "`minimanc.metrics.modes.mode_information`). Human modes: "
                   + ", ".join(f"{k} {100 * v / total:.0f} %" for k, v in counts.items())
                   + ".", "",
                   "| Model | MI (bits) | shuffled (bits) | shuffled 95 % | H(mode) (bits) | "
@@ -491,8 +493,6 @@ def table_markdown(results: dict) -> str:
         lines += [f"- {k}: {v:g}" for k, v in results["lr"].items()]
         lines.append("")
     if results.get("dagger"):
-        from minimanc.studies.dagger_study import dagger_markdown
-
         lines += dagger_markdown(results["dagger"], ns, lab)
     lines += ["## The paper's claims, checked", ""]
     if ns == 1:
@@ -503,8 +503,6 @@ def table_markdown(results: dict) -> str:
         lines.append(f"- **{f['claim']}** — {mark}. {f['detail']}.")
     lines.append("")
     if results.get("provenance"):
-        from minimanc.results import provenance_markdown
-
         lines.append(provenance_markdown(results["provenance"], results.get("wall_time_s")))
     return "\n".join(lines)
 

@@ -8,11 +8,10 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from minimanc.results import provenance, write_text
 from minimanc.studies.config import StudyConfig
 from minimanc.studies.dagger_study import dagger_figures, run_dagger
 from minimanc.studies.figures import write_figures
-from minimanc.studies.jobs import write_json
+from minimanc.studies.provenance import provenance, write_json, write_text
 from minimanc.studies.recorded import data_notes, is_recorded
 from minimanc.studies.report import json_safe, table_markdown
 from minimanc.studies.runner import Study
@@ -40,7 +39,7 @@ def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers
     """Run every study of ``config`` and write ``table1.md``, ``results.json`` and
     ``figures/`` under ``out``; Table I under each protocol of ``agents``
     (:class:`~minimanc.studies.runner.Study`). Returns the results dict (also with
-    ``"files"``, the run's ``"provenance"`` (:func:`minimanc.results.provenance` of
+    ``"files"``, the run's ``"provenance"`` (:func:`minimanc.studies.provenance.provenance` of
     ``command``, the command line; default ``sys.argv``) and
     ``"wall_time_s"``, which ``table1.md`` ends with). ``executor`` ("local" or "ray") and
     ``ray_address`` choose where the trainings run (:mod:`minimanc.studies.executors`);

@@ -9,9 +9,13 @@ import time
 from dataclasses import asdict
 from typing import Any
 
-from minimanc import metrics
+import numpy as np
+from tqdm import tqdm
+
+from minimanc import engine, metrics, models, rollout, train
+from minimanc.metrics import modes
 from minimanc.studies.config import Run, canonical_setting, plan
-from minimanc.studies.jobs import read_json, write_json
+from minimanc.studies.provenance import read_json, write_json
 from minimanc.studies.recorded import MODES_OMITTED
 from minimanc.studies.report import findings
 from minimanc.studies.runs import THREAD_ENV, Runs, families_of
@@ -43,7 +47,7 @@ class Study(Runs):
 
     def families(self) -> dict:
         """``{agents: {setting: {model: {family: aggregate}}}}``: Table I's rows per scenario
-        family (:data:`minimanc.studies.jobs.FAMILIES`; a family with no validation scene
+        family (:data:`minimanc.studies.jobs.SCENE_FAMILIES`; a family with no validation scene
         is left out)."""
         c = self.config
         out: dict = {}
@@ -56,19 +60,13 @@ class Study(Runs):
 
     def vagn_models(self) -> list[str]:
         """The study's models with a vAGN (their q-states are measured by :meth:`modes`)."""
-        from minimanc import models
-
         c = self.config
         names = dict.fromkeys([*c.table_models, *c.ablation_models, *c.sample_models])
         return [m for m in names if models.spec(m).family == "vagn"]
 
     def human_modes(self) -> Any:
         """The human's mode at each step of every validation scene
-        (:func:`minimanc.modes.human_modes`, ``(S, T)``), cached next to the dataset."""
-        import numpy as np
-
-        from minimanc import modes
-
+        (:func:`minimanc.metrics.modes.human_modes`, ``(S, T)``), cached next to the dataset."""
         if self.recorded:
             raise ValueError(MODES_OMITTED)
         path = self.derived_path("-val-modes.npy")
@@ -91,12 +89,8 @@ class Study(Runs):
         """Are vAGN's q-states driving modes? For each model of :meth:`vagn_models` and
         seed, the open-loop q over the validation scenes (:func:`minimanc.rollout.open_loop`:
         the model sees the human's observations) against the human's modes
-        (:meth:`human_modes`) by :func:`minimanc.modes.mode_information`, aggregated over
+        (:meth:`human_modes`) by :func:`minimanc.metrics.modes.mode_information`, aggregated over
         seeds: ``{"setting", "mode_counts", "models": {model: aggregate}}``."""
-        import numpy as np
-
-        from minimanc import engine, modes, rollout, train
-
         if self.recorded:  # no human modes (minimanc.studies.recorded): nothing to measure
             return {"setting": setting, "mode_counts": {}, "models": {},
                     "omitted": MODES_OMITTED}
@@ -158,8 +152,6 @@ class Study(Runs):
 
     def param_counts(self) -> dict:
         """``{setting: {model: number of parameters}}`` (Fig. 5b), at ``n_states``."""
-        from minimanc import models
-
         c = self.config
         out = {}
         for s in c.settings:
@@ -214,15 +206,11 @@ class Study(Runs):
         self.datasets()
         bar = train_bar = None
         if self.progress and self.pooled:
-            from tqdm import tqdm
-
             train_bar = tqdm(total=self.n_trainings(), desc="reproduce: trainings",
                              unit="run", position=0)
             bar = tqdm(total=self.n_runs(), desc="reproduce: evaluations", unit="run",
                        position=1)
         elif self.progress:
-            from tqdm import tqdm
-
             bar = tqdm(total=self.n_runs(), desc="reproduce: runs", unit="run")
         self._bar, self._train_bar = bar, train_bar
         try:

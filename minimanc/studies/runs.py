@@ -9,15 +9,17 @@ the paper's studies on it."""
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from minimanc import metrics
+from minimanc import metrics, models, rollout, train, world
 from minimanc.checks import check_int
 from minimanc.engine import ENGINES
+from minimanc.rollout import check_agents
 from minimanc.studies import bounds
 from minimanc.studies.config import Run, StudyConfig, canonical_setting
 from minimanc.studies.executors import (
@@ -31,13 +33,13 @@ from minimanc.studies.executors import (
     usable_cpus,
 )
 from minimanc.studies.jobs import (
-    FAMILIES,
+    SCENE_FAMILIES,
     STUDY_METRICS,
     enable_jax_cache,
     failed,
-    read_json,
     score,
 )
+from minimanc.studies.provenance import read_json
 from minimanc.studies.recorded import REACTIVE_REFUSAL, is_recorded
 
 __all__ = ["THREAD_ENV", "Runs", "families_of"]
@@ -76,8 +78,6 @@ class Runs:
                  agents: Sequence[str] = ("replay", "reactive"),
                  executor: str = "local", ray_address: str | None = None,
                  seeds_together: bool = False) -> None:
-        from minimanc.rollout import check_agents
-
         if not isinstance(config, StudyConfig):
             raise ValueError(f"config must be a StudyConfig; got config={config!r}")
         if engine not in ENGINES:
@@ -158,8 +158,6 @@ class Runs:
         ``data/``), then loaded."""
         if self._data is not None:
             return self._data
-        from minimanc import world
-
         c = self.config
         n = c.n_train + c.n_tune + c.n_val
         t0 = time.perf_counter()
@@ -196,8 +194,6 @@ class Runs:
     # ----------------------------------------------------------------- training
 
     def model_config(self, run: Run) -> Any:
-        from minimanc import models
-
         return models.ModelConfig(n_states=run.n_states, image_size=self.config.image_size,
                                   setting=run.setting)
 
@@ -206,8 +202,6 @@ class Runs:
         return self.config.train_config(run.model, run.lr, run.seed, run.fraction)
 
     def checkpoint(self, run: Run) -> Path:
-        from minimanc import train
-
         return self.cache / "models" / run.key / train.CHECKPOINT_NAME
 
     def fit(self, run: Run) -> Path:
@@ -218,8 +212,6 @@ class Runs:
 
     def _complete(self, run: Run) -> bool:
         """Whether ``run``'s checkpoint holds every epoch (or the run diverged)."""
-        from minimanc import train
-
         path = self.checkpoint(run)
         if self._diverged(run):
             return True  # scored as inf; delete diverged.json to train it again
@@ -339,8 +331,6 @@ class Runs:
     def _executor(self) -> Any:
         """The :mod:`~minimanc.studies.executors` executor of the jobs (made on first use)."""
         if self._pool is None:
-            import os
-
             env = {k: os.environ[k] for k in THREAD_ENV if k in os.environ}
             self._pool = executor(self.executor, self.workers, self.ray_address, env=env)
         return self._pool
@@ -353,8 +343,6 @@ class Runs:
     def rollout(self, run: Run, split: str = "val", agents: str | None = None) -> Any:
         """The saved :class:`minimanc.rollout.Rollout` of ``run`` on ``split`` under
         ``agents`` (default :attr:`primary`)."""
-        from minimanc import rollout
-
         agents = self.primary if agents is None else agents
         self.result(run, split, agents)
         return rollout.Rollout.load(self._paths(run, split, agents)[0])
@@ -442,8 +430,6 @@ class Runs:
     def reference(self, name: str, agents: str) -> dict:
         """The scores of a driver without learning on the validation split (cached in memory):
         ``"human"``, ``"dmp_prior"`` or a bound (:data:`minimanc.studies.bounds.BOUND_ROWS`)."""
-        from minimanc import models, rollout
-
         key = f"{name}-val-{agents}"
         if key not in self._references:
             _, _, val = self.datasets()
@@ -485,6 +471,6 @@ class Runs:
 
 def families_of(per_seed: Sequence[dict]) -> dict:
     """``{family: aggregate}`` over the seeds' :func:`minimanc.studies.jobs.score` dicts (the
-    families every seed has, in the order of :data:`minimanc.studies.jobs.FAMILIES`)."""
-    return {f: metrics.aggregate([r["families"][f] for r in per_seed]) for f in FAMILIES
+    families every seed has, in the order of :data:`minimanc.studies.jobs.SCENE_FAMILIES`)."""
+    return {f: metrics.aggregate([r["families"][f] for r in per_seed]) for f in SCENE_FAMILIES
             if all(f in r.get("families", {}) for r in per_seed)}

@@ -61,8 +61,6 @@ Modules: :mod:`~minimanc.train.config`, :mod:`~minimanc.train.batches`,
 
 from __future__ import annotations
 
-import numpy as np  # noqa: F401  (``train.np``: tests patch numpy's savez through it)
-
 from minimanc.train.batches import (
     batches,
     control_std,
@@ -72,7 +70,7 @@ from minimanc.train.batches import (
     subset_scenes,
     window_len,
 )
-from minimanc.train.checkpoint import bad_params, load, load_checkpoint, save
+from minimanc.train.checkpoint import bad_params, load, load_checkpoint, save_checkpoint
 from minimanc.train.config import (
     CHECKPOINT_NAME,
     DTYPES,
@@ -111,7 +109,7 @@ __all__ = [
     "loss_fn",
     "make_batch",
     "make_step",
-    "save",
+    "save_checkpoint",
     "subset_scenes",
     "sweep_lr",
     "window_len",

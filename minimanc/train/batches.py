@@ -99,7 +99,8 @@ def make_batch(name: str, ds: Any, s_idx: np.ndarray, t_idx: np.ndarray,
                 cfg: models.ModelConfig, dtype: Any) -> dict:
     """Observations ``(L, b, ...)`` and controls ``(L, b, 2)`` for index arrays ``(L, b)``."""
     L, b = s_idx.shape
-    obs = inputs.from_dataset(ds, s_idx.reshape(-1), t_idx.reshape(-1), cfg.setting, model=name)
+    obs = inputs.from_dataset(ds, s_idx.reshape(-1), t_idx.reshape(-1), cfg.setting,
+                               model=models.get(name))
     batch = {k: v.reshape((L, b) + v.shape[1:]).astype(dtype) for k, v in obs.items()}
     y = np.asarray(ds.controls)[s_idx, t_idx]
     batch["controls"] = y.astype(dtype)

@@ -1,6 +1,6 @@
 """Chapter 8 — checkpoints: parameters, optimiser state and the run's configuration written
-atomically to one ``.npz`` (:func:`save`), read back (:func:`load_checkpoint`, :func:`load`), and
-the check that refuses unusable parameters (:func:`bad_params`)."""
+atomically to one ``.npz`` (:func:`save_checkpoint`), read back (:func:`load_checkpoint`,
+:func:`load`), and the check that refuses unusable parameters (:func:`bad_params`)."""
 
 from __future__ import annotations
 
@@ -22,8 +22,8 @@ from minimanc.tree import flatten as flatten_tree
 from minimanc.tree import map as tree_map
 from minimanc.tree import unflatten as unflatten_tree
 
-__all__ = ["bad_params", "flatten_tree", "load", "load_checkpoint", "restore_opt", "save",
-           "to_numpy", "unflatten_tree"]
+__all__ = ["bad_params", "flatten_tree", "load", "load_checkpoint", "restore_opt",
+           "save_checkpoint", "to_numpy", "unflatten_tree"]
 
 
 def to_numpy(tree: Any) -> Any:
@@ -80,7 +80,7 @@ def _meta(name: str, cfg: models.ModelConfig, tc: TrainConfig, epoch: int,
     return np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
 
 
-def save(path: str | Path, name: str, params: dict, cfg: models.ModelConfig,
+def save_checkpoint(path: str | Path, name: str, params: dict, cfg: models.ModelConfig,
          train_cfg: TrainConfig | None = None, opt_state: Any = None, epoch: int = 0,
          history: Sequence[float] = (), val_history: Sequence[float] = (), steps: int = 0,
          std: Any = None) -> Path:
@@ -103,7 +103,7 @@ def save(path: str | Path, name: str, params: dict, cfg: models.ModelConfig,
 
 
 def load_checkpoint(path: str | Path) -> dict:
-    """Read a file written by :func:`save`: ``name, params, cfg, train_cfg, opt_state,
+    """Read a file written by :func:`save_checkpoint`: ``name, params, cfg, train_cfg, opt_state,
     epoch, history, val_history, steps, control_std``.
 
     A file that cannot be read raises :class:`CheckpointError` naming it.
@@ -142,7 +142,7 @@ def load_checkpoint(path: str | Path) -> dict:
 
 
 def load(path: str | Path) -> FitResult:
-    """A :class:`FitResult` from a file written by :func:`save` or by :func:`fit`."""
+    """A :class:`FitResult` from a file written by :func:`save_checkpoint` or by :func:`fit`."""
     ck = load_checkpoint(path)
     return FitResult(name=ck["name"], params=ck["params"], history=ck["history"],
                      cfg=ck["cfg"], train_cfg=ck["train_cfg"], val_history=ck["val_history"],

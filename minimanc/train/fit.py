@@ -12,9 +12,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from minimanc import layers, models, optim
-from minimanc.engine import ENGINES
+from minimanc.engine import ENGINES, get_engine
 from minimanc.train.batches import (
     batches,
     control_std,
@@ -23,23 +24,28 @@ from minimanc.train.batches import (
     make_batch,
     subset_scenes,
 )
-from minimanc.train.checkpoint import bad_params, load_checkpoint, restore_opt, save, to_numpy
+from minimanc.train.checkpoint import (
+    bad_params,
+    load_checkpoint,
+    restore_opt,
+    save_checkpoint,
+    to_numpy,
+)
 from minimanc.train.config import CHECKPOINT_NAME, DTYPES, FitResult, TrainConfig, TrainingDiverged
 from minimanc.train.step import loss_fn, make_step
 from minimanc.tree import cast_floats
-from minimanc.world.dataset import describe_non_finite, first_non_finite, remove_temp_files
+from minimanc.world.datawriter import remove_temp_files
+from minimanc.world.fileformat import describe_non_finite, first_non_finite
 
 __all__ = ["RunState", "SweepResult", "cast_floats", "check_fit_args", "diverged_loss", "end_epoch",
-           "epoch_plan", "evaluate", "fit", "get_engine", "perception_moments", "result_of",
+           "as_engine", "epoch_plan", "evaluate", "fit", "perception_moments", "result_of",
            "start_run", "step_batch", "sweep_lr"]
 
 
-def get_engine(engine: Any) -> Any:
+def as_engine(engine: Any) -> Any:
     """An engine object from its name (:data:`minimanc.engine.ENGINES`) or itself."""
-    from minimanc import engine as _engine
-
     if isinstance(engine, str):
-        return _engine(engine)
+        return get_engine(engine)
     if hasattr(engine, "xp") and hasattr(engine, "value_and_grad"):
         return engine
     raise ValueError(f"engine must be one of {ENGINES} or an engine object, got engine={engine!r}")
@@ -217,7 +223,7 @@ def end_epoch(st: RunState, epoch: int, mean_loss: float, eng: Any, val_ds: Any 
                                        std=st.std, q_init=st.tc.q_init,
                                        dtype=DTYPES[st.tc.dtype]))
     if st.ck_path is not None:
-        save(st.ck_path, st.name, st.params, st.cfg, st.tc, st.opt_state, epoch + 1,
+        save_checkpoint(st.ck_path, st.name, st.params, st.cfg, st.tc, st.opt_state, epoch + 1,
              st.history, st.val_history, st.steps, st.std)
         st.saved_epoch = epoch + 1
 
@@ -283,7 +289,7 @@ def fit(
     :func:`minimanc.train.fit_many`.
     """
     name, cfg, tc = check_fit_args(name, train_ds, cfg, train_cfg, val_ds)
-    eng = get_engine(engine)
+    eng = as_engine(engine)
     t_start = time.perf_counter()
     st = start_run(name, train_ds, cfg, tc, checkpoint_dir, resume, params, perception)
     step_fn = make_step(name, cfg, tc, eng, 1.0 / st.std)
@@ -294,8 +300,6 @@ def fit(
         plan = epoch_plan(st, train_ds, epoch)
         q_rng = np.random.default_rng([int(tc.seed), int(epoch), 1])
         if progress:
-            from tqdm import tqdm
-
             bar = tqdm(total=len(plan), desc=f"{name} epoch {epoch + 1}/{tc.epochs}",
                        leave=False)
         total, count = 0.0, 0
@@ -343,7 +347,7 @@ def evaluate(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = 
     """
     name = models.check_name(name)
     cfg = cfg or models.ModelConfig()
-    eng = get_engine(engine)
+    eng = as_engine(engine)
     S, T = dataset_shape(ds)
     scenes = np.arange(S) if scenes is None else np.asarray(scenes)
     std = control_std(ds, scenes) if std is None else np.asarray(std)

@@ -23,18 +23,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from minimanc import models
 from minimanc.train.batches import dataset_shape, subset_scenes
 from minimanc.train.config import FitResult, TrainConfig, TrainingDiverged
 from minimanc.train.fit import (
     RunState,
+    as_engine,
     check_fit_args,
     diverged_loss,
     end_epoch,
     epoch_plan,
     fit,
-    get_engine,
     result_of,
     start_run,
     step_batch,
@@ -70,8 +71,8 @@ def _unstack(tree: Any, k: int) -> Any:
 def _many_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any) -> Any:
     """``(params, opt, batch, hyper, active) → (params, opt, loss)``, all stacked along axis 0;
     runs with ``active`` false keep their parameters and optimiser state."""
-    import jax
-    import jax.numpy as jnp
+    import jax  # JAX only for the jax engine
+    import jax.numpy as jnp  # JAX only for the jax engine
 
     step = jax.vmap(train_step_fn(name, cfg, tc, eng))
 
@@ -119,7 +120,7 @@ def fit_many(
     if resume and checkpoint_dirs is None:
         raise ValueError("resume=True needs checkpoint_dirs")
     dirs = list(checkpoint_dirs) if checkpoint_dirs is not None else [None] * len(tcs)
-    eng = get_engine(engine)
+    eng = as_engine(engine)
     if eng.name != "jax" or len(tcs) == 1 or not _same_shapes(name, train_ds, cfg, tcs):
         return _one_by_one(name, train_ds, cfg, tcs, eng, dirs, resume, progress, errors)
     return _together(name, train_ds, cfg, tcs, eng, dirs, resume, progress, errors)
@@ -202,8 +203,6 @@ def _together(name, train_ds, cfg, tcs, eng, dirs, resume, progress, errors):
         q_rngs = {k: np.random.default_rng([int(tcs[k].seed), int(epoch), 1]) for k in live}
         n_steps = max(len(p) for p in plans.values())
         if progress:
-            from tqdm import tqdm
-
             bar = tqdm(total=n_steps, desc=f"{name} x{len(live)} epoch {epoch + 1}/{n_epochs}",
                        leave=False)
         totals, counts = np.zeros(K), np.zeros(K, dtype=int)

@@ -65,7 +65,7 @@ def plot_automaton(
         If ``T`` is not a column-stochastic ``(N, N)`` matrix, ``labels`` does not
         have ``N`` entries, or ``q`` is not a distribution over ``N`` states.
     """
-    from matplotlib.patches import Circle, FancyArrowPatch
+    from matplotlib.patches import Circle, FancyArrowPatch  # matplotlib only when a figure is drawn
 
     plt = pyplot()
     T = check_stochastic_columns("T", T)

@@ -6,8 +6,8 @@ world frame), :func:`plot_speeds` (speed over time), :func:`plot_q_modes` (q ove
 the human's driving mode), :func:`plot_explain_trace` (Fig. 4: DMP α/β over time, the
 q-distribution, controls against the human's, BEV frames), :func:`saliency_maps` and
 :func:`plot_saliency_steps` (Fig. 3: per-q-state saliency of :mod:`minimanc.cam`), and
-:func:`gif_frames` / :func:`save_gif` (the rollout as an animated GIF, via Pillow).  Figures
-are returned, never shown; :func:`minimanc.viz.style.save` writes one to PNG.
+:func:`gif_frames` / :func:`save_rollout_gif` (the rollout as an animated GIF, via Pillow).  Figures
+are returned, never shown; :func:`minimanc.viz.style.save_figure` writes one to PNG.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import inputs, models, vagn, world
-from minimanc.modes import MODES
+from minimanc.metrics.modes import MODES
 from minimanc.viz.automaton import plot_q_heatmap
 from minimanc.viz.saliency import plot_q_saliency
 from minimanc.viz.style import model_colour, model_label, pyplot
@@ -35,7 +35,7 @@ __all__ = [
     "saliency_maps",
     "plot_saliency_steps",
     "gif_frames",
-    "save_gif",
+    "save_rollout_gif",
 ]
 
 
@@ -135,7 +135,7 @@ def plot_q_modes(q: Any, modes: Any, title: str = "", dt: float = 0.5) -> Any:
     (bottom): if the q-states were driving modes, q's bands would change where the modes do.
 
     ``q (T, N)`` (e.g. :func:`minimanc.rollout.open_loop`), ``modes (T,)`` integer labels
-    of :data:`minimanc.modes.MODES` (:func:`minimanc.modes.human_modes`).
+    of :data:`minimanc.metrics.modes.MODES` (:func:`minimanc.metrics.modes.human_modes`).
     """
     q = np.asarray(q, dtype=np.float64)
     labels = np.asarray(modes)
@@ -235,7 +235,7 @@ def plot_explain_trace(traj: Any, human: Any, ds: Any, scene: int,
 
 def saliency_maps(params: dict, cfg: Any, traj: Any, ds: Any, scene: int,
                   steps: Sequence[int]) -> list[dict]:
-    """Per-q-state saliency (:func:`minimanc.models.explain`) at ``steps`` of a rollout.
+    """Per-q-state saliency (:func:`minimanc.models.saliency`) at ``steps`` of a rollout.
 
     The observation of each step is rebuilt from the rollout's own pose and
     the q-distribution of the previous step (uniform before the first), so
@@ -257,10 +257,10 @@ def saliency_maps(params: dict, cfg: Any, traj: Any, ds: Any, scene: int,
                   else traj.controls[s:s + 1, t - 1].astype(np.float32))
         obs = inputs.from_state([ds.maps[s]], traj.ego[s:s + 1, t], ds.ado[s:s + 1, t],
                                 ds.ado_valid[s:s + 1, t], ds.ego[s:s + 1, -1], ds.raster,
-                                cfg.setting, motion=motion, model="manc")
+                                cfg.setting, motion=motion, model=models.get("manc"))
         q_prev = (vagn.uniform_state(n_states)[None] if t == 0
                   else traj.aux["q"][s:s + 1, t - 1])
-        ex = models.explain(params, obs, q_prev, cfg)
+        ex = models.saliency(params, obs, q_prev, cfg)
         out.append({"step": t, "bev": obs["bev"][0], "q": ex["q"][0],
                     "saliency": ex["saliency"][0]})
     return out
@@ -297,7 +297,7 @@ def _to_pixels(points_world: np.ndarray, pose: np.ndarray, cfg: Any) -> list[tup
 
 
 def gif_frames(traj: Any, human: Any, ds: Any, scene: int, size: int = 192) -> list[Any]:
-    """The frames of :func:`save_gif` as Pillow images (one per pose of the rollout)."""
+    """The frames of :func:`save_rollout_gif` as Pillow images (one per pose of the rollout)."""
     from PIL import Image, ImageDraw  # optional until a GIF is drawn
 
     s = check_scene(traj, scene)
@@ -342,7 +342,7 @@ def gif_frames(traj: Any, human: Any, ds: Any, scene: int, size: int = 192) -> l
     return frames
 
 
-def save_gif(traj: Any, human: Any, ds: Any, scene: int, path: str | Path,
+def save_rollout_gif(traj: Any, human: Any, ds: Any, scene: int, path: str | Path,
              fps: float = 4.0) -> Path:
     """A closed-loop rollout of one scene as an animated GIF (Pillow, no matplotlib).
 

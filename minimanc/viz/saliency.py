@@ -33,7 +33,7 @@ def paper_cmap() -> Any:
     cmap : matplotlib.colors.LinearSegmentedColormap
         256 colours, low → high: magenta, cyan, red, yellow.
     """
-    from matplotlib.colors import LinearSegmentedColormap
+    from matplotlib.colors import LinearSegmentedColormap  # matplotlib only when a figure is drawn
 
     # low → high: magenta → cyan → red → yellow
     return LinearSegmentedColormap.from_list(

@@ -7,7 +7,7 @@ protocol of the ados), :func:`plot_families` (one metric per scenario family),
 :func:`plot_q_states` (Fig. 7) and :func:`plot_ablation` (Fig. 8).  An aggregate is
 ``{metric: {"mean", "std"}}`` (:func:`minimanc.metrics.aggregate`); error bars are the std
 over seeds.  Every function returns the matplotlib ``Figure`` and never calls
-``plt.show()``; :func:`minimanc.viz.style.save` writes it to PNG.
+``plt.show()``; :func:`minimanc.viz.style.save_figure` writes it to PNG.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 * the names and colours of the models (read from :mod:`minimanc.models`' registry) and of the
   reference rows, and the axis labels of the metrics of :mod:`minimanc.metrics`;
-* :func:`pyplot` (``matplotlib.pyplot``, imported on first use), :func:`save`;
+* :func:`pyplot` (``matplotlib.pyplot``, imported on first use), :func:`save_figure`;
 * :func:`state_labels` (the ``q_0 … q_{N-1}`` of every q-state figure) and
   :func:`clear_ticks`.
 
@@ -29,7 +29,7 @@ __all__ = [
     "model_label",
     "model_labels",
     "pyplot",
-    "save",
+    "save_figure",
     "state_labels",
 ]
 
@@ -152,12 +152,12 @@ def pyplot() -> Any:
     plt : module
         ``matplotlib.pyplot``.
     """
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib only when a figure is drawn
 
     return plt
 
 
-def save(fig: Any, path: str | Path, dpi: int = 110) -> Path:
+def save_figure(fig: Any, path: str | Path, dpi: int = 110) -> Path:
     """Write ``fig`` to ``path`` as PNG (parent folders created) and close it.
 
     Parameters

@@ -3,7 +3,7 @@
 Everything here draws existing data (no simulation): :func:`plot_map` (a
 top-down map with lanes, route and the logged trajectory), :func:`gallery`
 (BEV rasters with the human's future path and the lane target on top),
-:func:`scene_frames` / :func:`save_gif` (one scene as an animation).
+:func:`scene_frames` / :func:`save_scene_gif` (one scene as an animation).
 """
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ import os
 
 import numpy as np
 
-from minimanc.world.dataset import Dataset
 from minimanc.world.geometry import to_ego_frame
-from minimanc.world.maps import Map, class_grid
+from minimanc.world.lanes import Map, class_grid
 from minimanc.world.raster import RasterConfig
+from minimanc.world.scenes import Dataset
 
 
 def ego_to_image_xy(points_ego: np.ndarray, cfg: RasterConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -29,8 +29,8 @@ def ego_to_image_xy(points_ego: np.ndarray, cfg: RasterConfig) -> tuple[np.ndarr
 def plot_map(m: Map, ax=None, ego: np.ndarray | None = None, ado: np.ndarray | None = None,
              ado_valid: np.ndarray | None = None, res: float = 0.5):
     """Top-down plot of a map: drivable classes, lane centrelines, route, optional trajectory."""
-    import matplotlib.pyplot as plt
-    from matplotlib.colors import ListedColormap
+    import matplotlib.pyplot as plt  # matplotlib only when a figure is drawn
+    from matplotlib.colors import ListedColormap  # matplotlib only when a figure is drawn
 
     if ax is None:
         _, ax = plt.subplots(figsize=(6, 6))
@@ -81,7 +81,7 @@ def draw_scene_step(ax, ds: Dataset, i: int, t: int, future: bool = True,
 
 def gallery(ds: Dataset, indices=None, t: int | None = None, cols: int = 6):
     """A figure of BEV rasters (scene indices ``indices``, step ``t``, default mid-scene)."""
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib only when a figure is drawn
 
     idx = list(range(min(len(ds), 12))) if indices is None else list(indices)
     t = ds.n_steps // 2 if t is None else t
@@ -115,9 +115,9 @@ def scene_frames(ds: Dataset, i: int, scale: int = 4, goal: bool = True) -> np.n
     return frames
 
 
-def save_gif(frames: np.ndarray, path: str | os.PathLike, fps: float = 2.0) -> None:
+def save_scene_gif(frames: np.ndarray, path: str | os.PathLike, fps: float = 2.0) -> None:
     """Write frames ``(T, H, W, 3)`` uint8 as an animated GIF (real time at 2 Hz by default)."""
-    from PIL import Image
+    from PIL import Image  # Pillow only when an image is written
 
     imgs = [Image.fromarray(np.asarray(f, dtype=np.uint8)) for f in frames]
     imgs[0].save(path, save_all=True, append_images=imgs[1:], duration=int(1000 / fps), loop=0)

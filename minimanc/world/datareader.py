@@ -35,7 +35,7 @@ from minimanc.world.fileformat import (
     header_sha256,
     member_name,
 )
-from minimanc.world.maps import build_map
+from minimanc.world.roads import build_map
 from minimanc.world.scenes import Dataset, LazyMaps
 
 __all__ = ["file_content_hash", "load", "read_meta"]

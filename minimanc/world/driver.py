@@ -19,7 +19,7 @@ at ``DT``) along the map's route with a per-scene :class:`HumanStyle`:
 :func:`simulate_scene` runs one scene: it places the ego and the ados, steps
 everything ``T`` times and returns the log (ego poses and controls, ado boxes)
 with tags. Scenes where the ego leaves the drivable area or touches an ado
-are rejected by the dataset generator (:mod:`minimanc.world.dataset`), which
+are rejected by the dataset generator (:mod:`minimanc.world.generation`), which
 then draws the scene again from the next sub-seed.
 """
 
@@ -41,7 +41,7 @@ from minimanc.world.geometry import (
     unicycle_step,
     wrap_angle,
 )
-from minimanc.world.maps import Map
+from minimanc.world.lanes import Map
 from minimanc.world.traffic import B_MAX, Path, Traffic, Vehicle
 
 T_STEPS = 40

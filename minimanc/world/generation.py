@@ -15,16 +15,19 @@ from __future__ import annotations
 
 import hashlib
 import json
+import multiprocessing as mp
 import os
 import sys
 import time
 import zlib
 from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from minimanc.checks import check_int
 from minimanc.world.datareader import load
@@ -41,8 +44,10 @@ from minimanc.world.fileformat import (
 )
 from minimanc.world.geometry import goal_in_ego_frame
 from minimanc.world.history import history_of
-from minimanc.world.maps import K_TARGETS, Map, build_map, lane_targets, random_recipe
+from minimanc.world.lanes import K_TARGETS, Map
+from minimanc.world.maps import lane_targets, random_recipe
 from minimanc.world.raster import RasterConfig, rasterize_batch, rasterize_goal
+from minimanc.world.roads import build_map
 from minimanc.world.scenes import Dataset
 
 __all__ = [
@@ -180,9 +185,6 @@ def _scene_shards(seed: int, n_scenes: int, cfg: RasterConfig, k_targets: int, m
                 bar.update(1)
             yield shard
         return
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
-
     # fork is cheap and works from unguarded scripts; once JAX is loaded (its threads
     # make fork unsafe) use fresh "spawn" processes, which notebooks support
     ctx = mp.get_context("spawn" if "jax" in sys.modules else "fork")
@@ -235,8 +237,6 @@ def generate(
             except DatasetFileError:
                 pass  # regenerate and overwrite a broken cache entry
     workers = _check_workers(workers, int(n_scenes))
-    from tqdm import tqdm
-
     bar = tqdm(total=n_scenes, desc="world scenes", disable=not progress, leave=False)
     scenes: list[dict] = []
     try:
@@ -336,8 +336,6 @@ def generate_file(
     if shard_scenes is None:
         shard_scenes = default_shard_scenes(cfg, k_targets, max_ados)
     shard_scenes = check_int("shard_scenes", shard_scenes, 1)
-    from tqdm import tqdm
-
     meta = empty_meta(seed, cfg)
     bar = tqdm(total=n_scenes, desc="world scenes", disable=not progress, leave=False)
     try:

@@ -1,6 +1,6 @@
 """Chapter 7 — the road map's data: lanes, lane samples, the :class:`Map` and its class grid.
 
-What :func:`minimanc.world.maps.build_map` produces: lane centrelines as
+What :func:`minimanc.world.roads.build_map` produces: lane centrelines as
 polylines with headings (:class:`Lane`), the drivable area primitives, the
 conflict table and the ego's route (:class:`Map`), dense lane samples bucketed
 in tiles (:class:`LaneSamples`), and the world-aligned class grid (0 nothing,

@@ -21,10 +21,11 @@ The drivable area is also rasterised once per map into a world-aligned class
 grid (0 nothing, 1 drivable, 2 pedestrian crossing, 3 walkway) that the BEV
 rasteriser samples; see :func:`class_grid`.
 
-The module is the map's public face: the recipe and the route queries
-(:func:`project_to_route`, :func:`lane_targets`) live here, the data types in
-:mod:`minimanc.world.lanes` and the construction in :mod:`minimanc.world.roads`,
-all re-exported from here.
+The recipe and the route queries (:func:`project_to_route`, :func:`lane_targets`) live
+here; the data types (:class:`~minimanc.world.lanes.Map`, :class:`~minimanc.world.lanes.Lane`,
+the class grid and its constants) in :mod:`minimanc.world.lanes` and the construction
+(:func:`~minimanc.world.roads.build_map`) in :mod:`minimanc.world.roads`: import each from
+where it is defined (the package :mod:`minimanc.world` gathers the public ones).
 """
 
 from __future__ import annotations
@@ -34,48 +35,16 @@ import numpy as np
 from minimanc.checks import check_int
 from minimanc.world.geometry import to_ego_frame
 from minimanc.world.lanes import (
-    CLASS_CROSSING,
-    CLASS_DRIVABLE,
-    CLASS_NONE,
-    CLASS_WALKWAY,
     K_TARGETS,
     KIND_PROBS,
     KINDS,
-    LANE_WIDTH,
-    RING_WIDTH,
     ROUTE_AHEAD,
     TARGET_SPACING,
-    Lane,
-    LaneSamples,
     Map,
-    class_grid,
 )
-from minimanc.world.roads import EXPLICIT_KIND, build_map, concat_lanes
+from minimanc.world.roads import build_map
 
-__all__ = [
-    "CLASS_CROSSING",
-    "CLASS_DRIVABLE",
-    "CLASS_NONE",
-    "CLASS_WALKWAY",
-    "EXPLICIT_KIND",
-    "KINDS",
-    "KIND_PROBS",
-    "K_TARGETS",
-    "LANE_WIDTH",
-    "Lane",
-    "LaneSamples",
-    "Map",
-    "RING_WIDTH",
-    "ROUTE_AHEAD",
-    "TARGET_SPACING",
-    "build_map",
-    "class_grid",
-    "concat_lanes",
-    "lane_targets",
-    "project_to_route",
-    "random_map",
-    "random_recipe",
-]
+__all__ = ["lane_targets", "project_to_route", "random_map", "random_recipe"]
 
 
 # --------------------------------------------------------------------------- recipes

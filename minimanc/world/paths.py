@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from minimanc.world.maps import Map, concat_lanes
+from minimanc.world.lanes import Map
+from minimanc.world.roads import concat_lanes
 
 __all__ = [
     "Path",

@@ -27,7 +27,7 @@ forward, y left) is ``row = floor((metres_ahead - x) / res_row)``,
 ``col = floor((metres_side - y) / res_col)`` — see
 :meth:`RasterConfig.ego_to_pixel`. Every frame is rendered by inverse mapping:
 each pixel centre is moved to the world, looked up in the map's class grid
-(:func:`minimanc.world.maps.class_grid`) and tested against the boxes —
+(:func:`minimanc.world.lanes.class_grid`) and tested against the boxes —
 vectorised NumPy, no Python loop over pixels, any ego pose.
 """
 
@@ -41,7 +41,7 @@ import numpy as np
 from minimanc.checks import check_int
 from minimanc.world.geometry import EGO_LENGTH, EGO_WIDTH, wrap_angle
 from minimanc.world.history import MAX_HISTORY, History, fade
-from minimanc.world.maps import (
+from minimanc.world.lanes import (
     CLASS_CROSSING,
     CLASS_DRIVABLE,
     CLASS_NONE,

@@ -2,7 +2,7 @@
 
 :meth:`Dataset.build` is the one place a dataset is assembled from per-scene
 arrays (the world's generator and the highway-env demonstrations both use it),
-:meth:`Dataset.save` writes it (:func:`minimanc.world.datawriter.save`), and
+:func:`minimanc.world.save` writes it (:mod:`minimanc.world.datawriter`), and
 :meth:`Dataset.subset` / :meth:`Dataset.split` select scenes (the paper's
 650 / 200 split). Maps are rebuilt from their recipes on first access
 (:class:`LazyMaps`).
@@ -10,10 +10,8 @@ arrays (the world's generator and the highway-env demonstrations both use it),
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -26,8 +24,9 @@ from minimanc.world.fileformat import (
     content_digest,
 )
 from minimanc.world.geometry import DT
-from minimanc.world.maps import Map, build_map
+from minimanc.world.lanes import Map
 from minimanc.world.raster import RasterConfig
+from minimanc.world.roads import build_map
 
 __all__ = ["Dataset", "LazyMaps"]
 
@@ -59,7 +58,7 @@ class LazyMaps(Sequence):
 class Dataset:
     """S scenes of T steps. Arrays are NumPy; see the field comments for shapes.
 
-    ``maps[i]`` is scene ``i``'s :class:`~minimanc.world.maps.Map` (with the
+    ``maps[i]`` is scene ``i``'s :class:`~minimanc.world.lanes.Map` (with the
     ego's route; built from its recipe on first access, see :class:`LazyMaps`);
     ``meta`` holds ``seed``, ``version``, ``raster`` (the :class:`RasterConfig`
     as a dict), ``recipes``, ``tags`` (per scene: kind,
@@ -149,9 +148,3 @@ class Dataset:
         arrays = [getattr(self, name) for name in ARRAY_FIELDS]
         return content_digest(((name, a.dtype, a.shape, [a])
                                for name, a in zip(ARRAY_FIELDS, arrays, strict=True)), self.meta)
-
-    def save(self, path: str | os.PathLike, shard_scenes: int | None = None) -> Path:
-        """Write the dataset to the file ``path``: :func:`minimanc.world.datawriter.save`."""
-        from minimanc.world.datawriter import save
-
-        return save(self, path, shard_scenes)

@@ -45,7 +45,7 @@ from minimanc.world.car_following import (
     idm_acceleration,
 )
 from minimanc.world.geometry import project_to_polyline, wrap_angle
-from minimanc.world.maps import LANE_WIDTH, Map
+from minimanc.world.lanes import LANE_WIDTH, Map
 from minimanc.world.paths import (
     Path,
     PathBank,
@@ -238,10 +238,6 @@ class Traffic:
                     self.add_ado(ids, 0.0, float(self.rng.uniform(6.0, 11.0)))
 
     # ------------------------------------------------------------------ perception
-    def snapshot(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Boxes ``(N, 5)``, speeds ``(N,)`` and active flags of all vehicles (ego first)."""
-        return _fields(self.vehicles, "box", "v", "active")
-
     def perceive(self) -> dict[str, np.ndarray]:
         """Every vehicle's binding constraint (vectorised corridors + junction conflicts).
 

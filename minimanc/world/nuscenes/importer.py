@@ -74,11 +74,13 @@ from minimanc.world.fileformat import ARRAY_FIELDS, append_scenes, empty_meta
 from minimanc.world.generation import Estimate, default_shard_scenes
 from minimanc.world.geometry import DT, controls_from_poses, goal_in_ego_frame, wrap_angle
 from minimanc.world.history import history_of
-from minimanc.world.maps import K_TARGETS, build_map, lane_targets
+from minimanc.world.lanes import K_TARGETS
+from minimanc.world.maps import lane_targets
 from minimanc.world.nuscenes.mapexp import MapExpansion
 from minimanc.world.nuscenes.splits import SPLITS_OF_VERSION, VERSIONS, split_lists
 from minimanc.world.nuscenes.tables import NuScenesError, Tables, keyframe_poses, yaw_of
 from minimanc.world.raster import RasterConfig, rasterize_batch, rasterize_goal
+from minimanc.world.roads import build_map
 
 __all__ = ["MAX_GAP", "MIN_GAP", "ImportEstimate", "ImportReport", "SceneSkipped", "ego_track",
            "estimate_import", "import_nuscenes", "import_scene", "select_scenes", "skip_reason",
@@ -88,7 +90,7 @@ MIN_GAP = 0.3
 """Shortest time between two keyframes a scene may hold (s)."""
 MAX_GAP = 0.7
 """Longest time between two keyframes a scene may hold (s); a longer one is a dropped frame."""
-VEHICLE = "vehicle."
+VEHICLE_PREFIX = "vehicle."
 """Category prefix of the annotations imported as ados."""
 PEDESTRIAN = "human.pedestrian."
 """Category prefix of the annotations counted as pedestrians."""
@@ -217,7 +219,7 @@ def vehicle_boxes(tables: Tables, samples: Sequence[dict], ego: np.ndarray,
             name = category[inst]
             if name.startswith(PEDESTRIAN):
                 pedestrians.add(inst)
-            elif name.startswith(VEHICLE):
+            elif name.startswith(VEHICLE_PREFIX):
                 (x, y, _), (w, ln, _) = ann["translation"], ann["size"]
                 boxes.setdefault(inst, {})[t] = (float(x), float(y), yaw_of(ann["rotation"]),
                                                  float(ln), float(w))

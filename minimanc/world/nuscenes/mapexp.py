@@ -7,7 +7,7 @@
 ``arcline_path_utils.discretize_lane`` does (each path a sequence of three arcs or straight
 pieces of curvature ``sign / radius``; :func:`discretize_arcline`). :meth:`local_recipe`
 cuts what a scene sees (its ego track plus :data:`MARGIN`) into an *explicit* map recipe
-(:func:`minimanc.world.maps.build_map`): lanes (connectors marked as junction lanes; their
+(:func:`minimanc.world.roads.build_map`): lanes (connectors marked as junction lanes; their
 points thinned to within :data:`SIMPLIFY` by :func:`simplify_polyline`, since every scene's
 recipe is kept in the dataset's header) with
 their successors, the drivable polygons and their holes, walkways and pedestrian crossings

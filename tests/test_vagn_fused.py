@@ -1,4 +1,4 @@
-"""Tests for minimanc.vagn_step (chapter 5): one vAGN update (eqs. 8–9) as one tape node
+"""Tests for minimanc.vagn.fused (chapter 5): one vAGN update (eqs. 8–9) as one tape node
 with a hand-written VJP, used by :func:`minimanc.vagn.step` on the NumPy engine.
 
 Oracles: JAX's own reverse mode through the plain jnp code of :func:`vagn.step` (float64),
@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from minimanc import engine, vagn
 from minimanc.autodiff import Box, grad, value_and_grad
 from minimanc.autodiff.check import numerical_grad
-from minimanc.vagn_step import fused_step, step_plain
+from minimanc.vagn.fused import fused_step, step_plain
 
 NP, JAX = engine("numpy"), engine("jax")
 

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from minimanc.checks import check_int
+from minimanc.rollout import reactive
 
 __all__ = [
     "MODES",
@@ -63,7 +64,7 @@ def scene_modes(ds: Any, i: int) -> np.ndarray:
     """The human's mode at each step of scene ``i`` of a :mod:`minimanc.world` dataset.
 
     Re-runs the scene from its seed with the human driving
-    (:func:`minimanc.world.reactive.start_run`) and checks that the run reproduces the
+    (:func:`minimanc.rollout.reactive.start_run`) and checks that the run reproduces the
     logged ego poses.
 
     Parameters
@@ -84,8 +85,6 @@ def scene_modes(ds: Any, i: int) -> np.ndarray:
         When the dataset was not made by :func:`minimanc.world.generate` or the run does
         not reproduce its log.
     """
-    from minimanc.world import reactive
-
     key = reactive.scene_key(ds, i)
     run = reactive.start_run(key, ds.maps[i], ds.meta["recipes"][i])
     modes = np.zeros(key.steps, dtype=np.int64)
@@ -169,7 +168,7 @@ def mode_information(q: Any, modes: Any, n_shuffles: int = 200, seed: int = 0) -
     ----------
     q : array, shape (S, T, N)
         The q-distributions over ``S`` scenes of ``T`` steps (e.g. from
-        :func:`minimanc.models.replay`).
+        :func:`minimanc.rollout.replay`).
     modes : array of int, shape (S, T)
         The human's modes (:func:`human_modes`).
     n_shuffles : int, optional (default: 200)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import importlib.metadata
+import json
 import os
 import platform
 import re
@@ -30,6 +31,7 @@ import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 __all__ = [
     "PACKAGES",
@@ -172,6 +174,19 @@ def write_text(path: str | Path, text: str) -> Path:
         if os.path.exists(tmp):
             os.unlink(tmp)
     return path
+
+
+def write_json(path: str | Path, obj: Any) -> Path:
+    """Write ``obj`` as JSON (``indent=1``, sorted keys) atomically with :func:`write_text`."""
+    return write_text(path, json.dumps(obj, indent=1, sort_keys=True))
+
+
+def read_json(path: Path) -> Any:
+    """The JSON in ``path``, or ``None`` if it is missing or unreadable (a broken cache entry)."""
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError, UnicodeDecodeError):
+        return None
 
 
 def section(markdown: str, heading: str) -> str:

@@ -1,4 +1,4 @@
-"""Chapter 5 — vAGN, the visual automaton generative network, as a soft automaton.
+"""Chapter 5 — the vAGN soft automaton: eqs. 8–9, one step, a rollout, what it shows.
 
 The planner of the paper (section IV-B) is a probabilistic automaton with ``N``
 hidden states ("q-states").  Its state is a distribution ``q_t`` over the
@@ -45,7 +45,6 @@ from typing import Any
 
 import numpy as np
 
-from minimanc.autodiff import Box
 from minimanc.checks import (
     check_distribution,
     check_int,
@@ -53,7 +52,8 @@ from minimanc.checks import (
     check_stochastic_columns,
     is_concrete,
 )
-from minimanc.vagn_step import fused_step
+from minimanc.engine import fused_kernel
+from minimanc.vagn.fused import fused_step
 
 __all__ = [
     "check_weights",
@@ -341,7 +341,7 @@ def step(q: Any, p: Any, W: Any, xp: Any = np) -> Any:
     changes no gradient with respect to ``p`` or ``W``; in floating point it
     removes the rounding drift of the sum, so ``q`` fed back step after step
     stays a distribution to the precision of its dtype.  Traced by the NumPy
-    engine the whole update is one tape node (:data:`minimanc.vagn_step.fused_step`).
+    engine the whole update is one tape node (:data:`minimanc.vagn.fused.fused_step`).
 
     Parameters
     ----------
@@ -369,8 +369,8 @@ def step(q: Any, p: Any, W: Any, xp: Any = np) -> Any:
     """
     M, N = check_weights(W)
     check_state(q, N)
-    if isinstance(q, Box) or isinstance(p, Box) or isinstance(W, Box):
-        _check_p(p, M)  # traced by the NumPy engine: one tape node (minimanc.vagn_step)
+    if fused_kernel(xp, q, p, W) is not None:
+        _check_p(p, M)  # traced by the NumPy engine: one tape node (minimanc.vagn.fused)
         return fused_step(xp.asarray(q), xp.asarray(p), xp.asarray(W))
     T = transition_matrix(p, W, xp=xp)
     q = xp.asarray(q)

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from minimanc import cli, results
+from minimanc import cli
+from minimanc.studies import provenance
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -51,25 +52,25 @@ Version 3.11 is fine here.
 
 
 def test_the_committed_readme_quotes_its_results_files_exactly():
-    problems = results.check_readme(ROOT / "README.md")
+    problems = provenance.check_readme(ROOT / "README.md")
     assert problems == [], "\n".join(problems)
-    assert results.quotes((ROOT / "README.md").read_text()), "the README quotes no results"
+    assert provenance.quotes((ROOT / "README.md").read_text()), "the README quotes no results"
 
 
 def test_a_matching_quote_passes(tmp_path):
-    assert results.check_readme(_readme(tmp_path, QUOTED)) == []
+    assert provenance.check_readme(_readme(tmp_path, QUOTED)) == []
 
 
 def test_an_edited_number_in_a_quote_is_found(tmp_path):
     readme = _readme(tmp_path, QUOTED.replace("15.60 ± 3.10", "15.50 ± 3.10"))
-    (p,) = results.check_readme(readme)
+    (p,) = provenance.check_readme(readme)
     assert "line 6" in p and "differs" in p
 
 
 def test_a_number_typed_outside_a_quote_is_found(tmp_path):
     readme = _readme(tmp_path, QUOTED.replace("Table I of the full preset:",
                                               "MANC: 10.2 m, collides in 30 % of scenes:"))
-    problems = results.check_readme(readme)
+    problems = provenance.check_readme(readme)
     assert len(problems) == 2
     assert "'10.2'" in problems[0] and "'30 %'" in problems[1]
 
@@ -77,46 +78,46 @@ def test_a_number_typed_outside_a_quote_is_found(tmp_path):
 def test_numbers_outside_the_results_section_and_plain_integers_are_not_checked(tmp_path):
     readme = _readme(tmp_path, QUOTED.replace("Table I of the full preset:",
                                               "Table I of the full preset, 3 seeds, 48 scenes:"))
-    assert results.check_readme(readme) == []
+    assert provenance.check_readme(readme) == []
 
 
 def test_a_missing_file_or_heading_is_reported(tmp_path):
     readme = _readme(tmp_path, QUOTED.replace("setting `paper` -->", "setting `parity` -->"))
-    (p,) = results.check_readme(readme)
+    (p,) = provenance.check_readme(readme)
     assert "found 0 times" in p
     readme.write_text(QUOTED.replace("results/full/", "results/nope/"))
-    (p,) = results.check_readme(readme)
+    (p,) = provenance.check_readme(readme)
     assert "does not exist" in p
 
 
 def test_update_rewrites_the_blocks_from_their_files(tmp_path):
     readme = _readme(tmp_path, QUOTED, TABLE.replace("15.60", "14.00"))
-    assert results.check_readme(readme) != []
-    assert results.update_readme(readme) is True
-    assert results.check_readme(readme) == []
+    assert provenance.check_readme(readme) != []
+    assert provenance.update_readme(readme) is True
+    assert provenance.check_readme(readme) == []
     assert "14.00 ± 3.10" in readme.read_text()
-    assert results.update_readme(readme) is False
+    assert provenance.update_readme(readme) is False
 
 
 def test_an_unclosed_block_is_an_error(tmp_path):
     readme = _readme(tmp_path, QUOTED.replace("<!-- end quote -->", ""))
     with pytest.raises(ValueError, match="without"):
-        results.check_readme(readme)
+        provenance.check_readme(readme)
 
 
 def test_section_stops_at_the_next_heading_of_its_level():
-    assert results.section(TABLE, "Table I — setting `paper`").splitlines()[-1] == \
+    assert provenance.section(TABLE, "Table I — setting `paper`").splitlines()[-1] == \
         "| MANC | 15.60 ± 3.10 |"
     with pytest.raises(KeyError):
-        results.section(TABLE + "\n## Provenance\n", "Provenance")
+        provenance.section(TABLE + "\n## Provenance\n", "Provenance")
 
 
 def test_provenance_names_the_command_versions_and_machine():
-    p = results.provenance(["minimanc", "reproduce", "--quick"])
+    p = provenance.provenance(["minimanc", "reproduce", "--quick"])
     assert p["command"] == "minimanc reproduce --quick"
     assert "numpy" in p["packages"] and "minimanc" in p["packages"]
     assert p["cpus"] >= 1 and p["date"].endswith("+00:00")
-    md = results.provenance_markdown(p, wall_time_s=90.0)
+    md = provenance.provenance_markdown(p, wall_time_s=90.0)
     assert md.startswith("## Provenance") and "wall time: 1.5 min" in md
 
 
@@ -134,10 +135,10 @@ def test_cli_exit_codes(tmp_path, capsys):
 
 
 def test_publish_prints_and_writes_text_with_provenance(tmp_path, capsys):
-    assert results.publish("# Title\n\nbody\n", None, 1.0) is None
+    assert provenance.publish("# Title\n\nbody\n", None, 1.0) is None
     assert capsys.readouterr().out == "# Title\n\nbody\n"
     assert list(tmp_path.iterdir()) == []
-    out = results.publish("# Title\n\nbody\n", tmp_path / "sub" / "r.md", 90.0)
+    out = provenance.publish("# Title\n\nbody\n", tmp_path / "sub" / "r.md", 90.0)
     text = out.read_text()
     assert text.startswith("# Title\n\nbody\n## Provenance\n")
     assert "- wall time: 1.5 min" in text

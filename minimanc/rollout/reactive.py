@@ -45,13 +45,15 @@ from typing import Any
 import numpy as np
 
 from minimanc import inputs
-from minimanc.rollout import Policy, Rollout, SceneState
+from minimanc.rollout.driver import Policy, SceneState
+from minimanc.rollout.log import AGENTS, Rollout, k_targets_of, raster_config, run_batches
 from minimanc.world.driver import SceneRun
 from minimanc.world.generation import scene_stream
 from minimanc.world.geometry import DT
 from minimanc.world.history import latest_history
-from minimanc.world.maps import Map
+from minimanc.world.lanes import Map
 from minimanc.world.paths import Vehicle
+from minimanc.world.roads import build_map
 
 __all__ = [
     "AGENTS",
@@ -61,17 +63,12 @@ __all__ = [
     "ReactiveRollout",
     "ReactiveSim",
     "SceneKey",
-    "human",
     "record_human",
     "scene_key",
     "scene_stream",
-    "simulate_protocol",
     "simulate_reactive",
     "start_run",
 ]
-
-AGENTS: tuple[str, ...] = ("replay", "reactive")
-"""The two closed-loop protocols for the ados: replayed from the log, or reactive."""
 
 SPAWN_CLEARANCE: float = 16.0
 """An arrival enters only when no ado is within this distance (m) of its entry point
@@ -143,8 +140,6 @@ def start_run(key: SceneKey, m: Map | None = None, recipe: dict | None = None) -
                          "not regenerate the dataset's map recipe: the dataset was made by "
                          "another version of minimanc.world")
     if m is None:
-        from minimanc.world.maps import build_map
-
         m = build_map(drawn)
     return SceneRun(m, rng, key.dt, key.max_ados)
 
@@ -243,14 +238,8 @@ class ReactiveSim:
     def __init__(self, ds: Any, scenes: Any = None) -> None:
         S, self.T = _check_ds(ds)
         self.scenes = _scenes(scenes, S)
-        cfg = getattr(ds, "raster", None)
-        if cfg is None:
-            from minimanc.world.raster import RasterConfig
-
-            cfg = RasterConfig(size=int(np.asarray(ds.bev).shape[2]))
-        self.raster = cfg
-        lt = getattr(ds, "lane_target", None)
-        self.k_targets = None if lt is None else int(np.asarray(lt).shape[2])
+        self.raster = raster_config(ds)
+        self.k_targets = k_targets_of(ds)
         self._ds = ds
         self._records = [record_human(ds, int(i)) for i in self.scenes]
         ego = np.asarray(ds.ego, dtype=np.float64)[self.scenes]
@@ -363,13 +352,11 @@ def simulate_reactive(
     """Run ``policy`` in closed loop among reactive ados on the scenes ``scenes`` of ``ds``.
 
     :func:`minimanc.rollout.simulate` with ``agents="reactive"`` (the same batching loop,
-    each batch :func:`minimanc.rollout.drive` in a :class:`ReactiveSim`), as a
-    :class:`ReactiveRollout`.
+    :func:`minimanc.rollout.log.run_batches`, each batch :func:`minimanc.rollout.drive` in a
+    :class:`ReactiveSim`), as a :class:`ReactiveRollout`.
     """
-    from minimanc.rollout import simulate
-
-    traj = simulate(policy, ds, scenes=scenes, batch_size=batch_size, steps=steps,
-                    progress=progress, desc=desc, agents="reactive")
+    traj = run_batches(policy, ds, ReactiveSim, "reactive", scenes=scenes,
+                       batch_size=batch_size, steps=steps, progress=progress, desc=desc)
     return ReactiveRollout(traj.name, traj.setting, traj.ego, traj.controls, traj.aux,
                            traj.scenes, traj.ado, traj.ado_valid)
 
@@ -391,29 +378,3 @@ class LoggedControls:
     def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
                  ) -> tuple[np.ndarray, Any, dict]:
         return self.controls[np.asarray(scenes), t], state, {}
-
-
-def human(ds: Any, scenes: Any = None, progress: bool = False) -> ReactiveRollout:
-    """The human's logged controls driven among reactive ados (Table I's "Human" row under
-    ``reactive``; equal to the log up to float32 rounding, see the module docstring)."""
-    traj = simulate_reactive(LoggedControls(ds), ds, scenes=scenes, progress=progress,
-                             desc="reactive closed loop human")
-    traj.name = "human"
-    return traj
-
-
-def simulate_protocol(policy: Policy, ds: Any, agents: str = "replay", scenes: Any = None,
-                      batch_size: int | None = None, steps: int | None = None,
-                      progress: bool = True, desc: str | None = None) -> Rollout:
-    """Closed loop of ``policy`` on ``ds`` under the protocol ``agents`` (:data:`AGENTS`):
-    ``"replay"`` is :func:`minimanc.rollout.simulate` (the paper's), ``"reactive"`` is
-    :func:`simulate_reactive`; the other arguments are theirs."""
-    if agents == "replay":
-        from minimanc.rollout import simulate
-
-        return simulate(policy, ds, scenes=scenes, batch_size=batch_size, steps=steps,
-                        progress=progress, desc=desc)
-    if agents == "reactive":
-        return simulate_reactive(policy, ds, scenes=scenes, batch_size=batch_size, steps=steps,
-                                 progress=progress, desc=desc)
-    raise ValueError(f"agents must be one of {AGENTS}; got agents={agents!r}")

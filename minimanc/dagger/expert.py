@@ -11,7 +11,7 @@ point where it must yield, the curves ahead: :meth:`minimanc.world.traffic.Traff
 dataset at step ``t``, from an arbitrary ego pose ``(x, y, yaw)`` and speed:
 
 * the **driver** is the human of that scene as it was at step ``t`` of its own run
-  (re-simulated from the scene's seed, :mod:`minimanc.world.reactive`): its style, the
+  (re-simulated from the scene's seed, :mod:`minimanc.rollout.reactive`): its style, the
   wandering desired speed and lateral offset at ``t`` (the same random draws), its
   reaction-delay memory and its last acceleration (the human's own history);
 * the **ados** are those of that simulation step: by default the log's (the human's
@@ -38,10 +38,11 @@ from typing import Any
 import numpy as np
 
 from minimanc.checks import check_int
+from minimanc.rollout.reactive import record_human, scene_key, start_run
 from minimanc.world.driver import HumanDriver, project_on_path
 from minimanc.world.geometry import wrap_angle
-from minimanc.world.maps import LANE_WIDTH, project_to_route
-from minimanc.world.reactive import record_human, scene_key, start_run
+from minimanc.world.lanes import LANE_WIDTH
+from minimanc.world.maps import project_to_route
 from minimanc.world.traffic import Path, Traffic, Vehicle
 
 __all__ = ["MAX_OFFSET", "DriverStep", "HumanExpert", "Situation"]

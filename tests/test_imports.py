@@ -1,0 +1,210 @@
+"""The package's import graph, read from the source (ast): no cycle, no arrow from a lower
+layer to a higher one, and no minimanc module imported inside a function.
+
+The layer order is CONTRIBUTING.md's ("Layers" section), the one list both follow: a module
+may import its own layer and the layers below it. An import inside a function is allowed only
+where it defers an optional dependency (:data:`OPTIONAL`), and says so in a comment.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "minimanc"
+
+OPTIONAL = {
+    "minimanc.highway": "highway-env",
+    "minimanc.exercises": "nbformat/Jupyter",
+    "matplotlib": "figures",
+    "PIL": "images",
+    "ray": "the [ray] extra",
+    "jax": "the jax engine",
+    "jaxlib": "the jax engine",
+    "highway_env": "highway-env",
+    "gymnasium": "highway-env",
+    "nbformat": "Jupyter",
+    "nbclient": "Jupyter",
+    "jupyter_client": "Jupyter",
+}
+"""What a function may import (module or its parent), each an optional dependency."""
+
+
+def _layers() -> list[tuple[str, ...]]:
+    text = (ROOT / "CONTRIBUTING.md").read_text(encoding="utf-8")
+    block = re.search(r"## Layers\n.*?```text\n(.*?)```", text, re.S)
+    assert block, "CONTRIBUTING.md has no '## Layers' section with a ```text block"
+    return [tuple(name.strip() for name in line.split(",")) for line in
+            block.group(1).strip().splitlines()]
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts.pop()
+        out[".".join(parts)] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _resolve(module: str, node: ast.ImportFrom, is_package: bool) -> str:
+    if not node.level:
+        return node.module or ""
+    base = module.split(".")[: None if is_package else -1]
+    base = base[: len(base) - node.level + 1]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _targets(module: str, node: ast.Import | ast.ImportFrom) -> list[str]:
+    """The modules ``node`` imports (a ``from P import name`` of a submodule names it)."""
+    if isinstance(node, ast.Import):
+        return [alias.name for alias in node.names]
+    base = _resolve(module, node, MODULES[module].name == "__init__.py")
+    return [f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base for a in node.names]
+
+
+def _imports(module: str) -> tuple[list[tuple[str, int]], list[tuple[str, int, str]]]:
+    """``(top, inner)``: module-level imports ``(target, line)`` and imports inside a function
+    ``(target, line, source lines)``."""
+    source = MODULES[module].read_text(encoding="utf-8")
+    lines = source.splitlines()
+    top, inner = [], []
+
+    def walk(node: ast.AST, in_function: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.Import | ast.ImportFrom):
+                for target in _targets(module, child):
+                    if in_function:
+                        text = "\n".join(lines[child.lineno - 2:child.end_lineno])
+                        inner.append((target, child.lineno, text))
+                    else:
+                        top.append((target, child.lineno))
+            else:
+                walk(child, in_function or isinstance(
+                    child, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda))
+
+    walk(ast.parse(source), False)
+    return top, inner
+
+
+def _own(target: str) -> str | None:
+    """The minimanc module a dotted import target lands in (``None``: not minimanc)."""
+    while target not in MODULES:
+        if "." not in target:
+            return None
+        target = target.rsplit(".", 1)[0]
+    return target
+
+
+def _graph() -> dict[str, set[str]]:
+    graph = {}
+    for module in MODULES:
+        top, _ = _imports(module)
+        graph[module] = {t for t in (_own(t) for t, _ in top) if t and t != module}
+    return graph
+
+
+def layer_of(module: str, layers: list[tuple[str, ...]]) -> int | None:
+    """The index of ``module``'s layer: the layer naming it or its nearest parent package."""
+    name = module.removeprefix("minimanc").removeprefix(".")
+    parts = name.split(".")
+    for cut in range(len(parts), 0, -1):
+        for i, layer in enumerate(layers):
+            if ".".join(parts[:cut]) in layer:
+                return i
+    return None
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_the_import_graph_has_no_cycle():
+    assert cycles(_graph()) == []
+
+
+def test_cycles_finds_a_cycle():
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_every_module_has_a_layer_and_each_layer_names_existing_modules():
+    layers = _layers()
+    names = [name for layer in layers for name in layer]
+    assert len(names) == len(set(names)), "a module is named in two layers"
+    for name in names:
+        assert f"minimanc.{name}" in MODULES, f"CONTRIBUTING's layer {name!r} is no module"
+    missing = [m for m in MODULES if m != "minimanc" and layer_of(m, layers) is None]
+    assert missing == [], f"modules in no layer of CONTRIBUTING.md: {missing}"
+
+
+def test_no_import_points_from_a_lower_layer_to_a_higher_one():
+    layers = _layers()
+    upward = []
+    for module, targets in _graph().items():
+        if module == "minimanc":  # the package's own __init__: its version and engine switch
+            continue
+        for target in targets:
+            low, high = layer_of(module, layers), layer_of(target, layers)
+            if target == "minimanc" or low is None or high is None:
+                continue  # the package itself; a module in no layer fails the test above
+            if high > low:
+                upward.append(f"{module} -> {target}")
+    assert upward == [], f"imports from a lower layer to a higher one: {upward}"
+
+
+def test_layer_of_takes_the_nearest_named_package():
+    layers = [("checks",), ("world",), ("world.nuscenes", "rollout")]
+    assert layer_of("minimanc.world.maps", layers) == 1
+    assert layer_of("minimanc.world.nuscenes.sample", layers) == 2
+    assert layer_of("minimanc.checks", layers) == 0
+    assert layer_of("minimanc.nowhere", layers) is None
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_imports_inside_functions_only_defer_an_optional_dependency(module):
+    _, inner = _imports(module)
+    for target, line, text in inner:
+        top = target.split(".")[0]
+        if top != "minimanc" and top not in OPTIONAL:
+            continue  # the standard library or a dependency: ruff's business, not layering
+        owner = next((k for k in OPTIONAL if target == k or target.startswith(k + ".")), None)
+        where = f"{MODULES[module].relative_to(ROOT)}:{line}"
+        assert owner is not None, (
+            f"{where} imports {target} inside a function: import it at the top of the module")
+        assert "#" in text, f"{where} defers {target}: say why in a comment on that line"
