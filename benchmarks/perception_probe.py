@@ -55,7 +55,7 @@ def representations(name: str, params: dict, ds, cfg, batch: int = 500
     s, t = np.divmod(np.arange(S * T), T)
     out: dict[str, list] = {"backbone": [], "head input": []}
     for i in range(0, S * T, batch):
-        obs = inputs.from_dataset(ds, s[i:i + batch], t[i:i + batch], cfg.setting, name)
+        obs = inputs.from_dataset(ds, s[i:i + batch], t[i:i + batch], cfg.setting, models.get(name))
         enc = encode(spec, params, obs, cfg, eng)
         f = np.asarray(enc["features"], dtype=np.float32)
         out["backbone"].append(f.reshape(len(f), -1))

@@ -105,6 +105,42 @@ def test_a_recording_policy_labels_what_it_visited(ds, demos):
     np.testing.assert_allclose(Yv[0], Y[0], atol=1e-3)
 
 
+def test_blur_adds_the_named_errors_and_nothing_else(demos):
+    X, _ = demos
+    rng = np.random.default_rng(0)
+    noisy = np.tile(X, (40, 1))
+    B = P.blur(noisy, {"gap": 2.0, "dv": 0.5}, rng)
+    err = B - noisy
+    other = [i for i, f in enumerate(P.FEATURES) if f not in ("gap", "dv")]
+    assert np.array_equal(B[:, other], noisy[:, other])
+    assert np.array_equal(noisy, np.tile(X, (40, 1)))  # the input is not changed
+    dv = err[:, P.FEATURES.index("dv")]
+    # 40 copies of every state: the sample std of N draws is within 4 standard errors
+    assert abs(dv.std() - 0.5) < 4 * 0.5 / np.sqrt(2 * len(dv))
+    assert abs(dv.mean()) < 4 * 0.5 / np.sqrt(len(dv))
+    gap = B[:, P.FEATURES.index("gap")]
+    assert gap.max() <= P.FAR
+    assert np.array_equal(P.blur(X, {"gap": 0.0}, rng), X)
+
+
+@pytest.mark.parametrize("noise, match", [({"speed": 1.0}, "unknown feature"),
+                                          ({"gap": -1.0}, "finite number >= 0"),
+                                          ({"gap": float("nan")}, "finite number >= 0")])
+def test_blur_refuses_bad_noise(demos, noise, match):
+    with pytest.raises(ValueError, match=match):
+        P.blur(demos[0], noise, np.random.default_rng(0))
+
+
+def test_a_policy_without_noise_and_with_zero_noise_drive_alike(ds, demos):
+    model = P.fit(*demos, steps=50, seed=0)
+    teacher = WorldTeacher(ds, agents="reactive")
+    runs = [rollout.simulate(P.PrivilegedPolicy(model, teacher, noise=n), ds, scenes=[0, 1],
+                             agents="reactive", progress=False).ego
+            for n in (None, {"gap": 0.0, "v": 0.0}, {"v": 3.0})]
+    assert np.array_equal(runs[0], runs[1])
+    assert not np.allclose(runs[0], runs[2])
+
+
 def test_the_floor_with_each_scene_s_own_style_is_the_log(ds):
     own = floor_rollout(ds, None, scenes=[0, 1])
     np.testing.assert_allclose(own.ego, np.asarray(ds.ego)[:2], atol=LOG_POSE)

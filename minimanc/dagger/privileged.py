@@ -35,6 +35,12 @@ Algorithm 1 (minibatches, mean squared error on both outputs each divided by its
 standard deviation over the demonstrations, Adam) with :mod:`minimanc.autodiff`.
 ``drop`` removes feature groups (the ablation: a group dropped is not an input).
 
+**A perception that errs.** :func:`blur` adds independent Gaussian errors ``N(0, σ_f²)`` to
+chosen features (distances then clipped at ``FAR``): a learner trained on blurred
+demonstrations and driven by :class:`PrivilegedPolicy` with the same ``noise`` shows how
+exact a perception has to be for the privileged learner to stay safe, the yardstick for an
+image model's perception (what a linear probe of its features recovers, and how well).
+
 **Policies.** :class:`ExpertPolicy` (the world's human asked in every reached state)
 and :class:`PrivilegedPolicy` read the simulator they drive in through ``bind(sim)``
 (:func:`minimanc.rollout.driver.drive`), so they run in the same closed loop as every
@@ -48,7 +54,7 @@ after the demonstrations, the learner drives).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -66,8 +72,8 @@ from minimanc.world.traffic import B_MAX
 
 __all__ = [
     "AHEAD", "FAR", "FEATURES", "FEATURE_GROUPS", "V_MAX", "ExpertPolicy", "Privileged",
-    "PrivilegedPolicy", "Round", "dagger_rounds", "demonstrations", "evaluate_policy", "features",
-    "fit", "kept", "perceived", "predict",
+    "PrivilegedPolicy", "Round", "blur", "dagger_rounds", "demonstrations", "evaluate_policy",
+    "features", "fit", "kept", "perceived", "predict",
 ]
 
 FAR: float = 60.0
@@ -113,6 +119,30 @@ def features(sit: Situation, a_prev: float = 0.0) -> np.ndarray:
         min(max(per["a_curve"], -B_MAX), 4.0),
         lateral, float(wrap_angle(pose[2] - h)), *ahead,
     ])
+
+
+def blur(X: np.ndarray, noise: Mapping[str, float], rng: np.random.Generator) -> np.ndarray:
+    """``X (N, F)`` of :data:`FEATURES` with ``N(0, σ²)`` added to each feature named in
+    ``noise`` (name → σ, in the feature's unit; σ = 0 leaves it exact), distances (``gap``,
+    ``stop``) then clipped at ``FAR`` and the speed ``v`` at 0; a copy (``X`` is not
+    changed)."""
+    X = np.array(X, dtype=np.float64)
+    if X.ndim != 2 or X.shape[1] != len(FEATURES):
+        raise ValueError(f"X must have shape (N, {len(FEATURES)}), got {X.shape}")
+    for name, sigma in noise.items():
+        if name not in FEATURES:
+            raise ValueError(f"unknown feature {name!r} in noise; expected some of {FEATURES}")
+        if not (math.isfinite(sigma) and sigma >= 0):
+            raise ValueError(f"noise[{name!r}] must be a finite number >= 0, got {sigma!r}")
+        if sigma == 0:
+            continue
+        i = FEATURES.index(name)
+        X[:, i] += rng.normal(0.0, sigma, size=len(X))
+        if name in ("gap", "stop"):
+            X[:, i] = np.minimum(X[:, i], FAR)
+        elif name == "v":
+            X[:, i] = np.maximum(X[:, i], 0.0)
+    return X
 
 
 def perceived(ds: Any, names: Sequence[str] = FEATURES, expert: HumanExpert | None = None
@@ -293,13 +323,17 @@ class ExpertPolicy(_Reader):
 
 
 class PrivilegedPolicy(_Reader):
-    """A :class:`Privileged` learner driving on the expert's perception; with
-    ``record=True`` it keeps every visited state's features and the expert's label there
-    (``visited``, as :func:`demonstrations` returns them)."""
+    """A :class:`Privileged` learner driving on the expert's perception (:func:`blur`-red by
+    ``noise`` with a stream seeded by ``seed``: it then also forms its speed command from the
+    speed it perceives); with ``record=True`` it keeps every visited state's features and
+    the expert's label there (``visited``, as :func:`demonstrations` returns them)."""
 
-    def __init__(self, model: Privileged, teacher: WorldTeacher, record: bool = False) -> None:
+    def __init__(self, model: Privileged, teacher: WorldTeacher, record: bool = False,
+                 noise: Mapping[str, float] | None = None, seed: int = 0) -> None:
         super().__init__(teacher)
         self.net, self.record = model, record
+        self.noise = dict(noise or {})
+        self.rng = np.random.default_rng(seed)
         self.X: list[np.ndarray] = []
         self.Y: list[list[float]] = []
 
@@ -308,6 +342,8 @@ class PrivilegedPolicy(_Reader):
         sits = self.situations(t)
         F = np.array([features(s, a) if s is not None else np.zeros(len(FEATURES))
                       for s, a in zip(sits, self.a_prev)])
+        if self.noise:
+            F = blur(F, self.noise, self.rng)
         a = predict(self.net, F)
         v = F[:, 0]
         u = np.stack([np.clip(v + a[:, 0] * DT, 0.0, V_MAX), a[:, 1]], axis=1)

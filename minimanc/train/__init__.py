@@ -80,7 +80,7 @@ from minimanc.train.config import (
     TrainConfig,
     TrainingDiverged,
 )
-from minimanc.train.fit import SweepResult, cast_floats, evaluate, fit, sweep_lr
+from minimanc.train.fit import SweepResult, cast_floats, evaluate, fit, perception_moments, sweep_lr
 from minimanc.train.many import fit_many, fit_seeds
 from minimanc.train.step import loss_fn, make_step
 
@@ -100,6 +100,7 @@ __all__ = [
     "dataset_shape",
     "evaluate",
     "fit",
+    "perception_moments",
     "fit_many",
     "fit_seeds",
     "initial_q",

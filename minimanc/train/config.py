@@ -113,7 +113,8 @@ class FitResult:
     ``val_history`` (open-loop validation loss per epoch, if ``val_ds``),
     ``name``, ``cfg``, ``train_cfg``, ``steps`` (optimiser steps),
     ``seconds`` (wall time of this call), ``control_std`` (the
-    normalisation used).
+    normalisation used), ``readout`` (the auxiliary perception loss's linear read-out
+    ``{"w", "b"}`` of standardised targets, when it was trained with one; ``None`` otherwise).
     """
 
     name: str
@@ -125,3 +126,4 @@ class FitResult:
     steps: int = 0
     seconds: float = 0.0
     control_std: np.ndarray = field(default_factory=lambda: np.ones(2))
+    readout: dict | None = None

@@ -38,8 +38,8 @@ from minimanc.world.datawriter import remove_temp_files
 from minimanc.world.fileformat import describe_non_finite, first_non_finite
 
 __all__ = ["RunState", "SweepResult", "cast_floats", "check_fit_args", "diverged_loss", "end_epoch",
-           "as_engine", "epoch_plan", "evaluate", "fit", "result_of", "start_run", "step_batch",
-           "sweep_lr"]
+           "as_engine", "epoch_plan", "evaluate", "fit", "perception_moments", "result_of",
+           "start_run", "step_batch", "sweep_lr"]
 
 
 def as_engine(engine: Any) -> Any:
@@ -134,8 +134,15 @@ def standardised_perception(perception: Any, train_ds: Any, tc: TrainConfig,
                          f"for the training data, got {y.shape}")
     if not np.all(np.isfinite(y)):
         raise ValueError("perception targets must be finite")
-    seen = y[scenes].reshape(-1, y.shape[2])
-    return (y - seen.mean(0)) / (seen.std(0) + 1e-6)
+    mean, std = perception_moments(y, scenes)
+    return (y - mean) / std
+
+
+def perception_moments(y: np.ndarray, scenes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-column mean and standard deviation (+1e-6) of targets ``y (S, T, K)`` over the
+    training ``scenes``: the standardisation of :func:`standardised_perception`."""
+    seen = np.asarray(y, dtype=np.float64)[scenes].reshape(-1, np.shape(y)[2])
+    return seen.mean(0), seen.std(0) + 1e-6
 
 
 def start_run(name: str, train_ds: Any, cfg: models.ModelConfig, tc: TrainConfig,
@@ -222,12 +229,14 @@ def end_epoch(st: RunState, epoch: int, mean_loss: float, eng: Any, val_ds: Any 
 
 
 def result_of(st: RunState, seconds: float) -> FitResult:
-    """The :class:`FitResult` of a finished run (without the auxiliary read-out: the
-    controller's parameters only)."""
-    params = {k: v for k, v in to_numpy(st.params).items() if k != "perception"}
+    """The :class:`FitResult` of a finished run: the controller's parameters, and the
+    auxiliary read-out apart (``readout``)."""
+    everything = to_numpy(st.params)
+    params = {k: v for k, v in everything.items() if k != "perception"}
     return FitResult(name=st.name, params=params, history=list(st.history),
                      cfg=st.cfg, train_cfg=st.tc, val_history=list(st.val_history),
-                     steps=st.steps, seconds=seconds, control_std=np.asarray(st.std))
+                     steps=st.steps, seconds=seconds, control_std=np.asarray(st.std),
+                     readout=everything.get("perception"))
 
 
 def epoch_plan(st: RunState, train_ds: Any, epoch: int) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -1,0 +1,65 @@
+"""Chapter 11 — the modular learner (minimanc.dagger.perceiving): a perception trained on the
+raster, the privileged learner trained on what it reads, and the two driving closed loop on
+the raster alone."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from minimanc import models, rollout, world
+from minimanc.dagger import perceiving as M
+from minimanc.dagger import privileged as P
+from minimanc.world.geometry import DT
+
+
+@pytest.fixture(scope="module")
+def ds():
+    return world.generate(4, seed=3, raster=world.RasterConfig(size=16), workers=1)
+
+
+@pytest.fixture(scope="module")
+def perception(ds):
+    return M.fit_perception(ds, epochs=3, lr=3e-3, cfg=models.ModelConfig(image_size=16))
+
+
+def test_the_last_acceleration_is_the_difference_of_perceived_speeds():
+    rng = np.random.default_rng(0)
+    read = rng.normal(size=(2, 5, len(M.PERCEIVE)))
+    X = M.with_last_acceleration(read).reshape(2, 5, -1)
+    for k, name in enumerate(M.PERCEIVE):
+        assert np.array_equal(X[..., P.FEATURES.index(name)], read[..., k])
+    a = X[..., P.FEATURES.index("a_prev")]
+    v = read[..., M.PERCEIVE.index("v")]
+    assert np.all(a[:, 0] == 0.0)
+    np.testing.assert_allclose(a[:, 3], (v[:, 3] - v[:, 2]) / DT)
+
+
+def test_the_perception_learns_its_training_states(ds, perception):
+    y = P.perceived(ds, M.PERCEIVE).reshape(-1, len(M.PERCEIVE))
+    read = M.read_dataset(perception, ds).reshape(y.shape)
+    spread = y.std(0) > 1e-6
+    r2 = 1 - ((read - y) ** 2).mean(0)[spread] / y.var(0)[spread]
+    # trained on exactly these states: better than their mean on average
+    assert r2.mean() > 0.0, f"mean R² of the read features on the training states {r2.mean()}"
+
+
+def test_read_refuses_a_raster_of_the_wrong_size(perception):
+    with pytest.raises(ValueError, match=r"bev must have shape \(B, 16, 16, 3\)"):
+        perception.read(np.zeros((2, 32, 32, 3)))
+
+
+def test_the_modular_learner_drives_on_the_raster_alone(ds, perception):
+    driver = M.fit_driver(perception, ds, steps=50)
+    policy = M.PerceivingPolicy(perception, driver)
+    traj = rollout.simulate(policy, ds, scenes=[0, 1], agents="reactive", progress=False)
+    assert traj.ego.shape[0] == 2 and np.all(np.isfinite(traj.ego))
+    # its first control is the driver's on what the perception reads in the logged start
+    bev0 = np.asarray(ds.bev[[0, 1], 0], dtype=np.float32) / 255.0
+    read = perception.read(bev0)
+    X = M.with_last_acceleration(read[:, None])
+    a = P.predict(driver, X)
+    v = read[:, M.PERCEIVE.index("v")]
+    u0 = np.stack([np.clip(v + a[:, 0] * DT, 0.0, P.V_MAX), a[:, 1]], axis=1)
+    got, _, _ = M.PerceivingPolicy(perception, driver)({"bev": bev0}, None, 0, np.array([0, 1]))
+    np.testing.assert_allclose(got, u0)
