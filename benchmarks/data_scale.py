@@ -1,33 +1,117 @@
-"""More demonstrations: a model (paper setting, speed scale "change") trained on the paper
-split's 650 training scenes plus ``EXTRA`` more scenes of the same draw (data seed 0; scenes
-890 on), tuned on its 40 and driven on its 200 validation scenes under both protocols.
+"""More demonstrations: each model (paper setting, speed scale "change", the training of
+``results/fixes_speed_scale.md``) trained on the paper split's 650 training scenes plus
+``--extra`` more scenes of the same draw (data seed 0; scenes 890 on), tuned on its 40 and
+driven on its 200 validation scenes under both protocols, for ``--seeds`` seeds.
 
-Run: ``python benchmarks/data_scale.py cnn 1950 6`` (model, extra scenes, epochs); prints the
-training and tuning loss per epoch and the closed-loop scores.
+Read it against ``results/fixes_speed_scale.md``: the same models, training and validation
+scenes with 650 training scenes.
+
+Each run (model, seed) is kept as JSON under ``--cache`` when it ends (written atomically), so
+a stopped run resumes where it stopped; the table is written after every run, with the
+number of seeds each row has.
+
+Run: ``python benchmarks/data_scale.py --models cnn manc --extra 1950 --seeds 3
+--out results/data_scale.md``
 """
 
-import sys
+from __future__ import annotations
+
+import argparse
 import time
+from pathlib import Path
 
 import numpy as np
-from scoring import scores
+from scoring import cells, scores
 
 from minimanc import models, rollout, train, world
+from minimanc.studies import provenance
 
-t0 = time.perf_counter()
-name, n_extra, epochs = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
-ds = world.generate(890 + n_extra, seed=0, cache=True, progress=False)
-print(f"[{time.perf_counter()-t0:.0f}s] data {890 + n_extra}", flush=True)
-tr = ds.subset(np.r_[np.arange(650), np.arange(890, 890 + n_extra)])
-val = ds.subset(slice(690, 890))
-cfg = models.ModelConfig(setting="paper")
-tc = train.TrainConfig(epochs=epochs, lr=1e-3, seed=0, speed_scale="change")
-res = train.fit(name, tr, cfg, tc, val_ds=ds.subset(slice(650, 690)), progress=False)
-print(name, "train", " ".join(f"{v:.2f}" for v in res.history), flush=True)
-print(name, "tune ", " ".join(f"{v:.2f}" for v in res.val_history), flush=True)
-for a in ("replay", "reactive"):
-    traj = rollout.closed_loop(name, res.params, val, cfg, progress=False, agents=a)
-    s = scores(traj, val)
-    print(f"[{time.perf_counter() - t0:.0f}s] {name} {len(tr.ego)} scenes {a}: at fault "
-          f"{s['at_fault_collision_rate']:.1f} % coll {s['collision_rate']:.1f} ADE "
-          f"{s['ade']:.2f} off road {s['off_road_rate']:.1f}", flush=True)
+N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
+AGENTS = ("replay", "reactive")
+SHOW = ("ade", "along_track", "cross_track", "collision_rate", "at_fault_collision_rate",
+        "off_road_rate")
+HEAD = ("ADE m", "along m", "cross m", "coll. %", "at fault %", "off road %")
+LABEL = {"cnn": "CNN", "manc": "MANC", "cnn_lstm": "CNN-LSTM", "rvs_g": "RvS-G"}
+
+
+def log(msg: str, t0: float) -> None:
+    print(f"[{time.perf_counter() - t0:7.1f} s] {msg}", flush=True)
+
+
+def run_one(name: str, seed: int, ds: world.Dataset, n_extra: int, epochs: int) -> dict:
+    """Train ``name`` on the 650 + ``n_extra`` scenes and drive it on the validation scenes."""
+    base = N_TRAIN + N_TUNE + N_VAL
+    tr = ds.subset(np.r_[np.arange(N_TRAIN), np.arange(base, base + n_extra)])
+    val = ds.subset(slice(N_TRAIN + N_TUNE, base))
+    cfg = models.ModelConfig(setting="paper")
+    tc = train.TrainConfig(epochs=epochs, lr=1e-3, seed=seed, speed_scale="change")
+    res = train.fit(name, tr, cfg, tc, val_ds=ds.subset(slice(N_TRAIN, N_TRAIN + N_TUNE)),
+                    progress=False)
+    out = {"train_loss": [float(v) for v in res.history],
+           "tune_loss": [float(v) for v in res.val_history], "scenes": int(len(tr.ego))}
+    for a in AGENTS:
+        traj = rollout.closed_loop(name, res.params, val, cfg, progress=False, agents=a)
+        out[a] = scores(traj, val)
+    return out
+
+
+def table(runs: dict[str, list[dict]], n_extra: int, epochs: int) -> str:
+    text = (f"# More demonstrations (paper preset draw, data seed 0: {N_TRAIN} + {n_extra} "
+            f"training scenes, {N_TUNE} tuning, {N_VAL} validation; paper setting, speed "
+            f"scale change, {epochs} epochs, lr 0.001; mean ± std over seeds)\n\n"
+            "Read against `results/fixes_speed_scale.md`: the same models and training on "
+            f"the {N_TRAIN} training scenes alone.\n\n")
+    for a in AGENTS:
+        text += (f"## Agents `{a}`\n\n| model | training scenes | seeds | " + " | ".join(HEAD)
+                 + " |\n" + "|---" * (len(HEAD) + 3) + "|\n")
+        for name, rs in runs.items():
+            if rs:
+                text += (f"| {LABEL.get(name, name)} | {rs[0]['scenes']} | {len(rs)} | "
+                         + cells([r[a] for r in rs], SHOW) + " |\n")
+        text += "\n"
+    text += ("## Training and tuning loss per epoch (seed 0)\n\n| model | training | tuning |\n"
+             "|---|---|---|\n")
+    for name, rs in runs.items():
+        if rs:
+            text += (f"| {LABEL.get(name, name)} | "
+                     + " ".join(f"{v:.1f}" for v in rs[0]["train_loss"]) + " | "
+                     + " ".join(f"{v:.1f}" for v in rs[0]["tune_loss"]) + " |\n")
+    return text + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--models", nargs="+", default=["cnn", "manc"])
+    ap.add_argument("--extra", type=int, default=1950)
+    ap.add_argument("--epochs", type=int, default=6)
+    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--cache", type=Path, default=Path("runs/data_scale"))
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args()
+    for name in args.models:
+        models.get(name)  # an unknown model fails here, before any data is made
+    if args.extra < 0 or args.seeds < 1 or args.epochs < 1:
+        raise SystemExit("data_scale: --extra must be >= 0, --seeds and --epochs >= 1")
+    t0 = time.perf_counter()
+    ds = world.generate(N_TRAIN + N_TUNE + N_VAL + args.extra, seed=0, cache=True,
+                        progress=True)
+    log(f"data: {len(ds.ego)} scenes", t0)
+    runs: dict[str, list[dict]] = {name: [] for name in args.models}
+    for seed in range(args.seeds):  # seeds outermost: a stopped run has every model's seeds
+        for name in args.models:
+            path = args.cache / f"{name}-x{args.extra}-e{args.epochs}-s{seed}.json"
+            if path.exists():
+                r = provenance.read_json(path)
+            else:
+                r = run_one(name, seed, ds, args.extra, args.epochs)
+                provenance.write_json(path, r)
+            runs[name].append(r)
+            log(f"{name} seed {seed}: " + ", ".join(
+                f"{a} {r[a]['at_fault_collision_rate']:.1f} % at fault, ADE {r[a]['ade']:.2f}"
+                for a in AGENTS), t0)
+            provenance.publish(table(runs, args.extra, args.epochs), args.out,
+                               time.perf_counter() - t0)
+
+
+if __name__ == "__main__":
+    main()
