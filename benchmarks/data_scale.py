@@ -1,17 +1,22 @@
-"""More demonstrations: each model (paper setting, speed scale "change", the training of
-``results/fixes_speed_scale.md``) trained on the paper split's 650 training scenes plus
-``--extra`` more scenes of the same draw (data seed 0; scenes 890 on), tuned on its 40 and
-driven on its 200 validation scenes under both protocols, for ``--seeds`` seeds.
+"""More demonstrations: each model (the training of ``results/fixes_speed_scale.md``: speed
+scale "change", 6 epochs) trained on the paper split's 650 training scenes plus ``--extra``
+more scenes of the same draw (data seed 0; scenes 890 on), tuned on its 40 and driven on its
+200 validation scenes under both protocols, for ``--seeds`` seeds. ``--setting`` is what
+each model sees (:mod:`minimanc.inputs`: "paper" or "parity") and ``--speed-output`` what its
+direct head predicts (``ModelConfig.speed_output``: the speed, "level", or its change over
+one step, "change", which needs the parity setting).
 
-Read it against ``results/fixes_speed_scale.md``: the same models, training and validation
-scenes with 650 training scenes.
+Read it against ``benchmarks/fixes.py``'s tables of the same variant: the same models,
+training and validation scenes with the 650 training scenes alone
+(``results/fixes_speed_scale.md`` for the paper setting at speed level).
 
 Each run (model, seed) is kept as JSON under ``--cache`` when it ends (written atomically), so
 a stopped run resumes where it stopped; the table is written after every run, with the
 number of seeds each row has.
 
 Run: ``python benchmarks/data_scale.py --models cnn manc --extra 1950 --seeds 3
---out results/data_scale.md``
+--out results/data_scale.md``, or for the CNN predicting its speed change: ``--models cnn
+--setting parity --speed-output change --out results/data_scale_parity.md``
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ import numpy as np
 from scoring import cells, scores
 
 from minimanc import models, rollout, train, world
+from minimanc.models.forward import changes_speed
 from minimanc.studies import provenance
 
 N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
@@ -38,12 +44,12 @@ def log(msg: str, t0: float) -> None:
     print(f"[{time.perf_counter() - t0:7.1f} s] {msg}", flush=True)
 
 
-def run_one(name: str, seed: int, ds: world.Dataset, n_extra: int, epochs: int) -> dict:
+def run_one(name: str, seed: int, ds: world.Dataset, n_extra: int, epochs: int,
+            cfg: models.ModelConfig) -> dict:
     """Train ``name`` on the 650 + ``n_extra`` scenes and drive it on the validation scenes."""
     base = N_TRAIN + N_TUNE + N_VAL
     tr = ds.subset(np.r_[np.arange(N_TRAIN), np.arange(base, base + n_extra)])
     val = ds.subset(slice(N_TRAIN + N_TUNE, base))
-    cfg = models.ModelConfig(setting="paper")
     tc = train.TrainConfig(epochs=epochs, lr=1e-3, seed=seed, speed_scale="change")
     res = train.fit(name, tr, cfg, tc, val_ds=ds.subset(slice(N_TRAIN, N_TRAIN + N_TUNE)),
                     progress=False)
@@ -55,12 +61,14 @@ def run_one(name: str, seed: int, ds: world.Dataset, n_extra: int, epochs: int) 
     return out
 
 
-def table(runs: dict[str, list[dict]], n_extra: int, epochs: int) -> str:
+def table(runs: dict[str, list[dict]], n_extra: int, epochs: int,
+          cfg: models.ModelConfig) -> str:
     text = (f"# More demonstrations (paper preset draw, data seed 0: {N_TRAIN} + {n_extra} "
-            f"training scenes, {N_TUNE} tuning, {N_VAL} validation; paper setting, speed "
-            f"scale change, {epochs} epochs, lr 0.001; mean ± std over seeds)\n\n"
-            "Read against `results/fixes_speed_scale.md`: the same models and training on "
-            f"the {N_TRAIN} training scenes alone.\n\n")
+            f"training scenes, {N_TUNE} tuning, {N_VAL} validation; {cfg.setting} setting, "
+            f"speed output {cfg.speed_output}, speed scale change, {epochs} epochs, lr 0.001; "
+            "mean ± std over seeds)\n\n"
+            "Read against `benchmarks/fixes.py`'s rows of the same variant: the same models "
+            f"and training on the {N_TRAIN} training scenes alone.\n\n")
     for a in AGENTS:
         text += (f"## Agents `{a}`\n\n| model | training scenes | seeds | " + " | ".join(HEAD)
                  + " |\n" + "|---" * (len(HEAD) + 3) + "|\n")
@@ -85,11 +93,17 @@ def main() -> None:
     ap.add_argument("--extra", type=int, default=1950)
     ap.add_argument("--epochs", type=int, default=6)
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--setting", choices=("paper", "parity"), default="paper")
+    ap.add_argument("--speed-output", choices=("level", "change"), default="level")
     ap.add_argument("--cache", type=Path, default=Path("runs/data_scale"))
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
-    for name in args.models:
-        models.get(name)  # an unknown model fails here, before any data is made
+    try:
+        cfg = models.ModelConfig(setting=args.setting, speed_output=args.speed_output)
+        for name in args.models:  # an unknown model or variant fails here, before any data
+            changes_speed(models.get(name), cfg)
+    except (KeyError, ValueError) as e:
+        raise SystemExit(f"data_scale: {e}") from None
     if args.extra < 0 or args.seeds < 1 or args.epochs < 1:
         raise SystemExit("data_scale: --extra must be >= 0, --seeds and --epochs >= 1")
     t0 = time.perf_counter()
@@ -99,17 +113,18 @@ def main() -> None:
     runs: dict[str, list[dict]] = {name: [] for name in args.models}
     for seed in range(args.seeds):  # seeds outermost: a stopped run has every model's seeds
         for name in args.models:
-            path = args.cache / f"{name}-x{args.extra}-e{args.epochs}-s{seed}.json"
+            path = args.cache / (f"{name}-{cfg.setting}-{cfg.speed_output}-x{args.extra}"
+                                 f"-e{args.epochs}-s{seed}.json")
             if path.exists():
                 r = provenance.read_json(path)
             else:
-                r = run_one(name, seed, ds, args.extra, args.epochs)
+                r = run_one(name, seed, ds, args.extra, args.epochs, cfg)
                 provenance.write_json(path, r)
             runs[name].append(r)
             log(f"{name} seed {seed}: " + ", ".join(
                 f"{a} {r[a]['at_fault_collision_rate']:.1f} % at fault, ADE {r[a]['ade']:.2f}"
                 for a in AGENTS), t0)
-            provenance.publish(table(runs, args.extra, args.epochs), args.out,
+            provenance.publish(table(runs, args.extra, args.epochs, cfg), args.out,
                                time.perf_counter() - t0)
 
 
