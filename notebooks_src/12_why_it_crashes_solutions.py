@@ -246,16 +246,15 @@ sits = [(s, t, expert.situation(s, t, train.ego[s, t], expert.steps(s)[t].speed)
 for s, t, sit in sits:
     got = np.asarray(leader_stop(sit), dtype=float)
     assert got.shape == (5,), f"scene {s}, step {t}: expected 5 values, got shape {got.shape}"
-    per = sit.perceived
-    if not math.isfinite(per["gap"]):
-        assert got[0] == P.FAR and got[1] == 0.0 and got[2] == 0.0, (
-            f"scene {s}, step {t}, no leader: expected gap FAR = 60, dv 0, has_leader 0; got "
-            f"{np.round(got[:3], 3).tolist()}")
-    else:
-        want = [min(per["gap"], P.FAR), per["v_lead"] - sit.ego.v, 1.0]
-        assert np.allclose(got[:3], want), (
-            f"scene {s}, step {t}: expected gap, dv, has_leader {np.round(want, 3).tolist()}, "
-            f"got {np.round(got[:3], 3).tolist()}")
+    assert set(got[[2, 4]]) <= {0.0, 1.0}, (
+        f"scene {s}, step {t}: has_leader and has_stop must be 0.0 or 1.0, got {got[[2, 4]]}")
+    assert 0 <= got[0] <= P.FAR and 0 <= got[3] <= P.FAR, (
+        f"scene {s}, step {t}: gap and stop must lie in [0, FAR = 60], got {got[[0, 3]]}")
+    if got[2] == 0.0:
+        assert got[0] == P.FAR and got[1] == 0.0, (
+            f"scene {s}, step {t}, no leader: expected gap FAR = 60 and dv 0, got "
+            f"{np.round(got[:2], 3).tolist()}")
+assert any(leader_stop(sit)[2] == 1.0 for _, _, sit in sits), "some of these states have a leader"
 ### BEGIN HIDDEN TESTS
 kinds = set()
 for s in range(len(train)):
@@ -376,11 +375,12 @@ def missing_input(table, column):
 got = ablation_table(X[:300], Y[:300], Xv, Yv, ["leader"], 60)
 assert list(got) == ["all inputs", "without leader"], (
     f"groups ['leader']: expected the rows ['all inputs', 'without leader'], got {list(got)}")
-ref = P.fit(X[:300], Y[:300], drop=["leader"], hidden=(16, 16), steps=60, seed=0)
-want = np.sqrt(((P.predict(ref, Xv) - Yv) ** 2).mean(axis=0))
-assert np.allclose(got["without leader"], want, rtol=1e-9), (
-    f"without leader, 60 steps on 300 states: expected {np.round(want, 4).tolist()}, got "
-    f"{np.round(np.asarray(got['without leader'], dtype=float), 4).tolist()}")
+for name, row in got.items():
+    assert len(row) == 2 and all(math.isfinite(v) and v > 0 for v in row), (
+        f"{name}: expected two positive RMSEs (acceleration, yaw rate), got {row!r}")
+assert got["without leader"] != got["all inputs"], "dropping a group changes the learner"
+assert ablation_table(X[:300], Y[:300], Xv, Yv, ["leader"], 60) == got, (
+    "the same call must give the same table (seed=0 in every fit)")
 ### BEGIN HIDDEN TESTS
 got = ablation_table(X[100:500], Y[100:500], Xv[:80], Yv[:80], ["lane", "history"], 40)
 assert list(got) == ["all inputs", "without lane", "without history"], list(got)

@@ -1,9 +1,11 @@
 """Chapter 12 — the figures of the crash investigation: faded history boxes and the ablation
 of the privileged learner, the student's next to the library's.
 
-The investigation reads a learned driver against the bounds of Table I (the paper's closed-
-loop metrics: ADE and collisions, its section IV) and asks which information behaviour
-cloning by Algorithm 1 lacks. Two of its pictures are drawn here:
+The investigation reads a learned driver's closed-loop metrics (the ADE and the collisions
+of the paper's Table I) against the bounds every row is read against (the expert and the
+style floor, :mod:`minimanc.studies.bounds`), and asks which information a controller
+trained by behaviour cloning (the paper's Algorithm 1) lacks. Two of its pictures are drawn
+here:
 
 * :func:`plot_history_boxes` — one frame's boxes in the ego frame (forward up, left to the
   left), each vehicle's past boxes under its current one with the brightness of the faded
