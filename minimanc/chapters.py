@@ -31,7 +31,7 @@ class Chapter:
     Attributes
     ----------
     number : int
-        The chapter's number, 0–11.
+        The chapter's number, 0–12.
     notebook : str
         The notebooks' file name without ``.ipynb``, e.g. ``"03_dmp"``.
     title : str
@@ -230,6 +230,23 @@ CHAPTERS: tuple[Chapter, ...] = (
             ),
             prerequisites="Chapter 9 (behaviour cloning, the closed-loop metrics).",
             minutes=(45, 60)),
+    Chapter(12, "12_why_it_crashes", "why the driver crashes",
+            (), ("minimanc.viz.investigation",),
+            "the median style and the track errors, the expert's perception, an ablation "
+            "table, faded history at another decay, a small input set",
+            objectives=(
+                "read a learned driver's ADE and at-fault rate against the expert and the style "
+                "floor",
+                "separate a failure of learning from a lack of information with a privileged "
+                "learner and an ablation of its inputs",
+                "classify a driver's collisions and draw the motion a single raster frame lacks "
+                "as faded history",
+            ),
+            prerequisites=(
+                "Chapters 9 and 11 (the closed loop, its metrics, the world's expert); "
+                "chapter 7 for the world's human driver and the raster."
+            ),
+            minutes=(45, 90)),
 )
 """Every chapter, in order."""
 

@@ -1,0 +1,635 @@
+# %% [markdown]
+# # Chapter 12 — Graded exercises: the bounds, the expert's perception, the ablation, faded history
+#
+# Module built in this chapter: `minimanc.viz.investigation` (its figures); the exercises
+# use `minimanc.studies.bounds`, `minimanc.dagger.privileged` and `minimanc.world.history`.
+# Read the tutorial `tutorials/12_why_it_crashes.ipynb` first. Replace each
+# `raise NotImplementedError(...)` with your code and run the grade cell below it;
+# `minimanc grade exercises/12_why_it_crashes.ipynb` scores the notebook.
+#
+# 1. **The style floor of a scene**: the population's median style, the track errors.
+# 2. **What the expert perceives**: the leader, stop and lane features from a `Situation`.
+# 3. **The ablation table**: build it, and read the missing input off it.
+# 4. **Faded history at another decay**: the past boxes a raster draws.
+# 5. **An open experiment**: a small input set, and a written answer.
+
+# %%
+import dataclasses
+import math
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from minimanc import world
+from minimanc.dagger import privileged as P
+from minimanc.dagger.expert import HumanExpert
+from minimanc.metrics.trajectory import along_cross_track
+from minimanc.studies import bounds
+from minimanc.viz.investigation import plot_investigation_attempts
+from minimanc.world.driver import HumanStyle, random_style
+
+data = world.generate(28, seed=1, raster=world.RasterConfig(size=16), workers=1)
+train, val = data.split(22)
+X, Y = P.demonstrations(train)
+Xv, Yv = P.demonstrations(val)
+expert = HumanExpert(train)
+print(f"{len(train)} training scenes ({X.shape[0]} states), {len(val)} validation scenes "
+      f"({Xv.shape[0]} states), {len(P.FEATURES)} features")
+
+# %% [markdown]
+# ## Exercise 12.1 — the style floor of a scene
+# The style floor re-drives a scene with the population's **median style** and measures
+# how far that driver ends up from the logged human.
+#
+# * `median_of(styles)`: for a list of `HumanStyle`s, the `HumanStyle` whose every field
+#   is the median of that field over the list (a Python `float`; for an even number of
+#   styles the mean of the two middle values). `dataclasses.fields(HumanStyle)` lists the
+#   fields.
+# * `track_errors(ego, human)`: for driven poses `ego (S, T, 3)` and the human's
+#   `human (S, T, 3)` (`[x, y, yaw]`), with $d_t = p_t - p^{human}_t$ and the human's heading
+#   $\psi_t$, return three arrays of shape `(S,)`: the ADE $\frac1T\sum_t \lVert d_t\rVert$,
+#   the mean $|d_t \cdot (\cos\psi_t, \sin\psi_t)|$ (along the human's heading) and the mean
+#   $|d_t \cdot (-\sin\psi_t, \cos\psi_t)|$ (across it). The driven yaw does not enter.
+# * `style_floor(ds, scenes, styles)`: re-drive the scenes `scenes` of `ds` with the median
+#   of `styles` (`bounds.floor_rollout(ds, style, scenes=...)`) and return a dict with the
+#   means over those scenes of your three errors: `{"ade": ..., "along": ..., "cross": ...}`
+#   (floats).
+#
+# `bounds.median_style`, `metrics.trajectory.ade` and `metrics.trajectory.along_cross_track`
+# are switched off while this exercise is graded.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# The along and across components are the displacement seen in the human's own frame: a
+# rotation by $-\psi_t$. A rotation keeps lengths, so $\text{along}^2 + \text{cross}^2 =
+# \lVert d_t\rVert^2$ at every step (the visible test checks it).
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Build the median with a dict comprehension over the field names and `HumanStyle(**...)`.
+# For the errors, take `d = ego[..., :2] - human[..., :2]` and the cosine and sine of
+# `human[..., 2]`, then average the absolute values over the time axis.
+# </details>
+
+# %% solution id=ex12_1 title="The style floor of a scene" forbids="minimanc.studies.bounds.median_style,minimanc.metrics.trajectory.ade,minimanc.metrics.trajectory.along_cross_track"  # noqa: E501
+def median_of(styles):
+    ### BEGIN SOLUTION
+    names = [f.name for f in dataclasses.fields(HumanStyle)]
+    return HumanStyle(**{n: float(np.median([getattr(s, n) for s in styles])) for n in names})
+    ### END SOLUTION
+
+
+def track_errors(ego, human):
+    ### BEGIN SOLUTION
+    e, h = np.asarray(ego, dtype=float), np.asarray(human, dtype=float)
+    d = e[..., :2] - h[..., :2]
+    c, s = np.cos(h[..., 2]), np.sin(h[..., 2])
+    along = d[..., 0] * c + d[..., 1] * s
+    cross = -d[..., 0] * s + d[..., 1] * c
+    return (np.linalg.norm(d, axis=-1).mean(1), np.abs(along).mean(1), np.abs(cross).mean(1))
+    ### END SOLUTION
+
+
+def style_floor(ds, scenes, styles):
+    ### BEGIN SOLUTION
+    traj = bounds.floor_rollout(ds, median_of(styles), scenes=scenes)
+    dist, along, cross = track_errors(traj.ego, np.asarray(ds.ego)[list(scenes)])
+    return {"ade": float(dist.mean()), "along": float(along.mean()),
+            "cross": float(cross.mean())}
+    ### END SOLUTION
+
+# %% grade id=ex12_1_median_tests points=1
+base = random_style(np.random.default_rng(0))
+trio = [dataclasses.replace(base, v0=v, T=t) for v, t in ((8.0, 1.0), (14.0, 2.0), (10.0, 1.2))]
+got = median_of(trio)
+assert isinstance(got, HumanStyle), f"expected a HumanStyle, got {type(got).__name__}"
+assert (got.v0, got.T) == (10.0, 1.2), (
+    f"v0 8, 14, 10 and T 1.0, 2.0, 1.2: expected the medians v0 = 10.0, T = 1.2, got "
+    f"v0 = {got.v0!r}, T = {got.T!r}")
+assert got.reaction == base.reaction, "a field equal in every style keeps its value"
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(1210)  # the tests' own draws, not the notebook's
+for n in (101, 40):
+    styles = [random_style(test_rng) for _ in range(n)]
+    got = median_of(styles)
+    for f in dataclasses.fields(HumanStyle):
+        want = float(np.median([getattr(s, f.name) for s in styles]))
+        assert type(getattr(got, f.name)) is float, (
+            f"{n} styles, field {f.name}: expected a float, got {type(getattr(got, f.name))}")
+        assert math.isclose(getattr(got, f.name), want, rel_tol=1e-12), (
+            f"{n} styles, field {f.name}: expected the median {want!r}, got "
+            f"{getattr(got, f.name)!r}")
+pair = median_of([dataclasses.replace(base, v0=8.0), dataclasses.replace(base, v0=12.0)])
+assert pair.v0 == 10.0, f"two styles, v0 8 and 12: expected 10.0 (the mean), got {pair.v0!r}"
+### END HIDDEN TESTS
+
+# %% grade id=ex12_1_errors_tests points=2
+human1 = np.zeros((1, 3, 3))
+human1[0, :, 0] = [0.0, 5.0, 10.0]                      # along x, heading 0
+ego1 = human1 + np.array([-2.0, 1.0, 0.7])              # 2 m behind, 1 m to the left
+got = track_errors(ego1, human1)
+assert len(got) == 3, f"expected (ade, along, cross), got {len(got)} values"
+assert np.allclose(got[1], [2.0]) and np.allclose(got[2], [1.0]), (
+    f"2 m behind and 1 m left of a human heading along x: expected along 2.0, cross 1.0, got "
+    f"along {np.round(got[1], 4).tolist()}, cross {np.round(got[2], 4).tolist()}")
+assert np.allclose(got[0], [math.sqrt(5.0)]), (
+    f"same case: expected ADE sqrt(5) = 2.2361, got {np.round(got[0], 4).tolist()}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(1211)  # the tests' own draws, not the notebook's
+human2 = test_rng.normal(0, 20, size=(5, 11, 3))
+ego2 = human2 + test_rng.normal(0, 3, size=(5, 11, 3))
+d2 = ego2[..., :2] - human2[..., :2]
+c2, s2 = np.cos(human2[..., 2]), np.sin(human2[..., 2])
+want = (np.hypot(d2[..., 0], d2[..., 1]).mean(1), np.abs(d2[..., 0] * c2 + d2[..., 1] * s2).mean(1),
+        np.abs(d2[..., 1] * c2 - d2[..., 0] * s2).mean(1))
+got = track_errors(ego2, human2)
+for name, w, g in zip(("ADE", "along", "cross"), want, got):
+    assert np.shape(g) == (5,), (
+        f"5 scenes of 11 steps: expected {name} of shape (5,), got {np.shape(g)}")
+    assert np.allclose(g, w, rtol=1e-10), (
+        f"random poses, {name}: expected {np.round(w, 4).tolist()}, "
+        f"got {np.round(g, 4).tolist()}")
+spun = ego2.copy()
+spun[..., 2] += 1.0
+assert np.allclose(track_errors(spun, human2)[1], want[1]), "the driven yaw must not enter"
+### END HIDDEN TESTS
+
+# %% grade id=ex12_1_floor_tests points=1
+pop = [random_style(np.random.default_rng(k)) for k in range(31)]
+got = style_floor(val, [3], pop)
+assert set(got) == {"ade", "along", "cross"}, f"expected keys ade, along, cross; got {set(got)}"
+assert max(got["along"], got["cross"]) <= got["ade"] + 1e-9 <= got["along"] + got["cross"] + 2e-9, (
+    f"validation scene 3: the ADE must lie between max(along, cross) and along + cross "
+    f"(a triangle at every step); got {got}")
+### BEGIN HIDDEN TESTS
+names = [f.name for f in dataclasses.fields(HumanStyle)]
+mid = HumanStyle(**{n: float(np.median([getattr(s, n) for s in pop])) for n in names})
+for scenes in ([3], [0, 5]):
+    ref = bounds.floor_rollout(val, mid, scenes=scenes)
+    d = ref.ego[..., :2] - np.asarray(val.ego)[scenes][..., :2]
+    want = float(np.hypot(d[..., 0], d[..., 1]).mean())
+    got = style_floor(val, scenes, pop)
+    assert math.isclose(got["ade"], want, rel_tol=1e-9), (
+        f"validation scenes {scenes}, the median of 31 styles: expected the floor's ADE "
+        f"{want:.4f} m, got {got['ade']!r}")
+    h = np.asarray(val.ego, dtype=float)[scenes]
+    along = np.abs(d[..., 0] * np.cos(h[..., 2]) + d[..., 1] * np.sin(h[..., 2])).mean()
+    assert math.isclose(got["along"], float(along), rel_tol=1e-9), (
+        f"validation scenes {scenes}: expected the floor's along-track error {along:.4f} m, "
+        f"got {got['along']!r}")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 12.2 — what the expert perceives
+# `HumanExpert(ds).situation(scene, t, pose, speed)` returns a `Situation` with
+# `sit.ego` (the ego `Vehicle`: `.v` its speed, `.s` its arc length on its path),
+# `sit.path` (its route: `sit.path.pose(s)` returns `((x, y), heading)` of the point at arc
+# length `s`), `sit.pose` (the asked `[x, y, yaw]`) and `sit.perceived`, a dict with the
+# leader's `gap` (m) and speed `v_lead` (m/s), the `stop` distance to where the ego must
+# yield and `a_curve` (`math.inf` where there is no leader or no stop point). With
+# `FAR = P.FAR` (60 m):
+#
+# * `leader_stop(sit)` returns the array `[gap, dv, has_leader, stop, has_stop]`:
+#   `gap` clipped at `FAR` (and `FAR` without a leader), `dv = v_lead − v` (0 without a
+#   leader), `has_leader` 1.0 or 0.0; `stop` clipped at `FAR` (`FAR` without one),
+#   `has_stop` 1.0 or 0.0.
+# * `lane(sit)` returns `[lateral, heading, ahead_5, ahead_10, ahead_20]`: with `(px, py), h`
+#   the path's point at the ego's arc length, `lateral` is the ego's offset from it across
+#   the path (positive to the path's left), `heading` the ego's yaw minus `h` wrapped to
+#   $(-\pi, \pi]$ (`world.geometry.wrap_angle`); `ahead_d` is the *ego-frame* lateral
+#   coordinate (positive to the ego's left) of the path's point `d` metres further along.
+#
+# `P.features` is switched off while this exercise is graded (so are the parts of the
+# library that call it).
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Every one of these is a coordinate in some frame: the path's frame at the ego (for
+# `lateral`) or the ego's frame (for `ahead_d`). A frame rotated by an angle θ has its left
+# axis along $(-\sin\theta, \cos\theta)$.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Test `math.isfinite(sit.perceived["gap"])` for the leader. For `lateral`, project the
+# offset `(x − px, y − py)` onto the path's left axis; for `ahead_d`, project the offset
+# from the ego to the point ahead onto the ego's left axis, with the ego's yaw `sit.pose[2]`.
+# </details>
+
+# %% solution id=ex12_2 title="What the expert perceives" forbids="minimanc.dagger.privileged.features"  # noqa: E501
+def leader_stop(sit):
+    ### BEGIN SOLUTION
+    per, v = sit.perceived, float(sit.ego.v)
+    lead, stop = math.isfinite(per["gap"]), math.isfinite(per["stop"])
+    return np.array([min(per["gap"], P.FAR) if lead else P.FAR,
+                     per["v_lead"] - v if lead else 0.0, float(lead),
+                     min(per["stop"], P.FAR) if stop else P.FAR, float(stop)])
+    ### END SOLUTION
+
+
+def lane(sit):
+    ### BEGIN SOLUTION
+    x, y, yaw = (float(q) for q in sit.pose)
+    (px, py), h = sit.path.pose(float(sit.ego.s))
+    out = [-math.sin(h) * (x - px) + math.cos(h) * (y - py),
+           float(world.geometry.wrap_angle(yaw - h))]
+    for d in P.AHEAD:
+        (qx, qy), _ = sit.path.pose(float(sit.ego.s) + d)
+        out.append(-math.sin(yaw) * (qx - x) + math.cos(yaw) * (qy - y))
+    return np.array(out)
+    ### END SOLUTION
+
+# %% grade id=ex12_2_leader_tests points=2
+sits = [(s, t, expert.situation(s, t, train.ego[s, t], expert.steps(s)[t].speed))
+        for s in range(6) for t in (0, 15, 30)]
+for s, t, sit in sits:
+    got = np.asarray(leader_stop(sit), dtype=float)
+    assert got.shape == (5,), f"scene {s}, step {t}: expected 5 values, got shape {got.shape}"
+    assert set(got[[2, 4]]) <= {0.0, 1.0}, (
+        f"scene {s}, step {t}: has_leader and has_stop must be 0.0 or 1.0, got {got[[2, 4]]}")
+    assert 0 <= got[0] <= P.FAR and 0 <= got[3] <= P.FAR, (
+        f"scene {s}, step {t}: gap and stop must lie in [0, FAR = 60], got {got[[0, 3]]}")
+    if got[2] == 0.0:
+        assert got[0] == P.FAR and got[1] == 0.0, (
+            f"scene {s}, step {t}, no leader: expected gap FAR = 60 and dv 0, got "
+            f"{np.round(got[:2], 3).tolist()}")
+assert any(leader_stop(sit)[2] == 1.0 for _, _, sit in sits), "some of these states have a leader"
+### BEGIN HIDDEN TESTS
+kinds = set()
+for s in range(len(train)):
+    for t in range(0, 40, 3):
+        sit = expert.situation(s, t, train.ego[s, t], expert.steps(s)[t].speed)
+        per, v = sit.perceived, sit.ego.v
+        lead, stop = math.isfinite(per["gap"]), math.isfinite(per["stop"])
+        kinds |= {("lead", lead), ("stop", stop), ("far", lead and per["gap"] > P.FAR)}
+        want = np.array([min(per["gap"], P.FAR) if lead else P.FAR,
+                         per["v_lead"] - v if lead else 0.0, float(lead),
+                         min(per["stop"], P.FAR) if stop else P.FAR, float(stop)])
+        got = np.asarray(leader_stop(sit), dtype=float)
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-12), (
+            f"scene {s}, step {t} (leader: {lead}, stop point: {stop}): expected "
+            f"[gap, dv, has_leader, stop, has_stop] = {np.round(want, 3).tolist()}, got "
+            f"{np.round(got, 3).tolist()}")
+assert {("lead", True), ("lead", False), ("stop", True)} <= kinds, kinds
+### END HIDDEN TESTS
+
+# %% grade id=ex12_2_lane_tests points=2
+s, t = 2, 10
+sit = expert.situation(s, t, train.ego[s, t], expert.steps(s)[t].speed)
+got = np.asarray(lane(sit), dtype=float)
+assert got.shape == (5,), f"expected 5 values, got shape {got.shape}"
+moved = train.ego[s, t] + np.array([-0.5 * math.sin(train.ego[s, t, 2]),
+                                    0.5 * math.cos(train.ego[s, t, 2]), 0.0])
+got_moved = np.asarray(lane(expert.situation(s, t, moved, sit.ego.v)), dtype=float)
+assert abs((got_moved[0] - got[0]) - 0.5) < 0.05, (
+    f"scene {s}, step {t}: the ego moved 0.5 m to its left; expected lateral to grow by about "
+    f"0.5 m, got {got[0]:.3f} -> {got_moved[0]:.3f}")
+assert abs((got_moved[2] - got[2]) + 0.5) < 0.05, (
+    f"same move: the path 5 m ahead is now 0.5 m further to the ego's right; expected ahead_5 "
+    f"to fall by about 0.5, got {got[2]:.3f} -> {got_moved[2]:.3f}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(1221)  # the tests' own draws, not the notebook's
+
+
+def lane_ref(sit):  # the tests' own geometry
+    x, y, yaw = (float(q) for q in sit.pose)
+    (px, py), h = sit.path.pose(float(sit.ego.s))
+    head = (yaw - h + math.pi) % (2 * math.pi) - math.pi
+    out = [math.cos(h) * (y - py) - math.sin(h) * (x - px), head]
+    for d in (5.0, 10.0, 20.0):
+        (qx, qy), _ = sit.path.pose(float(sit.ego.s) + d)
+        out.append(math.cos(yaw) * (qy - y) - math.sin(yaw) * (qx - x))
+    return np.array(out)
+
+
+for s in range(len(train)):
+    for t in (1, 12, 25, 38):
+        pose = train.ego[s, t] + test_rng.normal(0, (0.4, 0.4, 0.15))
+        try:
+            sit = expert.situation(s, t, pose, float(test_rng.uniform(0, 12)))
+        except ValueError:  # off the drivable area: the expert cannot be asked there
+            continue
+        want, got = lane_ref(sit), np.asarray(lane(sit), dtype=float)
+        assert np.allclose(got, want, rtol=1e-9, atol=1e-9), (
+            f"scene {s}, step {t}, a perturbed pose {np.round(pose, 2).tolist()}: expected "
+            f"[lateral, heading, ahead_5, ahead_10, ahead_20] = {np.round(want, 4).tolist()}, "
+            f"got {np.round(got, 4).tolist()}")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 12.3 — the ablation table
+# The tutorial dropped two input groups and drove the learners closed loop. Build the whole
+# table open loop, which is cheap: each learner is trained on the demonstrations and scored
+# on the validation states.
+#
+# * `ablation_table(X, Y, Xv, Yv, groups, steps)` returns a dict: the row `"all inputs"`,
+#   then one row `"without <group>"` per group of `groups`, in that order; each row is the
+#   tuple `(rmse_acceleration, rmse_yaw_rate)` (floats) of the learner
+#   `P.fit(X, Y, drop=..., hidden=(16, 16), steps=steps, seed=0)` predicting `Yv` from `Xv`
+#   (`P.predict`). The RMSE of one output is $\sqrt{\text{mean}((\hat y - y)^2)}$ over the
+#   states.
+# * `missing_input(table, column)`: `column` 0 (acceleration) or 1 (yaw rate); return the
+#   group (the name without `"without "`) whose row has the largest RMSE in that column.
+#   Raise `ValueError` naming the parameter for a column other than 0 or 1, or a table
+#   with no `"without ..."` row.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# `drop=[]` is the learner with every input. The removal that costs most is the row with
+# the largest error: the other rows are compared with each other, not with zero.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Loop over `[None] + list(groups)`; for each, fit, predict, take the root of the mean
+# squared error along axis 0. For the reading, filter the keys that start with
+# `"without "` and take the `max` with a key function.
+# </details>
+
+# %% solution id=ex12_3 title="The ablation table"
+def ablation_table(X, Y, Xv, Yv, groups, steps):
+    ### BEGIN SOLUTION
+    table = {}
+    for group in [None, *groups]:
+        model = P.fit(X, Y, drop=[] if group is None else [group], hidden=(16, 16),
+                      steps=steps, seed=0)
+        rmse = np.sqrt(((P.predict(model, Xv) - Yv) ** 2).mean(axis=0))
+        table["all inputs" if group is None else f"without {group}"] = (float(rmse[0]),
+                                                                        float(rmse[1]))
+    return table
+    ### END SOLUTION
+
+
+def missing_input(table, column):
+    ### BEGIN SOLUTION
+    if column not in (0, 1):
+        raise ValueError(f"column must be 0 or 1, got column={column!r}")
+    rows = [name for name in table if name.startswith("without ")]
+    if not rows:
+        raise ValueError(f"table has no 'without ...' row: {list(table)}")
+    return max(rows, key=lambda name: table[name][column])[len("without "):]
+    ### END SOLUTION
+
+# %% grade id=ex12_3_table_tests points=2
+got = ablation_table(X[:300], Y[:300], Xv, Yv, ["leader"], 60)
+assert list(got) == ["all inputs", "without leader"], (
+    f"groups ['leader']: expected the rows ['all inputs', 'without leader'], got {list(got)}")
+for name, row in got.items():
+    assert len(row) == 2 and all(math.isfinite(v) and v > 0 for v in row), (
+        f"{name}: expected two positive RMSEs (acceleration, yaw rate), got {row!r}")
+assert got["without leader"] != got["all inputs"], "dropping a group changes the learner"
+assert ablation_table(X[:300], Y[:300], Xv, Yv, ["leader"], 60) == got, (
+    "the same call must give the same table (seed=0 in every fit)")
+### BEGIN HIDDEN TESTS
+got = ablation_table(X[100:500], Y[100:500], Xv[:80], Yv[:80], ["lane", "history"], 40)
+assert list(got) == ["all inputs", "without lane", "without history"], list(got)
+for name, drop in (("all inputs", []), ("without lane", ["lane"]),
+                   ("without history", ["history"])):
+    ref = P.fit(X[100:500], Y[100:500], drop=drop, hidden=(16, 16), steps=40, seed=0)
+    want = np.sqrt(((P.predict(ref, Xv[:80]) - Yv[:80]) ** 2).mean(axis=0))
+    row = got[name]
+    assert isinstance(row, tuple) and len(row) == 2 and all(type(v) is float for v in row), (
+        f"{name}: expected a tuple of two floats, got {row!r}")
+    assert np.allclose(row, want, rtol=1e-9), (
+        f"{name}, 40 steps on states 100-500, 80 validation states: expected "
+        f"{np.round(want, 4).tolist()}, got {np.round(row, 4).tolist()}")
+### END HIDDEN TESTS
+
+# %% grade id=ex12_3_missing_tests points=2
+toy = {"all inputs": (0.3, 0.03), "without leader": (0.35, 0.03),
+       "without history": (0.5, 0.031), "without lane": (0.31, 0.09)}
+for column, want in ((0, "history"), (1, "lane")):
+    got = missing_input(toy, column)
+    assert got == want, f"the toy table, column {column}: expected {want!r}, got {got!r}"
+### BEGIN HIDDEN TESTS
+assert missing_input({"all inputs": (9.0, 9.0), "without stop": (0.1, 0.2)}, 0) == "stop", (
+    "one 'without' row: expected it even when 'all inputs' is larger (it is not a group)")
+assert missing_input({"without a b": (1.0, 2.0), "all inputs": (0.5, 0.5),
+                      "without curve": (1.5, 0.1)}, 1) == "a b", "the name after 'without '"
+for bad_column in (2, -1, "acc"):
+    try:
+        missing_input(toy, bad_column)
+    except ValueError as err:
+        assert "column" in str(err), f"column={bad_column!r}: the error must name 'column'"
+    else:
+        raise AssertionError(f"column={bad_column!r}: expected a ValueError")
+try:
+    missing_input({"all inputs": (0.3, 0.03)}, 0)
+except ValueError:
+    pass
+else:
+    raise AssertionError("a table without any 'without ...' row: expected a ValueError")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 12.4 — faded history at another decay
+# `world.RasterConfig(history=H)` draws the boxes of the last $H$ steps at brightness
+# $1 - j/(H+1)$ for the box $j$ steps ago. Another convention fades geometrically: the box
+# $j$ steps ago at $r^j$ for a decay $0 < r < 1$, so that a longer history never makes the
+# newest past box fainter.
+#
+# Write `faded_boxes(ego, ado, ado_valid, t, steps, decay)` for one track (`ego (T, 3)`,
+# `ado (T, A, 5)`, `ado_valid (T, A)`) and frame `t`. Return the tuple
+# `(ego_past, ego_brightness, ado_past, ado_brightness)`: for $j = 1, \dots,$ `steps` with
+# $t - j \ge 0$, the ego's pose at $t - j$ (rows of `ego_past`, shape `(n, 3)`) and every
+# ado box valid at $t - j$ in slot order (rows of `ado_past`, shape `(m, 5)`), ordered by
+# $j$ first; each box's brightness is `decay ** j` (arrays of shapes `(n,)` and `(m,)`).
+# Raise `ValueError` naming the parameter when `decay` is not strictly between 0 and 1,
+# `steps` is below 1 or `t` is not a step of the track.
+#
+# `world.history.history_of` and `world.history.latest_history` are switched off while this
+# exercise is graded.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# The boxes are those of earlier rows of the same arrays; only which rows, which slots and
+# how bright change with `t`, `steps` and `decay`. Near the start of the track there are
+# fewer than `steps` past steps.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Loop over `j` in `range(1, min(steps, t) + 1)`; collect `ego[t - j]`, then
+# `ado[t - j][ado_valid[t - j]]`, with a brightness list of the same lengths; stack with
+# `np.array(...).reshape(-1, 3)` (and `(-1, 5)`) so that empty results keep their shapes.
+# </details>
+
+# %% solution id=ex12_4 title="Faded history at another decay" forbids="minimanc.world.history.history_of,minimanc.world.history.latest_history"  # noqa: E501
+def faded_boxes(ego, ado, ado_valid, t, steps, decay):
+    ### BEGIN SOLUTION
+    ego, ado, ado_valid = np.asarray(ego), np.asarray(ado), np.asarray(ado_valid, dtype=bool)
+    if not 0.0 < decay < 1.0:
+        raise ValueError(f"decay must be strictly between 0 and 1, got decay={decay!r}")
+    if steps < 1:
+        raise ValueError(f"steps must be >= 1, got steps={steps!r}")
+    if not 0 <= t < len(ego):
+        raise ValueError(f"t must be a step in [0, {len(ego)}), got t={t!r}")
+    ego_past, ego_b, ado_past, ado_b = [], [], [], []
+    for j in range(1, min(steps, t) + 1):
+        ego_past.append(ego[t - j])
+        ego_b.append(decay ** j)
+        boxes = ado[t - j][ado_valid[t - j]]
+        ado_past.extend(boxes)
+        ado_b.extend([decay ** j] * len(boxes))
+    return (np.array(ego_past, dtype=float).reshape(-1, 3), np.array(ego_b, dtype=float),
+            np.array(ado_past, dtype=float).reshape(-1, 5), np.array(ado_b, dtype=float))
+    ### END SOLUTION
+
+# %% grade id=ex12_4_tests points=3
+s4, t4 = 1, 12
+got = faded_boxes(val.ego[s4], val.ado[s4], val.ado_valid[s4], t4, 3, 0.5)
+assert isinstance(got, tuple) and len(got) == 4, (
+    "expected (ego_past, ego_brightness, ado_past, ado_brightness)")
+e4, eb4, a4, ab4 = (np.asarray(x, dtype=float) for x in got)
+assert e4.shape == (3, 3) and np.allclose(eb4, [0.5, 0.25, 0.125]), (
+    f"frame 12, 3 steps, decay 0.5: expected 3 ego poses at brightness [0.5, 0.25, 0.125], got "
+    f"shape {e4.shape}, brightness {np.round(eb4, 4).tolist()}")
+assert np.allclose(e4[0], val.ego[s4, 11]), "the first past pose is the step before the frame"
+n4 = int(val.ado_valid[s4, 9:12].sum())
+assert a4.shape == (n4, 5) and ab4.shape == (n4,), (
+    f"expected the {n4} ado boxes valid at steps 11, 10, 9, got shapes {a4.shape}, {ab4.shape}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(1240)  # the tests' own draws, not the notebook's
+for s, t, steps, decay in ((0, 0, 2, 0.5), (2, 1, 4, 0.3), (3, 39, 8, 0.8), (4, 20, 1, 0.9)):
+    ego, ado, valid = val.ego[s], val.ado[s], val.ado_valid[s].copy()
+    valid &= test_rng.uniform(size=valid.shape) < 0.7  # drop some slots: order must hold
+    js = [j for j in range(1, steps + 1) if t - j >= 0]
+    want_e = np.array([ego[t - j] for j in js]).reshape(-1, 3)
+    want_a = np.array([ado[t - j, k] for j in js for k in range(ado.shape[1])
+                       if valid[t - j, k]]).reshape(-1, 5)
+    want_ab = np.array([decay ** j for j in js for k in range(ado.shape[1]) if valid[t - j, k]])
+    got = [np.asarray(x, dtype=float) for x in faded_boxes(ego, ado, valid, t, steps, decay)]
+    case = f"scene {s}, frame {t}, {steps} steps, decay {decay}"
+    assert got[0].shape == want_e.shape and np.allclose(got[0], want_e), (
+        f"{case}: expected {len(js)} ego poses (shape {want_e.shape}), got shape {got[0].shape}")
+    assert np.allclose(got[1], [decay ** j for j in js]), (
+        f"{case}: expected ego brightness {np.round([decay ** j for j in js], 4).tolist()}, got "
+        f"{np.round(got[1], 4).tolist()}")
+    assert got[2].shape == want_a.shape and np.allclose(got[2], want_a), (
+        f"{case}: expected {len(want_a)} ado boxes by step then slot (shape {want_a.shape}), "
+        f"got shape {got[2].shape}")
+    assert got[3].shape == want_ab.shape and np.allclose(got[3], want_ab), (
+        f"{case}: expected one brightness decay**j per ado box, got {got[3][:6]}")
+for kwargs, name in (({"decay": 1.0}, "decay"), ({"decay": 0.0}, "decay"),
+                     ({"steps": 0}, "steps"), ({"t": 40}, "t"), ({"t": -1}, "t")):
+    args = {"t": 5, "steps": 2, "decay": 0.5, **kwargs}
+    try:
+        faded_boxes(val.ego[0], val.ado[0], val.ado_valid[0], args["t"], args["steps"],
+                    args["decay"])
+    except ValueError as err:
+        assert name in str(err), f"{kwargs}: the ValueError must name {name!r}, got {err}"
+    else:
+        raise AssertionError(f"{kwargs}: expected a ValueError")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 12.5 — an open experiment: a small input set
+# The raster of one frame can show only some of the expert's 13 numbers. Before asking an
+# image model for all of them, find out how few the learner needs. Choose the features to
+# remove: `small_inputs()` returns a tuple of feature names (of `P.FEATURES`) passed as
+# `P.fit(X, Y, without=..., hidden=(16, 16), steps=600, seed=0)`, such that
+#
+# * at least 5 of the 13 features are removed;
+# * the learner's open-loop RMSE on the validation states is within 15 % of the learner with
+#   every input, for both outputs (acceleration and yaw rate).
+#
+# Use your `ablation_table` (groups) and `P.fit(..., without=[...])` (single features) to
+# choose (2 points; the grade cell fits both learners itself). Then answer the written
+# question below it.
+
+# %% solution id=ex12_5 title="A small input set"
+def small_inputs():
+    ### BEGIN SOLUTION
+    # flags and distances the others imply, the farthest path points, the copycat input:
+    # the table of 12.3 shows which groups cost little; single features checked by P.fit
+    return ("has_leader", "has_stop", "ahead_5", "ahead_20", "dv")
+    ### END SOLUTION
+
+# %% grade id=ex12_5_tests points=2
+chosen = small_inputs()
+assert isinstance(chosen, tuple) and all(c in P.FEATURES for c in chosen), (
+    f"expected a tuple of names of P.FEATURES, got {chosen!r}")
+assert len(set(chosen)) >= 5, f"expected at least 5 features removed, got {len(set(chosen))}"
+
+
+def rmse5(without):  # the grade cell's own fit and score
+    m = P.fit(X, Y, without=list(without), hidden=(16, 16), steps=600, seed=0)
+    return np.sqrt(((P.predict(m, Xv) - Yv) ** 2).mean(axis=0))
+
+
+every, small = rmse5(()), rmse5(chosen)
+assert np.all(small <= 1.15 * every), (
+    f"without {sorted(set(chosen))}: expected RMSE within 15 % of every input's "
+    f"{np.round(every, 4).tolist()}, got {np.round(small, 4).tolist()}")
+
+# %% [markdown]
+# **Written question (graded by hand, 3 points).** Which features did you remove, and why
+# could the learner do without them? In your ablation table (12.3), which group's removal
+# costs the most acceleration error open loop, and what does `results/privileged.md`
+# ("Ablation") report for the same group closed loop? Explain the difference, and say which
+# of your removals you would check closed loop before building an image model on them.
+
+# %% [markdown] answer id=ex12_w title="Reading an ablation" points=3
+# ### BEGIN SOLUTION
+# I removed `has_leader` and `has_stop` (the clipped distances already say "nothing within
+# 60 m"), `ahead_5` and `ahead_20` (the path's curvature is in `ahead_10`, `heading` and
+# `a_curve` together) and `dv` (open loop the next acceleration follows mostly from the last
+# one and the gap). Open loop, removing `history` (the last acceleration) costs the most
+# acceleration error: the human's acceleration changes slowly (reaction delay, bounded
+# jerk), so the last one predicts the next. Closed loop the committed ablation says the
+# opposite: without `history` the learner collides *less* than with every input. A learner
+# that leans on its last acceleration copies its own previous command (the copycat of causal
+# confusion, de Haan et al. 2019); on the human's states that is right, in its own states it
+# keeps accelerating when it should brake. An open-loop score judges each prediction on the
+# human's states and cannot see that. The removal I would check closed loop first is `dv`:
+# the closing speed matters in the rare states just before a rear-end collision, which
+# barely move an RMSE over all states, and the ablation's `leader` row shows what losing it
+# costs in collisions.
+# ### END SOLUTION
+
+# %% [markdown]
+# ## The library's versions at work
+# The library's pieces (`bounds.median_style`, `metrics.trajectory.along_cross_track`,
+# `P.features`, `world.history.history_of`) are used from here on, so this cell runs even
+# while the exercises are open: the style floor of one more validation scene, and the
+# expert's perception of one state as the learner reads it.
+
+# %%
+style = bounds.median_style(2000)
+floor = bounds.floor_rollout(val, style, scenes=[4])
+along, cross = along_cross_track(floor.ego, val.ego[[4]])
+k = 4 * val.n_steps + 20  # scene 4, step 20 of the validation states
+sit = HumanExpert(val).situation(4, 20, val.ego[4, 20], float(Xv[k, 0]))
+same = bool(np.allclose(P.features(sit, float(Xv[k, 1])), Xv[k]))
+start = float(np.hypot(along[0, 0], cross[0, 0]))
+print(f"the expert's features of scene 4, step 20 equal the demonstration's: {same}")
+print(f"the floor starts at the human's pose (to 1e-4 m): {start < 1e-4}")
+assert same and start < 1e-4
+
+# %% [markdown]
+# ## Your figure
+# Left: the library's faded history of one frame (`world.history.history_of`) drawn at a
+# geometric decay of 0.6; middle: **your** `faded_boxes` at the same decay — the two must
+# look alike (a box missing, an ado of the wrong step or a wrong brightness shows).
+# Right: **your** ablation table as bars over the library's (dashed), each RMSE as a ratio
+# to the learner with every input: a bar above 1 is information the learner uses. A
+# function that still raises is named in its panel's title.
+
+# %%
+s_fig, t_fig, h_fig = 0, 20, 3
+past = world.history.history_of(val.ego[s_fig], val.ado[s_fig], val.ado_valid[s_fig], h_fig,
+                                frames=[t_fig])
+groups = list(P.FEATURE_GROUPS)
+reference = {}
+for g in [None, *groups]:
+    m_fig = P.fit(X, Y, drop=[] if g is None else [g], hidden=(16, 16), steps=300, seed=0)
+    r_fig = np.sqrt(((P.predict(m_fig, Xv) - Yv) ** 2).mean(axis=0))
+    reference["all inputs" if g is None else f"without {g}"] = tuple(float(v) for v in r_fig)
+plot_investigation_attempts(
+    val.ego[s_fig, t_fig], val.ado[s_fig, t_fig], val.ado_valid[s_fig, t_fig],
+    lambda: faded_boxes(val.ego[s_fig], val.ado[s_fig], val.ado_valid[s_fig], t_fig, h_fig, 0.6),
+    past, 0.6 ** np.arange(1, h_fig + 1),
+    lambda: ablation_table(X, Y, Xv, Yv, groups, 300), reference,
+)
+plt.show()
