@@ -70,6 +70,12 @@ class Chapter:
         """The notebook's name without its number, e.g. ``"dmp"``."""
         return self.notebook.split("_", 1)[1]
 
+    @property
+    def shown(self) -> tuple[str, ...]:
+        """The modules the chapter map shows for it: its own, or, for a chapter that has no
+        package of its own, the modules it builds elsewhere (``also``)."""
+        return self.modules or self.also
+
     def opening(self) -> str:
         """The objectives, prerequisites and time estimate that end the tutorial's first cell.
 
@@ -294,6 +300,6 @@ def markdown_table() -> str:
     """
     lines = ["| # | notebook | builds |", "|---|---|---|"]
     for chapter in CHAPTERS:
-        modules = ", ".join(f"`{m}`" for m in chapter.modules)
+        modules = ", ".join(f"`{m}`" for m in chapter.shown)
         lines.append(f"| {chapter.code} | `{chapter.notebook}` | {chapter.title} — {modules} |")
     return "".join(line + "\n" for line in lines)

@@ -74,7 +74,7 @@ plt.show()
 
 # %%
 for chapter in CHAPTERS:
-    print(f"{chapter.code}  {chapter.name:<17} {chapter.title} — {', '.join(chapter.modules)}")
+    print(f"{chapter.code}  {chapter.name:<17} {chapter.title} — {', '.join(chapter.shown)}")
 
 # %% [markdown]
 # ## Working through the exercises

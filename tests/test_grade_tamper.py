@@ -187,6 +187,21 @@ def test_a_replaced_function_body_is_restored():
     assert dmp.classify(1.0, 1.0) == "underdamped"
 
 
+def test_a_class_attribute_set_lazily_is_not_a_tamper(monkeypatch):
+    from minimanc.world import generation
+
+    # the library's progress bar starts its monitor thread on first use, setting a class
+    # attribute that was None when the tools were captured: not the student's doing
+    monkeypatch.setattr(generation.tqdm, "monitor", None)
+    cap = integrity.Capture("from minimanc import world")
+    for _ in generation.tqdm(range(2), disable=True):
+        pass
+    assert generation.tqdm.monitor is not None
+    assert cap.replaced() == []
+    monkeypatch.setattr(generation.tqdm, "monitor_interval", 0)
+    assert cap.replaced() == ["minimanc.world.generation.tqdm.monitor_interval"]
+
+
 @pytest.mark.parametrize("value, message", [
     (type("S", (str,), {"__eq__": lambda s, o: True, "__hash__": str.__hash__})("x"),
      "S, a str subclass; return a plain str"),

@@ -101,7 +101,7 @@ def cmd_info(args: argparse.Namespace) -> int:
             if (root / folder / f"{chapter.notebook}.ipynb").is_file()
         ]
         mark = "".join(present) or "-"
-        modules = ", ".join(chapter.modules)
+        modules = ", ".join(chapter.shown)
         print(f"  {chapter.code} {chapter.name:<17} [{mark:<3}] {chapter.title} — {modules}")
         print(f"  {'':<26} exercises: {chapter.exercises}")
     print("  (T = tutorial, S = solutions, E = exercises present)")

@@ -190,9 +190,11 @@ class Capture:
                 if isinstance(v, types.FunctionType):
                     self.codes.append((where, v, v.__code__, v.__defaults__, v.__kwdefaults__))
                 elif isinstance(v, type) and not v.__flags__ & _IMMUTABLE_TYPE:
+                    # like a module's attributes: not a class's data, nor one still None
+                    # (set lazily: a progress bar's monitor thread on its first use)
                     members = [(n, m) for n, m in vars(v).items()
                                if n not in ("__dict__", "__weakref__", "__doc__")
-                               and not isinstance(m, (dict, list, set))]
+                               and m is not None and not isinstance(m, (dict, list, set))]
                     self.classes.append((where, v, members))
         self.library_types = {v for name, _, items in self.modules
                               if name.split(".")[0] == "minimanc"
