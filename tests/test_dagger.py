@@ -375,11 +375,11 @@ def _run(argv):
 
 @pytest.mark.parametrize("argv, message", [
     (["--beta", "1.5"], "--beta must be a number in [0, 1], got 1.5"),
-    (["--rounds", "0"], "--rounds must be an integer >= 1, got 0"),
+    (["--rounds", "0"], "--rounds must be an integer >= 1, got --rounds=0"),
     (["--model", "gpt"], "--model: unknown model gpt; choose from"),
     (["--sim", "carla"], "--sim: unknown simulator carla; choose from world, highway"),
     (["--agents", "frozen"], "--agents: unknown protocol frozen"),
-    (["--budget", "0"], "--budget must be an integer >= 1, got 0"),
+    (["--budget", "0"], "--budget must be an integer >= 1, got --budget=0"),
     (["--initial", "2"], "--initial and --per-round go together"),
     (["--budget", "40", "--scenes", "4", "--val-scenes", "0", "--size", "16"],
      "budget too small: total=40 labelled samples give 1 scenes"),

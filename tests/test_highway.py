@@ -300,20 +300,20 @@ def test_cli_collect_and_expert_eval(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv,expected", [
-    (["collect", "--seed", "-1"], "--seed must be an integer >= 0, got -1"),
-    (["collect", "--episodes", "0"], "--episodes must be an integer >= 1, got 0"),
-    (["collect", "--steps", "-2"], "--steps must be an integer >= 1, got -2"),
-    (["collect", "--size", "0"], "--size must be an integer >= 8, got 0"),
-    (["train", "--data", "x.npz", "--epochs", "0"], "--epochs must be an integer >= 1, got 0"),
-    (["train", "--data", "x.npz", "--lr", "-1"], "--lr must be a positive finite number"),
+    (["collect", "--seed", "-1"], "--seed must be an integer >= 0, got --seed=-1"),
+    (["collect", "--episodes", "0"], "--episodes must be an integer >= 1, got --episodes=0"),
+    (["collect", "--steps", "-2"], "--steps must be an integer >= 1, got --steps=-2"),
+    (["collect", "--size", "0"], "--size must be an integer >= 8, got --size=0"),
+    (["train", "--data", "x.npz", "--epochs", "0"], "--epochs must be an integer >= 1, got --epochs=0"),
+    (["train", "--data", "x.npz", "--lr", "-1"], "--lr must be > 0, got --lr=-1.0"),
     (["train", "--data", "x.npz", "--models", "gpt"], "--models: unknown model(s) gpt"),
     (["train", "--data", "{tmp}/none.npz", "--out", "{tmp}/runs"], "none.npz: no such file"),
     (["train", "--data", "{tmp}/x.npy", "--out", "{tmp}/runs"],
      "x.npy: is a single NumPy array (.npy file); expected a dataset archive"),
-    (["eval", "--episodes", "0"], "--episodes must be an integer >= 1, got 0"),
+    (["eval", "--episodes", "0"], "--episodes must be an integer >= 1, got --episodes=0"),
     (["eval", "--checkpoints", "{tmp}/none.npz"], "no checkpoint at path="),
     (["eval", "--checkpoints", "{tmp}/x.npy"], "x.npy: unreadable checkpoint"),
-    (["render", "--seed", "-5"], "--seed must be an integer >= 0, got -5"),
+    (["render", "--seed", "-5"], "--seed must be an integer >= 0, got --seed=-5"),
     (["render", "--checkpoint", "{tmp}/x.npy", "--out", "{tmp}/f"],
      "--checkpoint {tmp}/x.npy: unreadable checkpoint"),
 ])

@@ -15,7 +15,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from minimanc.cli.common import check_int, project_root
+from minimanc.checks import check_int
+from minimanc.cli.common import check_option, project_root
 from minimanc.errors import EXIT_FAILED, EXIT_OK, UsageError
 
 __all__ = ["cmd_exercises", "cmd_grade", "parse_fail_under", "register"]
@@ -51,7 +52,7 @@ def cmd_exercises(args: argparse.Namespace) -> int:
             raise UsageError(str(exc)) from None
         print(f"wrote {target}")
         return EXIT_OK
-    check_int(args.timeout, "--timeout", 1)  # run
+    check_option(check_int, "--timeout", args.timeout, 1)  # run
     for path in args.notebooks:
         if not Path(path).is_file():
             raise UsageError(f"no notebook at {path}")
@@ -81,7 +82,7 @@ def cmd_grade(args: argparse.Namespace) -> int:
     from minimanc import exercises  # optional at start-up: nbformat/jsonschema take ~2 s to import
 
     threshold = parse_fail_under(args.fail_under) if args.fail_under is not None else None
-    check_int(args.timeout, "--timeout", 1)
+    check_option(check_int, "--timeout", args.timeout, 1)
     root = project_root()
     report = exercises.grade(
         Path(args.notebook),
