@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from minimanc import engine, inputs, layers, models, rollout, train, world
+from minimanc.layers import dense, flatten
 from minimanc.models import registry
-from minimanc.models.backbone import dense, flatten
 from minimanc.viz import style
 
 
@@ -26,7 +26,7 @@ def _toy_encode(params, obs, f, num, cfg, eng):
 
 
 def _toy_head(params, enc, state, cfg, eng):
-    return dense(params["out"], enc["pre"], eng), dict(state), {}
+    return dense(params["out"], enc["pre"], eng.xp), dict(state), {}
 
 
 TOY = models.ModelSpec("toy_linear", "Toy", "feedforward", registry.observes_goal(),

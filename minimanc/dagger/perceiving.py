@@ -30,7 +30,8 @@ import numpy as np
 
 from minimanc import engine, inputs, models, train
 from minimanc.dagger import privileged as P
-from minimanc.models.backbone import backbone, dense, flatten
+from minimanc.layers import dense, flatten
+from minimanc.models.backbone import backbone
 from minimanc.world.geometry import DT
 
 __all__ = ["PERCEIVE", "Perception", "PerceivingPolicy", "fit_driver", "fit_perception",
@@ -58,7 +59,7 @@ class Perception:
 
         def read(params: dict, readout: dict, bev: Any) -> Any:
             f = backbone(params["backbone"], bev, self.cfg, self._eng)
-            return dense(readout, flatten(f, self._eng.xp), self._eng)
+            return dense(readout, flatten(f, self._eng.xp), self._eng.xp)
 
         self._read = self._eng.jit(read)
 
