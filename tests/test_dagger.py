@@ -345,7 +345,7 @@ def test_highway_teacher_labels_the_expert_states():
     from minimanc import highway as hw
 
     cfg = world.RasterConfig(size=SIZE)
-    pool = hw.collect("roundabout", n_episodes=2, seed=0, steps=8, cfg=cfg)
+    pool = hw.collect_demonstrations("roundabout", n_episodes=2, seed=0, steps=8, cfg=cfg)
     teacher = dagger.HighwayTeacher(pool)
     col = dagger.collect(None, teacher, [0, 1], 1.0)
     # at t = 0 the state is the expert's own: its label is the logged control

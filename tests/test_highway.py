@@ -166,7 +166,7 @@ def test_adapter_tracks_speed_and_yaw_rate_in_highway_env():
 
 @pytest.fixture(scope="module")
 def small_dataset():
-    return hw.collect(["roundabout", "highway-fast"], n_episodes=1, seed=0, steps=6)
+    return hw.collect_demonstrations(["roundabout", "highway-fast"], n_episodes=1, seed=0, steps=6)
 
 
 def test_collected_demonstrations_follow_the_chapter7_format(small_dataset):
@@ -378,9 +378,9 @@ def test_bad_input_is_rejected():
     with pytest.raises(ValueError, match="max_ado"):
         hw.ado_boxes(hw.make_env("roundabout"), -1)
     with pytest.raises(ValueError, match="n_episodes"):
-        hw.collect("roundabout", n_episodes=0)
+        hw.collect_demonstrations("roundabout", n_episodes=0)
     with pytest.raises(ValueError, match="scenario"):
-        hw.collect(["roundabout", "merge"], n_episodes=1)
+        hw.collect_demonstrations(["roundabout", "merge"], n_episodes=1)
 
 
 
@@ -390,7 +390,7 @@ def test_bad_input_is_rejected():
     (lambda p: hw.ado_boxes(hw.make_env("roundabout"), 1.5), "max_ado", 0),
     (lambda p: hw.BEVObservation(hw.make_env("roundabout"), max_ado=2.5), "max_ado", 0),
     (lambda p: hw.expert_episodes("roundabout", 1.0, steps=2), "n", 1),
-    (lambda p: hw.collect("roundabout", n_episodes=True), "n_episodes", 1),
+    (lambda p: hw.collect_demonstrations("roundabout", n_episodes=True), "n_episodes", 1),
     (lambda p: hw.save_png(np.zeros((4, 4, 3), np.uint8), p / "f.png", scale=1.5), "scale", 1),
     (lambda p: hw.save_gif([np.zeros((4, 4, 3), np.uint8)], p / "f.gif", scale=0), "scale", 1),
 ])

@@ -8,8 +8,8 @@ budget (:mod:`minimanc.dagger`), with checkpoints per round and a metric-vs-roun
     minimanc dagger --model cnn --sim highway --scenario roundabout --steps 20 --out runs/hw
 
 The pool of demonstrations is generated (``--sim world``: ``minimanc.world.generate``;
-``--sim highway``: ``minimanc.highway.collect``) or read from ``--data``. ``--budget``
-is the number of expert-labelled samples (default: every state of the pool); or give
+``--sim highway``: ``minimanc.highway.collect_demonstrations``) or read from ``--data``.
+``--budget`` is the number of expert-labelled samples (default: every state of the pool); or give
 ``--initial`` and ``--per-round`` scenes, a plan that a rerun with more ``--rounds``
 extends. Under ``--out``: ``round_<i>/`` per round and ``bc/`` (checkpoints; a rerun
 loads the complete ones and resumes the rest), ``dagger.json`` and ``dagger.md`` (the
@@ -109,7 +109,7 @@ def _highway_teacher(args: argparse.Namespace) -> Any:
         pool = load_data(args.data)
         cfg = pool.raster
     else:
-        pool = hw.collect(args.scenario, n_episodes=args.scenes, seed=args.seed,
+        pool = hw.collect_demonstrations(args.scenario, n_episodes=args.scenes, seed=args.seed,
                           steps=args.steps, cfg=cfg, progress=not args.quiet)
     val = None
     if args.val_scenes:

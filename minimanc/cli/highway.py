@@ -74,8 +74,8 @@ def cmd_collect(args: argparse.Namespace) -> int:
     if hw is None:
         return 2
     cfg = world.RasterConfig(size=args.size)
-    ds = hw.collect(args.scenarios, n_episodes=args.episodes, seed=args.seed, steps=args.steps,
-                    cfg=cfg, progress=not args.quiet)
+    ds = hw.collect_demonstrations(args.scenarios, n_episodes=args.episodes, seed=args.seed,
+                                   steps=args.steps, cfg=cfg, progress=not args.quiet)
     path = world.save(ds, args.out)
     skipped = sum(ds.meta["attempts"]) - len(ds)
     print(f"wrote {len(ds)} expert episodes of {ds.n_steps} steps to {path} "

@@ -128,7 +128,7 @@ class WorldTeacher:
 class HighwayTeacher:
     """highway-env's IDM/MOBIL expert as a :class:`Teacher`.
 
-    ``pool`` demonstrations from :func:`minimanc.highway.collect` /
+    ``pool`` demonstrations from :func:`minimanc.highway.collect_demonstrations` /
     :func:`~minimanc.highway.to_dataset` (their tags name the scenario, env seed and
     the expert's desired speed); a scene is driven again from ``env.reset(seed)`` in a
     :class:`minimanc.highway.HighwaySim` with the demonstration's final pose as goal.
@@ -149,7 +149,8 @@ class HighwayTeacher:
             raise ValueError(f"pool must be a minimanc.world.Dataset, got {type(pool)!r}")
         tags = pool.meta.get("tags", [])
         if not tags or any(t.get("source") != "highway-env" for t in tags):
-            raise ValueError("pool must be highway-env demonstrations (minimanc.highway.collect)")
+            raise ValueError("pool must be highway-env demonstrations "
+                             "(minimanc.highway.collect_demonstrations)")
         self.pool, self.val = pool, list(val) if val is not None else None
 
     def groups(self, scenes: np.ndarray) -> list[np.ndarray]:
