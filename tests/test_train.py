@@ -213,7 +213,7 @@ def test_sweep_lr_picks_the_best(ds):
 def test_evaluate_matches_training_loss_definition(ds):
     params = models.init("cnn", np.random.default_rng(0), CFG)
     std = train.control_std(ds)
-    val = train.evaluate("cnn", params, ds, CFG, engine="numpy", std=std, dtype=np.float64)
+    val = train.open_loop_loss("cnn", params, ds, CFG, engine="numpy", std=std, dtype=np.float64)
     from minimanc import engine, inputs
 
     obs = inputs.from_dataset(ds, np.repeat(np.arange(3), 40), np.tile(np.arange(40), 3),
@@ -240,7 +240,7 @@ def test_evaluate_runs_dmp_models_on_whole_scenes_with_their_own_speed(ds):
         pred, _ = models.sequence("manc", params, obs, state, CFG, engine("numpy"),
                                   feedback_motion=feedback)
         ref = np.mean(((pred - target) / std) ** 2)
-        val = train.evaluate("manc", params, ds, CFG, engine="numpy", std=std,
+        val = train.open_loop_loss("manc", params, ds, CFG, engine="numpy", std=std,
                              dtype=np.float64, motion_feedback=feedback)
         assert val == pytest.approx(ref, rel=1e-6)
 

@@ -80,7 +80,14 @@ from minimanc.train.config import (
     TrainConfig,
     TrainingDiverged,
 )
-from minimanc.train.fit import SweepResult, cast_floats, evaluate, fit, perception_moments, sweep_lr
+from minimanc.train.fit import (
+    SweepResult,
+    cast_floats,
+    fit,
+    open_loop_loss,
+    perception_moments,
+    sweep_lr,
+)
 from minimanc.train.many import fit_many, fit_seeds
 from minimanc.train.step import loss_fn, make_step
 
@@ -98,7 +105,7 @@ __all__ = [
     "cast_floats",
     "control_std",
     "dataset_shape",
-    "evaluate",
+    "open_loop_loss",
     "fit",
     "perception_moments",
     "fit_many",
