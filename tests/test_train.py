@@ -79,7 +79,7 @@ def test_checkpoint_resume_equals_uninterrupted(ds, tmp_path):
     for x, y in zip(tree.leaves(full.params), tree.leaves(resumed.params)):
         np.testing.assert_array_equal(x, y)
     assert sorted(os.listdir(d)) == [train.CHECKPOINT_NAME]  # no temporary files left
-    back = train.load(d / train.CHECKPOINT_NAME)
+    back = train.load_fit(d / train.CHECKPOINT_NAME)
     assert back.name == "manc" and back.cfg == CFG and back.history == resumed.history
     for x, y in zip(tree.leaves(back.params), tree.leaves(resumed.params)):
         np.testing.assert_array_equal(x, y)
@@ -143,7 +143,7 @@ def test_corrupt_checkpoint_names_the_file_and_how_to_restart(ds, tmp_path):
     raw = path.read_bytes()
     for broken in (raw[: len(raw) // 2], b"", raw[:-30], b"garbage" * 10):
         path.write_bytes(broken)
-        for call in (lambda: train.load(path),
+        for call in (lambda: train.load_fit(path),
                      lambda: train.fit("cnn", ds, CFG, _tc(epochs=2), engine="numpy",
                                        checkpoint_dir=d, resume=True, progress=False)):
             with pytest.raises(train.CheckpointError,

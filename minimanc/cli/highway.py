@@ -120,7 +120,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 def _policy(path: str, engine: str, option: str = "--checkpoints") -> Any:
     try:
-        fit = train.load(path)
+        fit = train.load_fit(path)
     except ValueError as e:  # missing (ValueError) or unreadable (CheckpointError)
         raise UsageError(f"{option} {e}") from e
     return rollout.ModelPolicy(fit.name, fit.params, fit.cfg, engine)

@@ -13,11 +13,11 @@ numbers the world's human drives on, and does a controller that reads those numb
 (:func:`minimanc.train.fit`'s auxiliary perception loss at a weight that makes the control
 loss negligible). :meth:`Perception.read` returns the features in their units.
 
-**Driving.** :func:`fit_driver` trains the privileged MLP (:func:`minimanc.dagger.privileged.fit`)
-on the features the perception *reads* in the training states (not the exact ones, so that it
-learns to drive on its own perception's errors), with the last acceleration taken from the
-perceived speeds. :class:`PerceivingPolicy` drives it closed loop on the rendered raster
-alone: it reads no number from the simulator.
+**Driving.** :func:`fit_driver` trains the privileged MLP
+(:func:`minimanc.dagger.privileged.fit_privileged`) on the features the perception *reads* in
+the training states (not the exact ones, so that it learns to drive on its own perception's
+errors), with the last acceleration taken from the perceived speeds. :class:`PerceivingPolicy`
+drives it closed loop on the rendered raster alone: it reads no number from the simulator.
 """
 
 from __future__ import annotations

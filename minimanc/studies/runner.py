@@ -110,7 +110,7 @@ class Study(Runs):
                     ck = self.fit(run)
                     if self._diverged(run):
                         continue
-                    fit = train.load(ck)
+                    fit = train.load_fit(ck)
                     q = rollout.open_loop(fit.name, fit.params, val, fit.cfg,
                                           engine(self.engine))["q"]
                     cached = modes.mode_information(q, labels)

@@ -70,7 +70,7 @@ from minimanc.train.batches import (
     subset_scenes,
     window_len,
 )
-from minimanc.train.checkpoint import bad_params, load, load_checkpoint, save_checkpoint
+from minimanc.train.checkpoint import bad_params, load_checkpoint, load_fit, save_checkpoint
 from minimanc.train.config import (
     CHECKPOINT_NAME,
     DTYPES,
@@ -111,7 +111,7 @@ __all__ = [
     "fit_many",
     "fit_seeds",
     "initial_q",
-    "load",
+    "load_fit",
     "load_checkpoint",
     "loss_fn",
     "make_batch",

@@ -1,6 +1,6 @@
 """Chapter 8 — checkpoints: parameters, optimiser state and the run's configuration written
 atomically to one ``.npz`` (:func:`save_checkpoint`), read back (:func:`load_checkpoint`,
-:func:`load`), and the check that refuses unusable parameters (:func:`bad_params`)."""
+:func:`load_fit`), and the check that refuses unusable parameters (:func:`bad_params`)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,8 @@ from minimanc.train.config import PARAM_LIMIT, CheckpointError, FitResult, Train
 from minimanc.tree import from_flat_dict, to_flat_dict
 from minimanc.tree import map as tree_map
 
-__all__ = ["bad_params", "load", "load_checkpoint", "restore_opt", "save_checkpoint", "to_numpy"]
+__all__ = ["bad_params", "load_checkpoint", "load_fit", "restore_opt", "save_checkpoint",
+           "to_numpy"]
 
 
 def to_numpy(tree: Any) -> Any:
@@ -139,7 +140,7 @@ def load_checkpoint(path: str | Path) -> dict:
     return out
 
 
-def load(path: str | Path) -> FitResult:
+def load_fit(path: str | Path) -> FitResult:
     """A :class:`FitResult` from a file written by :func:`save_checkpoint` or by :func:`fit`."""
     ck = load_checkpoint(path)
     return FitResult(name=ck["name"], params=ck["params"], history=ck["history"],
