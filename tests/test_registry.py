@@ -90,7 +90,7 @@ def test_the_families_and_windows_of_the_six_models_come_from_their_specs():
 def test_the_registry_refuses_bad_specs():
     args = (_toy_init, _toy_encode, _toy_head)
     with pytest.raises(ValueError, match="already registered"):
-        models.register(models.ModelSpec("manc", "M", "vagn", registry.observes_structured(),
+        models.register_model(models.ModelSpec("manc", "M", "vagn", registry.observes_structured(),
                                          *args, dmp=True))
     with pytest.raises(ValueError, match="family"):
         models.ModelSpec("t", "T", "gru", registry.observes_goal(), *args)
@@ -109,5 +109,5 @@ def test_the_registry_refuses_bad_specs():
         models.ModelSpec("t", "T", "feedforward", registry.observes_goal(), _toy_init,
                          _toy_encode, None)
     with pytest.raises(TypeError, match="ModelSpec"):
-        models.register("toy")
+        models.register_model("toy")
     assert models.names() == ("cnn", "cnn_lstm", "rvs_g", "manc", "vagn_only", "dmp_only")

@@ -31,7 +31,12 @@ from minimanc.layers import dense, flatten
 from minimanc.models.backbone import activate, backbone
 from minimanc.models.config import CONTROL_SCALE, DEFAULT_GAINS, ModelConfig, gain_logits
 from minimanc.models.dmp_head import dmp_head
-from minimanc.models.registry import ModelSpec, observes_goal, observes_structured, register
+from minimanc.models.registry import (
+    ModelSpec,
+    observes_goal,
+    observes_structured,
+    register_model,
+)
 
 __all__ = ["BUILTIN", "control_scale", "flat_size", "gains_layer", "predicate_layer"]
 
@@ -257,5 +262,5 @@ BUILTIN: tuple[ModelSpec, ...] = (
 """The six controllers, registered in this order when :mod:`minimanc.models` is imported."""
 
 for _spec in BUILTIN:
-    register(_spec, replace=True)
+    register_model(_spec, replace=True)
 del _spec
