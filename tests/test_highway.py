@@ -333,7 +333,8 @@ def test_cli_user_errors_are_one_line_exit_2(tmp_path, capsys, argv, expected):
 def test_cli_unwritable_out_is_refused_before_collecting(tmp_path, capsys, monkeypatch):
     from minimanc.cli import main
 
-    monkeypatch.setattr(hw, "collect", lambda *a, **k: pytest.fail("collected anyway"))
+    monkeypatch.setattr(hw, "collect_demonstrations",
+                        lambda *a, **k: pytest.fail("collected anyway"))
     blocker = tmp_path / "file"
     blocker.write_text("x")
     for out, expected in ((blocker / "hw.npz", "file: exists and is not a directory"),
