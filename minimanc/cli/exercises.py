@@ -22,10 +22,17 @@ from minimanc.errors import EXIT_FAILED, EXIT_OK, UsageError
 __all__ = ["cmd_exercises", "cmd_grade", "parse_fail_under", "register"]
 
 
+def _exercises() -> Any:
+    """:mod:`minimanc.exercises`, imported when an exercises command runs: every other
+    ``minimanc`` command starts without loading nbformat."""
+    from minimanc import exercises  # deferred: nbformat/jsonschema take ~2 s to import
+
+    return exercises
+
+
 def cmd_exercises(args: argparse.Namespace) -> int:
     """``exercises build|convert|run``: exit 0 done, 1 ``build --check`` found stale files."""
-    from minimanc import exercises  # optional at start-up: nbformat/jsonschema take ~2 s to import
-
+    exercises = _exercises()
     root = project_root()
     if args.action == "build":
         try:
@@ -79,8 +86,7 @@ def parse_fail_under(text: str) -> tuple[float, bool]:
 
 def cmd_grade(args: argparse.Namespace) -> int:
     """Exit codes: 0 graded, 1 graded below ``--fail-under``, 2 could not grade."""
-    from minimanc import exercises  # optional at start-up: nbformat/jsonschema take ~2 s to import
-
+    exercises = _exercises()
     threshold = parse_fail_under(args.fail_under) if args.fail_under is not None else None
     check_option(check_int, "--timeout", args.timeout, 1)
     root = project_root()
