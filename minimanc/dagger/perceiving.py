@@ -121,7 +121,8 @@ def fit_driver(perception: Perception, train_ds: Any, steps: int = 3000, seed: i
     controls as labels."""
     read = read_dataset(perception, train_ds) if read is None else read
     _, Y = P.demonstrations(train_ds)
-    return P.fit(with_last_acceleration(read, perception.names), Y, steps=steps, seed=seed)
+    return P.fit_privileged(with_last_acceleration(read, perception.names), Y, steps=steps,
+                            seed=seed)
 
 
 class PerceivingPolicy:
