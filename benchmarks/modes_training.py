@@ -65,7 +65,7 @@ def one_run(variant: str, seed: int, lr: float) -> dict:
     q = rollout.open_loop("manc", fit.params, val_ds, cfg, "jax")["q"]
     out = modes.mode_information(q, modes.human_modes(val_ds))
     out["val_loss"] = train.open_loop_loss("manc", fit.params, val_ds, cfg, "jax",
-                                     std=fit.control_std, q_init=tc.q_init)
+                                           std=fit.control_std, q_init=tc.q_init)
     out["seconds"] = time.perf_counter() - t0
     return out
 

@@ -91,7 +91,7 @@ def test_the_registry_refuses_bad_specs():
     args = (_toy_init, _toy_encode, _toy_head)
     with pytest.raises(ValueError, match="already registered"):
         models.register_model(models.ModelSpec("manc", "M", "vagn", registry.observes_structured(),
-                                         *args, dmp=True))
+                                               *args, dmp=True))
     with pytest.raises(ValueError, match="family"):
         models.ModelSpec("t", "T", "gru", registry.observes_goal(), *args)
     with pytest.raises(ValueError, match="observes"):

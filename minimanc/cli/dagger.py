@@ -110,7 +110,7 @@ def _highway_teacher(args: argparse.Namespace) -> Any:
         cfg = pool.raster
     else:
         pool = hw.collect_demonstrations(args.scenario, n_episodes=args.scenes, seed=args.seed,
-                          steps=args.steps, cfg=cfg, progress=not args.quiet)
+                                         steps=args.steps, cfg=cfg, progress=not args.quiet)
     val = None
     if args.val_scenes:
         steps = pool.n_steps

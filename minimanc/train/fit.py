@@ -220,8 +220,8 @@ def end_epoch(st: RunState, epoch: int, mean_loss: float, eng: Any, val_ds: Any 
     st.history.append(mean_loss)
     if val_ds is not None:
         st.val_history.append(open_loop_loss(st.name, to_numpy(st.params), val_ds, st.cfg, eng,
-                                       std=st.std, q_init=st.tc.q_init,
-                                       dtype=DTYPES[st.tc.dtype]))
+                                             std=st.std, q_init=st.tc.q_init,
+                                             dtype=DTYPES[st.tc.dtype]))
     if st.ck_path is not None:
         save_checkpoint(st.ck_path, st.name, st.params, st.cfg, st.tc, st.opt_state, epoch + 1,
              st.history, st.val_history, st.steps, st.std)
@@ -331,9 +331,9 @@ def fit(
 
 
 def open_loop_loss(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = None,
-             engine: Any = "jax", std: Any = None, q_init: str = "uniform",
-             batch_size: int = 256, dtype: Any = np.float32, scenes: Any = None,
-             motion_feedback: bool = True) -> float:
+                   engine: Any = "jax", std: Any = None, q_init: str = "uniform",
+                   batch_size: int = 256, dtype: Any = np.float32, scenes: Any = None,
+                   motion_feedback: bool = True) -> float:
     """Open-loop loss of Algorithm 1 on a dataset (every sample once, no gradient).
 
     Feed-forward models and vAGN-only see each step with ``q'`` as in
@@ -427,7 +427,7 @@ def sweep_lr(
         results[lr] = res
         if score is None:
             scores[lr] = open_loop_loss(name, res.params, val_ds, cfg, engine, std=res.control_std,
-                                  q_init=tc.q_init, dtype=DTYPES[tc.dtype])
+                                        q_init=tc.q_init, dtype=DTYPES[tc.dtype])
         else:
             scores[lr] = float(score(res))
     best = min(scores, key=lambda k: scores[k])
