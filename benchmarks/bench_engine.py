@@ -64,8 +64,8 @@ def init_params(rng: np.random.Generator, dtype: Any) -> dict:
 def model(params: dict, x: Any, eng: Any) -> Any:
     h = x
     for p in params["convs"]:
-        h = eng.nn.relu(layers.conv2d(p, h, eng.nn, stride=2, padding=1))
-    return layers.dense(params["out"], layers.global_avg_pool(h, eng.nn), xp=eng.xp)
+        h = eng.nn.relu(layers.conv(p, h, eng.nn, stride=2, padding=1))
+    return layers.dense(params["out"], eng.nn.global_avg_pool(h), xp=eng.xp)
 
 
 def make_step(eng: Any):

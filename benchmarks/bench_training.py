@@ -137,7 +137,7 @@ def bench_training(train_ds, val_ds, cfg, quick: bool) -> None:
     t0 = time.perf_counter()
     res = train.fit("manc", ds, cfg, tc, engine="jax", progress=False)
     secs = time.perf_counter() - t0
-    val = train.evaluate("manc", res.params, val_ds, cfg, engine="jax", std=res.control_std)
+    val = train.open_loop_loss("manc", res.params, val_ds, cfg, engine="jax", std=res.control_std)
     print(f"MANC full training (JAX): {len(ds)} scenes x {ds.ego.shape[1]} steps, "
           f"{tc.epochs} epochs, batch {tc.batch_size}: {res.steps} steps in {secs:.0f} s "
           f"({res.steps / secs:.1f} steps/s; target <= 180 s for 650 scenes)")

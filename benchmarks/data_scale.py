@@ -116,7 +116,7 @@ def main() -> None:
             path = args.cache / (f"{name}-{cfg.setting}-{cfg.speed_output}-x{args.extra}"
                                  f"-e{args.epochs}-s{seed}.json")
             if path.exists():
-                r = provenance.read_json(path)
+                r = provenance.read_json_or_none(path)
             else:
                 r = run_one(name, seed, ds, args.extra, args.epochs, cfg)
                 provenance.write_json(path, r)

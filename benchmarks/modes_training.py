@@ -64,8 +64,8 @@ def one_run(variant: str, seed: int, lr: float) -> dict:
     fit = train.fit("manc", train_ds, cfg, tc, engine="jax", progress=False)
     q = rollout.open_loop("manc", fit.params, val_ds, cfg, "jax")["q"]
     out = modes.mode_information(q, modes.human_modes(val_ds))
-    out["val_loss"] = train.evaluate("manc", fit.params, val_ds, cfg, "jax",
-                                     std=fit.control_std, q_init=tc.q_init)
+    out["val_loss"] = train.open_loop_loss("manc", fit.params, val_ds, cfg, "jax",
+                                           std=fit.control_std, q_init=tc.q_init)
     out["seconds"] = time.perf_counter() - t0
     return out
 

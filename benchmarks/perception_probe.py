@@ -26,8 +26,9 @@ import numpy as np
 
 from minimanc import engine, inputs, models, train, world
 from minimanc.dagger import privileged as P
+from minimanc.layers import dense
 from minimanc.metrics.diagnostics import linear_probe
-from minimanc.models.backbone import activate, dense
+from minimanc.models.backbone import activate
 from minimanc.models.forward import encode
 from minimanc.studies import provenance as results
 
@@ -62,7 +63,7 @@ def representations(name: str, params: dict, ds, cfg, batch: int = 500
         if "predicates" in enc:
             out["head input"].append(np.asarray(enc["predicates"], dtype=np.float32))
         elif "fc1" in params:
-            h = activate(dense(params["fc1"], enc["pre"], eng), cfg, eng)
+            h = activate(dense(params["fc1"], enc["pre"], eng.xp), cfg, eng)
             out["head input"].append(np.asarray(h, dtype=np.float32))
     return {k: np.concatenate(v) for k, v in out.items() if v}
 

@@ -117,7 +117,7 @@ def main() -> None:
             ex = P.evaluate_policy(P.ExpertPolicy(teachers[agents]), val, agents)
             runs, rmse = [], []
             for seed in range(args.seeds):
-                model = P.fit(X, Y, steps=args.steps, seed=seed)
+                model = P.fit_privileged(X, Y, steps=args.steps, seed=seed)
                 rmse.append(np.sqrt(((P.predict(model, Xv) - Yv) ** 2).mean(0)))
                 runs.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers[agents]), val,
                                           agents))
@@ -137,7 +137,7 @@ def main() -> None:
         for drop in ((),) + tuple((g,) for g in P.FEATURE_GROUPS if g != "speed"):
             runs = []
             for seed in range(args.ablation_seeds):
-                model = P.fit(X, Y, drop=drop, steps=args.steps, seed=seed)
+                model = P.fit_privileged(X, Y, drop=drop, steps=args.steps, seed=seed)
                 runs.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"]), val,
                                           "reactive"))
             name = "all inputs" if not drop else f"without `{drop[0]}`"
@@ -152,7 +152,7 @@ def main() -> None:
         for name, without in INFORMATION.items():
             runs = {a: [] for a in AGENTS}
             for seed in range(args.ablation_seeds):
-                model = P.fit(X, Y, without=without, steps=args.steps, seed=seed)
+                model = P.fit_privileged(X, Y, without=without, steps=args.steps, seed=seed)
                 for a in AGENTS:
                     runs[a].append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers[a]), val,
                                                  a))
@@ -174,7 +174,7 @@ def main() -> None:
             runs = []
             for seed in range(args.ablation_seeds):
                 Xn = P.blur(X, noise, np.random.default_rng([seed, 1]))
-                model = P.fit(Xn, Y, steps=args.steps, seed=seed)
+                model = P.fit_privileged(Xn, Y, steps=args.steps, seed=seed)
                 runs.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"],
                                                              noise=noise, seed=seed),
                                           val, "reactive"))
@@ -195,7 +195,7 @@ def main() -> None:
             log(f"dagger round {i}: {r.metrics['at_fault_collision_rate']:.1f} % at fault", t0)
         more = ds.subset(np.r_[np.arange(args.train), np.arange(n, n + extra)])
         Xm, Ym = P.demonstrations(more)
-        model = P.fit(Xm, Ym, steps=args.steps, seed=0)
+        model = P.fit_privileged(Xm, Ym, steps=args.steps, seed=0)
         bc = P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"]), val, "reactive")
         lines += ["", "Behaviour cloning at equal labels (the demonstrations of "
                   f"{args.train + extra} scenes, {len(Xm)} states):", "",

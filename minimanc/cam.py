@@ -211,7 +211,7 @@ def predicate_extractor(
     h = xp.asarray(images)
     for layer, s in zip(convs, strides):
         pad = layer["w"].shape[0] // 2 if padding is None else int(padding)
-        h = act(layers.conv2d(layer, h, nn, stride=s, padding=pad))
+        h = act(layers.conv(layer, h, nn, stride=s, padding=pad))
     p = layers.dense(params["head"], global_average_pool(h, xp=xp), xp=xp)
     return (p, h) if return_features else p
 

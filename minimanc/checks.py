@@ -29,6 +29,7 @@ __all__ = [
     "TOLERANCE_FACTOR",
     "check_broadcast",
     "check_distribution",
+    "check_dt",
     "check_finite",
     "check_finite_if_concrete",
     "check_float_dtype",
@@ -202,6 +203,26 @@ def check_int(name: str, value: Any, minimum: int, maximum: int | None = None) -
         raise ValueError(f"{name} must be an integer in [{minimum}, {maximum}], "
                          f"got {name}={value!r}")
     return int(value)
+
+
+def check_dt(dt: Any) -> Any:
+    """A time step ``dt`` in seconds: a concrete one as a ``float``, a traced one unseen.
+
+    A concrete ``dt`` must be a finite scalar > 0 (ValueError naming it and its value);
+    a value that is no real number raises the TypeError of :func:`check_real`. Every
+    integrator (the DMP's Euler steps of eqs. 10–11, the quaternion DMP) and every metric
+    of a time series (jerk, time to collision) takes its ``dt`` through this check.
+    """
+    if type(dt) is float and 0.0 < dt < float("inf"):  # the common case, checked at once
+        return dt
+    if is_traced(dt):
+        return dt
+    arr = check_real("dt", dt)
+    if arr.ndim:
+        raise ValueError(f"dt must be a scalar, got dt with shape {arr.shape}")
+    if not (np.isfinite(arr) and arr > 0):
+        raise ValueError(f"dt must be a positive finite number, got dt={dt!r}")
+    return float(arr)
 
 
 def check_leading_axis(name: str, value: Any, length: int, why: str) -> Any:

@@ -7,8 +7,8 @@ engine, so one model code runs on ``engine("numpy")`` and ``engine("jax")``::
 
     eng = minimanc.engine("numpy")
     p = layers.init_conv(rng, 3, 3, 3, 16)
-    h = eng.nn.relu(layers.conv2d(p, images, eng.nn, stride=2, padding=1))
-    feat = layers.global_avg_pool(h, eng.nn)           # eq. 7: conv -> GAP -> linear
+    h = eng.nn.relu(layers.conv(p, images, eng.nn, stride=2, padding=1))
+    feat = eng.nn.global_avg_pool(h)                # eq. 7: conv -> GAP -> linear
     pred = layers.dense(layers.init_dense(rng, 16, 8), feat, xp=eng.xp)
 
 Initialisation: He (Kaiming) normal for convolutions (followed by ReLU/SiLU),
@@ -31,8 +31,7 @@ __all__ = [
     "init_lstm",
     "init_lstm_carry",
     "dense",
-    "conv2d",
-    "global_avg_pool",
+    "conv",
     "lstm_cell",
     "flatten",
 ]
@@ -239,7 +238,7 @@ def dense(params: dict, x: Any, xp: Any = np) -> Any:
     return xp.matmul(x, params["w"]) + params["b"]
 
 
-def conv2d(params: dict, x: Any, nn: Any = None, stride: int = 1, padding: int = 0) -> Any:
+def conv(params: dict, x: Any, nn: Any = None, stride: int = 1, padding: int = 0) -> Any:
     """Convolution layer (``ConvEncoder`` of eq. 7): ``nn.conv2d(x, w, b, stride, padding)``.
 
     Parameters
@@ -263,25 +262,6 @@ def conv2d(params: dict, x: Any, nn: Any = None, stride: int = 1, padding: int =
     """
     nn = _default_nn(nn)
     return nn.conv2d(x, params["w"], params["b"], stride=stride, padding=padding)
-
-
-def global_avg_pool(x: Any, nn: Any = None) -> Any:
-    """Global average pooling (``GlobalAveragePooling`` of eq. 7).
-
-    Parameters
-    ----------
-    x : array-like, shape (N, H, W, C)
-        NHWC features.
-    nn : namespace, optional (default: None)
-        An engine's neural-net primitives (``eng.nn``); None is the NumPy
-        engine's.
-
-    Returns
-    -------
-    y : array, shape (N, C)
-        The mean of each channel over H and W.
-    """
-    return _default_nn(nn).global_avg_pool(x)
 
 
 def flatten(x: Any, xp: Any = np) -> Any:

@@ -8,7 +8,7 @@ every leaf; :func:`tree_unflatten` is its inverse).
 :func:`leaves` visits dict entries in sorted key order, so it sees the leaves in one
 order whatever the insertion order was (the order :mod:`minimanc.optim` and the
 checkpoints of :mod:`minimanc.train` rely on); :func:`map` and :func:`cast_floats`
-rebuild dicts in their own key order. :func:`flatten` / :func:`unflatten` give a
+rebuild dicts in their own key order. :func:`to_flat_dict` / :func:`from_flat_dict` give a
 tree as flat ``"a/b/#0/w"`` keys, the layout of a checkpoint file.
 """
 
@@ -20,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["cast_floats", "flatten", "leaves", "map", "tree_flatten", "tree_unflatten", "unflatten"]
+__all__ = ["cast_floats", "from_flat_dict", "leaves", "map", "to_flat_dict", "tree_flatten",
+           "tree_unflatten"]
 
 
 def leaves(tree: Any) -> list:
@@ -131,7 +132,7 @@ def cast_floats(tree: Any, dtype: Any) -> Any:
     return map(lambda x: _cast_float(x, dtype), tree)
 
 
-def flatten(tree: Any, prefix: str = "") -> dict[str, np.ndarray]:
+def to_flat_dict(tree: Any, prefix: str = "") -> dict[str, np.ndarray]:
     """``{"a/b/#0/w": array}``: a pytree as flat keys (dicts by sorted key, list and tuple
     entries as ``#i``), each leaf ``numpy.asarray``; ``None`` subtrees have no key.
 
@@ -139,7 +140,7 @@ def flatten(tree: Any, prefix: str = "") -> dict[str, np.ndarray]:
     ----------
     tree : pytree
         Dict keys are strings without ``"/"`` (and not starting with ``"#"``), so that
-        :func:`unflatten` can rebuild the tree.
+        :func:`from_flat_dict` can rebuild the tree.
     prefix : str
         Put in front of every key (used by the recursion; ``""`` at the root).
 
@@ -151,22 +152,22 @@ def flatten(tree: Any, prefix: str = "") -> dict[str, np.ndarray]:
     out: dict[str, np.ndarray] = {}
     if isinstance(tree, dict):
         for k in sorted(tree):
-            out.update(flatten(tree[k], f"{prefix}{k}/"))
+            out.update(to_flat_dict(tree[k], f"{prefix}{k}/"))
     elif isinstance(tree, list | tuple):
         for i, v in enumerate(tree):
-            out.update(flatten(v, f"{prefix}#{i}/"))
+            out.update(to_flat_dict(v, f"{prefix}#{i}/"))
     elif tree is not None:
         out[prefix[:-1]] = np.asarray(tree)
     return out
 
 
-def unflatten(flat: dict[str, Any]) -> Any:
-    """Inverse of :func:`flatten` (tuples come back as lists).
+def from_flat_dict(flat: dict[str, Any]) -> Any:
+    """Inverse of :func:`to_flat_dict` (tuples come back as lists).
 
     Parameters
     ----------
     flat : dict of str to array
-        Keys ``"a/b/#0/w"`` as :func:`flatten` writes them.
+        Keys ``"a/b/#0/w"`` as :func:`to_flat_dict` writes them.
 
     Returns
     -------

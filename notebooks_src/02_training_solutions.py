@@ -57,7 +57,7 @@ xp = eng.xp
 # adds that offset's share to every output at once.
 # </details>
 
-# %% solution id=ex02_1 title="Dilated convolution, forward" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv2d,minimanc.autodiff.nn._conv_fwd,minimanc.autodiff.nn._conv_bwd"  # noqa: E501
+# %% solution id=ex02_1 title="Dilated convolution, forward" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv,minimanc.autodiff.nn._conv_fwd,minimanc.autodiff.nn._conv_bwd"  # noqa: E501
 def conv2d_dilated(x, w, b, stride=1, padding=0, dilation=1):
     ### BEGIN SOLUTION
     kh, kw, _, o = w.shape
@@ -201,7 +201,7 @@ def correlate(x, k):
             y = y + x[:, u:u + ho, v:v + wo, :] @ k[u, v]
     return y
 
-# %% solution id=ex02_2 title="Transposed convolution" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv2d,minimanc.autodiff.nn._conv_fwd,minimanc.autodiff.nn._conv_bwd,minimanc.autodiff.api.backward"  # noqa: E501
+# %% solution id=ex02_2 title="Transposed convolution" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv,minimanc.autodiff.nn._conv_fwd,minimanc.autodiff.nn._conv_bwd,minimanc.autodiff.api.backward"  # noqa: E501
 def conv2d_transpose(z, w, stride=1, padding=0):
     ### BEGIN SOLUTION
     n, ho, wo, _ = z.shape
@@ -270,7 +270,7 @@ for (kh, kw), s, p in [((1, 1), 1, 0), ((3, 3), 1, 1), ((2, 3), 3, 1), ((3, 2), 
 # for an output cotangent `g` of shape `(N, C)`: every pixel contributed
 # `1 / (H W)` of the mean.
 
-# %% solution id=ex02_3 title="Global average pooling" forbids="minimanc.autodiff.nn.global_avg_pool,minimanc.layers.global_avg_pool,minimanc.cam.global_average_pool"  # noqa: E501
+# %% solution id=ex02_3 title="Global average pooling" forbids="minimanc.autodiff.nn.global_avg_pool,minimanc.cam.global_average_pool"  # noqa: E501
 def gap_forward(x):
     ### BEGIN SOLUTION
     return x.mean(axis=(1, 2))
@@ -497,7 +497,7 @@ assert np.allclose(vn, [2.5]) and np.allclose(thn, [0.675]), \
 # counts $j$; make them columns (`[:, None]`) and the offsets rows (`[None, :]`).
 # </details>
 
-# %% solution id=ex02_7 title="im2col indices" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv2d,minimanc.autodiff.nn._im2col,minimanc.autodiff.nn._conv_fwd"  # noqa: E501
+# %% solution id=ex02_7 title="im2col indices" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv,minimanc.autodiff.nn._im2col,minimanc.autodiff.nn._conv_fwd"  # noqa: E501
 def im2col_indices(h, w, kh, kw, stride=1, padding=0):
     ### BEGIN SOLUTION
     ho = (h + 2 * padding - kh) // stride + 1
@@ -728,9 +728,9 @@ params = {"c1": layers.init_conv(rng, 3, 3, 3, 8), "c2": layers.init_conv(rng, 3
 
 
 def loss_fn(params, x, y):
-    h = nn.silu(layers.conv2d(params["c1"], x, nn, stride=2, padding=1))
-    h = nn.silu(layers.conv2d(params["c2"], h, nn, stride=1, padding=1))
-    pred = layers.dense(params["out"], layers.global_avg_pool(h, nn), xp=xp)
+    h = nn.silu(layers.conv(params["c1"], x, nn, stride=2, padding=1))
+    h = nn.silu(layers.conv(params["c2"], h, nn, stride=1, padding=1))
+    pred = layers.dense(params["out"], nn.global_avg_pool(h), xp=xp)
     return xp.mean((pred - y) ** 2)
 
 

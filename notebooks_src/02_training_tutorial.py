@@ -376,10 +376,10 @@ def init_cnn(rng, dtype=np.float64):
 
 
 def logits_fn(params, images, eng):
-    h = eng.nn.relu(layers.conv2d(params["c1"], images, eng.nn, stride=2, padding=1))
-    h = eng.nn.relu(layers.conv2d(params["c2"], h, eng.nn, stride=2, padding=1))
-    h = eng.nn.relu(layers.conv2d(params["c3"], h, eng.nn, stride=1, padding=1))
-    return layers.dense(params["out"], layers.global_avg_pool(h, eng.nn), xp=eng.xp)
+    h = eng.nn.relu(layers.conv(params["c1"], images, eng.nn, stride=2, padding=1))
+    h = eng.nn.relu(layers.conv(params["c2"], h, eng.nn, stride=2, padding=1))
+    h = eng.nn.relu(layers.conv(params["c3"], h, eng.nn, stride=1, padding=1))
+    return layers.dense(params["out"], eng.nn.global_avg_pool(h), xp=eng.xp)
 
 
 def loss_fn(params, images, onehot, eng):
@@ -435,9 +435,9 @@ plt.show()
 
 # %% tags=["nbval-ignore-output"]
 def features(params, images):
-    h = nn.relu(layers.conv2d(params["c1"], images, nn, stride=2, padding=1))
-    h = nn.relu(layers.conv2d(params["c2"], h, nn, stride=2, padding=1))
-    return nn.relu(layers.conv2d(params["c3"], h, nn, stride=1, padding=1))
+    h = nn.relu(layers.conv(params["c1"], images, nn, stride=2, padding=1))
+    h = nn.relu(layers.conv(params["c2"], h, nn, stride=2, padding=1))
+    return nn.relu(layers.conv(params["c3"], h, nn, stride=1, padding=1))
 
 
 show = [i for i in range(40) if y_test[i] == 1][:3] + [i for i in range(40) if y_test[i] == 0][:3]

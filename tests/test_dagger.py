@@ -345,7 +345,7 @@ def test_highway_teacher_labels_the_expert_states():
     from minimanc import highway as hw
 
     cfg = world.RasterConfig(size=SIZE)
-    pool = hw.collect("roundabout", n_episodes=2, seed=0, steps=8, cfg=cfg)
+    pool = hw.collect_demonstrations("roundabout", n_episodes=2, seed=0, steps=8, cfg=cfg)
     teacher = dagger.HighwayTeacher(pool)
     col = dagger.collect(None, teacher, [0, 1], 1.0)
     # at t = 0 the state is the expert's own: its label is the logged control
@@ -375,11 +375,11 @@ def _run(argv):
 
 @pytest.mark.parametrize("argv, message", [
     (["--beta", "1.5"], "--beta must be a number in [0, 1], got 1.5"),
-    (["--rounds", "0"], "--rounds must be an integer >= 1, got 0"),
+    (["--rounds", "0"], "--rounds must be an integer >= 1, got --rounds=0"),
     (["--model", "gpt"], "--model: unknown model gpt; choose from"),
     (["--sim", "carla"], "--sim: unknown simulator carla; choose from world, highway"),
     (["--agents", "frozen"], "--agents: unknown protocol frozen"),
-    (["--budget", "0"], "--budget must be an integer >= 1, got 0"),
+    (["--budget", "0"], "--budget must be an integer >= 1, got --budget=0"),
     (["--initial", "2"], "--initial and --per-round go together"),
     (["--budget", "40", "--scenes", "4", "--val-scenes", "0", "--size", "16"],
      "budget too small: total=40 labelled samples give 1 scenes"),

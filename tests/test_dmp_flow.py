@@ -143,7 +143,7 @@ def test_dmp_step_is_one_tape_node_per_call_on_numpy():
 
     NP.grad(loss)(np.full((2, 1), 5.0))
     y1 = seen[0]
-    assert isinstance(y1, Box) and y1.primitive_name == "select"
+    assert isinstance(y1, Box) and y1.primitive_name == "select_output"
     (_, node), = y1.parents
     assert node.primitive_name == "_flow_plain"
     assert [p.primitive_name for _, p in node.parents] == [None]  # alpha, a leaf

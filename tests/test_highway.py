@@ -166,7 +166,7 @@ def test_adapter_tracks_speed_and_yaw_rate_in_highway_env():
 
 @pytest.fixture(scope="module")
 def small_dataset():
-    return hw.collect(["roundabout", "highway-fast"], n_episodes=1, seed=0, steps=6)
+    return hw.collect_demonstrations(["roundabout", "highway-fast"], n_episodes=1, seed=0, steps=6)
 
 
 def test_collected_demonstrations_follow_the_chapter7_format(small_dataset):
@@ -300,20 +300,21 @@ def test_cli_collect_and_expert_eval(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv,expected", [
-    (["collect", "--seed", "-1"], "--seed must be an integer >= 0, got -1"),
-    (["collect", "--episodes", "0"], "--episodes must be an integer >= 1, got 0"),
-    (["collect", "--steps", "-2"], "--steps must be an integer >= 1, got -2"),
-    (["collect", "--size", "0"], "--size must be an integer >= 8, got 0"),
-    (["train", "--data", "x.npz", "--epochs", "0"], "--epochs must be an integer >= 1, got 0"),
-    (["train", "--data", "x.npz", "--lr", "-1"], "--lr must be a positive finite number"),
+    (["collect", "--seed", "-1"], "--seed must be an integer >= 0, got --seed=-1"),
+    (["collect", "--episodes", "0"], "--episodes must be an integer >= 1, got --episodes=0"),
+    (["collect", "--steps", "-2"], "--steps must be an integer >= 1, got --steps=-2"),
+    (["collect", "--size", "0"], "--size must be an integer >= 8, got --size=0"),
+    (["train", "--data", "x.npz", "--epochs", "0"],
+     "--epochs must be an integer >= 1, got --epochs=0"),
+    (["train", "--data", "x.npz", "--lr", "-1"], "--lr must be > 0, got --lr=-1.0"),
     (["train", "--data", "x.npz", "--models", "gpt"], "--models: unknown model(s) gpt"),
     (["train", "--data", "{tmp}/none.npz", "--out", "{tmp}/runs"], "none.npz: no such file"),
     (["train", "--data", "{tmp}/x.npy", "--out", "{tmp}/runs"],
      "x.npy: is a single NumPy array (.npy file); expected a dataset archive"),
-    (["eval", "--episodes", "0"], "--episodes must be an integer >= 1, got 0"),
+    (["eval", "--episodes", "0"], "--episodes must be an integer >= 1, got --episodes=0"),
     (["eval", "--checkpoints", "{tmp}/none.npz"], "no checkpoint at path="),
     (["eval", "--checkpoints", "{tmp}/x.npy"], "x.npy: unreadable checkpoint"),
-    (["render", "--seed", "-5"], "--seed must be an integer >= 0, got -5"),
+    (["render", "--seed", "-5"], "--seed must be an integer >= 0, got --seed=-5"),
     (["render", "--checkpoint", "{tmp}/x.npy", "--out", "{tmp}/f"],
      "--checkpoint {tmp}/x.npy: unreadable checkpoint"),
 ])
@@ -332,7 +333,8 @@ def test_cli_user_errors_are_one_line_exit_2(tmp_path, capsys, argv, expected):
 def test_cli_unwritable_out_is_refused_before_collecting(tmp_path, capsys, monkeypatch):
     from minimanc.cli import main
 
-    monkeypatch.setattr(hw, "collect", lambda *a, **k: pytest.fail("collected anyway"))
+    monkeypatch.setattr(hw, "collect_demonstrations",
+                        lambda *a, **k: pytest.fail("collected anyway"))
     blocker = tmp_path / "file"
     blocker.write_text("x")
     for out, expected in ((blocker / "hw.npz", "file: exists and is not a directory"),
@@ -377,9 +379,9 @@ def test_bad_input_is_rejected():
     with pytest.raises(ValueError, match="max_ado"):
         hw.ado_boxes(hw.make_env("roundabout"), -1)
     with pytest.raises(ValueError, match="n_episodes"):
-        hw.collect("roundabout", n_episodes=0)
+        hw.collect_demonstrations("roundabout", n_episodes=0)
     with pytest.raises(ValueError, match="scenario"):
-        hw.collect(["roundabout", "merge"], n_episodes=1)
+        hw.collect_demonstrations(["roundabout", "merge"], n_episodes=1)
 
 
 
@@ -389,7 +391,7 @@ def test_bad_input_is_rejected():
     (lambda p: hw.ado_boxes(hw.make_env("roundabout"), 1.5), "max_ado", 0),
     (lambda p: hw.BEVObservation(hw.make_env("roundabout"), max_ado=2.5), "max_ado", 0),
     (lambda p: hw.expert_episodes("roundabout", 1.0, steps=2), "n", 1),
-    (lambda p: hw.collect("roundabout", n_episodes=True), "n_episodes", 1),
+    (lambda p: hw.collect_demonstrations("roundabout", n_episodes=True), "n_episodes", 1),
     (lambda p: hw.save_png(np.zeros((4, 4, 3), np.uint8), p / "f.png", scale=1.5), "scale", 1),
     (lambda p: hw.save_gif([np.zeros((4, 4, 3), np.uint8)], p / "f.gif", scale=0), "scale", 1),
 ])

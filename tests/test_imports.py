@@ -3,7 +3,9 @@ layer to a higher one, and no minimanc module imported inside a function.
 
 The layer order is CONTRIBUTING.md's ("Layers" section), the one list both follow: a module
 may import its own layer and the layers below it. An import inside a function is allowed only
-where it defers an optional dependency (:data:`OPTIONAL`), and says so in a comment.
+where it defers an optional dependency (:data:`OPTIONAL`; a minimanc module only in the
+importers :data:`DEFERRED` names), and says why in a comment on the import's line or on a
+comment line right above it.
 """
 
 from __future__ import annotations
@@ -18,8 +20,6 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "minimanc"
 
 OPTIONAL = {
-    "minimanc.highway": "highway-env",
-    "minimanc.exercises": "nbformat/Jupyter",
     "matplotlib": "figures",
     "PIL": "images",
     "ray": "the [ray] extra",
@@ -32,6 +32,13 @@ OPTIONAL = {
     "jupyter_client": "Jupyter",
 }
 """What a function may import (module or its parent), each an optional dependency."""
+
+DEFERRED = {
+    "minimanc.highway": {"minimanc.dagger.teachers": "highway-env, optional for DAgger"},
+    "minimanc.exercises": {"minimanc.cli.exercises": "nbformat, seconds to import"},
+}
+"""A minimanc module that loads an optional dependency -> the modules that may import it
+inside a function (and why); everywhere else it is imported at the top like any module."""
 
 
 def _layers() -> list[tuple[str, ...]]:
@@ -71,10 +78,13 @@ def _targets(module: str, node: ast.Import | ast.ImportFrom) -> list[str]:
     return [f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base for a in node.names]
 
 
-def _imports(module: str) -> tuple[list[tuple[str, int]], list[tuple[str, int, str]]]:
+def _imports(module: str, source: str | None = None
+             ) -> tuple[list[tuple[str, int]], list[tuple[str, int, str]]]:
     """``(top, inner)``: module-level imports ``(target, line)`` and imports inside a function
-    ``(target, line, source lines)``."""
-    source = MODULES[module].read_text(encoding="utf-8")
+    ``(target, line, the comments that may give its reason)``: those on the statement's lines
+    and on the comment lines right above it."""
+    if source is None:
+        source = MODULES[module].read_text(encoding="utf-8")
     lines = source.splitlines()
     top, inner = [], []
 
@@ -83,8 +93,7 @@ def _imports(module: str) -> tuple[list[tuple[str, int]], list[tuple[str, int, s
             if isinstance(child, ast.Import | ast.ImportFrom):
                 for target in _targets(module, child):
                     if in_function:
-                        text = "\n".join(lines[child.lineno - 2:child.end_lineno])
-                        inner.append((target, child.lineno, text))
+                        inner.append((target, child.lineno, _comments(lines, child)))
                     else:
                         top.append((target, child.lineno))
             else:
@@ -93,6 +102,39 @@ def _imports(module: str) -> tuple[list[tuple[str, int]], list[tuple[str, int, s
 
     walk(ast.parse(source), False)
     return top, inner
+
+
+def _comments(lines: list[str], node: ast.stmt) -> str:
+    """The ``#`` comments on ``node``'s lines and on the comment-only lines right above it."""
+    found = [line.split("#", 1)[1] for line in lines[node.lineno - 1:node.end_lineno]
+             if "#" in line]
+    above = node.lineno - 2
+    while above >= 0 and lines[above].strip().startswith("#"):
+        found.insert(0, lines[above].strip()[1:])
+        above -= 1
+    return " ".join(c.strip() for c in found)
+
+
+def inner_import_errors(module: str, source: str | None = None) -> list[str]:
+    """Why each import inside a function of ``module`` is not allowed (``[]``: all are)."""
+    _, inner = _imports(module, source)
+    path = MODULES[module].relative_to(ROOT) if module in MODULES else module
+    errors = []
+    for target, line, comment in inner:
+        top = target.split(".")[0]
+        where = f"{path}:{line}"
+        if top == "minimanc":
+            owner = next((k for k in DEFERRED if target == k or target.startswith(k + ".")),
+                         None)
+            if owner is None or module not in DEFERRED[owner]:
+                errors.append(f"{where} imports {target} inside a function: import it at the "
+                              "top of the module (a lower layer is passed what it needs)")
+                continue
+        elif top not in OPTIONAL:
+            continue  # the standard library or a dependency: ruff's business, not layering
+        if not comment:
+            errors.append(f"{where} defers {target}: say why in a comment on that line")
+    return errors
 
 
 def _own(target: str) -> str | None:
@@ -198,13 +240,42 @@ def test_layer_of_takes_the_nearest_named_package():
 
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_imports_inside_functions_only_defer_an_optional_dependency(module):
-    _, inner = _imports(module)
-    for target, line, text in inner:
-        top = target.split(".")[0]
-        if top != "minimanc" and top not in OPTIONAL:
-            continue  # the standard library or a dependency: ruff's business, not layering
-        owner = next((k for k in OPTIONAL if target == k or target.startswith(k + ".")), None)
-        where = f"{MODULES[module].relative_to(ROOT)}:{line}"
-        assert owner is not None, (
-            f"{where} imports {target} inside a function: import it at the top of the module")
-        assert "#" in text, f"{where} defers {target}: say why in a comment on that line"
+    assert inner_import_errors(module) == []
+
+
+def test_every_deferral_of_a_minimanc_module_is_still_there():
+    for target, importers in DEFERRED.items():
+        for module in importers:
+            _, inner = _imports(module)
+            assert any(t == target or t.startswith(target + ".") for t, _, _ in inner), (
+                f"{module} no longer defers {target}: remove it from DEFERRED")
+
+
+PLANTED = """
+import numpy as np
+
+
+def f():
+    from minimanc import models
+    import minimanc.highway as hw  # optional: highway-env
+    import matplotlib.pyplot as plt
+    # Pillow only when an image is written
+    from PIL import Image
+    import json
+    return models, hw, plt, Image, json, np
+"""
+
+
+def test_inner_import_errors_finds_planted_violations():
+    errors = inner_import_errors("minimanc.metrics.table", PLANTED)
+    assert [e.split(" ", 1)[1] for e in errors] == [
+        "imports minimanc.models inside a function: import it at the top of the module "
+        "(a lower layer is passed what it needs)",
+        "imports minimanc.highway inside a function: import it at the top of the module "
+        "(a lower layer is passed what it needs)",
+        "defers matplotlib.pyplot: say why in a comment on that line",
+    ]
+    # the one module DEFERRED names may defer highway-env, with its reason
+    assert inner_import_errors("minimanc.dagger.teachers", PLANTED)[1:] == [
+        e.replace("minimanc/metrics/table.py", "minimanc/dagger/teachers.py")
+        for e in errors[2:]]

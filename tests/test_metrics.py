@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from minimanc import metrics
+from minimanc import checks, metrics
 from minimanc.world.geometry import EGO_LENGTH, EGO_WIDTH, box_corners, unicycle_step
 
 DT = 0.5
@@ -512,8 +512,8 @@ def test_input_checks_are_public_and_name_the_parameter():
         boxes.check_ados(np.zeros((1, 10, 2, 5)), np.ones((1, 10, 1), bool), ego)
     for dt in (0.0, -0.5, np.inf, np.nan):
         with pytest.raises(ValueError, match="dt must be a positive finite number"):
-            boxes.check_dt(dt)
-    assert boxes.check_dt(np.float32(0.5)) == 0.5
+            checks.check_dt(dt)
+    assert checks.check_dt(np.float32(0.5)) == 0.5
 
 
 @given(st.integers(0, 4), st.integers(0, 4))

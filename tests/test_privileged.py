@@ -77,7 +77,7 @@ def test_fit_learns_a_smooth_map():
     rng = np.random.default_rng(0)
     X = rng.normal(size=(2000, len(P.FEATURES)))
     Y = np.stack([np.tanh(X[:, 0] - 0.5 * X[:, 3]), 0.3 * X[:, 8] + 0.1 * X[:, 1]], axis=1)
-    model = P.fit(X, Y, steps=1500, seed=0)
+    model = P.fit_privileged(X, Y, steps=1500, seed=0)
     err = np.sqrt(((P.predict(model, X) - Y) ** 2).mean(0)) / Y.std(0)
     assert np.all(err < 0.1), f"relative RMSE {err} (expected < 0.1 on a smooth map)"
     assert np.mean(model.losses[-50:]) < 0.1 * model.losses[0]
@@ -86,14 +86,14 @@ def test_fit_learns_a_smooth_map():
 def test_fit_refuses_bad_data():
     X = np.zeros((4, len(P.FEATURES)))
     with pytest.raises(ValueError, match="shape"):
-        P.fit(X[:, :3], np.zeros((4, 2)))
+        P.fit_privileged(X[:, :3], np.zeros((4, 2)))
     with pytest.raises(ValueError, match="finite"):
-        P.fit(X, np.full((4, 2), np.nan))
+        P.fit_privileged(X, np.full((4, 2), np.nan))
 
 
 def test_a_recording_policy_labels_what_it_visited(ds, demos):
     X, Y = demos
-    model = P.fit(X, Y, steps=50, seed=0)
+    model = P.fit_privileged(X, Y, steps=50, seed=0)
     teacher = WorldTeacher(ds, agents="reactive")
     policy = P.PrivilegedPolicy(model, teacher, record=True)
     rollout.simulate(policy, ds, scenes=[0, 1], agents="reactive", progress=False)
@@ -132,7 +132,7 @@ def test_blur_refuses_bad_noise(demos, noise, match):
 
 
 def test_a_policy_without_noise_and_with_zero_noise_drive_alike(ds, demos):
-    model = P.fit(*demos, steps=50, seed=0)
+    model = P.fit_privileged(*demos, steps=50, seed=0)
     teacher = WorldTeacher(ds, agents="reactive")
     runs = [rollout.simulate(P.PrivilegedPolicy(model, teacher, noise=n), ds, scenes=[0, 1],
                              agents="reactive", progress=False).ego

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from minimanc import engine, inputs, layers, models, rollout, train, world
+from minimanc.layers import dense, flatten
 from minimanc.models import registry
-from minimanc.models.backbone import dense, flatten
 from minimanc.viz import style
 
 
@@ -26,7 +26,7 @@ def _toy_encode(params, obs, f, num, cfg, eng):
 
 
 def _toy_head(params, enc, state, cfg, eng):
-    return dense(params["out"], enc["pre"], eng), dict(state), {}
+    return dense(params["out"], enc["pre"], eng.xp), dict(state), {}
 
 
 TOY = models.ModelSpec("toy_linear", "Toy", "feedforward", registry.observes_goal(),
@@ -90,8 +90,8 @@ def test_the_families_and_windows_of_the_six_models_come_from_their_specs():
 def test_the_registry_refuses_bad_specs():
     args = (_toy_init, _toy_encode, _toy_head)
     with pytest.raises(ValueError, match="already registered"):
-        models.register(models.ModelSpec("manc", "M", "vagn", registry.observes_structured(),
-                                         *args, dmp=True))
+        models.register_model(models.ModelSpec("manc", "M", "vagn", registry.observes_structured(),
+                                               *args, dmp=True))
     with pytest.raises(ValueError, match="family"):
         models.ModelSpec("t", "T", "gru", registry.observes_goal(), *args)
     with pytest.raises(ValueError, match="observes"):
@@ -109,5 +109,5 @@ def test_the_registry_refuses_bad_specs():
         models.ModelSpec("t", "T", "feedforward", registry.observes_goal(), _toy_init,
                          _toy_encode, None)
     with pytest.raises(TypeError, match="ModelSpec"):
-        models.register("toy")
+        models.register_model("toy")
     assert models.names() == ("cnn", "cnn_lstm", "rvs_g", "manc", "vagn_only", "dmp_only")

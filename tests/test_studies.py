@@ -489,8 +489,8 @@ def test_a_broken_metrics_file_is_recomputed(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args,expected", [
-    (["--seeds", "0"], "--seeds must be an integer >= 1, got 0"),
-    (["--workers", "-1"], "--workers must be an integer >= 0, got -1"),
+    (["--seeds", "0"], "--seeds must be an integer >= 1, got --seeds=0"),
+    (["--workers", "-1"], "--workers must be an integer >= 0, got --workers=-1"),
 ])
 def test_reproduce_bad_arguments_are_one_line_exit_2(tmp_path, capsys, args, expected):
     from minimanc import cli

@@ -79,7 +79,7 @@ def test_checkpoint_resume_equals_uninterrupted(ds, tmp_path):
     for x, y in zip(tree.leaves(full.params), tree.leaves(resumed.params)):
         np.testing.assert_array_equal(x, y)
     assert sorted(os.listdir(d)) == [train.CHECKPOINT_NAME]  # no temporary files left
-    back = train.load(d / train.CHECKPOINT_NAME)
+    back = train.load_fit(d / train.CHECKPOINT_NAME)
     assert back.name == "manc" and back.cfg == CFG and back.history == resumed.history
     for x, y in zip(tree.leaves(back.params), tree.leaves(resumed.params)):
         np.testing.assert_array_equal(x, y)
@@ -143,7 +143,7 @@ def test_corrupt_checkpoint_names_the_file_and_how_to_restart(ds, tmp_path):
     raw = path.read_bytes()
     for broken in (raw[: len(raw) // 2], b"", raw[:-30], b"garbage" * 10):
         path.write_bytes(broken)
-        for call in (lambda: train.load(path),
+        for call in (lambda: train.load_fit(path),
                      lambda: train.fit("cnn", ds, CFG, _tc(epochs=2), engine="numpy",
                                        checkpoint_dir=d, resume=True, progress=False)):
             with pytest.raises(train.CheckpointError,
@@ -213,7 +213,7 @@ def test_sweep_lr_picks_the_best(ds):
 def test_evaluate_matches_training_loss_definition(ds):
     params = models.init("cnn", np.random.default_rng(0), CFG)
     std = train.control_std(ds)
-    val = train.evaluate("cnn", params, ds, CFG, engine="numpy", std=std, dtype=np.float64)
+    val = train.open_loop_loss("cnn", params, ds, CFG, engine="numpy", std=std, dtype=np.float64)
     from minimanc import engine, inputs
 
     obs = inputs.from_dataset(ds, np.repeat(np.arange(3), 40), np.tile(np.arange(40), 3),
@@ -240,7 +240,7 @@ def test_evaluate_runs_dmp_models_on_whole_scenes_with_their_own_speed(ds):
         pred, _ = models.sequence("manc", params, obs, state, CFG, engine("numpy"),
                                   feedback_motion=feedback)
         ref = np.mean(((pred - target) / std) ** 2)
-        val = train.evaluate("manc", params, ds, CFG, engine="numpy", std=std,
+        val = train.open_loop_loss("manc", params, ds, CFG, engine="numpy", std=std,
                              dtype=np.float64, motion_feedback=feedback)
         assert val == pytest.approx(ref, rel=1e-6)
 

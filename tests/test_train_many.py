@@ -82,7 +82,7 @@ def test_checkpoints_and_resume_from_different_epochs(ds, tmp_path):
         assert_same(r, train.fit("manc", ds, CFG, _tc(epochs=3, seed=s), progress=False))
         ck = train.load_checkpoint(dirs[s] / train.CHECKPOINT_NAME)
         assert ck["epoch"] == 3 and len(ck["history"]) == 3
-        assert_same(train.load(dirs[s] / train.CHECKPOINT_NAME), r)
+        assert_same(train.load_fit(dirs[s] / train.CHECKPOINT_NAME), r)
 
 
 def test_a_diverged_run_does_not_stop_the_others(ds, tmp_path):

@@ -111,14 +111,14 @@ dense_trees = st.dictionaries(  # a dict root, no None, no empty container: a ch
 
 @given(dense_trees)
 def test_flatten_unflatten_round_trip(t):
-    back = tree.unflatten(tree.flatten(t))
+    back = tree.from_flat_dict(tree.to_flat_dict(t))
     assert _same_structure(t, back, key_order=False)  # dicts come back in sorted key order
     for x, y in zip(tree.leaves(t), tree.leaves(back), strict=True):
         np.testing.assert_array_equal(x, y)
 
 
 def test_flatten_keys():
-    flat = tree.flatten({"b": [np.zeros(1), None, (2,)], "a": 1.0})
+    flat = tree.to_flat_dict({"b": [np.zeros(1), None, (2,)], "a": 1.0})
     assert list(flat) == ["a", "b/#0", "b/#2/#0"]
 
 

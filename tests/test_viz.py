@@ -136,9 +136,9 @@ def test_state_labels(n):
 
 def test_check_scene_and_check_metrics():
     rows = np.zeros((3, 2))
-    assert explain.check_scene(rows, np.int64(2)) == 2
+    assert explain.check_scene_index(rows, np.int64(2)) == 2
     with pytest.raises(ValueError, match=r"scene must index the rollout's 3 rows; got scene=3"):
-        explain.check_scene(rows, 3)
+        explain.check_scene_index(rows, 3)
     style.check_metrics(["ade", "goal_distance"])
     with pytest.raises(ValueError, match="metrics must be names from .*; got 'speed'"):
         style.check_metrics(["ade", "speed"])

@@ -56,11 +56,11 @@ def test_data_show_rejects_a_bad_scene(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args,expected", [
-    (["--scenes", "-3"], "--scenes must be an integer >= 1, got -3"),
-    (["--scenes", "0"], "--scenes must be an integer >= 1, got 0"),
-    (["--size", "0"], "--size must be an integer >= 8, got 0"),
-    (["--seed", "-1"], "--seed must be an integer >= 0, got -1"),
-    (["--workers", "0"], "--workers must be an integer >= 1, got 0"),
+    (["--scenes", "-3"], "--scenes must be an integer >= 1, got --scenes=-3"),
+    (["--scenes", "0"], "--scenes must be an integer >= 1, got --scenes=0"),
+    (["--size", "0"], "--size must be an integer >= 8, got --size=0"),
+    (["--seed", "-1"], "--seed must be an integer >= 0, got --seed=-1"),
+    (["--workers", "0"], "--workers must be an integer >= 1, got --workers=0"),
 ])
 def test_data_generate_bad_numbers_are_one_line_exit_2(tmp_path, capsys, args, expected):
     line = _usage_error(capsys, ["data", "generate", "--out", str(tmp_path / "d"), "--quiet",

@@ -319,7 +319,7 @@ def test_non_finite_data_is_refused_naming_scene_and_step(ds, tmp_path, monkeypa
         world.save(small, tmp_path / "nan.npz")
     assert not list(tmp_path.iterdir())  # nothing written
     # a file holding one (written before this check existed) is refused at load
-    monkeypatch.setattr(datawriter, "check_finite", lambda *a, **k: None)
+    monkeypatch.setattr(datawriter, "check_arrays_finite", lambda *a, **k: None)
     path = world.save(small, tmp_path / "nan.npz", shard_scenes=1)
     monkeypatch.undo()
     with pytest.raises(world.DatasetFileError,
@@ -561,7 +561,7 @@ def test_every_public_name_of_the_dataset_lives_in_one_module():
     names = [
         "ARRAY_FIELDS", "Dataset", "DatasetFileError", "DatasetWriter", "Estimate",
         "FILE_FORMAT_VERSION", "FLOAT_FIELDS", "FORMAT_VERSION", "LazyMaps", "MAX_ATTEMPTS",
-        "META_KEYS", "PER_SCENE_KEYS", "SHARD_BYTES", "append_scenes", "check_finite",
+        "META_KEYS", "PER_SCENE_KEYS", "SHARD_BYTES", "append_scenes", "check_arrays_finite",
         "default_shard_scenes", "describe_non_finite", "empty_meta", "estimate",
         "file_content_hash", "first_non_finite", "generate", "generate_file", "generate_scene",
         "generate_splits", "load", "read_meta", "remove_temp_files", "save", "scene_nbytes",

@@ -24,7 +24,7 @@ from collections.abc import Callable
 import numpy as np
 
 from minimanc.autodiff.boxes import FRAMES, Box, unbox
-from minimanc.autodiff.primitives import Outputs, primitive, select
+from minimanc.autodiff.primitives import Outputs, primitive, select_output
 from minimanc.tree import tree_flatten
 
 __all__ = ["custom_vjp"]
@@ -106,8 +106,8 @@ class custom_vjp:  # noqa: N801 - named after jax.custom_vjp
         if not multi:
             return node
         outs = []
-        for k, o in enumerate(out):  # what select(node, k) makes, without its call overhead
-            box = Box(o, ((0, node),), select, (), None, (k, len(out)))
+        for k, o in enumerate(out):  # what select_output(node, k) makes, without its call overhead
+            box = Box(o, ((0, node),), select_output, (), None, (k, len(out)))
             if FRAMES:
                 FRAMES[-1][id(box)] = box
             outs.append(box)

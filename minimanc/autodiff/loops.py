@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from minimanc.autodiff.boxes import FRAMES, TRACING, Box, unbox
-from minimanc.autodiff.primitives import Outputs, defvjp_fwd, primitive, select
+from minimanc.autodiff.primitives import Outputs, defvjp_fwd, primitive, select_output
 from minimanc.autodiff.reverse import add_cotangents, parent_cotangents
 from minimanc.checks import check_int
 from minimanc.tree import tree_flatten
@@ -155,7 +155,7 @@ def scan(f: Callable, init, xs, length: int | None = None) -> tuple:
     node = Box(Outputs(out_vals), tuple(parents), _scan_node, (), None, res)
     if FRAMES:
         FRAMES[-1][id(node)] = node
-    outs = [select(node, k) if _is_float(v) else v for k, v in enumerate(out_vals)]
+    outs = [select_output(node, k) if _is_float(v) else v for k, v in enumerate(out_vals)]
     nc = len(carry_vals)
     return init_rebuild(outs[:nc]), y_rebuild(outs[nc:])
 

@@ -7,9 +7,9 @@
   (VJP) of a primitive. Given the cotangent ``g = ∂L/∂ans`` a VJP returns
   ``∂L/∂arg = gᵀ ∂ans/∂arg`` for one argument.
 * :func:`unbroadcast` — the VJP of NumPy's broadcasting (a sum).
-* :class:`Outputs` / :func:`select` — a node with several outputs (a scan, a
+* :class:`Outputs` / :func:`select_output` — a node with several outputs (a scan, a
   :func:`~minimanc.autodiff.custom.custom_vjp` function returning a tuple): its value
-  is the tuple of outputs and :func:`select` picks one, traced.
+  is the tuple of outputs and :func:`select_output` picks one, traced.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ __all__ = [
     "defvjp",
     "defvjp_fwd",
     "primitive",
-    "select",
+    "select_output",
     "through_max",
     "unbroadcast",
 ]
@@ -183,7 +183,7 @@ class Outputs(tuple):
 
 
 @primitive
-def select(outs, k):
+def select_output(outs, k):
     """Output ``k`` of a node with several outputs."""
     return outs[k]
 
@@ -197,4 +197,4 @@ def _select_bwd(g, res):
     return tuple(g if j == k else None for j in range(n)), None
 
 
-defvjp_fwd(select, _select_fwd, _select_bwd)
+defvjp_fwd(select_output, _select_fwd, _select_bwd)

@@ -3,16 +3,17 @@
 Each validator returns the checked value or raises :class:`~minimanc.errors.UsageError`
 naming the option, which :func:`minimanc.cli.main` prints as one line on stderr with exit
 code 2. They run before any work, so a bad argument never leaves a half-written output.
-The library's own checks (a ``ValueError``/``TypeError`` naming a Python parameter) are in
-:mod:`minimanc.checks`; these speak in the command line's terms (``--seeds``, ``--out``).
+A number is checked by the library's own check (:mod:`minimanc.checks`) through
+:func:`check_option`, which names the option (``--seeds``) and raises a UsageError; the
+validators here are the command line's own (choices, output paths, the dataset file).
 """
 
 from __future__ import annotations
 
-import math
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from minimanc import world
 from minimanc.engine import ENGINES
@@ -22,14 +23,15 @@ __all__ = [
     "DEFAULT_ENGINE",
     "add_engine_option",
     "check_choices",
-    "check_int",
+    "check_option",
     "check_out_dir",
     "check_out_file",
-    "check_positive",
     "load_data",
     "project_root",
 ]
 
+
+T = TypeVar("T")
 
 DEFAULT_ENGINE = "jax"
 """The engine the commands train and roll out with unless ``--engine`` says otherwise."""
@@ -49,20 +51,19 @@ def project_root() -> Path:
     return Path.cwd()
 
 
-def check_int(value: Any, option: str, minimum: int) -> int:
-    """``value`` if it is an integer ``>= minimum``, else :class:`UsageError` naming ``option``."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise UsageError(f"{option} must be an integer >= {minimum}, got {value!r}")
-    return value
+def check_option(check: Callable[..., T], option: str, value: Any, *args: Any) -> T:
+    """``check(option, value, *args)`` on a command-line option, its error as a UsageError.
 
-
-def check_positive(value: Any, option: str) -> float:
-    """``value`` if it is a finite number ``> 0``, else :class:`UsageError` naming ``option``."""
-    ok = (not isinstance(value, bool) and isinstance(value, int | float)
-          and math.isfinite(value) and value > 0)
-    if not ok:
-        raise UsageError(f"{option} must be a positive finite number, got {value!r}")
-    return value
+    ``check`` is a validator of :mod:`minimanc.checks` (``check_int``, ``check_positive``
+    ...): the command line checks its numbers with the library's checks and changes only
+    the kind of error, ``ValueError``/``TypeError`` → :class:`UsageError` with the same
+    message, which names the option (``check_option(check_int, "--seed", args.seed, 0)``).
+    Returns what ``check`` returns.
+    """
+    try:
+        return check(option, value, *args)
+    except (TypeError, ValueError) as exc:
+        raise UsageError(str(exc)) from None
 
 
 def check_choices(values: list[str], option: str, choices: tuple[str, ...],

@@ -8,8 +8,8 @@ budget (:mod:`minimanc.dagger`), with checkpoints per round and a metric-vs-roun
     minimanc dagger --model cnn --sim highway --scenario roundabout --steps 20 --out runs/hw
 
 The pool of demonstrations is generated (``--sim world``: ``minimanc.world.generate``;
-``--sim highway``: ``minimanc.highway.collect``) or read from ``--data``. ``--budget``
-is the number of expert-labelled samples (default: every state of the pool); or give
+``--sim highway``: ``minimanc.highway.collect_demonstrations``) or read from ``--data``.
+``--budget`` is the number of expert-labelled samples (default: every state of the pool); or give
 ``--initial`` and ``--per-round`` scenes, a plan that a rerun with more ``--rounds``
 extends. Under ``--out``: ``round_<i>/`` per round and ``bc/`` (checkpoints; a rerun
 loads the complete ones and resumes the rest), ``dagger.json`` and ``dagger.md`` (the
@@ -25,12 +25,12 @@ import math
 from typing import Any
 
 from minimanc import dagger, models, train, world
+from minimanc.checks import check_int, check_positive
 from minimanc.cli.common import (
     add_engine_option,
     check_choices,
-    check_int,
+    check_option,
     check_out_dir,
-    check_positive,
     load_data,
 )
 from minimanc.dagger import AGENTS, SIMS
@@ -58,21 +58,21 @@ def _check_args(args: argparse.Namespace) -> None:
     check_choices([args.sim], "--sim", SIMS, what="simulator")
     check_choices([args.agents], "--agents", AGENTS, what="protocol")
     check_choices([args.setting], "--setting", SETTINGS, what="setting")
-    check_int(args.rounds, "--rounds", 1)
+    check_option(check_int, "--rounds", args.rounds, 1)
     _check_beta(args.beta)
-    check_int(args.seed, "--seed", 0)
-    check_int(args.epochs, "--epochs", 1)
-    check_int(args.batch_size, "--batch-size", 1)
-    check_positive(args.lr, "--lr")
-    check_int(args.val_scenes, "--val-scenes", 0)
-    check_int(args.size, "--size", 8)
-    check_int(args.steps, "--steps", 2)
+    check_option(check_int, "--seed", args.seed, 0)
+    check_option(check_int, "--epochs", args.epochs, 1)
+    check_option(check_int, "--batch-size", args.batch_size, 1)
+    check_option(check_positive, "--lr", args.lr)
+    check_option(check_int, "--val-scenes", args.val_scenes, 0)
+    check_option(check_int, "--size", args.size, 8)
+    check_option(check_int, "--steps", args.steps, 2)
     if args.data is None:
-        check_int(args.scenes, "--scenes", 2)
+        check_option(check_int, "--scenes", args.scenes, 2)
     for option in ("budget", "initial", "per_round"):
         value = getattr(args, option)
         if value is not None:
-            check_int(value, "--" + option.replace("_", "-"), 1)
+            check_option(check_int, "--" + option.replace("_", "-"), value, 1)
     if (args.initial is None) != (args.per_round is None):
         raise UsageError("--initial and --per-round go together (or give --budget)")
     if args.budget is not None and args.initial is not None:
@@ -109,8 +109,8 @@ def _highway_teacher(args: argparse.Namespace) -> Any:
         pool = load_data(args.data)
         cfg = pool.raster
     else:
-        pool = hw.collect(args.scenario, n_episodes=args.scenes, seed=args.seed,
-                          steps=args.steps, cfg=cfg, progress=not args.quiet)
+        pool = hw.collect_demonstrations(args.scenario, n_episodes=args.scenes, seed=args.seed,
+                                         steps=args.steps, cfg=cfg, progress=not args.quiet)
     val = None
     if args.val_scenes:
         steps = pool.n_steps

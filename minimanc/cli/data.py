@@ -15,7 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from minimanc import world
-from minimanc.cli.common import check_int, check_out_dir, check_out_file, load_data
+from minimanc.checks import check_int
+from minimanc.cli.common import check_option, check_out_dir, check_out_file, load_data
 from minimanc.errors import UsageError
 from minimanc.viz.world import gallery, plot_map, save_scene_gif, scene_frames
 from minimanc.world import nuscenes
@@ -33,17 +34,17 @@ def default_file(out: str | Path, n_scenes: int, seed: int) -> Path:
 
 
 def _raster(size: Any, option: str = "--size") -> Any:
-    check_int(size, option, 8)
+    check_option(check_int, option, size, 8)
     return world.RasterConfig(size=size)
 
 
 def cmd_generate(args: argparse.Namespace) -> int:
     """Generate scenes straight to a file, after checking the arguments and the free disk."""
-    check_int(args.scenes, "--scenes", 1)
-    check_int(args.seed, "--seed", 0)
+    check_option(check_int, "--scenes", args.scenes, 1)
+    check_option(check_int, "--seed", args.seed, 0)
     cfg = _raster(args.size)
     if args.workers is not None:
-        check_int(args.workers, "--workers", 1)
+        check_option(check_int, "--workers", args.workers, 1)
     out = check_out_dir(args.out)
     path = default_file(out, args.scenes, args.seed)
     if path.is_dir():
@@ -111,12 +112,12 @@ def cmd_show(args: argparse.Namespace) -> int:
     import matplotlib.pyplot as plt  # matplotlib only when a figure is drawn
 
     if args.scene is not None:
-        check_int(args.scene, "--scene", 0)
+        check_option(check_int, "--scene", args.scene, 0)
     if args.data:
         ds = load_data(args.data)
     else:
-        check_int(args.scenes, "--scenes", 1)
-        check_int(args.seed, "--seed", 0)
+        check_option(check_int, "--scenes", args.scenes, 1)
+        check_option(check_int, "--seed", args.seed, 0)
     out = check_out_dir(args.out)
     if not args.data:
         ds = world.generate(args.scenes, seed=args.seed, progress=False)

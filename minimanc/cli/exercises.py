@@ -15,16 +15,24 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from minimanc.cli.common import check_int, project_root
+from minimanc.checks import check_int
+from minimanc.cli.common import check_option, project_root
 from minimanc.errors import EXIT_FAILED, EXIT_OK, UsageError
 
 __all__ = ["cmd_exercises", "cmd_grade", "parse_fail_under", "register"]
 
 
+def _exercises() -> Any:
+    """:mod:`minimanc.exercises`, imported when an exercises command runs: every other
+    ``minimanc`` command starts without loading nbformat."""
+    from minimanc import exercises  # deferred: nbformat/jsonschema take ~2 s to import
+
+    return exercises
+
+
 def cmd_exercises(args: argparse.Namespace) -> int:
     """``exercises build|convert|run``: exit 0 done, 1 ``build --check`` found stale files."""
-    from minimanc import exercises  # optional at start-up: nbformat/jsonschema take ~2 s to import
-
+    exercises = _exercises()
     root = project_root()
     if args.action == "build":
         try:
@@ -51,7 +59,7 @@ def cmd_exercises(args: argparse.Namespace) -> int:
             raise UsageError(str(exc)) from None
         print(f"wrote {target}")
         return EXIT_OK
-    check_int(args.timeout, "--timeout", 1)  # run
+    check_option(check_int, "--timeout", args.timeout, 1)  # run
     for path in args.notebooks:
         if not Path(path).is_file():
             raise UsageError(f"no notebook at {path}")
@@ -78,10 +86,9 @@ def parse_fail_under(text: str) -> tuple[float, bool]:
 
 def cmd_grade(args: argparse.Namespace) -> int:
     """Exit codes: 0 graded, 1 graded below ``--fail-under``, 2 could not grade."""
-    from minimanc import exercises  # optional at start-up: nbformat/jsonschema take ~2 s to import
-
+    exercises = _exercises()
     threshold = parse_fail_under(args.fail_under) if args.fail_under is not None else None
-    check_int(args.timeout, "--timeout", 1)
+    check_option(check_int, "--timeout", args.timeout, 1)
     root = project_root()
     report = exercises.grade(
         Path(args.notebook),

@@ -30,13 +30,13 @@ from pathlib import Path
 from typing import Any
 
 from minimanc import models, rollout, train, world
+from minimanc.checks import check_int, check_positive
 from minimanc.cli.common import (
     add_engine_option,
     check_choices,
-    check_int,
+    check_option,
     check_out_dir,
     check_out_file,
-    check_positive,
     load_data,
 )
 from minimanc.errors import UsageError
@@ -61,21 +61,21 @@ def _highway() -> Any:
 def _check_episode_args(args: argparse.Namespace) -> None:
     for option in ("episodes", "steps"):
         if hasattr(args, option):
-            check_int(getattr(args, option), f"--{option}", 1)
-    check_int(args.seed, "--seed", 0)
+            check_option(check_int, f"--{option}", getattr(args, option), 1)
+    check_option(check_int, "--seed", args.seed, 0)
 
 
 def cmd_collect(args: argparse.Namespace) -> int:
     """Expert demonstrations (IDM/MOBIL) in the chapter-7 dataset format."""
     _check_episode_args(args)
-    check_int(args.size, "--size", 8)
+    check_option(check_int, "--size", args.size, 8)
     check_out_file(args.out)
     hw = _highway()
     if hw is None:
         return 2
     cfg = world.RasterConfig(size=args.size)
-    ds = hw.collect(args.scenarios, n_episodes=args.episodes, seed=args.seed, steps=args.steps,
-                    cfg=cfg, progress=not args.quiet)
+    ds = hw.collect_demonstrations(args.scenarios, n_episodes=args.episodes, seed=args.seed,
+                                   steps=args.steps, cfg=cfg, progress=not args.quiet)
     path = world.save(ds, args.out)
     skipped = sum(ds.meta["attempts"]) - len(ds)
     print(f"wrote {len(ds)} expert episodes of {ds.n_steps} steps to {path} "
@@ -87,10 +87,10 @@ def cmd_train(args: argparse.Namespace) -> int:
     """Behaviour cloning (``minimanc.train.fit``) on collected demonstrations."""
     for option in ("epochs", "batch_size"):
         if getattr(args, option) is not None:
-            check_int(getattr(args, option), "--" + option.replace("_", "-"), 1)
+            check_option(check_int, "--" + option.replace("_", "-"), getattr(args, option), 1)
     if args.lr is not None:
-        check_positive(args.lr, "--lr")
-    check_int(args.seed, "--seed", 0)
+        check_option(check_positive, "--lr", args.lr)
+    check_option(check_int, "--seed", args.seed, 0)
     check_choices(args.models, "--models", models.names(), what="model(s)")
     given = {"epochs": args.epochs, "batch_size": args.batch_size, "lr": args.lr}
     try:
@@ -120,7 +120,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 def _policy(path: str, engine: str, option: str = "--checkpoints") -> Any:
     try:
-        fit = train.load(path)
+        fit = train.load_fit(path)
     except ValueError as e:  # missing (ValueError) or unreadable (CheckpointError)
         raise UsageError(f"{option} {e}") from e
     return rollout.ModelPolicy(fit.name, fit.params, fit.cfg, engine)

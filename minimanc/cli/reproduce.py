@@ -9,7 +9,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from minimanc.cli.common import add_engine_option, check_int, check_out_dir
+from minimanc.checks import check_int
+from minimanc.cli.common import add_engine_option, check_option, check_out_dir
 from minimanc.errors import UsageError
 from minimanc.studies import PRESETS, reproduce, table_markdown
 from minimanc.studies.executors import EXECUTORS
@@ -28,14 +29,14 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     preset = args.preset or ("quick" if args.quick else "full")
     config = PRESETS[preset]
     if args.seeds is not None:
-        config = replace(config, n_seeds=check_int(args.seeds, "--seeds", 1))
-    training = {field: check_int(value, option, 1) for field, value, option in (
+        config = replace(config, n_seeds=check_option(check_int, "--seeds", args.seeds, 1))
+    training = {field: check_option(check_int, option, value, 1) for field, value, option in (
         ("epochs", args.epochs, "--epochs"), ("dmp_seq_len", args.dmp_seq_len, "--dmp-seq-len"))
         if value is not None}
     if training:
         config = replace(config, training=replace(config.training, **training))
     if args.workers is not None:
-        check_int(args.workers, "--workers", 0)
+        check_option(check_int, "--workers", args.workers, 0)
     if args.ray_address is not None and args.executor != "ray":
         raise UsageError(f"--ray-address is for --executor ray; got --executor {args.executor}")
     agents = ("replay", "reactive") if args.agents == "both" else (args.agents,)

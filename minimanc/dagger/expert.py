@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from minimanc.checks import check_int
-from minimanc.rollout.reactive import record_human, scene_key, start_run
+from minimanc.rollout.reactive import record_human, scene_key, start_scene
 from minimanc.world.driver import HumanDriver, project_on_path
 from minimanc.world.geometry import wrap_angle
 from minimanc.world.lanes import LANE_WIDTH
@@ -99,7 +99,7 @@ class HumanExpert:
         hit = self._runs.pop(scene, None)
         if hit is None:
             record_human(self.ds, scene)  # refuses a dataset that does not regenerate
-            run = start_run(scene_key(self.ds, scene), self.ds.maps[scene])
+            run = start_scene(scene_key(self.ds, scene), self.ds.maps[scene])
             memo_base = {id(run.m): run.m, id(run.traffic.bank): run.traffic.bank}
             hit = []
             for t in range(self._T):

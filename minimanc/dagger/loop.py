@@ -171,7 +171,7 @@ def _load_round(where: Path, fp: dict) -> tuple[RoundResult, dict] | None:
     if not f.exists():
         return None
     saved = json.loads(f.read_text())
-    res = train.load(where / "checkpoint.npz")
+    res = train.load_fit(where / "checkpoint.npz")
     r = RoundResult(**saved["result"], loaded=True, params=res.params)
     return r, res.params
 

@@ -13,11 +13,11 @@ numbers the world's human drives on, and does a controller that reads those numb
 (:func:`minimanc.train.fit`'s auxiliary perception loss at a weight that makes the control
 loss negligible). :meth:`Perception.read` returns the features in their units.
 
-**Driving.** :func:`fit_driver` trains the privileged MLP (:func:`minimanc.dagger.privileged.fit`)
-on the features the perception *reads* in the training states (not the exact ones, so that it
-learns to drive on its own perception's errors), with the last acceleration taken from the
-perceived speeds. :class:`PerceivingPolicy` drives it closed loop on the rendered raster
-alone: it reads no number from the simulator.
+**Driving.** :func:`fit_driver` trains the privileged MLP
+(:func:`minimanc.dagger.privileged.fit_privileged`) on the features the perception *reads* in
+the training states (not the exact ones, so that it learns to drive on its own perception's
+errors), with the last acceleration taken from the perceived speeds. :class:`PerceivingPolicy`
+drives it closed loop on the rendered raster alone: it reads no number from the simulator.
 """
 
 from __future__ import annotations
@@ -30,7 +30,8 @@ import numpy as np
 
 from minimanc import engine, inputs, models, train
 from minimanc.dagger import privileged as P
-from minimanc.models.backbone import backbone, dense, flatten
+from minimanc.layers import dense, flatten
+from minimanc.models.backbone import backbone
 from minimanc.world.geometry import DT
 
 __all__ = ["PERCEIVE", "Perception", "PerceivingPolicy", "fit_driver", "fit_perception",
@@ -58,7 +59,7 @@ class Perception:
 
         def read(params: dict, readout: dict, bev: Any) -> Any:
             f = backbone(params["backbone"], bev, self.cfg, self._eng)
-            return dense(readout, flatten(f, self._eng.xp), self._eng)
+            return dense(readout, flatten(f, self._eng.xp), self._eng.xp)
 
         self._read = self._eng.jit(read)
 
@@ -120,7 +121,8 @@ def fit_driver(perception: Perception, train_ds: Any, steps: int = 3000, seed: i
     controls as labels."""
     read = read_dataset(perception, train_ds) if read is None else read
     _, Y = P.demonstrations(train_ds)
-    return P.fit(with_last_acceleration(read, perception.names), Y, steps=steps, seed=seed)
+    return P.fit_privileged(with_last_acceleration(read, perception.names), Y, steps=steps,
+                            seed=seed)
 
 
 class PerceivingPolicy:

@@ -30,7 +30,7 @@ the expert.
 
 **Model.** An MLP (tanh hidden layers, :func:`minimanc.layers.dense`) on standardised
 features predicts the acceleration ``a = (v_{t+1} − v_t)/Δt`` and the yaw rate ``ω``;
-the control applied is ``[clip(v + a Δt, 0, V_MAX), ω]``. :func:`fit` trains it by
+the control applied is ``[clip(v + a Δt, 0, V_MAX), ω]``. :func:`fit_privileged` trains it by
 Algorithm 1 (minibatches, mean squared error on both outputs each divided by its
 standard deviation over the demonstrations, Adam) with :mod:`minimanc.autodiff`.
 ``drop`` removes feature groups (the ablation: a group dropped is not an input).
@@ -73,7 +73,7 @@ from minimanc.world.traffic import B_MAX
 __all__ = [
     "AHEAD", "FAR", "FEATURES", "FEATURE_GROUPS", "V_MAX", "ExpertPolicy", "Privileged",
     "PrivilegedPolicy", "Round", "blur", "dagger_rounds", "demonstrations", "evaluate_policy",
-    "features", "fit", "kept", "perceived", "predict",
+    "features", "fit_privileged", "kept", "perceived", "predict",
 ]
 
 FAR: float = 60.0
@@ -213,9 +213,10 @@ def _forward(params: dict, x: Any, xp: Any) -> Any:
     return layers.dense(params[f"l{n - 1}"], h, xp=xp)
 
 
-def fit(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (), hidden: Sequence[int] = (64, 64),
-        steps: int = 3000, batch: int = 256, lr: float = 3e-3, seed: int = 0,
-        init: Privileged | None = None, without: Sequence[str] = ()) -> Privileged:
+def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
+                   hidden: Sequence[int] = (64, 64), steps: int = 3000, batch: int = 256,
+                   lr: float = 3e-3, seed: int = 0, init: Privileged | None = None,
+                   without: Sequence[str] = ()) -> Privileged:
     """Train the MLP by behaviour cloning on ``X (N, F)``, ``Y (N, 2)`` (see the module
     docstring) on the features :func:`kept` leaves (``drop``: groups, ``without``: single
     features); ``init`` continues from a trained learner (its inputs and standardisation
@@ -398,7 +399,7 @@ def dagger_rounds(train: Any, val: Any, rounds: int, per_round: int, agents: str
     teacher = WorldTeacher(train, agents=agents)
     vteacher = WorldTeacher(val, agents=agents)
     X, Y = demonstrations(train, expert=teacher.expert)
-    model = fit(X, Y, drop=drop, steps=steps, seed=seed)
+    model = fit_privileged(X, Y, drop=drop, steps=steps, seed=seed)
     out = [Round(len(X), evaluate_policy(PrivilegedPolicy(model, vteacher), val, agents))]
     order = np.random.default_rng(seed).permutation(len(np.asarray(train.ego)))
     for r in range(rounds):
@@ -408,6 +409,6 @@ def dagger_rounds(train: Any, val: Any, rounds: int, per_round: int, agents: str
                          desc=f"DAgger round {r + 1}")
         Xn, Yn = policy.visited()
         X, Y = np.concatenate([X, Xn]), np.concatenate([Y, Yn])
-        model = fit(X, Y, steps=steps, seed=seed + r + 1, init=model)
+        model = fit_privileged(X, Y, steps=steps, seed=seed + r + 1, init=model)
         out.append(Round(len(X), evaluate_policy(PrivilegedPolicy(model, vteacher), val, agents)))
     return out

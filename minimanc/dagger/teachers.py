@@ -24,6 +24,14 @@ SIMS: tuple[str, ...] = ("world", "highway")
 """The simulators a :class:`Teacher` exists for."""
 
 
+def _highway() -> Any:
+    """:mod:`minimanc.highway`, imported on first use: DAgger on the world runs without the
+    optional highway-env, which that package needs."""
+    from minimanc import highway  # optional dependency: highway-env (pip install '.[highway]')
+
+    return highway
+
+
 # --------------------------------------------------------------------------- teachers
 
 
@@ -128,7 +136,7 @@ class WorldTeacher:
 class HighwayTeacher:
     """highway-env's IDM/MOBIL expert as a :class:`Teacher`.
 
-    ``pool`` demonstrations from :func:`minimanc.highway.collect` /
+    ``pool`` demonstrations from :func:`minimanc.highway.collect_demonstrations` /
     :func:`~minimanc.highway.to_dataset` (their tags name the scenario, env seed and
     the expert's desired speed); a scene is driven again from ``env.reset(seed)`` in a
     :class:`minimanc.highway.HighwaySim` with the demonstration's final pose as goal.
@@ -143,13 +151,13 @@ class HighwayTeacher:
     name = "highway"
 
     def __init__(self, pool: Dataset, val: Sequence[Any] | None = None) -> None:
-        from minimanc import highway  # noqa: F401  (optional highway-env: a clear ImportError)
-
+        _highway()  # a clear ImportError now, not at the first label, without highway-env
         if not isinstance(pool, Dataset):
             raise ValueError(f"pool must be a minimanc.world.Dataset, got {type(pool)!r}")
         tags = pool.meta.get("tags", [])
         if not tags or any(t.get("source") != "highway-env" for t in tags):
-            raise ValueError("pool must be highway-env demonstrations (minimanc.highway.collect)")
+            raise ValueError("pool must be highway-env demonstrations "
+                             "(minimanc.highway.collect_demonstrations)")
         self.pool, self.val = pool, list(val) if val is not None else None
 
     def groups(self, scenes: np.ndarray) -> list[np.ndarray]:
@@ -161,8 +169,7 @@ class HighwayTeacher:
         return out
 
     def simulator(self, scenes: np.ndarray) -> Simulator:
-        from minimanc import highway as hw  # optional: needs highway-env
-
+        hw = _highway()
         tags = [self.pool.tags[int(s)] for s in scenes]
         if len({t["scenario"] for t in tags}) != 1:
             raise ValueError("a highway simulator drives scenes of one scenario; use groups()")
@@ -176,8 +183,7 @@ class HighwayTeacher:
 
     def label(self, sim: Any, t: int, prev: np.ndarray | None
               ) -> tuple[np.ndarray, list[str | None]]:
-        from minimanc import highway as hw  # optional: needs highway-env
-
+        hw = _highway()
         out = np.full((len(sim.runs), 2), np.nan)
         for b, (run, s) in enumerate(zip(sim.runs, np.asarray(sim.scenes))):
             env = copy.deepcopy(run.env)
@@ -192,8 +198,7 @@ class HighwayTeacher:
     def evaluate(self, policy: Any, progress: bool = False) -> dict[str, float]:
         if not self.val:
             return {}
-        from minimanc import highway as hw  # optional: needs highway-env
-
+        hw = _highway()
         res = hw.drive_episodes(policy, self.val[0].scenario, self.val, cfg=self.pool.raster,
                              progress=progress)
         out = res.metrics

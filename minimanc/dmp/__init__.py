@@ -85,7 +85,6 @@ from minimanc.dmp.params import (
     DEFAULT_SUBSTEPS,
     DT,
     METHODS,
-    check_dt,
     check_gains,
 )
 from minimanc.dmp.stability import (
@@ -125,7 +124,6 @@ __all__ = [
     "step",
     "step_matrix",
     "step_stable",
-    "check_dt",
     "check_gains",
     "check_step_stability",
     "zeta_penalty",

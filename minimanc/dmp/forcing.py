@@ -16,8 +16,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from minimanc.checks import check_finite, check_int, check_positive, first_bad
-from minimanc.dmp.params import check_dt
+from minimanc.checks import check_dt, check_finite, check_int, check_positive, first_bad
 
 __all__ = [
     "Forcing",

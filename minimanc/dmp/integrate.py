@@ -20,14 +20,19 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from minimanc.checks import check_finite_if_concrete, check_int, check_leading_axis, is_traced
+from minimanc.checks import (
+    check_dt,
+    check_finite_if_concrete,
+    check_int,
+    check_leading_axis,
+    is_traced,
+)
 from minimanc.dmp.flow import flow, flow_for, force_times
 from minimanc.dmp.forcing import Forcing, canonical_system, check_tau, forcing_of_time
 from minimanc.dmp.params import (
     DEFAULT_METHOD,
     DEFAULT_SUBSTEPS,
     DT,
-    check_dt,
     check_gains,
     check_method,
 )

@@ -4,14 +4,15 @@ The constants every part of :mod:`minimanc.dmp` uses (the control period
 :data:`DT`, the integrator names :data:`METHODS` and the defaults, the boxes
 :data:`ALPHA_RANGE` × :data:`BETA_RANGE` of the learned gains of eq. 10) and
 the argument checks shared by the integrators and the analysis
-(:func:`check_method`, :func:`check_dt`, :func:`check_gains`).
+(:func:`check_method`, :func:`check_gains`; the time step's is
+:func:`minimanc.checks.check_dt`).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from minimanc.checks import check_finite, check_positive, first_bad, is_traced
+from minimanc.checks import check_finite, first_bad, is_traced
 
 __all__ = [
     "ALPHA_RANGE",
@@ -20,7 +21,6 @@ __all__ = [
     "DEFAULT_SUBSTEPS",
     "DT",
     "METHODS",
-    "check_dt",
     "check_gains",
     "check_method",
 ]
@@ -74,29 +74,6 @@ def check_method(method: Any) -> str:
     if not isinstance(method, str) or method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got method={method!r}")
     return method
-
-
-def check_dt(dt: Any) -> None:
-    """A concrete ``dt`` must be a finite scalar > 0 (ValueError naming it); traced passes.
-
-    Parameters
-    ----------
-    dt : float or array, shape ()
-        Step length in seconds; a traced value is not inspected.
-
-    Raises
-    ------
-    ValueError
-        If a concrete ``dt`` is not finite, not > 0 or not a scalar (naming its value).
-    TypeError
-        If ``dt`` is not a real number.
-    """
-    if type(dt) is float and 0.0 < dt < float("inf"):  # the common case, checked at once
-        return
-    if not is_traced(dt):
-        arr = check_positive("dt", dt)
-        if arr.ndim:
-            raise ValueError(f"dt must be a scalar, got dt with shape {arr.shape}")
 
 
 def check_gains(alpha: Any, beta: Any, allow_negative: bool = False) -> bool:

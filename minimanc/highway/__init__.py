@@ -30,7 +30,7 @@ anything:
 * **Expert** (:class:`ExpertVehicle`, :func:`install_expert`): the ego is
   replaced by highway-env's own IDM/MOBIL vehicle following the route (plus
   gap acceptance at roundabout entries) — the "human" of this chapter — and
-  :func:`collect` records collision-free episodes in the chapter-7 dataset
+  :func:`collect_demonstrations` records collision-free episodes in the chapter-7 dataset
   format (``world.Dataset``, maps as explicit recipes, so ``world.save`` /
   ``world.load`` and ``minimanc.train`` work unchanged). The logged controls
   are the speed reached at ``t + 1`` and the mean yaw rate over the step —
@@ -85,7 +85,12 @@ from minimanc.highway.control import (
     controls_to_action,
     install_expert,
 )
-from minimanc.highway.demonstrations import EVAL_SEED, collect, expert_episodes, to_dataset
+from minimanc.highway.demonstrations import (
+    EVAL_SEED,
+    collect_demonstrations,
+    expert_episodes,
+    to_dataset,
+)
 from minimanc.highway.env import (
     DEFAULT_STEPS,
     ENV_IDS,
@@ -160,7 +165,7 @@ __all__ = [
     "PlainPolicy",
     "expert_episodes",
     "to_dataset",
-    "collect",
+    "collect_demonstrations",
     "ClosedLoopResult",
     "drive_episodes",
     "expert_result",

@@ -5,7 +5,7 @@
 with the world's one builder (:meth:`minimanc.world.Dataset.build`, metadata
 from :func:`minimanc.world.fileformat.empty_meta`, maps as explicit recipes),
 so ``world.save`` / ``world.load`` and ``minimanc.train`` work unchanged, and
-:func:`collect` does both for several scenarios.
+:func:`collect_demonstrations` does both for several scenarios.
 """
 
 from __future__ import annotations
@@ -133,7 +133,7 @@ def to_dataset(episodes: Sequence[Episode], cfg: RasterConfig | None = None,
     return Dataset.build(scenes, meta, maps=[ep.map for ep in episodes], what="demonstrations")
 
 
-def collect(
+def collect_demonstrations(
     scenarios: Sequence[str] | str = tuple(SCENARIOS),
     n_episodes: int = 20,
     seed: int = 0,

@@ -23,7 +23,6 @@ __all__ = [
     "check_poses",
     "check_ego_and_human",
     "check_ados",
-    "check_dt",
     "check_maps",
     "ego_boxes",
     "box_gap",
@@ -72,13 +71,6 @@ def check_ados(ado: Any, ado_valid: Any, ego: np.ndarray) -> tuple[np.ndarray, n
     if v.shape != a.shape[:3]:
         raise ValueError(f"ado_valid must have shape {a.shape[:3]}; got shape {v.shape}")
     return a, v
-
-
-def check_dt(dt: float) -> float:
-    """The time step ``dt`` (s) as a float; ``ValueError`` unless positive and finite."""
-    if not np.isfinite(dt) or dt <= 0:
-        raise ValueError(f"dt must be a positive finite number; got dt = {dt!r}")
-    return float(dt)
 
 
 def check_maps(maps: Sequence[Any], n_scenes: int) -> Sequence[Any]:

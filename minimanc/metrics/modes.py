@@ -64,7 +64,7 @@ def scene_modes(ds: Any, i: int) -> np.ndarray:
     """The human's mode at each step of scene ``i`` of a :mod:`minimanc.world` dataset.
 
     Re-runs the scene from its seed with the human driving
-    (:func:`minimanc.rollout.reactive.start_run`) and checks that the run reproduces the
+    (:func:`minimanc.rollout.reactive.start_scene`) and checks that the run reproduces the
     logged ego poses.
 
     Parameters
@@ -86,7 +86,7 @@ def scene_modes(ds: Any, i: int) -> np.ndarray:
         not reproduce its log.
     """
     key = reactive.scene_key(ds, i)
-    run = reactive.start_run(key, ds.maps[i], ds.meta["recipes"][i])
+    run = reactive.start_scene(key, ds.maps[i], ds.meta["recipes"][i])
     modes = np.zeros(key.steps, dtype=np.int64)
     ego = np.zeros((key.steps, 3))
     for t in range(key.steps):

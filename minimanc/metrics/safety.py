@@ -56,10 +56,10 @@ from typing import Any
 
 import numpy as np
 
+from minimanc.checks import check_dt
 from minimanc.metrics.boxes import (
     ado_gaps,
     check_ados,
-    check_dt,
     check_maps,
     check_poses,
     ego_boxes,

@@ -35,7 +35,8 @@ from typing import Any
 
 import numpy as np
 
-from minimanc.metrics.boxes import check_dt, check_ego_and_human, check_maps, check_poses
+from minimanc.checks import check_dt
+from minimanc.metrics.boxes import check_ego_and_human, check_maps, check_poses
 from minimanc.world.geometry import DT, controls_from_poses
 from minimanc.world.maps import project_to_route
 

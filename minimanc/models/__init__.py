@@ -36,7 +36,7 @@ uses only ``eng.xp`` / ``eng.nn`` / ``eng.scan``: the same code runs on both, an
 gradients agree to 1e-6 in float64 (``tests/test_models.py``).
 
 Modules: :mod:`~minimanc.models.config` (:class:`ModelConfig`),
-:mod:`~minimanc.models.registry` (:class:`ModelSpec`, :func:`register`, :func:`get` (a spec by
+:mod:`~minimanc.models.registry` (:class:`ModelSpec`, :func:`register_model`, :func:`get` (a spec by
 name), and the registered
 names: :func:`names`, :func:`vagn_models`, :func:`lstm_models`, :func:`dmp_models`, read
 from the registry on every call),
@@ -77,7 +77,7 @@ from minimanc.models.registry import (
     get,
     lstm_models,
     names,
-    register,
+    register_model,
     registered,
     vagn_models,
 )
@@ -105,7 +105,7 @@ __all__ = [
     "names",
     "param_count",
     "param_counts",
-    "register",
+    "register_model",
     "saliency",
     "registered",
     "sequence",

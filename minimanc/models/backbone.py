@@ -2,7 +2,8 @@
 
 :func:`backbone`: 3×3 convolutions, stride 2, zero padding 1, then the activation
 (SiLU or ReLU), per layer; with the default channels ``(16, 32, 32)`` a 64×64 BEV
-becomes 8×8×32 features (NHWC).
+becomes 8×8×32 features (NHWC); :func:`activate` is the configured activation. The heads'
+dense layers and flattening are :func:`minimanc.layers.dense` and :func:`minimanc.layers.flatten`.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from typing import Any
 
 from minimanc import layers
 
-__all__ = ["activate", "backbone", "dense", "flatten"]
+__all__ = ["activate", "backbone"]
 
 
 def backbone(params: dict, images: Any, cfg: Any, eng: Any) -> Any:
@@ -36,26 +37,8 @@ def backbone(params: dict, images: Any, cfg: Any, eng: Any) -> Any:
     act = eng.nn.silu if cfg.activation == "silu" else eng.nn.relu
     h = images
     for layer in params["convs"]:
-        h = act(layers.conv2d(layer, h, eng.nn, stride=2, padding=1))
+        h = act(layers.conv(layer, h, eng.nn, stride=2, padding=1))
     return h
-
-
-def dense(p: dict, x: Any, eng: Any) -> Any:
-    """A dense layer on ``eng``'s namespace.
-
-    Parameters
-    ----------
-    p : dict
-        ``w`` ``(n_in, n_out)``, ``b`` ``(n_out,)``.
-    x : array, shape (B, n_in)
-    eng : Engine
-
-    Returns
-    -------
-    array, shape (B, n_out)
-        ``x @ w + b``.
-    """
-    return layers.dense(p, x, xp=eng.xp)
 
 
 def activate(x: Any, cfg: Any, eng: Any) -> Any:
@@ -74,19 +57,3 @@ def activate(x: Any, cfg: Any, eng: Any) -> Any:
         Shaped like ``x``.
     """
     return eng.nn.silu(x) if cfg.activation == "silu" else eng.nn.relu(x)
-
-
-def flatten(f: Any, xp: Any) -> Any:
-    """Flatten all but the batch axis.
-
-    Parameters
-    ----------
-    f : array, shape (B, ...)
-    xp : module
-        The engine's array namespace.
-
-    Returns
-    -------
-    array, shape (B, F)
-    """
-    return xp.reshape(f, (f.shape[0], -1))

@@ -18,8 +18,9 @@ import numpy as np
 
 from minimanc import inputs, layers, vagn
 from minimanc.checks import check_int, check_rng
+from minimanc.layers import dense, flatten
 from minimanc.models import registry
-from minimanc.models.backbone import backbone, dense, flatten
+from minimanc.models.backbone import backbone
 from minimanc.models.config import CHANGE_SCALE, CONTROL_SCALE, ModelConfig
 from minimanc.models.registry import ModelSpec, get
 from minimanc.tree import leaves as tree_leaves
@@ -256,7 +257,7 @@ def encode(spec: ModelSpec, params: dict, obs: dict, cfg: ModelConfig, eng: Any)
             pooled = flatten(f, xp)
         else:
             pooled = xp.mean(xp.mean(f, axis=1), axis=1)  # GAP of eq. 7
-        z = dense(params["predicates"], pooled, eng)
+        z = dense(params["predicates"], pooled, eng.xp)
         enc["predicates"] = eng.nn.sigmoid(z) if cfg.predicate_activation == "sigmoid" else z
     num = inputs.numeric_features(obs, spec, cfg.setting, xp=xp)
     enc.update(spec.encode(params, obs, f, num, cfg, eng))

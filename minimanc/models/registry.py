@@ -7,7 +7,7 @@ the :class:`~minimanc.train.TrainConfig` field that sets its training ``window``
 whether it ends in the ``dmp`` head of eqs. 10–11, and the three functions that
 make it: ``init`` (its parameters after the shared backbone), ``encode`` (per
 frame, no recurrence) and ``head`` (one time step). Adding a model is one
-:func:`register` call; :func:`names` (and :func:`vagn_models`, :func:`lstm_models`,
+:func:`register_model` call; :func:`names` (and :func:`vagn_models`, :func:`lstm_models`,
 :func:`dmp_models`), the CLI choices, the window rule of :mod:`minimanc.train` and the
 plot labels follow.
 
@@ -36,7 +36,7 @@ __all__ = [
     "names",
     "observes_goal",
     "observes_structured",
-    "register",
+    "register_model",
     "registered",
     "specs",
     "vagn_models",
@@ -158,7 +158,7 @@ class ModelSpec:
 _SPECS: dict[str, ModelSpec] = {}
 
 
-def register(spec: ModelSpec, replace: bool = False) -> ModelSpec:
+def register_model(spec: ModelSpec, replace: bool = False) -> ModelSpec:
     """Add a model to the registry.
 
     Parameters
@@ -203,7 +203,7 @@ def registered(spec: ModelSpec) -> Iterator[ModelSpec]:
     contextmanager
         Yields ``spec``; removes it on leaving the block.
     """
-    register(spec)
+    register_model(spec)
     try:
         yield spec
     finally:

@@ -27,10 +27,16 @@ from typing import Any
 import numpy as np
 
 from minimanc import layers, vagn
-from minimanc.models.backbone import activate, backbone, dense, flatten
+from minimanc.layers import dense, flatten
+from minimanc.models.backbone import activate, backbone
 from minimanc.models.config import CONTROL_SCALE, DEFAULT_GAINS, ModelConfig, gain_logits
 from minimanc.models.dmp_head import dmp_head
-from minimanc.models.registry import ModelSpec, observes_goal, observes_structured, register
+from minimanc.models.registry import (
+    ModelSpec,
+    observes_goal,
+    observes_structured,
+    register_model,
+)
 
 __all__ = ["BUILTIN", "control_scale", "flat_size", "gains_layer", "predicate_layer"]
 
@@ -104,7 +110,7 @@ def _with_num(parts: list, num: Any, xp: Any) -> Any:
 
 
 def _direct(params: dict, h: Any, eng: Any) -> Any:
-    return dense(params["out"], h, eng) * control_scale(eng)
+    return dense(params["out"], h, eng.xp) * control_scale(eng)
 
 
 def _dmp(logits: Any, enc: dict, cfg: ModelConfig, eng: Any) -> tuple[Any, dict]:
@@ -139,7 +145,7 @@ def _cnn_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig, eng
 
 
 def _cnn_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
-    h = activate(dense(params["fc1"], enc["pre"], eng), cfg, eng)
+    h = activate(dense(params["fc1"], enc["pre"], eng.xp), cfg, eng)
     return _direct(params, h, eng), dict(state), {}
 
 
@@ -156,7 +162,7 @@ def _cnn_lstm_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> di
 def _cnn_lstm_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig,
                      eng: Any) -> dict:
     x = _with_num([flatten(f, eng.xp)], num, eng.xp)
-    return {"pre": activate(dense(params["fc1"], x, eng), cfg, eng)}
+    return {"pre": activate(dense(params["fc1"], x, eng.xp), cfg, eng)}
 
 
 def _lstm_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
@@ -196,7 +202,7 @@ def _dmp_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig, eng
 
 def _manc_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
     q = _vagn_step(params, enc, state, eng)
-    logits = dense(params["gains"], q, eng)  # FC(q) of eq. 11
+    logits = dense(params["gains"], q, eng.xp)  # FC(q) of eq. 11
     controls, aux = _dmp(logits, enc, cfg, eng)
     return controls, {"q": q}, {"q": q, **aux}
 
@@ -220,7 +226,7 @@ def _vagn_only_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfi
 def _vagn_only_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
     q = _vagn_step(params, enc, state, eng)
     x = _with_num([q], enc["num"], eng.xp)
-    h = activate(dense(params["fc1"], x, eng), cfg, eng)
+    h = activate(dense(params["fc1"], x, eng.xp), cfg, eng)
     return _direct(params, h, eng), {"q": q}, {"q": q}
 
 
@@ -234,7 +240,7 @@ def _dmp_only_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> di
 
 
 def _dmp_only_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
-    logits = dense(params["gains"], enc["predicates"], eng)
+    logits = dense(params["gains"], enc["predicates"], eng.xp)
     controls, aux = _dmp(logits, enc, cfg, eng)
     return controls, dict(state), aux
 
@@ -256,5 +262,5 @@ BUILTIN: tuple[ModelSpec, ...] = (
 """The six controllers, registered in this order when :mod:`minimanc.models` is imported."""
 
 for _spec in BUILTIN:
-    register(_spec, replace=True)
+    register_model(_spec, replace=True)
 del _spec

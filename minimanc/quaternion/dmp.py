@@ -11,6 +11,7 @@ import numpy as np
 from minimanc import dmp
 from minimanc.checks import (
     check_broadcast,
+    check_dt,
     check_int,
     check_leading_axis,
     is_traced,
@@ -143,7 +144,7 @@ def quaternion_step(
     """
     method = _check_q_method(method)
     substeps = check_int("substeps", substeps, 1)
-    dmp.check_dt(dt)
+    check_dt(dt)
     q = unit_unchecked(check_unit("q", q), xp)
     g_q = unit_unchecked(check_unit("g_q", g_q), xp)
     eta = check_vector("eta", eta, 3)
@@ -235,7 +236,7 @@ def quaternion_rollout(
     method = _check_q_method(method)
     substeps = check_int("substeps", substeps, 1)
     steps = check_int("steps", steps, 0)
-    dmp.check_dt(dt)
+    check_dt(dt)
     per_step = tuple(per_step)
     unknown = [p for p in per_step if p not in ("g_q", "alpha", "beta")]
     if unknown:

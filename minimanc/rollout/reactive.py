@@ -67,7 +67,7 @@ __all__ = [
     "scene_key",
     "scene_stream",
     "simulate_reactive",
-    "start_run",
+    "start_scene",
 ]
 
 SPAWN_CLEARANCE: float = 16.0
@@ -126,7 +126,7 @@ def scene_key(ds: Any, i: int) -> SceneKey:
                     int(np.asarray(ds.ado).shape[2]), T, float(meta.get("dt", DT)))
 
 
-def start_run(key: SceneKey, m: Map | None = None, recipe: dict | None = None) -> SceneRun:
+def start_scene(key: SceneKey, m: Map | None = None, recipe: dict | None = None) -> SceneRun:
     """The scene ``key`` at ``t = 0``, exactly as the world's generator started it.
 
     ``m`` the scene's map (built from the stream's recipe when ``None``); ``recipe``
@@ -199,7 +199,7 @@ def record_human(ds: Any, i: int) -> HumanRecord:
 
 
 def _record(key: SceneKey, m: Map, recipe: dict) -> HumanRecord:
-    run = start_run(key, m, recipe)
+    run = start_scene(key, m, recipe)
     run.traffic.walk_log = {}
     arrivals: list[list[tuple[Vehicle, list[int]]]] = []
 
@@ -276,7 +276,7 @@ class ReactiveSim:
     def reset(self) -> np.ndarray:
         self.runs, self._queues = [], []
         for b, (rec, m) in enumerate(zip(self._records, self._maps)):
-            run = start_run(rec.key, m)
+            run = start_scene(rec.key, m)
             # cut-in ados that give up do so along the log's walk; others draw their own
             run.traffic.scripted_walks = rec.walks
             run.traffic.rng = np.random.default_rng(

@@ -83,7 +83,7 @@ def write_explanations(study: Study, figdir: Path) -> list[Path]:
         study.log(f"figures: no explanations, the closed loop of {run.key} failed")
         return []
     traj = study.rollout(run)
-    fit = train.load(study.checkpoint(run))
+    fit = train.load_fit(study.checkpoint(run))
     human = rollout.human(val)
     scenes = pick_scenes(val, traj, c.explain_scenes)
     paths = [save_figure(plot_trajectories({"MANC": traj}, human, val, scenes),

@@ -146,7 +146,7 @@ def evaluate_job(job: dict) -> dict:
     if job["engine"] == "jax" and job.get("jax_cache"):
         enable_jax_cache(job["jax_cache"])
     ds = _load_split(job["data"], job["lo"], job["hi"])
-    fit = train.load(job["checkpoint"])
+    fit = train.load_fit(job["checkpoint"])
     try:
         traj = rollout.closed_loop(fit.name, fit.params, ds, fit.cfg, engine(job["engine"]),
                                    progress=False, agents=job.get("agents", "replay"))

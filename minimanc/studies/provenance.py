@@ -181,7 +181,7 @@ def write_json(path: str | Path, obj: Any) -> Path:
     return write_text(path, json.dumps(obj, indent=1, sort_keys=True))
 
 
-def read_json(path: Path) -> Any:
+def read_json_or_none(path: Path) -> Any:
     """The JSON in ``path``, or ``None`` if it is missing or unreadable (a broken cache entry)."""
     try:
         return json.loads(path.read_text())

@@ -15,7 +15,7 @@ from tqdm import tqdm
 from minimanc import engine, metrics, models, rollout, train
 from minimanc.metrics import modes
 from minimanc.studies.config import Run, canonical_setting, plan
-from minimanc.studies.provenance import read_json, write_json
+from minimanc.studies.provenance import read_json_or_none, write_json
 from minimanc.studies.recorded import MODES_OMITTED
 from minimanc.studies.report import findings
 from minimanc.studies.runs import THREAD_ENV, Runs, families_of
@@ -105,12 +105,12 @@ class Study(Runs):
             per_seed = []
             for run in self.runs(m, setting):
                 path = self.cache / "modes" / f"{run.key}-val.json"
-                cached = read_json(path) if path.exists() else None
+                cached = read_json_or_none(path) if path.exists() else None
                 if not isinstance(cached, dict) or "mi_bits" not in cached:
                     ck = self.fit(run)
                     if self._diverged(run):
                         continue
-                    fit = train.load(ck)
+                    fit = train.load_fit(ck)
                     q = rollout.open_loop(fit.name, fit.params, val, fit.cfg,
                                           engine(self.engine))["q"]
                     cached = modes.mode_information(q, labels)

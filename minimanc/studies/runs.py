@@ -39,7 +39,7 @@ from minimanc.studies.jobs import (
     failed,
     score,
 )
-from minimanc.studies.provenance import read_json
+from minimanc.studies.provenance import read_json_or_none
 from minimanc.studies.recorded import REACTIVE_REFUSAL, is_recorded
 
 __all__ = ["THREAD_ENV", "Runs", "families_of"]
@@ -300,7 +300,7 @@ class Runs:
         if key in self._futures:
             return self._futures[key]
         roll_path, met_path = self._paths(run, split, agents)
-        cached = read_json(met_path) if met_path.exists() and roll_path.exists() else None
+        cached = read_json_or_none(met_path) if met_path.exists() and roll_path.exists() else None
         if met_path.exists() and roll_path.exists() and not isinstance(cached, dict):
             self.discard(met_path, "not a JSON object")
         if isinstance(cached, dict) and not (

@@ -70,7 +70,7 @@ from minimanc.train.batches import (
     subset_scenes,
     window_len,
 )
-from minimanc.train.checkpoint import bad_params, load, load_checkpoint, save_checkpoint
+from minimanc.train.checkpoint import bad_params, load_checkpoint, load_fit, save_checkpoint
 from minimanc.train.config import (
     CHECKPOINT_NAME,
     DTYPES,
@@ -80,7 +80,14 @@ from minimanc.train.config import (
     TrainConfig,
     TrainingDiverged,
 )
-from minimanc.train.fit import SweepResult, cast_floats, evaluate, fit, perception_moments, sweep_lr
+from minimanc.train.fit import (
+    SweepResult,
+    cast_floats,
+    fit,
+    open_loop_loss,
+    perception_moments,
+    sweep_lr,
+)
 from minimanc.train.many import fit_many, fit_seeds
 from minimanc.train.step import loss_fn, make_step
 
@@ -98,13 +105,13 @@ __all__ = [
     "cast_floats",
     "control_std",
     "dataset_shape",
-    "evaluate",
+    "open_loop_loss",
     "fit",
     "perception_moments",
     "fit_many",
     "fit_seeds",
     "initial_q",
-    "load",
+    "load_fit",
     "load_checkpoint",
     "loss_fn",
     "make_batch",

@@ -1,6 +1,6 @@
 """Chapter 8 — checkpoints: parameters, optimiser state and the run's configuration written
 atomically to one ``.npz`` (:func:`save_checkpoint`), read back (:func:`load_checkpoint`,
-:func:`load`), and the check that refuses unusable parameters (:func:`bad_params`)."""
+:func:`load_fit`), and the check that refuses unusable parameters (:func:`bad_params`)."""
 
 from __future__ import annotations
 
@@ -18,12 +18,11 @@ import numpy as np
 
 from minimanc import models
 from minimanc.train.config import PARAM_LIMIT, CheckpointError, FitResult, TrainConfig
-from minimanc.tree import flatten as flatten_tree
+from minimanc.tree import from_flat_dict, to_flat_dict
 from minimanc.tree import map as tree_map
-from minimanc.tree import unflatten as unflatten_tree
 
-__all__ = ["bad_params", "flatten_tree", "load", "load_checkpoint", "restore_opt",
-           "save_checkpoint", "to_numpy", "unflatten_tree"]
+__all__ = ["bad_params", "load_checkpoint", "load_fit", "restore_opt", "save_checkpoint",
+           "to_numpy"]
 
 
 def to_numpy(tree: Any) -> Any:
@@ -35,7 +34,7 @@ def bad_params(params: Any, limit: float = PARAM_LIMIT) -> str | None:
     """Why ``params`` cannot be kept — a non-finite entry or one above ``limit`` in
     magnitude, naming the array — or ``None`` when they are fine."""
     worst, where = 0.0, ""
-    for key, a in flatten_tree(to_numpy(params)).items():
+    for key, a in to_flat_dict(to_numpy(params)).items():
         a = np.asarray(a)
         if not np.issubdtype(a.dtype, np.floating) or a.size == 0:
             continue
@@ -92,9 +91,9 @@ def save_checkpoint(path: str | Path, name: str, params: dict, cfg: models.Model
     bad = bad_params(params)
     if bad is not None:
         raise ValueError(f"params cannot be saved to {path}: {bad}")
-    arrays = {f"params/{k}": v for k, v in flatten_tree(to_numpy(params)).items()}
+    arrays = {f"params/{k}": v for k, v in to_flat_dict(to_numpy(params)).items()}
     if opt_state is not None:
-        arrays.update({f"opt/{k}": v for k, v in flatten_tree(to_numpy(opt_state)).items()})
+        arrays.update({f"opt/{k}": v for k, v in to_flat_dict(to_numpy(opt_state)).items()})
     std = np.ones(2) if std is None else np.asarray(std, dtype=np.float64)
     arrays["meta"] = _meta(name, cfg, train_cfg or TrainConfig(), int(epoch), list(history),
                            list(val_history), int(steps), std)
@@ -121,8 +120,8 @@ def load_checkpoint(path: str | Path) -> dict:
         cfg_d["channels"] = tuple(cfg_d["channels"])
         out = {
             "name": meta["name"],
-            "params": unflatten_tree(p),
-            "opt_state": unflatten_tree(o) if o else None,
+            "params": from_flat_dict(p),
+            "opt_state": from_flat_dict(o) if o else None,
             "cfg": models.ModelConfig(**cfg_d),
             "train_cfg": TrainConfig(**meta["train_cfg"]),
             "epoch": meta["epoch"],
@@ -141,7 +140,7 @@ def load_checkpoint(path: str | Path) -> dict:
     return out
 
 
-def load(path: str | Path) -> FitResult:
+def load_fit(path: str | Path) -> FitResult:
     """A :class:`FitResult` from a file written by :func:`save_checkpoint` or by :func:`fit`."""
     ck = load_checkpoint(path)
     return FitResult(name=ck["name"], params=ck["params"], history=ck["history"],

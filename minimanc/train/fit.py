@@ -1,5 +1,5 @@
 """Chapter 8 — behaviour cloning: :func:`fit` (epochs of Algorithm 1 with checkpoints, resume
-and divergence checks), the open-loop loss :func:`evaluate` and the learning-rate sweep
+and divergence checks), the open-loop loss :func:`open_loop_loss` and the learning-rate sweep
 :func:`sweep_lr`."""
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from minimanc.world.datawriter import remove_temp_files
 from minimanc.world.fileformat import describe_non_finite, first_non_finite
 
 __all__ = ["RunState", "SweepResult", "cast_floats", "check_fit_args", "diverged_loss", "end_epoch",
-           "as_engine", "epoch_plan", "evaluate", "fit", "perception_moments", "result_of",
+           "as_engine", "epoch_plan", "fit", "open_loop_loss", "perception_moments", "result_of",
            "start_run", "step_batch", "sweep_lr"]
 
 
@@ -219,9 +219,9 @@ def end_epoch(st: RunState, epoch: int, mean_loss: float, eng: Any, val_ds: Any 
         )
     st.history.append(mean_loss)
     if val_ds is not None:
-        st.val_history.append(evaluate(st.name, to_numpy(st.params), val_ds, st.cfg, eng,
-                                       std=st.std, q_init=st.tc.q_init,
-                                       dtype=DTYPES[st.tc.dtype]))
+        st.val_history.append(open_loop_loss(st.name, to_numpy(st.params), val_ds, st.cfg, eng,
+                                             std=st.std, q_init=st.tc.q_init,
+                                             dtype=DTYPES[st.tc.dtype]))
     if st.ck_path is not None:
         save_checkpoint(st.ck_path, st.name, st.params, st.cfg, st.tc, st.opt_state, epoch + 1,
              st.history, st.val_history, st.steps, st.std)
@@ -330,10 +330,10 @@ def fit(
     return result_of(st, time.perf_counter() - t_start)
 
 
-def evaluate(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = None,
-             engine: Any = "jax", std: Any = None, q_init: str = "uniform",
-             batch_size: int = 256, dtype: Any = np.float32, scenes: Any = None,
-             motion_feedback: bool = True) -> float:
+def open_loop_loss(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = None,
+                   engine: Any = "jax", std: Any = None, q_init: str = "uniform",
+                   batch_size: int = 256, dtype: Any = np.float32, scenes: Any = None,
+                   motion_feedback: bool = True) -> float:
     """Open-loop loss of Algorithm 1 on a dataset (every sample once, no gradient).
 
     Feed-forward models and vAGN-only see each step with ``q'`` as in
@@ -407,7 +407,7 @@ def sweep_lr(
     """Train ``name`` once per learning rate and pick the best, so every model is tuned alike.
 
     ``score(result)`` rates a run (lower is better); by default the open-loop
-    validation loss of :func:`evaluate` on ``val_ds``. Pass a closed-loop
+    validation loss of :func:`open_loop_loss` on ``val_ds``. Pass a closed-loop
     score (e.g. ADE from :mod:`minimanc.rollout`) for a choice that reflects
     driving. A diverged run scores ``inf``.
     """
@@ -426,8 +426,8 @@ def sweep_lr(
             continue
         results[lr] = res
         if score is None:
-            scores[lr] = evaluate(name, res.params, val_ds, cfg, engine, std=res.control_std,
-                                  q_init=tc.q_init, dtype=DTYPES[tc.dtype])
+            scores[lr] = open_loop_loss(name, res.params, val_ds, cfg, engine, std=res.control_std,
+                                        q_init=tc.q_init, dtype=DTYPES[tc.dtype])
         else:
             scores[lr] = float(score(res))
     best = min(scores, key=lambda k: scores[k])

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import dmp, models, optim
-from minimanc.models.backbone import dense
+from minimanc.layers import dense
 from minimanc.train.config import DTYPES, TrainConfig
 from minimanc.tree import leaves as tree_leaves
 from minimanc.tree import map as tree_map
@@ -57,7 +57,7 @@ def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: 
         extra = zeta_weight * dmp.zeta_penalty(aux["alpha"], aux["beta"], xp=xp)
     if perceive:
         f = aux["predicates"] if "predicates" in aux else aux["features"]
-        read = dense(params["perception"], xp.reshape(f, (L * b, -1)), eng)
+        read = dense(params["perception"], xp.reshape(f, (L * b, -1)), eng.xp)
         miss = read - xp.reshape(batch["perception"], (L * b, -1))
         extra = extra + perception_weight * xp.mean(miss * miss)
     err = (pred - batch["controls"]) * inv_std

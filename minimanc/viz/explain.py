@@ -27,7 +27,7 @@ from minimanc.viz.world import plot_map
 from minimanc.world.geometry import EGO_LENGTH, EGO_WIDTH, box_corners, to_ego_frame
 
 __all__ = [
-    "check_scene",
+    "check_scene_index",
     "plot_trajectories",
     "plot_speeds",
     "plot_q_modes",
@@ -39,7 +39,7 @@ __all__ = [
 ]
 
 
-def check_scene(traj: Any, scene: int) -> int:
+def check_scene_index(traj: Any, scene: int) -> int:
     """``scene`` as an int row of ``traj`` (a rollout or the human's); ``ValueError`` if it
     does not index one."""
     s = int(scene)
@@ -70,7 +70,7 @@ def plot_trajectories(
     (rows = dataset scenes); ``human`` is :func:`minimanc.rollout.human`.
     """
     plt = pyplot()
-    scenes = [check_scene(human, s) for s in scenes]
+    scenes = [check_scene_index(human, s) for s in scenes]
     if not scenes:
         raise ValueError("scenes must name at least one scene; got an empty sequence")
     fig, axes = plt.subplots(1, len(scenes), figsize=(4.0 * len(scenes), 4.0), squeeze=False)
@@ -105,7 +105,7 @@ def plot_speeds(rollouts: Mapping[str, Any], human: Any, scenes: Sequence[int],
     :func:`minimanc.rollout.human` on the same scenes.
     """
     plt = pyplot()
-    scenes = [check_scene(human, s) for s in scenes]
+    scenes = [check_scene_index(human, s) for s in scenes]
     if not scenes or not rollouts:
         raise ValueError("plot_speeds needs at least one rollout and one scene; got "
                          f"{len(rollouts)} rollouts and scenes={list(scenes)!r}")
@@ -184,7 +184,7 @@ def plot_explain_trace(traj: Any, human: Any, ds: Any, scene: int,
     the model has no data for (a direct head has no α, β or q) are left out.
     """
     plt = pyplot()
-    s = check_scene(traj, scene)
+    s = check_scene_index(traj, scene)
     aux = traj.aux
     T1 = traj.controls.shape[1]
     rows = []
@@ -243,7 +243,7 @@ def saliency_maps(params: dict, cfg: Any, traj: Any, ds: Any, scene: int,
     Returns one dict per step: ``bev`` (H, W, 3) in [0, 1], ``q`` (N,),
     ``saliency`` (N, H, W), ``step``.
     """
-    s = check_scene(traj, scene)
+    s = check_scene_index(traj, scene)
     if "q" not in traj.aux:
         raise ValueError("saliency needs a vAGN model's rollout (aux 'q'); "
                          f"got aux keys {sorted(traj.aux)}")
@@ -300,7 +300,7 @@ def gif_frames(traj: Any, human: Any, ds: Any, scene: int, size: int = 192) -> l
     """The frames of :func:`save_rollout_gif` as Pillow images (one per pose of the rollout)."""
     from PIL import Image, ImageDraw  # optional until a GIF is drawn
 
-    s = check_scene(traj, scene)
+    s = check_scene_index(traj, scene)
     T = traj.ego.shape[1]
     chase = world.RasterConfig(size=size, metres_ahead=50.0, metres_behind=30.0,
                                metres_side=40.0)

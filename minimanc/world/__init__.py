@@ -64,7 +64,7 @@ from minimanc.world.fileformat import (
     FILE_FORMAT_VERSION,
     FORMAT_VERSION,
     DatasetFileError,
-    check_finite,
+    check_arrays_finite,
 )
 from minimanc.world.generation import (
     Estimate,
@@ -106,7 +106,8 @@ __all__ = [
     "DT", "Dataset", "DatasetFileError", "DatasetWriter", "EGO_LENGTH", "EGO_WIDTH", "Estimate",
     "FILE_FORMAT_VERSION", "FORMAT_VERSION", "HumanStyle", "K_TARGETS", "Lane", "MAX_ADOS", "Map",
     "RasterConfig", "TARGET_SPACING", "T_STEPS", "box_corners", "box_mask", "boxes_overlap",
-    "build_map", "check_finite", "check_scene", "controls_from_poses", "draw_scene", "estimate",
+    "build_map", "check_arrays_finite", "check_scene", "controls_from_poses", "draw_scene",
+    "estimate",
     "file_content_hash", "from_ego_frame", "generate", "generate_file", "generate_scene",
     "generate_splits", "goal_in_ego_frame", "hue_colours", "idm_acceleration", "lane_targets",
     "load", "project_to_route", "random_map", "random_recipe", "random_style", "rasterize",

@@ -28,7 +28,7 @@ from minimanc.world.fileformat import (
     HEADER_MEMBER,
     SHARD_BYTES,
     array_sha256,
-    check_finite,
+    check_arrays_finite,
     check_meta,
     header_sha256,
     member_name,
@@ -105,7 +105,7 @@ class DatasetWriter:
         if len(s) != 1 or s == {-1} or s == {0}:
             raise ValueError("every array of a shard must hold the same number (>= 1) of "
                              f"scenes, got { {f: a.shape for f, a in arrays.items()} }")
-        check_finite(arrays, "dataset", scene_offset=self._n)
+        check_arrays_finite(arrays, "dataset", scene_offset=self._n)
         if self._shards:
             first = self._shards[0]["arrays"]
             for f, a in arrays.items():
@@ -175,7 +175,7 @@ def save(ds: Dataset, path: str | os.PathLike, shard_scenes: int | None = None) 
         raise ValueError(f"ds must be a Dataset, got {type(ds).__name__}")
     path = Path(path)
     _check_target(path)
-    check_finite(ds)
+    check_arrays_finite(ds)
     check_meta(ds.meta, len(ds), str(path), ValueError)
     if shard_scenes is None:
         shard_scenes = max(1, SHARD_BYTES // max(1, sum(

@@ -3,7 +3,7 @@
 A dataset holds the arrays :data:`ARRAY_FIELDS` (one row per scene) and a
 ``meta`` dict with the keys :data:`META_KEYS`; :func:`empty_meta` and
 :func:`append_scenes` build it, :func:`check_meta` verifies it, and
-:func:`check_finite` refuses a non-finite number naming its array, scene and
+:func:`check_arrays_finite` refuses a non-finite number naming its array, scene and
 step. The file (:data:`FILE_FORMAT_VERSION` 2, a zip archive that
 ``numpy.load`` also opens) stores each shard ``k`` of each array as the member
 :func:`member_name` ``"<array>-<k:05d>.npy"`` and a JSON header ``header.npy``
@@ -29,7 +29,7 @@ from minimanc.world.raster import RasterConfig
 __all__ = [
     "ARRAY_FIELDS", "FILE_FORMAT_VERSION", "FLOAT_FIELDS", "FORMAT_NAME", "FORMAT_VERSION",
     "HEADER_MEMBER", "META_KEYS", "PER_SCENE_KEYS", "SHARD_BYTES", "DatasetFileError",
-    "append_scenes", "array_sha256", "check_finite", "check_meta", "content_digest",
+    "append_scenes", "array_sha256", "check_arrays_finite", "check_meta", "content_digest",
     "describe_non_finite", "empty_meta", "first_non_finite", "header_sha256", "member_name",
 ]
 
@@ -94,7 +94,7 @@ def describe_non_finite(found: tuple[str, tuple[int, ...], float], scene_offset:
     return f"{name}[{', '.join(where)}] = {value}"
 
 
-def check_finite(arrays: Any, what: str = "dataset", scene_offset: int = 0) -> None:
+def check_arrays_finite(arrays: Any, what: str = "dataset", scene_offset: int = 0) -> None:
     """Raise ``ValueError`` naming the array, scene and step of the first non-finite number.
 
     ``scene_offset`` is added to the scene shown (the first scene of a shard).

@@ -19,7 +19,7 @@ from minimanc.checks import check_int
 from minimanc.world.fileformat import (
     ARRAY_FIELDS,
     PER_SCENE_KEYS,
-    check_finite,
+    check_arrays_finite,
     check_meta,
     content_digest,
 )
@@ -96,7 +96,7 @@ class Dataset:
             raise ValueError(f"every scene must hold the arrays {ARRAY_FIELDS}; "
                              f"missing {missing} ({what})")
         arrays = {f: np.stack([np.asarray(sc[f]) for sc in scenes]) for f in ARRAY_FIELDS}
-        check_finite(arrays, what)
+        check_arrays_finite(arrays, what)
         check_meta(meta, len(scenes), what)
         built = {i: m for i, m in enumerate(maps or ()) if m is not None}
         return cls(**arrays, maps=LazyMaps(meta["recipes"], built), meta=meta)
