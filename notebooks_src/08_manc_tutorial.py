@@ -249,15 +249,15 @@ tc = train.TrainConfig(epochs=8, batch_size=32, lr=3e-3, seed=0)
 fit = train.fit("manc", train_ds, cfg, tc, engine="jax", progress=False)
 print("window loss per epoch:", [round(h, 3) for h in fit.history], f"({fit.steps} Adam steps)")
 assert fit.steps == 72 and len(fit.history) == 8 and np.all(np.isfinite(fit.history))
-before = train.evaluate("manc", params, val_ds, cfg, engine="numpy", std=fit.control_std)
-after = train.evaluate("manc", fit.params, val_ds, cfg, engine="numpy", std=fit.control_std)
+before = train.open_loop_loss("manc", params, val_ds, cfg, engine="numpy", std=fit.control_std)
+after = train.open_loop_loss("manc", fit.params, val_ds, cfg, engine="numpy", std=fit.control_std)
 print(f"validation loss (whole scenes, own speed fed back): {before:.3f} untrained "
       f"-> {after:.3f} trained")
 assert after < before
 
 # %% [markdown]
 # The training loss (whole scenes, the DMP feeding on its own speed) is
-# noisy with nine scenes; `train.evaluate` measures the same loss on the
+# noisy with nine scenes; `train.open_loop_loss` measures the same loss on the
 # three held-out scenes, and it improves. Nine
 # scenes are far too few for a good model; chapter 9 trains on the full data
 # and drives in closed loop. (Open-loop losses like these rank

@@ -77,7 +77,7 @@ print("validation map kinds:", [m.kind for m in val_ds.maps])
 # `train.fit` runs Algorithm 1: minibatches of logged samples, `q'` uniform for
 # the vAGN state, MSE on the controls (each control divided by its standard
 # deviation), Adam. MANC trains on whole scenes with its own speed fed back
-# to the DMP (chapter 8), and `train.evaluate` measures that same loss. A
+# to the DMP (chapter 8), and `train.open_loop_loss` measures that same loss. A
 # `Run` names one trained model (model, information setting, number of
 # q-states, data fraction, seed, learning rate); we train into the study's
 # checkpoint folder so the study of section 7 reuses it.
@@ -97,7 +97,7 @@ fit = train.fit("manc", train_ds, manc_cfg, study.train_config(manc_run), engine
 print("epoch losses:", [round(x, 3) for x in fit.history])
 print(f"{fit.steps} Adam steps, {models.param_count(fit.params):,} parameters")
 untrained = models.init("manc", np.random.default_rng(0), manc_cfg)  # fit's seed-0 start
-loss = {name: [train.evaluate("manc", p, d, manc_cfg, std=fit.control_std)
+loss = {name: [train.open_loop_loss("manc", p, d, manc_cfg, std=fit.control_std)
                for p in (untrained, fit.params)]
         for name, d in (("training", train_ds), ("validation", val_ds))}
 for name, (before, after) in loss.items():

@@ -15,7 +15,7 @@
 # | map adapter | `hw.road_map` | highway-env's lanes → a chapter-7 `Map`, once per episode |
 # | BEV | `hw.BEVObservation` | gymnasium wrapper: the chapter-7 raster of the live scene |
 # | actions | `hw.controls_to_action` | `[speed, yaw rate]` → `[acceleration, steering]` |
-# | expert | `hw.collect` | IDM/MOBIL demonstrations in the chapter-7 dataset format |
+# | expert | `hw.collect_demonstrations` | IDM/MOBIL demonstrations, chapter-7 dataset format |
 # | closed loop | `hw.drive_episodes` | a chapter-9 policy drives; collision, off-road, ADE, speed |
 # | video | `hw.render_episode` | headless frames → PNG and GIF |
 #
@@ -151,7 +151,7 @@ assert np.allclose(yaw_rate, commands[:, 1], atol=1e-6)
 
 # %%
 episodes, tries = hw.expert_episodes("roundabout", 6, seed=0, steps=24, cfg=cfg)
-ds = hw.to_dataset(episodes, cfg)                     # what hw.collect does
+ds = hw.to_dataset(episodes, cfg)                     # what hw.collect_demonstrations does
 print(ds)
 print(f"{tries} seeds tried for 6 collision-free episodes; exits",
       [t["destination"] for t in ds.tags])

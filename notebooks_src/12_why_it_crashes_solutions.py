@@ -326,7 +326,8 @@ for s in range(len(train)):
 # * `ablation_table(X, Y, Xv, Yv, groups, steps)` returns a dict: the row `"all inputs"`,
 #   then one row `"without <group>"` per group of `groups`, in that order; each row is the
 #   tuple `(rmse_acceleration, rmse_yaw_rate)` (floats) of the learner
-#   `P.fit(X, Y, drop=..., hidden=(16, 16), steps=steps, seed=0)` predicting `Yv` from `Xv`
+#   `P.fit_privileged(X, Y, drop=..., hidden=(16, 16), steps=steps, seed=0)`
+#   predicting `Yv` from `Xv`
 #   (`P.predict`). The RMSE of one output is $\sqrt{\text{mean}((\hat y - y)^2)}$ over the
 #   states.
 # * `missing_input(table, column)`: `column` 0 (acceleration) or 1 (yaw rate); return the
@@ -352,7 +353,7 @@ def ablation_table(X, Y, Xv, Yv, groups, steps):
     ### BEGIN SOLUTION
     table = {}
     for group in [None, *groups]:
-        model = P.fit(X, Y, drop=[] if group is None else [group], hidden=(16, 16),
+        model = P.fit_privileged(X, Y, drop=[] if group is None else [group], hidden=(16, 16),
                       steps=steps, seed=0)
         rmse = np.sqrt(((P.predict(model, Xv) - Yv) ** 2).mean(axis=0))
         table["all inputs" if group is None else f"without {group}"] = (float(rmse[0]),
@@ -386,7 +387,7 @@ got = ablation_table(X[100:500], Y[100:500], Xv[:80], Yv[:80], ["lane", "history
 assert list(got) == ["all inputs", "without lane", "without history"], list(got)
 for name, drop in (("all inputs", []), ("without lane", ["lane"]),
                    ("without history", ["history"])):
-    ref = P.fit(X[100:500], Y[100:500], drop=drop, hidden=(16, 16), steps=40, seed=0)
+    ref = P.fit_privileged(X[100:500], Y[100:500], drop=drop, hidden=(16, 16), steps=40, seed=0)
     want = np.sqrt(((P.predict(ref, Xv[:80]) - Yv[:80]) ** 2).mean(axis=0))
     row = got[name]
     assert isinstance(row, tuple) and len(row) == 2 and all(type(v) is float for v in row), (
@@ -528,13 +529,13 @@ for kwargs, name in (({"decay": 1.0}, "decay"), ({"decay": 0.0}, "decay"),
 # The raster of one frame can show only some of the expert's 13 numbers. Before asking an
 # image model for all of them, find out how few the learner needs. Choose the features to
 # remove: `small_inputs()` returns a tuple of feature names (of `P.FEATURES`) passed as
-# `P.fit(X, Y, without=..., hidden=(16, 16), steps=600, seed=0)`, such that
+# `P.fit_privileged(X, Y, without=..., hidden=(16, 16), steps=600, seed=0)`, such that
 #
 # * at least 5 of the 13 features are removed;
 # * the learner's open-loop RMSE on the validation states is within 15 % of the learner with
 #   every input, for both outputs (acceleration and yaw rate).
 #
-# Use your `ablation_table` (groups) and `P.fit(..., without=[...])` (single features) to
+# Use your `ablation_table` (groups) and `P.fit_privileged(..., without=[...])` (single features) to
 # choose (2 points; the grade cell fits both learners itself). Then answer the written
 # question below it.
 
@@ -542,7 +543,7 @@ for kwargs, name in (({"decay": 1.0}, "decay"), ({"decay": 0.0}, "decay"),
 def small_inputs():
     ### BEGIN SOLUTION
     # flags and distances the others imply, the farthest path points, the copycat input:
-    # the table of 12.3 shows which groups cost little; single features checked by P.fit
+    # the table of 12.3 shows which groups cost little; single features checked by P.fit_privileged
     return ("has_leader", "has_stop", "ahead_5", "ahead_20", "dv")
     ### END SOLUTION
 
@@ -554,7 +555,7 @@ assert len(set(chosen)) >= 5, f"expected at least 5 features removed, got {len(s
 
 
 def rmse5(without):  # the grade cell's own fit and score
-    m = P.fit(X, Y, without=list(without), hidden=(16, 16), steps=600, seed=0)
+    m = P.fit_privileged(X, Y, without=list(without), hidden=(16, 16), steps=600, seed=0)
     return np.sqrt(((P.predict(m, Xv) - Yv) ** 2).mean(axis=0))
 
 
@@ -623,7 +624,8 @@ past = world.history.history_of(val.ego[s_fig], val.ado[s_fig], val.ado_valid[s_
 groups = list(P.FEATURE_GROUPS)
 reference = {}
 for g in [None, *groups]:
-    m_fig = P.fit(X, Y, drop=[] if g is None else [g], hidden=(16, 16), steps=300, seed=0)
+    m_fig = P.fit_privileged(X, Y, drop=[] if g is None else [g], hidden=(16, 16), steps=300,
+                             seed=0)
     r_fig = np.sqrt(((P.predict(m_fig, Xv) - Yv) ** 2).mean(axis=0))
     reference["all inputs" if g is None else f"without {g}"] = tuple(float(v) for v in r_fig)
 plot_investigation_attempts(

@@ -16,8 +16,8 @@
 # | question | the library's answer |
 # |---|---|
 # | the best any learner can do? | `bounds.expert_rollout`, `bounds.floor_rollout` |
-# | the learning or the information? | `P.fit`, `P.PrivilegedPolicy` (what the expert sees) |
-# | which information? | `P.fit(..., drop=[group])`: the ablation |
+# | learning or information? | `P.fit_privileged`, `P.PrivilegedPolicy` (what the expert sees) |
+# | which information? | `P.fit_privileged(..., drop=[group])`: the ablation |
 # | how does it crash? | `metrics.safety.collision_events`: the taxonomy |
 # | can the image carry it? | `world.RasterConfig(history=H)`, `world.history` |
 #
@@ -142,7 +142,7 @@ assert X[k, P.FEATURES.index("gap")] < P.FAR and np.all(np.isfinite(X))
 
 # %% [markdown]
 # An MLP (two tanh layers of 32) on the standardised features predicts both controls; it
-# is trained by Algorithm 1 (`P.fit`: minibatches, mean squared error of each output
+# is trained by Algorithm 1 (`P.fit_privileged`: minibatches, mean squared error of each output
 # divided by its spread, Adam, cosine decay) and drives closed loop through
 # `P.PrivilegedPolicy`, which asks the expert for its perception in every state it
 # reaches and applies $[\mathrm{clip}(v + a\,\Delta t, 0, V_{max}), \omega]$. A course-sized
@@ -158,7 +158,7 @@ def drive(model):
     return rollout.simulate(policy, val, agents="reactive", progress=False)
 
 
-full = P.fit(X, Y, hidden=HIDDEN, steps=STEPS, seed=0)
+full = P.fit_privileged(X, Y, hidden=HIDDEN, steps=STEPS, seed=0)
 full_traj = drive(full)
 full_m = metrics.evaluate(full_traj, val)
 rmse = np.sqrt(((P.predict(full, Xv) - Yv) ** 2).mean(0))
@@ -180,7 +180,7 @@ assert np.isfinite(full_m["ade"]) and full_m["ade"] < 8 * floor_ade.mean()
 
 # %% [markdown]
 # ## 4. Which information? The ablation
-# `P.fit(..., drop=[group])` trains the same learner without one group of inputs. Each
+# `P.fit_privileged(..., drop=[group])` trains the same learner without one group of inputs. Each
 # ablated learner drives the same scenes; the one whose removal costs most is the
 # information that matters. Two groups here (each fit and drive takes a few seconds);
 # the exercises build the whole table.
@@ -188,7 +188,8 @@ assert np.isfinite(full_m["ade"]) and full_m["ade"] < 8 * floor_ade.mean()
 # %% tags=["nbval-ignore-output"]
 trajs = {"all inputs": full_traj}
 for group in ("leader", "lane"):
-    trajs[f"without {group}"] = drive(P.fit(X, Y, drop=[group], hidden=HIDDEN, steps=STEPS))
+    trajs[f"without {group}"] = drive(P.fit_privileged(X, Y, drop=[group], hidden=HIDDEN,
+                                                       steps=STEPS))
 table = {name: metrics.evaluate(traj, val) for name, traj in trajs.items()}
 print("| inputs | ADE m | at fault % | off road % |\n|---|---|---|---|")
 for name, m in table.items():

@@ -11,8 +11,8 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from minimanc.viz.investigation import (  # noqa: E402
-    plot_ablation,
     plot_history_boxes,
+    plot_input_ablation,
     plot_investigation_attempts,
 )
 from minimanc.world.history import fade, history_of  # noqa: E402
@@ -78,15 +78,15 @@ def test_history_boxes_refuse_a_wrong_brightness_or_frame_count():
 
 def test_ablation_bars_are_ratios_to_all_inputs():
     table = {"all inputs": (0.2, 0.04), "without lane": (0.3, 0.12)}
-    ax = plot_ablation(table)
+    ax = plot_input_ablation(table)
     heights = [round(p.get_height(), 9) for p in ax.patches]
     assert heights == [1.0, 1.5, 1.0, 3.0]  # acceleration bars first, then yaw rate
     with pytest.raises(ValueError, match="'all inputs' row"):
-        plot_ablation({"without lane": (0.3, 0.1)})
+        plot_input_ablation({"without lane": (0.3, 0.1)})
     with pytest.raises(ValueError, match=r"table\['without lane'\] must be two positive"):
-        plot_ablation({"all inputs": (0.2, 0.04), "without lane": (0.0, 0.1)})
+        plot_input_ablation({"all inputs": (0.2, 0.04), "without lane": (0.0, 0.1)})
     with pytest.raises(ValueError, match="reference lacks the rows"):
-        plot_ablation(table, reference={"all inputs": (0.2, 0.04)})
+        plot_input_ablation(table, reference={"all inputs": (0.2, 0.04)})
 
 
 def test_attempts_draw_yours_or_name_the_error():

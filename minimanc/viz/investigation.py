@@ -11,7 +11,7 @@ here:
   left), each vehicle's past boxes under its current one with the brightness of the faded
   history convention (:mod:`minimanc.world.history`: box ``j`` steps ago drawn at
   ``brightness[j - 1]``), as the raster of ``world.RasterConfig(history=H)`` draws them;
-* :func:`plot_ablation` — the privileged learner's open-loop RMSE of both controls (its
+* :func:`plot_input_ablation` — the privileged learner's open-loop RMSE of both controls (its
   outputs ``[acceleration, yaw rate]``, :mod:`minimanc.dagger.privileged`) with each input
   group removed, as a ratio to the learner given every input.
 
@@ -34,7 +34,7 @@ from minimanc.viz.style import pyplot
 from minimanc.world.geometry import EGO_LENGTH, EGO_WIDTH, box_corners, to_ego_frame
 from minimanc.world.history import History
 
-__all__ = ["plot_ablation", "plot_history_boxes", "plot_investigation_attempts"]
+__all__ = ["plot_input_ablation", "plot_history_boxes", "plot_investigation_attempts"]
 
 EGO_COLOUR = "#1f77b4"
 ADO_COLOUR = "#d62728"
@@ -131,7 +131,7 @@ def plot_history_boxes(ego_pose: Any, ado: Any, ado_valid: Any, past: History,
     return ax
 
 
-def plot_ablation(table: Mapping[str, Sequence[float]], ax: Any = None,
+def plot_input_ablation(table: Mapping[str, Sequence[float]], ax: Any = None,
                   reference: Mapping[str, Sequence[float]] | None = None,
                   title: str = "ablation, open loop") -> Any:
     """An ablation table's RMSEs as a ratio to its ``"all inputs"`` row, one pair of bars
@@ -229,7 +229,7 @@ def plot_investigation_attempts(ego_pose: Any, ado: Any, ado_valid: Any,
     brightness : array, shape (H,)
         The brightness asked for, per step ago: the library's panel is drawn with it.
     ablation : callable
-        No arguments; the student's ablation table (see :func:`plot_ablation`).
+        No arguments; the student's ablation table (see :func:`plot_input_ablation`).
     reference_table : mapping
         The library's table.
 
@@ -263,10 +263,10 @@ def plot_investigation_attempts(ego_pose: Any, ado: Any, ado_valid: Any,
     if not error:
         _, error = attempt(_ratios, table, "your table")
     if error:
-        plot_ablation(reference_table, ax=right, title=f"library; yours: {error}")
+        plot_input_ablation(reference_table, ax=right, title=f"library; yours: {error}")
         right.title.set_fontsize(9)
     else:
-        plot_ablation(table, ax=right, reference=reference_table,
+        plot_input_ablation(table, ax=right, reference=reference_table,
                       title="yours (bars) over the library's (dashed)")
     fig.tight_layout()
     return fig
