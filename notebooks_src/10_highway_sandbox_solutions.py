@@ -35,8 +35,6 @@ from minimanc import highway as hw
 from minimanc import metrics, world
 from minimanc.viz.dagger import plot_episode_attempts
 
-rng = np.random.default_rng(0)
-
 # %% [markdown]
 # ## Exercise 10.1 — the action adapter
 # highway-env moves the ego as a kinematic bicycle of length $L$: with steering
@@ -92,26 +90,36 @@ for _ in range(6):
     yaw0 = yaw1
 assert abs(env.vehicle.speed - 23.0) < 1e-6, "the commanded 23 m/s should be reached"
 ### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(101)  # the tests' own draws, not the notebook's rng
 for _ in range(30):
-    u = np.array([rng.uniform(-2, 35), rng.uniform(-1, 1)])
-    v = rng.uniform(-1, 30)
-    out = adapter(u, v)
+    u = np.array([test_rng.uniform(-2, 35), test_rng.uniform(-1, 1)])
+    v = test_rng.uniform(-1, 30)
+    out = np.asarray(adapter(u, v), dtype=float)
+    case = f"command [{u[0]:.3f}, {u[1]:.3f}] at v = {v:.3f}"
+    assert out.shape == (2,), (
+        f"{case}: expected the action [a / a_max, delta / steer_max]; got {out}")
     a = np.clip((u[0] - v) / 0.5, -5.0, 5.0)                   # the P-controller
-    assert np.isclose(out[0], a / 5.0), f"acceleration clip((v* - v) / dt) / 5 for {u}, v = {v}"
+    assert np.isclose(out[0], a / 5.0), (
+        f"{case}: expected the acceleration {a / 5.0:.4f} (clipped P-controller, / a_max); "
+        f"got {out[0]:.4f}")
     v_mean = v + a * (0.5 - 0.1) / 2
     delta = out[1] * np.pi / 4
     if abs(v_mean) < 0.1:
-        assert out[1] == 0.0, f"|v_mean| < 0.1 m/s: no steering, for {u}, v = {v}"
+        assert out[1] == 0.0, f"{case}: |v_mean| < 0.1 m/s, expected steering 0; got {out[1]}"
         continue
     # the bicycle realises omega = -v_mean sin(beta) / (L / 2), unless the steering saturates
     omega = -v_mean * np.sin(np.arctan(np.tan(delta) / 2)) / 2.5
-    assert abs(out[1]) <= 1.0 + 1e-12, f"steering within [-1, 1] for {u}, v = {v}"
+    assert abs(out[1]) <= 1.0 + 1e-12, f"{case}: expected steering in [-1, 1]; got {out[1]}"
     if abs(out[1]) < 1.0 - 1e-9 and abs(u[1] * 2.5 / v_mean) < 1.0:
-        assert np.isclose(omega, u[1], atol=1e-6), f"the bicycle should turn at {u[1]}, v = {v}"
+        assert np.isclose(omega, u[1], atol=1e-6), (
+            f"{case}: expected the bicycle to turn at {u[1]:.4f} rad/s (world frame); your "
+            f"steering {out[1]:.4f} turns it at {omega:.4f}")
     else:  # saturated: the closest reachable rate, turning the requested way
         assert np.sign(omega) == np.sign(u[1]) or u[1] == 0.0, (
-            f"saturated steering should still turn the requested way, for {u}, v = {v}")
-assert np.allclose(adapter(np.array([0.0, 0.5]), 0.0), [0.0, 0.0]), "standing still: [0, 0]"
+            f"{case}, saturated: expected a turn to the requested side ({np.sign(u[1]):+.0f}); "
+            f"your steering {out[1]:.4f} turns at {omega:.4f} rad/s")
+out = np.asarray(adapter(np.array([0.0, 0.5]), 0.0), dtype=float)
+assert np.allclose(out, [0.0, 0.0]), f"standing still, command [0, 0.5]: expected [0, 0]; got {out}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -174,10 +182,14 @@ assert np.array_equal(mine, obs), "your BEV differs from BEVObservation's"
 order = sorted(range(len(others)), key=lambda i: np.hypot(*(others[i, :2] - ego[:2])))[:16]
 for row, i in enumerate(order):
     x, y, h, length, width = others[i]
-    assert np.allclose(boxes[row], [x, -y, world.wrap_angle(-h), length, width]), (
-        f"row {row} should be vehicle {i} mirrored")
-assert valid.tolist() == [True] * len(order) + [False] * (16 - len(order)), (
-    "one valid row per vehicle, nearest first, then unused rows")
+    want = np.array([x, -y, world.wrap_angle(-h), length, width])
+    assert np.allclose(boxes[row], want), (
+        f"the roundabout scene, row {row}: expected vehicle {i} mirrored, "
+        f"{np.round(want, 3).tolist()}; got {np.round(boxes[row], 3).tolist()}")
+want = [True] * len(order) + [False] * (16 - len(order))
+assert valid.tolist() == want, (
+    f"the roundabout scene: expected {len(order)} valid rows, then unused ones; got "
+    f"{valid.tolist()}")
 # headings wrap to (-pi, pi]; equal distances keep the input order; max_ado cuts
 tie = np.array([[0.0, 5.0, 3.5, 4.0, 2.0], [5.0, 0.0, -np.pi, 4.5, 1.8],
                 [0.0, -5.0, np.pi, 5.0, 2.0], [9.0, 0.0, 0.0, 5.0, 2.0]])
@@ -185,16 +197,24 @@ b3, v3 = vehicle_boxes((0.0, 0.0, 0.0), tie, 3)
 assert np.allclose(b3, [[0.0, -5.0, 2 * np.pi - 3.5, 4.0, 2.0],
                         [5.0, 0.0, np.pi, 4.5, 1.8],
                         [0.0, 5.0, np.pi, 5.0, 2.0]]), (
-    "three vehicles at 5 m in input order, yaw = wrap(-heading) in (-pi, pi]; the one at 9 m cut")
-assert v3.all(), "three valid rows"
+    f"three vehicles at 5 m, max_ado = 3: expected them in input order, yaw = wrap(-heading) "
+    f"in (-pi, pi], the one at 9 m cut; got {np.round(b3, 3).tolist()}")
+assert v3.all(), f"three vehicles, max_ado = 3: expected three valid rows; got {v3.tolist()}"
 b0, v0 = vehicle_boxes((1.0, 1.0, 0.0), np.zeros((0, 5)), 4)
-assert np.allclose(b0, 0.0) and not v0.any(), "no other vehicle: all rows zero and invalid"
-rand = np.column_stack([rng.normal(size=(20, 2)) * 30, rng.uniform(-4, 4, 20),
+assert np.allclose(b0, 0.0) and not v0.any(), (
+    f"no other vehicle: expected all rows zero and invalid; got {np.round(b0, 3).tolist()}, "
+    f"{v0.tolist()}")
+test_rng = np.random.default_rng(102)  # the tests' own draws, not the notebook's rng
+rand = np.column_stack([test_rng.normal(size=(20, 2)) * 30, test_rng.uniform(-4, 4, 20),
                         np.full(20, 5.0), np.full(20, 2.0)])
 b2, v2 = vehicle_boxes((1.0, 2.0, 0.3), rand, 8)
-assert v2.sum() == 8 and np.all(np.abs(b2[:, 2]) <= np.pi), "8 valid rows, yaw in (-pi, pi]"
+assert v2.sum() == 8 and np.all(np.abs(b2[:, 2]) <= np.pi), (
+    f"20 random vehicles, max_ado = 8: expected 8 valid rows, yaw in (-pi, pi]; got "
+    f"{int(v2.sum())} rows, yaws {np.round(b2[:, 2], 3).tolist()}")
 dist = np.linalg.norm(b2[:, :2] - [1.0, -2.0], axis=1)
-assert np.all(np.diff(dist) >= 0), "rows sorted by distance to the (mirrored) ego"
+assert np.all(np.diff(dist) >= 0), (
+    f"20 random vehicles: expected rows sorted by distance to the (mirrored) ego; got "
+    f"distances {np.round(dist, 2).tolist()}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -251,11 +271,15 @@ ado_r = np.concatenate([r.normal(size=(E, T, A, 2)) * 10, r.uniform(-3, 3, (E, T
                        -1)
 val_r = r.random((E, T, A)) < 0.7
 # literal values, computed once with metrics.collisions (episodes 5, 9 and 10 are clear)
-assert np.isclose(collision_rate(ego_r, ado_r, val_r), 75.0), "9 of 12 episodes collide"
+got = collision_rate(ego_r, ado_r, val_r)
+assert np.isclose(got, 75.0), (
+    f"12 random episodes of 5 steps, 4 ados: expected 75.0 (9 of 12 collide; 5, 9 and 10 are "
+    f"clear); got {got}")
 per_step = [collision_rate(ego_r[:, t:t + 1], ado_r[:, t:t + 1], val_r[:, t:t + 1]) * E / 100
             for t in range(T)]
 assert np.allclose(per_step, [1, 1, 3, 5, 4]), (
-    f"colliding episodes per step 1 1 3 5 4, got {per_step}")
+    f"12 random episodes, one step at a time: expected 1, 1, 3, 5, 4 colliding episodes; "
+    f"got {per_step}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -311,17 +335,26 @@ assert np.allclose(logged, commands, atol=1e-6), (
     f"the logged controls should be the commands the adapter realised:\n{commands}\ngot\n{logged}")
 ### BEGIN HIDDEN TESTS
 ep = hw.run_episode("roundabout", 3, "expert", steps=12, record_bev=False)
-u_ep = logged_controls(ep.poses, ep.speeds)
-assert u_ep.shape == (12, 2), "12 actions: 12 controls"
-assert np.array_equal(u_ep[:, 0], ep.speeds[1:]), "the speed reached at the end of each step"
+u_ep = np.asarray(logged_controls(ep.poses, ep.speeds), dtype=float)
+assert u_ep.shape == (12, 2), (
+    f"an expert episode of 12 actions (13 states): expected controls (12, 2); got {u_ep.shape}")
+assert np.array_equal(u_ep[:, 0], ep.speeds[1:]), (
+    f"an expert episode: expected the speeds reached at the end of each step "
+    f"{np.round(ep.speeds[1:4], 3).tolist()}...; got {np.round(u_ep[:3, 0], 3).tolist()}...")
 yaw = world.wrap_angle(ep.poses[0, 2] + np.cumsum(u_ep[:, 1]) * 0.5)
-assert np.allclose(world.wrap_angle(yaw - ep.poses[1:, 2]), 0.0, atol=1e-9), (
-    "integrating the yaw rates from the first yaw should give every logged yaw")
-half = logged_controls(ep.poses, ep.speeds, dt=0.25)
-assert np.allclose(half[:, 1], 2 * u_ep[:, 1]), "the yaw rate is divided by dt"
+gap = float(np.abs(world.wrap_angle(yaw - ep.poses[1:, 2])).max())
+assert gap < 1e-9, (
+    f"an expert episode: expected the yaw rates to integrate to every logged yaw; got a "
+    f"largest difference of {gap:.3g} rad")
+half = np.asarray(logged_controls(ep.poses, ep.speeds, dt=0.25), dtype=float)
+assert np.allclose(half[:, 1], 2 * u_ep[:, 1]), (
+    f"dt = 0.25: expected twice the yaw rates of dt = 0.5, {np.round(2 * u_ep[:3, 1], 4).tolist()}"
+    f"...; got {np.round(half[:3, 1], 4).tolist()}...")
 circle = np.stack([np.zeros(9), np.zeros(9), world.wrap_angle(0.9 * np.arange(9))], -1)
-assert np.allclose(logged_controls(circle, np.ones(9))[:, 1], 1.8), (
-    "a steady turn of 0.9 rad per step is 1.8 rad/s at every step, across ±π too")
+got = np.asarray(logged_controls(circle, np.ones(9)), dtype=float)[:, 1]
+assert np.allclose(got, 1.8), (
+    f"a steady turn of 0.9 rad per step, across ±π: expected 1.8 rad/s at every step; got "
+    f"{np.round(got, 3).tolist()}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
