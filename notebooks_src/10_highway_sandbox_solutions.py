@@ -442,8 +442,10 @@ assert np.isclose(got, 15.0), f"v = 15, omega = 0 (straight): expected 15.0; got
 got = unicycle_speed(20.0, 0.3)
 assert abs(got - v_log) < 1e-5, (
     f"v = 20, omega = 0.3: expected the simulator's logged {v_log:.6f} m/s; got {got}")
-assert unicycle_speed(20.0, -0.3) == unicycle_speed(20.0, 0.3), (
-    "a right turn and a left turn of the same rate log the same speed")
+got = unicycle_speed(20.0, -0.3)
+assert np.isclose(got, unicycle_speed(20.0, 0.3), rtol=1e-12), (
+    f"v = 20, omega = -0.3: expected the speed of the left turn of the same rate, "
+    f"{unicycle_speed(20.0, 0.3):.6f}; got {got}")
 ### BEGIN HIDDEN TESTS
 def substeps(v, omega, length=5.0, dt=0.5, h=0.1):  # the sub-steps written out
     beta = np.arcsin(omega * length / (2.0 * v))
