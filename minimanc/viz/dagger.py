@@ -161,6 +161,18 @@ def plot_round_attempts(
     return ax
 
 
+def _episode_arrays(episode: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An episode's ``poses (T+1, 3)``, ``speeds (T+1,)`` and ``crashed (T+1,)``, checked."""
+    poses = np.asarray(episode.poses, dtype=float)
+    speeds = np.asarray(episode.speeds, dtype=float)
+    crashed = np.asarray(episode.crashed, dtype=bool)
+    if poses.ndim != 2 or poses.shape[1] != 3 or speeds.shape != poses.shape[:1] \
+            or crashed.shape != poses.shape[:1]:
+        raise ValueError(f"expected poses (T+1, 3), speeds and crashed (T+1,); got "
+                         f"{poses.shape}, {speeds.shape}, {crashed.shape}")
+    return poses, speeds, crashed
+
+
 def plot_episode_attempts(
     yours: Mapping[str, Callable[[], Any]],
     reference: Mapping[str, Any],
@@ -194,13 +206,7 @@ def plot_episode_attempts(
     errors = []
 
     def draw(label: str, episode: Any, style: str, colour: str) -> None:
-        poses = np.asarray(episode.poses, dtype=float)
-        speeds = np.asarray(episode.speeds, dtype=float)
-        crashed = np.asarray(episode.crashed, dtype=bool)
-        if poses.ndim != 2 or poses.shape[1] != 3 or speeds.shape != poses.shape[:1] \
-                or crashed.shape != poses.shape[:1]:
-            raise ValueError(f"expected poses (T+1, 3), speeds and crashed (T+1,); got "
-                             f"{poses.shape}, {speeds.shape}, {crashed.shape}")
+        poses, speeds, crashed = _episode_arrays(episode)
         tag = " (crashed)" if crashed.any() else ""
         path_ax.plot(poses[:, 0], poses[:, 1], style, color=colour, label=f"{label}{tag}")
         path_ax.plot(poses[:1, 0], poses[:1, 1], "o", color=colour, ms=5)
