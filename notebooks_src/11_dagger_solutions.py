@@ -484,8 +484,7 @@ assert max(results["dagger"][1.0]["shift"]) < 1e-3, (
 # %% grade id=ex11_4_rerun_tests points=2
 if "results" not in globals():  # the cell above stopped before it ran your experiment
     results = experiment()
-p_low = min(results["dagger"])
-print(f"p = {p_low}: ADE by round {np.round(results['dagger'][p_low]['ade'], 2).tolist()} m")
+p_low = min(results["dagger"])        # the hidden tests run the loop again for this p
 ### BEGIN HIDDEN TESTS
 again = linear_dagger(p_low)
 assert np.allclose(results["dagger"][p_low]["ade"], again["ade"], atol=1e-6), (
@@ -514,9 +513,9 @@ assert results["dagger"][p_low]["shift"][1] > 0.5, (
 # states labelled are the human's own (the teacher reproduces its log, shift 0) and the
 # labels its logged controls. The aggregate is then the demonstrations of the same 24
 # scenes BC trains on, in another order; the ridge fit and its closed loop agree up to
-# float rounding (here to well below a centimetre).
+# float rounding (here to 1e-6 m).
 # (b) p = 0 labels the states farthest from the human's: after round 0 the policy alone
-# drives (round-1 shift ≈ 13 m, against ≈ 9 m for p = 0.5, where the expert's half of
+# drives (round-1 shift ≈ 13 m, against ≈ 9.5 m for p = 0.5, where the expert's half of
 # the steps pulls the ego back). For this learner DAgger did **not** beat BC: BC's ADE
 # ≈ 14 m, DAgger's last round ≈ 17.6 m (p = 0) and ≈ 14.5 m (p = 0.5). DAgger's guarantee
 # assumes a learner that can fit the expert on the states it visits (no-regret on the
