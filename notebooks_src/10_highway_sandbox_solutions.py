@@ -6,26 +6,34 @@
 # run the grade cell below it; `minimanc grade exercises/10_highway_sandbox.ipynb`
 # scores the notebook.
 #
-# Four pieces connect a policy trained on BEV rasters to highway-env:
+# Four pieces connect a policy trained on BEV rasters to highway-env (1–4), and two
+# exercises build on them (5–6):
 #
 # 1. an **action adapter**: the models output `[speed, yaw rate]`; highway-env's ego is
 #    a kinematic bicycle driven by `[acceleration, steering]`;
 # 2. the **BEV observation**: highway-env's vehicles drawn into the chapter-7 raster;
 # 3. a **metric**: how often a driver collides;
 # 4. the **logged controls** of a demonstration: what a perfect imitator must output
-#    for the adapter to reproduce the expert.
+#    for the adapter to reproduce the expert;
+# 5. **what the logs record in a turn** (transfer): the unicycle speed of the bicycle's
+#    sub-steps, and the command that logs a given one;
+# 6. an **open experiment**: a driver that yields at the roundabout, with a written
+#    answer.
+#
+# Each function is graded on its own. The notebook ends with **your figure**: your
+# driver's episode over the expert's.
 #
 # Frames: highway-env's $y$ axis points *down* its screen. `minimanc.highway` mirrors
 # it, $x_w = x$, $y_w = -y$, $\psi_w = -\psi$, so that the world frame of chapter 7
 # (right-handed, yaw counter-clockwise) and right-hand traffic are kept.
 
 # %%
+import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import highway as hw
 from minimanc import metrics, world
-
-rng = np.random.default_rng(0)
+from minimanc.viz.dagger import plot_episode_attempts
 
 # %% [markdown]
 # ## Exercise 10.1 — the action adapter
@@ -82,26 +90,36 @@ for _ in range(6):
     yaw0 = yaw1
 assert abs(env.vehicle.speed - 23.0) < 1e-6, "the commanded 23 m/s should be reached"
 ### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(101)  # the tests' own draws, not the notebook's rng
 for _ in range(30):
-    u = np.array([rng.uniform(-2, 35), rng.uniform(-1, 1)])
-    v = rng.uniform(-1, 30)
-    out = adapter(u, v)
+    u = np.array([test_rng.uniform(-2, 35), test_rng.uniform(-1, 1)])
+    v = test_rng.uniform(-1, 30)
+    out = np.asarray(adapter(u, v), dtype=float)
+    case = f"command [{u[0]:.3f}, {u[1]:.3f}] at v = {v:.3f}"
+    assert out.shape == (2,), (
+        f"{case}: expected the action [a / a_max, delta / steer_max]; got {out}")
     a = np.clip((u[0] - v) / 0.5, -5.0, 5.0)                   # the P-controller
-    assert np.isclose(out[0], a / 5.0), f"acceleration clip((v* - v) / dt) / 5 for {u}, v = {v}"
+    assert np.isclose(out[0], a / 5.0), (
+        f"{case}: expected the acceleration {a / 5.0:.4f} (clipped P-controller, / a_max); "
+        f"got {out[0]:.4f}")
     v_mean = v + a * (0.5 - 0.1) / 2
     delta = out[1] * np.pi / 4
     if abs(v_mean) < 0.1:
-        assert out[1] == 0.0, f"|v_mean| < 0.1 m/s: no steering, for {u}, v = {v}"
+        assert out[1] == 0.0, f"{case}: |v_mean| < 0.1 m/s, expected steering 0; got {out[1]}"
         continue
     # the bicycle realises omega = -v_mean sin(beta) / (L / 2), unless the steering saturates
     omega = -v_mean * np.sin(np.arctan(np.tan(delta) / 2)) / 2.5
-    assert abs(out[1]) <= 1.0 + 1e-12, f"steering within [-1, 1] for {u}, v = {v}"
+    assert abs(out[1]) <= 1.0 + 1e-12, f"{case}: expected steering in [-1, 1]; got {out[1]}"
     if abs(out[1]) < 1.0 - 1e-9 and abs(u[1] * 2.5 / v_mean) < 1.0:
-        assert np.isclose(omega, u[1], atol=1e-6), f"the bicycle should turn at {u[1]}, v = {v}"
+        assert np.isclose(omega, u[1], atol=1e-6), (
+            f"{case}: expected the bicycle to turn at {u[1]:.4f} rad/s (world frame); your "
+            f"steering {out[1]:.4f} turns it at {omega:.4f}")
     else:  # saturated: the closest reachable rate, turning the requested way
         assert np.sign(omega) == np.sign(u[1]) or u[1] == 0.0, (
-            f"saturated steering should still turn the requested way, for {u}, v = {v}")
-assert np.allclose(adapter(np.array([0.0, 0.5]), 0.0), [0.0, 0.0]), "standing still: [0, 0]"
+            f"{case}, saturated: expected a turn to the requested side ({np.sign(u[1]):+.0f}); "
+            f"your steering {out[1]:.4f} turns at {omega:.4f} rad/s")
+out = np.asarray(adapter(np.array([0.0, 0.5]), 0.0), dtype=float)
+assert np.allclose(out, [0.0, 0.0]), f"standing still, command [0, 0.5]: expected [0, 0]; got {out}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -164,10 +182,14 @@ assert np.array_equal(mine, obs), "your BEV differs from BEVObservation's"
 order = sorted(range(len(others)), key=lambda i: np.hypot(*(others[i, :2] - ego[:2])))[:16]
 for row, i in enumerate(order):
     x, y, h, length, width = others[i]
-    assert np.allclose(boxes[row], [x, -y, world.wrap_angle(-h), length, width]), (
-        f"row {row} should be vehicle {i} mirrored")
-assert valid.tolist() == [True] * len(order) + [False] * (16 - len(order)), (
-    "one valid row per vehicle, nearest first, then unused rows")
+    want = np.array([x, -y, world.wrap_angle(-h), length, width])
+    assert np.allclose(boxes[row], want), (
+        f"the roundabout scene, row {row}: expected vehicle {i} mirrored, "
+        f"{np.round(want, 3).tolist()}; got {np.round(boxes[row], 3).tolist()}")
+want = [True] * len(order) + [False] * (16 - len(order))
+assert valid.tolist() == want, (
+    f"the roundabout scene: expected {len(order)} valid rows, then unused ones; got "
+    f"{valid.tolist()}")
 # headings wrap to (-pi, pi]; equal distances keep the input order; max_ado cuts
 tie = np.array([[0.0, 5.0, 3.5, 4.0, 2.0], [5.0, 0.0, -np.pi, 4.5, 1.8],
                 [0.0, -5.0, np.pi, 5.0, 2.0], [9.0, 0.0, 0.0, 5.0, 2.0]])
@@ -175,16 +197,24 @@ b3, v3 = vehicle_boxes((0.0, 0.0, 0.0), tie, 3)
 assert np.allclose(b3, [[0.0, -5.0, 2 * np.pi - 3.5, 4.0, 2.0],
                         [5.0, 0.0, np.pi, 4.5, 1.8],
                         [0.0, 5.0, np.pi, 5.0, 2.0]]), (
-    "three vehicles at 5 m in input order, yaw = wrap(-heading) in (-pi, pi]; the one at 9 m cut")
-assert v3.all(), "three valid rows"
+    f"three vehicles at 5 m, max_ado = 3: expected them in input order, yaw = wrap(-heading) "
+    f"in (-pi, pi], the one at 9 m cut; got {np.round(b3, 3).tolist()}")
+assert v3.all(), f"three vehicles, max_ado = 3: expected three valid rows; got {v3.tolist()}"
 b0, v0 = vehicle_boxes((1.0, 1.0, 0.0), np.zeros((0, 5)), 4)
-assert np.allclose(b0, 0.0) and not v0.any(), "no other vehicle: all rows zero and invalid"
-rand = np.column_stack([rng.normal(size=(20, 2)) * 30, rng.uniform(-4, 4, 20),
+assert np.allclose(b0, 0.0) and not v0.any(), (
+    f"no other vehicle: expected all rows zero and invalid; got {np.round(b0, 3).tolist()}, "
+    f"{v0.tolist()}")
+test_rng = np.random.default_rng(102)  # the tests' own draws, not the notebook's rng
+rand = np.column_stack([test_rng.normal(size=(20, 2)) * 30, test_rng.uniform(-4, 4, 20),
                         np.full(20, 5.0), np.full(20, 2.0)])
 b2, v2 = vehicle_boxes((1.0, 2.0, 0.3), rand, 8)
-assert v2.sum() == 8 and np.all(np.abs(b2[:, 2]) <= np.pi), "8 valid rows, yaw in (-pi, pi]"
+assert v2.sum() == 8 and np.all(np.abs(b2[:, 2]) <= np.pi), (
+    f"20 random vehicles, max_ado = 8: expected 8 valid rows, yaw in (-pi, pi]; got "
+    f"{int(v2.sum())} rows, yaws {np.round(b2[:, 2], 3).tolist()}")
 dist = np.linalg.norm(b2[:, :2] - [1.0, -2.0], axis=1)
-assert np.all(np.diff(dist) >= 0), "rows sorted by distance to the (mirrored) ego"
+assert np.all(np.diff(dist) >= 0), (
+    f"20 random vehicles: expected rows sorted by distance to the (mirrored) ego; got "
+    f"distances {np.round(dist, 2).tolist()}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -241,11 +271,15 @@ ado_r = np.concatenate([r.normal(size=(E, T, A, 2)) * 10, r.uniform(-3, 3, (E, T
                        -1)
 val_r = r.random((E, T, A)) < 0.7
 # literal values, computed once with metrics.collisions (episodes 5, 9 and 10 are clear)
-assert np.isclose(collision_rate(ego_r, ado_r, val_r), 75.0), "9 of 12 episodes collide"
+got = collision_rate(ego_r, ado_r, val_r)
+assert np.isclose(got, 75.0), (
+    f"12 random episodes of 5 steps, 4 ados: expected 75.0 (9 of 12 collide; 5, 9 and 10 are "
+    f"clear); got {got}")
 per_step = [collision_rate(ego_r[:, t:t + 1], ado_r[:, t:t + 1], val_r[:, t:t + 1]) * E / 100
             for t in range(T)]
 assert np.allclose(per_step, [1, 1, 3, 5, 4]), (
-    f"colliding episodes per step 1 1 3 5 4, got {per_step}")
+    f"12 random episodes, one step at a time: expected 1, 1, 3, 5, 4 colliding episodes; "
+    f"got {per_step}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -301,17 +335,165 @@ assert np.allclose(logged, commands, atol=1e-6), (
     f"the logged controls should be the commands the adapter realised:\n{commands}\ngot\n{logged}")
 ### BEGIN HIDDEN TESTS
 ep = hw.run_episode("roundabout", 3, "expert", steps=12, record_bev=False)
-u_ep = logged_controls(ep.poses, ep.speeds)
-assert u_ep.shape == (12, 2), "12 actions: 12 controls"
-assert np.array_equal(u_ep[:, 0], ep.speeds[1:]), "the speed reached at the end of each step"
+u_ep = np.asarray(logged_controls(ep.poses, ep.speeds), dtype=float)
+assert u_ep.shape == (12, 2), (
+    f"an expert episode of 12 actions (13 states): expected controls (12, 2); got {u_ep.shape}")
+assert np.array_equal(u_ep[:, 0], ep.speeds[1:]), (
+    f"an expert episode: expected the speeds reached at the end of each step "
+    f"{np.round(ep.speeds[1:4], 3).tolist()}...; got {np.round(u_ep[:3, 0], 3).tolist()}...")
 yaw = world.wrap_angle(ep.poses[0, 2] + np.cumsum(u_ep[:, 1]) * 0.5)
-assert np.allclose(world.wrap_angle(yaw - ep.poses[1:, 2]), 0.0, atol=1e-9), (
-    "integrating the yaw rates from the first yaw should give every logged yaw")
-half = logged_controls(ep.poses, ep.speeds, dt=0.25)
-assert np.allclose(half[:, 1], 2 * u_ep[:, 1]), "the yaw rate is divided by dt"
+gap = float(np.abs(world.wrap_angle(yaw - ep.poses[1:, 2])).max())
+assert gap < 1e-9, (
+    f"an expert episode: expected the yaw rates to integrate to every logged yaw; got a "
+    f"largest difference of {gap:.3g} rad")
+half = np.asarray(logged_controls(ep.poses, ep.speeds, dt=0.25), dtype=float)
+assert np.allclose(half[:, 1], 2 * u_ep[:, 1]), (
+    f"dt = 0.25: expected twice the yaw rates of dt = 0.5, {np.round(2 * u_ep[:3, 1], 4).tolist()}"
+    f"...; got {np.round(half[:3, 1], 4).tolist()}...")
 circle = np.stack([np.zeros(9), np.zeros(9), world.wrap_angle(0.9 * np.arange(9))], -1)
-assert np.allclose(logged_controls(circle, np.ones(9))[:, 1], 1.8), (
-    "a steady turn of 0.9 rad per step is 1.8 rad/s at every step, across ±π too")
+got = np.asarray(logged_controls(circle, np.ones(9)), dtype=float)[:, 1]
+assert np.allclose(got, 1.8), (
+    f"a steady turn of 0.9 rad per step, across ±π: expected 1.8 rad/s at every step; got "
+    f"{np.round(got, 3).tolist()}")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 10.5 — what the logs record in a turn (transfer)
+# The tutorial measured that the *unicycle* speed — the displacement along the heading
+# divided by $\Delta t$, what `world.controls_from_poses` and the chapter-7 logs record —
+# is a little lower than the bicycle's speed in a turn, and explained it roughly. Derive
+# it exactly for highway-env's integration. The ego already drives at the commanded
+# speed $v$ ($a = 0$) and the adapter of 10.1 realises the yaw rate $\omega$ with the
+# world-frame slip angle $\beta$, $\sin\beta = \omega L / (2v)$. Over the step, $n =
+# \Delta t / h = 5$ Euler sub-steps: the position moves by $v h$ along $\psi_k + \beta$,
+# then the heading turns by $\omega h$ ($\psi_{k+1} = \psi_k + \omega h$).
+#
+# 1. `unicycle_speed(v, omega)`: the unicycle speed the log records for that step, in
+#    **closed form** (no loop over the sub-steps). Raise a `ValueError` naming `omega`
+#    when $|\omega| L / (2v) > 1$ (no slip angle turns that fast) and naming `v` when
+#    $v \le 0$.
+# 2. `command_for(v_u, omega)`: the inverse, the speed $v$ to command so that the log
+#    records the unicycle speed `v_u` at yaw rate `omega` — what a policy trained on
+#    chapter-7 logs (unicycle speeds) should send to highway-env. Also in closed form.
+#
+# The two functions are graded separately, 2 points each (the tests of 2 use their own
+# unicycle speed, not yours).
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# The displacement over the step is a sum of $n$ vectors of equal length $vh$ whose
+# directions turn by the same angle $\omega h$ from one to the next. Their sum points
+# along the *middle* direction. How long is it?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Write the directions as complex numbers $e^{i(\psi_0 + \beta + k\omega h)}$ and sum the
+# geometric series; project the sum on the initial heading. For the inverse, notice
+# that $v\sin\beta$ does not depend on $v$: expand $\cos$ of a sum.
+# </details>
+
+# %% solution id=ex10_5 title="What the logs record in a turn"
+def unicycle_speed(v, omega, length=5.0, dt=0.5, substep=0.1):
+    ### BEGIN SOLUTION
+    if v <= 0:
+        raise ValueError(f"v must be positive, got v={v!r}")
+    if abs(omega) * length / (2.0 * v) > 1.0:
+        raise ValueError(f"omega={omega!r} needs |omega| L / (2 v) <= 1 at v={v!r}")
+    n = int(round(dt / substep))
+    half = omega * substep / 2.0
+    beta = np.arcsin(omega * length / (2.0 * v))
+    chord = n if half == 0.0 else np.sin(n * half) / np.sin(half)  # |sum of n unit steps|
+    return float(v * substep * chord * np.cos(beta + (n - 1) * half) / dt)
+    ### END SOLUTION
+
+
+def command_for(v_u, omega, length=5.0, dt=0.5, substep=0.1):
+    ### BEGIN SOLUTION
+    n = int(round(dt / substep))
+    half = omega * substep / 2.0
+    gain = substep * (n if half == 0.0 else np.sin(n * half) / np.sin(half)) / dt
+    side, turn = omega * length / 2.0, (n - 1) * half     # v sin(beta), the middle turn
+    along = (v_u / gain + side * np.sin(turn)) / np.cos(turn)  # v cos(beta)
+    return float(np.hypot(along, side))
+    ### END SOLUTION
+
+# %%
+def logged_speed(command, env_seed=0):
+    """Drive an empty highway at ``command[0]`` until the speed is reached, then hold
+    ``command`` for one step: the unicycle speed that step logs (and the start speed)."""
+    sim = hw.make_env("highway-fast", steps=8, config={"vehicles_count": 0})
+    sim.reset(seed=env_seed)
+    act = hw.ActionAdapter(sim)
+    for _ in range(4):
+        sim.step(act(np.array([command[0], 0.0])))
+    before, speed = hw.ego_pose(sim), sim.vehicle.speed
+    sim.step(act(np.asarray(command, dtype=float)))
+    return world.controls_from_poses(np.array([before, hw.ego_pose(sim)]))[0, 0], speed
+
+
+v_log, v_start = logged_speed((20.0, 0.3))
+print(f"command [20 m/s, 0.3 rad/s] from {v_start:.1f} m/s: the log records "
+      f"{v_log:.2f} m/s")
+
+# %% grade id=ex10_5_speed_tests points=2
+got = unicycle_speed(15.0, 0.0)
+assert np.isclose(got, 15.0), f"v = 15, omega = 0 (straight): expected 15.0; got {got}"
+got = unicycle_speed(20.0, 0.3)
+assert abs(got - v_log) < 1e-5, (
+    f"v = 20, omega = 0.3: expected the simulator's logged {v_log:.6f} m/s; got {got}")
+got = unicycle_speed(20.0, -0.3)
+assert np.isclose(got, unicycle_speed(20.0, 0.3), rtol=1e-12), (
+    f"v = 20, omega = -0.3: expected the speed of the left turn of the same rate, "
+    f"{unicycle_speed(20.0, 0.3):.6f}; got {got}")
+### BEGIN HIDDEN TESTS
+def substeps(v, omega, length=5.0, dt=0.5, h=0.1):  # the sub-steps written out
+    beta = np.arcsin(omega * length / (2.0 * v))
+    x = y = yaw = 0.0
+    for _ in range(int(round(dt / h))):
+        x, y = x + v * h * np.cos(yaw + beta), y + v * h * np.sin(yaw + beta)
+        yaw += v * np.sin(beta) / (length / 2.0) * h
+    return x / dt
+
+
+for command in ((15.0, 0.5), (25.0, -0.2), (18.0, 1.0)):
+    want, start = logged_speed(command)
+    got = unicycle_speed(*command)
+    assert abs(start - command[0]) < 1e-9 and abs(got - want) < 1e-5, (
+        f"command {command} in the simulator: expected {want:.6f} m/s; got {got!r}")
+for v, omega, length, dt, h in ((10.0, 0.8, 5.0, 0.5, 0.1), (3.0, 1.1, 5.0, 0.5, 0.1),
+                                (12.0, 0.4, 4.0, 1.0, 0.05), (30.0, -0.05, 5.0, 0.5, 0.25)):
+    want = substeps(v, omega, length, dt, h)
+    got = unicycle_speed(v, omega, length, dt, h)
+    assert type(got) is float and np.isclose(got, want, rtol=1e-12), (
+        f"v = {v}, omega = {omega}, L = {length}, dt = {dt}, h = {h}: expected the float "
+        f"{want:.9f}; got {got!r}")
+for bad in ((2.0, 1.0), (10.0, -4.1), (0.0, 0.0), (-3.0, 0.1)):
+    try:
+        unicycle_speed(*bad)
+    except ValueError:
+        pass
+    else:
+        raise AssertionError(f"unicycle_speed{bad}: expected a ValueError (no slip angle "
+                             f"realises it, or v <= 0)")
+### END HIDDEN TESTS
+
+# %% grade id=ex10_5_command_tests points=2
+got = command_for(15.0, 0.0)
+assert np.isclose(got, 15.0), f"v_u = 15, omega = 0 (straight): expected 15.0; got {got}"
+got = command_for(v_log, 0.3)
+assert abs(got - 20.0) < 1e-4, (
+    f"omega = 0.3: the simulator logged {v_log:.4f} m/s for a command of 20 m/s; expected "
+    f"20.0; got {got}")
+### BEGIN HIDDEN TESTS
+for v, omega, length, dt, h in ((10.0, 0.8, 5.0, 0.5, 0.1), (3.0, 1.1, 5.0, 0.5, 0.1),
+                                (12.0, 0.4, 4.0, 1.0, 0.05), (30.0, -0.05, 5.0, 0.5, 0.25),
+                                (6.0, -1.0, 5.0, 0.5, 0.1)):
+    v_u = substeps(v, omega, length, dt, h)
+    got = command_for(v_u, omega, length, dt, h)
+    assert type(got) is float and np.isclose(got, v, rtol=1e-9), (
+        f"v_u = {v_u:.6f}, omega = {omega}, L = {length}, dt = {dt}, h = {h}: expected the "
+        f"float {v:.6f} (the command that logs v_u); got {got!r}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -357,3 +539,108 @@ assert rates["lane follower"] > rates["expert"]
 # metric `metrics.close_encounters` still sees the near misses. Avoiding the other
 # vehicles is what the BEV is for: the tutorial trains MANC and a CNN on the expert's
 # demonstrations and compares them in closed loop.
+
+# %% [markdown]
+# ## Exercise 10.6 — open experiment: a driver that yields
+# The lane follower crashes because it never looks at the other vehicles. Design a
+# driver that does, with the same pure-pursuit steering: `careful_driver(obs)` returns
+# `[speed, yaw rate]` for one observation of `hw.run_episode` — `obs["pose"]` the ego's
+# world pose `[x, y, yaw]`, `obs["ado"]` the other vehicles' world boxes
+# `[x, y, yaw, length, width]` (`(A, 5)`, rows where `obs["ado_valid"]`),
+# `obs["lane_target"]` `(K, 2)` in the ego frame (12 m ahead: row 2), `obs["speed"]`.
+# A rule of your own: when to slow down or wait, how far ahead and how wide to look,
+# how fast to drive when the way is clear. The grade cell drives it on the six seeds
+# above and checks that it crashes **at most once and less often than the lane
+# follower**, with a **mean speed of at least 4 m/s** (waiting forever is not driving);
+# the hidden tests drive it on four roundabout seeds of their own with the same bar (at
+# most one crash, 4 m/s). Then answer the written question.
+
+# %% solution id=ex10_6 title="Open experiment: a driver that yields"
+def careful_driver(obs):
+    ### BEGIN SOLUTION
+    x, y = obs["lane_target"][2]
+    curvature = 2.0 * y / (x * x + y * y)                 # pure pursuit, as the lane follower
+    px, py, yaw = obs["pose"]
+    ado = np.asarray(obs["ado"])[np.asarray(obs["ado_valid"], bool)]
+    dx, dy = ado[:, 0] - px, ado[:, 1] - py
+    ahead = dx * np.cos(yaw) + dy * np.sin(yaw)            # along the ego's heading
+    side = -dx * np.sin(yaw) + dy * np.cos(yaw)
+    in_path = (ahead > 0.0) & (ahead < 20.0) & (np.abs(side) < 8.0)
+    too_close = (np.hypot(dx, dy) < 12.0) & (ahead > -2.0)
+    speed = 0.0 if np.any(in_path | too_close) else 7.0
+    return np.array([speed, speed * curvature])
+    ### END SOLUTION
+
+# %% grade id=ex10_6_tests points=2
+careful = [hw.run_episode("roundabout", s, careful_driver, steps=16, record_bev=False)
+           for s in seeds]                                   # the six seeds above, about 8 s
+careful_speed = float(np.mean([ep.speeds.mean() for ep in careful]))
+crashes = int(sum(ep.collided for ep in careful))
+follower = int(sum(ep.collided for ep in runs["lane follower"]))
+assert crashes <= 1 and crashes < follower, (
+    f"the six seeds: expected at most one crash and fewer than the lane follower's "
+    f"{follower}; got {crashes}")
+assert careful_speed >= 4.0, (
+    f"the six seeds: expected a mean speed of at least 4 m/s; got {careful_speed:.2f} m/s")
+### BEGIN HIDDEN TESTS
+held_out = [hw.run_episode("roundabout", 200_000 + i, careful_driver, steps=16,
+                           record_bev=False) for i in range(4)]
+crashed = [ep.seed for ep in held_out if ep.collided]
+mean_speed = float(np.mean([ep.speeds.mean() for ep in held_out]))
+assert len(crashed) <= 1, (
+    f"four held-out roundabout seeds: expected at most one crash; got crashes in seeds {crashed}")
+assert mean_speed >= 4.0, (
+    f"four held-out roundabout seeds: expected a mean speed of at least 4 m/s; got "
+    f"{mean_speed:.2f} m/s")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# **Written question (10.6).** (a) Describe your rule and one episode where it still
+# fails or nearly fails (a crash, a near miss in `metrics.close_encounters`, or a long
+# wait): what did it not see? (b) Your rule reads the other vehicles' exact boxes. The
+# BEV-trained MANC of the tutorial sees them only as yellow pixels: what must it learn
+# from the expert's demonstrations to reproduce your rule, and why do six
+# collision-free demonstrations at the roundabout entry teach little of it? (c) Why is
+# "no crash" not enough to call a driver good here — name two numbers of
+# `hw.drive_episodes` you would also report.
+
+# %% [markdown] answer id=ex10_6_w title="What a yielding rule needs to see" points=3
+# ### BEGIN SOLUTION
+# (a) The rule keeps pure pursuit and sets the speed to 0 when a vehicle is in a box
+# 20 m ahead and ±8 m sideways, or within 12 m and not behind; otherwise 7 m/s. On
+# the six seeds it does not crash (the lane follower crashes in four) at about 5 m/s.
+# It fails when the danger does not come from the box it watches: a vehicle
+# approaching fast from the side at the entry (its box enters the window too late, at
+# 2 Hz a vehicle moves 5 m between decisions) or a follower that does not expect the
+# ego to stop dead in the ring; waiting until a far-away vehicle on the ring has
+# passed also makes the entry slow. It sees positions only, never speeds or intentions.
+# (b) MANC sees the vehicles as pixels of a 64 × 64 raster: it must learn from the
+# demonstrations that yellow pixels in a region ahead and to the left at the entry
+# mean "slow down", which is a rule about the geometry of the raster, with a threshold
+# on distance — and it sees no speed of the others (one frame, unless the raster draws
+# the history). Six collision-free demonstrations contain only a few entries, mostly
+# with the way clear: the expert yields in a handful of states, so the learner has
+# almost no examples of "wait" and none of what happens when it does not wait (the
+# covariate shift that chapter 11's DAgger addresses).
+# (c) A driver that never moves never crashes. Report also the mean speed and the
+# progress along the route (or the goal distance) and the ADE to the expert, the
+# off-road rate, and the close encounters (near misses) — `hw.drive_episodes`'
+# `mean_speed`, `ade`, `off_road_rate`.
+# ### END SOLUTION
+
+# %% [markdown]
+# ## Your figure
+# **Your** `careful_driver` on the first of the six seeds (solid), over the library's
+# expert and the lane follower of the same seed (dashed): the paths through the
+# roundabout (a cross marks the first crashed step) and the speeds. A driver that
+# yields should slow down near the entry as the expert does and reach the exit without
+# a cross; a function that raises is named in the title and only the library's
+# episodes are drawn.
+
+# %%
+plot_episode_attempts(
+    {"your careful_driver": lambda: hw.run_episode("roundabout", seeds[0], careful_driver,
+                                                   steps=16, record_bev=False)},
+    {"expert": runs["expert"][0], "lane follower": runs["lane follower"][0]})
+plt.tight_layout()
+plt.show()

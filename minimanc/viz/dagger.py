@@ -5,22 +5,27 @@ metric of each round's closed loop, round 0 being behaviour cloning on the first
 demonstrations) and behaviour cloning at the same label budget
 (:func:`minimanc.dagger.behaviour_cloning`) as a dashed line; :func:`plot_study_rounds`
 draws the same from the study's summary (:func:`minimanc.studies.dagger_study.run_dagger`),
-one colour per model.
+one colour per model. :func:`plot_round_attempts` is the last figure of the chapter-11
+exercises: the metric over the rounds of a DAgger loop run with the student's functions (the
+β schedule, the budget split, the aggregation), drawn over the same loop run with the
+library's (:func:`minimanc.dagger.beta_schedule`, :func:`minimanc.dagger.plan_budget`,
+:func:`minimanc.dagger.concat`). :func:`plot_episode_attempts` is the last figure of the
+chapter-10 exercises, the kind of episode a :class:`minimanc.dagger.HighwayTeacher` labels: a
+highway-env episode driven by the student's controller (path and speed), over the expert's.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
+from minimanc.dagger.loop import DaggerResult, RoundResult
+from minimanc.viz.exercises import attempt
 from minimanc.viz.style import METRIC_LABELS, model_colour, model_label, pyplot
 
-if TYPE_CHECKING:  # for the annotations only: the figure needs no part of the loop
-    from minimanc.dagger.loop import DaggerResult, RoundResult
-
-__all__ = ["plot_rounds", "plot_study_rounds"]
+__all__ = ["plot_episode_attempts", "plot_round_attempts", "plot_rounds", "plot_study_rounds"]
 
 
 def plot_rounds(results: Sequence[DaggerResult], metric: str = "ade",
@@ -87,3 +92,145 @@ def plot_study_rounds(res: dict, metric: str) -> Any:
     ax.set_ylabel(METRIC_LABELS.get(metric, metric))
     ax.legend(fontsize=7)
     return fig
+
+
+def plot_round_attempts(
+    yours: Mapping[str, Callable[[], Sequence[float]]],
+    reference: Mapping[str, Sequence[float]],
+    bc: float | None = None,
+    metric: str = "ade",
+    ax: Any = None,
+) -> Any:
+    """The chapter-11 exercises' figure: a metric by DAgger round, the student's over the library's.
+
+    Each entry of ``yours`` runs a DAgger loop with the student's functions and returns the
+    metric after each round (round 0 = behaviour cloning on the first demonstrations); it
+    is run through :func:`minimanc.viz.exercises.attempt`, so a stub or a bug is named in the
+    title instead of stopping the figure, and only the reference is drawn for it.
+
+    Parameters
+    ----------
+    yours : mapping of label to callable
+        ``fn() -> [metric of round 0, round 1, ...]`` from the student's functions (markers,
+        solid lines).
+    reference : mapping of label to sequence of float
+        The same loops run with the library's functions (dashed lines, same colour as the
+        entry of ``yours`` with the same label).
+    bc : float, optional (default: None)
+        Behaviour cloning at the same label budget: a dotted horizontal line (none when
+        None).
+    metric : str, optional (default: "ade")
+        The metric's name, for the axis label.
+    ax : matplotlib axes, optional (default: None)
+        Where to draw; None makes a new figure.
+
+    Returns
+    -------
+    ax : matplotlib axes
+        The axes drawn on.
+    """
+    if ax is None:
+        _, ax = pyplot().subplots(figsize=(6, 3.6))
+    labels = list(dict.fromkeys([*reference, *yours]))
+    errors = []
+    for k, label in enumerate(labels):
+        colour = f"C{k}"
+        ref = reference.get(label)
+        if ref is not None:
+            ax.plot(range(len(ref)), np.asarray(ref, dtype=float), "--", color=colour, lw=1.5,
+                    alpha=0.7, label=f"{label} (library)")
+        if label not in yours:
+            continue
+        values, error = attempt(yours[label])
+        if not error:
+            values, error = attempt(lambda v=values: np.asarray(v, dtype=float).reshape(-1))
+        if not error and ref is not None and len(values) != len(ref):
+            error = f"expected {len(ref)} rounds, got {len(values)}"
+        if error:
+            errors.append(f"{label}: {error}")
+            continue
+        ax.plot(range(len(values)), values, "o-", color=colour, ms=4, label=f"{label} (yours)")
+    if bc is not None:
+        ax.axhline(float(bc), ls=":", color="k", label="BC, same budget")
+    ax.set_xlabel("round (0 = behaviour cloning on the first demonstrations)")
+    ax.set_ylabel(METRIC_LABELS.get(metric, metric))
+    ax.set_title("\n".join(errors) or "your DAgger rounds (solid) over the library's (dashed)",
+                 fontsize=8 if errors else 10)
+    if ax.get_lines():
+        ax.legend(fontsize=7)
+    return ax
+
+
+def _episode_arrays(episode: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An episode's ``poses (T+1, 3)``, ``speeds (T+1,)`` and ``crashed (T+1,)``, checked."""
+    poses = np.asarray(episode.poses, dtype=float)
+    speeds = np.asarray(episode.speeds, dtype=float)
+    crashed = np.asarray(episode.crashed, dtype=bool)
+    if poses.ndim != 2 or poses.shape[1] != 3 or speeds.shape != poses.shape[:1] \
+            or crashed.shape != poses.shape[:1]:
+        raise ValueError(f"expected poses (T+1, 3), speeds and crashed (T+1,); got "
+                         f"{poses.shape}, {speeds.shape}, {crashed.shape}")
+    return poses, speeds, crashed
+
+
+def plot_episode_attempts(
+    yours: Mapping[str, Callable[[], Any]],
+    reference: Mapping[str, Any],
+    axes: Any = None,
+) -> Any:
+    """The chapter-10 exercises' figure: episodes driven by the student's controller.
+
+    An episode is anything with ``poses`` ``(T+1, 3)`` world poses, ``speeds`` ``(T+1,)``
+    and ``crashed`` ``(T+1,)`` (a :class:`minimanc.highway.Episode`). Left: the paths, the
+    start as a dot and the first crashed step as a cross; right: the speed over the steps.
+    Each entry of ``yours`` is run through :func:`minimanc.viz.exercises.attempt`, so a stub
+    or a bug is named in the title and only the references are drawn.
+
+    Parameters
+    ----------
+    yours : mapping of label to callable
+        ``fn() -> episode`` driving with the student's functions (solid lines).
+    reference : mapping of label to episode
+        The library's episodes of the same seed, e.g. the expert's (dashed lines).
+    axes : pair of matplotlib axes, optional (default: None)
+        Where to draw the paths and the speeds; None makes a new figure.
+
+    Returns
+    -------
+    axes : pair of matplotlib axes
+        The path and speed axes.
+    """
+    if axes is None:
+        _, axes = pyplot().subplots(1, 2, figsize=(11, 4))
+    path_ax, speed_ax = axes
+    errors = []
+
+    def draw(label: str, episode: Any, style: str, colour: str) -> None:
+        poses, speeds, crashed = _episode_arrays(episode)
+        tag = " (crashed)" if crashed.any() else ""
+        path_ax.plot(poses[:, 0], poses[:, 1], style, color=colour, label=f"{label}{tag}")
+        path_ax.plot(poses[:1, 0], poses[:1, 1], "o", color=colour, ms=5)
+        if crashed.any():
+            k = int(np.argmax(crashed))
+            path_ax.plot(poses[k, 0], poses[k, 1], "x", color=colour, ms=10, mew=2)
+        speed_ax.plot(np.arange(len(speeds)), speeds, style, color=colour, label=label)
+
+    for k, (label, episode) in enumerate(reference.items()):
+        draw(f"{label} (library)", episode, "--", f"C{k}")
+    for k, (label, fn) in enumerate(yours.items(), start=len(reference)):
+        episode, error = attempt(fn)
+        if not error:
+            _, error = attempt(draw, label, episode, "-", f"C{k}")
+        if error:
+            errors.append(f"{label}: {error}")
+    path_ax.set_aspect("equal", adjustable="datalim")
+    path_ax.set_xlabel("x (m)")
+    path_ax.set_ylabel("y (m)")
+    path_ax.set_title("\n".join(errors) or "paths (dot: start, cross: first crash)",
+                      fontsize=8 if errors else 10)
+    speed_ax.set_xlabel("step (0.5 s)")
+    speed_ax.set_ylabel("speed (m/s)")
+    for ax in axes:
+        if ax.get_lines():
+            ax.legend(fontsize=7)
+    return axes
