@@ -213,8 +213,9 @@ CHAPTERS: tuple[Chapter, ...] = (
             prerequisites="Chapter 8 (the models, behaviour cloning).",
             minutes=(60, 90)),
     Chapter(10, "10_highway_sandbox", "the controller in highway-env",
-            ("minimanc.highway",), ("minimanc.cli.highway",),
-            "the controller in a real driving simulator",
+            ("minimanc.highway",), ("minimanc.cli.highway", "minimanc.viz.highway"),
+            "the controller in a real driving simulator; what the logs record in a turn; a "
+            "driver that yields",
             objectives=(
                 "run the same controller in highway-env, among traffic that reacts",
                 "collect expert demonstrations and measure collisions, leaving the road and "
@@ -228,7 +229,8 @@ CHAPTERS: tuple[Chapter, ...] = (
     Chapter(11, "11_dagger", "behaviour cloning's drift and DAgger",
             ("minimanc.dagger",),
             ("minimanc.studies.dagger_study", "minimanc.viz.dagger", "minimanc.cli.dagger"),
-            "the DAgger schedule, the mixture, aggregation, the budget",
+            "the DAgger schedule, the mixture, aggregation, the budget; the cost of "
+            "compounding; BC against DAgger for a linear learner",
             objectives=(
                 "explain why behaviour cloning drifts in closed loop",
                 "run DAgger's rounds with a β-mixture and a label budget, and compare at an "

@@ -33,7 +33,7 @@ import numpy as np
 
 from minimanc import highway as hw
 from minimanc import metrics, world
-from minimanc.viz.dagger import plot_episode_attempts
+from minimanc.viz.highway import plot_episode_attempts
 
 # %% [markdown]
 # ## Exercise 10.1 — the action adapter

@@ -25,7 +25,7 @@ from minimanc.viz import automaton, dagger, explain, saliency, study, style  # n
 
 ROOT = Path(__file__).resolve().parent.parent
 VIZ_MODULES = ("style", "graph", "automaton", "saliency", "world", "study", "explain",
-               "dagger", "exercises")
+               "highway", "dagger", "investigation", "exercises")
 
 
 # --------------------------------------------------------------------- no plotting in the math
@@ -98,7 +98,8 @@ def _docstring_problems():
     return mod.problems
 
 
-@pytest.mark.parametrize("name", ["automaton", "saliency", "style", "dagger", "graph"])
+@pytest.mark.parametrize("name", ["automaton", "saliency", "style", "dagger", "graph", "highway",
+                                  "investigation"])
 def test_viz_functions_carry_numpydoc_sections(name):
     # the figures of chapters 5-6 were checked through vagn's and cam's __all__ before the move
     module = importlib.import_module(f"minimanc.viz.{name}")
@@ -106,7 +107,7 @@ def test_viz_functions_carry_numpydoc_sections(name):
 
 
 @pytest.mark.parametrize("name", ["graph", "automaton", "saliency", "world", "study", "explain",
-                                  "dagger"])
+                                  "highway", "dagger", "investigation"])
 def test_viz_module_docstring_opens_with_its_chapter(name):
     doc = importlib.import_module(f"minimanc.viz.{name}").__doc__
     assert re.match(r"Chapter \d+ — ", doc), doc[:80]

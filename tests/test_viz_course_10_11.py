@@ -10,7 +10,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from minimanc.viz.dagger import plot_episode_attempts, plot_round_attempts  # noqa: E402
+from minimanc.viz.dagger import plot_round_attempts  # noqa: E402
+from minimanc.viz.highway import plot_episode_attempts  # noqa: E402
 
 
 class Episode:

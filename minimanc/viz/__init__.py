@@ -21,8 +21,12 @@ library:
   efficiency, model sizes, q-states, ablation);
 * :mod:`minimanc.viz.explain` — chapter 9: one closed-loop rollout (paths, speeds, q against
   the human's modes, the Fig. 4 trace, Fig. 3 saliency, the GIF);
+* :mod:`minimanc.viz.highway` — chapter 10: a highway-env episode (path and speed) driven by
+  the student's controller over the library's;
 * :mod:`minimanc.viz.dagger` — chapter 11: a metric over DAgger's rounds against behaviour
-  cloning at the same budget.
+  cloning at the same budget;
+* :mod:`minimanc.viz.investigation` — chapter 12: faded-history boxes and the privileged
+  learner's input ablation.
 """
 
 from minimanc.viz import (
@@ -31,11 +35,13 @@ from minimanc.viz import (
     exercises,
     explain,
     graph,
+    highway,
+    investigation,
     saliency,
     study,
     style,
     world,
 )
 
-__all__ = ["automaton", "dagger", "exercises", "explain", "graph", "saliency", "study", "style",
-           "world"]
+__all__ = ["automaton", "dagger", "exercises", "explain", "graph", "highway", "investigation",
+           "saliency", "study", "style", "world"]
