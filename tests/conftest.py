@@ -7,7 +7,9 @@ reproducible and never the luck of the draw.
 """
 
 import os
+import sys
 
+import pytest
 from hypothesis import HealthCheck, settings
 
 # Health checks about how hard examples are to *generate* (not about the code under
@@ -33,3 +35,12 @@ settings.load_profile(
 from minimanc.engine import get_engine  # noqa: E402
 
 get_engine("jax")
+
+
+@pytest.fixture(autouse=True)
+def close_figures():
+    """Close every matplotlib figure a test left open (only where a test loaded pyplot)."""
+    yield
+    pyplot = sys.modules.get("matplotlib.pyplot")
+    if pyplot is not None:
+        pyplot.close("all")

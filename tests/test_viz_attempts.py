@@ -20,12 +20,6 @@ def stub():
     raise NotImplementedError("Exercise ex99_1: to do")
 
 
-@pytest.fixture(autouse=True)
-def close_figures():
-    yield
-    plt.close("all")
-
-
 def test_curves_draw_yours_over_the_reference_and_name_a_stub():
     x = np.arange(5.0)
     ax = plot_curve_attempts(x, [("mine", lambda: x ** 2, x ** 2), ("todo", stub, -x)],

@@ -8,7 +8,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import pytest  # noqa: E402
 
 from minimanc.viz.dagger import plot_round_attempts  # noqa: E402
 from minimanc.viz.highway import plot_episode_attempts  # noqa: E402
@@ -32,12 +31,6 @@ def episode(turn: float, crash_at: int | None = None, steps: int = 6) -> Episode
 
 def stub():
     raise NotImplementedError("Exercise ex99_1: to do")
-
-
-@pytest.fixture(autouse=True)
-def close_figures():
-    yield
-    plt.close("all")
 
 
 def test_rounds_draw_yours_over_the_reference_with_bc():

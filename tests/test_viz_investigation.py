@@ -6,7 +6,6 @@ from __future__ import annotations
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
@@ -20,12 +19,6 @@ from minimanc.world.history import fade, history_of  # noqa: E402
 
 def stub():
     raise NotImplementedError("Exercise ex12_4: to do")
-
-
-@pytest.fixture(autouse=True)
-def close_figures():
-    yield
-    plt.close("all")
 
 
 def track(T: int = 6):
