@@ -13,7 +13,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import minimanc.autodiff.numpy as anp  # noqa: E402
-from minimanc import dmp, optim  # noqa: E402
+from minimanc import dmp, optim, world  # noqa: E402
 from minimanc.autodiff import computation_graph  # noqa: E402
 from minimanc.viz import exercises as vx  # noqa: E402
 
@@ -110,4 +110,51 @@ def test_the_three_figures_draw_yours_over_the_reference_and_name_a_stub():
     ref_line, mine = fig.axes[0].get_lines()
     assert np.allclose(ref_line.get_ydata(), mine.get_ydata())
     assert "stub: NotImplementedError" in fig.axes[0].get_title()
+    plt.close("all")
+
+
+def test_the_bev_figure_counts_what_agrees_with_the_library_and_names_a_stub():
+    cfg = world.RasterConfig()
+    m = world.random_map(np.random.default_rng(3), "straight")
+    p, h = m.route_pose(m.start_s + 20.0)
+    ego = np.array([p[0], p[1], h])
+    ahead = np.array([np.cos(h), np.sin(h)])
+    left = np.array([-np.sin(h), np.cos(h)])
+    boxes = np.array([[*(p + 12 * ahead), h + 0.3, 4.5, 1.9],
+                      [*(p + 25 * ahead + 3.5 * left), h + np.pi, 4.7, 1.9]])
+    bev = world.rasterize(m, ego, boxes, np.array([True, True]), cfg)
+    path = p + np.outer(np.arange(0.0, 30.0, 3.0), ahead) + 0.2 * left   # 10 points
+
+    def to_pixel(points, pose, c):
+        return c.ego_to_pixel(world.to_ego_frame(points, pose))
+
+    def box(b, c):
+        return world.box_mask(*c.pixel_centres(), b)
+
+    fig = vx.plot_bev_attempts(bev, ego, boxes, path, cfg, world.goal_in_ego_frame, to_pixel,
+                               box)
+    title = fig.axes[1].get_title()
+    X, Y = cfg.pixel_centres()
+    ego_boxes = np.concatenate([world.goal_in_ego_frame(boxes[:, :3], ego), boxes[:, 3:]], 1)
+    n = int(world.box_mask(X, Y, ego_boxes).any(axis=0).sum())
+    assert n > 10
+    assert f"box pixels: yours {n}, library {n}, shared {n}" in title
+    assert "path: 10 of 10 points on the library's pixel" in title
+    yellow = np.all(bev == [255, 255, 0], axis=-1)
+    assert yellow.sum() > 0 and np.all(world.box_mask(X, Y, ego_boxes).any(axis=0)[yellow])
+
+    def mirrored(points, pose, c):      # the rotation by +yaw instead of -yaw: a wrong frame
+        return to_pixel(points, pose * np.array([1.0, 1.0, -1.0]), c)
+
+    def stub(*_):
+        raise NotImplementedError("Exercise ex07_3: stub")
+
+    fig = vx.plot_bev_attempts(bev, ego, boxes, path, cfg, world.goal_in_ego_frame, mirrored,
+                               stub)
+    title = fig.axes[1].get_title()
+    assert "boxes: NotImplementedError: Exercise ex07_3: stub" in title
+    hits = int(title.split("path: ")[1].split(" of")[0])
+    assert hits < 10
+    with pytest.raises(ValueError, match="bev must have shape"):
+        vx.plot_bev_attempts(bev[:10], ego, boxes, path, cfg, stub, stub, stub)
     plt.close("all")
