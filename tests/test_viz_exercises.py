@@ -13,7 +13,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import minimanc.autodiff.numpy as anp  # noqa: E402
-from minimanc import dmp, optim, world  # noqa: E402
+from minimanc import dmp, models, optim, world  # noqa: E402
 from minimanc.autodiff import computation_graph  # noqa: E402
 from minimanc.viz import exercises as vx  # noqa: E402
 
@@ -157,4 +157,41 @@ def test_the_bev_figure_counts_what_agrees_with_the_library_and_names_a_stub():
     assert hits < 10
     with pytest.raises(ValueError, match="bev must have shape"):
         vx.plot_bev_attempts(bev[:10], ego, boxes, path, cfg, stub, stub, stub)
+    plt.close("all")
+
+
+def test_the_drive_figure_puts_a_head_on_the_road_and_names_a_stub():
+    cfg = models.ModelConfig()
+    m = world.random_map(np.random.default_rng(3), "curved")
+    p, h = m.route_pose(m.start_s)
+    start, motion = np.array([p[0], p[1], h]), np.array([5.0, 0.0])
+    logits = np.array([[*dmp.logits_from_gains(4.0, 0.45), *dmp.logits_from_gains(3.0, 1.0)]])
+
+    def library(lane, mot):
+        return models.dmp_head(logits, lane, mot, cfg)[0]
+
+    poses, u = vx.drive(library, m, start, motion, 12)
+    assert poses.shape == (13, 3) and u.shape == (12, 2)
+    s, lat = world.project_to_route(m, poses[:, :2], poses[:, 2])
+    assert np.all(np.diff(s) > 0) and np.abs(lat).max() < 1.0   # it follows the route
+    fig = vx.plot_drive_attempts(m, start, motion, library, library, steps=12)
+    assert "paths at most 0.00 m apart" in fig._suptitle.get_text()
+    lines = fig.axes[1].get_lines()
+    assert len(lines) == 2 and np.allclose(lines[0].get_ydata(), lines[1].get_ydata())
+
+    def constant(lane, mot):     # a head that ignores the lane: drives straight on
+        return np.array([[5.0, 0.0]])
+
+    fig = vx.plot_drive_attempts(m, start, motion, constant, library, steps=12)
+    gap = float(fig._suptitle.get_text().split("at most ")[1].split(" m")[0])
+    assert gap > 0.5
+
+    def stub(*_):
+        raise NotImplementedError("Exercise ex08_2: stub")
+
+    fig = vx.plot_drive_attempts(m, start, motion, stub, library, steps=12)
+    assert "your head: NotImplementedError: Exercise ex08_2: stub" in fig._suptitle.get_text()
+    assert len(fig.axes[1].get_lines()) == 1
+    with pytest.raises(ValueError, match="shape \\(1, 2\\)"):
+        vx.drive(lambda lane, mot: np.zeros(3), m, start, motion, 2)
     plt.close("all")

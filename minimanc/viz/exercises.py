@@ -21,7 +21,11 @@ with the error, and only the reference is drawn: the notebook runs to the end.
   tracking a turning goal).
 * chapter 7: :func:`plot_bev_attempts` — one BEV frame of the dataset with the ado boxes
   and the human's future path put into pixels by the student's ego-frame transform,
-  box test and pixel grid, over the library's :func:`minimanc.world.rasterize`.
+  box test and pixel grid, over the library's :func:`minimanc.world.rasterize`;
+* chapter 8: :func:`plot_drive_attempts` — the DMP head of eqs. 10–11 driving a map in
+  closed loop (its controls integrated by the unicycle, the lane target re-read from the
+  new pose every step), the student's head over the library's
+  :func:`minimanc.models.dmp_head`.
 """
 
 from __future__ import annotations
@@ -35,7 +39,10 @@ from minimanc.autodiff import toposort
 from minimanc.autodiff.graph import Edge, Graph, Node
 from minimanc.viz.graph import plot_graph
 from minimanc.viz.style import pyplot
-from minimanc.world.geometry import goal_in_ego_frame, to_ego_frame
+from minimanc.viz.world import plot_map
+from minimanc.world.geometry import DT, goal_in_ego_frame, to_ego_frame, unicycle_step
+from minimanc.world.lanes import Map
+from minimanc.world.maps import lane_targets
 from minimanc.world.raster import RasterConfig, box_mask
 
 __all__ = [
@@ -43,6 +50,7 @@ __all__ = [
     "graph_of_edges",
     "plot_bev_attempts",
     "plot_curve_attempts",
+    "plot_drive_attempts",
     "plot_edge_cotangents",
     "plot_stability_boundary",
     "plot_valley_paths",
@@ -433,4 +441,125 @@ def plot_bev_attempts(
         ax.set_xticks([])
         ax.set_yticks([])
     right.set_title("\n".join(errors + notes), fontsize=8)
+    return fig
+
+
+Head = Callable[[np.ndarray, np.ndarray], Any]
+
+
+def drive(head: Head, m: Map, start: Any, motion: Any, steps: int,
+          dt: float = DT) -> tuple[np.ndarray, np.ndarray]:
+    """Drive ``head`` on the map ``m`` in closed loop.
+
+    Every step the lane target is read from the current pose
+    (:func:`minimanc.world.lane_targets`), the head maps ``(lane_target (1, K, 2),
+    motion (1, 2))`` to the controls ``[speed, yaw rate]``, the unicycle moves the pose
+    by them (:func:`minimanc.world.unicycle_step`) and they become the next motion.
+
+    Parameters
+    ----------
+    head : callable
+        ``(lane_target, motion) -> controls`` of shape ``(1, 2)``.
+    m : Map
+        The map whose route gives the lane target.
+    start : array-like, shape (3,)
+        The first pose ``[x, y, yaw]``.
+    motion : array-like, shape (2,)
+        The first ``[speed, yaw rate]``.
+    steps : int
+        Control steps.
+    dt : float, optional (default: 0.5)
+        The step in seconds.
+
+    Returns
+    -------
+    poses : ndarray, shape (steps + 1, 3)
+    controls : ndarray, shape (steps, 2)
+
+    Raises
+    ------
+    ValueError
+        If the head returns another shape than ``(1, 2)`` or a value that is not finite.
+    """
+    pose, mot = np.asarray(start, dtype=float), np.asarray(motion, dtype=float)
+    poses, controls = [pose], []
+    for _ in range(steps):
+        u = np.asarray(head(lane_targets(m, pose)[None], mot[None]), dtype=float)
+        if u.shape != (1, 2) or not np.all(np.isfinite(u)):
+            raise ValueError(f"the head must return finite controls of shape (1, 2), got "
+                             f"{u.shape} {np.round(u, 3).tolist()}")
+        mot = u[0]
+        pose = unicycle_step(pose, mot, dt)
+        poses.append(pose)
+        controls.append(mot)
+    return np.array(poses), np.array(controls)
+
+
+def plot_drive_attempts(
+    m: Map,
+    start: Any,
+    motion: Any,
+    head: Head,
+    reference: Head,
+    steps: int = 40,
+    dt: float = DT,
+) -> Any:
+    """Chapter 8's figure: the student's DMP head and the library's driving one map.
+
+    Both heads run :func:`drive` from the same pose and motion; the left panel draws
+    the two paths on the map (the student's solid, the library's dashed), the right
+    one the speed over time. The title gives the largest distance between the two
+    paths, or names the error of a head that raised.
+
+    Parameters
+    ----------
+    m : Map
+        The map (its route gives the lane target).
+    start : array-like, shape (3,)
+        The first pose.
+    motion : array-like, shape (2,)
+        The first ``[speed, yaw rate]``.
+    head : callable
+        The student's head, ``(lane_target (1, K, 2), motion (1, 2)) -> (1, 2)``.
+    reference : callable
+        The library's head, same signature.
+    steps : int, optional (default: 40)
+        Control steps.
+    dt : float, optional (default: 0.5)
+        The step in seconds.
+
+    Returns
+    -------
+    fig : matplotlib Figure
+    """
+    ref_poses, ref_u = drive(reference, m, start, motion, steps, dt)
+    out, error = attempt(drive, head, m, start, motion, steps, dt)
+    plt = pyplot()
+    fig, (top, speed) = plt.subplots(1, 2, figsize=(10, 4.2))
+    plot_map(m, top)
+    top.plot(ref_poses[:, 0], ref_poses[:, 1], "--", color="tab:green", lw=2.5,
+             label="library head")
+    t = dt * np.arange(1, steps + 1)
+    speed.plot(t, ref_u[:, 0], "--", color="tab:green", lw=2.5, label="library head")
+    drawn = [ref_poses[:, :2]]
+    if error:
+        title = f"your head: {error}"
+    else:
+        poses, u = out
+        drawn.append(poses[:, :2])
+        top.plot(poses[:, 0], poses[:, 1], "-", color="tab:red", lw=1.2, label="your head")
+        speed.plot(t, u[:, 0], "-", color="tab:red", lw=1.2, label="your head")
+        gap = float(np.max(np.linalg.norm(poses[:, :2] - ref_poses[:, :2], axis=1)))
+        title = f"your head (solid) over the library's (dashed): paths at most {gap:.2f} m apart"
+    every = np.concatenate(drawn)
+    lo, hi = every.min(axis=0) - 20.0, every.max(axis=0) + 20.0
+    half = 0.5 * float(np.max(hi - lo))
+    mid = 0.5 * (lo + hi)
+    top.set_xlim(mid[0] - half, mid[0] + half)
+    top.set_ylim(mid[1] - half, mid[1] + half)
+    top.legend(fontsize=8, loc="lower right")
+    speed.set_xlabel("time (s)")
+    speed.set_ylabel("speed (m/s)")
+    speed.legend(fontsize=8)
+    fig.suptitle(title, fontsize=9)
     return fig
