@@ -13,7 +13,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import minimanc.autodiff.numpy as anp  # noqa: E402
-from minimanc import dmp, models, optim, world  # noqa: E402
+from minimanc import dmp, metrics, models, optim, world  # noqa: E402
 from minimanc.autodiff import computation_graph  # noqa: E402
 from minimanc.viz import exercises as vx  # noqa: E402
 
@@ -194,4 +194,38 @@ def test_the_drive_figure_puts_a_head_on_the_road_and_names_a_stub():
     assert len(fig.axes[1].get_lines()) == 1
     with pytest.raises(ValueError, match="shape \\(1, 2\\)"):
         vx.drive(lambda lane, mot: np.zeros(3), m, start, motion, 2)
+    plt.close("all")
+
+
+def test_the_track_error_figure_draws_your_split_over_the_library_and_names_errors():
+    human = np.zeros((2, 6, 3))
+    human[:, :, 0] = 5.0 * np.arange(6)                     # east at 10 m/s
+    human[1, :, 2] = np.pi / 2                               # scene 1 faces north
+    left = human + [0.0, 1.0, 0.0]                           # 1 m north of the human
+    runs = {"north": lambda: left, "broken run": lambda: 1 / 0}
+    fig = vx.plot_track_error_attempts(runs, human, metrics.along_cross_track)
+    along_ax, cross_ax = fig.axes
+    ref, mine = cross_ax.get_lines()
+    assert np.allclose(ref.get_ydata(), 0.5) and np.allclose(mine.get_ydata(), 0.5)
+    assert np.allclose(along_ax.get_lines()[1].get_ydata(), 0.5)   # along for scene 1
+    assert "broken run: ZeroDivisionError" in fig._suptitle.get_text()
+
+    def swapped(ego, h):   # along and cross exchanged: the panels disagree with the library
+        a, c = metrics.along_cross_track(ego, h)
+        return c, a
+
+    fig = vx.plot_track_error_attempts({"north": lambda: left[:1]}, human[:1], swapped)
+    assert fig._suptitle.get_text().startswith("your along_cross_track (solid)")
+    ref, mine = fig.axes[0].get_lines()
+    assert not np.allclose(ref.get_ydata(), mine.get_ydata())
+
+    def stub(*_):
+        raise NotImplementedError("Exercise ex09_4: stub")
+
+    fig = vx.plot_track_error_attempts({"north": lambda: left}, human, stub)
+    assert ("your along_cross_track on north: NotImplementedError: Exercise ex09_4: stub"
+            in fig._suptitle.get_text())
+    assert len(fig.axes[0].get_lines()) == 1                # the library's only
+    with pytest.raises(ValueError, match="human must have shape"):
+        vx.plot_track_error_attempts({}, human[0], stub)
     plt.close("all")

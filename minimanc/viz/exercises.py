@@ -25,7 +25,10 @@ with the error, and only the reference is drawn: the notebook runs to the end.
 * chapter 8: :func:`plot_drive_attempts` — the DMP head of eqs. 10–11 driving a map in
   closed loop (its controls integrated by the unicycle, the lane target re-read from the
   new pose every step), the student's head over the library's
-  :func:`minimanc.models.dmp_head`.
+  :func:`minimanc.models.dmp_head`;
+* chapter 9: :func:`plot_track_error_attempts` — the displacement from the human split
+  along and across the human's heading over time, for closed-loop runs, measured by the
+  student's split next to :func:`minimanc.metrics.along_cross_track`.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ import numpy as np
 
 from minimanc.autodiff import toposort
 from minimanc.autodiff.graph import Edge, Graph, Node
+from minimanc.metrics.trajectory import along_cross_track as library_along_cross_track
 from minimanc.viz.graph import plot_graph
 from minimanc.viz.style import pyplot
 from minimanc.viz.world import plot_map
@@ -53,6 +57,7 @@ __all__ = [
     "plot_drive_attempts",
     "plot_edge_cotangents",
     "plot_stability_boundary",
+    "plot_track_error_attempts",
     "plot_valley_paths",
 ]
 
@@ -562,4 +567,78 @@ def plot_drive_attempts(
     speed.set_ylabel("speed (m/s)")
     speed.legend(fontsize=8)
     fig.suptitle(title, fontsize=9)
+    return fig
+
+
+def plot_track_error_attempts(
+    runs: Mapping[str, Callable[[], Any]],
+    human: Any,
+    along_cross_track: Callable[[Any, Any], Any],
+    dt: float = DT,
+) -> Any:
+    """Chapter 9's figure: how far each closed-loop run is behind or ahead of the human
+    (left) and beside the human's line (right), over time.
+
+    The displacement from the human at each step is split in the frame of the human's
+    heading (along, cross); each panel shows its mean magnitude over the scenes, from
+    the student's ``along_cross_track`` (solid) over
+    :func:`minimanc.metrics.along_cross_track` (dashed), one colour per run. A run or a
+    split that raises is named in the title and only what could be computed is drawn.
+
+    Parameters
+    ----------
+    runs : mapping of label to callable
+        ``run()`` returns the poses ``(S, T, 3)`` of one closed-loop run.
+    human : array-like, shape (S, T, 3)
+        The human's poses.
+    along_cross_track : callable
+        The student's ``(ego, human) -> (along, cross)``, each ``(S, T)``.
+    dt : float, optional (default: 0.5)
+        The step in seconds (the time axis).
+
+    Returns
+    -------
+    fig : matplotlib Figure
+
+    Raises
+    ------
+    ValueError
+        If ``human`` is not ``(S, T, 3)``.
+    """
+    ref_human = np.asarray(human, dtype=float)
+    if ref_human.ndim != 3 or ref_human.shape[-1] != 3:
+        raise ValueError(f"human must have shape (S, T, 3), got {ref_human.shape}")
+    t = dt * np.arange(ref_human.shape[1])
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    errors = []
+    for k, (label, run) in enumerate(runs.items()):
+        colour = f"C{k}"
+        ego, error = attempt(run)
+        if error:
+            errors.append(f"{label}: {error}")
+            continue
+        reference = library_along_cross_track(ego, ref_human)
+        split, error = attempt(along_cross_track, ego, ref_human)
+        if not error:
+            shapes = [np.shape(x) for x in split] if isinstance(split, tuple) else None
+            if shapes != [np.shape(reference[0])] * 2:
+                error = f"expected (along, cross) of shape {np.shape(reference[0])}, got {shapes}"
+        if error:
+            errors.append(f"your along_cross_track on {label}: {error}")
+        for j, ax in enumerate(axes):
+            ax.plot(t, np.abs(reference[j]).mean(axis=0), "--", color=colour, lw=1,
+                    label=f"{label}: library")
+            if not error:
+                ax.plot(t, np.abs(np.asarray(split[j], dtype=float)).mean(axis=0), "o-",
+                        color=colour, ms=3, label=f"{label}: yours")
+    for ax, name in zip(axes, ("along", "across")):
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(f"mean |{'along' if name == 'along' else 'cross'}| (m)")
+        ax.set_yscale("symlog", linthresh=0.1)
+        ax.set_title(f"{name} the human's heading", fontsize=9)
+        if ax.get_lines():
+            ax.legend(fontsize=7)
+    fig.suptitle("\n".join(errors) or "your along_cross_track (solid) over the library's "
+                 "(dashed)", fontsize=9)
     return fig
