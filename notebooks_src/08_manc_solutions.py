@@ -77,18 +77,24 @@ assert np.allclose(a[:, 0], a_ref[:, 0]) and np.allclose(b[:, 0], b_ref[:, 0]), 
     f"position gains: expected alpha {a_ref[:, 0]}, beta {b_ref[:, 0]} (logits 0 and 1)"
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(810)  # the tests' own draws, not the notebook's rng
-assert np.allclose(a, a_ref) and np.allclose(b, b_ref), \
-    "orientation gains: expected logits 2 and 3 in the second column"
+assert np.allclose(a, a_ref) and np.allclose(b, b_ref), (
+    f"orientation gains (logits 2 and 3, second column): expected alpha {a_ref[:, 1]}, "
+    f"beta {b_ref[:, 1]}; got alpha {np.asarray(a)[:, 1]}, beta {np.asarray(b)[:, 1]}")
 q2 = vagn.random_state(test_rng, cfg.n_states, size=6)
 w2, c2 = test_rng.normal(size=(cfg.n_states, 4)) * 3, test_rng.normal(size=4)
 a2, b2 = gains_from_q(q2, w2, c2)
 a2_ref, b2_ref = gains_reference(q2, w2, c2)
-assert np.allclose(a2, a2_ref) and np.allclose(b2, b2_ref), "other weights and states"
-assert np.allclose(gains_from_q(q2, np.zeros((cfg.n_states, 4)), np.zeros(4))[0],
-                   np.mean(dmp.ALPHA_RANGE)), "zero logits: the middle of the range"
+assert np.allclose(a2, a2_ref) and np.allclose(b2, b2_ref), (
+    f"6 random states, other weights: expected alpha {np.round(a2_ref, 4).tolist()}; "
+    f"got {np.round(np.asarray(a2), 4).tolist()}")
+mid8 = gains_from_q(q2, np.zeros((cfg.n_states, 4)), np.zeros(4))[0]
+assert np.allclose(mid8, np.mean(dmp.ALPHA_RANGE)), (
+    f"zero logits: expected the middle of the range, {np.mean(dmp.ALPHA_RANGE)}; "
+    f"got {np.round(np.asarray(mid8), 4).tolist()}")
 big, _ = gains_from_q(np.eye(2), np.full((2, 4), 1e4), np.zeros(4))
-assert np.all(np.isfinite(big)) and np.allclose(big, dmp.ALPHA_RANGE[1]), \
-    "logits of 1e4: expected the top of the range, finite (use the tanh form)"
+assert np.all(np.isfinite(big)) and np.allclose(big, dmp.ALPHA_RANGE[1]), (
+    f"logits of 1e4: expected the top of the range, {dmp.ALPHA_RANGE[1]}, finite (use the "
+    f"tanh form); got {np.asarray(big).tolist()}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -148,17 +154,20 @@ assert np.allclose(speed, speed_reference(v0, g[:, 0], alpha, beta)), \
 test_rng = np.random.default_rng(820)  # the tests' own draws, not the notebook's rng
 # one sub-step by hand: dy1 = v0 + dt alpha (beta g - v0), y1 = dt dy1, so the speed is dy1
 one = dmp_speed(v0, g, alpha, beta, substeps=1)
-assert np.allclose(one, v0 + 0.5 * alpha * (beta * g[:, 0] - v0)), "substeps=1: dy1 by hand"
+want8 = v0 + 0.5 * alpha * (beta * g[:, 0] - v0)
+assert np.allclose(one, want8), f"substeps=1: expected dy1 by hand {want8}; got {one}"
 lateral = dmp_speed(v0, g * np.array([1.0, -3.0]), alpha, beta)
-assert np.allclose(lateral, speed), "the lateral goal must not change the forward speed"
+assert np.allclose(lateral, speed), (
+    f"the lateral goal must not change the forward speed: expected {speed}; got {lateral}")
 # at the speed beta * (g - y) the speed hardly changes
 keep = dmp_speed(np.array([8.0]), np.array([[20.0, 0.0]]), np.array([0.5]), np.array([0.4]))
 assert abs(keep[0] - 8.0) < 0.3, f"expected about 8 m/s; got {keep[0]}"
 v2 = test_rng.uniform(0.0, 15.0, size=6)
 g2 = np.stack([test_rng.uniform(4.0, 40.0, size=6), test_rng.normal(size=6)], axis=-1)
 a2, b2 = test_rng.uniform(0.5, 20.0, size=6), test_rng.uniform(0.05, 5.0, size=6)
-assert np.allclose(dmp_speed(v2, g2, a2, b2, dt=0.2, substeps=4),
-                   speed_reference(v2, g2[:, 0], a2, b2, dt=0.2, n=4)), "dt=0.2, substeps=4"
+got8 = dmp_speed(v2, g2, a2, b2, dt=0.2, substeps=4)
+want8 = speed_reference(v2, g2[:, 0], a2, b2, dt=0.2, n=4)
+assert np.allclose(got8, want8), f"dt=0.2, substeps=4: expected {want8}; got {got8}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -208,21 +217,25 @@ assert np.isclose(orientation_goal(left, np.array([10.0]))[0], 20.0 / 226.0), \
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(830)  # the tests' own draws, not the notebook's rng
 right = left * np.array([1.0, -1.0])
-assert np.isclose(orientation_goal(right, np.array([10.0]))[0], -20.0 / 226.0), \
-    "a lane to the right mirrors the goal"
-assert orientation_goal(left, np.array([0.0]))[0] == 0.0, "a standing car: psi_g = 0"
-assert np.isclose(orientation_goal(left, np.array([10.0]), tau=2.0)[0], 40.0 / 226.0), \
-    "psi_g grows linearly with tau"
+got8 = orientation_goal(right, np.array([10.0]))[0]
+assert np.isclose(got8, -20.0 / 226.0), \
+    f"a lane 1 m to the right mirrors the goal: expected {-20 / 226:.6f}; got {got8!r}"
+got8 = orientation_goal(left, np.array([0.0]))[0]
+assert got8 == 0.0, f"a standing car: expected psi_g = 0; got {got8!r}"
+got8 = orientation_goal(left, np.array([10.0]), tau=2.0)[0]
+assert np.isclose(got8, 40.0 / 226.0), \
+    f"tau = 2 (psi_g grows linearly with tau): expected {40 / 226:.6f}; got {got8!r}"
 # the diagonal lane (4k, 4k): at v0 = 20, L = 22 (clipped), p = (22, 22), kappa = 1/22
 diag = np.stack([4.0 * np.arange(1, 11)] * 2, -1)[None]
-assert np.isclose(orientation_goal(diag, np.array([20.0]))[0], 20.0 / 22.0), \
-    "expected L clipped at 22 m: psi_g = 20 / 22"
-assert np.isclose(orientation_goal(diag, np.array([20.0]), tau=3.0)[0], np.pi / 2), \
-    "expected psi_g clipped at pi/2"
+got8 = orientation_goal(diag, np.array([20.0]))[0]
+assert np.isclose(got8, 20.0 / 22.0), \
+    f"diagonal lane at 20 m/s, L clipped at 22 m: expected psi_g = 20 / 22; got {got8!r}"
+got8 = orientation_goal(diag, np.array([20.0]), tau=3.0)[0]
+assert np.isclose(got8, np.pi / 2), f"tau = 3: expected psi_g clipped at pi/2; got {got8!r}"
 lanes = np.cumsum(test_rng.normal(size=(5, 10, 2)) * [0.1, 0.5] + [4.0, 0.0], axis=1)
 speeds = test_rng.uniform(0.0, 20.0, size=5)
-assert np.allclose(orientation_goal(lanes, speeds), psi_reference(lanes, speeds), atol=1e-9), \
-    "random lanes"
+got8, want8 = orientation_goal(lanes, speeds), psi_reference(lanes, speeds)
+assert np.allclose(got8, want8, atol=1e-9), f"5 random lanes: expected {want8}; got {got8}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -266,7 +279,7 @@ assert manc_count(cfg) == 14916, f"expected 14916 from the configuration; got {m
 # the CNN totals were computed once with models.param_count
 for c, manc_total, cnn_total in ((models.ModelConfig(n_states=3, channels=(8, 16)), 1616, 263922),
                                  (models.ModelConfig(n_states=12, n_predicates=4), 15096, 145794)):
-    assert manc_count(c) == manc_total, f"{c}: expected {manc_total}"
+    assert manc_count(c) == manc_total, f"{c}: expected {manc_total}, got {manc_count(c)}"
     got_manc = count(models.init("manc", np.random.default_rng(840), c))
     got_cnn = count(models.init("cnn", np.random.default_rng(841), c))
     assert got_manc == manc_total, f"{c}: expected {manc_total} in MANC's pytree, got {got_manc}"
@@ -353,14 +366,14 @@ assert np.allclose(u, u_ref, atol=1e-6), f"expected controls {u_ref}; got {u}"
 p2 = models.init("manc", np.random.default_rng(5), cfg)
 u2, q2 = manc_step(p2, obs, q, cfg)  # q carried over from the first step
 u2_ref, q2_ref = manc_reference(p2, obs, q_ref)
-assert np.allclose(u2, u2_ref, atol=1e-6) and np.allclose(q2, q2_ref, atol=1e-9), \
-    "second step (other weights, q carried over)"
+assert np.allclose(u2, u2_ref, atol=1e-6) and np.allclose(q2, q2_ref, atol=1e-9), (
+    f"second step (other weights, q carried over): expected controls {u2_ref}; got {u2}")
 obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model=models.get("manc"))
 q3 = vagn.random_state(np.random.default_rng(850), cfg.n_states, size=2)
 u3, q3_out = manc_step(params, obs3, q3, cfg)
 u3_ref, q3_ref = manc_reference(params, obs3, q3)
-assert np.allclose(u3, u3_ref, atol=1e-6) and np.allclose(q3_out, q3_ref, atol=1e-9), \
-    "first and last steps of a scene, random q'"
+assert np.allclose(u3, u3_ref, atol=1e-6) and np.allclose(q3_out, q3_ref, atol=1e-9), (
+    f"first and last steps of a scene, random q': expected controls {u3_ref}; got {u3}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -409,21 +422,24 @@ assert np.allclose(position_goal(ramp, np.array([7.5])), [[19.0, 4.75]]), \
     "v0 = 7.5 m/s: L_y = 4 + 2 * 7.5 = 19 m, expected [[19, 4.75]]"
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(860)  # the tests' own draws, not the notebook's rng
-assert np.allclose(position_goal(ramp, np.array([30.0])), [[40.0, 10.0]]), \
-    "v0 = 30 m/s: L_y = 64 m clipped at 4K = 40 m, the last point"
+got8 = position_goal(ramp, np.array([30.0]))
+assert np.allclose(got8, [[40.0, 10.0]]), \
+    f"v0 = 30 m/s: L_y = 64 m clipped at 4K = 40 m, expected [[40, 10]]; got {got8}"
 short = ramp[:, :5]
-assert np.allclose(position_goal(short, np.array([30.0])), [[20.0, 5.0]]), \
-    "K = 5: clipped at 20 m"
+got8 = position_goal(short, np.array([30.0]))
+assert np.allclose(got8, [[20.0, 5.0]]), f"K = 5: clipped at 20 m, expected [[20, 5]]; got {got8}"
 lanes = np.cumsum(test_rng.normal(size=(6, 10, 2)) + [4.0, 0.0], axis=1)
 d = test_rng.uniform(4.0, 40.0, size=6)
 s = 4.0 * k
 ref = np.array([[np.interp(di, s, li[:, 0]), np.interp(di, s, li[:, 1])]
                 for di, li in zip(d, lanes)])
-assert np.allclose(lane_lookup(lanes, d), ref), "random lanes: compare with np.interp"
+got8 = lane_lookup(lanes, d)
+assert np.allclose(got8, ref), f"6 random lanes: expected np.interp's {ref}; got {got8}"
 v = test_rng.uniform(0.0, 20.0, size=6)
 ref_g = np.array([[np.interp(di, s, li[:, 0]), np.interp(di, s, li[:, 1])]
                   for di, li in zip(np.clip(4 + 2 * v, 4, 40), lanes)])
-assert np.allclose(position_goal(lanes, v), ref_g), "random lanes and speeds"
+got8 = position_goal(lanes, v)
+assert np.allclose(got8, ref_g), f"6 random lanes and speeds: expected {ref_g}; got {got8}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -491,11 +507,13 @@ table = {  # inputs.py's table, written out
     ("dmp_only", "parity"): ("bev", "lane_target", "motion"),
 }
 for (m, st), want in table.items():
-    assert tuple(visible_keys(m, st)) == want, f"{m}, {st}: expected {want}"
+    got8 = tuple(visible_keys(m, st))
+    assert got8 == want, f"{m}, {st}: expected {want}; got {got8}"
 lengths = {("cnn", "paper"): 3, ("rvs_g", "paper"): 3, ("rvs_g", "parity"): 13,
            ("manc", "paper"): 10, ("dmp_only", "parity"): 10, ("vagn_only", "parity"): 13}
 for (m, st), want in lengths.items():
-    assert numeric_length(m, st, k_targets=4) == want, f"{m}, {st}, k_targets=4: expected {want}"
+    got8 = numeric_length(m, st, k_targets=4)
+    assert got8 == want, f"{m}, {st}, k_targets=4: expected {want}; got {got8}"
 for bad in (("lstm", "paper"), ("cnn", "Paper")):
     try:
         visible_keys(*bad)

@@ -177,18 +177,22 @@ circle = [np.zeros(3)]
 for _ in range(10):
     circle.append(world.unicycle_step(circle[-1], np.array([6.0, 0.3])))
 circle = np.stack(circle)[None]
-assert np.allclose(max_acceleration(circle), [1.8]), "a circle at v·ω = 6 · 0.3 = 1.8 m/s²"
+got9 = max_acceleration(circle)
+assert np.allclose(got9, [1.8]), f"a circle at v·ω = 6 · 0.3: expected [1.8] m/s², got {got9}"
 human = max_acceleration(ds.ego)
-assert human.shape == (len(ds.ego),), f"one number per scene: shape ({len(ds.ego)},)"
-assert np.all(human >= 0), "a magnitude is never negative"
+assert human.shape == (len(ds.ego),), \
+    f"one number per scene: expected shape ({len(ds.ego)},), got {human.shape}"
+assert np.all(human >= 0), f"a magnitude is never negative: got {human}"
 ### BEGIN HIDDEN TESTS
 ramp = np.zeros((1, 6, 3))
 ramp[0, :, 0] = np.cumsum([0, 1, 2, 3, 5, 7]) * 0.5
-assert np.allclose(max_acceleration(ramp), [4.0]), "speeds 1 2 3 5 7 m/s every 0.5 s"
+got9 = max_acceleration(ramp)
+assert np.allclose(got9, [4.0]), f"speeds 1 2 3 5 7 m/s every 0.5 s: expected [4], got {got9}"
 arc = [np.zeros(3)]
 for v in (4.0, 6.0, 8.0, 8.0):
     arc.append(world.unicycle_step(arc[-1], np.array([v, 0.5])))
-assert np.allclose(max_acceleration(np.stack(arc)[None]), [5.0]), "a_lon = 4, a_lat = 6 * 0.5"
+got9 = max_acceleration(np.stack(arc)[None])
+assert np.allclose(got9, [5.0]), f"a_lon = 4, a_lat = 6 * 0.5: expected [5], got {got9}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -243,16 +247,26 @@ for _ in range(6):
 h, e = np.stack(h)[None], np.stack(e)[None]
 along, cross = along_cross_track(e, h)
 assert np.allclose(along, [[0.0, -0.49, -0.9896, -1.5219, -2.1086, -2.7684, -3.5168]],
-                   atol=1e-4), "falls behind the human by 0.5 m per step and more"
+                   atol=1e-4), (
+    "a slower, straighter policy falls behind: expected along [0, -0.49, -0.9896, -1.5219, "
+    f"-2.1086, -2.7684, -3.5168], got {np.round(along, 4).tolist()}")
 assert np.allclose(cross, [[0.0, 0.0993, 0.1235, 0.078, -0.0267, -0.1755, -0.3497]],
-                   atol=1e-4), "first left of the human's arc, then right of it"
+                   atol=1e-4), (
+    "first left of the human's arc, then right of it: expected cross [0, 0.0993, 0.1235, "
+    f"0.078, -0.0267, -0.1755, -0.3497], got {np.round(cross, 4).tolist()}")
 # batched over scenes, each against its own human; the split reproduces the distance
 shifted = ds.ego + [2.0, -1.0, 0.3]
 along, cross = along_cross_track(shifted, ds.ego)
-assert along.shape == ds.ego.shape[:2], f"shape (S, T) = {ds.ego.shape[:2]}"
-assert np.allclose(along**2 + cross**2, 5.0), "along² + cross² = 2² + 1² at every step"
+assert along.shape == ds.ego.shape[:2], \
+    f"expected shape (S, T) = {ds.ego.shape[:2]}, got {along.shape}"
+assert np.allclose(along**2 + cross**2, 5.0), (
+    f"shifted by (2, -1): expected along² + cross² = 5 at every step, got values from "
+    f"{np.min(along**2 + cross**2):.4f} to {np.max(along**2 + cross**2):.4f}")
 yaw = ds.ego[..., 2]
-assert np.allclose(along, 2 * np.cos(yaw) - np.sin(yaw)), "along = d · (cos ψ, sin ψ)"
+want9 = 2 * np.cos(yaw) - np.sin(yaw)
+assert np.allclose(along, want9), (
+    f"shifted by (2, -1): expected along = d · (cos ψ, sin ψ) = {np.round(want9[0, :3], 4)}..., "
+    f"got {np.round(along[0, :3], 4)}...")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -292,7 +306,8 @@ assert close_encounters(ego, parked, ~valid)[0] == 0.0, "invalid ados never coun
 ### BEGIN HIDDEN TESTS
 two = np.concatenate([parked, parked + [0.0, 0.2, 0.0, 0.0, 0.0]], axis=2)  # two close ados
 assert np.isclose(close_encounters(ego, two, np.ones((1, 11, 2), bool))[0], expected), (
-    "a step counts once however many ados are close")
+    f"a step counts once however many ados are close: expected {expected:.4f}, got "
+    f"{close_encounters(ego, two, np.ones((1, 11, 2), bool))[0]!r}")
 r = np.random.default_rng(10)  # its own generator: the literal counts below depend on it
 S, T, A = 3, 8, 3
 ego_r = np.concatenate([np.cumsum(r.normal(size=(S, T, 2)) * 2, axis=1),
@@ -303,8 +318,12 @@ ado_r = np.concatenate([ego_r[:, :, None, :2] + r.normal(size=(S, T, A, 2)) * 4,
 val_r = r.random((S, T, A)) < 0.7
 # literal counts of close steps out of 8, computed once with metrics.close_encounters
 # (every gap is at least 0.03 m away from the thresholds)
-assert np.allclose(close_encounters(ego_r, ado_r, val_r) * T, [6, 4, 5]), "gap 1 m"
-assert np.allclose(close_encounters(ego_r, ado_r, val_r, gap=2.0) * T, [7, 7, 6]), "gap 2 m"
+got9 = close_encounters(ego_r, ado_r, val_r) * T
+assert np.allclose(got9, [6, 4, 5]), \
+    f"3 random scenes, gap 1 m: expected [6, 4, 5] close steps of 8, got {got9}"
+got9 = close_encounters(ego_r, ado_r, val_r, gap=2.0) * T
+assert np.allclose(got9, [7, 7, 6]), \
+    f"3 random scenes, gap 2 m: expected [7, 7, 6] close steps of 8, got {got9}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
