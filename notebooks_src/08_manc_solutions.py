@@ -9,15 +9,21 @@
 # You will rebuild MANC's head (FC → DMP gains → one DMP step → controls,
 # eqs. 10–11), count its parameters, assemble the whole forward pass
 # (eqs. 7–11) from the chapter modules, look up the DMP's goals on the lane
-# target and write out who sees what (information parity). Each grade cell
+# target and write out who sees what (information parity); then work out the
+# speed the head cruises at (a result the tutorial does not give) and design
+# gains for a given cruise in an open experiment. Each grade cell
 # checks your code against the equations written out (a matrix power,
 # `np.interp`, hand-counted totals), never against the library function the
 # exercise asks for: that one is disabled while the exercise is graded.
 
 # %%
+import math
+
+import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import dmp, engine, inputs, models, rollout, vagn, world
+from minimanc.viz.exercises import attempt, plot_drive_attempts
 
 np.set_printoptions(precision=3, suppress=True)
 rng = np.random.default_rng(0)
@@ -70,18 +76,25 @@ a_ref, b_ref = gains_reference(q, params["gains"]["w"], params["gains"]["b"])
 assert np.allclose(a[:, 0], a_ref[:, 0]) and np.allclose(b[:, 0], b_ref[:, 0]), \
     f"position gains: expected alpha {a_ref[:, 0]}, beta {b_ref[:, 0]} (logits 0 and 1)"
 ### BEGIN HIDDEN TESTS
-assert np.allclose(a, a_ref) and np.allclose(b, b_ref), \
-    "orientation gains: expected logits 2 and 3 in the second column"
-q2 = vagn.random_state(rng, cfg.n_states, size=6)
-w2, c2 = rng.normal(size=(cfg.n_states, 4)) * 3, rng.normal(size=4)
+test_rng = np.random.default_rng(810)  # the tests' own draws, not the notebook's rng
+assert np.allclose(a, a_ref) and np.allclose(b, b_ref), (
+    f"orientation gains (logits 2 and 3, second column): expected alpha {a_ref[:, 1]}, "
+    f"beta {b_ref[:, 1]}; got alpha {np.asarray(a)[:, 1]}, beta {np.asarray(b)[:, 1]}")
+q2 = vagn.random_state(test_rng, cfg.n_states, size=6)
+w2, c2 = test_rng.normal(size=(cfg.n_states, 4)) * 3, test_rng.normal(size=4)
 a2, b2 = gains_from_q(q2, w2, c2)
 a2_ref, b2_ref = gains_reference(q2, w2, c2)
-assert np.allclose(a2, a2_ref) and np.allclose(b2, b2_ref), "other weights and states"
-assert np.allclose(gains_from_q(q2, np.zeros((cfg.n_states, 4)), np.zeros(4))[0],
-                   np.mean(dmp.ALPHA_RANGE)), "zero logits: the middle of the range"
+assert np.allclose(a2, a2_ref) and np.allclose(b2, b2_ref), (
+    f"6 random states, other weights: expected alpha {np.round(a2_ref, 4).tolist()}; "
+    f"got {np.round(np.asarray(a2), 4).tolist()}")
+mid8 = gains_from_q(q2, np.zeros((cfg.n_states, 4)), np.zeros(4))[0]
+assert np.allclose(mid8, np.mean(dmp.ALPHA_RANGE)), (
+    f"zero logits: expected the middle of the range, {np.mean(dmp.ALPHA_RANGE)}; "
+    f"got {np.round(np.asarray(mid8), 4).tolist()}")
 big, _ = gains_from_q(np.eye(2), np.full((2, 4), 1e4), np.zeros(4))
-assert np.all(np.isfinite(big)) and np.allclose(big, dmp.ALPHA_RANGE[1]), \
-    "logits of 1e4: expected the top of the range, finite (use the tanh form)"
+assert np.all(np.isfinite(big)) and np.allclose(big, dmp.ALPHA_RANGE[1]), (
+    f"logits of 1e4: expected the top of the range, {dmp.ALPHA_RANGE[1]}, finite (use the "
+    f"tanh form); got {np.asarray(big).tolist()}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -98,8 +111,11 @@ assert np.all(np.isfinite(big)) and np.allclose(big, dmp.ALPHA_RANGE[1]), \
 # `dt`. Return it, shape `(B,)`. Write the loop yourself: `dmp.step` and
 # `models.dmp_head` are disabled while this exercise is graded.
 #
-# *Hint:* update `ẏ` first and move `y` with the **new** `ẏ`; moving `y`
-# with the old one is explicit Euler and gives a slightly different speed.
+# <details><summary>Hint (if the speed is slightly off)</summary>
+#
+# Update `ẏ` first and move `y` with the **new** `ẏ`; moving `y` with the old
+# one is explicit Euler and gives a slightly different speed.
+# </details>
 
 # %% solution id=ex08_2 title="One DMP step to a speed" forbids="minimanc.dmp.step,minimanc.models.dmp_head"  # noqa: E501
 def dmp_speed(v0, g, alpha, beta, dt=0.5, substeps=10):
@@ -135,19 +151,23 @@ assert np.allclose(speed, speed_reference(v0, g[:, 0], alpha, beta)), \
     f"expected {speed_reference(v0, g[:, 0], alpha, beta)} (x displacement after 10 " \
     f"semi-implicit Euler sub-steps / dt); got {speed}"
 ### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(820)  # the tests' own draws, not the notebook's rng
 # one sub-step by hand: dy1 = v0 + dt alpha (beta g - v0), y1 = dt dy1, so the speed is dy1
 one = dmp_speed(v0, g, alpha, beta, substeps=1)
-assert np.allclose(one, v0 + 0.5 * alpha * (beta * g[:, 0] - v0)), "substeps=1: dy1 by hand"
+want8 = v0 + 0.5 * alpha * (beta * g[:, 0] - v0)
+assert np.allclose(one, want8), f"substeps=1: expected dy1 by hand {want8}; got {one}"
 lateral = dmp_speed(v0, g * np.array([1.0, -3.0]), alpha, beta)
-assert np.allclose(lateral, speed), "the lateral goal must not change the forward speed"
+assert np.allclose(lateral, speed), (
+    f"the lateral goal must not change the forward speed: expected {speed}; got {lateral}")
 # at the speed beta * (g - y) the speed hardly changes
 keep = dmp_speed(np.array([8.0]), np.array([[20.0, 0.0]]), np.array([0.5]), np.array([0.4]))
 assert abs(keep[0] - 8.0) < 0.3, f"expected about 8 m/s; got {keep[0]}"
-v2 = rng.uniform(0.0, 15.0, size=6)
-g2 = np.stack([rng.uniform(4.0, 40.0, size=6), rng.normal(size=6)], axis=-1)
-a2, b2 = rng.uniform(0.5, 20.0, size=6), rng.uniform(0.05, 5.0, size=6)
-assert np.allclose(dmp_speed(v2, g2, a2, b2, dt=0.2, substeps=4),
-                   speed_reference(v2, g2[:, 0], a2, b2, dt=0.2, n=4)), "dt=0.2, substeps=4"
+v2 = test_rng.uniform(0.0, 15.0, size=6)
+g2 = np.stack([test_rng.uniform(4.0, 40.0, size=6), test_rng.normal(size=6)], axis=-1)
+a2, b2 = test_rng.uniform(0.5, 20.0, size=6), test_rng.uniform(0.05, 5.0, size=6)
+got8 = dmp_speed(v2, g2, a2, b2, dt=0.2, substeps=4)
+want8 = speed_reference(v2, g2[:, 0], a2, b2, dt=0.2, n=4)
+assert np.allclose(got8, want8), f"dt=0.2, substeps=4: expected {want8}; got {got8}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -195,22 +215,27 @@ left = np.stack([4.0 * np.arange(1, 11), np.full(10, 1.0)], -1)[None]
 assert np.isclose(orientation_goal(left, np.array([10.0]))[0], 20.0 / 226.0), \
     "lane 1 m to the left at 10 m/s: expected psi_g = 20 / 226 rad (turn left, > 0)"
 ### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(830)  # the tests' own draws, not the notebook's rng
 right = left * np.array([1.0, -1.0])
-assert np.isclose(orientation_goal(right, np.array([10.0]))[0], -20.0 / 226.0), \
-    "a lane to the right mirrors the goal"
-assert orientation_goal(left, np.array([0.0]))[0] == 0.0, "a standing car: psi_g = 0"
-assert np.isclose(orientation_goal(left, np.array([10.0]), tau=2.0)[0], 40.0 / 226.0), \
-    "psi_g grows linearly with tau"
+got8 = orientation_goal(right, np.array([10.0]))[0]
+assert np.isclose(got8, -20.0 / 226.0), \
+    f"a lane 1 m to the right mirrors the goal: expected {-20 / 226:.6f}; got {got8!r}"
+got8 = orientation_goal(left, np.array([0.0]))[0]
+assert got8 == 0.0, f"a standing car: expected psi_g = 0; got {got8!r}"
+got8 = orientation_goal(left, np.array([10.0]), tau=2.0)[0]
+assert np.isclose(got8, 40.0 / 226.0), \
+    f"tau = 2 (psi_g grows linearly with tau): expected {40 / 226:.6f}; got {got8!r}"
 # the diagonal lane (4k, 4k): at v0 = 20, L = 22 (clipped), p = (22, 22), kappa = 1/22
 diag = np.stack([4.0 * np.arange(1, 11)] * 2, -1)[None]
-assert np.isclose(orientation_goal(diag, np.array([20.0]))[0], 20.0 / 22.0), \
-    "expected L clipped at 22 m: psi_g = 20 / 22"
-assert np.isclose(orientation_goal(diag, np.array([20.0]), tau=3.0)[0], np.pi / 2), \
-    "expected psi_g clipped at pi/2"
-lanes = np.cumsum(rng.normal(size=(5, 10, 2)) * [0.1, 0.5] + [4.0, 0.0], axis=1)
-speeds = rng.uniform(0.0, 20.0, size=5)
-assert np.allclose(orientation_goal(lanes, speeds), psi_reference(lanes, speeds), atol=1e-9), \
-    "random lanes"
+got8 = orientation_goal(diag, np.array([20.0]))[0]
+assert np.isclose(got8, 20.0 / 22.0), \
+    f"diagonal lane at 20 m/s, L clipped at 22 m: expected psi_g = 20 / 22; got {got8!r}"
+got8 = orientation_goal(diag, np.array([20.0]), tau=3.0)[0]
+assert np.isclose(got8, np.pi / 2), f"tau = 3: expected psi_g clipped at pi/2; got {got8!r}"
+lanes = np.cumsum(test_rng.normal(size=(5, 10, 2)) * [0.1, 0.5] + [4.0, 0.0], axis=1)
+speeds = test_rng.uniform(0.0, 20.0, size=5)
+got8, want8 = orientation_goal(lanes, speeds), psi_reference(lanes, speeds)
+assert np.allclose(got8, want8, atol=1e-9), f"5 random lanes: expected {want8}; got {got8}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -254,9 +279,11 @@ assert manc_count(cfg) == 14916, f"expected 14916 from the configuration; got {m
 # the CNN totals were computed once with models.param_count
 for c, manc_total, cnn_total in ((models.ModelConfig(n_states=3, channels=(8, 16)), 1616, 263922),
                                  (models.ModelConfig(n_states=12, n_predicates=4), 15096, 145794)):
-    assert manc_count(c) == manc_total, f"{c}: expected {manc_total}"
-    assert count(models.init("manc", rng, c)) == manc_total, f"{c}: expected {manc_total}"
-    assert count(models.init("cnn", rng, c)) == cnn_total, f"{c}: expected {cnn_total}"
+    assert manc_count(c) == manc_total, f"{c}: expected {manc_total}, got {manc_count(c)}"
+    got_manc = count(models.init("manc", np.random.default_rng(840), c))
+    got_cnn = count(models.init("cnn", np.random.default_rng(841), c))
+    assert got_manc == manc_total, f"{c}: expected {manc_total} in MANC's pytree, got {got_manc}"
+    assert got_cnn == cnn_total, f"{c}: expected {cnn_total} in the CNN's pytree, got {got_cnn}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -339,14 +366,14 @@ assert np.allclose(u, u_ref, atol=1e-6), f"expected controls {u_ref}; got {u}"
 p2 = models.init("manc", np.random.default_rng(5), cfg)
 u2, q2 = manc_step(p2, obs, q, cfg)  # q carried over from the first step
 u2_ref, q2_ref = manc_reference(p2, obs, q_ref)
-assert np.allclose(u2, u2_ref, atol=1e-6) and np.allclose(q2, q2_ref, atol=1e-9), \
-    "second step (other weights, q carried over)"
+assert np.allclose(u2, u2_ref, atol=1e-6) and np.allclose(q2, q2_ref, atol=1e-9), (
+    f"second step (other weights, q carried over): expected controls {u2_ref}; got {u2}")
 obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model=models.get("manc"))
-q3 = vagn.random_state(rng, cfg.n_states, size=2)
+q3 = vagn.random_state(np.random.default_rng(850), cfg.n_states, size=2)
 u3, q3_out = manc_step(params, obs3, q3, cfg)
 u3_ref, q3_ref = manc_reference(params, obs3, q3)
-assert np.allclose(u3, u3_ref, atol=1e-6) and np.allclose(q3_out, q3_ref, atol=1e-9), \
-    "first and last steps of a scene, random q'"
+assert np.allclose(u3, u3_ref, atol=1e-6) and np.allclose(q3_out, q3_ref, atol=1e-9), (
+    f"first and last steps of a scene, random q': expected controls {u3_ref}; got {u3}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -394,21 +421,25 @@ assert np.allclose(position_goal(ramp, np.array([0.0])), [[4.0, 1.0]]), \
 assert np.allclose(position_goal(ramp, np.array([7.5])), [[19.0, 4.75]]), \
     "v0 = 7.5 m/s: L_y = 4 + 2 * 7.5 = 19 m, expected [[19, 4.75]]"
 ### BEGIN HIDDEN TESTS
-assert np.allclose(position_goal(ramp, np.array([30.0])), [[40.0, 10.0]]), \
-    "v0 = 30 m/s: L_y = 64 m clipped at 4K = 40 m, the last point"
+test_rng = np.random.default_rng(860)  # the tests' own draws, not the notebook's rng
+got8 = position_goal(ramp, np.array([30.0]))
+assert np.allclose(got8, [[40.0, 10.0]]), \
+    f"v0 = 30 m/s: L_y = 64 m clipped at 4K = 40 m, expected [[40, 10]]; got {got8}"
 short = ramp[:, :5]
-assert np.allclose(position_goal(short, np.array([30.0])), [[20.0, 5.0]]), \
-    "K = 5: clipped at 20 m"
-lanes = np.cumsum(rng.normal(size=(6, 10, 2)) + [4.0, 0.0], axis=1)
-d = rng.uniform(4.0, 40.0, size=6)
+got8 = position_goal(short, np.array([30.0]))
+assert np.allclose(got8, [[20.0, 5.0]]), f"K = 5: clipped at 20 m, expected [[20, 5]]; got {got8}"
+lanes = np.cumsum(test_rng.normal(size=(6, 10, 2)) + [4.0, 0.0], axis=1)
+d = test_rng.uniform(4.0, 40.0, size=6)
 s = 4.0 * k
 ref = np.array([[np.interp(di, s, li[:, 0]), np.interp(di, s, li[:, 1])]
                 for di, li in zip(d, lanes)])
-assert np.allclose(lane_lookup(lanes, d), ref), "random lanes: compare with np.interp"
-v = rng.uniform(0.0, 20.0, size=6)
+got8 = lane_lookup(lanes, d)
+assert np.allclose(got8, ref), f"6 random lanes: expected np.interp's {ref}; got {got8}"
+v = test_rng.uniform(0.0, 20.0, size=6)
 ref_g = np.array([[np.interp(di, s, li[:, 0]), np.interp(di, s, li[:, 1])]
                   for di, li in zip(np.clip(4 + 2 * v, 4, 40), lanes)])
-assert np.allclose(position_goal(lanes, v), ref_g), "random lanes and speeds"
+got8 = position_goal(lanes, v)
+assert np.allclose(got8, ref_g), f"6 random lanes and speeds: expected {ref_g}; got {got8}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -476,11 +507,13 @@ table = {  # inputs.py's table, written out
     ("dmp_only", "parity"): ("bev", "lane_target", "motion"),
 }
 for (m, st), want in table.items():
-    assert tuple(visible_keys(m, st)) == want, f"{m}, {st}: expected {want}"
+    got8 = tuple(visible_keys(m, st))
+    assert got8 == want, f"{m}, {st}: expected {want}; got {got8}"
 lengths = {("cnn", "paper"): 3, ("rvs_g", "paper"): 3, ("rvs_g", "parity"): 13,
            ("manc", "paper"): 10, ("dmp_only", "parity"): 10, ("vagn_only", "parity"): 13}
 for (m, st), want in lengths.items():
-    assert numeric_length(m, st, k_targets=4) == want, f"{m}, {st}, k_targets=4: expected {want}"
+    got8 = numeric_length(m, st, k_targets=4)
+    assert got8 == want, f"{m}, {st}, k_targets=4: expected {want}; got {got8}"
 for bad in (("lstm", "paper"), ("cnn", "Paper")):
     try:
         visible_keys(*bad)
@@ -500,3 +533,268 @@ for bad in (("lstm", "paper"), ("cnn", "Paper")):
 tr = rollout.replay("manc", params, ds, 1, cfg)
 print("controls at steps 0-4:\n", tr["controls"][:5])
 assert np.all(np.isfinite(tr["controls"])) and np.allclose(tr["q"].sum(axis=1), 1.0)
+
+# %% [markdown]
+# ## Exercise 8.8 — the speed the head cruises at
+# In closed loop the head's speed becomes the next step's $v_0$, and the
+# position goal moves with it ($L_y = 4 + 2 v_0$ metres ahead, 8.6). On a
+# straight lane, where the goal is $g_x = \operatorname{clip}(4 + 2v_0, 4, 4K)$
+# straight ahead, where does the speed settle? The tutorial only says that
+# $\beta_y \cdot 2\,\mathrm{s} \approx 1$ "keeps the speed"; work it out.
+#
+# 1. `speed_coefficients(alpha, beta, dt=0.5, substeps=10)`: one step of the
+#    position DMP of 8.2 (semi-implicit Euler, `substeps` sub-steps) gives the
+#    speed $c_v\,v_0 + c_g\,g_x$: return the two floats `(c_v, c_g)` for
+#    scalar gains.
+# 2. `cruise_speed(alpha, beta, k_targets=10)`: the speed $v_t$ tends to when
+#    the head drives the straight lane from standstill ($v_0 = 0$), its speed fed
+#    back every step (default `dt` and `substeps`; $K$ = `k_targets` points,
+#    4 m apart). A float, relative accuracy 1e-6.
+#
+# `dmp.step`, `dmp.rollout` and `models.dmp_head` are switched off while this
+# exercise is graded. The two functions are graded separately, 2 points each.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Every sub-step is linear in the state $(y - g, \dot y)$, so one head step is
+# linear in $(v_0, g_x)$; feeding the speed back makes $v_{t+1} = f(v_t)$ with a
+# piecewise-linear $f$ (the clip). Where does $f$ cross the diagonal?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Linearity gives $c_v$ and $c_g$ as the speeds for $(v_0, g_x) = (1, 0)$ and
+# $(0, 1)$. For the cruise, solve $v = f(v)$ on the unclipped piece and check
+# that the solution lies on it and that the slope there is below 1; otherwise
+# the speed runs on until the goal is clipped, and the fixed point is on the
+# other piece.
+# </details>
+
+# %% solution id=ex08_8 title="The speed the head cruises at" forbids="minimanc.dmp.step,minimanc.dmp.rollout,minimanc.models.dmp_head"  # noqa: E501
+def speed_coefficients(alpha, beta, dt=0.5, substeps=10):
+    ### BEGIN SOLUTION
+    h = dt / substeps
+    # one sub-step on (y - g, dy): dy' = (1 - h a) dy - h a b (y - g), (y - g)' = (y - g) + h dy'
+    A = np.array([[1.0 - h * h * alpha * beta, h * (1.0 - h * alpha)],
+                  [-h * alpha * beta, 1.0 - h * alpha]])
+    P = np.linalg.matrix_power(A, substeps)
+    # from (y - g, dy) = (-g, v0): speed = ((y - g)_n + g) / dt
+    return float(P[0, 1] / dt), float((1.0 - P[0, 0]) / dt)
+    ### END SOLUTION
+
+
+def cruise_speed(alpha, beta, k_targets=10):
+    ### BEGIN SOLUTION
+    c_v, c_g = speed_coefficients(alpha, beta)
+    reach = 4.0 * k_targets
+    slope = c_v + 2.0 * c_g            # f(v) = c_v v + c_g (4 + 2 v) below the clip
+    if slope < 1.0:
+        v = 4.0 * c_g / (1.0 - slope)
+        if 4.0 + 2.0 * v <= reach:
+            return float(v)
+    return float(c_g * reach / (1.0 - c_v))   # the goal clipped at 4K: f(v) = c_v v + c_g 4K
+    ### END SOLUTION
+
+# %% grade id=ex08_8_coefficients_tests points=2
+c8 = speed_coefficients(1.0, 0.5, dt=0.5, substeps=1)
+assert len(c8) == 2, f"expected (c_v, c_g), got {c8!r}"
+# one sub-step of h = dt = 0.5 by hand: dy' = v0 + 0.5 (0.5 g - v0), speed = dy'
+assert np.allclose(c8, (0.5, 0.25)), \
+    f"alpha = 1, beta = 0.5, one sub-step of 0.5 s: expected (0.5, 0.25) by hand, got {c8!r}"
+c8 = speed_coefficients(0.0, 1.0)
+assert np.allclose(c8, (1.0, 0.0)), \
+    f"alpha = 0 (no pull): expected the speed kept, (c_v, c_g) = (1, 0), got {c8!r}"
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(880)  # the tests' own draws, not the notebook's rng
+
+
+def head_speed8(v0, gx, a, b, dt, n):
+    """The tests' own sub-steps, written out: speed = x displacement / dt."""
+    y, dy = 0.0, v0
+    for _ in range(n):
+        dy = dy + (dt / n) * a * (b * (gx - y) - dy)
+        y = y + (dt / n) * dy
+    return y / dt
+
+
+for a, b in test_rng.uniform((0.5, 0.05), (20.0, 5.0), size=(12, 2)):
+    for dt, n in ((0.5, 10), (0.2, 4)):
+        want = (head_speed8(1.0, 0.0, a, b, dt, n), head_speed8(0.0, 1.0, a, b, dt, n))
+        got = speed_coefficients(a, b, dt=dt, substeps=n)
+        assert all(type(x) is float for x in got), \
+            f"alpha = {a:.3f}, beta = {b:.3f}: expected two floats, got {[type(x) for x in got]}"
+        assert np.allclose(got, want, rtol=1e-9, atol=1e-12), (
+            f"alpha = {a:.3f}, beta = {b:.3f}, dt = {dt}, substeps = {n}: expected "
+            f"(c_v, c_g) = {np.round(want, 6).tolist()}, got {np.round(got, 6).tolist()}")
+### END HIDDEN TESTS
+
+# %% grade id=ex08_8_cruise_tests points=2
+def drive_straight8(a, b, steps, k_targets=10):
+    """The tests' own closed loop on the straight lane: 10 sub-steps written out."""
+    v, out = 0.0, []
+    for _ in range(steps):
+        gx = min(max(4.0 + 2.0 * v, 4.0), 4.0 * k_targets)
+        y, dy = 0.0, v
+        for _ in range(10):
+            dy = dy + 0.05 * a * (b * (gx - y) - dy)
+            y = y + 0.05 * dy
+        v = y / 0.5
+        out.append(v)
+    return np.array(out)
+
+
+for a, b in ((4.0, 0.3), (4.0, 1.0)):   # a cruise below the clip, and one that runs to it
+    want, got = drive_straight8(a, b, 400)[-1], cruise_speed(a, b)
+    assert math.isclose(got, want, rel_tol=1e-6), (
+        f"alpha = {a}, beta = {b}: expected {want:.6f} m/s (400 closed-loop steps from "
+        f"standstill), got {got!r}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(881)  # the tests' own draws, not the notebook's rng
+
+
+def cruise_reference8(a, b, K):
+    """The fixed point of the tests' own map, found by bisection on f(v) - v."""
+    f = lambda v: drive_one8(v, a, b, K)  # noqa: E731
+    lo, hi = 0.0, 1e4
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if f(mid) > mid else (lo, mid)
+    return lo
+
+
+def drive_one8(v, a, b, K):
+    gx = min(max(4.0 + 2.0 * v, 4.0), 4.0 * K)
+    y, dy = 0.0, v
+    for _ in range(10):
+        dy = dy + 0.05 * a * (b * (gx - y) - dy)
+        y = y + 0.05 * dy
+    return y / 0.5
+
+
+for (a, b), K in zip(test_rng.uniform((0.5, 0.05), (20.0, 5.0), size=(10, 2)),
+                     (10, 10, 10, 10, 10, 5, 5, 12, 12, 10)):
+    want, got = cruise_reference8(a, b, K), cruise_speed(a, b, k_targets=K)
+    assert type(got) is float, f"alpha = {a:.3f}, beta = {b:.3f}: expected a float, got {type(got)}"
+    assert math.isclose(got, want, rel_tol=1e-6), (
+        f"alpha = {a:.3f}, beta = {b:.3f}, K = {K}: expected {want:.6f} m/s, got {got!r}")
+for b in (0.05, 0.2, 0.4):
+    want, got = cruise_reference8(12.0, b, 10), cruise_speed(12.0, b)
+    assert math.isclose(got, want, rel_tol=1e-6), (
+        f"alpha = 12, beta = {b}: expected {want:.6f} m/s (below the clip), got {got!r}")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 8.9 — an open experiment: gains for a 10 m/s cruise
+# FC(q) picks the gains. Suppose q sits in a "cruise" state whose gains you
+# choose: `cruise_gains()` returns `(alpha_y, beta_y)`, strictly inside
+# `dmp.ALPHA_RANGE` × `dmp.BETA_RANGE`, such that the library's head
+# (`models.dmp_head`), driving the straight lane from standstill with its speed
+# fed back (orientation gains 3 and 1),
+#
+# * cruises at 10 m/s: within 0.1 m/s of it after 30 s (60 steps);
+# * gets going: reaches 9 m/s within 10 s (20 steps);
+# * never exceeds 10.3 m/s.
+#
+# Use your 8.8 to choose (3 points). Then answer the written question below.
+
+# %% solution id=ex08_9 title="Gains for a 10 m/s cruise"
+def cruise_gains():
+    ### BEGIN SOLUTION
+    # the response is fastest at a high alpha; bisect beta for a 10 m/s fixed point
+    alpha, lo, hi = 16.0, 0.05, 0.5
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if cruise_speed(alpha, mid) < 10.0 else (lo, mid)
+    return alpha, float(lo)
+    ### END SOLUTION
+
+# %% grade id=ex08_9_tests points=3
+gains9 = cruise_gains()
+assert len(gains9) == 2, f"expected (alpha_y, beta_y), got {gains9!r}"
+a9, b9 = (float(x) for x in gains9)
+(a_lo9, a_hi9), (b_lo9, b_hi9) = dmp.ALPHA_RANGE, dmp.BETA_RANGE
+inside9 = a_lo9 < a9 < a_hi9 and b_lo9 < b9 < b_hi9
+assert inside9, (
+    f"expected gains strictly inside {dmp.ALPHA_RANGE} x {dmp.BETA_RANGE}, got ({a9}, {b9})")
+logits9 = np.array([[*dmp.logits_from_gains(a9, b9), *dmp.logits_from_gains(3.0, 1.0)]])
+lane9 = np.stack([4.0 * np.arange(1, 11), np.zeros(10)], -1)[None]
+motion9, speeds9 = np.zeros((1, 2)), []
+for _ in range(60):
+    motion9 = np.asarray(models.dmp_head(logits9, lane9, motion9, cfg)[0], dtype=float)
+    speeds9.append(float(motion9[0, 0]))
+speeds9 = np.array(speeds9)
+assert abs(speeds9[-1] - 10.0) < 0.1, (
+    f"alpha = {a9:.4f}, beta = {b9:.4f}: expected 10 +- 0.1 m/s after 30 s, "
+    f"got {speeds9[-1]:.3f} m/s")
+assert speeds9[19] >= 9.0, (
+    f"alpha = {a9:.4f}, beta = {b9:.4f}: expected 9 m/s within 10 s, got {speeds9[19]:.3f} m/s "
+    f"at 10 s")
+assert speeds9.max() <= 10.3, (
+    f"alpha = {a9:.4f}, beta = {b9:.4f}: expected at most 10.3 m/s, got {speeds9.max():.3f} m/s")
+### BEGIN HIDDEN TESTS
+# the same gains on the tests' own straight-lane loop (10 sub-steps written out), 200 steps
+long9 = drive_straight8(a9, b9, 200)
+assert abs(long9[-1] - 10.0) < 0.1 and long9.max() <= 10.3, (
+    f"alpha = {a9:.4f}, beta = {b9:.4f}: expected a cruise at 10 +- 0.1 m/s after 100 s and "
+    f"at most 10.3 m/s, got {long9[-1]:.3f} m/s (largest {long9.max():.3f})")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# **Written question (graded by hand, 2 points).** Defend your gains: which
+# gain sets the cruise speed and which the time it takes to get there? Above
+# which $\beta_y$ (for your $\alpha_y$) does the speed run on until the goal is
+# clipped at 40 m, and above which does it grow for ever without the clip (the
+# goal moves with the car)? Can any gains in
+# the box reach 9 m/s much sooner than yours while cruising at 10? What does this
+# say about what FC(q) must output for a slow and for a fast driver?
+
+# %% [markdown] answer id=ex08_w title="Defend the cruise gains" points=2
+# ### BEGIN SOLUTION
+# $(\alpha_y, \beta_y) = (16, 0.4605)$. One step is $v_{t+1} = c_v v_t + c_g g_x$ with
+# $g_x = 4 + 2v_t$, so below the clip the speed obeys $v_{t+1} = k v_t + 4c_g$ with
+# $k = c_v + 2c_g$: it settles at $v^* = 4c_g / (1 - k)$ geometrically with ratio $k$.
+# $\beta_y$ sets the pace ($v^*$ rises steeply with it: about 1.3 m/s at 0.2, 10 m/s at
+# 0.46 whatever $\alpha_y$), $\alpha_y$ the response: $k$ falls from 0.96 at
+# $\alpha_y = 1$ to 0.83 at 20 (for $v^* = 10$). Above $\beta_y \approx 0.50$ (for
+# $\alpha_y = 16$) $v^*$ would put the goal beyond 40 m, so the speed settles on the
+# clipped piece, $v^* = 40c_g/(1 - c_v)$ (18 m/s at 0.50, 21 m/s at 0.6); from
+# $\beta_y \approx 0.565$ on, $k \ge 1$: every step's speed puts the goal farther ahead
+# than the car gets, and without the clip the speed would grow for ever. The fastest
+# response in the box is $k \approx 0.83$ at $\alpha_y = 20$: 90 % of the way takes
+# $\ln 0.1 / \ln 0.83 \approx 12$ steps, 6 s, so no gains do much better than my 6.5 s
+# (16 gives nearly the same $k$). A slow driver needs a small $\beta_y$, a fast one
+# $\beta_y$ near the clip, so FC(q) must place $\beta_y$ precisely in a narrow band
+# (0.17 to 0.50 covers 1 to 18 m/s), while $\alpha_y$ only shapes the transient.
+# ### END SOLUTION
+
+# %% [markdown]
+# ## Your figure
+# The head of this chapter in closed loop on a curved road from standstill, 20 s:
+# **your** head (solid) — your `position_goal` (8.6) and `dmp_speed` (8.2) for the
+# speed, your `orientation_goal` (8.3) and the same one-dimensional DMP step for
+# the yaw rate, with your cruise gains of 8.9 — over the library's
+# `models.dmp_head` with the same gains (dashed). The title gives how far apart
+# the two paths get. A wrong goal or step shows as a path that leaves the route
+# or a speed that creeps or runs away; a function that still raises is named in
+# the title.
+
+# %%
+gains8, _ = attempt(cruise_gains)           # your 8.9 gains; (16, 0.46) while it is open
+a8, b8 = gains8 if gains8 is not None else (16.0, 0.46)
+logits8 = np.array([[*dmp.logits_from_gains(a8, b8), *dmp.logits_from_gains(3.0, 1.0)]])
+
+
+def your_head(lane, motion):
+    v0, w0 = motion[:, 0], motion[:, 1]
+    speed = dmp_speed(v0, position_goal(lane, v0), np.array([a8]), np.array([b8]))
+    psi = orientation_goal(lane, v0)
+    yaw = dmp_speed(w0, np.stack([psi, np.zeros_like(psi)], -1), np.array([3.0]),
+                    np.array([1.0]))
+    return np.stack([speed, yaw], axis=-1)
+
+
+road8 = world.random_map(np.random.default_rng(3), "curved")
+p8, h8 = road8.route_pose(road8.start_s)
+plot_drive_attempts(road8, np.array([p8[0], p8[1], h8]), np.zeros(2), your_head,
+                    lambda lane, motion: models.dmp_head(logits8, lane, motion, cfg)[0])
+plt.show()

@@ -13,7 +13,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import minimanc.autodiff.numpy as anp  # noqa: E402
-from minimanc import dmp, optim  # noqa: E402
+from minimanc import dmp, metrics, models, optim, world  # noqa: E402
 from minimanc.autodiff import computation_graph  # noqa: E402
 from minimanc.viz import exercises as vx  # noqa: E402
 
@@ -110,4 +110,122 @@ def test_the_three_figures_draw_yours_over_the_reference_and_name_a_stub():
     ref_line, mine = fig.axes[0].get_lines()
     assert np.allclose(ref_line.get_ydata(), mine.get_ydata())
     assert "stub: NotImplementedError" in fig.axes[0].get_title()
+    plt.close("all")
+
+
+def test_the_bev_figure_counts_what_agrees_with_the_library_and_names_a_stub():
+    cfg = world.RasterConfig()
+    m = world.random_map(np.random.default_rng(3), "straight")
+    p, h = m.route_pose(m.start_s + 20.0)
+    ego = np.array([p[0], p[1], h])
+    ahead = np.array([np.cos(h), np.sin(h)])
+    left = np.array([-np.sin(h), np.cos(h)])
+    boxes = np.array([[*(p + 12 * ahead), h + 0.3, 4.5, 1.9],
+                      [*(p + 25 * ahead + 3.5 * left), h + np.pi, 4.7, 1.9]])
+    bev = world.rasterize(m, ego, boxes, np.array([True, True]), cfg)
+    path = p + np.outer(np.arange(0.0, 30.0, 3.0), ahead) + 0.2 * left   # 10 points
+
+    def to_pixel(points, pose, c):
+        return c.ego_to_pixel(world.to_ego_frame(points, pose))
+
+    def box(b, c):
+        return world.box_mask(*c.pixel_centres(), b)
+
+    fig = vx.plot_bev_attempts(bev, ego, boxes, path, cfg, world.goal_in_ego_frame, to_pixel,
+                               box)
+    title = fig.axes[1].get_title()
+    X, Y = cfg.pixel_centres()
+    ego_boxes = np.concatenate([world.goal_in_ego_frame(boxes[:, :3], ego), boxes[:, 3:]], 1)
+    n = int(world.box_mask(X, Y, ego_boxes).any(axis=0).sum())
+    assert n > 10
+    assert f"box pixels: yours {n}, library {n}, shared {n}" in title
+    assert "path: 10 of 10 points on the library's pixel" in title
+    yellow = np.all(bev == [255, 255, 0], axis=-1)
+    assert yellow.sum() > 0 and np.all(world.box_mask(X, Y, ego_boxes).any(axis=0)[yellow])
+
+    def mirrored(points, pose, c):      # the rotation by +yaw instead of -yaw: a wrong frame
+        return to_pixel(points, pose * np.array([1.0, 1.0, -1.0]), c)
+
+    def stub(*_):
+        raise NotImplementedError("Exercise ex07_3: stub")
+
+    fig = vx.plot_bev_attempts(bev, ego, boxes, path, cfg, world.goal_in_ego_frame, mirrored,
+                               stub)
+    title = fig.axes[1].get_title()
+    assert "boxes: NotImplementedError: Exercise ex07_3: stub" in title
+    hits = int(title.split("path: ")[1].split(" of")[0])
+    assert hits < 10
+    with pytest.raises(ValueError, match="bev must have shape"):
+        vx.plot_bev_attempts(bev[:10], ego, boxes, path, cfg, stub, stub, stub)
+    plt.close("all")
+
+
+def test_the_drive_figure_puts_a_head_on_the_road_and_names_a_stub():
+    cfg = models.ModelConfig()
+    m = world.random_map(np.random.default_rng(3), "curved")
+    p, h = m.route_pose(m.start_s)
+    start, motion = np.array([p[0], p[1], h]), np.array([5.0, 0.0])
+    logits = np.array([[*dmp.logits_from_gains(4.0, 0.45), *dmp.logits_from_gains(3.0, 1.0)]])
+
+    def library(lane, mot):
+        return models.dmp_head(logits, lane, mot, cfg)[0]
+
+    poses, u = vx.drive(library, m, start, motion, 12)
+    assert poses.shape == (13, 3) and u.shape == (12, 2)
+    s, lat = world.project_to_route(m, poses[:, :2], poses[:, 2])
+    assert np.all(np.diff(s) > 0) and np.abs(lat).max() < 1.0   # it follows the route
+    fig = vx.plot_drive_attempts(m, start, motion, library, library, steps=12)
+    assert "paths at most 0.00 m apart" in fig._suptitle.get_text()
+    lines = fig.axes[1].get_lines()
+    assert len(lines) == 2 and np.allclose(lines[0].get_ydata(), lines[1].get_ydata())
+
+    def constant(lane, mot):     # a head that ignores the lane: drives straight on
+        return np.array([[5.0, 0.0]])
+
+    fig = vx.plot_drive_attempts(m, start, motion, constant, library, steps=12)
+    gap = float(fig._suptitle.get_text().split("at most ")[1].split(" m")[0])
+    assert gap > 0.5
+
+    def stub(*_):
+        raise NotImplementedError("Exercise ex08_2: stub")
+
+    fig = vx.plot_drive_attempts(m, start, motion, stub, library, steps=12)
+    assert "your head: NotImplementedError: Exercise ex08_2: stub" in fig._suptitle.get_text()
+    assert len(fig.axes[1].get_lines()) == 1
+    with pytest.raises(ValueError, match="shape \\(1, 2\\)"):
+        vx.drive(lambda lane, mot: np.zeros(3), m, start, motion, 2)
+    plt.close("all")
+
+
+def test_the_track_error_figure_draws_your_split_over_the_library_and_names_errors():
+    human = np.zeros((2, 6, 3))
+    human[:, :, 0] = 5.0 * np.arange(6)                     # east at 10 m/s
+    human[1, :, 2] = np.pi / 2                               # scene 1 faces north
+    left = human + [0.0, 1.0, 0.0]                           # 1 m north of the human
+    runs = {"north": lambda: left, "broken run": lambda: 1 / 0}
+    fig = vx.plot_track_error_attempts(runs, human, metrics.along_cross_track)
+    along_ax, cross_ax = fig.axes
+    ref, mine = cross_ax.get_lines()
+    assert np.allclose(ref.get_ydata(), 0.5) and np.allclose(mine.get_ydata(), 0.5)
+    assert np.allclose(along_ax.get_lines()[1].get_ydata(), 0.5)   # along for scene 1
+    assert "broken run: ZeroDivisionError" in fig._suptitle.get_text()
+
+    def swapped(ego, h):   # along and cross exchanged: the panels disagree with the library
+        a, c = metrics.along_cross_track(ego, h)
+        return c, a
+
+    fig = vx.plot_track_error_attempts({"north": lambda: left[:1]}, human[:1], swapped)
+    assert fig._suptitle.get_text().startswith("your along_cross_track (solid)")
+    ref, mine = fig.axes[0].get_lines()
+    assert not np.allclose(ref.get_ydata(), mine.get_ydata())
+
+    def stub(*_):
+        raise NotImplementedError("Exercise ex09_4: stub")
+
+    fig = vx.plot_track_error_attempts({"north": lambda: left}, human, stub)
+    assert ("your along_cross_track on north: NotImplementedError: Exercise ex09_4: stub"
+            in fig._suptitle.get_text())
+    assert len(fig.axes[0].get_lines()) == 1                # the library's only
+    with pytest.raises(ValueError, match="human must have shape"):
+        vx.plot_track_error_attempts({}, human[0], stub)
     plt.close("all")
