@@ -170,7 +170,7 @@ def test_the_drive_figure_puts_a_head_on_the_road_and_names_a_stub():
     def library(lane, mot):
         return models.dmp_head(logits, lane, mot, cfg)[0]
 
-    poses, u = vx.drive(library, m, start, motion, 12)
+    poses, u = vx.drive_on_route(library, m, start, motion, 12)
     assert poses.shape == (13, 3) and u.shape == (12, 2)
     s, lat = world.project_to_route(m, poses[:, :2], poses[:, 2])
     assert np.all(np.diff(s) > 0) and np.abs(lat).max() < 1.0   # it follows the route
@@ -193,7 +193,7 @@ def test_the_drive_figure_puts_a_head_on_the_road_and_names_a_stub():
     assert "your head: NotImplementedError: Exercise ex08_2: stub" in fig._suptitle.get_text()
     assert len(fig.axes[1].get_lines()) == 1
     with pytest.raises(ValueError, match="shape \\(1, 2\\)"):
-        vx.drive(lambda lane, mot: np.zeros(3), m, start, motion, 2)
+        vx.drive_on_route(lambda lane, mot: np.zeros(3), m, start, motion, 2)
     plt.close("all")
 
 

@@ -452,9 +452,13 @@ def plot_bev_attempts(
 Head = Callable[[np.ndarray, np.ndarray], Any]
 
 
-def drive(head: Head, m: Map, start: Any, motion: Any, steps: int,
-          dt: float = DT) -> tuple[np.ndarray, np.ndarray]:
-    """Drive ``head`` on the map ``m`` in closed loop.
+def drive_on_route(head: Head, m: Map, start: Any, motion: Any, steps: int,
+                   dt: float = DT) -> tuple[np.ndarray, np.ndarray]:
+    """Drive ``head`` along the route of the map ``m`` in closed loop, alone on the road.
+
+    A figure's minimal loop (no traffic, no scene, no observation but the lane target and
+    the motion), so that a student's bare head function can drive; the course's closed
+    loop is :func:`minimanc.rollout.drive`.
 
     Every step the lane target is read from the current pose
     (:func:`minimanc.world.lane_targets`), the head maps ``(lane_target (1, K, 2),
@@ -511,7 +515,7 @@ def plot_drive_attempts(
 ) -> Any:
     """Chapter 8's figure: the student's DMP head and the library's driving one map.
 
-    Both heads run :func:`drive` from the same pose and motion; the left panel draws
+    Both heads run :func:`drive_on_route` from the same pose and motion; the left panel draws
     the two paths on the map (the student's solid, the library's dashed), the right
     one the speed over time. The title gives the largest distance between the two
     paths, or names the error of a head that raised.
@@ -537,8 +541,8 @@ def plot_drive_attempts(
     -------
     fig : matplotlib Figure
     """
-    ref_poses, ref_u = drive(reference, m, start, motion, steps, dt)
-    out, error = attempt(drive, head, m, start, motion, steps, dt)
+    ref_poses, ref_u = drive_on_route(reference, m, start, motion, steps, dt)
+    out, error = attempt(drive_on_route, head, m, start, motion, steps, dt)
     plt = pyplot()
     fig, (top, speed) = plt.subplots(1, 2, figsize=(10, 4.2))
     plot_map(m, top)
