@@ -287,36 +287,59 @@ for c, manc_total, cnn_total in ((models.ModelConfig(n_states=3, channels=(8, 16
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 8.5 — the whole MANC step
-# Assemble one control step from the pieces (paper eqs. 7–11):
+# ## Exercise 8.5 — the MANC step of the two eq.-7 variants
+# The tutorial assembled MANC's step for the paper's eq. 7 as the library reads it:
+# globally pooled features through a sigmoid. `ModelConfig` has two further readings of
+# eq. 7, and the tutorial showed neither:
 #
-# 1. features `f = models.backbone(params["backbone"], bev, cfg, eng)`;
-# 2. predicate logits `z = GAP(f) @ w + b` with `params["predicates"]`, then
-#    `p = sigmoid(z)` (eq. 7; GAP is the mean over the two spatial axes);
-# 3. `q = vagn.step(q_prev, p, params["vagn"]["W"])` (eqs. 8–9);
-# 4. the gain logits `FC(q)` with `params["gains"]`;
-# 5. `models.dmp_head(logits, lane_target, motion, cfg)` (eqs. 10–11).
+# * `predicate_pool="flat"`: the predicate layer reads the whole feature map, flattened per
+#   sample in its stored (row, column, channel) order, instead of its spatial mean, so the
+#   predicates keep *where* a feature fires;
+# * `predicate_activation="linear"`: eq. 7 literally, the predicates are the logits
+#   themselves (no squashing).
 #
-# Return `(controls (B, 2), q (B, N))`. `models.step` (and `models.sequence`,
-# `rollout.replay`) are disabled while grading; the test rebuilds the step from
-# the equations alone (its own convolution, eq. 8–9 with `einsum`, and the DMP
-# as a matrix power).
+# Write `manc_step(params, obs, q_prev, cfg)` for any `cfg` (either pool, either
+# activation): the controls `(B, 2)` of the DMP head (eqs. 10–11, `models.dmp_head`) and
+# the new `q (B, N)` (eqs. 8–9, `vagn.step`). Use the pieces of the library the tutorial
+# used (`models.backbone`, `vagn.step`, `models.dmp_head`); `models.step` (and
+# `models.sequence`, `rollout.replay`) are disabled while grading: the tests rebuild the
+# step from the equations alone (their own convolution, eqs. 8–9 with `einsum`, the DMP as
+# a matrix power). The parameters of a flat-pool MANC come from
+# `models.init("manc", rng, cfg)` with that `cfg`: check their shapes first.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Only the step from features to predicates changes between the variants; from `p` on,
+# the step is the tutorial's.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Print `params["predicates"]["w"].shape` for both pools and compare it with the shape of
+# the features: that tells you what the layer must be given. Branch on `cfg.predicate_pool`
+# and `cfg.predicate_activation`.
+# </details>
 
-# %% solution id=ex08_5 title="The MANC forward pass" forbids="minimanc.models.step,minimanc.models.sequence,minimanc.rollout.replay"  # noqa: E501
+# %% solution id=ex08_5 title="The MANC step of the eq.-7 variants" forbids="minimanc.models.step,minimanc.models.sequence,minimanc.rollout.replay"  # noqa: E501
 def manc_step(params, obs, q_prev, cfg):
     ### BEGIN SOLUTION
     f = models.backbone(params["backbone"], obs["bev"], cfg, eng)
-    z = f.mean(axis=(1, 2)) @ params["predicates"]["w"] + params["predicates"]["b"]
-    p = 0.5 * (1.0 + np.tanh(0.5 * z))
+    if cfg.predicate_pool == "flat":
+        pooled = f.reshape(f.shape[0], -1)
+    else:
+        pooled = f.mean(axis=(1, 2))
+    z = pooled @ params["predicates"]["w"] + params["predicates"]["b"]
+    p = z if cfg.predicate_activation == "linear" else 0.5 * (1.0 + np.tanh(0.5 * z))
     q = vagn.step(q_prev, p, params["vagn"]["W"])
     logits = q @ params["gains"]["w"] + params["gains"]["b"]
     controls, _ = models.dmp_head(logits, obs["lane_target"], obs["motion"], cfg)
     return controls, q
     ### END SOLUTION
 
-# %% grade id=ex08_5_tests points=3
-def manc_reference(params, obs, q_prev):
-    """Eqs. 7-11 written out with NumPy, for the default ModelConfig."""
+# %% grade id=ex08_5_tests points=2
+### BEGIN HIDDEN TESTS
+def manc_reference(params, obs, q_prev, pool="global", activation="sigmoid"):
+    """Eqs. 7-11 written out with NumPy, for a ModelConfig of default shape and gains."""
     sig = lambda z: 1.0 / (1.0 + np.exp(-z))  # noqa: E731
     h = np.asarray(obs["bev"], dtype=float)
     for layer in params["backbone"]["convs"]:  # 3x3, stride 2, zero padding 1, SiLU
@@ -324,7 +347,9 @@ def manc_reference(params, obs, q_prev):
         a = sum(np.einsum("bhwc,ck->bhwk", hp[:, i:i + 2 * n:2, j:j + 2 * n:2], layer["w"][i, j])
                 for i in range(3) for j in range(3)) + layer["b"]
         h = a * sig(a)
-    p = sig(h.mean(axis=(1, 2)) @ params["predicates"]["w"] + params["predicates"]["b"])
+    pooled = h.reshape(len(h), -1) if pool == "flat" else h.mean(axis=(1, 2))
+    z = pooled @ params["predicates"]["w"] + params["predicates"]["b"]
+    p = z if activation == "linear" else sig(z)
     A = np.maximum(np.einsum("bm,mij->bij", p, params["vagn"]["W"]), 0.0)  # eq. 8 + ReLU
     E = np.exp(A - A.max(axis=1, keepdims=True))
     q = np.einsum("bij,bj->bi", E / E.sum(axis=1, keepdims=True), q_prev)  # eq. 9
@@ -353,27 +378,45 @@ def manc_reference(params, obs, q_prev):
     psi_g = np.clip(2.0 * py / (px ** 2 + py ** 2) * v0, -np.pi / 2, np.pi / 2)
     speed = one_step(v0, at(np.clip(4.0 + 2.0 * v0, 4.0, 40.0), 0), al[:, 0], be[:, 0])
     return np.stack([speed, one_step(w0, psi_g, al[:, 1], be[:, 1])], axis=-1), q
-
-
+### END HIDDEN TESTS
 u, q = manc_step(params, obs, q_prev, cfg)
-u_ref, q_ref = manc_reference(params, obs, q_prev)
 assert np.shape(u) == (4, 2) and np.shape(q) == (4, cfg.n_states), \
     f"expected controls (4, 2) and q (4, {cfg.n_states}); got {np.shape(u)}, {np.shape(q)}"
 assert np.allclose(q.sum(axis=1), 1.0), f"each q must be a distribution; row sums {q.sum(axis=1)}"
-assert np.allclose(q, q_ref, atol=1e-9), f"expected q = {q_ref}; got {q}"
-assert np.allclose(u, u_ref, atol=1e-6), f"expected controls {u_ref}; got {u}"
 ### BEGIN HIDDEN TESTS
+u_ref, q_ref = manc_reference(params, obs, q_prev)
+assert np.allclose(q, q_ref, atol=1e-9), f"global pool, sigmoid: expected q = {q_ref}; got {q}"
+assert np.allclose(u, u_ref, atol=1e-6), (
+    f"global pool, sigmoid: expected controls {u_ref}; got {u}")
 p2 = models.init("manc", np.random.default_rng(5), cfg)
 u2, q2 = manc_step(p2, obs, q, cfg)  # q carried over from the first step
 u2_ref, q2_ref = manc_reference(p2, obs, q_ref)
-assert np.allclose(u2, u2_ref, atol=1e-6) and np.allclose(q2, q2_ref, atol=1e-9), (
-    f"second step (other weights, q carried over): expected controls {u2_ref}; got {u2}")
-obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model=models.get("manc"))
-q3 = vagn.random_state(np.random.default_rng(850), cfg.n_states, size=2)
-u3, q3_out = manc_step(params, obs3, q3, cfg)
-u3_ref, q3_ref = manc_reference(params, obs3, q3)
-assert np.allclose(u3, u3_ref, atol=1e-6) and np.allclose(q3_out, q3_ref, atol=1e-9), (
-    f"first and last steps of a scene, random q': expected controls {u3_ref}; got {u3}")
+assert np.allclose(q2, q2_ref, atol=1e-9) and np.allclose(u2, u2_ref, atol=1e-6), (
+    f"global pool, second step (other weights, q carried over): expected controls "
+    f"{u2_ref}, q {q2_ref}; got {u2}, {q2}")
+### END HIDDEN TESTS
+
+# %% grade id=ex08_5_variants_tests points=2
+cfg_flat = models.ModelConfig(predicate_pool="flat")
+params_flat = models.init("manc", np.random.default_rng(852), cfg_flat)
+u_f, q_f = manc_step(params_flat, obs, q_prev, cfg_flat)
+assert np.shape(u_f) == (4, 2) and np.shape(q_f) == (4, cfg.n_states), (
+    f"flat pool: expected controls (4, 2) and q (4, {cfg.n_states}); got {np.shape(u_f)}, "
+    f"{np.shape(q_f)}")
+### BEGIN HIDDEN TESTS
+uf_ref, qf_ref = manc_reference(params_flat, obs, q_prev, pool="flat")
+assert np.allclose(q_f, qf_ref, atol=1e-9) and np.allclose(u_f, uf_ref, atol=1e-6), (
+    f"flat pool, sigmoid: expected controls {uf_ref}, q {qf_ref}; got {u_f}, {q_f}")
+for pool in ("global", "flat"):
+    c = models.ModelConfig(predicate_pool=pool, predicate_activation="linear")
+    pc = models.init("manc", np.random.default_rng(853), c)
+    obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model=models.get("manc"))
+    q3 = vagn.random_state(np.random.default_rng(850), c.n_states, size=2)
+    u3, q3_out = manc_step(pc, obs3, q3, c)
+    u3_ref, q3_ref = manc_reference(pc, obs3, q3, pool=pool, activation="linear")
+    assert np.allclose(q3_out, q3_ref, atol=1e-9) and np.allclose(u3, u3_ref, atol=1e-6), (
+        f"{pool} pool, linear predicates, first and last steps of a scene: expected controls "
+        f"{u3_ref}, q {q3_ref}; got {u3}, {q3_out}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
