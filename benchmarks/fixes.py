@@ -46,6 +46,23 @@ PERCEIVE = tuple(f for f in P.FEATURES if f != "a_prev")
 """The auxiliary loss's targets: every feature of the privileged learner a raster can hold
 (its last acceleration is the only one left out)."""
 HEAD = ("ADE m", "along m", "coll. %", "at fault %", "off road %")
+CONTACTS = ("contacts_at_fault", "contacts_front", "contacts_stopped_ado", "contacts_lateral")
+"""The first contacts by kind (:func:`minimanc.metrics.diagnostics.collision_taxonomy`)."""
+SPEEDS = ("contacts_ego_speed", "contacts_human_speed", "contacts_faster")
+"""At the at-fault contacts: the ego's and the human's mean speed and the share faster."""
+
+
+def contact_cells(runs: list[dict]) -> str:
+    """Contacts by kind (mean over seeds) and, pooled over the seeds' at-fault contacts
+    (weighted by their number), the ego's and the human's speed at contact and the share of
+    them in which the ego was faster (%)."""
+    counts = [f"{np.mean([r[k] for r in runs]):.1f}" for k in CONTACTS]
+    n = np.array([r["contacts_at_fault"] for r in runs])
+    if n.sum() == 0:
+        return " | ".join(counts + ["–"] * len(SPEEDS))
+    pooled = [float(np.nansum([r[k] * w for r, w in zip(runs, n)]) / n.sum()) for k in SPEEDS]
+    return " | ".join(counts + [f"{pooled[0]:.1f}", f"{pooled[1]:.1f}",
+                                f"{100 * pooled[2]:.0f}"])
 
 
 def parse(variant: str) -> tuple[str, str, int, str, str, float]:
@@ -77,6 +94,7 @@ def main() -> None:
     t0 = time.perf_counter()
     data: dict[int, tuple] = {}
     rows = {a: [] for a in AGENTS}
+    contacts: list[str] = []
     perceived: dict[int, np.ndarray] = {}
     for name, setting, h, out, scale, w in variants:
         if h not in data:
@@ -108,6 +126,8 @@ def main() -> None:
         for a in AGENTS:
             rows[a].append(f"| {models.spec(name).label} | {setting} | {h} | {out} | {scale} | "
                            f"{w:g} | {cells(runs[a], SHOW)} |")
+        contacts.append(f"| {models.spec(name).label} | {setting} | {h} | {out} | {scale} | "
+                        f"{w:g} | {contact_cells(runs['reactive'])} |")
     text = (f"# Fixes, one at a time (paper preset draw: {N_TRAIN} training, {N_VAL} "
             f"validation scenes; {args.epochs} epochs, lr {args.lr:g}, {args.seeds} seeds, "
             + ("" if args.channels is None else f"backbone channels {tuple(args.channels)}, ")
@@ -119,6 +139,13 @@ def main() -> None:
                  " | perception loss | " + " | ".join(HEAD) + " |\n" + "|---" * (6 + len(HEAD))
                  + "|\n"
                  + "\n".join(rows[a]) + "\n\n")
+    text += ("## Collisions by kind, agents `reactive`\n\nFirst contacts per seed (mean over "
+             "seeds; of the validation scenes) and, at the at-fault ones (pooled over the "
+             "seeds), the ego's speed next to the human's at the same step of the same scene "
+             "(m/s) and the share in which the ego was faster.\n\n"
+             "| model | setting | history | speed output | speed scale | perception loss | "
+             "at fault | front | stopped ado | lateral | ego m/s | human m/s | ego faster % |\n"
+             + "|---" * 13 + "|\n" + "\n".join(contacts) + "\n\n")
     results.publish(text, args.out, time.perf_counter() - t0)
 
 

@@ -8,17 +8,15 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import metrics
+from minimanc.studies import jobs
 
 
 def scores(traj: Any, ds: Any) -> dict[str, float]:
-    """:func:`minimanc.metrics.evaluate` of a closed loop on ``ds``, with the mean |along-| and
-    |cross-track| displacement from the human (``along_track``, ``cross_track``)."""
-    m = metrics.evaluate(traj, ds)
-    along, cross = metrics.along_cross_track(traj.ego, np.asarray(ds.ego, dtype=np.float64))
-    m["along_track"] = float(np.abs(along).mean())
-    m["cross_track"] = float(np.abs(cross).mean())
-    return m
+    """:func:`minimanc.studies.jobs.score` of a closed loop on ``ds`` without its scene
+    families: :func:`minimanc.metrics.evaluate`'s metrics, the mean |along-| and |cross-track|
+    displacement from the human (``along_track``, ``cross_track``) and the collisions by kind
+    with the speeds at the at-fault contacts (keys ``contacts_*``)."""
+    return {k: v for k, v in jobs.score(traj, ds).items() if k != "families"}
 
 
 def cells(runs: list[dict], keys: Sequence[str]) -> str:
