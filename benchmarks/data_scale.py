@@ -4,7 +4,9 @@ more scenes of the same draw (data seed 0; scenes 890 on), tuned on its 40 and d
 200 validation scenes under both protocols, for ``--seeds`` seeds. ``--setting`` is what
 each model sees (:mod:`minimanc.inputs`: "paper" or "parity") and ``--speed-output`` what its
 direct head predicts (``ModelConfig.speed_output``: the speed, "level", or its change over
-one step, "change", which needs the parity setting).
+one step, "change", which needs the parity setting); ``--predicate-pool`` how MANC's
+predicates read the features (``ModelConfig.predicate_pool``: "global", eq. 7's pooling, or
+"flat").
 
 Read it against ``benchmarks/fixes.py``'s tables of the same variant: the same models,
 training and validation scenes with the 650 training scenes alone
@@ -65,7 +67,8 @@ def table(runs: dict[str, list[dict]], n_extra: int, epochs: int,
           cfg: models.ModelConfig) -> str:
     text = (f"# More demonstrations (paper preset draw, data seed 0: {N_TRAIN} + {n_extra} "
             f"training scenes, {N_TUNE} tuning, {N_VAL} validation; {cfg.setting} setting, "
-            f"speed output {cfg.speed_output}, speed scale change, {epochs} epochs, lr 0.001; "
+            f"speed output {cfg.speed_output}, predicates pooled {cfg.predicate_pool}, speed "
+            f"scale change, {epochs} epochs, lr 0.001; "
             "mean ± std over seeds)\n\n"
             "Read against `benchmarks/fixes.py`'s rows of the same variant: the same models "
             f"and training on the {N_TRAIN} training scenes alone.\n\n")
@@ -95,11 +98,13 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--setting", choices=("paper", "parity"), default="paper")
     ap.add_argument("--speed-output", choices=("level", "change"), default="level")
+    ap.add_argument("--predicate-pool", choices=("global", "flat"), default="global")
     ap.add_argument("--cache", type=Path, default=Path("runs/data_scale"))
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     try:
-        cfg = models.ModelConfig(setting=args.setting, speed_output=args.speed_output)
+        cfg = models.ModelConfig(setting=args.setting, speed_output=args.speed_output,
+                                 predicate_pool=args.predicate_pool)
         for name in args.models:  # an unknown model or variant fails here, before any data
             changes_speed(models.get(name), cfg)
     except (KeyError, ValueError) as e:
@@ -113,7 +118,8 @@ def main() -> None:
     runs: dict[str, list[dict]] = {name: [] for name in args.models}
     for seed in range(args.seeds):  # seeds outermost: a stopped run has every model's seeds
         for name in args.models:
-            path = args.cache / (f"{name}-{cfg.setting}-{cfg.speed_output}-x{args.extra}"
+            pool = "" if cfg.predicate_pool == "global" else f"-{cfg.predicate_pool}"
+            path = args.cache / (f"{name}-{cfg.setting}-{cfg.speed_output}{pool}-x{args.extra}"
                                  f"-e{args.epochs}-s{seed}.json")
             if path.exists():
                 r = provenance.read_json_or_none(path)
