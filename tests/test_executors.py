@@ -147,7 +147,8 @@ def test_tiny_study_in_worker_processes_equals_inline(tmp_path, pool_run):
 
 def test_local_executor_waits_for_futures_without_blocking(tmp_path):
     """A job on an unfinished future is queued once that one finishes; ``submit`` returns at
-    once, and the error of the future it waits for is the job's error."""
+    once, and the error of the future it waits for is the job's error, whether that future
+    failed before or after the job was submitted."""
     ex = executors.executor("local", 2)
     try:
         slow = ex.submit(sleep_then, 1.0, 3)
@@ -158,6 +159,15 @@ def test_local_executor_waits_for_futures_without_blocking(tmp_path):
         bad = ex.submit(add, ex.submit(add, "a", 1), 2)
         with pytest.raises(TypeError):
             bad.result()
+        # a future that has already failed when the job is submitted: ``submit`` still
+        # returns, and the error comes out of the job's own future (both orders are
+        # checked, since which one the line above took depends on timing)
+        failed_first = ex.submit(add, "a", 1)
+        with pytest.raises(TypeError):
+            failed_first.result()
+        late = ex.submit(add, failed_first, 2)
+        with pytest.raises(TypeError):
+            late.result()
     finally:
         ex.shutdown()
 

@@ -92,6 +92,12 @@ def _resolved(args: tuple) -> tuple:
     return tuple(a.result() if is_future(a) else a for a in args)
 
 
+def _failed_future(exc: BaseException) -> Future:
+    out: Future = Future()
+    out.set_exception(exc)
+    return out
+
+
 class LocalExecutor:
     """Jobs on this machine: ``workers`` spawned processes (``0``: inline, in the caller).
 
@@ -113,7 +119,11 @@ class LocalExecutor:
             return Done(fn(*_resolved(args)))
         pool = self._ensure_pool()
         if all(a.done() for a in args if is_future(a)):
-            return pool.submit(fn, *_resolved(args))
+            try:
+                ready = _resolved(args)
+            except BaseException as exc:  # noqa: BLE001 - a failed future is the job's error
+                return _failed_future(exc)
+            return pool.submit(fn, *ready)
         out: Future = Future()
 
         def start_when_ready() -> None:
