@@ -18,6 +18,8 @@ loss negligible). :meth:`Perception.read` returns the features in their units.
 the training states (not the exact ones, so that it learns to drive on its own perception's
 errors), with the last acceleration taken from the perceived speeds. :class:`PerceivingPolicy`
 drives it closed loop on the rendered raster alone: it reads no number from the simulator.
+With ``odometer=True`` it also reads the one number every vehicle has, its own speed (the
+``motion`` input that MANC's DMP integrates from, eqs. 10–13), and perceives only the rest.
 """
 
 from __future__ import annotations
@@ -34,8 +36,8 @@ from minimanc.layers import dense, flatten
 from minimanc.models.backbone import backbone
 from minimanc.world.geometry import DT
 
-__all__ = ["PERCEIVE", "Perception", "PerceivingPolicy", "fit_driver", "fit_perception",
-           "read_dataset", "with_last_acceleration"]
+__all__ = ["ODOMETER", "PERCEIVE", "Perception", "PerceivingPolicy", "fit_driver",
+           "fit_perception", "read_dataset", "with_last_acceleration", "with_odometer"]
 
 PERCEIVE: tuple[str, ...] = tuple(f for f in P.FEATURES if f != "a_prev")
 """What the perception reads: every privileged feature but the last acceleration (a
@@ -114,29 +116,52 @@ def with_last_acceleration(read: np.ndarray, names: Sequence[str] = PERCEIVE) ->
     return X.reshape(S * T, -1)
 
 
+ODOMETER: tuple[str, ...] = ("v", "a_prev")
+"""What the ego's odometer gives exactly (its own speed, and the last acceleration as the
+difference of two speeds) when a driver takes its speed from it instead of the raster."""
+
+
+def with_odometer(X: np.ndarray, exact: np.ndarray) -> np.ndarray:
+    """Features ``X (N, len(FEATURES))`` with the :data:`ODOMETER` columns taken from
+    ``exact`` (same shape): what a driver reads when its speed comes from the vehicle."""
+    X, exact = np.array(X, dtype=np.float64), np.asarray(exact, dtype=np.float64)
+    if X.shape != exact.shape or X.ndim != 2 or X.shape[1] != len(P.FEATURES):
+        raise ValueError(f"X and exact must both have shape (N, {len(P.FEATURES)}), got "
+                         f"{X.shape} and {exact.shape}")
+    cols = [P.FEATURES.index(f) for f in ODOMETER]
+    X[:, cols] = exact[:, cols]
+    return X
+
+
 def fit_driver(perception: Perception, train_ds: Any, steps: int = 3000, seed: int = 0,
-               read: np.ndarray | None = None) -> P.Privileged:
+               read: np.ndarray | None = None, odometer: bool = False) -> P.Privileged:
     """The privileged MLP trained on what ``perception`` reads in ``train_ds``'s logged
     states (``read``, from :func:`read_dataset` when not given), with the human's logged
-    controls as labels."""
+    controls as labels; with ``odometer=True`` its own speed and last acceleration are the
+    logged ones (:func:`with_odometer`) and only the rest is read from the raster."""
     read = read_dataset(perception, train_ds) if read is None else read
-    _, Y = P.demonstrations(train_ds)
-    return P.fit_privileged(with_last_acceleration(read, perception.names), Y, steps=steps,
-                            seed=seed)
+    exact, Y = P.demonstrations(train_ds)
+    X = with_last_acceleration(read, perception.names)
+    if odometer:
+        X = with_odometer(X, exact)
+    return P.fit_privileged(X, Y, steps=steps, seed=seed)
 
 
 class PerceivingPolicy:
     """The modular learner as a closed-loop driver: each step, ``perception`` reads the
     rendered raster and ``driver`` (a :class:`~minimanc.dagger.privileged.Privileged`
     learner) turns what it read into ``[clip(v̂ + a Δt, 0, V_MAX), ω]``, ``v̂`` the perceived
-    speed. Its state is the last perceived speed of each row."""
+    speed; with ``odometer=True`` ``v̂`` is the ego's own speed (the ``motion`` input, as
+    MANC's DMP receives it) and only the rest is read from the raster. Its state is the
+    last speed of each row."""
 
     model = None
     setting = "paper"
-    keys = ("bev",)
 
-    def __init__(self, perception: Perception, driver: P.Privileged) -> None:
-        self.perception, self.driver = perception, driver
+    def __init__(self, perception: Perception, driver: P.Privileged,
+                 odometer: bool = False) -> None:
+        self.perception, self.driver, self.odometer = perception, driver, bool(odometer)
+        self.keys = ("bev", "motion") if self.odometer else ("bev",)
         self.refused = 0  # it is never refused: it needs no expert in the loop
 
     def initial_state(self, scenes: np.ndarray) -> None:
@@ -146,6 +171,8 @@ class PerceivingPolicy:
                  ) -> tuple[np.ndarray, Any, dict]:
         read = self.perception.read(obs["bev"])
         X = with_last_acceleration(read[:, None], self.perception.names)
+        if self.odometer:
+            X[:, P.FEATURES.index("v")] = np.asarray(obs["motion"], dtype=np.float64)[:, 0]
         v = X[:, P.FEATURES.index("v")]
         if state is not None:
             X[:, P.FEATURES.index("a_prev")] = (v - state) / DT
