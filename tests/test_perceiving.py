@@ -63,3 +63,40 @@ def test_the_modular_learner_drives_on_the_raster_alone(ds, perception):
     u0 = np.stack([np.clip(v + a[:, 0] * DT, 0.0, P.V_MAX), a[:, 1]], axis=1)
     got, _, _ = M.PerceivingPolicy(perception, driver)({"bev": bev0}, None, 0, np.array([0, 1]))
     np.testing.assert_allclose(got, u0)
+
+
+def test_the_odometer_replaces_the_speed_and_the_last_acceleration_only():
+    rng = np.random.default_rng(1)
+    X, exact = rng.normal(size=(2, 6, len(P.FEATURES)))
+    got = M.with_odometer(X, exact)
+    for k, name in enumerate(P.FEATURES):
+        want = exact[:, k] if name in M.ODOMETER else X[:, k]
+        assert np.array_equal(got[:, k], want), f"column {name!r}"
+    assert not np.shares_memory(got, X)  # X itself is left as it was
+    with pytest.raises(ValueError, match="must both have shape"):
+        M.with_odometer(X, exact[:3])
+
+
+def test_the_odometer_driver_reads_its_speed_from_the_motion_input(ds, perception):
+    driver = M.fit_driver(perception, ds, steps=50, odometer=True)
+    policy = M.PerceivingPolicy(perception, driver, odometer=True)
+    assert policy.keys == ("bev", "motion")
+    bev0 = np.asarray(ds.bev[[0, 1], 0], dtype=np.float32) / 255.0
+    motion = np.array([[3.0, 0.1], [11.5, -0.2]], dtype=np.float32)
+    X = M.with_last_acceleration(perception.read(bev0)[:, None])
+    X[:, P.FEATURES.index("v")] = motion[:, 0]
+    a = P.predict(driver, X)
+    u0 = np.stack([np.clip(motion[:, 0] + a[:, 0] * DT, 0.0, P.V_MAX), a[:, 1]], axis=1)
+    got, state, _ = policy({"bev": bev0, "motion": motion}, None, 0, np.array([0, 1]))
+    np.testing.assert_allclose(got, u0, rtol=1e-6)
+    np.testing.assert_allclose(state, motion[:, 0])
+    # the next step's last acceleration is the difference of the two odometer speeds
+    later = motion + np.float32(1.0)
+    X[:, P.FEATURES.index("v")] = later[:, 0]
+    X[:, P.FEATURES.index("a_prev")] = 1.0 / DT
+    a = P.predict(driver, X)
+    got, _, _ = policy({"bev": bev0, "motion": later}, state, 1, np.array([0, 1]))
+    np.testing.assert_allclose(got[:, 0], np.clip(later[:, 0] + a[:, 0] * DT, 0.0, P.V_MAX),
+                               rtol=1e-6)
+    traj = rollout.simulate(policy, ds, scenes=[0, 1], agents="reactive", progress=False)
+    assert traj.ego.shape[0] == 2 and np.all(np.isfinite(traj.ego))
