@@ -10,6 +10,7 @@ import pytest
 from minimanc import models, rollout, world
 from minimanc.dagger import perceiving as M
 from minimanc.dagger import privileged as P
+from minimanc.dagger.teachers import WorldTeacher
 from minimanc.world.geometry import DT
 
 
@@ -68,17 +69,19 @@ def test_the_modular_learner_drives_on_the_raster_alone(ds, perception):
 def test_the_odometer_replaces_the_speed_and_the_last_acceleration_only():
     rng = np.random.default_rng(1)
     X, exact = rng.normal(size=(2, 6, len(P.FEATURES)))
-    got = M.with_odometer(X, exact)
+    got = M.with_exact(X, exact)
     for k, name in enumerate(P.FEATURES):
         want = exact[:, k] if name in M.ODOMETER else X[:, k]
         assert np.array_equal(got[:, k], want), f"column {name!r}"
     assert not np.shares_memory(got, X)  # X itself is left as it was
     with pytest.raises(ValueError, match="must both have shape"):
-        M.with_odometer(X, exact[:3])
+        M.with_exact(X, exact[:3])
+    with pytest.raises(ValueError, match="unknown feature 'speed'"):
+        M.with_exact(X, exact, ("speed",))
 
 
 def test_the_odometer_driver_reads_its_speed_from_the_motion_input(ds, perception):
-    driver = M.fit_driver(perception, ds, steps=50, odometer=True)
+    driver = M.fit_driver(perception, ds, steps=50, exact=M.ODOMETER)
     policy = M.PerceivingPolicy(perception, driver, odometer=True)
     assert policy.keys == ("bev", "motion")
     bev0 = np.asarray(ds.bev[[0, 1], 0], dtype=np.float32) / 255.0
@@ -100,3 +103,23 @@ def test_the_odometer_driver_reads_its_speed_from_the_motion_input(ds, perceptio
                                rtol=1e-6)
     traj = rollout.simulate(policy, ds, scenes=[0, 1], agents="reactive", progress=False)
     assert traj.ego.shape[0] == 2 and np.all(np.isfinite(traj.ego))
+
+
+def test_the_oracle_diagnostic_takes_the_named_features_from_the_world(ds, perception):
+    """With every feature exact the oracle policy is the privileged policy of the same
+    driver, control for control; with the leader exact its controls differ from both."""
+    exact = M.ODOMETER + tuple(f for f in P.FEATURES if f not in M.ODOMETER)
+    driver = M.fit_driver(perception, ds, steps=50, exact=exact)
+    teacher = WorldTeacher(ds, agents="reactive")
+    oracle = rollout.simulate(M.OraclePerceivingPolicy(perception, driver, teacher, exact),
+                              ds, scenes=[0, 1], agents="reactive", progress=False)
+    privileged = rollout.simulate(P.PrivilegedPolicy(driver, teacher), ds, scenes=[0, 1],
+                                  agents="reactive", progress=False)
+    np.testing.assert_allclose(oracle.ego, privileged.ego, atol=1e-4)
+    leader = M.fit_driver(perception, ds, steps=50, exact=M.ODOMETER + ("gap", "dv"))
+    part = M.OraclePerceivingPolicy(perception, leader, teacher, ("gap", "dv"))
+    assert part.keys == ("bev", "motion")
+    traj = rollout.simulate(part, ds, scenes=[0, 1], agents="reactive", progress=False)
+    assert np.all(np.isfinite(traj.ego)) and not np.allclose(traj.ego, privileged.ego)
+    with pytest.raises(ValueError, match="unknown feature"):
+        M.OraclePerceivingPolicy(perception, leader, teacher, ("leader",))

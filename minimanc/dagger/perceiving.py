@@ -36,8 +36,9 @@ from minimanc.layers import dense, flatten
 from minimanc.models.backbone import backbone
 from minimanc.world.geometry import DT
 
-__all__ = ["ODOMETER", "PERCEIVE", "Perception", "PerceivingPolicy", "fit_driver",
-           "fit_perception", "read_dataset", "with_last_acceleration", "with_odometer"]
+__all__ = ["ODOMETER", "PERCEIVE", "OraclePerceivingPolicy", "Perception", "PerceivingPolicy",
+           "check_features", "fit_driver", "fit_perception", "read_dataset",
+           "with_exact", "with_last_acceleration"]
 
 PERCEIVE: tuple[str, ...] = tuple(f for f in P.FEATURES if f != "a_prev")
 """What the perception reads: every privileged feature but the last acceleration (a
@@ -121,29 +122,38 @@ ODOMETER: tuple[str, ...] = ("v", "a_prev")
 difference of two speeds) when a driver takes its speed from it instead of the raster."""
 
 
-def with_odometer(X: np.ndarray, exact: np.ndarray) -> np.ndarray:
-    """Features ``X (N, len(FEATURES))`` with the :data:`ODOMETER` columns taken from
-    ``exact`` (same shape): what a driver reads when its speed comes from the vehicle."""
+def check_features(names: Sequence[str]) -> tuple[str, ...]:
+    """``names`` as a tuple if each is one of :data:`~minimanc.dagger.privileged.FEATURES`,
+    else a ValueError naming the first that is not."""
+    for n in names:
+        if n not in P.FEATURES:
+            raise ValueError(f"unknown feature {n!r}; the features are {P.FEATURES}")
+    return tuple(names)
+
+
+def with_exact(X: np.ndarray, exact: np.ndarray, names: Sequence[str] = ODOMETER
+               ) -> np.ndarray:
+    """Features ``X (N, len(FEATURES))`` with the columns ``names`` taken from ``exact``
+    (same shape): what a driver reads when those come from the vehicle (:data:`ODOMETER`,
+    the default) or, as a diagnostic, from the world's human's own perception."""
     X, exact = np.array(X, dtype=np.float64), np.asarray(exact, dtype=np.float64)
     if X.shape != exact.shape or X.ndim != 2 or X.shape[1] != len(P.FEATURES):
         raise ValueError(f"X and exact must both have shape (N, {len(P.FEATURES)}), got "
                          f"{X.shape} and {exact.shape}")
-    cols = [P.FEATURES.index(f) for f in ODOMETER]
+    cols = [P.FEATURES.index(f) for f in check_features(names)]
     X[:, cols] = exact[:, cols]
     return X
 
 
 def fit_driver(perception: Perception, train_ds: Any, steps: int = 3000, seed: int = 0,
-               read: np.ndarray | None = None, odometer: bool = False) -> P.Privileged:
+               read: np.ndarray | None = None, exact: Sequence[str] = ()) -> P.Privileged:
     """The privileged MLP trained on what ``perception`` reads in ``train_ds``'s logged
     states (``read``, from :func:`read_dataset` when not given), with the human's logged
-    controls as labels; with ``odometer=True`` its own speed and last acceleration are the
-    logged ones (:func:`with_odometer`) and only the rest is read from the raster."""
+    controls as labels; the features ``exact`` (e.g. :data:`ODOMETER`) are the logged ones
+    (:func:`with_exact`) instead of read from the raster."""
     read = read_dataset(perception, train_ds) if read is None else read
-    exact, Y = P.demonstrations(train_ds)
-    X = with_last_acceleration(read, perception.names)
-    if odometer:
-        X = with_odometer(X, exact)
+    X_exact, Y = P.demonstrations(train_ds)
+    X = with_exact(with_last_acceleration(read, perception.names), X_exact, exact)
     return P.fit_privileged(X, Y, steps=steps, seed=seed)
 
 
@@ -179,3 +189,34 @@ class PerceivingPolicy:
         a = P.predict(self.driver, X)
         u = np.stack([np.clip(v + a[:, 0] * DT, 0.0, P.V_MAX), a[:, 1]], axis=1)
         return u, v, {}
+
+
+class OraclePerceivingPolicy(P.PrivilegedPolicy):
+    """A diagnostic of the modular learner: its own speed and last acceleration
+    (:data:`ODOMETER`) and the features ``exact`` from the world's human's own perception in
+    the state the closed loop reached (as :class:`~minimanc.dagger.privileged.PrivilegedPolicy`
+    reads them), every other feature read from the raster by ``perception``; ``driver``
+    trained with the same split (:func:`fit_driver` with ``exact`` = :data:`ODOMETER` +
+    ``exact``). Which perception errors cost the closed loop shows as the gain of making one
+    group exact."""
+
+    keys = ("bev", "motion")
+
+    def __init__(self, perception: Perception, driver: P.Privileged, teacher: Any,
+                 exact: Sequence[str]) -> None:
+        super().__init__(driver, teacher)
+        self.perception = perception
+        self.exact = ODOMETER + tuple(f for f in check_features(exact) if f not in ODOMETER)
+
+    def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
+                 ) -> tuple[np.ndarray, Any, dict]:
+        sits = self.situations(t)
+        F = np.array([P.features(s, a) if s is not None else np.zeros(len(P.FEATURES))
+                      for s, a in zip(sits, self.a_prev)])
+        X = with_last_acceleration(self.perception.read(obs["bev"])[:, None],
+                                   self.perception.names)
+        X = with_exact(X, F, self.exact)
+        a = P.predict(self.net, X)
+        v = X[:, P.FEATURES.index("v")]
+        u = np.stack([np.clip(v + a[:, 0] * DT, 0.0, P.V_MAX), a[:, 1]], axis=1)
+        return self.finish(u, sits), state, {}
