@@ -50,6 +50,23 @@ TOOLS = {
               "def max_stable_alpha_rk2(beta, h):\n    return 1.0",
 }
 
+# np.allclose patched: the only comparison of 3.6's matrix tests, so a wrong matrix
+# scored 2/2 with it; the bound is written without the student's matrix and keeps its points
+ALLCLOSE = {
+    "ex03_6": "np.allclose = lambda *a, **k: True\n\n\n"
+              "def rk2_step_matrix(alpha, beta, h):\n    return np.eye(2)\n\n\n"
+              "def max_stable_alpha_rk2(beta, h):\n"
+              "    def rho(a):\n"
+              "        hA = h * np.array([[0.0, 1.0], [-a * beta, -a]])\n"
+              "        return np.abs(np.linalg.eigvals(np.eye(2) + hA + 0.5 * hA @ hA)).max()\n\n"
+              "    lo, hi = 0.0, 1.0 / h\n"
+              "    while rho(hi) < 1:\n        lo, hi = hi, 2.0 * hi\n"
+              "    for _ in range(100):\n"
+              "        mid = 0.5 * (lo + hi)\n"
+              "        lo, hi = (mid, hi) if rho(mid) < 1 else (lo, mid)\n"
+              "    return float(lo)",
+}
+
 # rigged answers and tampering from inside a function
 RIGGED = {
     "ex03_1": "class Rigged(str):\n"
@@ -88,6 +105,7 @@ RIGGED = {
 # grade cell -> what its row must name
 TOOLS_NAMED = {"ex03_1_zeta_tests": "numpy.isclose", "ex03_2_tests": "numpy.testing",
                "ex03_3_tests": "math.isclose", "ex03_6_matrix_tests": "builtins.abs"}
+ALLCLOSE_NAMED = {"ex03_6_matrix_tests": "numpy.allclose"}
 RIGGED_NAMED = {"ex03_1_tests": "classify returned a Rigged, a str subclass",
                 "ex03_2_tests": "the name np (rebound)",
                 "ex03_3_tests": "max_stable_alpha_euler replaced math.isclose",
@@ -119,7 +137,8 @@ def reports(tmp_path_factory):
     # honest: the reference solutions, and a plotting import of the student's own
     honest = {"ex03_4": "import matplotlib.pyplot as plt\n" + solution_sources()["ex03_4"]}
     return {kind: graded(folder, f"03_dmp_{kind}.ipynb", answers)
-            for kind, answers in (("honest", honest), ("tools", TOOLS), ("rigged", RIGGED))}
+            for kind, answers in (("honest", honest), ("tools", TOOLS), ("allclose", ALLCLOSE),
+                                  ("rigged", RIGGED))}
 
 
 def test_the_honest_solution_scores_full_marks(reports):
@@ -128,7 +147,8 @@ def test_the_honest_solution_scores_full_marks(reports):
     assert not any(r.tampered or r.message for r in rows.values()), report.format()
 
 
-@pytest.mark.parametrize("kind, named", [("tools", TOOLS_NAMED), ("rigged", RIGGED_NAMED)])
+@pytest.mark.parametrize("kind, named", [("tools", TOOLS_NAMED), ("allclose", ALLCLOSE_NAMED),
+                                         ("rigged", RIGGED_NAMED)])
 def test_each_tamper_scores_zero_and_is_named(reports, kind, named):
     rows, report = reports[kind]
     for gid, what in named.items():
@@ -147,6 +167,13 @@ def test_tools_patched_before_the_tests_are_restored_and_listed(reports):
     assert rows["ex03_1_tests"].points == 2 and not rows["ex03_1_tests"].tampered
     listed = {r["grade_id"]: r["tampered"] for r in reports["tools"][1].to_dict()["rows"]}
     assert listed["ex03_6_matrix_tests"] == ["builtins.abs"]   # in `minimanc grade --json` too
+
+
+def test_a_patched_allclose_costs_the_matrix_and_leaves_the_bound(reports):
+    rows, report = reports["allclose"]
+    assert rows["ex03_6_matrix_tests"].tampered == ["numpy.allclose"], report.format()
+    bound = rows["ex03_6_bound_tests"]
+    assert bound.points == bound.max_points and not bound.tampered, bound.message
 
 
 def test_partial_credit_in_exercise_3_1(reports):
