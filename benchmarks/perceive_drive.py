@@ -7,7 +7,11 @@ RMSE; gap and closing speed also over the states with a leader within 30 m, wher
 matter), and the closed loop under both protocols (mean ± std over ``--seeds`` seeds; each
 seed trains both halves), for each ``--speed`` source: ``raster`` (the driver reads its own
 speed from the raster too) and ``odometer`` (its own speed is the ego's, as MANC's DMP gets
-it; only the rest is read). Both drivers of a seed share its perception. Read it against
+it; only the rest is read). Both drivers of a seed share its perception. ``--oracle GROUP
+...`` adds a diagnostic row per feature group of ``minimanc.dagger.privileged.FEATURE_GROUPS``:
+the odometer driver with that group taken from the world's own perception in the reached
+state (``OraclePerceivingPolicy``), the rest still read: the gain of one exact group is what
+its perception errors cost. Read it against
 ``results/privileged.md`` (the same MLP on the exact features, and on one frame) and
 ``results/privileged_noise.md`` (the same MLP with independent errors of known size).
 
@@ -29,7 +33,7 @@ from scoring import cells
 from minimanc import world
 from minimanc.dagger import perceiving as M
 from minimanc.dagger import privileged as P
-from minimanc.dagger.teachers import AGENTS
+from minimanc.dagger.teachers import AGENTS, WorldTeacher
 from minimanc.studies import provenance
 
 N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
@@ -50,6 +54,7 @@ def main() -> None:
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--weight", type=float, default=100.0)
     ap.add_argument("--speed", nargs="+", choices=("raster", "odometer"), default=["raster"])
+    ap.add_argument("--oracle", nargs="*", default=[], choices=tuple(P.FEATURE_GROUPS))
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     t0 = time.perf_counter()
@@ -61,7 +66,8 @@ def main() -> None:
     log("targets", t0)
     close = (yv[:, M.PERCEIVE.index("has_leader")] > 0) & (yv[:, M.PERCEIVE.index("gap")] < 30)
     r2, rmse, close_rmse = [], [], []
-    runs = {(sp, a): [] for sp in args.speed for a in AGENTS}
+    rows = list(args.speed) + [f"odometer, {g} exact" for g in args.oracle]
+    runs = {(r, a): [] for r in rows for a in AGENTS}
     for seed in range(args.seeds):
         perception = M.fit_perception(tr, y, epochs=args.epochs, lr=args.lr, seed=seed,
                                       weight=args.weight)
@@ -75,13 +81,25 @@ def main() -> None:
             f"{n} R² {a:.2f}" for n, a in zip(M.PERCEIVE, r2[-1])), t0)
         for sp in args.speed:
             odo = sp == "odometer"
-            driver = M.fit_driver(perception, tr, seed=seed, read=read_tr, odometer=odo)
+            driver = M.fit_driver(perception, tr, seed=seed, read=read_tr,
+                                  exact=M.ODOMETER if odo else ())
             for a in AGENTS:
                 policy = M.PerceivingPolicy(perception, driver, odometer=odo)
                 runs[sp, a].append(P.evaluate_policy(policy, val, a))
                 log(f"seed {seed} speed from {sp}, {a}: "
                     f"{runs[sp, a][-1]['at_fault_collision_rate']:.1f} % at fault, "
                     f"ADE {runs[sp, a][-1]['ade']:.2f}", t0)
+        for g, row in zip(args.oracle, rows[len(args.speed):]):
+            exact = P.FEATURE_GROUPS[g]
+            driver = M.fit_driver(perception, tr, seed=seed, read=read_tr,
+                                  exact=M.ODOMETER + tuple(exact))
+            for a in AGENTS:
+                policy = M.OraclePerceivingPolicy(perception, driver,
+                                                  WorldTeacher(val, agents=a), exact)
+                runs[row, a].append(P.evaluate_policy(policy, val, a))
+                log(f"seed {seed} {row}, {a}: "
+                    f"{runs[row, a][-1]['at_fault_collision_rate']:.1f} % at fault, "
+                    f"ADE {runs[row, a][-1]['ade']:.2f}", t0)
     r2, rmse, close_rmse = (np.mean(x, axis=0) for x in (r2, rmse, close_rmse))
     gi, di = M.PERCEIVE.index("gap"), M.PERCEIVE.index("dv")
     text = (f"# The modular learner: perception from the raster, then the privileged MLP "
@@ -96,8 +114,8 @@ def main() -> None:
             + f"\n\n{int(close.sum())} of {len(close)} validation states have a leader within "
             "30 m.\n\n## Closed loop\n\n| speed from | agents | " + " | ".join(HEAD) + " |\n"
             + "|---" * (len(HEAD) + 2) + "|\n"
-            + "\n".join(f"| {sp} | `{a}` | {cells(runs[sp, a], SHOW)} |"
-                        for sp in args.speed for a in AGENTS) + "\n\n")
+            + "\n".join(f"| {r} | `{a}` | {cells(runs[r, a], SHOW)} |"
+                        for r in rows for a in AGENTS) + "\n\n")
     provenance.publish(text, args.out, time.perf_counter() - t0)
 
 
