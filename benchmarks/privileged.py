@@ -19,7 +19,8 @@ Three parts, each a section of the results file:
 * **DAgger**: ``--rounds`` rounds of ``--per-round`` training scenes each
   (:func:`~minimanc.dagger.privileged.dagger_rounds`, reactive ados), the closed-loop
   metrics after every round, against behaviour cloning given the same number of labels
-  as extra demonstrations (more scenes of the same draw).
+  as extra demonstrations (more scenes of the same draw), over ``--dagger-seeds`` training
+  seeds.
 
 The data is the paper preset's draw (data seed ``--data-seed``: ``--train`` training,
 40 tuning, ``--val`` validation scenes, in that order).
@@ -95,6 +96,7 @@ def main() -> None:
     ap.add_argument("--ablation-seeds", type=int, default=2)
     ap.add_argument("--rounds", type=int, default=10)
     ap.add_argument("--per-round", type=int, default=65)
+    ap.add_argument("--dagger-seeds", type=int, default=1)
     ap.add_argument("--parts", default="bc,ablation,dagger")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
@@ -187,21 +189,34 @@ def main() -> None:
             "training and every driven state.", "", *table(rows, "perception")]
 
     if "dagger" in parts:
-        rounds = P.dagger_rounds(train, val, args.rounds, args.per_round, agents="reactive",
-                                 steps=args.steps)
-        lines = ["| round | labels | " + " | ".join(HEAD) + " |", "|---" * (len(HEAD) + 2) + "|"]
-        for i, r in enumerate(rounds):
-            lines.append(f"| {i} | {r.labels} | {cells([r.metrics], SHOW)} |")
-            log(f"dagger round {i}: {r.metrics['at_fault_collision_rate']:.1f} % at fault", t0)
+        per_seed, bc = [], []
         more = ds.subset(np.r_[np.arange(args.train), np.arange(n, n + extra)])
         Xm, Ym = P.demonstrations(more)
-        model = P.fit_privileged(Xm, Ym, steps=args.steps, seed=0)
-        bc = P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"]), val, "reactive")
+        for seed in range(args.dagger_seeds):
+            per_seed.append(P.dagger_rounds(train, val, args.rounds, args.per_round,
+                                            agents="reactive", steps=args.steps, seed=seed))
+            for i, r in enumerate(per_seed[-1]):
+                log(f"dagger seed {seed} round {i}: "
+                    f"{r.metrics['at_fault_collision_rate']:.1f} % at fault", t0)
+            model = P.fit_privileged(Xm, Ym, steps=args.steps, seed=seed)
+            bc.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"]), val,
+                                        "reactive"))
+            log(f"bc at equal labels seed {seed}: "
+                f"{bc[-1]['at_fault_collision_rate']:.1f} % at fault", t0)
+        lines = ["| round | labels | " + " | ".join(HEAD) + " |", "|---" * (len(HEAD) + 2) + "|"]
+        for i in range(args.rounds + 1):
+            runs = [rounds[i].metrics for rounds in per_seed]
+            lines.append(f"| {i} | {per_seed[0][i].labels} | {cells(runs, SHOW)} |")
+        last = [rounds[-1].metrics for rounds in per_seed]
         lines += ["", "Behaviour cloning at equal labels (the demonstrations of "
-                  f"{args.train + extra} scenes, {len(Xm)} states):", "",
-                  *table([row("BC, equal labels", [bc])])]
-        sections["DAgger"] = [f"agents `reactive`, {args.per_round} scenes per round, "
-                              "training seed 0", "", *lines]
+                  f"{args.train + extra} scenes, {len(Xm)} states), against DAgger's last "
+                  "round:", "",
+                  *table([row("BC, equal labels", bc), row(f"DAgger, round {args.rounds}",
+                                                            last)])]
+        seeds = ("training seed 0" if args.dagger_seeds == 1
+                 else f"{args.dagger_seeds} training seeds (mean ± std)")
+        sections["DAgger"] = [f"agents `reactive`, {args.per_round} scenes per round, {seeds}",
+                              "", *lines]
 
     text = (f"# The privileged learner (data seed {args.data_seed}: {args.train} training, "
             f"{args.val} validation scenes; {args.steps} Adam steps)\n\n")
