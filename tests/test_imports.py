@@ -5,7 +5,8 @@ The layer order is CONTRIBUTING.md's ("Layers" section), the one list both follo
 may import its own layer and the layers below it. An import inside a function is allowed only
 where it defers an optional dependency (:data:`OPTIONAL`; a minimanc module only in the
 importers :data:`DEFERRED` names), and says why in a comment on the import's line or on a
-comment line right above it.
+comment line right above it. A call ``importlib.import_module("minimanc.x")`` with a literal
+name counts as an import of ``minimanc.x``.
 """
 
 from __future__ import annotations
@@ -34,7 +35,9 @@ OPTIONAL = {
 """What a function may import (module or its parent), each an optional dependency."""
 
 DEFERRED = {
-    "minimanc.highway": {"minimanc.dagger.teachers": "highway-env, optional for DAgger"},
+    "minimanc.highway": {"minimanc.dagger.teachers": "highway-env, optional for DAgger",
+                         "minimanc.cli.highway": "highway-env, reported when a command runs",
+                         "minimanc.cli.dagger": "highway-env, only for --sim highway"},
     "minimanc.exercises": {"minimanc.cli.exercises": "nbformat, seconds to import"},
 }
 """A minimanc module that loads an optional dependency -> the modules that may import it
@@ -96,12 +99,34 @@ def _imports(module: str, source: str | None = None
                         inner.append((target, child.lineno, _comments(lines, child)))
                     else:
                         top.append((target, child.lineno))
+            elif (dynamic := _import_module_of(child)) is not None:
+                # importlib.import_module("minimanc.x") is an import like any other
+                if in_function:
+                    inner.append((dynamic, child.lineno, _comments(lines, child)))
+                else:
+                    top.append((dynamic, child.lineno))
+                walk(child, in_function)
             else:
                 walk(child, in_function or isinstance(
                     child, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda))
 
     walk(ast.parse(source), False)
     return top, inner
+
+
+def _import_module_of(node: ast.AST) -> str | None:
+    """The module a call ``importlib.import_module("name")`` (or ``import_module``,
+    ``__import__``) imports when its name is a string literal; ``None`` for any other node.
+    A name computed at run time (the CLI's table of command modules) is not resolved."""
+    if not isinstance(node, ast.Call) or not node.args:
+        return None
+    func = node.func
+    name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", None)
+    arg = node.args[0]
+    if name in ("import_module", "__import__") and isinstance(arg, ast.Constant) \
+            and isinstance(arg.value, str):
+        return arg.value
+    return None
 
 
 def _comments(lines: list[str], node: ast.stmt) -> str:
@@ -263,6 +288,10 @@ def f():
     from PIL import Image
     import json
     return models, hw, plt, Image, json, np
+
+
+def g():
+    return importlib.import_module("minimanc.rollout")
 """
 
 
@@ -274,8 +303,19 @@ def test_inner_import_errors_finds_planted_violations():
         "imports minimanc.highway inside a function: import it at the top of the module "
         "(a lower layer is passed what it needs)",
         "defers matplotlib.pyplot: say why in a comment on that line",
+        "imports minimanc.rollout inside a function: import it at the top of the module "
+        "(a lower layer is passed what it needs)",
     ]
     # the one module DEFERRED names may defer highway-env, with its reason
     assert inner_import_errors("minimanc.dagger.teachers", PLANTED)[1:] == [
         e.replace("minimanc/metrics/table.py", "minimanc/dagger/teachers.py")
         for e in errors[2:]]
+
+
+def test_a_literal_import_module_call_is_an_import():
+    source = ('import importlib\n\nSTYLE = importlib.import_module("minimanc.viz.style")\n\n\n'
+              'def f(name):\n    importlib.import_module(name)  # a table\'s name: not read\n'
+              '    return importlib.import_module("minimanc.highway")  # optional: highway-env\n')
+    top, inner = _imports("minimanc.metrics.table", source)
+    assert top == [("importlib", 1), ("minimanc.viz.style", 3)]
+    assert [(t, line) for t, line, _ in inner] == [("minimanc.highway", 8)]

@@ -19,7 +19,6 @@ table) and ``figures/dagger_<metric>.png``. Bad arguments are one line on stderr
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import math
 from typing import Any
@@ -100,7 +99,7 @@ def _world_teacher(args: argparse.Namespace) -> Any:
 
 def _highway_teacher(args: argparse.Namespace) -> Any:
     try:
-        hw = importlib.import_module("minimanc.highway")
+        import minimanc.highway as hw  # optional dependency: highway-env
     except ImportError as e:
         raise UsageError(str(e)) from e
     check_choices([args.scenario], "--scenario", tuple(hw.SCENARIOS), what="scenario")

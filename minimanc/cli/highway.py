@@ -23,7 +23,6 @@ checkpoint) are one line on stderr and exit status 2, checked before any work.
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import sys
 from pathlib import Path
@@ -52,7 +51,9 @@ parser does not need highway-env."""
 def _highway() -> Any:
     """``minimanc.highway``, or None after printing why it cannot be imported."""
     try:
-        return importlib.import_module("minimanc.highway")
+        import minimanc.highway as hw  # optional dependency: highway-env
+
+        return hw
     except ImportError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return None
