@@ -86,7 +86,7 @@ __all__ = [
     "KEYS",
     "LANE_SCALE",
     "MOTION_SCALE",
-    "PER_SCENE_KEYS",
+    "SCENE_CONSTANT_KEYS",
     "SETTINGS",
     "from_dataset",
     "from_state",
@@ -104,7 +104,7 @@ SETTINGS: tuple[str, ...] = ("paper", "parity")
 KEYS: tuple[str, ...] = ("bev", "goal", "lane_target", "motion", "goal_bev")
 """All observation keys."""
 
-PER_SCENE_KEYS: tuple[str, ...] = ("goal_bev",)
+SCENE_CONSTANT_KEYS: tuple[str, ...] = ("goal_bev",)
 """Observation keys that are the same at every step of a scene (the map at the goal
 pose): :func:`minimanc.models.sequence` encodes them once per window."""
 

@@ -1,4 +1,4 @@
-"""Names that say one thing: no public function or class is defined in two modules of
+"""Names that say one thing: no public function, class or constant is defined in two modules of
 ``minimanc/`` (read from the source with ``ast``).
 
 A name defined twice is either one concept written twice (keep one definition, import it where
@@ -39,10 +39,17 @@ def module_name(path: Path) -> str:
 
 
 def public_defs(source: str) -> list[str]:
-    """The public functions and classes a module defines at its top level."""
-    return [node.name for node in ast.parse(source).body
-            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef)
-            and not node.name.startswith("_")]
+    """The public functions, classes and constants (``UPPER_CASE = ...`` assignments; a
+    documented re-export, ``from m import X as X``, is no definition) a module defines at
+    its top level."""
+    out = []
+    for node in ast.parse(source).body:
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            out.append(node.name)
+        elif isinstance(node, ast.Assign | ast.AnnAssign):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            out += [t.id for t in targets if isinstance(t, ast.Name) and t.id.isupper()]
+    return [name for name in out if not name.startswith("_")]
 
 
 def definitions(sources: dict[str, str]) -> dict[str, list[str]]:
@@ -127,3 +134,12 @@ def test_bare_imports_finds_a_protocol_name_imported_from_another_package():
     }
     assert bare_imports(sources, protocols) == [
         "minimanc.models.forward imports step from minimanc.dmp"]
+
+
+def test_duplicates_names_a_constant_defined_twice_and_spares_a_re_export():
+    sources = {
+        "minimanc.a": "DT = 0.5\nrate: float = 2.0\n",
+        "minimanc.b": "DT: float = 0.5\nKEYS = ('x',)\n",
+        "minimanc.c": "from minimanc.a import DT as DT\nKEYS2 = ('y',)\nrate = 3.0\n",
+    }
+    assert duplicates(sources, {}) == {"DT": ["minimanc.a", "minimanc.b"]}

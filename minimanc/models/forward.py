@@ -217,10 +217,10 @@ def check_obs(name: str, obs: dict, cfg: ModelConfig, lead: int) -> None:
 
 
 def check_per_scene(obs_seq: dict, seen: Sequence[str]) -> list[str]:
-    """The keys of :data:`minimanc.inputs.PER_SCENE_KEYS` among ``seen`` in the time-major
+    """The keys of :data:`minimanc.inputs.SCENE_CONSTANT_KEYS` among ``seen`` in the time-major
     ``obs_seq``; ValueError if one of them, given as a NumPy array, differs between steps
     (a traced array is not inspected: the training batches repeat one scene's raster)."""
-    keys = [k for k in inputs.PER_SCENE_KEYS if k in seen and k in obs_seq]
+    keys = [k for k in inputs.SCENE_CONSTANT_KEYS if k in seen and k in obs_seq]
     for k in keys:
         v = obs_seq[k]
         if isinstance(v, np.ndarray) and not (v == v[:1]).all():
@@ -353,7 +353,7 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
 
     Equal to ``L`` calls of :func:`step` (tested), but the backbone runs once on
     all ``L·B`` frames (once per window on the observations of
-    :data:`minimanc.inputs.PER_SCENE_KEYS`, which must be the same at every step)
+    :data:`minimanc.inputs.SCENE_CONSTANT_KEYS`, which must be the same at every step)
     and the time loop is one ``eng.scan`` on both engines.
     Used to train the recurrent models on truncated back-propagation-through-time
     windows.

@@ -25,8 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-DT = 0.5
-"""Time step of the logs and of the closed loop (s); nuScenes samples at 2 Hz."""
+from minimanc.dmp.params import DT as DT  # the control period (chapter 3) is the logs' step
 
 EGO_LENGTH = 4.727
 """Length of the ego box (m), as in the authors' environment."""
