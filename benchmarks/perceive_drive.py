@@ -35,6 +35,7 @@ from minimanc.dagger import perceiving as M
 from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS, WorldTeacher
 from minimanc.studies import provenance
+from minimanc.studies.jobs import scene_families
 
 N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
 SHOW = ("ade", "along_track", "cross_track", "collision_rate", "at_fault_collision_rate",
@@ -54,6 +55,10 @@ def main() -> None:
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--weight", type=float, default=100.0)
     ap.add_argument("--speed", nargs="+", choices=("raster", "odometer"), default=["raster"])
+    ap.add_argument("--hidden", type=int, default=0,
+                    help="a read-out with one hidden ReLU layer of this many units (0: linear)")
+    ap.add_argument("--route", action="store_true",
+                    help="the perception also reads the lane targets (the route ahead)")
     ap.add_argument("--oracle", nargs="*", default=[], choices=tuple(P.FEATURE_GROUPS))
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
@@ -66,14 +71,20 @@ def main() -> None:
     log("targets", t0)
     close = (yv[:, M.PERCEIVE.index("has_leader")] > 0) & (yv[:, M.PERCEIVE.index("gap")] < 30)
     r2, rmse, close_rmse = [], [], []
+    T = np.asarray(val.ego).shape[1]
+    families = {f: np.repeat(m, T) for f, m in scene_families(val).items()}
+    fam_r2: dict[str, list] = {f: [] for f in families}
     rows = list(args.speed) + [f"odometer, {g} exact" for g in args.oracle]
     runs = {(r, a): [] for r in rows for a in AGENTS}
     for seed in range(args.seeds):
         perception = M.fit_perception(tr, y, epochs=args.epochs, lr=args.lr, seed=seed,
-                                      weight=args.weight)
+                                      weight=args.weight, hidden=args.hidden,
+                                      route=args.route)
         read_tr = M.read_dataset(perception, tr)
         read_v = M.read_dataset(perception, val).reshape(yv.shape)
         err = read_v - yv
+        for fam, rows_of in families.items():
+            fam_r2[fam].append(1 - (err[rows_of] ** 2).mean(0) / (yv.var(0) + 1e-12))
         rmse.append(np.sqrt((err ** 2).mean(0)))
         r2.append(1 - (err ** 2).mean(0) / (yv.var(0) + 1e-12))
         close_rmse.append(np.sqrt((err[close] ** 2).mean(0)))
@@ -104,15 +115,23 @@ def main() -> None:
     gi, di = M.PERCEIVE.index("gap"), M.PERCEIVE.index("dv")
     text = (f"# The modular learner: perception from the raster, then the privileged MLP "
             f"(paper preset draw: {N_TRAIN} training, {N_VAL} validation scenes; history "
-            f"{args.history}; {args.epochs} epochs, lr {args.lr:g}, perception weight "
-            f"{args.weight:g}; {args.seeds} seeds)\n\n## What the perception reads\n\n"
+            f"{args.history}; {args.epochs} epochs, lr {args.lr:g}, "
+            + (f"hidden layer {args.hidden}" if args.hidden else
+               f"perception weight {args.weight:g}")
+            + (", route" if args.route else "")
+            + f"; {args.seeds} seeds)\n\n## What the perception reads\n\n"
             "On the validation scenes, mean over seeds.\n\n"
             "| feature | R² | RMSE | RMSE, leader < 30 m |\n|---|---|---|---|\n"
             + "\n".join(f"| `{n}` | {r2[k]:.2f} | {rmse[k]:.2f} | "
                         + (f"{close_rmse[k]:.2f}" if k in (gi, di) else "") + " |"
                         for k, n in enumerate(M.PERCEIVE))
             + f"\n\n{int(close.sum())} of {len(close)} validation states have a leader within "
-            "30 m.\n\n## Closed loop\n\n| speed from | agents | " + " | ".join(HEAD) + " |\n"
+            "30 m.\n\nR² by scenario family (the validation states of each family's scenes, "
+            "against the spread over all of them):\n\n| family | "
+            + " | ".join(f"`{n}`" for n in M.PERCEIVE) + " |\n" + "|---" * (len(M.PERCEIVE) + 1)
+            + "|\n" + "\n".join(f"| {f} | " + " | ".join(f"{x:.2f}" for x in np.mean(v, 0))
+                                 + " |" for f, v in fam_r2.items())
+            + "\n\n## Closed loop\n\n| speed from | agents | " + " | ".join(HEAD) + " |\n"
             + "|---" * (len(HEAD) + 2) + "|\n"
             + "\n".join(f"| {r} | `{a}` | {cells(runs[r, a], SHOW)} |"
                         for r in rows for a in AGENTS) + "\n\n")

@@ -123,3 +123,41 @@ def test_the_oracle_diagnostic_takes_the_named_features_from_the_world(ds, perce
     assert np.all(np.isfinite(traj.ego)) and not np.allclose(traj.ego, privileged.ego)
     with pytest.raises(ValueError, match="unknown feature"):
         M.OraclePerceivingPolicy(perception, leader, teacher, ("leader",))
+
+
+@pytest.fixture(scope="module")
+def route_perception(ds):
+    return M.fit_perception(ds, epochs=4, lr=3e-3, cfg=models.ModelConfig(image_size=16),
+                            hidden=16, route=True, batch=16)
+
+
+def test_a_hidden_read_out_with_the_route_learns_its_training_states(ds, route_perception):
+    per = route_perception
+    assert per.route and per.keys == ("bev", "lane_target") and len(per.readout) == 2
+    y = P.perceived(ds, M.PERCEIVE).reshape(-1, len(M.PERCEIVE))
+    read = M.read_dataset(per, ds).reshape(y.shape)
+    spread = y.std(0) > 1e-6
+    r2 = 1 - ((read - y) ** 2).mean(0)[spread] / y.var(0)[spread]
+    assert r2.mean() > 0.0, f"mean R² of the read features on the training states {r2.mean()}"
+    # the read-out does read the route: other lane targets, other features
+    bev, lane = M.observe_states(ds, np.array([0, 1]), np.array([5, 5]), route=True)
+    assert lane.shape == (2, 10, 2)
+    assert not np.allclose(per.read(bev, lane), per.read(bev, lane + 3.0))
+
+
+def test_a_route_perception_refuses_a_call_without_the_route(ds, route_perception):
+    bev, lane = M.observe_states(ds, np.array([0]), np.array([0]), route=True)
+    with pytest.raises(ValueError, match="pass lane_target"):
+        route_perception.read(bev)
+    with pytest.raises(ValueError, match=r"lane_target must have shape \(1, K, 2\)"):
+        route_perception.read(bev, lane[:, :, 0])
+
+
+def test_the_route_driver_gets_the_lane_targets_in_closed_loop(ds, route_perception):
+    driver = M.fit_driver(route_perception, ds, steps=50, exact=M.ODOMETER)
+    policy = M.PerceivingPolicy(route_perception, driver, odometer=True)
+    assert policy.keys == ("bev", "lane_target", "motion")
+    traj = rollout.simulate(policy, ds, scenes=[0, 1], agents="reactive", progress=False)
+    assert traj.ego.shape[0] == 2 and np.all(np.isfinite(traj.ego))
+    with pytest.raises(ValueError, match="hidden must be"):
+        M.fit_perception(ds, epochs=1, cfg=models.ModelConfig(image_size=16), hidden=-1)

@@ -29,10 +29,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
-from minimanc import engine, inputs, models, train
+from minimanc import engine, inputs, models, optim, train
+from minimanc.checks import check_int
 from minimanc.dagger import privileged as P
-from minimanc.layers import dense, flatten
+from minimanc.layers import dense, flatten, init_dense
 from minimanc.models.backbone import backbone
 from minimanc.world.geometry import DT
 
@@ -47,58 +49,156 @@ difference of perceived speeds)."""
 
 @dataclass
 class Perception:
-    """A trained perception: the CNN's ``params`` (its backbone is used), the linear
-    ``readout`` of the features ``names`` standardised by ``mean`` and ``std``, and ``cfg``."""
+    """A trained perception: the CNN's ``params`` (its backbone is used), the ``readout``
+    (dense layers with ReLUs between them: one layer is a linear read-out) of the features
+    ``names`` standardised by ``mean`` and ``std``, and ``cfg``. With ``route=True`` the
+    read-out also takes the ``lane_target`` input (the route ahead, which MANC's DMP gets
+    in the paper setting) next to the flattened image features."""
 
     params: dict
-    readout: dict
+    readout: list[dict]
     mean: np.ndarray
     std: np.ndarray
     cfg: models.ModelConfig
     names: tuple[str, ...] = PERCEIVE
+    route: bool = False
 
     def __post_init__(self) -> None:
         self._eng = engine("jax")
+        self._read = self._eng.jit(self.forward)
 
-        def read(params: dict, readout: dict, bev: Any) -> Any:
-            f = backbone(params["backbone"], bev, self.cfg, self._eng)
-            return dense(readout, flatten(f, self._eng.xp), self._eng.xp)
+    @property
+    def keys(self) -> tuple[str, ...]:
+        """The observation keys it reads."""
+        return ("bev", "lane_target") if self.route else ("bev",)
 
-        self._read = self._eng.jit(read)
+    def forward(self, params: dict, readout: list[dict], bev: Any, lane: Any = None) -> Any:
+        """The standardised features read from ``bev (B, H, W, 3)`` (and, with
+        :attr:`route`, ``lane (B, K, 2)``), on the JAX engine."""
+        xp = self._eng.xp
+        h = flatten(backbone(params["backbone"], bev, self.cfg, self._eng), xp)
+        if self.route:
+            h = xp.concatenate([h, xp.reshape(lane / inputs.LANE_SCALE, (h.shape[0], -1))],
+                               axis=1)
+        for layer in readout[:-1]:
+            h = self._eng.nn.relu(dense(layer, h, xp))
+        return dense(readout[-1], h, xp)
 
-    def read(self, bev: Any) -> np.ndarray:
+    def read(self, bev: Any, lane_target: Any = None) -> np.ndarray:
         """The features :attr:`names` ``(B, K)`` float64 read from rasters ``bev (B, H, W, 3)``
-        scaled to ``[0, 1]`` (as :func:`minimanc.inputs.from_dataset` gives them)."""
+        scaled to ``[0, 1]`` (as :func:`minimanc.inputs.from_dataset` gives them) and, with
+        :attr:`route`, the lane targets ``(B, K_TARGETS, 2)``."""
         bev = np.asarray(bev, dtype=np.float32)
         if bev.ndim != 4 or bev.shape[1:] != (self.cfg.image_size, self.cfg.image_size, 3):
             raise ValueError(f"bev must have shape (B, {self.cfg.image_size}, "
                              f"{self.cfg.image_size}, 3), got {bev.shape}")
-        z = np.asarray(self._read(self.params, self.readout, bev), dtype=np.float64)
+        lane = None
+        if self.route:
+            if lane_target is None:
+                raise ValueError("this perception reads the route: pass lane_target "
+                                 "(B, K, 2)")
+            lane = np.asarray(lane_target, dtype=np.float32)
+            if lane.ndim != 3 or lane.shape[0] != len(bev) or lane.shape[2] != 2:
+                raise ValueError(f"lane_target must have shape ({len(bev)}, K, 2), got "
+                                 f"{lane.shape}")
+        z = np.asarray(self._read(self.params, self.readout, bev, lane), dtype=np.float64)
         return z * self.std + self.mean
 
 
 def fit_perception(train_ds: Any, targets: np.ndarray | None = None, epochs: int = 6,
                    lr: float = 1e-3, seed: int = 0, weight: float = 100.0,
-                   cfg: models.ModelConfig | None = None, progress: bool = False) -> Perception:
+                   cfg: models.ModelConfig | None = None, progress: bool = False,
+                   hidden: int = 0, route: bool = False, batch: int = 64) -> Perception:
     """Train a :class:`Perception` on every logged state of ``train_ds``; ``targets``
     ``(S, T, K)`` are its :data:`PERCEIVE` features
-    (:func:`minimanc.dagger.privileged.perceived`, computed when not given)."""
+    (:func:`minimanc.dagger.privileged.perceived`, computed when not given).
+
+    With ``hidden = 0`` and no ``route`` it is the CNN of :mod:`minimanc.models` trained by
+    :func:`minimanc.train.fit` with its auxiliary perception loss at ``weight`` (a linear
+    read-out of the flattened backbone features). Otherwise the backbone and a read-out
+    with one hidden ReLU layer of ``hidden`` units (and the lane targets with ``route``)
+    are trained on the perception loss alone (mean squared error of the standardised
+    features, Adam at ``lr``, minibatches of ``batch`` states, ``epochs`` passes)."""
     y = P.perceived(train_ds, PERCEIVE) if targets is None else np.asarray(targets, float)
     if y.ndim != 3 or y.shape[2] != len(PERCEIVE):
         raise ValueError(f"targets must have shape (S, T, {len(PERCEIVE)}), got {y.shape}")
     cfg = cfg or models.ModelConfig(setting="paper")
-    tc = train.TrainConfig(epochs=epochs, lr=lr, seed=seed, perception_weight=weight)
-    res = train.fit("cnn", train_ds, cfg, tc, progress=progress, perception=y)
-    mean, std = train.perception_moments(y, train.subset_scenes(len(y), tc.subset, tc.seed))
-    return Perception(res.params, res.readout, mean, std, cfg)
+    if hidden == 0 and not route:
+        tc = train.TrainConfig(epochs=epochs, lr=lr, seed=seed, perception_weight=weight)
+        res = train.fit("cnn", train_ds, cfg, tc, progress=progress, perception=y)
+        mean, std = train.perception_moments(y, train.subset_scenes(len(y), tc.subset,
+                                                                    tc.seed))
+        return Perception(res.params, [res.readout], mean, std, cfg)
+    return fit_reader(train_ds, y, cfg, epochs, lr, seed, hidden, route, batch, progress)
+
+
+def observe_states(ds: Any, s: np.ndarray, t: np.ndarray, route: bool
+                   ) -> tuple[np.ndarray, np.ndarray | None]:
+    """The rasters ``(B, H, W, 3)`` float32 of the logged states ``(s[b], t[b])`` of ``ds``
+    and, with ``route``, their lane targets ``(B, K, 2)`` (else ``None``)."""
+    spec = models.get("manc" if route else "cnn")  # MANC sees the lane targets in "paper"
+    obs = inputs.from_dataset(ds, s, t, "paper", spec)
+    lane = np.asarray(obs["lane_target"], dtype=np.float32) if route else None
+    return np.asarray(obs["bev"], dtype=np.float32), lane
+
+
+def fit_reader(train_ds: Any, y: np.ndarray, cfg: models.ModelConfig, epochs: int, lr: float,
+               seed: int, hidden: int, route: bool, batch: int, progress: bool = False
+               ) -> Perception:
+    """The :class:`Perception` with a hidden read-out layer of :func:`fit_perception`
+    (arguments as there; ``y`` the ``(S, T, K)`` targets)."""
+    hidden = check_int("hidden", hidden, 1)
+    epochs, batch = check_int("epochs", epochs, 1), check_int("batch", batch, 1)
+    rng = np.random.default_rng(seed)
+    S, T = y.shape[:2]
+    s, t = np.divmod(np.arange(S * T), T)
+    parts = [observe_states(train_ds, s[i:i + 500], t[i:i + 500], route)
+             for i in range(0, S * T, 500)]
+    bev = np.concatenate([b for b, _ in parts])
+    lane = np.concatenate([c for _, c in parts]) if route else None
+    del parts
+    mean, std = y.reshape(-1, y.shape[2]).mean(0), y.reshape(-1, y.shape[2]).std(0) + 1e-6
+    z = ((y.reshape(-1, y.shape[2]) - mean) / std).astype(np.float32)
+    params = {"backbone": models.init("cnn", rng, cfg, dtype=np.float32)["backbone"]}
+    probe = Perception(params, [], mean, std, cfg, route=route)
+    n_in = int(np.prod(backbone(params["backbone"], bev[:1], cfg, probe._eng).shape[1:]))
+    n_in += lane.shape[1] * 2 if route else 0
+    readout = [init_dense(rng, n_in, hidden, np.float32),
+               init_dense(rng, hidden, len(PERCEIVE), np.float32)]
+    xp = probe._eng.xp
+
+    def loss(p: dict, bev_b: Any, lane_b: Any, z_b: Any) -> Any:
+        miss = probe.forward(p["net"], p["readout"], bev_b, lane_b) - z_b
+        return xp.mean(miss * miss)
+
+    grad = probe._eng.value_and_grad(loss)
+
+    def step(p: dict, state: dict, bev_b: Any, lane_b: Any, z_b: Any) -> tuple:
+        value, g = grad(p, bev_b, lane_b, z_b)
+        p, state = optim.adam_update(g, state, p, lr=lr)
+        return p, state, value
+
+    step = probe._eng.jit(step)
+    p = {"net": params, "readout": readout}
+    state = optim.adam_init(p)
+    n = len(z)
+    for _ in tqdm(range(epochs), desc="perception", disable=not progress):
+        order = rng.permutation(n)
+        for i in range(0, n - batch + 1, batch):
+            idx = np.sort(order[i:i + batch])
+            p, state, _ = step(p, state, bev[idx], None if lane is None else lane[idx], z[idx])
+    net = {"backbone": {"convs": [{k: np.asarray(v) for k, v in c.items()}
+                                  for c in p["net"]["backbone"]["convs"]]}}
+    out = [{k: np.asarray(v) for k, v in layer.items()} for layer in p["readout"]]
+    return Perception(net, out, mean, std, cfg, route=route)
 
 
 def read_dataset(perception: Perception, ds: Any, batch: int = 500) -> np.ndarray:
     """What ``perception`` reads in every logged state of ``ds``: ``(S, T, K)``."""
     S, T = np.asarray(ds.ego).shape[:2]
     s, t = np.divmod(np.arange(S * T), T)
-    out = [perception.read(inputs.from_dataset(ds, s[i:i + batch], t[i:i + batch],
-                                               "paper", models.get("cnn"))["bev"])
+    out = [perception.read(*observe_states(ds, s[i:i + batch], t[i:i + batch],
+                                           perception.route))
            for i in range(0, S * T, batch)]
     return np.concatenate(out).reshape(S, T, len(perception.names))
 
@@ -171,7 +271,7 @@ class PerceivingPolicy:
     def __init__(self, perception: Perception, driver: P.Privileged,
                  odometer: bool = False) -> None:
         self.perception, self.driver, self.odometer = perception, driver, bool(odometer)
-        self.keys = ("bev", "motion") if self.odometer else ("bev",)
+        self.keys = perception.keys + (("motion",) if self.odometer else ())
         self.refused = 0  # it is never refused: it needs no expert in the loop
 
     def initial_state(self, scenes: np.ndarray) -> None:
@@ -179,7 +279,7 @@ class PerceivingPolicy:
 
     def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
                  ) -> tuple[np.ndarray, Any, dict]:
-        read = self.perception.read(obs["bev"])
+        read = self.perception.read(obs["bev"], obs.get("lane_target"))
         X = with_last_acceleration(read[:, None], self.perception.names)
         if self.odometer:
             X[:, P.FEATURES.index("v")] = np.asarray(obs["motion"], dtype=np.float64)[:, 0]
@@ -200,12 +300,11 @@ class OraclePerceivingPolicy(P.PrivilegedPolicy):
     ``exact``). Which perception errors cost the closed loop shows as the gain of making one
     group exact."""
 
-    keys = ("bev", "motion")
-
     def __init__(self, perception: Perception, driver: P.Privileged, teacher: Any,
                  exact: Sequence[str]) -> None:
         super().__init__(driver, teacher)
         self.perception = perception
+        self.keys = perception.keys + ("motion",)
         self.exact = ODOMETER + tuple(f for f in check_features(exact) if f not in ODOMETER)
 
     def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
@@ -213,8 +312,9 @@ class OraclePerceivingPolicy(P.PrivilegedPolicy):
         sits = self.situations(t)
         F = np.array([P.features(s, a) if s is not None else np.zeros(len(P.FEATURES))
                       for s, a in zip(sits, self.a_prev)])
-        X = with_last_acceleration(self.perception.read(obs["bev"])[:, None],
-                                   self.perception.names)
+        X = with_last_acceleration(
+            self.perception.read(obs["bev"], obs.get("lane_target"))[:, None],
+            self.perception.names)
         X = with_exact(X, F, self.exact)
         a = P.predict(self.net, X)
         v = X[:, P.FEATURES.index("v")]
