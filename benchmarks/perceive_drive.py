@@ -11,7 +11,9 @@ it; only the rest is read). Both drivers of a seed share its perception. ``--ora
 ...`` adds a diagnostic row per feature group of ``minimanc.dagger.privileged.FEATURE_GROUPS``:
 the odometer driver with that group taken from the world's own perception in the reached
 state (``OraclePerceivingPolicy``), the rest still read: the gain of one exact group is what
-its perception errors cost. Read it against
+its perception errors cost; ``--perceived GROUP ...`` the converse, every group exact but
+that one (what its perception errors cost on their own; ``speed`` or ``history`` gives the
+row with every feature exact, the bound of the pipeline). Read it against
 ``results/privileged.md`` (the same MLP on the exact features, and on one frame) and
 ``results/privileged_noise.md`` (the same MLP with independent errors of known size).
 
@@ -60,6 +62,7 @@ def main() -> None:
     ap.add_argument("--route", action="store_true",
                     help="the perception also reads the lane targets (the route ahead)")
     ap.add_argument("--oracle", nargs="*", default=[], choices=tuple(P.FEATURE_GROUPS))
+    ap.add_argument("--perceived", nargs="*", default=[], choices=tuple(P.FEATURE_GROUPS))
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     t0 = time.perf_counter()
@@ -74,7 +77,12 @@ def main() -> None:
     T = np.asarray(val.ego).shape[1]
     families = {f: np.repeat(m, T) for f, m in scene_families(val).items()}
     fam_r2: dict[str, list] = {f: [] for f in families}
-    rows = list(args.speed) + [f"odometer, {g} exact" for g in args.oracle]
+    oracles = {f"odometer, {g} exact": P.FEATURE_GROUPS[g] for g in args.oracle}
+    for g in args.perceived:  # the odometer's groups are exact anyway: the all-exact bound
+        odo = set(P.FEATURE_GROUPS[g]) <= set(M.ODOMETER)
+        oracles["odometer, all exact" if odo else f"odometer, all exact but {g}"] = tuple(
+            f for h, fs in P.FEATURE_GROUPS.items() if h != g for f in fs)
+    rows = list(args.speed) + list(oracles)
     runs = {(r, a): [] for r in rows for a in AGENTS}
     for seed in range(args.seeds):
         perception = M.fit_perception(tr, y, epochs=args.epochs, lr=args.lr, seed=seed,
@@ -100,8 +108,7 @@ def main() -> None:
                 log(f"seed {seed} speed from {sp}, {a}: "
                     f"{runs[sp, a][-1]['at_fault_collision_rate']:.1f} % at fault, "
                     f"ADE {runs[sp, a][-1]['ade']:.2f}", t0)
-        for g, row in zip(args.oracle, rows[len(args.speed):]):
-            exact = P.FEATURE_GROUPS[g]
+        for row, exact in oracles.items():
             driver = M.fit_driver(perception, tr, seed=seed, read=read_tr,
                                   exact=M.ODOMETER + tuple(exact))
             for a in AGENTS:
