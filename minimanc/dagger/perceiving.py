@@ -11,7 +11,9 @@ numbers the world's human drives on, and does a controller that reads those numb
 (its convolutions of the raster, flattened) with a linear read-out to the standardised
 :data:`PERCEIVE` features of :mod:`minimanc.dagger.privileged` in every logged state
 (:func:`minimanc.train.fit`'s auxiliary perception loss at a weight that makes the control
-loss negligible). :meth:`Perception.read` returns the features in their units.
+loss negligible), or, with ``hidden`` units, a read-out with one hidden layer trained on the
+perception loss alone, which with ``route=True`` also reads the lane targets (the route
+ahead that MANC's DMP gets). :meth:`Perception.read` returns the features in their units.
 
 **Driving.** :func:`fit_driver` trains the privileged MLP
 (:func:`minimanc.dagger.privileged.fit_privileged`) on the features the perception *reads* in
