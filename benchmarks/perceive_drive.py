@@ -18,7 +18,9 @@ row with every feature exact, the bound of the pipeline). Read it against
 ``results/privileged_noise.md`` (the same MLP with independent errors of known size).
 
 The data is the paper preset's draw (data seed 0: 650 training, 40 tuning, 200 validation
-scenes) rendered with ``--history`` steps of faded history (``RasterConfig.history``).
+scenes, then ``--extra`` further training scenes of the same draw, as
+``benchmarks/data_scale.py`` takes them) rendered with ``--history`` steps of faded history
+(``RasterConfig.history``).
 
 Run: ``python benchmarks/perceive_drive.py --out results/perceive_drive.md``
 """
@@ -61,14 +63,20 @@ def main() -> None:
                     help="a read-out with one hidden ReLU layer of this many units (0: linear)")
     ap.add_argument("--route", action="store_true",
                     help="the perception also reads the lane targets (the route ahead)")
+    ap.add_argument("--extra", type=int, default=0,
+                    help="train both halves on this many further scenes of the same draw too")
     ap.add_argument("--oracle", nargs="*", default=[], choices=tuple(P.FEATURE_GROUPS))
     ap.add_argument("--perceived", nargs="*", default=[], choices=tuple(P.FEATURE_GROUPS))
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     t0 = time.perf_counter()
-    ds = world.generate(N_TRAIN + N_TUNE + N_VAL, seed=0, cache=True, progress=True,
+    if args.extra < 0:
+        raise SystemExit("perceive_drive: --extra must be >= 0")
+    n = N_TRAIN + N_TUNE + N_VAL
+    ds = world.generate(n + args.extra, seed=0, cache=True, progress=True,
                         raster=world.RasterConfig(history=args.history))
-    tr, val = ds.subset(slice(0, N_TRAIN)), ds.subset(slice(N_TRAIN + N_TUNE, None))
+    tr = ds.subset(np.r_[np.arange(N_TRAIN), np.arange(n, n + args.extra)])
+    val = ds.subset(slice(N_TRAIN + N_TUNE, n))
     y = P.perceived(tr, M.PERCEIVE)
     yv = P.perceived(val, M.PERCEIVE).reshape(-1, len(M.PERCEIVE))
     log("targets", t0)
@@ -121,7 +129,8 @@ def main() -> None:
     r2, rmse, close_rmse = (np.mean(x, axis=0) for x in (r2, rmse, close_rmse))
     gi, di = M.PERCEIVE.index("gap"), M.PERCEIVE.index("dv")
     text = (f"# The modular learner: perception from the raster, then the privileged MLP "
-            f"(paper preset draw: {N_TRAIN} training, {N_VAL} validation scenes; history "
+            f"(paper preset draw: {N_TRAIN + args.extra} training, {N_VAL} validation "
+            f"scenes; history "
             f"{args.history}; {args.epochs} epochs, lr {args.lr:g}, "
             + (f"hidden layer {args.hidden}" if args.hidden else
                f"perception weight {args.weight:g}")
