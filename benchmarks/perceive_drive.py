@@ -13,7 +13,9 @@ the odometer driver with that group taken from the world's own perception in the
 state (``OraclePerceivingPolicy``), the rest still read: the gain of one exact group is what
 its perception errors cost; ``--perceived GROUP ...`` the converse, every group exact but
 that one (what its perception errors cost on their own; ``speed`` or ``history`` gives the
-row with every feature exact, the bound of the pipeline). Read it against
+row with every feature exact, the bound of the pipeline). ``--dagger R`` adds DAgger for the
+odometer driver (``dagger_driver``: R rounds of ``--per-round`` training scenes, the
+perception fixed), reactive ados. Read it against
 ``results/privileged.md`` (the same MLP on the exact features, and on one frame) and
 ``results/privileged_noise.md`` (the same MLP with independent errors of known size).
 
@@ -67,6 +69,9 @@ def main() -> None:
                     help="train both halves on this many further scenes of the same draw too")
     ap.add_argument("--oracle", nargs="*", default=[], choices=tuple(P.FEATURE_GROUPS))
     ap.add_argument("--perceived", nargs="*", default=[], choices=tuple(P.FEATURE_GROUPS))
+    ap.add_argument("--dagger", type=int, default=0,
+                    help="DAgger rounds for the odometer driver (its perception fixed)")
+    ap.add_argument("--per-round", type=int, default=65)
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     t0 = time.perf_counter()
@@ -92,6 +97,7 @@ def main() -> None:
             f for h, fs in P.FEATURE_GROUPS.items() if h != g for f in fs)
     rows = list(args.speed) + list(oracles)
     runs = {(r, a): [] for r in rows for a in AGENTS}
+    curve: list[list] = []
     for seed in range(args.seeds):
         perception = M.fit_perception(tr, y, epochs=args.epochs, lr=args.lr, seed=seed,
                                       weight=args.weight, hidden=args.hidden,
@@ -126,6 +132,13 @@ def main() -> None:
                 log(f"seed {seed} {row}, {a}: "
                     f"{runs[row, a][-1]['at_fault_collision_rate']:.1f} % at fault, "
                     f"ADE {runs[row, a][-1]['ade']:.2f}", t0)
+        if args.dagger:
+            curve.append(M.dagger_driver(perception, tr, val, args.dagger, args.per_round,
+                                         "reactive", seed=seed, read=read_tr))
+            for i, r in enumerate(curve[-1]):
+                log(f"seed {seed} dagger round {i}: "
+                    f"{r.metrics['at_fault_collision_rate']:.1f} % at fault, "
+                    f"ADE {r.metrics['ade']:.2f}", t0)
     r2, rmse, close_rmse = (np.mean(x, axis=0) for x in (r2, rmse, close_rmse))
     gi, di = M.PERCEIVE.index("gap"), M.PERCEIVE.index("dv")
     text = (f"# The modular learner: perception from the raster, then the privileged MLP "
@@ -151,6 +164,14 @@ def main() -> None:
             + "|---" * (len(HEAD) + 2) + "|\n"
             + "\n".join(f"| {r} | `{a}` | {cells(runs[r, a], SHOW)} |"
                         for r in rows for a in AGENTS) + "\n\n")
+    if curve:
+        text += (f"## DAgger for the driver\n\nagents `reactive`, {args.per_round} training "
+                 "scenes per round, the perception of each seed fixed; the odometer driver "
+                 "asked in the simulator's state.\n\n| round | labels | " + " | ".join(HEAD)
+                 + " |\n" + "|---" * (len(HEAD) + 2) + "|\n"
+                 + "\n".join(f"| {i} | {curve[0][i].labels} | "
+                             f"{cells([c[i].metrics for c in curve], SHOW)} |"
+                             for i in range(args.dagger + 1)) + "\n\n")
     provenance.publish(text, args.out, time.perf_counter() - t0)
 
 

@@ -161,3 +161,31 @@ def test_the_route_driver_gets_the_lane_targets_in_closed_loop(ds, route_percept
     assert traj.ego.shape[0] == 2 and np.all(np.isfinite(traj.ego))
     with pytest.raises(ValueError, match="hidden must be"):
         M.fit_perception(ds, epochs=1, cfg=models.ModelConfig(image_size=16), hidden=-1)
+
+
+def test_dagger_for_the_driver_aggregates_what_it_read_where_it_drove(ds, perception):
+    rounds = M.dagger_driver(perception, ds, ds, rounds=1, per_round=2, steps=20)
+    assert len(rounds) == 2
+    S, T = np.asarray(ds.ego).shape[:2]
+    assert rounds[0].labels == S * T
+    # the second round adds one labelled state per step of the two scenes it drove
+    # (fewer only where the expert could not be asked)
+    assert S * T < rounds[1].labels <= S * T + 2 * T
+    for r in rounds:
+        assert 0.0 <= r.metrics["at_fault_collision_rate"] <= 100.0
+        assert np.isfinite(r.metrics["ade"])
+
+
+def test_the_recording_driver_labels_each_state_with_the_expert(ds, perception):
+    driver = M.fit_driver(perception, ds, steps=20, exact=M.ODOMETER)
+    teacher = WorldTeacher(ds, agents="reactive")
+    policy = M.OraclePerceivingPolicy(perception, driver, teacher, record=True)
+    rollout.simulate(policy, ds, scenes=[0], agents="reactive", progress=False)
+    X, Y = policy.visited()
+    T = np.asarray(ds.ego).shape[1]
+    # one decision per step but the last pose, less any the expert could not be asked in
+    assert X.shape == (T - 1 - policy.refused, len(P.FEATURES)) and Y.shape == (len(X), 2)
+    # at the first step the expert is asked in the logged start: its label is the log's
+    exact, Y_log = P.demonstrations(ds, scenes=[0])
+    np.testing.assert_allclose(Y[0], Y_log[0], atol=1e-6)
+    np.testing.assert_allclose(X[0, :2], exact[0, :2])   # v and a_prev from the world

@@ -33,16 +33,17 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from minimanc import engine, inputs, models, optim, train
+from minimanc import engine, inputs, models, optim, rollout, train
 from minimanc.checks import check_int
 from minimanc.dagger import privileged as P
+from minimanc.dagger.teachers import WorldTeacher
 from minimanc.layers import dense, flatten, init_dense
 from minimanc.models.backbone import backbone
 from minimanc.world.geometry import DT
 
 __all__ = ["ODOMETER", "PERCEIVE", "OraclePerceivingPolicy", "Perception", "PerceivingPolicy",
-           "check_features", "fit_driver", "fit_perception", "read_dataset",
-           "with_exact", "with_last_acceleration"]
+           "check_features", "dagger_driver", "fit_driver", "fit_perception", "fit_reader",
+           "observe_states", "read_dataset", "with_exact", "with_last_acceleration"]
 
 PERCEIVE: tuple[str, ...] = tuple(f for f in P.FEATURES if f != "a_prev")
 """What the perception reads: every privileged feature but the last acceleration (a
@@ -300,11 +301,13 @@ class OraclePerceivingPolicy(P.PrivilegedPolicy):
     reads them), every other feature read from the raster by ``perception``; ``driver``
     trained with the same split (:func:`fit_driver` with ``exact`` = :data:`ODOMETER` +
     ``exact``). Which perception errors cost the closed loop shows as the gain of making one
-    group exact."""
+    group exact. With no ``exact`` it is the odometer driver asked in the simulator's state,
+    and ``record=True`` keeps what it read in every state reached with the expert's label
+    there (``visited()``), for :func:`dagger_driver`."""
 
     def __init__(self, perception: Perception, driver: P.Privileged, teacher: Any,
-                 exact: Sequence[str]) -> None:
-        super().__init__(driver, teacher)
+                 exact: Sequence[str] = (), record: bool = False) -> None:
+        super().__init__(driver, teacher, record=record)
         self.perception = perception
         self.keys = perception.keys + ("motion",)
         self.exact = ODOMETER + tuple(f for f in check_features(exact) if f not in ODOMETER)
@@ -321,4 +324,47 @@ class OraclePerceivingPolicy(P.PrivilegedPolicy):
         a = P.predict(self.net, X)
         v = X[:, P.FEATURES.index("v")]
         u = np.stack([np.clip(v + a[:, 0] * DT, 0.0, P.V_MAX), a[:, 1]], axis=1)
+        if self.record:  # what it read, and the expert's label in the state it reached
+            for b, sit in enumerate(sits):
+                if sit is not None:
+                    lab = self.teacher.expert.controls(sit)
+                    self.X.append(X[b])
+                    self.Y.append([(lab[0] - v[b]) / DT, lab[1]])
         return self.finish(u, sits), state, {}
+
+
+def dagger_driver(perception: Perception, train_ds: Any, val_ds: Any, rounds: int,
+                  per_round: int, agents: str = "reactive", seed: int = 0, steps: int = 3000,
+                  read: np.ndarray | None = None, progress: bool = False) -> list[P.Round]:
+    """DAgger for the modular learner's driver (its perception fixed): round 0 is
+    :func:`fit_driver` with the odometer; each further round drives ``per_round`` training
+    scenes (a seeded order, cycling) with the current driver under ``agents``, keeps what the
+    perception read in every state reached with the world's human's label there, aggregates
+    and retrains from the previous weights (as
+    :func:`~minimanc.dagger.privileged.dagger_rounds` does for the privileged learner).
+    Every round is driven on ``val_ds`` under ``agents``; ``read`` is what ``perception``
+    reads in ``train_ds``'s logged states (:func:`read_dataset`, computed when not given)."""
+    rounds = check_int("rounds", rounds, 0)
+    per_round = check_int("per_round", per_round, 1)
+    teacher, vteacher = WorldTeacher(train_ds, agents=agents), WorldTeacher(val_ds,
+                                                                            agents=agents)
+    read = read_dataset(perception, train_ds) if read is None else read
+    exact, Y = P.demonstrations(train_ds, expert=teacher.expert)
+    X = with_exact(with_last_acceleration(read, perception.names), exact)
+    model = P.fit_privileged(X, Y, steps=steps, seed=seed)
+
+    def score(m: P.Privileged) -> dict[str, float]:
+        return P.evaluate_policy(OraclePerceivingPolicy(perception, m, vteacher), val_ds, agents)
+
+    out = [P.Round(len(X), score(model))]
+    order = np.random.default_rng(seed).permutation(len(np.asarray(train_ds.ego)))
+    for r in range(rounds):
+        pick = order[(np.arange(per_round) + r * per_round) % len(order)]
+        policy = OraclePerceivingPolicy(perception, model, teacher, record=True)
+        rollout.simulate(policy, train_ds, scenes=np.sort(pick), agents=agents,
+                         progress=progress, desc=f"DAgger round {r + 1}")
+        Xn, Yn = policy.visited()
+        X, Y = np.concatenate([X, Xn]), np.concatenate([Y, Yn])
+        model = P.fit_privileged(X, Y, steps=steps, seed=seed + r + 1, init=model)
+        out.append(P.Round(len(X), score(model)))
+    return out
