@@ -57,6 +57,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--history", type=int, default=2)
     ap.add_argument("--seeds", type=int, default=2)
+    ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--epochs", type=int, default=6)
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--weight", type=float, default=100.0)
@@ -98,7 +99,7 @@ def main() -> None:
     rows = list(args.speed) + list(oracles)
     runs = {(r, a): [] for r in rows for a in AGENTS}
     curve: list[list] = []
-    for seed in range(args.seeds):
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
         perception = M.fit_perception(tr, y, epochs=args.epochs, lr=args.lr, seed=seed,
                                       weight=args.weight, hidden=args.hidden,
                                       route=args.route)
