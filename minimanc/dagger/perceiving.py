@@ -320,17 +320,7 @@ class OraclePerceivingPolicy(P.PrivilegedPolicy):
         X = with_last_acceleration(
             self.perception.read(obs["bev"], obs.get("lane_target"))[:, None],
             self.perception.names)
-        X = with_exact(X, F, self.exact)
-        a = P.predict(self.net, X)
-        v = X[:, P.FEATURES.index("v")]
-        u = np.stack([np.clip(v + a[:, 0] * DT, 0.0, P.V_MAX), a[:, 1]], axis=1)
-        if self.record:  # what it read, and the expert's label in the state it reached
-            for b, sit in enumerate(sits):
-                if sit is not None:
-                    lab = self.teacher.expert.controls(sit)
-                    self.X.append(X[b])
-                    self.Y.append([(lab[0] - v[b]) / DT, lab[1]])
-        return self.finish(u, sits), state, {}
+        return self.act(with_exact(X, F, self.exact), sits), state, {}
 
 
 def dagger_driver(perception: Perception, train_ds: Any, val_ds: Any, rounds: int,

@@ -345,8 +345,14 @@ class PrivilegedPolicy(_Reader):
                       for s, a in zip(sits, self.a_prev)])
         if self.noise:
             F = blur(F, self.noise, self.rng)
+        return self.act(F, sits), state, {}
+
+    def act(self, F: np.ndarray, sits: list[Situation | None]) -> np.ndarray:
+        """The controls ``[clip(v + a Δt, 0, V_MAX), ω]`` of the learner on features ``F``
+        (``v`` their speed) in the states ``sits``; with ``record`` it keeps ``F`` and the
+        expert's label in each state it can be asked in."""
         a = predict(self.net, F)
-        v = F[:, 0]
+        v = F[:, FEATURES.index("v")]
         u = np.stack([np.clip(v + a[:, 0] * DT, 0.0, V_MAX), a[:, 1]], axis=1)
         if self.record:
             for b, sit in enumerate(sits):
@@ -354,7 +360,7 @@ class PrivilegedPolicy(_Reader):
                     lab = self.teacher.expert.controls(sit)
                     self.X.append(F[b])
                     self.Y.append([(lab[0] - v[b]) / DT, lab[1]])
-        return self.finish(u, sits), state, {}
+        return self.finish(u, sits)
 
     def visited(self) -> tuple[np.ndarray, np.ndarray]:
         return np.asarray(self.X).reshape(-1, len(FEATURES)), np.asarray(self.Y).reshape(-1, 2)
