@@ -4,6 +4,7 @@ import base64
 import hashlib
 import importlib
 import json
+import os
 import zipfile
 from pathlib import Path
 
@@ -664,3 +665,24 @@ OLD_FILE_V2 = (  # base64 of tiny.npz as the pre-split writer wrote it
     "AAAIAAAAIQApOK9FEgEAAEABAAASAAAAAAAAAAAAAACAAYkMAABnb2FsX2Jldi0wMDAwMS5ucHlQSwECLQMtAAAACAAA"
     "ACEAM/9WvGkFAACbDwAACgAAAAAAAAAAAAAAgAHfDQAAaGVhZGVyLm5weVBLBQYAAAAAEQARABoEAACEEwAAAAA="
 )
+
+
+
+def test_a_write_keeps_the_temp_file_of_a_live_writer(tmp_path):
+    # Two jobs filling one cache entry at once: the second writer must not remove the
+    # first's temporary file, only those whose writer is gone.
+    target = tmp_path / "w.npz"
+    dead = tmp_path / f"w.npz.pid{2 ** 22 + 7}.abc.tmp"  # above Linux's largest pid
+    dead.write_bytes(b"partial")
+    first = datawriter.DatasetWriter(target)
+    try:
+        (ours,) = datawriter.temp_files(target)
+        assert ours.name.startswith(f"w.npz.pid{os.getpid()}.")
+        old = tmp_path / "w.npz.tmp"  # a writer before names carried a pid
+        dead.write_bytes(b"partial")
+        old.write_bytes(b"partial")
+        assert datawriter.remove_temp_files(target) == [dead, old]
+        assert datawriter.temp_files(target) == [ours]
+    finally:
+        first.abort()
+    assert datawriter.temp_files(target) == []

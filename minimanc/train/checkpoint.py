@@ -20,6 +20,7 @@ from minimanc import models
 from minimanc.train.config import PARAM_LIMIT, CheckpointError, FitResult, TrainConfig
 from minimanc.tree import from_flat_dict, to_flat_dict
 from minimanc.tree import map as tree_map
+from minimanc.world.datawriter import temp_prefix
 
 __all__ = ["bad_params", "load_checkpoint", "load_fit", "restore_opt", "save_checkpoint",
            "to_numpy"]
@@ -50,7 +51,7 @@ def bad_params(params: Any, limit: float = PARAM_LIMIT) -> str | None:
 
 def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=temp_prefix(path), suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
             np.savez(fh, **arrays)

@@ -6,7 +6,10 @@ dtype and SHA-256, the metadata and a SHA-256 of all of that. A file is
 written under a temporary name in its directory and renamed
 (:func:`os.replace`) once complete, so a partial dataset is never taken for a
 complete one; the temporary file is removed on failure, and stale ones of
-the same target are removed by the next write (:func:`remove_temp_files`).
+the same target are removed by the next write (:func:`remove_temp_files`). A temporary
+name carries its writer's process id (:func:`temp_prefix`), so that a write never removes
+the file another live process on the same machine is still writing (two jobs that fill one
+cache entry at once).
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from minimanc.world.fileformat import (
 )
 from minimanc.world.scenes import Dataset
 
-__all__ = ["DatasetWriter", "remove_temp_files", "save", "temp_files"]
+__all__ = ["DatasetWriter", "remove_temp_files", "save", "temp_files", "temp_prefix"]
 
 
 def temp_files(path: str | os.PathLike) -> list[Path]:
@@ -50,10 +53,34 @@ def temp_files(path: str | os.PathLike) -> list[Path]:
     return sorted(p for p in found if p.is_file())
 
 
+def temp_prefix(path: str | os.PathLike) -> str:
+    """The prefix of this process's temporary names for ``path``:
+    ``<name>.pid<process id>.`` (:func:`tempfile.mkstemp` adds a random part)."""
+    return f"{Path(path).name}.pid{os.getpid()}."
+
+
+def _writer_alive(tmp: Path, target: Path) -> bool:
+    """Whether the process named in ``tmp`` (a :func:`temp_prefix` name) is running."""
+    rest = tmp.name[len(target.name) + 1:]
+    head = rest.split(".", 1)[0]
+    if not (head.startswith("pid") and head[3:].isdigit()):
+        return False  # an unnamed writer's leftover
+    try:
+        os.kill(int(head[3:]), 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # alive, another user's
+        return True
+    return True
+
+
 def remove_temp_files(path: str | os.PathLike) -> list[Path]:
-    """Remove what :func:`temp_files` lists (left by a killed writer); returns them."""
+    """Remove what :func:`temp_files` lists, left by a killed writer (a file whose writing
+    process is still running is kept); returns the removed files."""
     gone = []
     for p in temp_files(path):
+        if _writer_alive(p, Path(path)):
+            continue
         try:
             p.unlink()
             gone.append(p)
@@ -81,7 +108,7 @@ class DatasetWriter:
         _check_target(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         remove_temp_files(self.path)
-        fd, tmp = tempfile.mkstemp(prefix=self.path.name + ".", suffix=".tmp",
+        fd, tmp = tempfile.mkstemp(prefix=temp_prefix(self.path), suffix=".tmp",
                                    dir=self.path.parent)
         self._tmp = Path(tmp)
         self._fh = os.fdopen(fd, "wb")
