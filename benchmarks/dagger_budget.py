@@ -29,6 +29,7 @@ import numpy as np
 from scoring import cells, scores
 
 from minimanc import dagger, models, rollout, train, world
+from minimanc.metrics.safety import COLLISION_TYPES
 from minimanc.models.forward import changes_speed
 from minimanc.studies import provenance
 
@@ -111,6 +112,21 @@ def table(args: argparse.Namespace, runs: list[dict], cfg: models.ModelConfig) -
                               ("dagger", f"DAgger, round {args.rounds}")):
             text += f"| {label} | " + cells([r[method + "_final"][a] for r in runs], SHOW) + " |\n"
         text += "\n"
+    text += ("## Collisions by kind (ados `reactive`; contacts over the validation scenes, "
+             "summed over seeds; the mean speeds at the at-fault contacts)\n\n| method | "
+             + " | ".join(f"`{k}`" for k in COLLISION_TYPES)
+             + " | at fault | ego m/s | human m/s |\n" + "|---" * (len(COLLISION_TYPES) + 4)
+             + "|\n")
+    for method, label in (("bc", "BC at equal labels"), ("dagger", f"DAgger, round {args.rounds}")):
+        c = [r[method + "_final"]["reactive"] for r in runs]
+        counts = [int(sum(x[f"contacts_{k}"] for x in c)) for k in (*COLLISION_TYPES, "at_fault")]
+        n = sum(x["contacts_at_fault"] for x in c)
+        speeds = [sum(x[f"contacts_{k}"] * x["contacts_at_fault"] for x in c
+                      if x["contacts_at_fault"]) / n if n else float("nan")
+                  for k in ("ego_speed", "human_speed")]
+        text += (f"| {label} | " + " | ".join(map(str, counts)) + " | "
+                 + " | ".join("-" if np.isnan(v) else f"{v:.1f}" for v in speeds) + " |\n")
+    text += "\n"
     n = len(first["rounds"])
     text += ("## DAgger per round (ados `" + args.agents + "`)\n\n| | "
              + " | ".join(f"round {i}" for i in range(n)) + " |\n" + "|---" * (n + 1) + "|\n"
