@@ -414,3 +414,59 @@ def test_cli_tiny_run_writes_table_json_and_figures(tmp_path, capsys):
     # rerun: everything loaded from the checkpoints
     assert _run(argv) == 0
     assert json.loads((out / "dagger.json").read_text())["rounds"] == summary["rounds"]
+
+
+# ---------------------------------------------------------------------- perturbed demonstrations
+
+
+def test_perturbation_offsets_are_an_ornstein_uhlenbeck_process():
+    p = dagger.Perturbation(speed=2.0, yaw_rate=0.1, tau=1.5)
+    assert p.decay == pytest.approx(np.exp(-0.5 / 1.5))
+    rng = np.random.default_rng(0)
+    x = np.zeros((4000, 2))
+    for _ in range(40):  # 20 s, many correlation times: stationary
+        x = p.step(x, rng)
+    assert np.allclose(x.std(0), [2.0, 0.1], rtol=0.05)
+    y = p.step(x, rng)  # lag-one correlation of the stationary process is the decay
+    assert np.corrcoef(x[:, 0], y[:, 0])[0, 1] == pytest.approx(p.decay, abs=0.03)
+    applied = p.apply(np.array([[1.0, 0.0], [5.0, 0.2]]), np.array([[-3.0, 0.1], [1.0, -0.1]]))
+    assert applied.tolist() == [[0.0, 0.1], [6.0, 0.1]]  # the speed command never below 0
+
+
+@pytest.mark.parametrize("kw", [dict(speed=-1.0, yaw_rate=0.1, tau=1.0),
+                                dict(speed=1.0, yaw_rate=float("nan"), tau=1.0),
+                                dict(speed=1.0, yaw_rate=0.1, tau=0.0),
+                                dict(speed=[1.0, 2.0], yaw_rate=0.1, tau=1.0)])
+def test_perturbation_refuses_bad_parameters(kw):
+    with pytest.raises((ValueError, TypeError)):
+        dagger.Perturbation(**kw)
+
+
+def test_perturbed_demonstrations_leave_the_log_and_are_labelled_there(teacher, split):
+    pool, _ = split
+    scenes = np.array([0, 2, 4])
+    zero = dagger.collect(None, teacher, scenes, 1.0, seed=3,
+                          perturb=dagger.Perturbation(0.0, 0.0, 1.0))
+    assert np.abs(zero.data.ego - pool.ego[scenes]).max() < 1e-4  # σ = 0: the log
+    p = dagger.Perturbation(1.5, 0.03, 2.0)
+    col = dagger.collect(None, teacher, scenes, 1.0, seed=3, perturb=p)
+    assert col.kept.tolist() == scenes.tolist() and col.expert_share == 1.0
+    assert col.data.tags[0]["dagger"]["perturb"] == {"speed": 1.5, "yaw_rate": 0.03, "tau": 2.0}
+    assert np.abs(col.data.ego - pool.ego[scenes]).max() > 1.0  # off the logged path
+    # Re-drive the scenes independently: the applied controls are the stored labels plus the
+    # offsets of the same stream (coins first, then offsets), and in every state reached the
+    # driver's answer is the stored label.
+    rng = np.random.default_rng(3)
+    sim = teacher.simulator(scenes)
+    sim.reset()
+    offset, prev = np.zeros((len(scenes), 2)), None
+    for t in range(pool.n_steps - 1):
+        assert np.abs(np.asarray(sim.observe().pose) - col.data.ego[:, t]).max() < 1e-4
+        label, why = teacher.label(sim, t, prev)
+        assert why == [None] * len(scenes)
+        assert np.abs(label - col.data.controls[:, t]).max() < 1e-5
+        rng.random(len(scenes))
+        offset = p.step(offset, rng)
+        prev = p.apply(label, offset)
+        sim.step(prev)
+    assert np.abs(np.asarray(sim.observe().pose) - col.data.ego[:, -1]).max() < 1e-4

@@ -35,6 +35,12 @@ the two differ only in *which states* of those scenes are labelled. A driven sce
 whose state the expert refuses to label (the world's driver refuses an ego off the
 drivable area or far from its route) is not aggregated; its queries still count.
 
+**Perturbed demonstrations** (ChauffeurNet's augmentation, DART's noise): the expert
+drives with a slowly varying offset on the controls it applies (:class:`Perturbation`,
+``collect(None, teacher, scenes, 1.0, perturb=...)``) and every state it reaches is
+labelled with its clean control: off-path states and the way back, without a trained
+policy.
+
 **Stored states.** An aggregated scene stores the visited poses and ados, the BEV
 re-rasterised there, the goal and lane targets from there and the expert's labels
 as ``controls``; as for every dataset, a model's ``motion`` input at ``t`` is then
@@ -60,6 +66,7 @@ from minimanc.dagger.loop import (
     default_config,
     round_dir,
 )
+from minimanc.dagger.perturb import Perturbation
 from minimanc.dagger.schedule import Budget, beta_schedule, check_beta, mix, plan_budget
 from minimanc.dagger.teachers import AGENTS, SIMS, HighwayTeacher, Teacher, WorldTeacher
 
@@ -73,6 +80,7 @@ __all__ = [
     "DaggerResult",
     "HighwayTeacher",
     "MixturePolicy",
+    "Perturbation",
     "RoundResult",
     "Teacher",
     "WorldTeacher",

@@ -4,13 +4,14 @@ aggregate (:class:`MixturePolicy`, :func:`collect`, :func:`concat`; see :mod:`mi
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
 from minimanc import inputs, models
+from minimanc.dagger.perturb import Perturbation
 from minimanc.dagger.schedule import check_beta, mix
 from minimanc.dagger.teachers import Teacher
 from minimanc.rollout import SceneState, drive
@@ -66,11 +67,17 @@ class MixturePolicy:
     uniform draw per row from ``rng``. ``policy=None`` is the expert alone (``beta``
     must then be 1). A row the teacher cannot label is driven by the policy (it stands
     still when the policy is not asked, ``beta = 1``); :func:`collect` does not keep it.
+    With ``perturb`` (:class:`~minimanc.dagger.perturb.Perturbation`) its offsets, drawn
+    from ``rng`` after the coins, are added to the applied controls (never to the labels).
     """
 
     def __init__(self, policy: Any, teacher: Teacher, sim: Any, beta: float,
-                 rng: np.random.Generator) -> None:
+                 rng: np.random.Generator, perturb: Perturbation | None = None) -> None:
         self.beta = check_beta(beta)
+        if perturb is not None and not isinstance(perturb, Perturbation):
+            raise ValueError(f"perturb must be a Perturbation or None, got {perturb!r}")
+        self.perturb = perturb
+        self._offset: np.ndarray | None = None
         if policy is None and self.beta != 1.0:
             raise ValueError(f"without a policy only the expert can drive: beta must be 1, "
                              f"got beta={beta!r}")
@@ -110,6 +117,11 @@ class MixturePolicy:
         else:
             mine, state, _ = self.policy(obs, state, t, scenes)
             controls = mix(np.where(ok[:, None], labels, mine), mine, self.beta, u)
+        if self.perturb is not None:
+            if self._offset is None:
+                self._offset = np.zeros((len(scenes), 2))
+            self._offset = self.perturb.step(self._offset, self.rng)
+            controls = self.perturb.apply(controls, self._offset)
         self.expert_steps += int(np.sum((u < self.beta) & ok))
         self._prev = np.asarray(controls, dtype=np.float64)
         return controls, state, {}
@@ -171,7 +183,8 @@ def _rows_to_scenes(pool: Dataset, scenes: np.ndarray, states: list[SceneState],
 
 
 def collect(policy: Any, teacher: Teacher, scenes: Any, beta: float, seed: Any = 0,
-            progress: bool = False, tags: dict | None = None) -> Collected:
+            progress: bool = False, tags: dict | None = None,
+            perturb: Perturbation | None = None) -> Collected:
     """Drive pool scenes ``scenes`` with the β-mixture of ``policy`` and ``teacher``
     (:class:`MixturePolicy`) and label every visited state with the expert's controls.
 
@@ -180,7 +193,10 @@ def collect(policy: Any, teacher: Teacher, scenes: Any, beta: float, seed: Any =
     decision), so a scene is ``T`` labelled samples like a demonstration. The coin of
     row ``b`` at step ``t`` comes from ``numpy.random.default_rng(seed)`` (one stream
     per batch of :meth:`Teacher.groups`, drawn in order). ``tags`` are added to the
-    scenes' metadata tags under ``"dagger"``.
+    scenes' metadata tags under ``"dagger"``. ``perturb`` adds a
+    :class:`~minimanc.dagger.perturb.Perturbation` to the applied controls: with
+    ``policy=None, beta=1`` these are perturbed demonstrations (one stream of offsets per
+    batch, from the same generator as the coins).
     """
     beta = check_beta(beta)
     pool = teacher.pool
@@ -196,11 +212,12 @@ def collect(policy: Any, teacher: Teacher, scenes: Any, beta: float, seed: Any =
         bar = tqdm(total=len(groups) * T, desc=f"dagger drive (beta {beta:.3f})", unit="step",
                    leave=False)
     rng = np.random.default_rng(seed)
+    extra = {} if perturb is None else {"perturb": asdict(perturb)}
     built, metas, kept, refusals, steps, expert = [], [], [], [], 0, 0
     try:
         for group in groups:
             sim = teacher.simulator(group)
-            mixer = MixturePolicy(policy, teacher, sim, beta, rng)
+            mixer = MixturePolicy(policy, teacher, sim, beta, rng, perturb)
             drive(mixer, sim, T - 1, None if bar is None else lambda t: bar.update(1))
             mixer.record(T - 1)
             if bar is not None:
@@ -218,7 +235,7 @@ def collect(policy: Any, teacher: Teacher, scenes: Any, beta: float, seed: Any =
                 rows = np.nonzero(ok)[0]
                 sc, meta = _rows_to_scenes(pool, group[rows],
                                            [_take(st, rows) for st in mixer.states],
-                                           labels[:, rows], {**(tags or {}), "beta": beta})
+                                           labels[:, rows], {**(tags or {}), "beta": beta, **extra})
                 built += sc
                 metas.append(meta)
                 kept += [int(group[r]) for r in rows]
