@@ -10,10 +10,15 @@ state with the human (:class:`minimanc.dagger.WorldTeacher`, ados ``--agents``),
 and retrains from scratch (:func:`minimanc.dagger.dagger`). Behaviour cloning at equal
 labels trains on all the pool scenes' demonstrations (:func:`minimanc.dagger.behaviour_cloning`).
 Every round is scored among reactive ados (at fault, ADE); the last round and BC are also
-driven among replayed ados.
+driven among replayed ados. With ``--perturb SPEED YAW_RATE TAU`` a third method is trained
+at the same label count: perturbed demonstrations (:class:`minimanc.dagger.Perturbation`,
+ChauffeurNet's augmentation): the 650 demonstrations of round 0 plus the world's human
+driving the other pool scenes with an Ornstein–Uhlenbeck offset on its applied controls
+(stationary σ ``SPEED`` m/s and ``YAW_RATE`` rad/s, correlation time ``TAU`` s), every
+state labelled with its clean control; one training, no policy in the loop.
 
     python benchmarks/dagger_budget.py --model manc --predicate-pool flat --seeds 3 \\
-        --out results/dagger_budget_manc.md
+        --perturb 1.5 0.03 2 --out results/dagger_budget_manc.md
 
 Each seed's rounds are checkpointed under ``--work`` (a rerun resumes), and its scores are
 kept as JSON there when it ends; the table is written after every seed.
@@ -32,6 +37,8 @@ from minimanc import dagger, models, rollout, train, world
 from minimanc.metrics.safety import COLLISION_TYPES
 from minimanc.models.forward import changes_speed
 from minimanc.studies import provenance
+from minimanc.world.datareader import load
+from minimanc.world.datawriter import save
 
 N_TRAIN, N_TUNE, N_VAL, N_DRAW = 650, 40, 200, 2840
 AGENTS = ("replay", "reactive")
@@ -82,6 +89,50 @@ def run_seed(args: argparse.Namespace, seed: int, ds: world.Dataset, cfg: models
     return out
 
 
+def run_perturbed(args: argparse.Namespace, seed: int, ds: world.Dataset,
+                  cfg: models.ModelConfig, t0: float) -> dict:
+    """One seed of perturbed demonstrations at DAgger's label count, scored. The collected
+    scenes and the training checkpoint are kept under ``--work`` (a rerun resumes)."""
+    pool, val = split(ds, args.rounds * args.per_round)
+    teacher = dagger.WorldTeacher(pool, val, agents=args.agents)
+    order = dagger.scene_order(len(pool), seed)
+    demos, drives = np.sort(order[:N_TRAIN]), np.sort(order[N_TRAIN:])
+    perturb = dagger.Perturbation(*args.perturb)
+    where = args.work / (f"{args.model}-{cfg.predicate_pool}-{args.agents}-perturb"
+                         + "-".join(f"{v:g}" for v in args.perturb) + f"-s{seed}")
+    where.mkdir(parents=True, exist_ok=True)
+    stats = where / "collected.json"
+    if stats.exists():
+        got = provenance.read_json_or_none(stats)
+        new = load(where / "data.npz")
+    else:
+        col = dagger.collect(None, teacher, drives, 1.0, seed=[seed, 99], perturb=perturb)
+        save(col.data, where / "data.npz")
+        got = {"labelled": col.labelled, "kept": len(col.kept), "refusals": col.refusals}
+        provenance.write_json(stats, got)
+        new = col.data
+    log(f"{args.model} seed {seed} perturbed: {got['kept']} of {len(drives)} scenes kept", t0)
+    tc = train.TrainConfig(epochs=args.epochs, lr=1e-3, seed=seed, speed_scale="change")
+    fit = train.fit(args.model, dagger.concat([pool.subset(demos), new]), cfg, tc,
+                    checkpoint_dir=where, resume=True, progress=False)
+    out = {"labelled": N_TRAIN * pool.n_steps + got["labelled"], "kept": got["kept"],
+           "refused": len(got["refusals"]), "perturb": list(args.perturb)}
+    out["final"] = {a: scores(rollout.closed_loop(args.model, fit.params, val, cfg,
+                                                  progress=False, agents=a), val)
+                    for a in AGENTS}
+    log(f"{args.model} seed {seed} perturbed: "
+        f"{out['final']['reactive']['at_fault_collision_rate']:.1f} % at fault, "
+        f"ADE {out['final']['reactive']['ade']:.2f}", t0)
+    return out
+
+
+def methods(args: argparse.Namespace, runs: list[dict]) -> list[tuple[str, str]]:
+    """(key, label) of the methods every run has."""
+    named = (("bc", "BC at equal labels"), ("perturbed", "perturbed demonstrations"),
+             ("dagger", f"DAgger, round {args.rounds}"))
+    return [(k, label) for k, label in named if all(k + "_final" in r for r in runs)]
+
+
 def curve(runs: list[dict], key: str, scale: float = 1.0) -> str:
     rows = []
     for i in range(len(runs[0]["rounds"])):
@@ -93,23 +144,32 @@ def curve(runs: list[dict], key: str, scale: float = 1.0) -> str:
 def table(args: argparse.Namespace, runs: list[dict], cfg: models.ModelConfig) -> str:
     name = LABEL.get(args.model, args.model)
     first = runs[0]
-    labels = first["bc"]["labelled"]
+    labels = first["bc"]["labelled"] if "bc" in first else first["perturb_labelled"]
     text = (f"# DAgger at a real budget against behaviour cloning at equal labels ({name}, "
             f"paper preset draw, data seed 0; {cfg.setting} setting, speed output "
             f"{cfg.speed_output}, predicates pooled {cfg.predicate_pool}, speed scale change, "
             f"{args.epochs} epochs per round from scratch, lr 0.001; {len(runs)} seed(s), "
-            "mean ± std)\n\n"
-            f"Round 0 is behaviour cloning on {N_TRAIN} scenes; then {args.rounds} DAgger rounds"
-            f" of {args.per_round} scenes each (β = {args.beta}^i, labels by the world's human in "
-            f"the state reached, ados `{args.agents}`), {labels} labelled samples in all. "
-            f"BC at equal labels trains on the demonstrations of all "
-            f"{N_TRAIN + args.rounds * args.per_round} pool scenes. "
-            f"Driven on the draw's {N_VAL} validation scenes.\n\n")
+            "mean ± std)\n\n")
+    if "rounds" in first:
+        text += (f"Round 0 is behaviour cloning on {N_TRAIN} scenes; then {args.rounds} DAgger "
+                 f"rounds of {args.per_round} scenes each (β = {args.beta}^i, labels by the "
+                 f"world's human in the state reached, ados `{args.agents}`), {labels} labelled "
+                 "samples in all. BC at equal labels trains on the demonstrations of all "
+                 f"{N_TRAIN + args.rounds * args.per_round} pool scenes.\n\n")
+    text += f"Every method is driven on the draw's {N_VAL} validation scenes.\n\n"
+    if any(m == "perturbed" for m, _ in methods(args, runs)):
+        sp, yr, tau = first["perturb"]
+        text += (f"Perturbed demonstrations: the {N_TRAIN} demonstrations plus the human driving "
+                 f"the other {args.rounds * args.per_round} pool scenes with an "
+                 f"Ornstein–Uhlenbeck offset on its applied controls (σ {sp:g} m/s, "
+                 f"{yr:g} rad/s, τ {tau:g} s), labelled with its clean controls; scenes kept "
+                 "(the rest reached a state the human refuses to label, off the drivable "
+                 "area): " + ", ".join(str(r["perturb_kept"]) for r in runs)
+                 + f"; {labels} labelled samples in all.\n\n")
     for a in AGENTS:
         text += (f"## Agents `{a}`\n\n| method | " + " | ".join(HEAD) + " |\n"
                  + "|---" * (len(HEAD) + 1) + "|\n")
-        for method, label in (("bc", "BC at equal labels"),
-                              ("dagger", f"DAgger, round {args.rounds}")):
+        for method, label in methods(args, runs):
             text += f"| {label} | " + cells([r[method + "_final"][a] for r in runs], SHOW) + " |\n"
         text += "\n"
     text += ("## Collisions by kind (ados `reactive`; contacts over the validation scenes, "
@@ -117,7 +177,7 @@ def table(args: argparse.Namespace, runs: list[dict], cfg: models.ModelConfig) -
              + " | ".join(f"`{k}`" for k in COLLISION_TYPES)
              + " | at fault | ego m/s | human m/s |\n" + "|---" * (len(COLLISION_TYPES) + 4)
              + "|\n")
-    for method, label in (("bc", "BC at equal labels"), ("dagger", f"DAgger, round {args.rounds}")):
+    for method, label in methods(args, runs):
         c = [r[method + "_final"]["reactive"] for r in runs]
         counts = [int(sum(x[f"contacts_{k}"] for x in c)) for k in (*COLLISION_TYPES, "at_fault")]
         n = sum(x["contacts_at_fault"] for x in c)
@@ -127,6 +187,8 @@ def table(args: argparse.Namespace, runs: list[dict], cfg: models.ModelConfig) -
         text += (f"| {label} | " + " | ".join(map(str, counts)) + " | "
                  + " | ".join("-" if np.isnan(v) else f"{v:.1f}" for v in speeds) + " |\n")
     text += "\n"
+    if "rounds" not in first:
+        return text
     n = len(first["rounds"])
     text += ("## DAgger per round (ados `" + args.agents + "`)\n\n| | "
              + " | ".join(f"round {i}" for i in range(n)) + " |\n" + "|---" * (n + 1) + "|\n"
@@ -149,12 +211,19 @@ def main() -> None:
     ap.add_argument("--agents", choices=("reactive", "replay"), default="reactive")
     ap.add_argument("--setting", choices=("paper", "parity"), default="paper")
     ap.add_argument("--predicate-pool", choices=("global", "flat"), default="global")
+    ap.add_argument("--perturb", type=float, nargs=3, default=None,
+                    metavar=("SPEED", "YAW_RATE", "TAU"))
+    ap.add_argument("--parts", nargs="+", choices=("dagger", "perturbed"),
+                    default=["dagger", "perturbed"],
+                    help="what to run (perturbed needs --perturb)")
     ap.add_argument("--work", type=Path, default=Path("runs/dagger_budget"))
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     try:
         cfg = models.ModelConfig(setting=args.setting, predicate_pool=args.predicate_pool)
         changes_speed(models.get(args.model), cfg)
+        if args.perturb is not None:
+            dagger.Perturbation(*args.perturb)
     except (KeyError, ValueError) as e:
         raise SystemExit(f"dagger_budget: {e}") from None
     extra = args.rounds * args.per_round
@@ -171,9 +240,19 @@ def main() -> None:
         path = args.work / (f"{args.model}-{cfg.predicate_pool}-{args.agents}-r{args.rounds}"
                             f"x{args.per_round}-e{args.epochs}-s{seed}.json")
         r = provenance.read_json_or_none(path) if path.exists() else None
-        if r is None:
+        if r is None and "dagger" in args.parts:
             r = run_seed(args, seed, ds, cfg, t0)
             provenance.write_json(path, r)
+        r = r or {}
+        if args.perturb is not None and "perturbed" in args.parts:
+            pp = path.with_name(path.stem + "-perturb" + "-".join(f"{v:g}" for v in args.perturb)
+                                + ".json")
+            q = provenance.read_json_or_none(pp) if pp.exists() else None
+            if q is None:
+                q = run_perturbed(args, seed, ds, cfg, t0)
+                provenance.write_json(pp, q)
+            r = {**r, "perturbed_final": q["final"], "perturb": q["perturb"],
+                 "perturb_kept": q["kept"], "perturb_labelled": q["labelled"]}
         runs.append(r)
         provenance.publish(table(args, runs, cfg), args.out, time.perf_counter() - t0)
 

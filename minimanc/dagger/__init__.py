@@ -65,6 +65,7 @@ from minimanc.dagger.loop import (
     dagger,
     default_config,
     round_dir,
+    scene_order,
 )
 from minimanc.dagger.perturb import Perturbation
 from minimanc.dagger.schedule import Budget, beta_schedule, check_beta, mix, plan_budget
@@ -94,4 +95,5 @@ __all__ = [
     "mix",
     "plan_budget",
     "round_dir",
+    "scene_order",
 ]

@@ -28,7 +28,7 @@ from minimanc.world.datawriter import save
 from minimanc.world.scenes import Dataset
 
 __all__ = ["FINGERPRINT_FILE", "ROUND_FILE", "DaggerResult", "RoundResult", "behaviour_cloning",
-           "dagger", "default_config", "round_dir"]
+           "dagger", "default_config", "round_dir", "scene_order"]
 
 ROUND_FILE = "round.json"
 """The file that marks a round as complete (written last, atomically)."""
@@ -125,7 +125,7 @@ def _check_common(name: Any, teacher: Any, engine: Any) -> tuple[str, str]:
     return name, eng_name
 
 
-def _order(n: int, seed: int) -> np.ndarray:
+def scene_order(n: int, seed: int) -> np.ndarray:
     """The pool's scene order of a study: one seeded permutation shared by BC and DAgger."""
     return np.random.default_rng([int(seed), 11]).permutation(n)
 
@@ -209,7 +209,7 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
     cfg = cfg or default_config(pool)
     tc = train_cfg or train.TrainConfig()
     seed = check_int("seed", seed, 0)
-    order = _order(len(pool), seed)
+    order = scene_order(len(pool), seed)
     fp = _fingerprint(name, teacher, plan, betas[:1], cfg, tc, seed, eng_name)
     results: list[RoundResult] = []
     per_round: list[dict] = []
@@ -290,7 +290,7 @@ def behaviour_cloning(name: str, teacher: Teacher, budget: int | Budget, rounds:
     cfg = cfg or default_config(pool)
     tc = train_cfg or train.TrainConfig()
     seed = check_int("seed", seed, 0)
-    scenes = _order(len(pool), seed)[:plan.scenes]
+    scenes = scene_order(len(pool), seed)[:plan.scenes]
     fp = {**_fingerprint(name, teacher, plan, [1.0], cfg, tc, seed, eng_name), "bc": plan.scenes}
     where = None if out is None else Path(out) / "bc"
     loaded = _load_round(where, fp) if where is not None else None
