@@ -31,7 +31,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scoring import cells, scores
+from scoring import HEAD, LABEL, N_TRAIN, N_TUNE, N_VAL, SHOW, cells, log, scores
 
 from minimanc import dagger, models, rollout, train, world
 from minimanc.metrics.safety import COLLISION_TYPES
@@ -40,16 +40,8 @@ from minimanc.studies import provenance
 from minimanc.world.datareader import load
 from minimanc.world.datawriter import save
 
-N_TRAIN, N_TUNE, N_VAL, N_DRAW = 650, 40, 200, 2840
+N_DRAW = 2840
 AGENTS = ("replay", "reactive")
-SHOW = ("ade", "along_track", "cross_track", "collision_rate", "at_fault_collision_rate",
-        "off_road_rate")
-HEAD = ("ADE m", "along m", "cross m", "coll. %", "at fault %", "off road %")
-LABEL = {"cnn": "CNN", "manc": "MANC", "cnn_lstm": "CNN-LSTM", "rvs_g": "RvS-G"}
-
-
-def log(msg: str, t0: float) -> None:
-    print(f"[{time.perf_counter() - t0:7.1f} s] {msg}", flush=True)
 
 
 def split(ds: world.Dataset, extra: int) -> tuple[world.Dataset, world.Dataset]:

@@ -28,22 +28,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scoring import cells, scores
+from scoring import HEAD, LABEL, N_TRAIN, N_TUNE, N_VAL, SHOW, cells, log, scores
 
 from minimanc import models, rollout, train, world
 from minimanc.models.forward import changes_speed
 from minimanc.studies import provenance
 
-N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
 AGENTS = ("replay", "reactive")
-SHOW = ("ade", "along_track", "cross_track", "collision_rate", "at_fault_collision_rate",
-        "off_road_rate")
-HEAD = ("ADE m", "along m", "cross m", "coll. %", "at fault %", "off road %")
-LABEL = {"cnn": "CNN", "manc": "MANC", "cnn_lstm": "CNN-LSTM", "rvs_g": "RvS-G"}
-
-
-def log(msg: str, t0: float) -> None:
-    print(f"[{time.perf_counter() - t0:7.1f} s] {msg}", flush=True)
 
 
 def run_one(name: str, seed: int, ds: world.Dataset, n_extra: int, epochs: int,

@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scoring import cells
+from scoring import HEAD, N_TRAIN, N_TUNE, N_VAL, SHOW, cells, log
 
 from minimanc import world
 from minimanc.dagger import perceiving as M
@@ -42,15 +42,6 @@ from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS, WorldTeacher
 from minimanc.studies import provenance
 from minimanc.studies.jobs import scene_families
-
-N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
-SHOW = ("ade", "along_track", "cross_track", "collision_rate", "at_fault_collision_rate",
-        "off_road_rate")
-HEAD = ("ADE m", "along m", "cross m", "coll. %", "at fault %", "off road %")
-
-
-def log(msg: str, t0: float) -> None:
-    print(f"[{time.perf_counter() - t0:7.1f} s] {msg}", flush=True)
 
 
 def main() -> None:

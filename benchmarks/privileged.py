@@ -35,7 +35,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scoring import cells
+from scoring import cells, log
 
 from minimanc import world
 from minimanc.dagger import privileged as P
@@ -80,10 +80,6 @@ def row(name: str, runs: list[dict]) -> str:
 def table(rows: list[str], first: str = "driver") -> list[str]:
     return [f"| {first} | " + " | ".join(HEAD) + " |",
             "|---" * (len(HEAD) + 1) + "|", *rows]
-
-
-def log(msg: str, t0: float) -> None:
-    print(f"[{time.perf_counter() - t0:7.1f} s] {msg}", flush=True)
 
 
 def main() -> None:
