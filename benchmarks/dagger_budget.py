@@ -20,6 +20,11 @@ state labelled with its clean control; one training, no policy in the loop.
     python benchmarks/dagger_budget.py --model manc --predicate-pool flat --seeds 3 \\
         --perturb 1.5 0.03 2 --out results/dagger_budget_manc.md
 
+The last section reads the open-loop error of BC and of DAgger's last round on the human's
+own validation states, by regime (:func:`minimanc.metrics.diagnostics.error_by_regime`; the
+regime of a state from what the human perceives there, :func:`minimanc.dagger.privileged.
+demonstrations`): whether a model predicts the human's braking where it follows a leader.
+
 Each seed's rounds are checkpointed under ``--work`` (a rerun resumes), and its scores are
 kept as JSON there when it ends; the table is written after every seed.
 """
@@ -34,6 +39,8 @@ import numpy as np
 from scoring import HEAD, LABEL, N_TRAIN, N_TUNE, N_VAL, SHOW, cells, log, scores
 
 from minimanc import dagger, models, rollout, train, world
+from minimanc.dagger import privileged as P
+from minimanc.metrics.diagnostics import REGIMES, error_by_regime, regimes
 from minimanc.metrics.safety import COLLISION_TYPES
 from minimanc.models.forward import changes_speed
 from minimanc.studies import provenance
@@ -118,6 +125,58 @@ def run_perturbed(args: argparse.Namespace, seed: int, ds: world.Dataset,
     return out
 
 
+def regime_labels(val: world.Dataset) -> np.ndarray:
+    """The regime of every logged state of ``val`` ``(S·T,)``, from what the human perceives
+    there and the acceleration it applied."""
+    X, Y = P.demonstrations(val)
+    f = P.FEATURES.index
+    gap = np.where(X[:, f("has_leader")] > 0.5, X[:, f("gap")], np.inf)
+    stop = np.where(X[:, f("has_stop")] > 0.5, X[:, f("stop")], np.inf)
+    return regimes(X[:, f("v")], gap, stop, Y[:, 0])
+
+
+def open_loop_errors(args: argparse.Namespace, seed: int, val: world.Dataset,
+                     cfg: models.ModelConfig, labels: np.ndarray) -> dict:
+    """``{method: error_by_regime}`` of BC's and DAgger's last checkpoints of one seed on the
+    human's validation states: the RMSE of the speed command (m/s, ``rmse_0``) and the yaw
+    rate (rad/s, ``rmse_1``); ``"last"`` is the copycat's, the human's previous control
+    (its first at ``t = 0``)."""
+    where = args.work / f"{args.model}-{cfg.predicate_pool}-{args.agents}-s{seed}"
+    ctrl = np.asarray(val.controls, dtype=np.float64)
+    human = ctrl.reshape(-1, 2)
+    last = np.concatenate([ctrl[:, :1], ctrl[:, :-1]], axis=1).reshape(-1, 2)
+    out = {"last": error_by_regime(last, human, labels)}
+    for method, ck in (("bc", where / "bc"), ("dagger", dagger.round_dir(where, args.rounds))):
+        fit = train.load_fit(ck / "checkpoint.npz")
+        pred = rollout.open_loop(args.model, fit.params, val, cfg, eng="jax")["controls"]
+        out[method] = error_by_regime(np.asarray(pred, dtype=np.float64).reshape(-1, 2), human,
+                                      labels)
+    return out
+
+
+def regime_table(args: argparse.Namespace, runs: list[dict]) -> str:
+    text = ("## Open loop by regime\n\nOn the human's validation states: the RMSE of the "
+            "speed command (m/s) / of the yaw rate (rad/s), mean over seeds; the share of the "
+            "states in each regime.\n\n| method | "
+            + " | ".join(REGIMES) + " |\n" + "|---" * (len(REGIMES) + 1) + "|\n")
+    first = runs[0]["open_loop"]
+    named = (("last", "the human's previous control (copycat)"), ("bc", "BC at equal labels"),
+             ("dagger", f"DAgger, round {args.rounds}"))
+    for method, label in named:
+        row = []
+        for g in REGIMES:
+            if g not in first[method]:
+                row.append("-")
+                continue
+            v = np.array([r["open_loop"][method][g]["rmse_0"] for r in runs])
+            w = np.array([r["open_loop"][method][g]["rmse_1"] for r in runs])
+            row.append(f"{v.mean():.2f} / {w.mean():.3f}")
+        text += f"| {label} | " + " | ".join(row) + " |\n"
+    shares = [f"{100 * first['bc'][g]['share']:.0f} %" if g in first["bc"] else "-"
+              for g in REGIMES]
+    return text + "| share | " + " | ".join(shares) + " |\n\n"
+
+
 def methods(args: argparse.Namespace, runs: list[dict]) -> list[tuple[str, str]]:
     """(key, label) of the methods every run has."""
     named = (("bc", "BC at equal labels"), ("perturbed", "perturbed demonstrations"),
@@ -137,11 +196,11 @@ def table(args: argparse.Namespace, runs: list[dict], cfg: models.ModelConfig) -
     name = LABEL.get(args.model, args.model)
     first = runs[0]
     labels = first["bc"]["labelled"] if "bc" in first else first["perturb_labelled"]
-    text = (f"# DAgger at a real budget against behaviour cloning at equal labels ({name}, "
-            f"paper preset draw, data seed 0; {cfg.setting} setting, speed output "
+    text = (f"# DAgger at a real budget against behaviour cloning at equal labels: {name}\n\n"
+            f"## Setup\n\nPaper preset draw, data seed 0; {cfg.setting} setting, speed output "
             f"{cfg.speed_output}, predicates pooled {cfg.predicate_pool}, speed scale change, "
-            f"{args.epochs} epochs per round from scratch, lr 0.001; {len(runs)} seed(s), "
-            "mean ± std)\n\n")
+            f"{args.epochs} epochs per training from scratch, lr 0.001; {len(runs)} seed(s), "
+            "mean ± std over seeds.\n\n")
     if "rounds" in first:
         text += (f"Round 0 is behaviour cloning on {N_TRAIN} scenes; then {args.rounds} DAgger "
                  f"rounds of {args.per_round} scenes each (β = {args.beta}^i, labels by the "
@@ -164,8 +223,8 @@ def table(args: argparse.Namespace, runs: list[dict], cfg: models.ModelConfig) -
         for method, label in methods(args, runs):
             text += f"| {label} | " + cells([r[method + "_final"][a] for r in runs], SHOW) + " |\n"
         text += "\n"
-    text += ("## Collisions by kind (ados `reactive`; contacts over the validation scenes, "
-             "summed over seeds; the mean speeds at the at-fault contacts)\n\n| method | "
+    text += ("## Collisions by kind\n\nAdos `reactive`; contacts over the validation scenes, "
+             "summed over seeds; the mean speeds at the at-fault contacts.\n\n| method | "
              + " | ".join(f"`{k}`" for k in COLLISION_TYPES)
              + " | at fault | ego m/s | human m/s |\n" + "|---" * (len(COLLISION_TYPES) + 4)
              + "|\n")
@@ -181,8 +240,10 @@ def table(args: argparse.Namespace, runs: list[dict], cfg: models.ModelConfig) -
     text += "\n"
     if "rounds" not in first:
         return text
+    if all("open_loop" in r for r in runs):
+        text += regime_table(args, runs)
     n = len(first["rounds"])
-    text += ("## DAgger per round (ados `" + args.agents + "`)\n\n| | "
+    text += ("## DAgger per round\n\nAdos `" + args.agents + "`, mean ± std over seeds.\n\n| | "
              + " | ".join(f"round {i}" for i in range(n)) + " |\n" + "|---" * (n + 1) + "|\n"
              + "| labels | " + " | ".join(str(r["labelled"]) for r in first["rounds"]) + " |\n"
              + "| at fault % | " + curve(runs, "at_fault_collision_rate") + " |\n"
@@ -228,6 +289,7 @@ def main() -> None:
     ds = world.generate(N_DRAW, seed=0, cache=True, progress=True)
     log(f"data: {len(ds.ego)} scenes", t0)
     runs = []
+    labels = None
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         path = args.work / (f"{args.model}-{cfg.predicate_pool}-{args.agents}-r{args.rounds}"
                             f"x{args.per_round}-e{args.epochs}-s{seed}.json")
@@ -236,6 +298,15 @@ def main() -> None:
             r = run_seed(args, seed, ds, cfg, t0)
             provenance.write_json(path, r)
         r = r or {}
+        if "rounds" in r:
+            ol = path.with_name(path.stem + "-openloop.json")
+            e = provenance.read_json_or_none(ol) if ol.exists() else None
+            if e is None:
+                val = split(ds, args.rounds * args.per_round)[1]
+                labels = regime_labels(val) if labels is None else labels
+                e = open_loop_errors(args, seed, val, cfg, labels)
+                provenance.write_json(ol, e)
+            r = {**r, "open_loop": e}
         if args.perturb is not None and "perturbed" in args.parts:
             pp = path.with_name(path.stem + "-perturb" + "-".join(f"{v:g}" for v in args.perturb)
                                 + ".json")
