@@ -208,6 +208,12 @@ def table(args: argparse.Namespace, runs: list[dict], cfg: models.ModelConfig) -
                  "samples in all. BC at equal labels trains on the demonstrations of all "
                  f"{N_TRAIN + args.rounds * args.per_round} pool scenes.\n\n")
     text += f"Every method is driven on the draw's {N_VAL} validation scenes.\n\n"
+    if "rounds" in first:
+        mins = [sum(x["seconds"] for x in r["rounds"]) / 60 for r in runs]
+        text += ("DAgger's rounds took " + ", ".join(f"{m:.0f}" for m in mins)
+                 + " min per seed (collection, training and the per-round drive; one core "
+                 "each, the wall time below counts only what this run did not load from "
+                 "`--work`).\n\n")
     if any(m == "perturbed" for m, _ in methods(args, runs)):
         sp, yr, tau = first["perturb"]
         text += (f"Perturbed demonstrations: the {N_TRAIN} demonstrations plus the human driving "
