@@ -135,6 +135,13 @@ def regime_labels(val: world.Dataset) -> np.ndarray:
     return regimes(X[:, f("v")], gap, stop, Y[:, 0])
 
 
+def change_by_regime(speed: np.ndarray, last: np.ndarray, labels: np.ndarray) -> dict:
+    """``{regime: mean of speed[:, 0] − last[:, 0]}``: the speed command's mean change over the
+    human's previous control, per regime."""
+    d = speed[:, 0] - last[:, 0]
+    return {g: float(d[labels == i].mean()) for i, g in enumerate(REGIMES) if (labels == i).any()}
+
+
 def open_loop_errors(args: argparse.Namespace, seed: int, val: world.Dataset,
                      cfg: models.ModelConfig, labels: np.ndarray) -> dict:
     """``{method: error_by_regime}`` of BC's and DAgger's last checkpoints of one seed on the
@@ -145,12 +152,14 @@ def open_loop_errors(args: argparse.Namespace, seed: int, val: world.Dataset,
     ctrl = np.asarray(val.controls, dtype=np.float64)
     human = ctrl.reshape(-1, 2)
     last = np.concatenate([ctrl[:, :1], ctrl[:, :-1]], axis=1).reshape(-1, 2)
-    out = {"last": error_by_regime(last, human, labels)}
+    out = {"last": error_by_regime(last, human, labels),
+           "change": {"human": change_by_regime(human, last, labels)}}
     for method, ck in (("bc", where / "bc"), ("dagger", dagger.round_dir(where, args.rounds))):
         fit = train.load_fit(ck / "checkpoint.npz")
         pred = rollout.open_loop(args.model, fit.params, val, cfg, eng="jax")["controls"]
-        out[method] = error_by_regime(np.asarray(pred, dtype=np.float64).reshape(-1, 2), human,
-                                      labels)
+        pred = np.asarray(pred, dtype=np.float64).reshape(-1, 2)
+        out[method] = error_by_regime(pred, human, labels)
+        out["change"][method] = change_by_regime(pred, last, labels)
     return out
 
 
@@ -174,7 +183,18 @@ def regime_table(args: argparse.Namespace, runs: list[dict]) -> str:
         text += f"| {label} | " + " | ".join(row) + " |\n"
     shares = [f"{100 * first['bc'][g]['share']:.0f} %" if g in first["bc"] else "-"
               for g in REGIMES]
-    return text + "| share | " + " | ".join(shares) + " |\n\n"
+    text += "| share | " + " | ".join(shares) + " |\n\n"
+    text += ("## Speed change by regime\n\nOn the human's validation states: the mean change "
+             "of the speed command over the human's previous control (m/s per step), mean over "
+             "seeds; a model that brakes where the human brakes has the human's negative "
+             "value.\n\n| method | " + " | ".join(REGIMES) + " |\n"
+             + "|---" * (len(REGIMES) + 1) + "|\n")
+    for method, label in (("human", "the human"), *named[1:]):
+        vals = [np.mean([r["open_loop"]["change"][method][g] for r in runs])
+                if g in first["change"][method] else float("nan") for g in REGIMES]
+        text += (f"| {label} | " + " | ".join("-" if np.isnan(v) else f"{v:+.2f}" for v in vals)
+                 + " |\n")
+    return text + "\n"
 
 
 def methods(args: argparse.Namespace, runs: list[dict]) -> list[tuple[str, str]]:
