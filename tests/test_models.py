@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from minimanc import cam, dmp, engine, inputs, models, quaternion, tree, vagn
+from minimanc.world.traffic import B_MAX
 
 B = 3
 CFG = models.ModelConfig(image_size=16, channels=(4, 8), n_predicates=5, n_states=4, hidden=8,
@@ -226,6 +227,21 @@ def test_dmp_head_keeps_speed_and_corrects_a_lateral_offset():
     fast, _ = models.dmp_head(logits + np.array([[0, 3.0, 0, 0]]), _straight(0.0), motion, CFG)
     assert fast[0, 0] > centred[0, 0] + 0.5
 
+
+
+def test_dmp_head_gain_box_spans_a_hard_stop_and_a_hard_acceleration():
+    # The head's range in one step, at the corners of the gain box (chapter 3): from 10 m/s
+    # on a straight lane it can ask for a near stop (a deceleration beyond the world's
+    # physical braking limit) and for far more than any speed of the world: what MANC asks
+    # for is a matter of the gains it learns, not of the head.
+    motion = np.array([[10.0, 0.0]])
+    speeds = []
+    for za in (-30.0, 30.0):
+        for zb in (-30.0, 30.0):
+            out, aux = models.dmp_head(np.array([[za, zb, 0.0, 0.0]]), _straight(0.0), motion,
+                                       CFG)
+            speeds.append(out[0, 0])
+    assert (10.0 - min(speeds)) / CFG.dt > B_MAX and max(speeds) > 30.0
 
 def test_predicates_match_cam(eng_np):
     """MANC's eq. 7 is the chapter-6 predicate extractor (then a sigmoid) with our backbone."""
