@@ -20,8 +20,10 @@ scenes, in that order; only the validation scenes are driven); each raster varia
 generated once (``cache=True``). Training: ``--epochs`` epochs, learning rate ``--lr``,
 engine ``jax``, ``--seeds`` seeds (mean ± std); ``--channels`` the backbone's stride-2
 convolutions (``ModelConfig.channels``: one more layer doubles the receptive field) and
-``--predicates`` the number of visual predicates of eq. 7 (``ModelConfig.n_predicates``) and
-``--predicate-pool`` how they read the features (``ModelConfig.predicate_pool``).
+``--predicates`` the number of visual predicates of eq. 7 (``ModelConfig.n_predicates``),
+``--predicate-pool`` how they read the features (``ModelConfig.predicate_pool``) and
+``--states`` the number of vAGN's q-states (``ModelConfig.n_states``; eq. 11's gains are a
+linear function of them).
 
 Run: ``python benchmarks/fixes.py --variants cnn:parity:0:change:change --out results/X.md``
 """
@@ -88,6 +90,7 @@ def main() -> None:
     ap.add_argument("--channels", type=int, nargs="+", default=None)
     ap.add_argument("--predicates", type=int, default=None)
     ap.add_argument("--predicate-pool", choices=("global", "flat"), default=None)
+    ap.add_argument("--states", type=int, default=None)
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     variants = [parse(v) for v in args.variants]
@@ -109,6 +112,8 @@ def main() -> None:
             shape["n_predicates"] = args.predicates
         if args.predicate_pool is not None:
             shape["predicate_pool"] = args.predicate_pool
+        if args.states is not None:
+            shape["n_states"] = args.states
         cfg = models.ModelConfig(setting=setting, speed_output=out, **shape)
         runs = {a: [] for a in AGENTS}
         for seed in range(args.seeds):
@@ -133,6 +138,7 @@ def main() -> None:
             + ("" if args.channels is None else f"backbone channels {tuple(args.channels)}, ")
             + ("" if args.predicates is None else f"{args.predicates} predicates, ")
             + ("" if args.predicate_pool is None else f"predicates pooled {args.predicate_pool}, ")
+            + ("" if args.states is None else f"{args.states} q-states, ")
             + "mean ± std)\n\n")
     for a in AGENTS:
         text += (f"## Agents `{a}`\n\n| model | setting | history | speed output | speed scale"
