@@ -44,6 +44,7 @@ from minimanc.metrics.diagnostics import REGIMES, error_by_regime, regimes
 from minimanc.metrics.safety import COLLISION_TYPES
 from minimanc.models.forward import changes_speed
 from minimanc.studies import provenance
+from minimanc.studies.bounds import expert_rollout, floor_rollout, median_style
 from minimanc.world.datareader import load
 from minimanc.world.datawriter import save
 
@@ -122,6 +123,19 @@ def run_perturbed(args: argparse.Namespace, seed: int, ds: world.Dataset,
     log(f"{args.model} seed {seed} perturbed: "
         f"{out['final']['reactive']['at_fault_collision_rate']:.1f} % at fault, "
         f"ADE {out['final']['reactive']['ade']:.2f}", t0)
+    return out
+
+
+def bound_rows(val: world.Dataset) -> dict:
+    """The bounds on the validation scenes: the expert (the world's human driving closed loop)
+    and MANC's DMP head at fixed gains (no learning) under both protocols, and the style
+    floor's ADE (the human re-driving with the population's median style)."""
+    out: dict = {"expert": {}, "fixed": {}}
+    for a in AGENTS:
+        out["expert"][a] = scores(expert_rollout(val, a)[0], val)
+        out["fixed"][a] = scores(rollout.simulate(rollout.FixedGainsPolicy(), val, agents=a,
+                                                  progress=False), val)
+    out["floor_ade"] = scores(floor_rollout(val, median_style()), val)["ade"]
     return out
 
 
@@ -204,15 +218,16 @@ def methods(args: argparse.Namespace, runs: list[dict]) -> list[tuple[str, str]]
     return [(k, label) for k, label in named if all(k + "_final" in r for r in runs)]
 
 
-def curve(runs: list[dict], key: str, scale: float = 1.0) -> str:
+def curve(runs: list[dict], key: str) -> str:
     rows = []
     for i in range(len(runs[0]["rounds"])):
-        v = np.array([r["rounds"][i]["metrics"][key] for r in runs]) * scale
+        v = np.array([r["rounds"][i]["metrics"][key] for r in runs])
         rows.append(f"{v.mean():.2f}" if len(v) == 1 else f"{v.mean():.2f} ± {v.std():.2f}")
     return " | ".join(rows)
 
 
-def table(args: argparse.Namespace, runs: list[dict], cfg: models.ModelConfig) -> str:
+def table(args: argparse.Namespace, runs: list[dict], cfg: models.ModelConfig,
+          bounds: dict) -> str:
     name = LABEL.get(args.model, args.model)
     first = runs[0]
     labels = first["bc"]["labelled"] if "bc" in first else first["perturb_labelled"]
@@ -246,9 +261,13 @@ def table(args: argparse.Namespace, runs: list[dict], cfg: models.ModelConfig) -
     for a in AGENTS:
         text += (f"## Agents `{a}`\n\n| method | " + " | ".join(HEAD) + " |\n"
                  + "|---" * (len(HEAD) + 1) + "|\n")
+        text += "| Expert (bound) | " + cells([bounds["expert"][a]], SHOW) + " |\n"
+        text += ("| DMP at fixed gains (no learning) | " + cells([bounds["fixed"][a]], SHOW)
+                 + " |\n")
         for method, label in methods(args, runs):
             text += f"| {label} | " + cells([r[method + "_final"][a] for r in runs], SHOW) + " |\n"
-        text += "\n"
+        text += (f"\nThe style floor's ADE on these scenes (the human re-driving them with the "
+                 f"population's median style): {bounds['floor_ade']:.2f} m.\n\n")
     text += ("## Collisions by kind\n\nAdos `reactive`; contacts over the validation scenes, "
              "summed over seeds; the mean speeds at the at-fault contacts.\n\n| method | "
              + " | ".join(f"`{k}`" for k in COLLISION_TYPES)
@@ -314,6 +333,11 @@ def main() -> None:
     t0 = time.perf_counter()
     ds = world.generate(N_DRAW, seed=0, cache=True, progress=True)
     log(f"data: {len(ds.ego)} scenes", t0)
+    bpath = args.work / "bounds.json"
+    bounds = provenance.read_json_or_none(bpath) if bpath.exists() else None
+    if bounds is None:
+        bounds = bound_rows(split(ds, args.rounds * args.per_round)[1])
+        provenance.write_json(bpath, bounds)
     runs = []
     labels = None
     for seed in range(args.first_seed, args.first_seed + args.seeds):
@@ -343,7 +367,7 @@ def main() -> None:
             r = {**r, "perturbed_final": q["final"], "perturb": q["perturb"],
                  "perturb_kept": q["kept"], "perturb_labelled": q["labelled"]}
         runs.append(r)
-        provenance.publish(table(args, runs, cfg), args.out, time.perf_counter() - t0)
+        provenance.publish(table(args, runs, cfg, bounds), args.out, time.perf_counter() - t0)
 
 
 if __name__ == "__main__":
