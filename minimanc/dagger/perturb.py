@@ -28,17 +28,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from minimanc.checks import check_finite, check_positive
+from minimanc.checks import check_finite
 from minimanc.dmp.params import DT
 
 __all__ = ["Perturbation"]
-
-
-def _check_sigma(name: str, value: object) -> float:
-    sigma = float(check_finite(name, value))
-    if sigma < 0:
-        raise ValueError(f"{name} must be >= 0, got {name}={value!r}")
-    return sigma
 
 
 @dataclass(frozen=True)
@@ -52,11 +45,12 @@ class Perturbation:
 
     def __post_init__(self) -> None:
         for name in ("speed", "yaw_rate", "tau"):
-            if np.ndim(check_finite(name, getattr(self, name))) != 0:
+            value = check_finite(name, getattr(self, name))
+            if value.ndim != 0:
                 raise ValueError(f"{name} must be one number, got {getattr(self, name)!r}")
-        _check_sigma("speed", self.speed)
-        _check_sigma("yaw_rate", self.yaw_rate)
-        check_positive("tau", self.tau)
+            if value < 0 or (name == "tau" and value == 0):
+                raise ValueError(f"{name} must be {'> 0' if name == 'tau' else '>= 0'}, "
+                                 f"got {name}={getattr(self, name)!r}")
 
     @property
     def decay(self) -> float:
