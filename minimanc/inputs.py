@@ -27,7 +27,10 @@ layer with the fixed constants :data:`GOAL_SCALE`, :data:`LANE_SCALE` and
 metres directly.
 
 ``motion`` in the dataset is ``controls[t − 1]`` (the human's own previous
-controls: no look into the future). At ``t = 0`` there is no previous step
+controls: no look into the future), or, in a scene another policy drove while the
+expert labelled it (a DAgger round, a perturbed demonstration), the control that was
+*applied* at ``t − 1`` (:func:`driven_controls`): the speed the state was reached at,
+not the label. At ``t = 0`` there is no previous step
 in the log; :func:`initial_motion` then uses the human's speed over the first
 step with yaw rate 0 — the one place where the log's first control is used,
 exactly as the closed loop starts every policy from the human's initial state
@@ -82,12 +85,15 @@ from minimanc.world.maps import lane_targets
 from minimanc.world.raster import RasterConfig, rasterize_batch, rasterize_goal
 
 __all__ = [
+    "DRIVEN_TAG",
     "GOAL_SCALE",
     "KEYS",
     "LANE_SCALE",
     "MOTION_SCALE",
     "SCENE_CONSTANT_KEYS",
     "SETTINGS",
+    "driven_controls",
+    "driven_rows",
     "from_dataset",
     "from_state",
     "initial_motion",
@@ -204,12 +210,55 @@ def initial_motion(ds: Any) -> np.ndarray:
     return np.stack([c[:, 0, 0], np.zeros_like(c[:, 0, 0])], axis=-1).astype(np.float32)
 
 
+DRIVEN_TAG = "driven"
+_DRIVEN_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def driven_rows(ds: Any) -> np.ndarray:
+    """``(S,)`` bool: the scenes whose tags hold the controls another policy applied
+    (``tags[s]["dagger"]["driven"]``, written by :func:`minimanc.dagger.collect` when the
+    applied controls differ from the expert's labels)."""
+    tags = getattr(ds, "tags", None) or [{}] * len(np.asarray(ds.controls))
+    return np.array([DRIVEN_TAG in (t.get("dagger") or {}) for t in tags], dtype=bool)
+
+
+def driven_controls(ds: Any) -> np.ndarray:
+    """The controls applied from ``t`` to ``t + 1``, ``(S, T, 2)`` float32: ``ds.controls``
+    (a demonstration's labels are what was applied), with each scene of :func:`driven_rows`
+    replaced by the ``T − 1`` controls its tags record (its last step, which applies nothing,
+    keeps the label). Cached per dataset; ``ValueError`` for a record of the wrong shape or
+    a non-finite value (an edited file)."""
+    try:
+        cached = _DRIVEN_CACHE.get(ds)
+    except TypeError:  # not weak-referenceable
+        cached = None
+    if cached is not None:
+        return cached
+    c = np.asarray(ds.controls)
+    rows = np.nonzero(driven_rows(ds))[0]
+    if rows.size:
+        c = c.astype(np.float32, copy=True)
+        T = c.shape[1]
+        for s in rows:
+            d = np.asarray(ds.tags[s]["dagger"][DRIVEN_TAG], dtype=np.float64)
+            if d.shape != (T - 1, 2) or not np.all(np.isfinite(d)):
+                raise ValueError(f"scene {int(s)}: tags['dagger']['{DRIVEN_TAG}'] must hold "
+                                 f"{T - 1} finite [speed, yaw rate] pairs, got shape {d.shape}")
+            c[s, :-1] = d
+    try:
+        _DRIVEN_CACHE[ds] = c
+    except TypeError:
+        pass
+    return c
+
+
 def motion_at(ds: Any, scene_idx: Any, t_idx: Any) -> np.ndarray:
-    """``motion`` of the module docstring for index arrays: ``controls[s, t − 1]``, or the
+    """``motion`` of the module docstring for index arrays: the control applied at
+    ``t − 1`` (:func:`driven_controls`: ``controls[s, t − 1]`` in a demonstration), or the
     :func:`initial_motion` at ``t = 0``. Returns ``(B, 2)`` float32."""
     s = np.asarray(scene_idx)
     t = np.asarray(t_idx)
-    c = np.asarray(ds.controls)
+    c = driven_controls(ds)
     prev = c[s, np.maximum(t - 1, 0)].astype(np.float32)
     first = initial_motion(ds)[s]
     return np.where((t == 0)[..., None], first, prev).astype(np.float32)

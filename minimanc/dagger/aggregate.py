@@ -92,6 +92,7 @@ class MixturePolicy:
             self.keys = inputs.visible(models.get(policy.model), policy.setting)
         self.states: list[SceneState] = []
         self.labels: list[np.ndarray] = []
+        self.applied: list[np.ndarray] = []
         self.refused: list[list[str | None]] = []
         self.expert_steps = 0
         self._prev: np.ndarray | None = None
@@ -124,6 +125,7 @@ class MixturePolicy:
             controls = self.perturb.apply(controls, self._offset)
         self.expert_steps += int(np.sum((u < self.beta) & ok))
         self._prev = np.asarray(controls, dtype=np.float64)
+        self.applied.append(self._prev.astype(np.float32))
         return controls, state, {}
 
 
@@ -144,8 +146,11 @@ class Collected:
 
 
 def _rows_to_scenes(pool: Dataset, scenes: np.ndarray, states: list[SceneState],
-                    labels: np.ndarray, tags: dict) -> tuple[list[dict], dict]:
-    """Dataset scenes (the fields of :data:`ARRAY_FIELDS`) of the driven rows."""
+                    labels: np.ndarray, applied: np.ndarray, tags: dict
+                    ) -> tuple[list[dict], dict]:
+    """Dataset scenes (the fields of :data:`ARRAY_FIELDS`) of the driven rows; a row whose
+    applied controls ``(T − 1, B, 2)`` differ from its labels records them in its tags
+    (:data:`minimanc.inputs.DRIVEN_TAG`)."""
     cfg, K = pool.raster, int(np.asarray(pool.lane_target).shape[2])
     T = len(states)
     out = []
@@ -174,9 +179,12 @@ def _rows_to_scenes(pool: Dataset, scenes: np.ndarray, states: list[SceneState],
     for key in ("source",):
         if key in pool.meta:
             meta[key] = pool.meta[key]
+    labels32 = labels.astype(np.float32)
+    driven = [{} if np.array_equal(applied[:, b], labels32[:-1, b])
+              else {inputs.DRIVEN_TAG: applied[:, b].tolist()} for b in range(len(scenes))]
     append_scenes(meta, [pool.meta["recipes"][int(s)] for s in scenes],
-                  [{**pool.tags[int(s)], "dagger": {**tags, "pool_scene": int(s)}}
-                   for s in scenes],
+                  [{**pool.tags[int(s)], "dagger": {**tags, "pool_scene": int(s), **d}}
+                   for s, d in zip(scenes, driven, strict=True)],
                   [pool.meta["attempts"][int(s)] for s in scenes],
                   [pool.meta["scene_index"][int(s)] for s in scenes])
     return out, meta
@@ -193,7 +201,9 @@ def collect(policy: Any, teacher: Teacher, scenes: Any, beta: float, seed: Any =
     decision), so a scene is ``T`` labelled samples like a demonstration. The coin of
     row ``b`` at step ``t`` comes from ``numpy.random.default_rng(seed)`` (one stream
     per batch of :meth:`Teacher.groups`, drawn in order). ``tags`` are added to the
-    scenes' metadata tags under ``"dagger"``. ``perturb`` adds a
+    scenes' metadata tags under ``"dagger"``; so are the controls that were applied, when
+    they differ from the labels (``"driven"``, ``T − 1`` pairs): the ``motion`` a model
+    sees in those states (:func:`minimanc.inputs.driven_controls`). ``perturb`` adds a
     :class:`~minimanc.dagger.perturb.Perturbation` to the applied controls: with
     ``policy=None, beta=1`` these are perturbed demonstrations (one stream of offsets per
     batch, from the same generator as the coins).
@@ -233,9 +243,11 @@ def collect(policy: Any, teacher: Teacher, scenes: Any, beta: float, seed: Any =
             expert += mixer.expert_steps
             if ok.any():
                 rows = np.nonzero(ok)[0]
+                applied = np.stack(mixer.applied)[:, rows]  # (T - 1, B, 2)
                 sc, meta = _rows_to_scenes(pool, group[rows],
                                            [_take(st, rows) for st in mixer.states],
-                                           labels[:, rows], {**(tags or {}), "beta": beta, **extra})
+                                           labels[:, rows], applied,
+                                           {**(tags or {}), "beta": beta, **extra})
                 built += sc
                 metas.append(meta)
                 kept += [int(group[r]) for r in rows]

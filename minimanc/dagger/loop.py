@@ -210,7 +210,9 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
     tc = train_cfg or train.TrainConfig()
     seed = check_int("seed", seed, 0)
     order = scene_order(len(pool), seed)
-    fp = _fingerprint(name, teacher, plan, betas[:1], cfg, tc, seed, eng_name)
+    # "motion": the aggregate records the applied controls (inputs.driven_controls)
+    fp = {**_fingerprint(name, teacher, plan, betas[:1], cfg, tc, seed, eng_name),
+          "motion": "driven"}
     results: list[RoundResult] = []
     per_round: list[dict] = []
     parts: list[Dataset] = []

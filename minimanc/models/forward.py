@@ -347,7 +347,7 @@ def step(name: str, params: dict, obs: dict, state: dict, cfg: ModelConfig | Non
 
 
 def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConfig | None,
-             eng: Any, feedback_motion: bool = False, return_aux: bool = False,
+             eng: Any, feedback_motion: Any = False, return_aux: bool = False,
              with_features: bool = False) -> tuple:
     """Run ``L`` steps on time-major observations.
 
@@ -364,10 +364,11 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
         As in :func:`step`.
     obs_seq : dict
         Observations ``(L, B, ...)``.
-    feedback_motion : bool
+    feedback_motion : bool or array of shape (B,)
         DMP models: the DMP's initial velocities at step ``i > 0`` are the model's own
         controls of step ``i − 1`` instead of ``obs_seq["motion"][i]`` (the DMP
-        integrates its own state, as in closed loop; only step 0 uses the logged motion).
+        integrates its own state, as in closed loop; only step 0 uses the logged motion);
+        an array chooses per window.
     return_aux : bool
         Also return the per-step ``aux`` of :func:`step` stacked along time
         (``features`` excluded unless ``with_features``).
@@ -395,7 +396,9 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
             for k, v in obs_seq.items() if k in seen}
     enc = encode(spec, params, flat, cfg, eng)
     features = enc.pop("features")
-    feedback = feedback_motion and spec.dmp
+    per_row = not isinstance(feedback_motion, bool)
+    feedback = spec.dmp and (per_row or feedback_motion)
+    rows = xp.reshape(xp.asarray(feedback_motion), (B, 1)) if feedback and per_row else True
     none_keys = [k for k, v in enc.items() if v is None]
     xs = {k: xp.reshape(v, (L, B) + tuple(v.shape[1:])) for k, v in enc.items() if v is not None}
 
@@ -404,7 +407,7 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
         enc_i = dict(x)
         enc_i.update({k: None for k in none_keys})
         if feedback:
-            enc_i["motion"] = xp.where(i > 0, prev, x["motion"])
+            enc_i["motion"] = xp.where(xp.logical_and(i > 0, rows), prev, x["motion"])
         controls, new_st, aux = run_head(spec, params, enc_i, st, cfg, eng)
         controls = controls.astype(prev.dtype)
         new_st = {k: v.astype(st[k].dtype) for k, v in new_st.items()}

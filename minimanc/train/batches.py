@@ -38,15 +38,18 @@ def subset_scenes(n_scenes: int, subset: float, seed: int) -> np.ndarray:
 
 def control_std(ds: Any, scenes: Any = None, speed: str = "level") -> np.ndarray:
     """Standard deviation of ``[speed, yaw rate]`` over the given scenes (all by default);
-    with ``speed="change"`` the first entry is that of the speed's change over one step,
-    ``controls[t] − motion[t]`` (:func:`minimanc.inputs.motion_at`)."""
+    with ``speed="change"`` the first entry is that of the labels' speed change over one
+    step, ``controls[t] − controls[t − 1]`` (:func:`minimanc.inputs.initial_motion` at
+    ``t = 0``; in a demonstration this is ``controls[t] − motion[t]``, and in a driven scene
+    it stays a statistic of the labels, not of the policy that drove)."""
     c = np.asarray(ds.controls, dtype=np.float64)
     idx = np.arange(len(c)) if scenes is None else np.asarray(scenes)
     c = c[idx]
     sd = c.reshape(-1, 2).std(axis=0)
     if speed == "change":
-        s, t = np.meshgrid(idx, np.arange(c.shape[1]), indexing="ij")
-        sd[0] = (c[..., 0] - inputs.motion_at(ds, s, t)[..., 0]).std()
+        first = inputs.initial_motion(ds)[idx, 0].astype(np.float64)
+        prev = np.concatenate([first[:, None], c[:, :-1, 0]], axis=1)
+        sd[0] = (c[..., 0] - prev).std()
     elif speed != "level":
         raise ValueError(f"speed must be 'level' or 'change', got speed={speed!r}")
     return np.where(sd > 1e-6, sd, 1.0)
@@ -97,13 +100,20 @@ def batches(name: str, ds: Any, scenes: np.ndarray, tc: TrainConfig, epoch: int
 
 def make_batch(name: str, ds: Any, s_idx: np.ndarray, t_idx: np.ndarray,
                 cfg: models.ModelConfig, dtype: Any) -> dict:
-    """Observations ``(L, b, ...)`` and controls ``(L, b, 2)`` for index arrays ``(L, b)``."""
+    """Observations ``(L, b, ...)`` and controls ``(L, b, 2)`` for index arrays ``(L, b)``;
+    for a DMP model on a dataset with driven scenes (:func:`minimanc.inputs.driven_rows`)
+    also ``driven (b,)`` bool, the windows whose ``motion`` is the applied control at
+    every step (:func:`minimanc.train.step.loss_fn`)."""
     L, b = s_idx.shape
     obs = inputs.from_dataset(ds, s_idx.reshape(-1), t_idx.reshape(-1), cfg.setting,
                                model=models.get(name))
     batch = {k: v.reshape((L, b) + v.shape[1:]).astype(dtype) for k, v in obs.items()}
     y = np.asarray(ds.controls)[s_idx, t_idx]
     batch["controls"] = y.astype(dtype)
+    if models.spec(name).dmp:
+        rows = inputs.driven_rows(ds)
+        if rows.any():
+            batch["driven"] = rows[s_idx[0]]
     return batch
 
 

@@ -19,14 +19,17 @@ __all__ = ["global_norm", "hyper_args", "like", "loss_fn", "make_step", "scale_t
 
 
 def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: Any,
-            inv_std: Any, zeta_weight: float = 0.0, motion_feedback: bool = False,
+            inv_std: Any, zeta_weight: float = 0.0, motion_feedback: Any = False,
             perception_weight: float = 0.0) -> Any:
     """Algorithm 1's loss on a batch of windows: ``mean(((â − a) / σ)²)`` (+ ζ penalty)
     (+ perception loss).
 
     ``batch`` holds observations ``(L, b, ...)``, ``controls (L, b, 2)`` and,
     for vAGN models, ``q0 (b, N)`` (q'). ``inv_std`` is ``1/σ`` per control;
-    ``motion_feedback`` see :func:`minimanc.models.sequence`. With ``perception (L, b, K)``
+    ``motion_feedback`` see :func:`minimanc.models.sequence`; it never applies to the windows
+    that ``driven (b,)`` marks (:func:`~minimanc.train.batches.make_batch`): a state another
+    policy drove is shown with the speed it was driven at, as DAgger's labels are for that
+    state. With ``perception (L, b, K)``
     in the batch (standardised targets of what the world's human perceives in each state)
     and ``params["perception"]`` (a linear read-out of the visual predicates of eq. 7 for the
     models that have them, which is all their planner reads of the image, and of the
@@ -35,7 +38,10 @@ def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: 
     quantities (privileged supervision of the perception).
     """
     xp = eng.xp
-    obs = {k: v for k, v in batch.items() if k not in ("controls", "q0", "perception")}
+    obs = {k: v for k, v in batch.items()
+           if k not in ("controls", "q0", "perception", "driven")}
+    if motion_feedback and "driven" in batch:
+        motion_feedback = xp.logical_not(batch["driven"])
     L, b = batch["controls"].shape[:2]
     spec = models.spec(name)
     if spec.family == "vagn":
