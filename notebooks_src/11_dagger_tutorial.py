@@ -39,7 +39,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from minimanc import dagger, rollout, train, world
+from minimanc import dagger, inputs, rollout, train, world
 from minimanc.rollout.reactive import simulate_reactive
 
 np.set_printoptions(precision=2, suppress=True)
@@ -149,6 +149,28 @@ pose_dev = float(np.abs(own.data.ego - pool.ego[[0, 1]]).max())
 label_dev = float(np.abs(own.data.controls - pool.controls[[0, 1]]).max())
 print(f"poses equal the log to 1e-4 m: {pose_dev < 1e-4}; labels to 1e-5: {label_dev < 1e-5}")
 assert pose_dev < 1e-4 and label_dev < 1e-5
+
+# %% [markdown]
+# In a state the policy drove, the label is what the driver would do **from the speed the
+# policy had there**. A model that reads its own motion (MANC and DMP-only: the DMP starts
+# every step from it) must be shown that speed, not the driver's previous label: a policy
+# too fast behind a leader gets the label "brake hard from 9 m/s", and shown the previous
+# label (say 5 m/s) as its motion it would learn "slow a little from 5". So `collect`
+# records the controls that were actually applied in each scene where they differ from
+# the labels (`tags["dagger"]["driven"]`), `inputs.motion_at` reads them
+# (`inputs.driven_controls`), and training starts a DMP model's every step in such a scene
+# from the applied speed instead of feeding back its own output. The human's own scenes
+# record nothing: there the labels are what was applied.
+
+# %%
+fixed = dagger.collect(rollout.FixedGainsPolicy(), teacher, [0], beta=0.0)
+applied = inputs.driven_controls(fixed.data)[0, :-1]
+motion = inputs.motion_at(fixed.data, np.zeros(T - 1, int), np.arange(1, T))
+print(f"driven scene recorded: {inputs.driven_rows(fixed.data).tolist()}; "
+      f"the driver's own: {inputs.driven_rows(own.data).tolist()}")
+print(f"the motion at t + 1 is the control applied at t: {np.array_equal(motion, applied)}; "
+      f"the labels differ from it: {not np.allclose(applied, fixed.data.controls[0, :-1])}")
+assert np.array_equal(motion, applied) and inputs.driven_rows(fixed.data).all()
 
 # %% [markdown]
 # ## 4. BC vs DAgger at the same budget: a small run

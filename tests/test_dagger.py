@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import copy
+import dataclasses
 import importlib.util
 import json
 import time
@@ -12,10 +14,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from minimanc import dagger, rollout, train, world
+from minimanc import dagger, inputs, rollout, train, world
 from minimanc.dagger.expert import HumanExpert
 from minimanc.errors import UsageError
 from minimanc.rollout.reactive import simulate_reactive
+from minimanc.world.datareader import load
+from minimanc.world.datawriter import save
 
 SIZE = 16
 TINY = dict(image_size=SIZE, channels=(4, 4, 4), hidden=8)
@@ -448,6 +452,7 @@ def test_perturbed_demonstrations_leave_the_log_and_are_labelled_there(teacher, 
     zero = dagger.collect(None, teacher, scenes, 1.0, seed=3,
                           perturb=dagger.Perturbation(0.0, 0.0, 1.0))
     assert np.abs(zero.data.ego - pool.ego[scenes]).max() < 1e-4  # σ = 0: the log
+    assert not inputs.driven_rows(zero.data).any()  # applied = labels: nothing to record
     p = dagger.Perturbation(1.5, 0.03, 2.0)
     col = dagger.collect(None, teacher, scenes, 1.0, seed=3, perturb=p)
     assert col.kept.tolist() == scenes.tolist() and col.expert_share == 1.0
@@ -460,6 +465,8 @@ def test_perturbed_demonstrations_leave_the_log_and_are_labelled_there(teacher, 
     sim = teacher.simulator(scenes)
     sim.reset()
     offset, prev = np.zeros((len(scenes), 2)), None
+    driven = inputs.driven_controls(col.data)
+    assert inputs.driven_rows(col.data).all()
     for t in range(pool.n_steps - 1):
         assert np.abs(np.asarray(sim.observe().pose) - col.data.ego[:, t]).max() < 1e-4
         label, why = teacher.label(sim, t, prev)
@@ -468,5 +475,55 @@ def test_perturbed_demonstrations_leave_the_log_and_are_labelled_there(teacher, 
         rng.random(len(scenes))
         offset = p.step(offset, rng)
         prev = p.apply(label, offset)
+        # the record holds what was applied, and the next state's motion is that control
+        np.testing.assert_allclose(driven[:, t], prev, rtol=1e-6, atol=1e-6)
+        motion = inputs.motion_at(col.data, np.arange(len(scenes)), np.full(len(scenes), t + 1))
+        np.testing.assert_allclose(motion, prev, rtol=1e-6, atol=1e-6)
         sim.step(prev)
     assert np.abs(np.asarray(sim.observe().pose) - col.data.ego[:, -1]).max() < 1e-4
+    np.testing.assert_array_equal(driven[:, -1], col.data.controls[:, -1])
+
+
+def test_a_policy_driven_scene_records_the_applied_controls_and_they_survive_a_file(
+        teacher, split, tmp_path):
+    pool, _ = split
+    policy = rollout.FixedGainsPolicy()
+    col = dagger.collect(policy, teacher, [2, 3], 0.0, seed=0)
+    ref = simulate_reactive(policy, pool, scenes=[2, 3], progress=False)
+    driven = inputs.driven_controls(col.data)
+    np.testing.assert_allclose(driven[:, :-1], ref.controls, rtol=1e-6, atol=1e-6)
+    assert np.abs(driven[:, :-1] - col.data.controls[:, :-1]).max() > 0.1  # not the labels
+    agg = dagger.concat([pool.subset([0, 1]), col.data])
+    assert inputs.driven_rows(agg).tolist() == [False, False, True, True]
+    np.testing.assert_array_equal(inputs.driven_controls(agg)[:2], pool.controls[[0, 1]])
+    save(agg, tmp_path / "agg.npz")
+    back = load(tmp_path / "agg.npz")
+    np.testing.assert_array_equal(inputs.driven_controls(back), inputs.driven_controls(agg))
+
+
+def test_a_driven_record_of_the_wrong_length_is_refused(teacher, split):
+    col = dagger.collect(rollout.FixedGainsPolicy(), teacher, [2], 0.0, seed=0)
+    tags = copy.deepcopy(col.data.meta["tags"])
+    tags[0]["dagger"][inputs.DRIVEN_TAG] = tags[0]["dagger"][inputs.DRIVEN_TAG][:-1]
+    edited = dataclasses.replace(col.data, meta={**col.data.meta, "tags": tags})
+    with pytest.raises(ValueError, match=r"scene 0: tags\['dagger'\]\['driven'\] must hold"):
+        inputs.driven_controls(edited)
+
+
+def test_a_dmp_model_is_trained_from_the_driven_speed_in_a_driven_scene(teacher, split):
+    """A batch of a DMP model marks the windows of driven scenes (``driven``), whose motion
+    is then the applied control at every step; a CNN's batch and a demonstrations-only
+    batch are as before."""
+    pool, _ = split
+    col = dagger.collect(rollout.FixedGainsPolicy(), teacher, [2, 3], 0.0, seed=0)
+    agg = dagger.concat([pool.subset([0, 1]), col.data])
+    cfg = cfg_of(pool)
+    T = pool.n_steps
+    s_idx = np.broadcast_to(np.arange(4), (T, 4))
+    t_idx = np.broadcast_to(np.arange(T)[:, None], (T, 4))
+    batch = train.make_batch("manc", agg, s_idx, t_idx, cfg, np.float64)
+    assert batch["driven"].tolist() == [False, False, True, True]
+    np.testing.assert_allclose(batch["motion"][1:, 2:], np.swapaxes(
+        inputs.driven_controls(agg)[2:, :-1], 0, 1), rtol=1e-6)
+    assert "driven" not in train.make_batch("cnn", agg, s_idx, t_idx, cfg, np.float64)
+    assert "driven" not in train.make_batch("manc", pool, s_idx, t_idx, cfg, np.float64)

@@ -139,6 +139,28 @@ def test_sequence_feeds_the_dmp_its_own_motion(name, eng_np):
     assert not np.allclose(plain[1:], seq[1:])  # the logged motion differs from the model's
 
 
+@pytest.mark.parametrize("name", models.dmp_models())
+def test_sequence_chooses_the_feedback_per_window(name, eng_np, eng_jax):
+    """``feedback_motion`` as a ``(B,)`` array: each window is the whole-batch run of its
+    own choice (fed back where True, the logged motion where False), on both engines."""
+    rng = np.random.default_rng(9)
+    params = models.init(name, rng, CFG)
+    obs = inputs.select(_obs(rng, CFG, lead=(3, B)), models.get(name))
+
+    def run(eng, fb):
+        state = models.initial_state(name, B, CFG, dtype=np.float64)
+        return np.asarray(models.sequence(name, params, obs, state, CFG, eng,
+                                          feedback_motion=fb)[0])
+
+    fed, logged = run(eng_np, True), run(eng_np, False)
+    rows = np.arange(B) % 2 == 0
+    for eng in (eng_np, eng_jax):
+        mixed = run(eng, rows)
+        np.testing.assert_allclose(mixed[:, rows], fed[:, rows], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(mixed[:, ~rows], logged[:, ~rows], rtol=1e-9, atol=1e-12)
+    assert np.abs(fed[1:, ~rows] - logged[1:, ~rows]).max() > 1e-6
+
+
 def test_step_under_jit(eng_jax):
     rng = np.random.default_rng(3)
     params = models.init("manc", rng, CFG, dtype=np.float32)
