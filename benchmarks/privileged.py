@@ -23,7 +23,8 @@ Three parts, each a section of the results file:
   seeds.
 
 The data is the paper preset's draw (data seed ``--data-seed``: ``--train`` training,
-40 tuning, ``--val`` validation scenes, in that order).
+40 tuning, ``--val`` validation scenes, in that order). ``--head dmp`` gives every learner
+MANC's DMP head (the MLP predicts its gain logits): MANC's head on the expert's perception.
 
 Run: ``python benchmarks/privileged.py --out results/privileged.md``
 """
@@ -94,6 +95,7 @@ def main() -> None:
     ap.add_argument("--per-round", type=int, default=65)
     ap.add_argument("--dagger-seeds", type=int, default=1)
     ap.add_argument("--parts", default="bc,ablation,dagger")
+    ap.add_argument("--head", choices=P.HEADS, default="acceleration")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     parts = args.parts.split(",")
@@ -105,6 +107,10 @@ def main() -> None:
     log(f"data: {n + extra} scenes", t0)
     X, Y = P.demonstrations(train)
     Xv, Yv = P.demonstrations(val)
+    dmp = args.head == "dmp"
+    head = dict(head=args.head, **dict(zip(("lane", "motion"), P.head_inputs(train)))) \
+        if dmp else {}
+    val_head = P.head_inputs(val) if dmp else (None, None)
     log(f"demonstrations: {len(X)} training, {len(Xv)} validation states", t0)
     teachers = {a: WorldTeacher(val, agents=a) for a in AGENTS}
     sections: dict[str, list[str]] = {}
@@ -115,8 +121,8 @@ def main() -> None:
             ex = P.evaluate_policy(P.ExpertPolicy(teachers[agents]), val, agents)
             runs, rmse = [], []
             for seed in range(args.seeds):
-                model = P.fit_privileged(X, Y, steps=args.steps, seed=seed)
-                rmse.append(np.sqrt(((P.predict(model, Xv) - Yv) ** 2).mean(0)))
+                model = P.fit_privileged(X, Y, steps=args.steps, seed=seed, **head)
+                rmse.append(np.sqrt(((P.predict(model, Xv, *val_head) - Yv) ** 2).mean(0)))
                 runs.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers[agents]), val,
                                           agents))
                 log(f"bc {agents} seed {seed}: {runs[-1]['at_fault_collision_rate']:.1f} % "
@@ -135,7 +141,7 @@ def main() -> None:
         for drop in ((),) + tuple((g,) for g in P.FEATURE_GROUPS if g != "speed"):
             runs = []
             for seed in range(args.ablation_seeds):
-                model = P.fit_privileged(X, Y, drop=drop, steps=args.steps, seed=seed)
+                model = P.fit_privileged(X, Y, drop=drop, steps=args.steps, seed=seed, **head)
                 runs.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"]), val,
                                           "reactive"))
             name = "all inputs" if not drop else f"without `{drop[0]}`"
@@ -150,7 +156,8 @@ def main() -> None:
         for name, without in INFORMATION.items():
             runs = {a: [] for a in AGENTS}
             for seed in range(args.ablation_seeds):
-                model = P.fit_privileged(X, Y, without=without, steps=args.steps, seed=seed)
+                model = P.fit_privileged(X, Y, without=without, steps=args.steps, seed=seed,
+                                         **head)
                 for a in AGENTS:
                     runs[a].append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers[a]), val,
                                                  a))
@@ -172,7 +179,7 @@ def main() -> None:
             runs = []
             for seed in range(args.ablation_seeds):
                 Xn = P.blur(X, noise, np.random.default_rng([seed, 1]))
-                model = P.fit_privileged(Xn, Y, steps=args.steps, seed=seed)
+                model = P.fit_privileged(Xn, Y, steps=args.steps, seed=seed, **head)
                 runs.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"],
                                                              noise=noise, seed=seed),
                                           val, "reactive"))
@@ -188,13 +195,16 @@ def main() -> None:
         per_seed, bc = [], []
         more = ds.subset(np.r_[np.arange(args.train), np.arange(n, n + extra)])
         Xm, Ym = P.demonstrations(more)
+        more_head = dict(head=args.head, **dict(zip(("lane", "motion"), P.head_inputs(more)))) \
+            if dmp else {}
         for seed in range(args.dagger_seeds):
             per_seed.append(P.dagger_rounds(train, val, args.rounds, args.per_round,
-                                            agents="reactive", steps=args.steps, seed=seed))
+                                            agents="reactive", steps=args.steps, seed=seed,
+                                            head=args.head))
             for i, r in enumerate(per_seed[-1]):
                 log(f"dagger seed {seed} round {i}: "
                     f"{r.metrics['at_fault_collision_rate']:.1f} % at fault", t0)
-            model = P.fit_privileged(Xm, Ym, steps=args.steps, seed=seed)
+            model = P.fit_privileged(Xm, Ym, steps=args.steps, seed=seed, **more_head)
             bc.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"]), val,
                                         "reactive"))
             log(f"bc at equal labels seed {seed}: "
@@ -214,7 +224,8 @@ def main() -> None:
         sections["DAgger"] = [f"agents `reactive`, {args.per_round} scenes per round, {seeds}",
                               "", *lines]
 
-    text = (f"# The privileged learner (data seed {args.data_seed}: {args.train} training, "
+    what = "The privileged learner" + (" through MANC's DMP head" if dmp else "")
+    text = (f"# {what} (data seed {args.data_seed}: {args.train} training, "
             f"{args.val} validation scenes; {args.steps} Adam steps)\n\n")
     for title, lines in sections.items():
         text += f"## {title}\n\n" + "\n".join(lines) + "\n\n"

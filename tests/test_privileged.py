@@ -105,6 +105,54 @@ def test_a_recording_policy_labels_what_it_visited(ds, demos):
     np.testing.assert_allclose(Yv[0], Y[0], atol=1e-3)
 
 
+def test_the_dmp_head_learns_the_controls_of_a_known_gain_map(ds, demos):
+    """MANC's head on the expert's perception: a learner with ``head="dmp"`` recovers the
+    controls that a fixed MLP → gains → DMP step produces in the logged states."""
+    X, Y = demos
+    lane, motion = P.head_inputs(ds)
+    assert lane.shape == (len(X), np.asarray(ds.lane_target).shape[2], 2)
+    # the motion is the speed the human had (the logged start's first control at t = 0)
+    T = np.asarray(ds.ego).shape[1]
+    v = X[:, P.FEATURES.index("v")].reshape(-1, T)
+    np.testing.assert_allclose(motion[:, 0].reshape(-1, T)[:, 1:], v[:, 1:], atol=1e-4)
+    teacher = P.fit_privileged(X, Y, steps=1, seed=1, head="dmp", lane=lane, motion=motion)
+    last = teacher.params["l2"]
+    last["w"] = last["w"] * 30.0  # far from the fixed gains, inside the gain box
+    target = P.predict(teacher, X, lane, motion)
+    learner = P.fit_privileged(X, target, steps=1500, seed=0, head="dmp", lane=lane,
+                               motion=motion)
+    err = np.sqrt(((P.predict(learner, X, lane, motion) - target) ** 2).mean(0)) / target.std(0)
+    assert np.all(err < 0.15), f"relative RMSE {err} (expected < 0.15 on a map the head holds)"
+
+
+def test_the_dmp_head_needs_what_it_reads_and_a_known_head(demos):
+    X, Y = demos
+    with pytest.raises(ValueError, match="head='dmp' needs lane"):
+        P.fit_privileged(X, Y, head="dmp")
+    with pytest.raises(ValueError, match=r"lane must have shape"):
+        P.fit_privileged(X, Y, head="dmp", lane=np.zeros((3, 10, 2)), motion=np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="head must be one of"):
+        P.fit_privileged(X, Y, head="gains")
+
+
+def test_a_dmp_head_policy_drives_and_records_what_its_head_read(ds, demos):
+    X, Y = demos
+    lane, motion = P.head_inputs(ds)
+    model = P.fit_privileged(X, Y, steps=50, seed=0, head="dmp", lane=lane, motion=motion)
+    policy = P.PrivilegedPolicy(model, WorldTeacher(ds, agents="reactive"), record=True)
+    assert policy.keys == ("lane_target", "motion")
+    traj = rollout.simulate(policy, ds, scenes=[0, 1], agents="reactive", progress=False)
+    Xv, Yv = policy.visited()
+    ln, mo = policy.visited_head_inputs()
+    assert len(ln) == len(mo) == len(Xv) and np.all(np.isfinite(ln))
+    # the motion it read is the control it applied one step before (rows: step, scene)
+    assert policy.refused == 0
+    np.testing.assert_allclose(mo.reshape(-1, 2, 2)[1:].swapaxes(0, 1), traj.controls[:, :-1],
+                               atol=1e-5)
+    # the first state of each scene is the logged start: its label is the human's
+    np.testing.assert_allclose(Yv[0], Y[0], atol=1e-3)
+
+
 def test_blur_adds_the_named_errors_and_nothing_else(demos):
     X, _ = demos
     rng = np.random.default_rng(0)

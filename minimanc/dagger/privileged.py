@@ -30,9 +30,14 @@ the expert.
 
 **Model.** An MLP (tanh hidden layers, :func:`minimanc.layers.dense`) on standardised
 features predicts the acceleration ``a = (v_{t+1} − v_t)/Δt`` and the yaw rate ``ω``;
-the control applied is ``[clip(v + a Δt, 0, V_MAX), ω]``. :func:`fit_privileged` trains it by
-Algorithm 1 (minibatches, mean squared error on both outputs each divided by its
-standard deviation over the demonstrations, Adam) with :mod:`minimanc.autodiff`.
+the control applied is ``[clip(v + a Δt, 0, V_MAX), ω]``. With ``head="dmp"`` the MLP
+predicts MANC's four gain logits instead, and the control is one step of MANC's DMP head
+(:func:`minimanc.models.dmp_head`, eqs. 10–11) from the ego's motion towards its lane
+target (:func:`head_inputs`), clipped the same way: MANC's head given the expert's
+perception, the bound of what MANC's perception and automaton can reach through it.
+:func:`fit_privileged` trains it by Algorithm 1 (minibatches, mean squared error on both
+outputs each divided by its standard deviation over the demonstrations, Adam) with
+:mod:`minimanc.autodiff`.
 ``drop`` removes feature groups (the ablation: a group dropped is not an input).
 
 **A perception that errs.** :func:`blur` adds independent Gaussian errors ``N(0, σ_f²)`` to
@@ -60,20 +65,22 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import layers, metrics, optim, rollout
+from minimanc import inputs, layers, metrics, optim, rollout
 from minimanc.autodiff import numpy as anp
 from minimanc.autodiff import value_and_grad
 from minimanc.checks import check_int
 from minimanc.dagger.expert import HumanExpert, Situation
 from minimanc.dagger.teachers import WorldTeacher
 from minimanc.metrics.trajectory import along_cross_track
+from minimanc.models import DEFAULT_GAINS, ModelConfig, dmp_head, gain_logits
 from minimanc.world.geometry import DT, wrap_angle
 from minimanc.world.traffic import B_MAX
 
 __all__ = [
-    "AHEAD", "FAR", "FEATURES", "FEATURE_GROUPS", "V_MAX", "ExpertPolicy", "Privileged",
-    "PrivilegedPolicy", "Round", "blur", "dagger_rounds", "demonstrations", "evaluate_policy",
-    "features", "fit_privileged", "kept", "perceived", "predict",
+    "AHEAD", "FAR", "FEATURES", "FEATURE_GROUPS", "HEADS", "V_MAX", "ExpertPolicy",
+    "Privileged", "PrivilegedPolicy", "Round", "blur", "dagger_rounds", "demonstrations",
+    "evaluate_policy", "features", "fit_privileged", "head_inputs", "kept", "perceived",
+    "predict",
 ]
 
 FAR: float = 60.0
@@ -94,6 +101,9 @@ FEATURE_GROUPS: dict[str, tuple[str, ...]] = {
 """The expert's perception, by group (what the ablation drops one at a time)."""
 FEATURES: tuple[str, ...] = tuple(f for g in FEATURE_GROUPS.values() for f in g)
 """Every feature, in the order of :func:`features`' vector."""
+HEADS: tuple[str, ...] = ("acceleration", "dmp")
+"""What the MLP predicts: the acceleration and yaw rate, or the gain logits of MANC's DMP
+head."""
 
 
 def features(sit: Situation, a_prev: float = 0.0) -> np.ndarray:
@@ -163,7 +173,7 @@ def demonstrations(ds: Any, scenes: Iterable[int] | None = None,
     """Features ``X (N, F)`` of every logged state of ``scenes`` (default: all) of ``ds`` and
     the human's logged controls there ``Y (N, 2)`` as ``[acceleration, yaw rate]``."""
     expert = HumanExpert(ds) if expert is None else expert
-    ctrl = np.asarray(ds.controls, dtype=np.float64)
+    ctrl = np.asarray(ds.controls, dtype=np.float64)  # a demonstration: what was applied
     pose = np.asarray(ds.ego, dtype=np.float64)
     X, Y = [], []
     for s in range(len(pose)) if scenes is None else scenes:
@@ -175,10 +185,24 @@ def demonstrations(ds: Any, scenes: Iterable[int] | None = None,
     return np.asarray(X), np.asarray(Y)
 
 
+def head_inputs(ds: Any, scenes: Iterable[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """What MANC's DMP head reads in every logged state of ``scenes`` (default: all) of
+    ``ds``, in the order of :func:`demonstrations`: the lane targets ``(N, K, 2)`` and the
+    motion ``(N, 2)`` (:func:`minimanc.inputs.motion_at`), float64."""
+    lt = np.asarray(ds.lane_target)
+    idx = np.arange(len(lt)) if scenes is None else np.asarray(list(scenes), dtype=np.int64)
+    T = lt.shape[1]
+    s, t = np.repeat(idx, T), np.tile(np.arange(T), len(idx))
+    return (lt[s, t].astype(np.float64),
+            inputs.motion_at(ds, s, t).astype(np.float64))
+
+
 @dataclass
 class Privileged:
     """A trained privileged learner: MLP ``params``, the features it reads (``keep``,
-    indices into :data:`FEATURES`), their standardisation and the outputs' scales."""
+    indices into :data:`FEATURES`), their standardisation, the outputs' scales, its
+    ``head`` (:data:`HEADS`) and, for the DMP head, the :class:`~minimanc.models.ModelConfig`
+    whose look-ahead rules and ``dt`` it steps with."""
 
     params: dict
     keep: np.ndarray
@@ -186,6 +210,8 @@ class Privileged:
     std: np.ndarray
     scale: np.ndarray
     losses: list[float] = field(default_factory=list)
+    head: str = "acceleration"
+    cfg: ModelConfig | None = None
 
 
 def kept(drop: Sequence[str] = (), without: Sequence[str] = ()) -> np.ndarray:
@@ -216,11 +242,15 @@ def _forward(params: dict, x: Any, xp: Any) -> Any:
 def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
                    hidden: Sequence[int] = (64, 64), steps: int = 3000, batch: int = 256,
                    lr: float = 3e-3, seed: int = 0, init: Privileged | None = None,
-                   without: Sequence[str] = ()) -> Privileged:
+                   without: Sequence[str] = (), head: str = "acceleration",
+                   lane: np.ndarray | None = None, motion: np.ndarray | None = None
+                   ) -> Privileged:
     """Train the MLP by behaviour cloning on ``X (N, F)``, ``Y (N, 2)`` (see the module
     docstring) on the features :func:`kept` leaves (``drop``: groups, ``without``: single
-    features); ``init`` continues from a trained learner (its inputs and standardisation
-    kept)."""
+    features); ``init`` continues from a trained learner (its inputs, standardisation and
+    head kept). ``head="dmp"`` needs the :func:`head_inputs` ``lane (N, K, 2)`` and
+    ``motion (N, 2)`` of the same states; its loss is the same (the speed error over
+    ``Δt`` against the acceleration's scale, the yaw-rate error against its own)."""
     X = np.asarray(X, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64)
     if X.ndim != 2 or X.shape[1] != len(FEATURES) or Y.shape != (len(X), 2) or len(X) == 0:
@@ -230,23 +260,43 @@ def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
         raise ValueError("X and Y must be finite")
     steps = check_int("steps", steps, 1)
     batch = check_int("batch", batch, 1)
+    head = init.head if init is not None else head
+    if head not in HEADS:
+        raise ValueError(f"head must be one of {HEADS}, got head={head!r}")
+    if head == "dmp":
+        lane, motion = _check_head_inputs(lane, motion, len(X))
     rng = np.random.default_rng(seed)
     if init is None:
         keep = kept(drop, without)
         mean, std = X[:, keep].mean(0), X[:, keep].std(0) + 1e-6
         scale = Y.std(0) + 1e-6
-        sizes = [len(keep), *hidden, 2]
+        n_out = 4 if head == "dmp" else 2
+        sizes = [len(keep), *hidden, n_out]
         params = {f"l{i}": layers.init_dense(rng, a, b)
                   for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:]))}
-        params[f"l{len(sizes) - 2}"]["w"] = params[f"l{len(sizes) - 2}"]["w"] * 0.1
+        last = params[f"l{len(sizes) - 2}"]
+        last["w"] = last["w"] * 0.1
+        if head == "dmp":  # start at MANC's fixed gains, as its gains layer does
+            last["b"] = np.asarray(gain_logits(DEFAULT_GAINS), dtype=np.float64)
+        cfg = ModelConfig(k_targets=int(lane.shape[1])) if head == "dmp" else None
     else:
         keep, mean, std, scale, params = init.keep, init.mean, init.std, init.scale, init.params
+        cfg = init.cfg
     Z = (X[:, keep] - mean) / std
-    T = Y / scale
+    if head == "dmp":
+        v = X[:, FEATURES.index("v")]
+        T = np.stack([v + Y[:, 0] * DT, Y[:, 1]], axis=1) / (scale * np.array([DT, 1.0]))
 
-    def loss(p: dict, x: Any, y: Any) -> Any:
-        d = _forward(p, x, anp) - y
-        return anp.mean(d * d)
+        def loss(p: dict, x: Any, y: Any, lt: Any, mo: Any) -> Any:
+            u, _ = dmp_head(_forward(p, x, anp), lt, mo, cfg, xp=anp)
+            d = u / (scale * np.array([DT, 1.0])) - y
+            return anp.mean(d * d)
+    else:
+        T = Y / scale
+
+        def loss(p: dict, x: Any, y: Any, lt: Any, mo: Any) -> Any:
+            d = _forward(p, x, anp) - y
+            return anp.mean(d * d)
 
     step_fn = value_and_grad(loss)
     state = optim.adam_init(params)
@@ -254,16 +304,39 @@ def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
     for k in range(steps):
         i = rng.integers(0, len(Z), size=min(batch, len(Z)))
         lr_k = lr * 0.5 * (1.0 + math.cos(math.pi * k / steps))  # cosine decay
-        value, g = step_fn(params, Z[i], T[i])
+        value, g = step_fn(params, Z[i], T[i], None if lane is None else lane[i],
+                           None if motion is None else motion[i])
         params, state = optim.adam_update(g, state, params, lr=lr_k)
         losses.append(float(value))
-    return Privileged(params, keep, mean, std, scale, losses)
+    return Privileged(params, keep, mean, std, scale, losses, head, cfg)
 
 
-def predict(model: Privileged, X: np.ndarray) -> np.ndarray:
-    """The learner's ``[acceleration, yaw rate]`` ``(N, 2)`` for features ``X (N, F)``."""
-    Z = (np.asarray(X, dtype=np.float64)[:, model.keep] - model.mean) / model.std
-    return _forward(model.params, Z, np) * model.scale
+def _check_head_inputs(lane: Any, motion: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
+    if lane is None or motion is None:
+        raise ValueError("head='dmp' needs lane (N, K, 2) and motion (N, 2): see head_inputs")
+    lane = np.asarray(lane, dtype=np.float64)
+    motion = np.asarray(motion, dtype=np.float64)
+    if lane.ndim != 3 or lane.shape[0] != n or lane.shape[2] != 2 or motion.shape != (n, 2):
+        raise ValueError(f"lane must have shape ({n}, K, 2) and motion ({n}, 2); got "
+                         f"{lane.shape} and {motion.shape}")
+    if not (np.all(np.isfinite(lane)) and np.all(np.isfinite(motion))):
+        raise ValueError("lane and motion must be finite")
+    return lane, motion
+
+
+def predict(model: Privileged, X: np.ndarray, lane: np.ndarray | None = None,
+            motion: np.ndarray | None = None) -> np.ndarray:
+    """The learner's ``[acceleration, yaw rate]`` ``(N, 2)`` for features ``X (N, F)``; the DMP
+    head (which needs ``lane`` and ``motion``) gives its speed command's change from the
+    speed feature ``v`` over ``Δt``."""
+    X = np.asarray(X, dtype=np.float64)
+    Z = (X[:, model.keep] - model.mean) / model.std
+    out = _forward(model.params, Z, np)
+    if model.head != "dmp":
+        return out * model.scale
+    lane, motion = _check_head_inputs(lane, motion, len(Z))
+    u, _ = dmp_head(out, lane, motion, model.cfg, xp=np)
+    return np.stack([(u[:, 0] - X[:, FEATURES.index("v")]) / DT, u[:, 1]], axis=1)
 
 
 class _Reader:
@@ -335,8 +408,12 @@ class PrivilegedPolicy(_Reader):
         self.net, self.record = model, record
         self.noise = dict(noise or {})
         self.rng = np.random.default_rng(seed)
+        if model.head == "dmp":
+            self.keys = ("lane_target", "motion")
         self.X: list[np.ndarray] = []
         self.Y: list[list[float]] = []
+        self.lanes: list[np.ndarray] = []
+        self.motions: list[np.ndarray] = []
 
     def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
                  ) -> tuple[np.ndarray, Any, dict]:
@@ -345,13 +422,19 @@ class PrivilegedPolicy(_Reader):
                       for s, a in zip(sits, self.a_prev)])
         if self.noise:
             F = blur(F, self.noise, self.rng)
-        return self.act(F, sits), state, {}
+        return self.act(F, sits, obs), state, {}
 
-    def act(self, F: np.ndarray, sits: list[Situation | None]) -> np.ndarray:
+    def act(self, F: np.ndarray, sits: list[Situation | None], obs: dict | None = None
+            ) -> np.ndarray:
         """The controls ``[clip(v + a Δt, 0, V_MAX), ω]`` of the learner on features ``F``
-        (``v`` their speed) in the states ``sits``; with ``record`` it keeps ``F`` and the
+        (``v`` their speed; the DMP head reads ``obs``' lane target and motion) in the
+        states ``sits``; with ``record`` it keeps ``F`` (and what the DMP head read) and the
         expert's label in each state it can be asked in."""
-        a = predict(self.net, F)
+        lane = motion = None
+        if self.net.head == "dmp":
+            lane = np.asarray(obs["lane_target"], dtype=np.float64)
+            motion = np.asarray(obs["motion"], dtype=np.float64)
+        a = predict(self.net, F, lane, motion)
         v = F[:, FEATURES.index("v")]
         u = np.stack([np.clip(v + a[:, 0] * DT, 0.0, V_MAX), a[:, 1]], axis=1)
         if self.record:
@@ -360,10 +443,19 @@ class PrivilegedPolicy(_Reader):
                     lab = self.teacher.expert.controls(sit)
                     self.X.append(F[b])
                     self.Y.append([(lab[0] - v[b]) / DT, lab[1]])
+                    if lane is not None:
+                        self.lanes.append(lane[b])
+                        self.motions.append(motion[b])
         return self.finish(u, sits)
 
     def visited(self) -> tuple[np.ndarray, np.ndarray]:
         return np.asarray(self.X).reshape(-1, len(FEATURES)), np.asarray(self.Y).reshape(-1, 2)
+
+    def visited_head_inputs(self) -> tuple[np.ndarray, np.ndarray]:
+        """What the DMP head read in the states :meth:`visited` returns (``head="dmp"``)."""
+        K = self.net.cfg.k_targets if self.net.cfg is not None else 0
+        return (np.asarray(self.lanes).reshape(-1, K, 2),
+                np.asarray(self.motions).reshape(-1, 2))
 
 
 def evaluate_policy(policy: _Reader, ds: Any, agents: str, progress: bool = False
@@ -394,18 +486,20 @@ class Round:
 
 def dagger_rounds(train: Any, val: Any, rounds: int, per_round: int, agents: str = "reactive",
                   seed: int = 0, drop: Sequence[str] = (), steps: int = 3000,
-                  progress: bool = False) -> list[Round]:
-    """DAgger for the privileged learner: round 0 trains on the demonstrations of ``train``;
-    each further round drives ``per_round`` training scenes (in a seeded order, cycling)
-    with the current learner under ``agents``, labels every state it reached with the
-    expert, aggregates and retrains from the previous weights. Every round is evaluated
-    closed loop on ``val`` under ``agents``."""
+                  progress: bool = False, head: str = "acceleration") -> list[Round]:
+    """DAgger for the privileged learner (with ``head``, :data:`HEADS`): round 0 trains on
+    the demonstrations of ``train``; each further round drives ``per_round`` training scenes
+    (in a seeded order, cycling) with the current learner under ``agents``, labels every
+    state it reached with the expert, aggregates and retrains from the previous weights.
+    Every round is evaluated closed loop on ``val`` under ``agents``."""
     rounds = check_int("rounds", rounds, 0)
     per_round = check_int("per_round", per_round, 1)
     teacher = WorldTeacher(train, agents=agents)
     vteacher = WorldTeacher(val, agents=agents)
     X, Y = demonstrations(train, expert=teacher.expert)
-    model = fit_privileged(X, Y, drop=drop, steps=steps, seed=seed)
+    lane, motion = head_inputs(train) if head == "dmp" else (None, None)
+    model = fit_privileged(X, Y, drop=drop, steps=steps, seed=seed, head=head, lane=lane,
+                           motion=motion)
     out = [Round(len(X), evaluate_policy(PrivilegedPolicy(model, vteacher), val, agents))]
     order = np.random.default_rng(seed).permutation(len(np.asarray(train.ego)))
     for r in range(rounds):
@@ -415,6 +509,10 @@ def dagger_rounds(train: Any, val: Any, rounds: int, per_round: int, agents: str
                          desc=f"DAgger round {r + 1}")
         Xn, Yn = policy.visited()
         X, Y = np.concatenate([X, Xn]), np.concatenate([Y, Yn])
-        model = fit_privileged(X, Y, steps=steps, seed=seed + r + 1, init=model)
+        if head == "dmp":
+            ln, mn = policy.visited_head_inputs()
+            lane, motion = np.concatenate([lane, ln]), np.concatenate([motion, mn])
+        model = fit_privileged(X, Y, steps=steps, seed=seed + r + 1, init=model, lane=lane,
+                               motion=motion)
         out.append(Round(len(X), evaluate_policy(PrivilegedPolicy(model, vteacher), val, agents)))
     return out
