@@ -74,7 +74,7 @@ and :func:`visible` reads it (this module sits below the models and imports none
 from __future__ import annotations
 
 import weakref
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -212,6 +212,20 @@ def initial_motion(ds: Any) -> np.ndarray:
 
 DRIVEN_TAG = "driven"
 _DRIVEN_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_GOAL_BEV_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _per_dataset(cache: weakref.WeakKeyDictionary, ds: Any,
+                 build: Callable[[Any], np.ndarray]) -> np.ndarray:
+    """``build(ds)``, kept in ``cache`` while ``ds`` lives (built each time for a dataset
+    that cannot be weakly referenced)."""
+    try:
+        cached = cache.get(ds)
+    except TypeError:  # not weak-referenceable
+        return build(ds)
+    if cached is None:
+        cached = cache[ds] = build(ds)
+    return cached
 
 
 def driven_rows(ds: Any) -> np.ndarray:
@@ -228,12 +242,10 @@ def driven_controls(ds: Any) -> np.ndarray:
     replaced by the ``T − 1`` controls its tags record (its last step, which applies nothing,
     keeps the label). Cached per dataset; ``ValueError`` for a record of the wrong shape or
     a non-finite value (an edited file)."""
-    try:
-        cached = _DRIVEN_CACHE.get(ds)
-    except TypeError:  # not weak-referenceable
-        cached = None
-    if cached is not None:
-        return cached
+    return _per_dataset(_DRIVEN_CACHE, ds, _driven_controls)
+
+
+def _driven_controls(ds: Any) -> np.ndarray:
     c = np.asarray(ds.controls)
     rows = np.nonzero(driven_rows(ds))[0]
     if rows.size:
@@ -245,10 +257,6 @@ def driven_controls(ds: Any) -> np.ndarray:
                 raise ValueError(f"scene {int(s)}: tags['dagger']['{DRIVEN_TAG}'] must hold "
                                  f"{T - 1} finite [speed, yaw rate] pairs, got shape {d.shape}")
             c[s, :-1] = d
-    try:
-        _DRIVEN_CACHE[ds] = c
-    except TypeError:
-        pass
     return c
 
 
@@ -264,17 +272,12 @@ def motion_at(ds: Any, scene_idx: Any, t_idx: Any) -> np.ndarray:
     return np.where((t == 0)[..., None], first, prev).astype(np.float32)
 
 
-_GOAL_BEV_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 def _dataset_goal_bevs(ds: Any) -> np.ndarray:
     """Goal rasters ``(S, H, W, 3)`` uint8 of a dataset, rendered once and cached."""
-    try:
-        cached = _GOAL_BEV_CACHE.get(ds)
-    except TypeError:  # not weak-referenceable
-        cached = None
-    if cached is not None:
-        return cached
+    return _per_dataset(_GOAL_BEV_CACHE, ds, _render_goal_bevs)
+
+
+def _render_goal_bevs(ds: Any) -> np.ndarray:
     given = getattr(ds, "goal_bev", None)
     if given is not None:  # a dataset may carry its goal rasters
         return np.asarray(given)
@@ -282,12 +285,7 @@ def _dataset_goal_bevs(ds: Any) -> np.ndarray:
     H, W = np.asarray(ds.bev).shape[2:4]
     cfg = _raster_config(ds, H)
     goal_world = _goal_world(ds)
-    out = np.stack([rasterize_goal(ds.maps[s], goal_world[s], cfg) for s in range(S)])
-    try:
-        _GOAL_BEV_CACHE[ds] = out
-    except TypeError:
-        pass
-    return out
+    return np.stack([rasterize_goal(ds.maps[s], goal_world[s], cfg) for s in range(S)])
 
 
 def _raster_config(ds: Any, size: int) -> Any:
