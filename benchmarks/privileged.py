@@ -24,7 +24,10 @@ Three parts, each a section of the results file:
 
 The data is the paper preset's draw (data seed ``--data-seed``: ``--train`` training,
 40 tuning, ``--val`` validation scenes, in that order). ``--head dmp`` gives every learner
-MANC's DMP head (the MLP predicts its gain logits): MANC's head on the expert's perception.
+MANC's DMP head (the MLP predicts its gain logits): MANC's head on the expert's perception;
+``--head vagn`` gives it MANC's automaton as well (the MLP predicts MANC's predicates, then
+vAGN, ``FC(q)`` and the DMP head), the parts ``bc``, ``ablation``, ``information`` and
+``noise`` only.
 
 Run: ``python benchmarks/privileged.py --out results/privileged.md``
 """
@@ -107,28 +110,32 @@ def main() -> None:
     log(f"data: {n + extra} scenes", t0)
     X, Y = P.demonstrations(train)
     Xv, Yv = P.demonstrations(val)
-    dmp = args.head == "dmp"
-    head = dict(head=args.head, **dict(zip(("lane", "motion"), P.head_inputs(train)))) \
-        if dmp else {}
+    dmp = args.head != "acceleration"
+    T = train.n_steps
+    head = dict(head=args.head, scene_steps=T,
+                **dict(zip(("lane", "motion"), P.head_inputs(train)))) if dmp else {}
     val_head = P.head_inputs(val) if dmp else (None, None)
     log(f"demonstrations: {len(X)} training, {len(Xv)} validation states", t0)
     teachers = {a: WorldTeacher(val, agents=a) for a in AGENTS}
     sections: dict[str, list[str]] = {}
 
     if "bc" in parts:
-        lines = []
+        lines, rmse = [], []
+        runs: dict[str, list[dict]] = {a: [] for a in AGENTS}
+        for seed in range(args.seeds):  # one learner per seed, driven under both protocols
+            model = P.fit_privileged(X, Y, steps=args.steps, seed=seed, **head)
+            pred = P.predict_scenes(model, Xv, *val_head, scene_steps=T)
+            rmse.append(np.sqrt(((pred - Yv) ** 2).mean(0)))
+            for agents in AGENTS:
+                runs[agents].append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers[agents]),
+                                                      val, agents))
+                log(f"bc {agents} seed {seed}: "
+                    f"{runs[agents][-1]['at_fault_collision_rate']:.1f} % at fault, "
+                    f"ADE {runs[agents][-1]['ade']:.2f}", t0)
         for agents in AGENTS:
             ex = P.evaluate_policy(P.ExpertPolicy(teachers[agents]), val, agents)
-            runs, rmse = [], []
-            for seed in range(args.seeds):
-                model = P.fit_privileged(X, Y, steps=args.steps, seed=seed, **head)
-                rmse.append(np.sqrt(((P.predict(model, Xv, *val_head) - Yv) ** 2).mean(0)))
-                runs.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers[agents]), val,
-                                          agents))
-                log(f"bc {agents} seed {seed}: {runs[-1]['at_fault_collision_rate']:.1f} % "
-                    f"at fault, ADE {runs[-1]['ade']:.2f}", t0)
             lines += [f"agents `{agents}`", "", *table([row("Expert", [ex]),
-                                                        row("Privileged BC", runs)]), ""]
+                                                        row("Privileged BC", runs[agents])]), ""]
         r = np.array(rmse)
         lines += [f"Open-loop RMSE on the validation states (human's logged controls), "
                   f"{args.seeds} seeds: acceleration {r[:, 0].mean():.3f} m/s² (their std "
@@ -195,8 +202,8 @@ def main() -> None:
         per_seed, bc = [], []
         more = ds.subset(np.r_[np.arange(args.train), np.arange(n, n + extra)])
         Xm, Ym = P.demonstrations(more)
-        more_head = dict(head=args.head, **dict(zip(("lane", "motion"), P.head_inputs(more)))) \
-            if dmp else {}
+        more_head = dict(head=args.head, scene_steps=T,
+                         **dict(zip(("lane", "motion"), P.head_inputs(more)))) if dmp else {}
         for seed in range(args.dagger_seeds):
             per_seed.append(P.dagger_rounds(train, val, args.rounds, args.per_round,
                                             agents="reactive", steps=args.steps, seed=seed,
@@ -224,7 +231,8 @@ def main() -> None:
         sections["DAgger"] = [f"agents `reactive`, {args.per_round} scenes per round, {seeds}",
                               "", *lines]
 
-    what = "The privileged learner" + (" through MANC's DMP head" if dmp else "")
+    what = "The privileged learner" + {"acceleration": "", "dmp": " through MANC's DMP head",
+                                       "vagn": " through MANC's vAGN and DMP head"}[args.head]
     text = (f"# {what} (data seed {args.data_seed}: {args.train} training, "
             f"{args.val} validation scenes; {args.steps} Adam steps)\n\n")
     for title, lines in sections.items():

@@ -8,9 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from minimanc import metrics, rollout, world
+from minimanc import layers, metrics, rollout, vagn, world
 from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS, WorldTeacher
+from minimanc.models import dmp_head
 from minimanc.studies.bounds import expert_rollout, floor_rollout, median_style
 from minimanc.world.geometry import DT
 
@@ -127,7 +128,7 @@ def test_the_dmp_head_learns_the_controls_of_a_known_gain_map(ds, demos):
 
 def test_the_dmp_head_needs_what_it_reads_and_a_known_head(demos):
     X, Y = demos
-    with pytest.raises(ValueError, match="head='dmp' needs lane"):
+    with pytest.raises(ValueError, match="head='dmp' or 'vagn' needs lane"):
         P.fit_privileged(X, Y, head="dmp")
     with pytest.raises(ValueError, match=r"lane must have shape"):
         P.fit_privileged(X, Y, head="dmp", lane=np.zeros((3, 10, 2)), motion=np.zeros((3, 2)))
@@ -151,6 +152,50 @@ def test_a_dmp_head_policy_drives_and_records_what_its_head_read(ds, demos):
                                atol=1e-5)
     # the first state of each scene is the logged start: its label is the human's
     np.testing.assert_allclose(Yv[0], Y[0], atol=1e-3)
+
+
+def test_the_vagn_head_is_manc_on_the_expert_s_perception(ds, demos):
+    """``head="vagn"``: predicates σ(MLP(features)) → vAGN → FC(q) → DMP step; trained on
+    whole scenes, it lowers its loss, carries q along a scene, and drives closed loop."""
+    X, Y = demos
+    lane, motion = P.head_inputs(ds)
+    T = np.asarray(ds.ego).shape[1]
+    model = P.fit_privileged(X, Y, steps=120, seed=0, head="vagn", lane=lane, motion=motion,
+                             scene_steps=T)
+    assert np.mean(model.losses[-10:]) < 0.5 * np.mean(model.losses[:3])
+    Z = (X[:4][:, model.keep] - model.mean) / model.std
+    N = model.cfg.n_states
+    q0 = np.full((4, N), 1.0 / N)
+    pr = model.params
+    h = np.tanh(layers.dense(pr["l1"], np.tanh(layers.dense(pr["l0"], Z))))
+    pred = 1.0 / (1.0 + np.exp(-layers.dense(pr["l2"], h)))
+    q1 = vagn.step(q0, pred, pr["vagn"]["W"])
+    want, _ = dmp_head(layers.dense(pr["gains"], q1), lane[:4], motion[:4], model.cfg)
+    got, q = P.advance(model, Z, lane[:4], motion[:4], q0)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(q, q1, rtol=1e-9, atol=1e-12)
+    # along a scene q is carried: predict_scenes is predict step by step from uniform
+    a = P.predict_scenes(model, X[:2 * T], lane[:2 * T], motion[:2 * T], scene_steps=T)
+    qs = None
+    for t in range(T):
+        rows = [t, T + t]
+        at, qs = P.predict(model, X[rows], lane[rows], motion[rows], qs)
+        np.testing.assert_allclose(a[rows], at, rtol=1e-9, atol=1e-12)
+    policy = P.PrivilegedPolicy(model, WorldTeacher(ds, agents="reactive"))
+    np.testing.assert_allclose(policy.initial_state(np.array([0, 1])).sum(1), 1.0)
+    m = P.evaluate_policy(policy, ds, "reactive")
+    assert np.isfinite(m["ade"])
+
+
+def test_the_vagn_head_refuses_what_it_cannot_train_on(ds, demos):
+    X, Y = demos
+    lane, motion = P.head_inputs(ds)
+    with pytest.raises(ValueError, match="needs scene_steps"):
+        P.fit_privileged(X, Y, head="vagn", lane=lane, motion=motion)
+    with pytest.raises(ValueError, match="needs scene_steps"):
+        P.fit_privileged(X, Y, head="vagn", lane=lane, motion=motion, scene_steps=7)
+    with pytest.raises(ValueError, match="DAgger of the privileged learner"):
+        P.dagger_rounds(ds, ds, 1, 1, head="vagn")
 
 
 def test_blur_adds_the_named_errors_and_nothing_else(demos):

@@ -320,7 +320,8 @@ class OraclePerceivingPolicy(P.PrivilegedPolicy):
         X = with_last_acceleration(
             self.perception.read(obs["bev"], obs.get("lane_target"))[:, None],
             self.perception.names)
-        return self.act(with_exact(X, F, self.exact), sits), state, {}
+        u, state = self.act(with_exact(X, F, self.exact), sits, state=state)
+        return u, state, {}
 
 
 def dagger_driver(perception: Perception, train_ds: Any, val_ds: Any, rounds: int,

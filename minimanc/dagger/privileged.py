@@ -35,6 +35,11 @@ predicts MANC's four gain logits instead, and the control is one step of MANC's 
 (:func:`minimanc.models.dmp_head`, eqs. 10–11) from the ego's motion towards its lane
 target (:func:`head_inputs`), clipped the same way: MANC's head given the expert's
 perception, the bound of what MANC's perception and automaton can reach through it.
+With ``head="vagn"`` the MLP's outputs are MANC's predicates (sigmoid, eq. 7 on the
+expert's perception instead of the image), and the rest is MANC: vAGN (eqs. 8–9) carries
+``q`` from step to step, ``FC(q)`` gives the gain logits (eq. 11) and the DMP head the
+control; trained on whole scenes from the uniform ``q``. It separates what the automaton
+and its linear read-out cost from what the visual perception costs.
 :func:`fit_privileged` trains it by Algorithm 1 (minibatches, mean squared error on both
 outputs each divided by its standard deviation over the demonstrations, Adam) with
 :mod:`minimanc.autodiff`.
@@ -65,7 +70,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import inputs, layers, metrics, optim, rollout
+from minimanc import inputs, layers, metrics, optim, rollout, vagn
 from minimanc.autodiff import numpy as anp
 from minimanc.autodiff import value_and_grad
 from minimanc.checks import check_int
@@ -79,8 +84,8 @@ from minimanc.world.traffic import B_MAX
 __all__ = [
     "AHEAD", "FAR", "FEATURES", "FEATURE_GROUPS", "HEADS", "V_MAX", "ExpertPolicy",
     "Privileged", "PrivilegedPolicy", "Round", "blur", "dagger_rounds", "demonstrations",
-    "evaluate_policy", "features", "fit_privileged", "head_inputs", "kept", "perceived",
-    "predict",
+    "advance", "evaluate_policy", "features", "fit_privileged", "head_inputs", "kept",
+    "perceived", "predict", "predict_scenes",
 ]
 
 FAR: float = 60.0
@@ -101,9 +106,9 @@ FEATURE_GROUPS: dict[str, tuple[str, ...]] = {
 """The expert's perception, by group (what the ablation drops one at a time)."""
 FEATURES: tuple[str, ...] = tuple(f for g in FEATURE_GROUPS.values() for f in g)
 """Every feature, in the order of :func:`features`' vector."""
-HEADS: tuple[str, ...] = ("acceleration", "dmp")
-"""What the MLP predicts: the acceleration and yaw rate, or the gain logits of MANC's DMP
-head."""
+HEADS: tuple[str, ...] = ("acceleration", "dmp", "vagn")
+"""What the MLP predicts: the acceleration and yaw rate, the gain logits of MANC's DMP head,
+or MANC's predicates (vAGN, ``FC(q)`` and the DMP head follow)."""
 
 
 def features(sit: Situation, a_prev: float = 0.0) -> np.ndarray:
@@ -243,14 +248,17 @@ def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
                    hidden: Sequence[int] = (64, 64), steps: int = 3000, batch: int = 256,
                    lr: float = 3e-3, seed: int = 0, init: Privileged | None = None,
                    without: Sequence[str] = (), head: str = "acceleration",
-                   lane: np.ndarray | None = None, motion: np.ndarray | None = None
-                   ) -> Privileged:
+                   lane: np.ndarray | None = None, motion: np.ndarray | None = None,
+                   scene_steps: int | None = None) -> Privileged:
     """Train the MLP by behaviour cloning on ``X (N, F)``, ``Y (N, 2)`` (see the module
     docstring) on the features :func:`kept` leaves (``drop``: groups, ``without``: single
     features); ``init`` continues from a trained learner (its inputs, standardisation and
     head kept). ``head="dmp"`` needs the :func:`head_inputs` ``lane (N, K, 2)`` and
     ``motion (N, 2)`` of the same states; its loss is the same (the speed error over
-    ``Δt`` against the acceleration's scale, the yaw-rate error against its own)."""
+    ``Δt`` against the acceleration's scale, the yaw-rate error against its own).
+    ``head="vagn"`` needs them too, and ``scene_steps``: its rows are whole scenes in order
+    (as :func:`demonstrations` returns them), each a minibatch window; it does not continue
+    from ``init``."""
     X = np.asarray(X, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64)
     if X.ndim != 2 or X.shape[1] != len(FEATURES) or Y.shape != (len(X), 2) or len(X) == 0:
@@ -263,14 +271,17 @@ def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
     head = init.head if init is not None else head
     if head not in HEADS:
         raise ValueError(f"head must be one of {HEADS}, got head={head!r}")
-    if head == "dmp":
+    if head != "acceleration":
         lane, motion = _check_head_inputs(lane, motion, len(X))
+    if head == "vagn" and init is not None:
+        raise ValueError("head='vagn' trains from scratch: init must be None")
     rng = np.random.default_rng(seed)
     if init is None:
         keep = kept(drop, without)
         mean, std = X[:, keep].mean(0), X[:, keep].std(0) + 1e-6
         scale = Y.std(0) + 1e-6
-        n_out = 4 if head == "dmp" else 2
+        cfg = None if head == "acceleration" else ModelConfig(k_targets=int(lane.shape[1]))
+        n_out = {"acceleration": 2, "dmp": 4, "vagn": cfg and cfg.n_predicates}[head]
         sizes = [len(keep), *hidden, n_out]
         params = {f"l{i}": layers.init_dense(rng, a, b)
                   for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:]))}
@@ -278,11 +289,16 @@ def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
         last["w"] = last["w"] * 0.1
         if head == "dmp":  # start at MANC's fixed gains, as its gains layer does
             last["b"] = np.asarray(gain_logits(DEFAULT_GAINS), dtype=np.float64)
-        cfg = ModelConfig(k_targets=int(lane.shape[1])) if head == "dmp" else None
+        if head == "vagn":
+            params.update(_automaton(rng, cfg))
     else:
         keep, mean, std, scale, params = init.keep, init.mean, init.std, init.scale, init.params
         cfg = init.cfg
     Z = (X[:, keep] - mean) / std
+    if head == "vagn":
+        return _fit_scenes(Privileged(params, keep, mean, std, scale, [], head, cfg), Z, X,
+                           Y, lane, motion, _check_scene_steps(scene_steps, len(X)), steps,
+                           batch, lr, rng)
     if head == "dmp":
         v = X[:, FEATURES.index("v")]
         T = np.stack([v + Y[:, 0] * DT, Y[:, 1]], axis=1) / (scale * np.array([DT, 1.0]))
@@ -311,9 +327,78 @@ def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
     return Privileged(params, keep, mean, std, scale, losses, head, cfg)
 
 
+def _automaton(rng: np.random.Generator, cfg: ModelConfig) -> dict:
+    """MANC's vAGN weights and gains layer (eqs. 8–9, 11), initialised as MANC's are."""
+    M, N = cfg.n_predicates, cfg.n_states
+    gains = layers.init_dense(rng, N, 4)
+    gains["w"] = cfg.gains_scale * np.asarray(gains["w"])
+    gains["b"] = np.asarray(gain_logits(DEFAULT_GAINS), dtype=np.float64)
+    return {"vagn": {"W": vagn.init_vagn(rng, M, N, scale=cfg.vagn_scale)}, "gains": gains}
+
+
+def _mlp(params: dict) -> dict:
+    return {k: v for k, v in params.items() if k.startswith("l")}
+
+
+def advance(model: Privileged, Z: Any, lane: Any, motion: Any, q: Any, xp: Any = np
+            ) -> tuple[Any, Any]:
+    """One step of the ``head="vagn"`` learner on standardised features ``Z (B, F')``: the
+    controls ``[speed, yaw rate]`` ``(B, 2)`` and the next ``q (B, N)``."""
+    p = 0.5 * (xp.tanh(0.5 * _forward(_mlp(model.params), Z, xp)) + 1.0)  # sigmoid
+    q = vagn.step(q, p, model.params["vagn"]["W"], xp=xp)
+    logits = layers.dense(model.params["gains"], q, xp=xp)
+    u, _ = dmp_head(logits, lane, motion, model.cfg, xp=xp)
+    return u, q
+
+
+def _fit_scenes(model: Privileged, Z: np.ndarray, X: np.ndarray, Y: np.ndarray,
+                lane: np.ndarray, motion: np.ndarray, T: int, steps: int, batch: int,
+                lr: float, rng: np.random.Generator) -> Privileged:
+    """Algorithm 1 for the ``head="vagn"`` learner: minibatches of whole scenes (the rows of
+    ``X`` are scenes of ``T`` steps in order), ``q`` from uniform, the motion of the states
+    as the DMP's."""
+    S = len(X) // T
+    v = X[:, FEATURES.index("v")]
+    denom = model.scale * np.array([DT, 1.0])
+    target = (np.stack([v + Y[:, 0] * DT, Y[:, 1]], axis=1) / denom).reshape(S, T, 2)
+    Zs, ls, ms = Z.reshape(S, T, -1), lane.reshape(S, T, *lane.shape[1:]), motion.reshape(S, T, 2)
+    q0 = vagn.uniform_state(model.cfg.n_states)
+    b = max(1, min(S, batch // T))
+
+    def loss(p: dict, z: Any, y: Any, lt: Any, mo: Any) -> Any:
+        net = Privileged(p, model.keep, model.mean, model.std, model.scale, [], "vagn",
+                         model.cfg)
+        q = np.broadcast_to(q0, (z.shape[0], len(q0)))
+        total = 0.0
+        for t in range(T):
+            u, q = advance(net, z[:, t], lt[:, t], mo[:, t], q, xp=anp)
+            d = u / denom - y[:, t]
+            total = total + anp.mean(d * d)
+        return total / T
+
+    step_fn = value_and_grad(loss)
+    params, state, losses = model.params, optim.adam_init(model.params), []
+    for k in range(steps):
+        i = rng.integers(0, S, size=b)
+        lr_k = lr * 0.5 * (1.0 + math.cos(math.pi * k / steps))
+        value, g = step_fn(params, Zs[i], target[i], ls[i], ms[i])
+        params, state = optim.adam_update(g, state, params, lr=lr_k)
+        losses.append(float(value))
+    return Privileged(params, model.keep, model.mean, model.std, model.scale, losses, "vagn",
+                      model.cfg)
+
+
+def _check_scene_steps(T: Any, n: int) -> int:
+    if isinstance(T, bool) or not isinstance(T, int | np.integer) or T < 1 or n % T:
+        raise ValueError(f"head='vagn' needs scene_steps, the steps of each scene (rows are "
+                         f"whole scenes in order), dividing N = {n}; got scene_steps={T!r}")
+    return int(T)
+
+
 def _check_head_inputs(lane: Any, motion: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
     if lane is None or motion is None:
-        raise ValueError("head='dmp' needs lane (N, K, 2) and motion (N, 2): see head_inputs")
+        raise ValueError("head='dmp' or 'vagn' needs lane (N, K, 2) and motion (N, 2): see "
+                         "head_inputs")
     lane = np.asarray(lane, dtype=np.float64)
     motion = np.asarray(motion, dtype=np.float64)
     if lane.ndim != 3 or lane.shape[0] != n or lane.shape[2] != 2 or motion.shape != (n, 2):
@@ -325,18 +410,44 @@ def _check_head_inputs(lane: Any, motion: Any, n: int) -> tuple[np.ndarray, np.n
 
 
 def predict(model: Privileged, X: np.ndarray, lane: np.ndarray | None = None,
-            motion: np.ndarray | None = None) -> np.ndarray:
+            motion: np.ndarray | None = None, q: np.ndarray | None = None
+            ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """The learner's ``[acceleration, yaw rate]`` ``(N, 2)`` for features ``X (N, F)``; the DMP
-    head (which needs ``lane`` and ``motion``) gives its speed command's change from the
-    speed feature ``v`` over ``Δt``."""
+    heads (which need ``lane`` and ``motion``) give their speed command's change from the
+    speed feature ``v`` over ``Δt``. The ``"vagn"`` head steps from the distributions ``q
+    (N, n_states)`` (default: uniform) and also returns the next ones."""
     X = np.asarray(X, dtype=np.float64)
     Z = (X[:, model.keep] - model.mean) / model.std
-    out = _forward(model.params, Z, np)
-    if model.head != "dmp":
-        return out * model.scale
+    if model.head == "acceleration":
+        return _forward(model.params, Z, np) * model.scale
     lane, motion = _check_head_inputs(lane, motion, len(Z))
-    u, _ = dmp_head(out, lane, motion, model.cfg, xp=np)
-    return np.stack([(u[:, 0] - X[:, FEATURES.index("v")]) / DT, u[:, 1]], axis=1)
+    if model.head == "vagn":
+        if q is None:
+            q = np.broadcast_to(vagn.uniform_state(model.cfg.n_states), (len(Z),
+                                                                          model.cfg.n_states))
+        u, q = advance(model, Z, lane, motion, q)
+    else:
+        u, _ = dmp_head(_forward(model.params, Z, np), lane, motion, model.cfg, xp=np)
+    a = np.stack([(u[:, 0] - X[:, FEATURES.index("v")]) / DT, u[:, 1]], axis=1)
+    return (a, q) if model.head == "vagn" else a
+
+
+def predict_scenes(model: Privileged, X: np.ndarray, lane: np.ndarray | None = None,
+                   motion: np.ndarray | None = None, scene_steps: int | None = None
+                   ) -> np.ndarray:
+    """:func:`predict` on rows that are whole scenes of ``scene_steps`` steps in order (as
+    :func:`demonstrations` returns them): the ``"vagn"`` head carries ``q`` along each scene
+    from uniform; the other heads read every row alone."""
+    if model.head != "vagn":
+        return predict(model, X, lane, motion)
+    X = np.asarray(X, dtype=np.float64)
+    T = _check_scene_steps(scene_steps, len(X))
+    lane, motion = _check_head_inputs(lane, motion, len(X))
+    idx = np.arange(len(X)).reshape(-1, T)
+    q, out = None, np.zeros((len(X), 2))
+    for t in range(T):
+        out[idx[:, t]], q = predict(model, X[idx[:, t]], lane[idx[:, t]], motion[idx[:, t]], q)
+    return out
 
 
 class _Reader:
@@ -408,7 +519,7 @@ class PrivilegedPolicy(_Reader):
         self.net, self.record = model, record
         self.noise = dict(noise or {})
         self.rng = np.random.default_rng(seed)
-        if model.head == "dmp":
+        if model.head != "acceleration":
             self.keys = ("lane_target", "motion")
         self.X: list[np.ndarray] = []
         self.Y: list[list[float]] = []
@@ -422,19 +533,30 @@ class PrivilegedPolicy(_Reader):
                       for s, a in zip(sits, self.a_prev)])
         if self.noise:
             F = blur(F, self.noise, self.rng)
-        return self.act(F, sits, obs), state, {}
+        u, state = self.act(F, sits, obs, state)
+        return u, state, {}
 
-    def act(self, F: np.ndarray, sits: list[Situation | None], obs: dict | None = None
-            ) -> np.ndarray:
+    def initial_state(self, scenes: np.ndarray) -> np.ndarray | None:
+        """The uniform ``q`` of each row for the ``"vagn"`` head (Algorithm 1's start)."""
+        if self.net.head != "vagn":
+            return None
+        N = self.net.cfg.n_states
+        return np.broadcast_to(vagn.uniform_state(N), (len(scenes), N)).copy()
+
+    def act(self, F: np.ndarray, sits: list[Situation | None], obs: dict | None = None,
+            state: Any = None) -> tuple[np.ndarray, Any]:
         """The controls ``[clip(v + a Δt, 0, V_MAX), ω]`` of the learner on features ``F``
-        (``v`` their speed; the DMP head reads ``obs``' lane target and motion) in the
-        states ``sits``; with ``record`` it keeps ``F`` (and what the DMP head read) and the
-        expert's label in each state it can be asked in."""
+        (``v`` their speed; the DMP heads read ``obs``' lane target and motion, the
+        ``"vagn"`` head steps ``state``, its ``q``) in the states ``sits``; with ``record``
+        it keeps ``F`` (and what the DMP head read) and the expert's label in each state it
+        can be asked in. Returns the controls and the next ``state``."""
         lane = motion = None
-        if self.net.head == "dmp":
+        if self.net.head != "acceleration":
             lane = np.asarray(obs["lane_target"], dtype=np.float64)
             motion = np.asarray(obs["motion"], dtype=np.float64)
-        a = predict(self.net, F, lane, motion)
+        a = predict(self.net, F, lane, motion, state)
+        if self.net.head == "vagn":
+            a, state = a
         v = F[:, FEATURES.index("v")]
         u = np.stack([np.clip(v + a[:, 0] * DT, 0.0, V_MAX), a[:, 1]], axis=1)
         if self.record:
@@ -446,7 +568,7 @@ class PrivilegedPolicy(_Reader):
                     if lane is not None:
                         self.lanes.append(lane[b])
                         self.motions.append(motion[b])
-        return self.finish(u, sits)
+        return self.finish(u, sits), state
 
     def visited(self) -> tuple[np.ndarray, np.ndarray]:
         return np.asarray(self.X).reshape(-1, len(FEATURES)), np.asarray(self.Y).reshape(-1, 2)
@@ -494,6 +616,9 @@ def dagger_rounds(train: Any, val: Any, rounds: int, per_round: int, agents: str
     Every round is evaluated closed loop on ``val`` under ``agents``."""
     rounds = check_int("rounds", rounds, 0)
     per_round = check_int("per_round", per_round, 1)
+    if head not in ("acceleration", "dmp"):
+        raise ValueError(f"DAgger of the privileged learner takes head 'acceleration' or "
+                         f"'dmp' (a label per state, not per scene), got head={head!r}")
     teacher = WorldTeacher(train, agents=agents)
     vteacher = WorldTeacher(val, agents=agents)
     X, Y = demonstrations(train, expert=teacher.expert)
