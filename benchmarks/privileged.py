@@ -26,8 +26,8 @@ The data is the paper preset's draw (data seed ``--data-seed``: ``--train`` trai
 40 tuning, ``--val`` validation scenes, in that order). ``--head dmp`` gives every learner
 MANC's DMP head (the MLP predicts its gain logits): MANC's head on the expert's perception;
 ``--head vagn`` gives it MANC's automaton as well (the MLP predicts MANC's predicates, then
-vAGN, ``FC(q)`` and the DMP head), the parts ``bc``, ``ablation``, ``information`` and
-``noise`` only.
+vAGN, ``FC(q)`` and the DMP head), ``--head vagn_predicates`` the same with ``FC(q ⊕ p)``;
+these two in the parts ``bc``, ``ablation``, ``information`` and ``noise`` only.
 
 Run: ``python benchmarks/privileged.py --out results/privileged.md``
 """
@@ -232,7 +232,9 @@ def main() -> None:
                               "", *lines]
 
     what = "The privileged learner" + {"acceleration": "", "dmp": " through MANC's DMP head",
-                                       "vagn": " through MANC's vAGN and DMP head"}[args.head]
+                                       "vagn": " through MANC's vAGN and DMP head",
+                                       "vagn_predicates": " through MANC's vAGN and DMP head, "
+                                       "the gains reading q and the predicates"}[args.head]
     text = (f"# {what} (data seed {args.data_seed}: {args.train} training, "
             f"{args.val} validation scenes; {args.steps} Adam steps)\n\n")
     for title, lines in sections.items():

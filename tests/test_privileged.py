@@ -187,6 +187,25 @@ def test_the_vagn_head_is_manc_on_the_expert_s_perception(ds, demos):
     assert np.isfinite(m["ade"])
 
 
+def test_the_gains_read_the_predicates_beside_q_in_vagn_predicates(ds, demos):
+    X, Y = demos
+    lane, motion = P.head_inputs(ds)
+    T = np.asarray(ds.ego).shape[1]
+    model = P.fit_privileged(X, Y, steps=3, seed=0, head="vagn_predicates", lane=lane,
+                             motion=motion, scene_steps=T)
+    N, M = model.cfg.n_states, model.cfg.n_predicates
+    assert model.params["gains"]["w"].shape == (N + M, 4)
+    Z = (X[:3][:, model.keep] - model.mean) / model.std
+    pr = model.params
+    h = np.tanh(layers.dense(pr["l1"], np.tanh(layers.dense(pr["l0"], Z))))
+    pred = 1.0 / (1.0 + np.exp(-layers.dense(pr["l2"], h)))
+    q1 = vagn.step(np.full((3, N), 1.0 / N), pred, pr["vagn"]["W"])
+    logits = layers.dense(pr["gains"], np.concatenate([q1, pred], axis=1))
+    want, _ = dmp_head(logits, lane[:3], motion[:3], model.cfg)
+    got, _ = P.advance(model, Z, lane[:3], motion[:3], np.full((3, N), 1.0 / N))
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+
+
 def test_the_vagn_head_refuses_what_it_cannot_train_on(ds, demos):
     X, Y = demos
     lane, motion = P.head_inputs(ds)

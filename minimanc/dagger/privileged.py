@@ -39,7 +39,9 @@ With ``head="vagn"`` the MLP's outputs are MANC's predicates (sigmoid, eq. 7 on 
 expert's perception instead of the image), and the rest is MANC: vAGN (eqs. 8–9) carries
 ``q`` from step to step, ``FC(q)`` gives the gain logits (eq. 11) and the DMP head the
 control; trained on whole scenes from the uniform ``q``. It separates what the automaton
-and its linear read-out cost from what the visual perception costs.
+and its linear read-out cost from what the visual perception costs. ``head="vagn_predicates"``
+lets the gains read the predicates beside ``q`` (``FC(q ⊕ p)``, the DMP-only path added to
+MANC's).
 :func:`fit_privileged` trains it by Algorithm 1 (minibatches, mean squared error on both
 outputs each divided by its standard deviation over the demonstrations, Adam) with
 :mod:`minimanc.autodiff`.
@@ -106,9 +108,10 @@ FEATURE_GROUPS: dict[str, tuple[str, ...]] = {
 """The expert's perception, by group (what the ablation drops one at a time)."""
 FEATURES: tuple[str, ...] = tuple(f for g in FEATURE_GROUPS.values() for f in g)
 """Every feature, in the order of :func:`features`' vector."""
-HEADS: tuple[str, ...] = ("acceleration", "dmp", "vagn")
+HEADS: tuple[str, ...] = ("acceleration", "dmp", "vagn", "vagn_predicates")
 """What the MLP predicts: the acceleration and yaw rate, the gain logits of MANC's DMP head,
-or MANC's predicates (vAGN, ``FC(q)`` and the DMP head follow)."""
+or MANC's predicates (vAGN, ``FC(q)`` and the DMP head follow; ``"vagn_predicates"``: the
+gains read the predicates beside ``q``, ``FC(q ⊕ p)``)."""
 
 
 def features(sit: Situation, a_prev: float = 0.0) -> np.ndarray:
@@ -273,15 +276,15 @@ def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
         raise ValueError(f"head must be one of {HEADS}, got head={head!r}")
     if head != "acceleration":
         lane, motion = _check_head_inputs(lane, motion, len(X))
-    if head == "vagn" and init is not None:
-        raise ValueError("head='vagn' trains from scratch: init must be None")
+    if head.startswith("vagn") and init is not None:
+        raise ValueError(f"head={head!r} trains from scratch: init must be None")
     rng = np.random.default_rng(seed)
     if init is None:
         keep = kept(drop, without)
         mean, std = X[:, keep].mean(0), X[:, keep].std(0) + 1e-6
         scale = Y.std(0) + 1e-6
         cfg = None if head == "acceleration" else ModelConfig(k_targets=int(lane.shape[1]))
-        n_out = {"acceleration": 2, "dmp": 4, "vagn": cfg and cfg.n_predicates}[head]
+        n_out = 2 if head == "acceleration" else 4 if head == "dmp" else cfg.n_predicates
         sizes = [len(keep), *hidden, n_out]
         params = {f"l{i}": layers.init_dense(rng, a, b)
                   for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:]))}
@@ -289,13 +292,13 @@ def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
         last["w"] = last["w"] * 0.1
         if head == "dmp":  # start at MANC's fixed gains, as its gains layer does
             last["b"] = np.asarray(gain_logits(DEFAULT_GAINS), dtype=np.float64)
-        if head == "vagn":
-            params.update(_automaton(rng, cfg))
+        if head.startswith("vagn"):
+            params.update(_automaton(rng, cfg, head == "vagn_predicates"))
     else:
         keep, mean, std, scale, params = init.keep, init.mean, init.std, init.scale, init.params
         cfg = init.cfg
     Z = (X[:, keep] - mean) / std
-    if head == "vagn":
+    if head.startswith("vagn"):
         return _fit_scenes(Privileged(params, keep, mean, std, scale, [], head, cfg), Z, X,
                            Y, lane, motion, _check_scene_steps(scene_steps, len(X)), steps,
                            batch, lr, rng)
@@ -327,10 +330,11 @@ def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
     return Privileged(params, keep, mean, std, scale, losses, head, cfg)
 
 
-def _automaton(rng: np.random.Generator, cfg: ModelConfig) -> dict:
-    """MANC's vAGN weights and gains layer (eqs. 8–9, 11), initialised as MANC's are."""
+def _automaton(rng: np.random.Generator, cfg: ModelConfig, with_predicates: bool) -> dict:
+    """MANC's vAGN weights and gains layer (eqs. 8–9, 11), initialised as MANC's are; the
+    gains layer reads ``q`` (and the predicates, ``with_predicates``)."""
     M, N = cfg.n_predicates, cfg.n_states
-    gains = layers.init_dense(rng, N, 4)
+    gains = layers.init_dense(rng, N + M if with_predicates else N, 4)
     gains["w"] = cfg.gains_scale * np.asarray(gains["w"])
     gains["b"] = np.asarray(gain_logits(DEFAULT_GAINS), dtype=np.float64)
     return {"vagn": {"W": vagn.init_vagn(rng, M, N, scale=cfg.vagn_scale)}, "gains": gains}
@@ -342,11 +346,12 @@ def _mlp(params: dict) -> dict:
 
 def advance(model: Privileged, Z: Any, lane: Any, motion: Any, q: Any, xp: Any = np
             ) -> tuple[Any, Any]:
-    """One step of the ``head="vagn"`` learner on standardised features ``Z (B, F')``: the
+    """One step of the ``"vagn"`` heads on standardised features ``Z (B, F')``: the
     controls ``[speed, yaw rate]`` ``(B, 2)`` and the next ``q (B, N)``."""
     p = 0.5 * (xp.tanh(0.5 * _forward(_mlp(model.params), Z, xp)) + 1.0)  # sigmoid
     q = vagn.step(q, p, model.params["vagn"]["W"], xp=xp)
-    logits = layers.dense(model.params["gains"], q, xp=xp)
+    x = q if model.head == "vagn" else xp.concatenate([q, p], axis=-1)
+    logits = layers.dense(model.params["gains"], x, xp=xp)
     u, _ = dmp_head(logits, lane, motion, model.cfg, xp=xp)
     return u, q
 
@@ -366,7 +371,7 @@ def _fit_scenes(model: Privileged, Z: np.ndarray, X: np.ndarray, Y: np.ndarray,
     b = max(1, min(S, batch // T))
 
     def loss(p: dict, z: Any, y: Any, lt: Any, mo: Any) -> Any:
-        net = Privileged(p, model.keep, model.mean, model.std, model.scale, [], "vagn",
+        net = Privileged(p, model.keep, model.mean, model.std, model.scale, [], model.head,
                          model.cfg)
         q = np.broadcast_to(q0, (z.shape[0], len(q0)))
         total = 0.0
@@ -384,8 +389,8 @@ def _fit_scenes(model: Privileged, Z: np.ndarray, X: np.ndarray, Y: np.ndarray,
         value, g = step_fn(params, Zs[i], target[i], ls[i], ms[i])
         params, state = optim.adam_update(g, state, params, lr=lr_k)
         losses.append(float(value))
-    return Privileged(params, model.keep, model.mean, model.std, model.scale, losses, "vagn",
-                      model.cfg)
+    return Privileged(params, model.keep, model.mean, model.std, model.scale, losses,
+                      model.head, model.cfg)
 
 
 def _check_scene_steps(T: Any, n: int) -> int:
@@ -421,7 +426,7 @@ def predict(model: Privileged, X: np.ndarray, lane: np.ndarray | None = None,
     if model.head == "acceleration":
         return _forward(model.params, Z, np) * model.scale
     lane, motion = _check_head_inputs(lane, motion, len(Z))
-    if model.head == "vagn":
+    if model.head.startswith("vagn"):
         if q is None:
             q = np.broadcast_to(vagn.uniform_state(model.cfg.n_states), (len(Z),
                                                                           model.cfg.n_states))
@@ -429,7 +434,7 @@ def predict(model: Privileged, X: np.ndarray, lane: np.ndarray | None = None,
     else:
         u, _ = dmp_head(_forward(model.params, Z, np), lane, motion, model.cfg, xp=np)
     a = np.stack([(u[:, 0] - X[:, FEATURES.index("v")]) / DT, u[:, 1]], axis=1)
-    return (a, q) if model.head == "vagn" else a
+    return (a, q) if model.head.startswith("vagn") else a
 
 
 def predict_scenes(model: Privileged, X: np.ndarray, lane: np.ndarray | None = None,
@@ -438,7 +443,7 @@ def predict_scenes(model: Privileged, X: np.ndarray, lane: np.ndarray | None = N
     """:func:`predict` on rows that are whole scenes of ``scene_steps`` steps in order (as
     :func:`demonstrations` returns them): the ``"vagn"`` head carries ``q`` along each scene
     from uniform; the other heads read every row alone."""
-    if model.head != "vagn":
+    if not model.head.startswith("vagn"):
         return predict(model, X, lane, motion)
     X = np.asarray(X, dtype=np.float64)
     T = _check_scene_steps(scene_steps, len(X))
@@ -538,7 +543,7 @@ class PrivilegedPolicy(_Reader):
 
     def initial_state(self, scenes: np.ndarray) -> np.ndarray | None:
         """The uniform ``q`` of each row for the ``"vagn"`` head (Algorithm 1's start)."""
-        if self.net.head != "vagn":
+        if not self.net.head.startswith("vagn"):
             return None
         N = self.net.cfg.n_states
         return np.broadcast_to(vagn.uniform_state(N), (len(scenes), N)).copy()
@@ -555,7 +560,7 @@ class PrivilegedPolicy(_Reader):
             lane = np.asarray(obs["lane_target"], dtype=np.float64)
             motion = np.asarray(obs["motion"], dtype=np.float64)
         a = predict(self.net, F, lane, motion, state)
-        if self.net.head == "vagn":
+        if self.net.head.startswith("vagn"):
             a, state = a
         v = F[:, FEATURES.index("v")]
         u = np.stack([np.clip(v + a[:, 0] * DT, 0.0, V_MAX), a[:, 1]], axis=1)
