@@ -23,7 +23,8 @@ convolutions (``ModelConfig.channels``: one more layer doubles the receptive fie
 ``--predicates`` the number of visual predicates of eq. 7 (``ModelConfig.n_predicates``),
 ``--predicate-pool`` how they read the features (``ModelConfig.predicate_pool``) and
 ``--states`` the number of vAGN's q-states (``ModelConfig.n_states``; eq. 11's gains are a
-linear function of them).
+linear function of them), ``--gains-input`` what MANC's gains FC reads
+(``ModelConfig.gains_input``).
 
 Run: ``python benchmarks/fixes.py --variants cnn:parity:0:change:change --out results/X.md``
 """
@@ -91,6 +92,7 @@ def main() -> None:
     ap.add_argument("--predicates", type=int, default=None)
     ap.add_argument("--predicate-pool", choices=("global", "flat"), default=None)
     ap.add_argument("--states", type=int, default=None)
+    ap.add_argument("--gains-input", choices=("q", "q+predicates"), default=None)
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     variants = [parse(v) for v in args.variants]
@@ -114,6 +116,8 @@ def main() -> None:
             shape["predicate_pool"] = args.predicate_pool
         if args.states is not None:
             shape["n_states"] = args.states
+        if args.gains_input is not None:
+            shape["gains_input"] = args.gains_input
         cfg = models.ModelConfig(setting=setting, speed_output=out, **shape)
         runs = {a: [] for a in AGENTS}
         for seed in range(args.seeds):
@@ -139,6 +143,7 @@ def main() -> None:
             + ("" if args.predicates is None else f"{args.predicates} predicates, ")
             + ("" if args.predicate_pool is None else f"predicates pooled {args.predicate_pool}, ")
             + ("" if args.states is None else f"{args.states} q-states, ")
+            + ("" if args.gains_input is None else f"MANC's gains read {args.gains_input}, ")
             + "mean ± std)\n\n")
     for a in AGENTS:
         text += (f"## Agents `{a}`\n\n| model | setting | history | speed output | speed scale"

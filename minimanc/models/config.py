@@ -122,7 +122,10 @@ class ModelConfig:
     model must see ``motion``; the DMP heads always integrate from ``motion``) and
     ``predicate_pool`` ("global": eq. 7, ``p = σ(Linear(GAP(f)))``; "flat": the predicates
     read the flattened feature map, ``p = σ(Linear(flatten(f)))``, which keeps *where* a
-    feature fires — not the paper's form, and CAM, eq. 7's saliency, is not defined for it).
+    feature fires — not the paper's form, and CAM, eq. 7's saliency, is not defined for it),
+    ``gains_input`` of MANC's gains FC ("q": eq. 11, ``FC(q)``; "q+predicates":
+    ``FC(q ⊕ p)``, the predicates read beside the automaton's state — DMP-only's path added
+    to MANC's, not the paper's form).
 
     ``dt`` must keep the default DMP integrator (:data:`minimanc.dmp.DEFAULT_METHOD`,
     :data:`minimanc.dmp.DEFAULT_SUBSTEPS` sub-steps) stable at every corner of the gain
@@ -150,6 +153,7 @@ class ModelConfig:
     dt: float = dmp.DT
     speed_output: str = "level"
     predicate_pool: str = "global"
+    gains_input: str = "q"
 
     def __post_init__(self) -> None:
         for name in ("n_states", "n_predicates", "image_size", "hidden", "k_targets"):
@@ -190,6 +194,9 @@ class ModelConfig:
         if self.predicate_pool not in ("global", "flat"):
             raise ValueError(f"predicate_pool must be 'global' or 'flat', got "
                              f"predicate_pool={self.predicate_pool!r}")
+        if self.gains_input not in ("q", "q+predicates"):
+            raise ValueError(f"gains_input must be 'q' or 'q+predicates', got "
+                             f"gains_input={self.gains_input!r}")
         if self.speed_output not in SPEED_OUTPUTS:
             raise ValueError(f"speed_output must be one of {SPEED_OUTPUTS}, got "
                              f"speed_output={self.speed_output!r}")

@@ -12,6 +12,7 @@ name          forward pass
 ``rvs_g``     flatten(f(bev)) ⊕ flatten(f(goal_bev)) ⊕ n → LSTM(64) → FC(2) · s
 ``manc``      p = σ(Linear(GAP(f))) (eq. 7) → q = vAGN(p, q') (eqs. 8–9) →
               gains = FC(q) → one DMP step (eqs. 10–11) → [speed, yaw rate]
+              (``gains_input="q+predicates"``: gains = FC(q ⊕ p))
 ``vagn_only`` p (eq. 7) → q = vAGN(p, q') → FC(64) on q ⊕ n → FC(2) · s
 ``dmp_only``  p (eq. 7) → gains = FC(p) → one DMP step → [speed, yaw rate]
 ============= =================================================================
@@ -193,7 +194,7 @@ def _manc_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
     M, N = cfg.n_predicates, cfg.n_states
     return {"predicates": predicate_layer(rng, cfg),
             "vagn": {"W": vagn.init_vagn(rng, M, N, scale=cfg.vagn_scale)},
-            "gains": gains_layer(rng, N, cfg)}
+            "gains": gains_layer(rng, N + M if cfg.gains_input == "q+predicates" else N, cfg)}
 
 
 def _dmp_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig, eng: Any) -> dict:
@@ -202,7 +203,8 @@ def _dmp_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig, eng
 
 def _manc_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
     q = _vagn_step(params, enc, state, eng)
-    logits = dense(params["gains"], q, eng.xp)  # FC(q) of eq. 11
+    x = q if cfg.gains_input == "q" else eng.xp.concatenate([q, enc["predicates"]], axis=-1)
+    logits = dense(params["gains"], x, eng.xp)  # FC(q) of eq. 11 (or FC(q ⊕ p))
     controls, aux = _dmp(logits, enc, cfg, eng)
     return controls, {"q": q}, {"q": q, **aux}
 
