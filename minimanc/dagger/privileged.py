@@ -85,8 +85,8 @@ from minimanc.world.traffic import B_MAX
 
 __all__ = [
     "AHEAD", "FAR", "FEATURES", "FEATURE_GROUPS", "HEADS", "V_MAX", "ExpertPolicy",
-    "Privileged", "PrivilegedPolicy", "Round", "blur", "dagger_rounds", "demonstrations",
-    "advance", "evaluate_policy", "features", "fit_privileged", "head_inputs", "kept",
+    "Privileged", "PrivilegedPolicy", "Round", "advance", "blur", "dagger_rounds",
+    "demonstrations", "evaluate_policy", "features", "fit_privileged", "head_inputs", "kept",
     "perceived", "predict", "predict_scenes",
 ]
 
