@@ -102,6 +102,9 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     parts = args.parts.split(",")
+    if args.head.startswith("vagn") and "dagger" in parts:
+        raise SystemExit(f"privileged: --head {args.head} has no DAgger part (its learner is "
+                         "trained on whole scenes); drop 'dagger' from --parts")
     t0 = time.perf_counter()
     extra = args.rounds * args.per_round if "dagger" in parts else 0
     n = args.train + N_TUNE + args.val
@@ -110,11 +113,11 @@ def main() -> None:
     log(f"data: {n + extra} scenes", t0)
     X, Y = P.demonstrations(train)
     Xv, Yv = P.demonstrations(val)
-    dmp = args.head != "acceleration"
+    reads_lane = args.head != "acceleration"  # MANC's DMP head reads the lane and motion
     T = train.n_steps
     head = dict(head=args.head, scene_steps=T,
-                **dict(zip(("lane", "motion"), P.head_inputs(train)))) if dmp else {}
-    val_head = P.head_inputs(val) if dmp else (None, None)
+                **dict(zip(("lane", "motion"), P.head_inputs(train)))) if reads_lane else {}
+    val_head = P.head_inputs(val) if reads_lane else (None, None)
     log(f"demonstrations: {len(X)} training, {len(Xv)} validation states", t0)
     teachers = {a: WorldTeacher(val, agents=a) for a in AGENTS}
     sections: dict[str, list[str]] = {}
@@ -203,7 +206,8 @@ def main() -> None:
         more = ds.subset(np.r_[np.arange(args.train), np.arange(n, n + extra)])
         Xm, Ym = P.demonstrations(more)
         more_head = dict(head=args.head, scene_steps=T,
-                         **dict(zip(("lane", "motion"), P.head_inputs(more)))) if dmp else {}
+                         **dict(zip(("lane", "motion"), P.head_inputs(more)))) \
+            if reads_lane else {}
         for seed in range(args.dagger_seeds):
             per_seed.append(P.dagger_rounds(train, val, args.rounds, args.per_round,
                                             agents="reactive", steps=args.steps, seed=seed,
