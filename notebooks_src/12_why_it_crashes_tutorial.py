@@ -207,6 +207,20 @@ assert table["without lane"]["ade"] > table["all inputs"]["ade"], "the lane stee
 # the image models' level ("What one image can show").
 
 # %% [markdown]
+# The same learner can also be made to drive through MANC's own parts, to ask which of them
+# keeps MANC from driving: `P.fit_privileged(..., head="dmp", lane=..., motion=...)` lets
+# the MLP predict the four gain logits of eq. 11 and drives through MANC's DMP head
+# (`P.head_inputs` gives the lane target and the motion of every state); `head="vagn"`
+# lets it predict MANC's predicates, followed by vAGN, `FC(q)` and the head, trained on
+# whole scenes (`scene_steps=T`); `head="vagn_predicates"` lets the gains read the
+# predicates beside q. At the paper's size (`results/privileged_dmp.md`,
+# `results/privileged_vagn.md`, `results/privileged_vagn_predicates.md`) the DMP head
+# drives as well as the plain output, the automaton with `FC(q)` drives well for some
+# training seeds and at the image models' level for others, and with `FC(q ⊕ p)` every seed
+# drives: each part of MANC works when it perceives what the expert perceives, so what
+# MANC lacks is in its predicates, its perception of the leader.
+
+# %% [markdown]
 # ## 5. How does it crash? The collision taxonomy
 # `metrics.safety.collision_events` finds every ego–ado contact (each ado once, at its
 # first contact) and classifies it as nuPlan does: `stopped_ego` (not at fault),
