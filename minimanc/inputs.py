@@ -212,6 +212,7 @@ def initial_motion(ds: Any) -> np.ndarray:
 
 DRIVEN_TAG = "driven"
 _DRIVEN_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_DRIVEN_ROWS_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _GOAL_BEV_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -231,7 +232,12 @@ def _per_dataset(cache: weakref.WeakKeyDictionary, ds: Any,
 def driven_rows(ds: Any) -> np.ndarray:
     """``(S,)`` bool: the scenes whose tags hold the controls another policy applied
     (``tags[s]["dagger"]["driven"]``, written by :func:`minimanc.dagger.collect` when the
-    applied controls differ from the expert's labels)."""
+    applied controls differ from the expert's labels). Cached per dataset (every training
+    batch asks)."""
+    return _per_dataset(_DRIVEN_ROWS_CACHE, ds, _driven_rows)
+
+
+def _driven_rows(ds: Any) -> np.ndarray:
     tags = getattr(ds, "tags", None) or [{}] * len(np.asarray(ds.controls))
     return np.array([DRIVEN_TAG in (t.get("dagger") or {}) for t in tags], dtype=bool)
 

@@ -78,8 +78,10 @@ from minimanc.autodiff import value_and_grad
 from minimanc.checks import check_int
 from minimanc.dagger.expert import HumanExpert, Situation
 from minimanc.dagger.teachers import WorldTeacher
+from minimanc.engine import engine_of
 from minimanc.metrics.trajectory import along_cross_track
-from minimanc.models import DEFAULT_GAINS, ModelConfig, dmp_head, gain_logits
+from minimanc.models import DEFAULT_GAINS, ModelConfig, dmp_head, gain_logits, spec
+from minimanc.models.zoo import gains_layer
 from minimanc.world.geometry import DT, wrap_angle
 from minimanc.world.traffic import B_MAX
 
@@ -283,7 +285,9 @@ def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
         keep = kept(drop, without)
         mean, std = X[:, keep].mean(0), X[:, keep].std(0) + 1e-6
         scale = Y.std(0) + 1e-6
-        cfg = None if head == "acceleration" else ModelConfig(k_targets=int(lane.shape[1]))
+        cfg = None if head == "acceleration" else ModelConfig(
+            k_targets=int(lane.shape[1]),
+            gains_input="q+predicates" if head == "vagn_predicates" else "q")
         n_out = 2 if head == "acceleration" else 4 if head == "dmp" else cfg.n_predicates
         sizes = [len(keep), *hidden, n_out]
         params = {f"l{i}": layers.init_dense(rng, a, b)
@@ -293,7 +297,7 @@ def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
         if head == "dmp":  # start at MANC's fixed gains, as its gains layer does
             last["b"] = np.asarray(gain_logits(DEFAULT_GAINS), dtype=np.float64)
         if head.startswith("vagn"):
-            params.update(_automaton(rng, cfg, head == "vagn_predicates"))
+            params.update(_automaton(rng, cfg))
     else:
         keep, mean, std, scale, params = init.keep, init.mean, init.std, init.scale, init.params
         cfg = init.cfg
@@ -330,13 +334,11 @@ def fit_privileged(X: np.ndarray, Y: np.ndarray, drop: Sequence[str] = (),
     return Privileged(params, keep, mean, std, scale, losses, head, cfg)
 
 
-def _automaton(rng: np.random.Generator, cfg: ModelConfig, with_predicates: bool) -> dict:
-    """MANC's vAGN weights and gains layer (eqs. 8–9, 11), initialised as MANC's are; the
-    gains layer reads ``q`` (and the predicates, ``with_predicates``)."""
+def _automaton(rng: np.random.Generator, cfg: ModelConfig) -> dict:
+    """MANC's vAGN weights and gains layer (eqs. 8–9, 11; the gains read what
+    ``cfg.gains_input`` names), initialised as MANC's are."""
     M, N = cfg.n_predicates, cfg.n_states
-    gains = layers.init_dense(rng, N + M if with_predicates else N, 4)
-    gains["w"] = cfg.gains_scale * np.asarray(gains["w"])
-    gains["b"] = np.asarray(gain_logits(DEFAULT_GAINS), dtype=np.float64)
+    gains = gains_layer(rng, N + M if cfg.gains_input == "q+predicates" else N, cfg)
     return {"vagn": {"W": vagn.init_vagn(rng, M, N, scale=cfg.vagn_scale)}, "gains": gains}
 
 
@@ -346,14 +348,13 @@ def _mlp(params: dict) -> dict:
 
 def advance(model: Privileged, Z: Any, lane: Any, motion: Any, q: Any, xp: Any = np
             ) -> tuple[Any, Any]:
-    """One step of the ``"vagn"`` heads on standardised features ``Z (B, F')``: the
-    controls ``[speed, yaw rate]`` ``(B, 2)`` and the next ``q (B, N)``."""
+    """One step of the ``"vagn"`` heads on standardised features ``Z (B, F')``: the MLP's
+    predicates, then MANC's own head (its registered ``head``: vAGN, the gains FC and the DMP
+    step); the controls ``[speed, yaw rate]`` ``(B, 2)`` and the next ``q (B, N)``."""
     p = 0.5 * (xp.tanh(0.5 * _forward(_mlp(model.params), Z, xp)) + 1.0)  # sigmoid
-    q = vagn.step(q, p, model.params["vagn"]["W"], xp=xp)
-    x = q if model.head == "vagn" else xp.concatenate([q, p], axis=-1)
-    logits = layers.dense(model.params["gains"], x, xp=xp)
-    u, _ = dmp_head(logits, lane, motion, model.cfg, xp=xp)
-    return u, q
+    enc = {"predicates": p, "lane_target": lane, "motion": motion}
+    u, state, _ = spec("manc").head(model.params, enc, {"q": q}, model.cfg, engine_of(xp))
+    return u, state["q"]
 
 
 def _fit_scenes(model: Privileged, Z: np.ndarray, X: np.ndarray, Y: np.ndarray,
