@@ -439,7 +439,8 @@ def experiment():
     return {"gains": gains, "open_loop": open_loop, "closed_loop": closed_loop}
     ### END SOLUTION
 
-# %% grade id=ex09_4_tests points=3
+# %% grade id=ex09_4_tests points=3 tags=["nbval-ignore-output"]
+# closed loops: float rounding may move the printed digits between machines
 table9 = experiment()
 gains9 = [tuple(float(x) for x in g) for g in table9["gains"]]
 ol9, cl9 = np.asarray(table9["open_loop"], float), np.asarray(table9["closed_loop"], float)
@@ -449,6 +450,8 @@ assert len(set(gains9)) >= 5 and len(ol9) == len(cl9) == len(gains9), (
 (a_lo9, a_hi9), (b_lo9, b_hi9) = dmp.ALPHA_RANGE, dmp.BETA_RANGE
 assert all(a_lo9 < a < a_hi9 and b_lo9 < b < b_hi9 for a, b in gains9), (
     f"expected every pair strictly inside {dmp.ALPHA_RANGE} x {dmp.BETA_RANGE}; got {gains9}")
+for g9, o9, c9 in zip(gains9, ol9, cl9):
+    print(f"gains {g9}: open-loop speed error {o9:.3f} m/s, closed-loop ADE {c9:.2f} m")
 flips9 = [(i, j) for i in range(len(ol9)) for j in range(len(ol9))
           if ol9[i] < ol9[j] and cl9[i] > cl9[j]]
 assert flips9, (

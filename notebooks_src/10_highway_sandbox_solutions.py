@@ -249,7 +249,7 @@ assert overlaps["lane follower"] == overlaps["expert"] == 0.0
 def crashed_from_log(poses, speeds, ado, ado_valid):
     ### BEGIN SOLUTION
     # highway-env pushes the boxes apart on impact: a crash leaves two boxes a few
-    # centimetres apart, closer than any driver passes another (0.42 m in these runs)
+    # centimetres apart, closer than a driver passes another without touching
     gaps = metrics.ado_gaps(np.asarray(poses)[None], np.asarray(ado)[None],
                             np.asarray(ado_valid)[None])[0]
     gaps = np.where(np.asarray(ado_valid, bool), gaps, np.inf)
@@ -316,8 +316,10 @@ def logging_experiment(episodes):
     return {rule: float(np.mean(ades)) for rule, ades in table.items()}
     ### END SOLUTION
 
-# %% grade id=ex10_4_tests points=4
+# %% grade id=ex10_4_tests points=4 tags=["nbval-ignore-output"]
+# replays in a simulator: float rounding may move the printed digits between machines
 table10 = logging_experiment(runs["expert"][:2])
+print({rule: round(ade, 2) for rule, ade in table10.items()})
 assert sorted(table10) == ["end", "start", "unicycle"], (
     f"expected the keys 'end', 'start', 'unicycle'; got {sorted(table10)}")
 assert all(type(x) is float and x >= 0.0 for x in table10.values()), (
