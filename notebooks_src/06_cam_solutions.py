@@ -433,9 +433,10 @@ for j in range(4):
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Write ReLU(z) as $m \odot z$ with the image's 0/1 mask $m = [z > 0]$ and
-# expand $(m \odot (gU + b_1))V + c$; separate the part that multiplies $g$.
-# The batch axis now sits on the weights too (`np.einsum` with three operands).
+# For one image, a unit that is on passes its input unchanged and a unit that is
+# off outputs 0: write that image's head without the ReLU, then read off what
+# multiplies $\mathrm{gap}(f)$ and what does not. The batch axis now sits on the
+# weights too (`np.einsum` with three operands).
 # </details>
 
 # %% solution id=ex06_5 title="CAMs for a head with a hidden ReLU layer"

@@ -476,9 +476,10 @@ for pool in ("global", "flat"):
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# To first order the lane point $L$ ahead sits at $(L, -e - L\varphi)$ in the ego
-# frame. For the speed limit, scan the speeds on a grid and refine the first crossing
-# by bisection.
+# Write the lane point $L$ ahead in the ego frame (a shift by the offset, then a
+# rotation by the heading error) and keep the terms of first order in $e$ and
+# $\varphi$. For the speed limit, scan the speeds on a grid and refine the first
+# crossing by bisection.
 # </details>
 
 # %%

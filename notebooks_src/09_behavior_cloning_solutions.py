@@ -67,9 +67,9 @@ print(ds)
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# $a_{lon}$ is a second difference of the position errors along the road divided by
-# $\Delta t^2$. After a moving average of width $w$, write out that second difference:
-# many terms cancel, but the case $w = 1$ is special.
+# Express $v[t]$, then $a_{lon}[t]$, through the errors of the poses involved. After a
+# moving average of width $w$, write the same expression in the original errors: many
+# terms cancel, but the case $w = 1$ is special.
 # </details>
 
 # %% solution id=ex09_1 title="The noise floor of the comfort metric" forbids="minimanc.metrics.max_acceleration"  # noqa: E501
