@@ -241,7 +241,7 @@ assert overlaps["lane follower"] == overlaps["expert"] == 0.0
 # `hw.run_episode` (`poses` `(T+1, 3)`, `speeds` `(T+1,)`, `ado` `(T+1, A, 5)`,
 # `ado_valid` `(T+1, A)`; the ego is `world.EGO_LENGTH` × `world.EGO_WIDTH` here too).
 # It must agree with highway-env's flag on the twelve episodes of `runs` above, and on
-# at least three of four episodes the tests draw on other seeds. Look at what a crash
+# two episodes the tests draw on other seeds. Look at what a crash
 # leaves in the logs before you choose; `metrics.ado_gaps` and your 10.2 are yours to
 # use. Defend the rule in the written answer of 10.6.
 
@@ -272,12 +272,12 @@ def fast_follower10(obs):
 
 
 held10 = [hw.run_episode("roundabout", s, fast_follower10, steps=16, record_bev=False)
-          for s in (200_000, 200_001, 200_002, 200_003)]
+          for s in (200_000, 200_001)]
 missed10 = [ep.seed for ep in held10
             if bool(crashed_from_log(ep.poses, ep.speeds, ep.ado, ep.ado_valid)) != ep.collided]
-assert len(missed10) <= 1, (
-    f"four held-out episodes (two crashes): expected at most one disagreement with "
-    f"highway-env's flag; wrong on seeds {missed10}")
+assert not missed10, (
+    f"two held-out episodes (one crash): expected highway-env's flag; wrong on seeds "
+    f"{missed10}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -318,30 +318,27 @@ def logging_experiment(episodes):
 
 # %% grade id=ex10_4_tests points=4 tags=["nbval-ignore-output"]
 # replays in a simulator: float rounding may move the printed digits between machines
-table10 = logging_experiment(runs["expert"][:2])
+table10 = logging_experiment(runs["expert"][:1])
 print({rule: round(ade, 2) for rule, ade in table10.items()})
 assert sorted(table10) == ["end", "start", "unicycle"], (
     f"expected the keys 'end', 'start', 'unicycle'; got {sorted(table10)}")
 assert all(type(x) is float and x >= 0.0 for x in table10.values()), (
     f"expected three non-negative floats; got {table10}")
 assert table10["end"] < min(table10["start"], table10["unicycle"]), (
-    f"the first two expert episodes: expected the log of the tutorial ('end') to replay "
-    f"closest to the expert; got {table10}")
+    f"the first expert episode: expected the log of the tutorial ('end') to replay closest "
+    f"to the expert; got {table10}")
 ### BEGIN HIDDEN TESTS
 ep10 = runs["expert"][0]
 rate10 = world.wrap_angle(np.diff(ep10.poses[:, 2])) / 0.5
-want10 = {}
-for rule, v10 in (("end", ep10.speeds[1:]), ("start", ep10.speeds[:-1]),
+for rule, v10 in (("start", ep10.speeds[:-1]),
                   ("unicycle", world.controls_from_poses(ep10.poses)[:, 0])):
     u10 = np.stack([v10, rate10], axis=-1)
     rp10 = hw.run_episode(ep10.scenario, ep10.seed, lambda obs, u=u10: u[obs["t"]],
                           steps=ep10.steps, record_bev=False)
-    want10[rule] = float(np.linalg.norm(rp10.poses[:, :2] - ep10.poses[:, :2], axis=1).mean())
-got10 = logging_experiment([ep10])
-assert all(np.isclose(got10[k], want10[k], rtol=1e-6, atol=1e-9) for k in want10), (
-    f"the first expert episode alone: expected the replays' ADEs "
-    f"{ {k: round(x, 4) for k, x in want10.items()} }; got "
-    f"{ {k: round(x, 4) for k, x in got10.items()} }")
+    want10 = float(np.linalg.norm(rp10.poses[:, :2] - ep10.poses[:, :2], axis=1).mean())
+    assert np.isclose(table10[rule], want10, rtol=1e-6, atol=1e-9), (
+        f"the first expert episode, the {rule!r} log: expected the replay's ADE {want10:.4f} m; "
+        f"got {table10[rule]:.4f}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -353,8 +350,8 @@ assert all(np.isclose(got10[k], want10[k], rtol=1e-6, atol=1e-9) for k in want10
 
 # %% [markdown] answer id=ex10_4_w title="Which log reproduces the expert" points=2
 # ### BEGIN SOLUTION
-# On the first two expert episodes the tutorial's log replays to 0.17 m of the expert
-# on average, the start-of-step speed to 1.6 m, the unicycle speed to 1.2 m. The adapter's
+# On the first expert episode the tutorial's log replays to 0.09 m of the expert on
+# average, the start-of-step speed to 1.98 m, the unicycle speed to 1.14 m. The adapter's
 # P-controller reaches the commanded speed at the end of the step: a log of the speed
 # at the start asks, at every step, for the speed the expert already had, so whenever
 # the expert accelerates or brakes the replay is one step behind its speed changes and
