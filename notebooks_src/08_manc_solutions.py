@@ -577,14 +577,14 @@ def rho8(v, aq, bq):
 
 
 for aq, bq in ((1.0, 0.45), (0.5, 5.0), (3.0, 1.0), (12.0, 0.3), (20.0, 5.0), (0.6, 0.06)):
-    grid = np.arange(1.0, 30.0 + 1e-9, 0.01)
+    grid = np.arange(1.0, 30.0 + 1e-9, 0.05)
     bad = [v for v in grid if rho8(v, aq, bq) >= 1.0]
     if not bad:
         want = math.inf
     elif bad[0] == 1.0:
         want = 1.0
     else:
-        lo, hi = bad[0] - 0.01, bad[0]
+        lo, hi = bad[0] - 0.05, bad[0]
         for _ in range(60):
             mid = 0.5 * (lo + hi)
             lo, hi = (mid, hi) if rho8(mid, aq, bq) < 1.0 else (lo, mid)
@@ -708,7 +708,8 @@ for kw, ratio, want in ((dict(), 0.5, 85), (dict(image_size=32, channels=(8, 16)
 #    better than the library's defaults (2.5, 1.15): on the straight lane, speed held,
 #    started 1 m left of the centre at 10 m/s, the offset stays within 0.1 m from 3 s
 #    on and never swings more than 0.05 m past the centre; and the lane-keeping loop is
-#    stable at every speed from 2 to 30 m/s. (2 points)
+#    stable at every speed from 2 to 30 m/s (started 0.5 m off at 5, 20 and 30 m/s, the
+#    offset is below 0.05 m after 30 s). (2 points)
 #
 # Use your 8.2 and 8.5 to choose. Then answer the written question below.
 
@@ -814,10 +815,10 @@ assert e9.min() >= -0.05, (
     f"(alpha_q, beta_q) = ({aq9:.4f}, {bq9:.4f}), 1 m off at 10 m/s: expected no swing past "
     f"the centre beyond 0.05 m; got {e9.min():.3f} m")
 for v9 in (5.0, 20.0, 30.0):
-    end9 = abs(lateral_run9(aq9, bq9, v9, 0.5, 120)[-1])
-    assert end9 < 0.01, (
+    end9 = abs(lateral_run9(aq9, bq9, v9, 0.5, 60)[-1])
+    assert end9 < 0.05, (
         f"(alpha_q, beta_q) = ({aq9:.4f}, {bq9:.4f}), 0.5 m off at {v9:.0f} m/s: expected the "
-        f"offset below 0.01 m after 60 s; got {end9:.3g} m")
+        f"offset below 0.05 m after 30 s; got {end9:.3g} m")
 ### BEGIN HIDDEN TESTS
 def rho9(v, aq, bq):
     """The spectral radius of the tests' own linearised lane-keeping loop."""

@@ -423,7 +423,7 @@ for idx in np.ndindex(5, 8):
 # %% solution id=ex09_4 title="Open loop against closed loop"
 def experiment():
     ### BEGIN SOLUTION
-    gains = [(1.0, 0.2), (1.0, 0.45), (1.0, 0.6), (16.0, 0.3), (16.0, 0.45), (16.0, 0.6)]
+    gains = [(1.0, 0.2), (1.0, 0.45), (1.0, 0.6), (16.0, 0.3), (16.0, 0.45)]
     S, T = ds.ego.shape[:2]
     s_idx, t_idx = np.repeat(np.arange(S), T - 1), np.tile(np.arange(1, T), S)
     obs = inputs.from_dataset(ds, s_idx, t_idx, model=models.get("dmp_only"))
@@ -461,7 +461,8 @@ assert flips9, (
 S9, T9 = ds.ego.shape[:2]
 s9, t9 = np.repeat(np.arange(S9), T9 - 1), np.tile(np.arange(1, T9), S9)
 obs9 = inputs.from_dataset(ds, s9, t9, model=models.get("dmp_only"))
-for (a, b), got_ol, got_cl in zip(gains9, ol9, cl9):
+check9 = sorted({0, *flips9[0]})        # the first row and the pair your table misranks
+for (a, b), got_ol, got_cl in ((gains9[k], ol9[k], cl9[k]) for k in check9):
     z9 = np.array([[*dmp.logits_from_gains(a, b), *dmp.logits_from_gains(2.5, 1.15)]])
     u9, _ = models.dmp_head(z9.repeat(len(s9), 0), obs9["lane_target"], obs9["motion"], cfg)
     want_ol = float(np.sqrt(np.mean((u9[:, 0] - ds.controls[s9, t9, 0]) ** 2)))

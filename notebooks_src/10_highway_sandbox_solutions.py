@@ -99,17 +99,6 @@ for v, v_cmd in test_rng.uniform((3.0, 3.0), (30.0, 30.0), (10, 2)):
         assert type(got) is float and np.isclose(got, want, rtol=1e-9), (
             f"v = {v:.3f}, command {v_cmd:.3f}, L = {length}, dt = {dt}, h = {h}, a_max = "
             f"{a_max}, steer_max = {steer}: expected the float {want:.6f}; got {got!r}")
-env = hw.make_env("highway-fast", steps=6, config={"vehicles_count": 0})
-env.reset(seed=0)
-for _ in range(2):
-    env.step(np.array([-0.5, 0.0], np.float32))  # slow down a little, straight
-yaw0, v_now = hw.ego_pose(env)[2], float(env.vehicle.speed)
-env.step(np.array([-1.0, 1.0], np.float32))     # brake hard, full lock
-got_sim = abs(world.wrap_angle(hw.ego_pose(env)[2] - yaw0)) / 0.5
-got = max_yaw_rate(v_now, v_now - 5.0)
-assert abs(got - got_sim) < 1e-6, (
-    f"highway-env at {v_now:.3f} m/s, braking at 5 m/s^2, full lock: it turns at "
-    f"{got_sim:.6f} rad/s; got {got!r}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -241,7 +230,7 @@ assert overlaps["lane follower"] == overlaps["expert"] == 0.0
 # `hw.run_episode` (`poses` `(T+1, 3)`, `speeds` `(T+1,)`, `ado` `(T+1, A, 5)`,
 # `ado_valid` `(T+1, A)`; the ego is `world.EGO_LENGTH` × `world.EGO_WIDTH` here too).
 # It must agree with highway-env's flag on the twelve episodes of `runs` above, and on
-# two episodes the tests draw on other seeds. Look at what a crash
+# an episode the tests draw on another seed. Look at what a crash
 # leaves in the logs before you choose; `metrics.ado_gaps` and your 10.2 are yours to
 # use. Defend the rule in the written answer of 10.6.
 
@@ -271,13 +260,11 @@ def fast_follower10(obs):
     return np.array([10.0, 10.0 * 2.0 * y / (x * x + y * y)])
 
 
-held10 = [hw.run_episode("roundabout", s, fast_follower10, steps=16, record_bev=False)
-          for s in (200_000, 200_001)]
-missed10 = [ep.seed for ep in held10
-            if bool(crashed_from_log(ep.poses, ep.speeds, ep.ado, ep.ado_valid)) != ep.collided]
-assert not missed10, (
-    f"two held-out episodes (one crash): expected highway-env's flag; wrong on seeds "
-    f"{missed10}")
+held10 = hw.run_episode("roundabout", 200_000, fast_follower10, steps=16, record_bev=False)
+said10 = bool(crashed_from_log(held10.poses, held10.speeds, held10.ado, held10.ado_valid))
+assert said10 == held10.collided, (
+    f"a held-out episode (seed 200000): expected highway-env's flag {held10.collided}; got "
+    f"{said10}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -330,8 +317,7 @@ assert table10["end"] < min(table10["start"], table10["unicycle"]), (
 ### BEGIN HIDDEN TESTS
 ep10 = runs["expert"][0]
 rate10 = world.wrap_angle(np.diff(ep10.poses[:, 2])) / 0.5
-for rule, v10 in (("start", ep10.speeds[:-1]),
-                  ("unicycle", world.controls_from_poses(ep10.poses)[:, 0])):
+for rule, v10 in (("unicycle", world.controls_from_poses(ep10.poses)[:, 0]),):
     u10 = np.stack([v10, rate10], axis=-1)
     rp10 = hw.run_episode(ep10.scenario, ep10.seed, lambda obs, u=u10: u[obs["t"]],
                           steps=ep10.steps, record_bev=False)
