@@ -452,7 +452,7 @@ def substeps(v, omega, length=5.0, dt=0.5, h=0.1):  # the sub-steps written out
     return x / dt
 
 
-for command in ((15.0, 0.5), (25.0, -0.2), (18.0, 1.0)):
+for command in ((25.0, -0.2), (18.0, 1.0)):
     want, start = logged_speed(command)
     got = unicycle_speed(*command)
     assert abs(start - command[0]) < 1e-9 and abs(got - want) < 1e-5, (
@@ -600,9 +600,15 @@ assert mean_speed >= 4.0, (
 # episodes are drawn.
 
 # %%
+def your_episode():
+    """Your driver on seeds[0]: the graded run when it exists (no second run)."""
+    if "careful" in globals():
+        return careful[0]
+    return hw.run_episode("roundabout", seeds[0], careful_driver, steps=16, record_bev=False)
+
+
 plot_episode_attempts(
-    {"your careful_driver": lambda: hw.run_episode("roundabout", seeds[0], careful_driver,
-                                                   steps=16, record_bev=False)},
+    {"your careful_driver": your_episode},
     {"expert": runs["expert"][0], "lane follower": runs["lane follower"][0]})
 plt.tight_layout()
 plt.show()
