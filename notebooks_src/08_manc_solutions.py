@@ -577,14 +577,14 @@ def rho8(v, aq, bq):
 
 
 for aq, bq in ((1.0, 0.45), (0.5, 5.0), (3.0, 1.0), (12.0, 0.3), (20.0, 5.0), (0.6, 0.06)):
-    grid = np.arange(1.0, 30.0 + 1e-9, 0.05)
+    grid = np.arange(1.0, 30.0 + 1e-9, 0.1)
     bad = [v for v in grid if rho8(v, aq, bq) >= 1.0]
     if not bad:
         want = math.inf
     elif bad[0] == 1.0:
         want = 1.0
     else:
-        lo, hi = bad[0] - 0.05, bad[0]
+        lo, hi = bad[0] - 0.1, bad[0]
         for _ in range(60):
             mid = 0.5 * (lo + hi)
             lo, hi = (mid, hi) if rho8(mid, aq, bq) < 1.0 else (lo, mid)
