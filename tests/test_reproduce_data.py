@@ -22,6 +22,7 @@ from minimanc.studies.recorded import (
     data_config,
     is_recorded,
 )
+from minimanc.train import TrainConfig
 from minimanc.world.nuscenes.sample import write_sample
 
 SMALL = replace(PRESETS["tiny"], table_models=("cnn", "manc"), ablation_models=("manc",),
@@ -58,8 +59,8 @@ def test_data_config_splits_the_recorded_file(recorded, tmp_path):
     assert (c.n_train, c.n_tune, c.n_val, c.image_size) == (4, 1, 5, 32)
     assert c.data_source == "nuscenes" and is_recorded(c)
     assert c.data_hash == world.file_content_hash(recorded)
-    assert (c.epochs, c.lrs, c.table_models) == (PRESETS["tiny"].epochs, PRESETS["tiny"].lrs,
-                                                   PRESETS["tiny"].table_models)
+    assert (c.training, c.lrs, c.table_models) == (PRESETS["tiny"].training, PRESETS["tiny"].lrs,
+                                                     PRESETS["tiny"].table_models)
     train, tune, val = Study(c, tmp_path / "o", engine="numpy", workers=0,
                              agents=("replay",)).datasets()
     names = [t["scene"] for t in meta["tags"]]
@@ -186,7 +187,8 @@ def test_reproduce_data_bad_input_is_one_line_exit_2(recorded, tmp_path, capsys)
 
 
 def test_a_generated_file_that_fits_the_preset_keeps_the_bounds(tmp_path):
-    small = StudyConfig(n_train=2, n_tune=1, n_val=1, image_size=32, epochs=1)
+    small = StudyConfig(n_train=2, n_tune=1, n_val=1, image_size=32,
+                        training=TrainConfig(epochs=1))
     path = tmp_path / "gen.npz"
     world.save(world.generate(5, seed=3, raster=world.RasterConfig(size=32)), path)
     c = data_config(small, path)

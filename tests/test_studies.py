@@ -203,7 +203,8 @@ def test_study_config_validation_and_fingerprint():
     from dataclasses import replace
 
     assert replace(base, n_seeds=3).fingerprint() == base.fingerprint()
-    assert replace(base, epochs=2).fingerprint() != base.fingerprint()
+    assert replace(base, training=replace(base.training, epochs=2)).fingerprint() != \
+        base.fingerprint()
     with pytest.raises(ValueError, match="n_val"):
         replace(base, n_val=0)
     with pytest.raises(ValueError, match="lrs"):
@@ -457,7 +458,7 @@ def test_a_broken_checkpoint_in_the_cache_is_retrained(tmp_path, capsys):
         err = capsys.readouterr().err
         assert "discarding the unreadable cache entry" in err and path.name in err
         ck = train.load_checkpoint(path)  # retrained: readable and complete
-        assert ck["epoch"] == tiny.epochs and ck["history"] == good["history"]
+        assert ck["epoch"] == tiny.training.epochs and ck["history"] == good["history"]
         assert sorted(p.name for p in path.parent.iterdir()) == [path.name]
 
 
@@ -546,20 +547,14 @@ def test_study_config_holds_a_train_config_and_every_training_field_changes_the_
         assert other.fingerprint() != base.fingerprint(), f.name
         seen.add(other.fingerprint())
     assert len(seen) == len(fields(train.TrainConfig))
-    # the old keyword style still works, for every field a study used to copy and dmp_seq_len
-    c = studies.StudyConfig(epochs=2, batch_size=8, seq_len=3, dmp_seq_len=5,
-                            max_steps_per_epoch=4)
-    assert (c.epochs, c.batch_size, c.seq_len, c.dmp_seq_len, c.max_steps_per_epoch) == \
-        (2, 8, 3, 5, 4)
-    assert c.training == train.TrainConfig(epochs=2, batch_size=8, seq_len=3, dmp_seq_len=5,
-                                           max_steps_per_epoch=4)
-    assert replace(c, dmp_seq_len=6).training.dmp_seq_len == 6
+    # one spelling per setting: the training fields are the TrainConfig's, not the study's
+    with pytest.raises(TypeError, match="epochs"):
+        studies.StudyConfig(epochs=2)
+    assert not hasattr(base, "epochs")
     with pytest.raises(ValueError, match="dmp_seq_len"):
-        studies.StudyConfig(dmp_seq_len=0)
-    with pytest.raises(TypeError, match="training"):
+        studies.StudyConfig(training=train.TrainConfig(dmp_seq_len=0))
+    with pytest.raises(ValueError, match="training"):
         studies.StudyConfig(training={"epochs": 2})
-    with pytest.raises(TypeError, match="unknown"):
-        studies.StudyConfig(epoch=2)
 
 
 def test_presets_keep_their_training_values():
@@ -578,7 +573,8 @@ def test_presets_keep_their_training_values():
 def test_a_run_trains_with_the_studys_train_config(tmp_path):
     from dataclasses import replace
 
-    c = replace(studies.PRESETS["tiny"], dmp_seq_len=6, q_seq_len=2)
+    tiny = studies.PRESETS["tiny"]
+    c = replace(tiny, training=replace(tiny.training, dmp_seq_len=6, q_seq_len=2))
     study = studies.Study(c, tmp_path, engine="numpy", workers=0, progress=False)
     run = studies.Run("manc", "paper", c.n_states, 0.5, 1, 2e-3)
     tc = study.train_config(run)

@@ -218,7 +218,7 @@ class Runs:
         if not path.exists():
             return False
         try:
-            return train.load_checkpoint(path)["epoch"] >= self.config.epochs
+            return train.load_checkpoint(path)["epoch"] >= self.config.training.epochs
         except train.CheckpointError as exc:
             # the cache is derived data: drop the broken entry and train the run again
             self.discard(path, str(exc))
