@@ -103,7 +103,7 @@ def test_the_library_refuses_what_recorded_data_cannot_do(recorded, tmp_path):
         reproduce(c, tmp_path / "o", engine="numpy", workers=0, agents=("replay",),
                   dagger=True)
     study = Study(c, tmp_path / "o", engine="numpy", workers=0, agents=("replay",))
-    assert study.bound_rows == ()
+    assert study.references.bound_rows == ()
     with pytest.raises(ValueError, match="modes come from re-driving"):
         study.human_modes()
     # the file changed after its configuration was made: refused, not silently used
@@ -194,7 +194,7 @@ def test_a_generated_file_that_fits_the_preset_keeps_the_bounds(tmp_path):
     c = data_config(small, path)
     assert c.data_source == GENERATED and not is_recorded(c) and c.data_seed == 3
     study = Study(c, tmp_path / "o", engine="numpy", workers=0)
-    assert study.bound_rows == BOUND_ROWS and study.agents == ("replay", "reactive")
+    assert study.references.bound_rows == BOUND_ROWS and study.agents == ("replay", "reactive")
     train, tune, val = study.datasets()
     assert (len(train), len(tune), len(val)) == (2, 1, 1)  # the first 4 of the 5 scenes
-    assert study.derived_path("-val-modes.npy").parent == tmp_path / "o" / "data"
+    assert study.files.derived_path("-val-modes.npy").parent == tmp_path / "o" / "data"
