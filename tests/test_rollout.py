@@ -513,3 +513,24 @@ def test_the_training_result_is_accepted_where_its_parts_are(ds):
         rollout.ModelPolicy(fit, cfg=cfg)
     with pytest.raises(TypeError, match="leave out params and cfg"):
         rollout.open_loop(fit, ds, "numpy")  # options after the result are keywords
+
+
+def test_drive_on_route_drives_a_bare_head_along_the_route_and_refuses_bad_controls():
+    from minimanc import dmp
+
+    cfg = models.ModelConfig()
+    m = world.random_map(np.random.default_rng(3), "curved")
+    p, h = m.route_pose(m.start_s)
+    start, motion = np.array([p[0], p[1], h]), np.array([5.0, 0.0])
+    logits = np.array([[*dmp.logits_from_gains(4.0, 0.45), *dmp.logits_from_gains(3.0, 1.0)]])
+
+    def head(lane, mot):
+        return models.dmp_head(logits, lane, mot, cfg)[0]
+
+    poses, u = rollout.drive_on_route(head, m, start, motion, 12)
+    assert poses.shape == (13, 3) and u.shape == (12, 2)
+    np.testing.assert_allclose(poses[1], world.unicycle_step(start, u[0], world.DT))
+    s, lat = world.project_to_route(m, poses[:, :2], poses[:, 2])
+    assert np.all(np.diff(s) > 0) and np.abs(lat).max() < 1.0   # it follows the route
+    with pytest.raises(ValueError, match="shape \\(1, 2\\)"):
+        rollout.drive_on_route(lambda lane, mot: np.zeros(3), m, start, motion, 2)
