@@ -170,7 +170,7 @@ def open_loop_errors(args: argparse.Namespace, seed: int, val: world.Dataset,
            "change": {"human": change_by_regime(human, last, labels)}}
     for method, ck in (("bc", where / "bc"), ("dagger", dagger.round_dir(where, args.rounds))):
         fit = train.load_fit(ck / "checkpoint.npz")
-        pred = rollout.open_loop(args.model, fit.params, val, cfg, eng="jax")["controls"]
+        pred = rollout.open_loop(args.model, fit.params, val, cfg, engine="jax")["controls"]
         pred = np.asarray(pred, dtype=np.float64).reshape(-1, 2)
         out[method] = error_by_regime(pred, human, labels)
         out["change"][method] = change_by_regime(pred, last, labels)

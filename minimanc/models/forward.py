@@ -341,8 +341,9 @@ def step(name: str, params: dict, obs: dict, state: dict, cfg: ModelConfig | Non
     cfg = cfg or ModelConfig()
     check_obs(name, obs, cfg, 1)
     enc = encode(spec, params, obs, cfg, eng)
+    features = enc.pop("features")  # the head reads the features through encode only
     controls, new_state, aux = run_head(spec, params, enc, state, cfg, eng)
-    aux["features"] = enc["features"]
+    aux["features"] = features
     return controls, new_state, aux
 
 

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import engine, metrics, rollout, train, world
+from minimanc import metrics, rollout, train, world
 from minimanc.metrics.diagnostics import collision_taxonomy
 from minimanc.studies.provenance import write_json
 
@@ -148,8 +148,8 @@ def evaluate_job(job: dict) -> dict:
     ds = _load_split(job["data"], job["lo"], job["hi"])
     fit = train.load_fit(job["checkpoint"])
     try:
-        traj = rollout.closed_loop(fit.name, fit.params, ds, fit.cfg, engine(job["engine"]),
-                                   progress=False, agents=job.get("agents", "replay"))
+        traj = rollout.closed_loop(fit, ds, engine=job["engine"], progress=False,
+                                   agents=job.get("agents", "replay"))
     except rollout.BadControls as exc:  # a model whose closed loop blows up scores inf
         res = failed(str(exc))
         write_json(job["metrics"], res)

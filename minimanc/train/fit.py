@@ -33,6 +33,7 @@ from minimanc.train.checkpoint import (
 )
 from minimanc.train.config import CHECKPOINT_NAME, DTYPES, FitResult, TrainConfig, TrainingDiverged
 from minimanc.train.step import loss_fn, make_step
+from minimanc.train.trained import STD_DEFAULT, accepts_fit
 from minimanc.tree import cast_floats
 from minimanc.world.datawriter import remove_temp_files
 from minimanc.world.fileformat import describe_non_finite, first_non_finite
@@ -330,11 +331,16 @@ def fit(
     return result_of(st, time.perf_counter() - t_start)
 
 
-def open_loop_loss(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = None,
-                   engine: Any = "jax", std: Any = None, q_init: str = "uniform",
-                   batch_size: int = 256, dtype: Any = np.float32, scenes: Any = None,
-                   motion_feedback: bool = True) -> float:
+@accepts_fit(STD_DEFAULT)
+def open_loop_loss(name: str | FitResult, params: dict, ds: Any,
+                   cfg: models.ModelConfig | None = None, engine: Any = "jax", std: Any = None,
+                   q_init: str = "uniform", batch_size: int = 256, dtype: Any = np.float32,
+                   scenes: Any = None, motion_feedback: bool = True) -> float:
     """Open-loop loss of Algorithm 1 on a dataset (every sample once, no gradient).
+
+    ``open_loop_loss(fit, ds)`` with the :class:`FitResult` of :func:`fit` (``std`` then
+    defaults to its ``control_std``, the normalisation it was trained with), or
+    ``open_loop_loss(name, params, ds, cfg)`` with its parts.
 
     Feed-forward models and vAGN-only see each step with ``q'`` as in
     training; LSTM models run each scene from ``t = 0`` with their state

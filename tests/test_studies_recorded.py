@@ -22,6 +22,7 @@ from minimanc.studies.recorded import (
     data_config,
     is_recorded,
 )
+from minimanc.train import TrainConfig
 from minimanc.world.nuscenes.sample import write_sample
 
 SMALL = replace(PRESETS["tiny"], table_models=("cnn", "manc"), ablation_models=("manc",),
@@ -58,8 +59,8 @@ def test_data_config_splits_the_recorded_file(recorded, tmp_path):
     assert (c.n_train, c.n_tune, c.n_val, c.image_size) == (4, 1, 5, 32)
     assert c.data_source == "nuscenes" and is_recorded(c)
     assert c.data_hash == world.file_content_hash(recorded)
-    assert (c.epochs, c.lrs, c.table_models) == (PRESETS["tiny"].epochs, PRESETS["tiny"].lrs,
-                                                   PRESETS["tiny"].table_models)
+    assert (c.training, c.lrs, c.table_models) == (PRESETS["tiny"].training, PRESETS["tiny"].lrs,
+                                                     PRESETS["tiny"].table_models)
     train, tune, val = Study(c, tmp_path / "o", engine="numpy", workers=0,
                              agents=("replay",)).datasets()
     names = [t["scene"] for t in meta["tags"]]
@@ -102,7 +103,7 @@ def test_the_library_refuses_what_recorded_data_cannot_do(recorded, tmp_path):
         reproduce(c, tmp_path / "o", engine="numpy", workers=0, agents=("replay",),
                   dagger=True)
     study = Study(c, tmp_path / "o", engine="numpy", workers=0, agents=("replay",))
-    assert study.bound_rows == ()
+    assert study.references.bound_rows == ()
     with pytest.raises(ValueError, match="modes come from re-driving"):
         study.human_modes()
     # the file changed after its configuration was made: refused, not silently used
@@ -186,13 +187,14 @@ def test_reproduce_data_bad_input_is_one_line_exit_2(recorded, tmp_path, capsys)
 
 
 def test_a_generated_file_that_fits_the_preset_keeps_the_bounds(tmp_path):
-    small = StudyConfig(n_train=2, n_tune=1, n_val=1, image_size=32, epochs=1)
+    small = StudyConfig(n_train=2, n_tune=1, n_val=1, image_size=32,
+                        training=TrainConfig(epochs=1))
     path = tmp_path / "gen.npz"
     world.save(world.generate(5, seed=3, raster=world.RasterConfig(size=32)), path)
     c = data_config(small, path)
     assert c.data_source == GENERATED and not is_recorded(c) and c.data_seed == 3
     study = Study(c, tmp_path / "o", engine="numpy", workers=0)
-    assert study.bound_rows == BOUND_ROWS and study.agents == ("replay", "reactive")
+    assert study.references.bound_rows == BOUND_ROWS and study.agents == ("replay", "reactive")
     train, tune, val = study.datasets()
     assert (len(train), len(tune), len(val)) == (2, 1, 1)  # the first 4 of the 5 scenes
-    assert study.derived_path("-val-modes.npy").parent == tmp_path / "o" / "data"
+    assert study.files.derived_path("-val-modes.npy").parent == tmp_path / "o" / "data"
