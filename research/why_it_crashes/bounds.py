@@ -17,7 +17,8 @@ along- and cross-track parts (:func:`minimanc.metrics.trajectory.along_cross_tra
 mean speed difference and its at-fault collisions. Re-driving with the scene's own style
 must reproduce the log (checked first).
 
-Run: ``python benchmarks/bounds.py --scenes 200 --seed 777 --out results/bounds.md``
+Run: ``python research/why_it_crashes/bounds.py --scenes 200 --seed 777
+--out research/why_it_crashes/results/bounds.md``
 """
 
 from __future__ import annotations

@@ -26,7 +26,8 @@ convolutions (``ModelConfig.channels``: one more layer doubles the receptive fie
 linear function of them), ``--gains-input`` what MANC's gains FC reads
 (``ModelConfig.gains_input``).
 
-Run: ``python benchmarks/fixes.py --variants cnn:parity:0:change:change --out results/X.md``
+Run: ``python research/why_it_crashes/fixes.py --variants cnn:parity:0:change:change
+--out research/why_it_crashes/results/X.md``
 """
 
 from __future__ import annotations

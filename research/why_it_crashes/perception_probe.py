@@ -13,7 +13,8 @@ what each trained model's head reads (the CNN's hidden layer FC(64); MANC's pred
 the first ``--probe-train`` training scenes (its ridge chosen from :data:`RIDGES` on their
 last quarter) and scored on the validation scenes.
 
-Run: ``python benchmarks/perception_probe.py --out results/perception_probe.md``
+Run: ``python research/why_it_crashes/perception_probe.py
+--out research/why_it_crashes/results/perception_probe.md``
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ MODELS = {"untrained CNN backbone": None,
               ("manc", "paper", "level", "change", "flat", 1.0)}
 """label → (model, setting, speed_output, speed_scale, predicate_pool, perception_weight)."""
 PERCEIVE = tuple(f for f in P.FEATURES if f != "a_prev")
-"""The perception loss's targets (as in ``benchmarks/fixes.py``)."""
+"""The perception loss's targets (as in ``fixes.py``)."""
 
 
 def representations(name: str, params: dict, ds, cfg, batch: int = 500

@@ -1,7 +1,7 @@
 """DAgger at a real budget for the image models, at the paper's size, against behaviour
 cloning given the same number of labels as extra demonstrations.
 
-The draw of ``benchmarks/data_scale.py`` (data seed 0): the pool is the paper split's 650
+The draw of ``data_scale.py`` (data seed 0): the pool is the paper split's 650
 training scenes and the next ``rounds × per_round`` scenes of the draw (scenes 890 on), the
 policies are driven on its 200 validation scenes. Round 0 is behaviour cloning on 650 scenes
 of the pool; each of ``--rounds`` DAgger rounds drives ``--per-round`` more pool scenes with
@@ -17,8 +17,8 @@ driving the other pool scenes with an Ornstein–Uhlenbeck offset on its applied
 (stationary σ ``SPEED`` m/s and ``YAW_RATE`` rad/s, correlation time ``TAU`` s), every
 state labelled with its clean control; one training, no policy in the loop.
 
-    python benchmarks/dagger_budget.py --model manc --predicate-pool flat --seeds 3 \\
-        --perturb 1.5 0.03 2 --out results/dagger_budget_manc.md
+    python research/why_it_crashes/dagger_budget.py --model manc --predicate-pool flat --seeds 3 \\
+        --perturb 1.5 0.03 2 --out research/why_it_crashes/results/dagger_budget_manc.md
 
 The last section reads the open-loop error of BC and of DAgger's last round on the human's
 own validation states, by regime (:func:`minimanc.metrics.diagnostics.error_by_regime`; the

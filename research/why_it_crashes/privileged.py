@@ -29,7 +29,8 @@ MANC's DMP head (the MLP predicts its gain logits): MANC's head on the expert's 
 vAGN, ``FC(q)`` and the DMP head), ``--head vagn_predicates`` the same with ``FC(q ⊕ p)``;
 these two in the parts ``bc``, ``ablation``, ``information`` and ``noise`` only.
 
-Run: ``python benchmarks/privileged.py --out results/privileged.md``
+Run: ``python research/why_it_crashes/privileged.py
+--out research/why_it_crashes/results/privileged.md``
 """
 
 from __future__ import annotations

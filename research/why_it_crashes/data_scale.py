@@ -8,7 +8,7 @@ one step, "change", which needs the parity setting); ``--predicate-pool`` how MA
 predicates read the features (``ModelConfig.predicate_pool``: "global", eq. 7's pooling, or
 "flat").
 
-Read it against ``benchmarks/fixes.py``'s tables of the same variant: the same models,
+Read it against ``fixes.py``'s tables of the same variant: the same models,
 training and validation scenes with the 650 training scenes alone
 (``results/fixes_speed_scale.md`` for the paper setting at speed level).
 
@@ -16,9 +16,10 @@ Each run (model, seed) is kept as JSON under ``--cache`` when it ends (written a
 a stopped run resumes where it stopped; the table is written after every run, with the
 number of seeds each row has.
 
-Run: ``python benchmarks/data_scale.py --models cnn manc --extra 1950 --seeds 3
---out results/data_scale.md``, or for the CNN predicting its speed change: ``--models cnn
---setting parity --speed-output change --out results/data_scale_parity.md``
+Run: ``python research/why_it_crashes/data_scale.py --models cnn manc --extra 1950 --seeds 3
+--out research/why_it_crashes/results/data_scale.md``, or for the CNN predicting its speed
+change: ``--models cnn --setting parity --speed-output change
+--out research/why_it_crashes/results/data_scale_parity.md``
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ def table(runs: dict[str, list[dict]], n_extra: int, epochs: int,
             f"speed output {cfg.speed_output}, predicates pooled {cfg.predicate_pool}, speed "
             f"scale change, {epochs} epochs, lr 0.001; "
             "mean ± std over seeds)\n\n"
-            "Read against `benchmarks/fixes.py`'s rows of the same variant: the same models "
+            "Read against `fixes.py`'s rows of the same variant: the same models "
             f"and training on the {N_TRAIN} training scenes alone.\n\n")
     for a in AGENTS:
         text += (f"## Agents `{a}`\n\n| model | training scenes | seeds | " + " | ".join(HEAD)

@@ -21,10 +21,11 @@ perception fixed), reactive ados. Read it against
 
 The data is the paper preset's draw (data seed 0: 650 training, 40 tuning, 200 validation
 scenes, then ``--extra`` further training scenes of the same draw, as
-``benchmarks/data_scale.py`` takes them) rendered with ``--history`` steps of faded history
+``data_scale.py`` takes them) rendered with ``--history`` steps of faded history
 (``RasterConfig.history``).
 
-Run: ``python benchmarks/perceive_drive.py --out results/perceive_drive.md``
+Run: ``python research/why_it_crashes/perceive_drive.py
+--out research/why_it_crashes/results/perceive_drive.md``
 """
 
 from __future__ import annotations
