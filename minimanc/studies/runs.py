@@ -18,9 +18,9 @@ from typing import Any
 
 from minimanc import metrics, models, rollout, train, world
 from minimanc.checks import check_int
+from minimanc.diagnose import bounds
 from minimanc.engine import ENGINES
 from minimanc.rollout import check_agents
-from minimanc.studies import bounds
 from minimanc.studies.config import Run, StudyConfig, canonical_setting
 from minimanc.studies.executors import (
     EXECUTORS,
@@ -149,7 +149,7 @@ class Runs:
 
     @property
     def bound_rows(self) -> tuple[str, ...]:
-        """The bound rows of Table I (:data:`minimanc.studies.bounds.BOUND_ROWS`); none on
+        """The bound rows of Table I (:data:`minimanc.diagnose.bounds.BOUND_ROWS`); none on
         recorded data (:mod:`minimanc.studies.recorded`)."""
         return () if self.recorded else bounds.BOUND_ROWS
 
@@ -429,7 +429,7 @@ class Runs:
 
     def reference(self, name: str, agents: str) -> dict:
         """The scores of a driver without learning on the validation split (cached in memory):
-        ``"human"``, ``"dmp_prior"`` or a bound (:data:`minimanc.studies.bounds.BOUND_ROWS`)."""
+        ``"human"``, ``"dmp_prior"`` or a bound (:data:`minimanc.diagnose.bounds.BOUND_ROWS`)."""
         key = f"{name}-val-{agents}"
         if key not in self._references:
             _, _, val = self.datasets()
@@ -437,7 +437,7 @@ class Runs:
             if name == "human":
                 traj = rollout.human(val, agents=agents)
             elif name == "expert":
-                traj, _ = bounds.expert_rollout(val, agents)
+                traj = bounds.expert_rollout(val, agents=agents)
             elif name == "style_floor":  # one drive, ados reacting, scored under either protocol
                 if "style_floor" not in self._references:
                     self._references["style_floor"] = bounds.floor_rollout(

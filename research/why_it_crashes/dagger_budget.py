@@ -21,8 +21,8 @@ state labelled with its clean control; one training, no policy in the loop.
         --perturb 1.5 0.03 2 --out research/why_it_crashes/results/dagger_budget_manc.md
 
 The last section reads the open-loop error of BC and of DAgger's last round on the human's
-own validation states, by regime (:func:`minimanc.metrics.diagnostics.error_by_regime`; the
-regime of a state from what the human perceives there, :func:`minimanc.dagger.privileged.
+own validation states, by regime (:func:`regimes.error_by_regime`; the
+regime of a state from what the human perceives there, :func:`minimanc.diagnose.
 demonstrations`): whether a model predicts the human's braking where it follows a leader.
 
 Each seed's rounds are checkpointed under ``--work`` (a rerun resumes), and its scores are
@@ -36,15 +36,15 @@ import time
 from pathlib import Path
 
 import numpy as np
+from regimes import REGIMES, error_by_regime, regimes
 from scoring import HEAD, LABEL, N_TRAIN, N_TUNE, N_VAL, SHOW, cells, log, scores
 
 from minimanc import dagger, models, rollout, train, world
-from minimanc.dagger import privileged as P
-from minimanc.metrics.diagnostics import REGIMES, error_by_regime, regimes
+from minimanc.diagnose import expert_rollout, floor_rollout, median_style
+from minimanc.diagnose import privileged as P
 from minimanc.metrics.safety import COLLISION_TYPES
 from minimanc.models.forward import changes_speed
 from minimanc.studies import provenance
-from minimanc.studies.bounds import expert_rollout, floor_rollout, median_style
 from minimanc.world.datareader import load
 from minimanc.world.datawriter import save
 
@@ -132,7 +132,7 @@ def bound_rows(val: world.Dataset) -> dict:
     floor's ADE (the human re-driving with the population's median style)."""
     out: dict = {"expert": {}, "fixed": {}}
     for a in AGENTS:
-        out["expert"][a] = scores(expert_rollout(val, a)[0], val)
+        out["expert"][a] = scores(expert_rollout(val, agents=a), val)
         out["fixed"][a] = scores(rollout.simulate(rollout.FixedGainsPolicy(), val, agents=a,
                                                   progress=False), val)
     out["floor_ade"] = scores(floor_rollout(val, median_style()), val)["ade"]

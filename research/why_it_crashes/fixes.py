@@ -13,7 +13,7 @@ A variant is ``model:setting:history:speed_output:speed_scale[:perception]``:
   the std of the speed ("level") or of its change over one step ("change");
 * ``perception`` (optional, default 0): the weight of the auxiliary perception loss
   (``TrainConfig.perception_weight``) whose targets are :data:`PERCEIVE`, what the world's
-  human perceives in each state (:func:`minimanc.dagger.privileged.perceived`).
+  human perceives in each state (:func:`minimanc.diagnose.perceived`).
 
 The data is the paper preset's draw (data seed 0: 650 training, 40 tuning, 200 validation
 scenes, in that order; only the validation scenes are driven); each raster variant is
@@ -40,8 +40,8 @@ import numpy as np
 from scoring import cells, scores
 
 from minimanc import models, rollout, train, world
-from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS
+from minimanc.diagnose import privileged as P
 from minimanc.studies import provenance as results
 
 N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
@@ -51,7 +51,7 @@ PERCEIVE = tuple(f for f in P.FEATURES if f != "a_prev")
 (its last acceleration is the only one left out)."""
 HEAD = ("ADE m", "along m", "coll. %", "at fault %", "off road %")
 CONTACTS = ("contacts_at_fault", "contacts_front", "contacts_stopped_ado", "contacts_lateral")
-"""The first contacts by kind (:func:`minimanc.metrics.diagnostics.collision_taxonomy`)."""
+"""The first contacts by kind (:func:`minimanc.diagnose.collision_taxonomy`)."""
 SPEEDS = ("contacts_ego_speed", "contacts_human_speed", "contacts_faster")
 """At the at-fault contacts: the ego's and the human's mean speed and the share faster."""
 

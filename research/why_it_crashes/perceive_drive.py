@@ -1,4 +1,4 @@
-"""The modular learner (:mod:`minimanc.dagger.perceiving`): a perception trained on the raster
+"""The modular learner (:mod:`perceiving`, beside this script): a perception trained on the raster
 to read the numbers the world's human drives on, and the privileged MLP trained on what it
 reads, driven closed loop on the raster alone.
 
@@ -8,7 +8,7 @@ matter), and the closed loop under both protocols (mean ± std over ``--seeds`` 
 seed trains both halves), for each ``--speed`` source: ``raster`` (the driver reads its own
 speed from the raster too) and ``odometer`` (its own speed is the ego's, as MANC's DMP gets
 it; only the rest is read). Both drivers of a seed share its perception. ``--oracle GROUP
-...`` adds a diagnostic row per feature group of ``minimanc.dagger.privileged.FEATURE_GROUPS``:
+...`` adds a diagnostic row per feature group of ``minimanc.diagnose.FEATURE_GROUPS``:
 the odometer driver with that group taken from the world's own perception in the reached
 state (``OraclePerceivingPolicy``), the rest still read: the gain of one exact group is what
 its perception errors cost; ``--perceived GROUP ...`` the converse, every group exact but
@@ -35,12 +35,12 @@ import time
 from pathlib import Path
 
 import numpy as np
+import perceiving as M
 from scoring import HEAD, N_TRAIN, N_TUNE, N_VAL, SHOW, cells, log
 
 from minimanc import world
-from minimanc.dagger import perceiving as M
-from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS, WorldTeacher
+from minimanc.diagnose import privileged as P
 from minimanc.studies import provenance
 from minimanc.studies.jobs import scene_families
 

@@ -1,7 +1,7 @@
 """What the image models perceive: a linear probe
-(:func:`minimanc.metrics.diagnostics.linear_probe`) from each model's backbone features of a
+(:func:`minimanc.diagnose.linear_probe`) from each model's backbone features of a
 state to what the world's human perceives there
-(:mod:`minimanc.dagger.privileged`: its own speed, the gap and speed difference to its leader,
+(:mod:`minimanc.diagnose.privileged`: its own speed, the gap and speed difference to its leader,
 the distance to the point where it must yield, the braking bound of the curves ahead, the lateral
 offset and heading error) and to the acceleration the human applied.
 
@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from minimanc import engine, inputs, models, train, world
-from minimanc.dagger import privileged as P
+from minimanc.diagnose import linear_probe
+from minimanc.diagnose import privileged as P
 from minimanc.layers import dense
-from minimanc.metrics.diagnostics import linear_probe
 from minimanc.models.backbone import activate
 from minimanc.models.forward import encode
 from minimanc.studies import provenance as results

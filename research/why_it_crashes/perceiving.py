@@ -1,4 +1,4 @@
-"""Chapter 11 — the modular learner: a perception learned from the raster, feeding the
+"""The modular learner: a perception learned from the raster, feeding the
 privileged learner (the two halves of Chen et al. 2019's *Learning by Cheating*, the second
 one trained on what the first perceives).
 
@@ -9,14 +9,14 @@ numbers the world's human drives on, and does a controller that reads those numb
 
 **Perception.** :func:`fit_perception` trains the CNN backbone of :mod:`minimanc.models`
 (its convolutions of the raster, flattened) with a linear read-out to the standardised
-:data:`PERCEIVE` features of :mod:`minimanc.dagger.privileged` in every logged state
+:data:`PERCEIVE` features of :mod:`minimanc.diagnose.privileged` in every logged state
 (:func:`minimanc.train.fit`'s auxiliary perception loss at a weight that makes the control
 loss negligible), or, with ``hidden`` units, a read-out with one hidden layer trained on the
 perception loss alone, which with ``route=True`` also reads the lane targets (the route
 ahead that MANC's DMP gets). :meth:`Perception.read` returns the features in their units.
 
 **Driving.** :func:`fit_driver` trains the privileged MLP
-(:func:`minimanc.dagger.privileged.fit_privileged`) on the features the perception *reads* in
+(:func:`minimanc.diagnose.privileged.fit_privileged`) on the features the perception *reads* in
 the training states (not the exact ones, so that it learns to drive on its own perception's
 errors), with the last acceleration taken from the perceived speeds. :class:`PerceivingPolicy`
 drives it closed loop on the rendered raster alone: it reads no number from the simulator.
@@ -31,19 +31,16 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from rounds import Round
 from tqdm import tqdm
 
 from minimanc import engine, inputs, models, optim, rollout, train
 from minimanc.checks import check_int
-from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import WorldTeacher
+from minimanc.diagnose import privileged as P
 from minimanc.layers import dense, flatten, init_dense
 from minimanc.models.backbone import backbone
 from minimanc.world.geometry import DT
-
-__all__ = ["ODOMETER", "PERCEIVE", "OraclePerceivingPolicy", "Perception", "PerceivingPolicy",
-           "check_features", "dagger_driver", "fit_driver", "fit_perception", "fit_reader",
-           "observe_states", "read_dataset", "with_exact", "with_last_acceleration"]
 
 PERCEIVE: tuple[str, ...] = tuple(f for f in P.FEATURES if f != "a_prev")
 """What the perception reads: every privileged feature but the last acceleration (a
@@ -114,7 +111,7 @@ def fit_perception(train_ds: Any, targets: np.ndarray | None = None, epochs: int
                    hidden: int = 0, route: bool = False, batch: int = 64) -> Perception:
     """Train a :class:`Perception` on every logged state of ``train_ds``; ``targets``
     ``(S, T, K)`` are its :data:`PERCEIVE` features
-    (:func:`minimanc.dagger.privileged.perceived`, computed when not given).
+    (:func:`minimanc.diagnose.privileged.perceived`, computed when not given).
 
     With ``hidden = 0`` and no ``route`` it is the CNN of :mod:`minimanc.models` trained by
     :func:`minimanc.train.fit` with its auxiliary perception loss at ``weight`` (a linear
@@ -226,7 +223,7 @@ difference of two speeds) when a driver takes its speed from it instead of the r
 
 
 def check_features(names: Sequence[str]) -> tuple[str, ...]:
-    """``names`` as a tuple if each is one of :data:`~minimanc.dagger.privileged.FEATURES`,
+    """``names`` as a tuple if each is one of :data:`~minimanc.diagnose.privileged.FEATURES`,
     else a ValueError naming the first that is not."""
     for n in names:
         if n not in P.FEATURES:
@@ -262,7 +259,7 @@ def fit_driver(perception: Perception, train_ds: Any, steps: int = 3000, seed: i
 
 class PerceivingPolicy:
     """The modular learner as a closed-loop driver: each step, ``perception`` reads the
-    rendered raster and ``driver`` (a :class:`~minimanc.dagger.privileged.Privileged`
+    rendered raster and ``driver`` (a :class:`~minimanc.diagnose.privileged.Privileged`
     learner) turns what it read into ``[clip(v̂ + a Δt, 0, V_MAX), ω]``, ``v̂`` the perceived
     speed; with ``odometer=True`` ``v̂`` is the ego's own speed (the ``motion`` input, as
     MANC's DMP receives it) and only the rest is read from the raster. Its state is the
@@ -297,7 +294,7 @@ class PerceivingPolicy:
 class OraclePerceivingPolicy(P.PrivilegedPolicy):
     """A diagnostic of the modular learner: its own speed and last acceleration
     (:data:`ODOMETER`) and the features ``exact`` from the world's human's own perception in
-    the state the closed loop reached (as :class:`~minimanc.dagger.privileged.PrivilegedPolicy`
+    the state the closed loop reached (as :class:`~minimanc.diagnose.privileged.PrivilegedPolicy`
     reads them), every other feature read from the raster by ``perception``; ``driver``
     trained with the same split (:func:`fit_driver` with ``exact`` = :data:`ODOMETER` +
     ``exact``). Which perception errors cost the closed loop shows as the gain of making one
@@ -326,13 +323,13 @@ class OraclePerceivingPolicy(P.PrivilegedPolicy):
 
 def dagger_driver(perception: Perception, train_ds: Any, val_ds: Any, rounds: int,
                   per_round: int, agents: str = "reactive", seed: int = 0, steps: int = 3000,
-                  read: np.ndarray | None = None, progress: bool = False) -> list[P.Round]:
+                  read: np.ndarray | None = None, progress: bool = False) -> list[Round]:
     """DAgger for the modular learner's driver (its perception fixed): round 0 is
     :func:`fit_driver` with the odometer; each further round drives ``per_round`` training
     scenes (a seeded order, cycling) with the current driver under ``agents``, keeps what the
     perception read in every state reached with the world's human's label there, aggregates
     and retrains from the previous weights (as
-    :func:`~minimanc.dagger.privileged.dagger_rounds` does for the privileged learner).
+    :func:`rounds.dagger_rounds` does for the privileged learner).
     Every round is driven on ``val_ds`` under ``agents``; ``read`` is what ``perception``
     reads in ``train_ds``'s logged states (:func:`read_dataset`, computed when not given)."""
     rounds = check_int("rounds", rounds, 0)
@@ -345,9 +342,10 @@ def dagger_driver(perception: Perception, train_ds: Any, val_ds: Any, rounds: in
     model = P.fit_privileged(X, Y, steps=steps, seed=seed)
 
     def score(m: P.Privileged) -> dict[str, float]:
-        return P.evaluate_policy(OraclePerceivingPolicy(perception, m, vteacher), val_ds, agents)
+        return P.evaluate_policy(OraclePerceivingPolicy(perception, m, vteacher), val_ds,
+                                 agents=agents)
 
-    out = [P.Round(len(X), score(model))]
+    out = [Round(len(X), score(model))]
     order = np.random.default_rng(seed).permutation(len(np.asarray(train_ds.ego)))
     for r in range(rounds):
         pick = order[(np.arange(per_round) + r * per_round) % len(order)]
@@ -357,5 +355,5 @@ def dagger_driver(perception: Perception, train_ds: Any, val_ds: Any, rounds: in
         Xn, Yn = policy.visited()
         X, Y = np.concatenate([X, Xn]), np.concatenate([Y, Yn])
         model = P.fit_privileged(X, Y, steps=steps, seed=seed + r + 1, init=model)
-        out.append(P.Round(len(X), score(model)))
+        out.append(Round(len(X), score(model)))
     return out
