@@ -72,7 +72,7 @@ def test_the_dmp_head_learns_the_controls_of_a_known_gain_map(ds, demos):
     last = teacher.net.params["l2"]
     last["w"] = last["w"] * 30.0  # far from the fixed gains, inside the gain box
     target, _ = H.predict_head(teacher, X, lane, motion)
-    learner = H.fit_head(X, target, lane, motion, steps=1500, seed=0)
+    learner = H.fit_head(X, target, lane, motion, steps=400, seed=0)  # relative RMSE 0.05
     got, _ = H.predict_head(learner, X, lane, motion)
     err = np.sqrt(((got - target) ** 2).mean(0)) / target.std(0)
     assert np.all(err < 0.15), f"relative RMSE {err} (expected < 0.15 on a map the head holds)"

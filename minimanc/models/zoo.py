@@ -12,7 +12,6 @@ name          forward pass
 ``rvs_g``     flatten(f(bev)) ⊕ flatten(f(goal_bev)) ⊕ n → LSTM(64) → FC(2) · s
 ``manc``      p = σ(Linear(GAP(f))) (eq. 7) → q = vAGN(p, q') (eqs. 8–9) →
               gains = FC(q) → one DMP step (eqs. 10–11) → [speed, yaw rate]
-              (``gains_input="q+predicates"``: gains = FC(q ⊕ p))
 ``vagn_only`` p (eq. 7) → q = vAGN(p, q') → FC(64) on q ⊕ n → FC(2) · s
 ``dmp_only``  p (eq. 7) → gains = FC(p) → one DMP step → [speed, yaw rate]
 ============= =================================================================
@@ -73,14 +72,8 @@ def control_scale(eng: Any) -> Any:
 
 
 def predicate_layer(rng: np.random.Generator, cfg: ModelConfig) -> dict:
-    """Eq. 7's predicate layer ``Linear(GAP(f))``: ``w`` ``(C, M)``, ``b`` ``(M,)``. With
-    ``cfg.predicate_pool="flat"`` it reads ``flatten(f)`` (``h·w·C`` inputs) and starts as
-    exactly the same function: the same draw, each cell's weights ``w / (h·w)``."""
-    p = layers.init_dense(rng, cfg.channels[-1], cfg.n_predicates)
-    if cfg.predicate_pool == "flat":
-        cells = cfg.feature_size ** 2
-        p = {**p, "w": np.tile(np.asarray(p["w"]), (cells, 1)) / cells}
-    return p
+    """Eq. 7's predicate layer ``Linear(GAP(f))``: ``w`` ``(C, M)``, ``b`` ``(M,)``."""
+    return layers.init_dense(rng, cfg.channels[-1], cfg.n_predicates)
 
 
 def gains_layer(rng: np.random.Generator, n_in: int, cfg: ModelConfig) -> dict:
@@ -194,7 +187,7 @@ def _manc_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
     M, N = cfg.n_predicates, cfg.n_states
     return {"predicates": predicate_layer(rng, cfg),
             "vagn": {"W": vagn.init_vagn(rng, M, N, scale=cfg.vagn_scale)},
-            "gains": gains_layer(rng, N + M if cfg.gains_input == "q+predicates" else N, cfg)}
+            "gains": gains_layer(rng, N, cfg)}
 
 
 def _dmp_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig, eng: Any) -> dict:
@@ -203,8 +196,7 @@ def _dmp_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig, eng
 
 def _manc_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
     q = _vagn_step(params, enc, state, eng)
-    x = q if cfg.gains_input == "q" else eng.xp.concatenate([q, enc["predicates"]], axis=-1)
-    logits = dense(params["gains"], x, eng.xp)  # FC(q) of eq. 11 (or FC(q ⊕ p))
+    logits = dense(params["gains"], q, eng.xp)  # FC(q) of eq. 11
     controls, aux = _dmp(logits, enc, cfg, eng)
     return controls, {"q": q}, {"q": q, **aux}
 

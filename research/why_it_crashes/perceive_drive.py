@@ -17,7 +17,8 @@ row with every feature exact, the bound of the pipeline). ``--dagger R`` adds DA
 odometer driver (``dagger_driver``: R rounds of ``--per-round`` training scenes, the
 perception fixed), reactive ados. Read it against
 ``results/privileged.md`` (the same MLP on the exact features, and on one frame) and
-``results/privileged_noise.md`` (the same MLP with independent errors of known size).
+``results/privileged_noise.md`` (the same MLP with independent errors of known size). The
+perception is trained on the perception loss alone (:func:`perceiving.fit_perception`).
 
 The data is the paper preset's draw (data seed 0: 650 training, 40 tuning, 200 validation
 scenes, then ``--extra`` further training scenes of the same draw, as
@@ -52,7 +53,6 @@ def main() -> None:
     ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--epochs", type=int, default=6)
     ap.add_argument("--lr", type=float, default=1e-3)
-    ap.add_argument("--weight", type=float, default=100.0)
     ap.add_argument("--speed", nargs="+", choices=("raster", "odometer"), default=["raster"])
     ap.add_argument("--hidden", type=int, default=0,
                     help="a read-out with one hidden ReLU layer of this many units (0: linear)")
@@ -93,8 +93,7 @@ def main() -> None:
     curve: list[list] = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         perception = M.fit_perception(tr, y, epochs=args.epochs, lr=args.lr, seed=seed,
-                                      weight=args.weight, hidden=args.hidden,
-                                      route=args.route)
+                                      hidden=args.hidden, route=args.route)
         read_tr = M.read_dataset(perception, tr)
         read_v = M.read_dataset(perception, val).reshape(yv.shape)
         err = read_v - yv
@@ -138,8 +137,7 @@ def main() -> None:
             f"(paper preset draw: {N_TRAIN + args.extra} training, {N_VAL} validation "
             f"scenes; history "
             f"{args.history}; {args.epochs} epochs, lr {args.lr:g}, "
-            + (f"hidden layer {args.hidden}" if args.hidden else
-               f"perception weight {args.weight:g}")
+            + (f"hidden layer {args.hidden}" if args.hidden else "linear read-out")
             + (", route" if args.route else "")
             + f"; {args.seeds} seeds)\n\n## What the perception reads\n\n"
             "On the validation scenes, mean over seeds.\n\n"

@@ -8,12 +8,14 @@ the two questions the end-to-end one leaves tangled: *can* the raster be read fo
 numbers the world's human drives on, and does a controller that reads those numbers drive?
 
 **Perception.** :func:`fit_perception` trains the CNN backbone of :mod:`minimanc.models`
-(its convolutions of the raster, flattened) with a linear read-out to the standardised
-:data:`PERCEIVE` features of :mod:`minimanc.diagnose.privileged` in every logged state
-(:func:`minimanc.train.fit`'s auxiliary perception loss at a weight that makes the control
-loss negligible), or, with ``hidden`` units, a read-out with one hidden layer trained on the
-perception loss alone, which with ``route=True`` also reads the lane targets (the route
-ahead that MANC's DMP gets). :meth:`Perception.read` returns the features in their units.
+(its convolutions of the raster, flattened) with a read-out to the standardised
+:data:`PERCEIVE` features of :mod:`minimanc.diagnose.privileged` in every logged state, on
+the perception loss alone: a linear read-out, or, with ``hidden`` units, one hidden layer,
+which with ``route=True`` also reads the lane targets (the route ahead that MANC's DMP
+gets). :meth:`Perception.read` returns the features in their units. (Until the switch was
+deleted, the linear read-out was trained by :func:`minimanc.train.fit` with the control loss
+and an auxiliary perception loss at a weight that made the control loss negligible: see
+``REPORT.md``.)
 
 **Driving.** :func:`fit_driver` trains the privileged MLP
 (:func:`minimanc.diagnose.privileged.fit_privileged`) on the features the perception *reads* in
@@ -34,7 +36,7 @@ import numpy as np
 from rounds import Round
 from tqdm import tqdm
 
-from minimanc import engine, inputs, models, optim, rollout, train
+from minimanc import engine, inputs, models, optim, rollout
 from minimanc.checks import check_int
 from minimanc.dagger.teachers import WorldTeacher
 from minimanc.diagnose import privileged as P
@@ -106,29 +108,22 @@ class Perception:
 
 
 def fit_perception(train_ds: Any, targets: np.ndarray | None = None, epochs: int = 6,
-                   lr: float = 1e-3, seed: int = 0, weight: float = 100.0,
-                   cfg: models.ModelConfig | None = None, progress: bool = False,
-                   hidden: int = 0, route: bool = False, batch: int = 64) -> Perception:
+                   lr: float = 1e-3, seed: int = 0, cfg: models.ModelConfig | None = None,
+                   progress: bool = False, hidden: int = 0, route: bool = False,
+                   batch: int = 64) -> Perception:
     """Train a :class:`Perception` on every logged state of ``train_ds``; ``targets``
     ``(S, T, K)`` are its :data:`PERCEIVE` features
     (:func:`minimanc.diagnose.privileged.perceived`, computed when not given).
 
-    With ``hidden = 0`` and no ``route`` it is the CNN of :mod:`minimanc.models` trained by
-    :func:`minimanc.train.fit` with its auxiliary perception loss at ``weight`` (a linear
-    read-out of the flattened backbone features). Otherwise the backbone and a read-out
-    with one hidden ReLU layer of ``hidden`` units (and the lane targets with ``route``)
-    are trained on the perception loss alone (mean squared error of the standardised
-    features, Adam at ``lr``, minibatches of ``batch`` states, ``epochs`` passes)."""
+    The CNN backbone of :mod:`minimanc.models` and a read-out of its flattened features
+    (linear with ``hidden = 0``, else with one hidden ReLU layer of ``hidden`` units; with
+    ``route`` it also reads the lane targets) are trained on the perception loss alone: the
+    mean squared error of the standardised features, Adam at ``lr``, minibatches of
+    ``batch`` states, ``epochs`` passes (:func:`fit_reader`)."""
     y = P.perceived(train_ds, PERCEIVE) if targets is None else np.asarray(targets, float)
     if y.ndim != 3 or y.shape[2] != len(PERCEIVE):
         raise ValueError(f"targets must have shape (S, T, {len(PERCEIVE)}), got {y.shape}")
     cfg = cfg or models.ModelConfig(setting="paper")
-    if hidden == 0 and not route:
-        tc = train.TrainConfig(epochs=epochs, lr=lr, seed=seed, perception_weight=weight)
-        res = train.fit("cnn", train_ds, cfg, tc, progress=progress, perception=y)
-        mean, std = train.perception_moments(y, train.subset_scenes(len(y), tc.subset,
-                                                                    tc.seed))
-        return Perception(res.params, [res.readout], mean, std, cfg)
     return fit_reader(train_ds, y, cfg, epochs, lr, seed, hidden, route, batch, progress)
 
 
@@ -145,9 +140,9 @@ def observe_states(ds: Any, s: np.ndarray, t: np.ndarray, route: bool
 def fit_reader(train_ds: Any, y: np.ndarray, cfg: models.ModelConfig, epochs: int, lr: float,
                seed: int, hidden: int, route: bool, batch: int, progress: bool = False
                ) -> Perception:
-    """The :class:`Perception` with a hidden read-out layer of :func:`fit_perception`
-    (arguments as there; ``y`` the ``(S, T, K)`` targets)."""
-    hidden = check_int("hidden", hidden, 1)
+    """The :class:`Perception` of :func:`fit_perception` (arguments as there; ``y`` the
+    ``(S, T, K)`` targets)."""
+    hidden = check_int("hidden", hidden, 0)
     epochs, batch = check_int("epochs", epochs, 1), check_int("batch", batch, 1)
     rng = np.random.default_rng(seed)
     S, T = y.shape[:2]
@@ -163,8 +158,8 @@ def fit_reader(train_ds: Any, y: np.ndarray, cfg: models.ModelConfig, epochs: in
     probe = Perception(params, [], mean, std, cfg, route=route)
     n_in = int(np.prod(backbone(params["backbone"], bev[:1], cfg, probe._eng).shape[1:]))
     n_in += lane.shape[1] * 2 if route else 0
-    readout = [init_dense(rng, n_in, hidden, np.float32),
-               init_dense(rng, hidden, len(PERCEIVE), np.float32)]
+    sizes = [n_in, hidden, len(PERCEIVE)] if hidden else [n_in, len(PERCEIVE)]
+    readout = [init_dense(rng, a, b, np.float32) for a, b in zip(sizes[:-1], sizes[1:])]
     xp = probe._eng.xp
 
     def loss(p: dict, bev_b: Any, lane_b: Any, z_b: Any) -> Any:
