@@ -8,6 +8,7 @@ from __future__ import annotations
 import ast
 import importlib
 import importlib.util
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -17,10 +18,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from minimanc import layers, models, rollout, vagn, world
+from minimanc import cli, layers, models, rollout, vagn, world
 from minimanc.dagger.teachers import WorldTeacher
 from minimanc.diagnose import privileged as P
 from minimanc.models import dmp_head
+from minimanc.studies import provenance
 from minimanc.world.geometry import DT
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -466,3 +468,44 @@ def test_the_folder_uses_minimanc_s_public_api_only(path):
     check: every module is reached from a notebook or the command line."""
     bad = unpublished(path.read_text())
     assert bad == [], f"{path.name} imports names minimanc does not publish: {bad}"
+
+
+# --------------------------------------------------------------------------- the record
+
+REPORT = HERE / "REPORT.md"
+
+
+def test_the_report_quotes_this_folder_s_results_and_reproduce_s_outputs():
+    """(``tests/test_provenance.py`` checks every quote against its file.)"""
+    quoted = {q.path for q in provenance.quotes(REPORT.read_text(encoding="utf-8"))}
+    # this folder's results and reproduce's outputs, two levels up
+    assert "results/privileged.md" in quoted and "../../results/paper/table1.md" in quoted
+    assert all((HERE / q).is_file() for q in quoted)
+
+
+def test_the_report_check_fails_on_a_stale_quote(tmp_path, capsys):
+    """``minimanc results check`` on a copy of the folder (and of reproduce's outputs two
+    levels up) passes, and fails (exit 1) once one number of a quote is changed (the file
+    measured anew, the record not updated) or a quoted file has moved away."""
+    copy = tmp_path / "research" / "why_it_crashes"
+    shutil.copytree(HERE / "results", copy / "results")
+    shutil.copytree(ROOT / "results", tmp_path / "results")
+    text = REPORT.read_text(encoding="utf-8")
+    report = copy / "REPORT.md"
+    report.write_text(text, encoding="utf-8")
+    assert cli.main(["results", "check", str(report)]) == 0
+    first = provenance.quotes(text)[0]
+    lines = text.splitlines()
+    row = next(i for i in range(first.begin + 1, first.end)
+               if any(c in "0123456789" for c in lines[i]))
+    digit = next(c for c in lines[row] if c in "0123456789")
+    lines[row] = lines[row].replace(digit, str((int(digit) + 1) % 10), 1)
+    report.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    capsys.readouterr()
+    assert cli.main(["results", "check", str(report)]) == 1
+    err = capsys.readouterr().err
+    assert f"line {first.begin + 1}: the quote of {first.path}#" in err and "differs" in err
+    report.write_text(text.replace("<!-- quote: results/privileged.md#",
+                                   "<!-- quote: results/gone/privileged.md#"), encoding="utf-8")
+    assert cli.main(["results", "check", str(report)]) == 1
+    assert "does not exist" in capsys.readouterr().err
