@@ -2,10 +2,10 @@
 # # Chapter 12 — Why the driver crashes
 #
 # Modules built in this chapter: `minimanc.diagnose` — its `bounds` (the expert and the style
-# floor), `privileged` (a learner given what the expert perceives), `probe` and `collisions`
-# — and `minimanc.viz.investigation` (the chapter's figures); it puts to work
-# `minimanc.world.history` (faded history in the raster) and `minimanc.metrics.safety` (the
-# collision taxonomy).
+# floor), `privileged` and `policies` (a learner given what the expert perceives, driving),
+# `probe` and `collisions` — and `minimanc.viz.investigation` (the chapter's figures); it
+# puts to work `minimanc.world.history` (faded history in the raster) and
+# `minimanc.metrics.safety` (the collision taxonomy).
 #
 # Every behaviour-cloned controller of chapters 9–11 collides in a sizeable share of the
 # validation scenes, also among ados that react to it, where the human whose logs it copies
@@ -16,7 +16,7 @@
 # | question | the library's answer |
 # |---|---|
 # | the best any learner can do? | `bounds.expert_rollout`, `bounds.floor_rollout` |
-# | learning or information? | `P.fit_privileged`, `P.PrivilegedPolicy` (what the expert sees) |
+# | learning or information? | `P.fit_privileged`, `PrivilegedPolicy` (what the expert sees) |
 # | which information? | `P.fit_privileged(..., drop=[group])`: the ablation |
 # | how does it crash? | `metrics.safety.collision_events`: the taxonomy |
 # | can the image carry it? | `world.RasterConfig(history=H)`, `world.history` |
@@ -41,7 +41,7 @@ import numpy as np
 
 from minimanc import metrics, rollout, world
 from minimanc.dagger.teachers import WorldTeacher
-from minimanc.diagnose import bounds
+from minimanc.diagnose import PrivilegedPolicy, bounds
 from minimanc.diagnose import privileged as P
 from minimanc.metrics.safety import collision_events
 from minimanc.metrics.trajectory import ade, along_cross_track
@@ -64,7 +64,7 @@ assert (len(train), len(val), T) == (40, 8, 40)
 # %% [markdown]
 # ## 2. The bounds every number is read against
 # **The expert.** The world's own human driver (`minimanc.dagger.expert.HumanExpert`),
-# asked in every state the closed loop reaches (`privileged.ExpertPolicy`), drives through
+# asked in every state the closed loop reaches (`policies.ExpertPolicy`), drives through
 # the same time loop and the same simulator as every learned policy (`bounds.expert_rollout`
 # takes the protocol as `agents=` and returns a `rollout.Rollout`, as `rollout.simulate`
 # does, with the states the expert could not be asked in as `refused`). Here the ados react
@@ -148,7 +148,7 @@ assert X[k, P.FEATURES.index("gap")] < P.FAR and np.all(np.isfinite(X))
 # An MLP (two tanh layers of 32) on the standardised features predicts both controls; it
 # is trained by Algorithm 1 (`P.fit_privileged`: minibatches, mean squared error of each output
 # divided by its spread, Adam, cosine decay) and drives closed loop through
-# `P.PrivilegedPolicy`, which asks the expert for its perception in every state it
+# `PrivilegedPolicy`, which asks the expert for its perception in every state it
 # reaches and applies $[\mathrm{clip}(v + a\,\Delta t, 0, V_{max}), \omega]$. A course-sized
 # run (1500 steps on 1600 states): read its numbers against the bounds above.
 
@@ -158,7 +158,7 @@ STEPS, HIDDEN = 1500, (32, 32)
 
 def drive(model):
     """The closed-loop rollout of a privileged learner on the validation scenes."""
-    policy = P.PrivilegedPolicy(model, WorldTeacher(val, agents="reactive"))
+    policy = PrivilegedPolicy(model, WorldTeacher(val, agents="reactive"))
     return rollout.simulate(policy, val, agents="reactive", progress=False)
 
 

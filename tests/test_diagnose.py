@@ -18,6 +18,7 @@ from minimanc.diagnose import (
     floor_rollout,
     linear_probe,
     median_style,
+    policies,
 )
 from minimanc.diagnose import privileged as P
 from minimanc.world.geometry import DT
@@ -113,7 +114,7 @@ def test_a_recording_policy_labels_what_it_visited(ds, demos):
     X, Y = demos
     model = P.fit_privileged(X, Y, steps=50, seed=0)
     teacher = WorldTeacher(ds, agents="reactive")
-    policy = P.PrivilegedPolicy(model, teacher, record=True)
+    policy = policies.PrivilegedPolicy(model, teacher, record=True)
     rollout.simulate(policy, ds, scenes=[0, 1], agents="reactive", progress=False)
     Xv, Yv = policy.visited()
     T = np.asarray(ds.ego).shape[1]
@@ -152,7 +153,7 @@ def test_blur_refuses_bad_noise(demos, noise, match):
 def test_a_policy_without_noise_and_with_zero_noise_drive_alike(ds, demos):
     model = P.fit_privileged(*demos, steps=50, seed=0)
     teacher = WorldTeacher(ds, agents="reactive")
-    runs = [rollout.simulate(P.PrivilegedPolicy(model, teacher, noise=n), ds, scenes=[0, 1],
+    runs = [rollout.simulate(policies.PrivilegedPolicy(model, teacher, noise=n), ds, scenes=[0, 1],
                              agents="reactive", progress=False).ego
             for n in (None, {"gap": 0.0, "v": 0.0}, {"v": 3.0})]
     assert np.array_equal(runs[0], runs[1])

@@ -20,6 +20,7 @@ from hypothesis import strategies as st
 
 from minimanc import cli, layers, models, rollout, vagn, world
 from minimanc.dagger.teachers import WorldTeacher
+from minimanc.diagnose import policies
 from minimanc.diagnose import privileged as P
 from minimanc.models import dmp_head
 from minimanc.studies import provenance
@@ -139,7 +140,7 @@ def test_the_vagn_head_is_manc_on_the_expert_s_perception(ds, demos):
         np.testing.assert_allclose(a[rows], at, rtol=1e-9, atol=1e-12)
     policy = H.policy_of(model, WorldTeacher(ds, agents="reactive"))
     np.testing.assert_allclose(policy.initial_state(np.array([0, 1])).sum(1), 1.0)
-    m = P.evaluate_policy(policy, ds, agents="reactive")
+    m = policies.evaluate_policy(policy, ds, agents="reactive")
     assert np.isfinite(m["ade"])
 
 
@@ -286,7 +287,7 @@ def test_the_oracle_diagnostic_takes_the_named_features_from_the_world(pds, perc
     teacher = WorldTeacher(pds, agents="reactive")
     oracle = rollout.simulate(M.OraclePerceivingPolicy(perception, driver, teacher, exact),
                               pds, scenes=[0, 1], agents="reactive", progress=False)
-    privileged = rollout.simulate(P.PrivilegedPolicy(driver, teacher), pds, scenes=[0, 1],
+    privileged = rollout.simulate(policies.PrivilegedPolicy(driver, teacher), pds, scenes=[0, 1],
                                   agents="reactive", progress=False)
     np.testing.assert_allclose(oracle.ego, privileged.ego, atol=1e-4)
     leader = M.fit_driver(perception, pds, steps=50, exact=M.ODOMETER + ("gap", "dv"))

@@ -10,8 +10,10 @@ where the human whose logs it copies never does. The chapter finds out why with 
   (:func:`floor_rollout`, :func:`median_style`);
 * :mod:`minimanc.diagnose.privileged` — learning or information? An MLP given exactly what
   the expert perceives (:func:`features`, :func:`demonstrations`), trained by Algorithm 1
-  (:func:`fit_privileged`) and driven closed loop (:class:`PrivilegedPolicy`); dropping
-  input groups is the ablation that names the information that matters;
+  (:func:`fit_privileged`); dropping input groups is the ablation that names the
+  information that matters;
+* :mod:`minimanc.diagnose.policies` — the expert and that learner driving closed loop
+  (:class:`ExpertPolicy`, :class:`PrivilegedPolicy`, :func:`evaluate_policy`);
 * :mod:`minimanc.diagnose.probe` — does a model's representation hold that information?
   (:func:`linear_probe`);
 * :mod:`minimanc.diagnose.collisions` — how does it crash? (:func:`collision_taxonomy`).
@@ -31,20 +33,22 @@ from minimanc.diagnose.bounds import (
     median_style,
 )
 from minimanc.diagnose.collisions import collision_taxonomy
+from minimanc.diagnose.policies import (
+    ExpertPolicy,
+    PrivilegedPolicy,
+    SituationPolicy,
+    evaluate_policy,
+)
 from minimanc.diagnose.privileged import (
     AHEAD,
     FAR,
     FEATURE_GROUPS,
     FEATURES,
     V_MAX,
-    ExpertPolicy,
     Privileged,
-    PrivilegedPolicy,
-    SituationPolicy,
     blur,
     demonstrations,
     descend,
-    evaluate_policy,
     features,
     fit_privileged,
     kept,

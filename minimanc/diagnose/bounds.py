@@ -2,7 +2,7 @@
 floor (rows of Table I).
 
 **Expert.** The world's human (:class:`minimanc.dagger.expert.HumanExpert`) asked in every
-state the closed loop reaches (:class:`minimanc.diagnose.privileged.ExpertPolicy`), driving
+state the closed loop reaches (:class:`minimanc.diagnose.policies.ExpertPolicy`), driving
 through the same simulators and the same time loop as the learned policies, under either
 protocol: :func:`expert_rollout`. The upper bound of every learner.
 
@@ -31,7 +31,7 @@ import numpy as np
 from minimanc import rollout
 from minimanc.checks import check_int
 from minimanc.dagger.teachers import WorldTeacher
-from minimanc.diagnose.privileged import ExpertPolicy
+from minimanc.diagnose.policies import ExpertPolicy
 from minimanc.world.driver import HumanStyle, random_style, simulate_scene
 from minimanc.world.generation import draw_scene
 

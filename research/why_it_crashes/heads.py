@@ -17,7 +17,7 @@ automaton and DMP head, to ask which part keeps MANC from driving.
 Each learner's loss is the plain learner's: the speed error over ``Δt`` against the
 acceleration's scale, the yaw-rate error against its own, minimised by
 :func:`minimanc.diagnose.privileged.descend`. :class:`HeadPolicy` drives any of them closed
-loop, as :class:`~minimanc.diagnose.privileged.PrivilegedPolicy` drives the plain one.
+loop, as :class:`~minimanc.diagnose.policies.PrivilegedPolicy` drives the plain one.
 ``"acceleration"`` in :data:`HEADS` is the plain learner itself (:func:`fit_any`,
 :func:`policy_of` and :func:`predict_scenes` take either).
 """
@@ -34,6 +34,7 @@ from minimanc import inputs, layers, models, vagn
 from minimanc.autodiff import numpy as anp
 from minimanc.checks import check_int
 from minimanc.dagger import WorldTeacher
+from minimanc.diagnose import policies
 from minimanc.diagnose import privileged as P
 from minimanc.engine import engine_of
 from minimanc.models import DEFAULT_GAINS, ModelConfig, dmp_head, gain_logits
@@ -243,7 +244,7 @@ def predict_scenes(model: P.Privileged | HeadLearner, X: np.ndarray,
     return out
 
 
-class HeadPolicy(P.PrivilegedPolicy):
+class HeadPolicy(policies.PrivilegedPolicy):
     """A :class:`HeadLearner` driving closed loop on the expert's perception; its head reads
     the observation's lane target and motion, the automaton heads carry ``q`` as the
     policy's state. With ``record=True`` it also keeps what the head read in every
@@ -274,7 +275,8 @@ class HeadPolicy(P.PrivilegedPolicy):
 
     def act(self, F: np.ndarray, sits: list, obs: dict | None = None, state: Any = None
             ) -> tuple[np.ndarray, Any]:
-        """:meth:`PrivilegedPolicy.act`, recording the head's inputs next to the labels."""
+        """:meth:`minimanc.diagnose.policies.PrivilegedPolicy.act`, recording the head's
+        inputs next to the labels."""
         u, state = super().act(F, sits, obs, state)
         if self.record:
             for b, sit in enumerate(sits):
@@ -301,10 +303,10 @@ def fit_any(head: str, X: np.ndarray, Y: np.ndarray, lane: np.ndarray | None = N
 
 
 def policy_of(model: P.Privileged | HeadLearner, teacher: WorldTeacher, **kw: Any
-              ) -> P.PrivilegedPolicy:
+              ) -> policies.PrivilegedPolicy:
     """The closed-loop policy of any learner: :class:`HeadPolicy` or
-    :class:`~minimanc.diagnose.privileged.PrivilegedPolicy` (``kw``: ``record``, ``noise``,
+    :class:`~minimanc.diagnose.policies.PrivilegedPolicy` (``kw``: ``record``, ``noise``,
     ``seed``)."""
     if isinstance(model, HeadLearner):
         return HeadPolicy(model, teacher, **kw)
-    return P.PrivilegedPolicy(model, teacher, **kw)
+    return policies.PrivilegedPolicy(model, teacher, **kw)

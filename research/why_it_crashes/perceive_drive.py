@@ -41,6 +41,7 @@ from scoring import HEAD, N_TRAIN, N_TUNE, N_VAL, SHOW, cells, log
 
 from minimanc import world
 from minimanc.dagger.teachers import AGENTS, WorldTeacher
+from minimanc.diagnose import policies
 from minimanc.diagnose import privileged as P
 from minimanc.studies import provenance
 from minimanc.studies.jobs import scene_families
@@ -110,7 +111,7 @@ def main() -> None:
                                   exact=M.ODOMETER if odo else ())
             for a in AGENTS:
                 policy = M.PerceivingPolicy(perception, driver, odometer=odo)
-                runs[sp, a].append(P.evaluate_policy(policy, val, a))
+                runs[sp, a].append(policies.evaluate_policy(policy, val, a))
                 log(f"seed {seed} speed from {sp}, {a}: "
                     f"{runs[sp, a][-1]['at_fault_collision_rate']:.1f} % at fault, "
                     f"ADE {runs[sp, a][-1]['ade']:.2f}", t0)
@@ -120,7 +121,7 @@ def main() -> None:
             for a in AGENTS:
                 policy = M.OraclePerceivingPolicy(perception, driver,
                                                   WorldTeacher(val, agents=a), exact)
-                runs[row, a].append(P.evaluate_policy(policy, val, a))
+                runs[row, a].append(policies.evaluate_policy(policy, val, a))
                 log(f"seed {seed} {row}, {a}: "
                     f"{runs[row, a][-1]['at_fault_collision_rate']:.1f} % at fault, "
                     f"ADE {runs[row, a][-1]['ade']:.2f}", t0)

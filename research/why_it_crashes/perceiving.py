@@ -39,6 +39,7 @@ from tqdm import tqdm
 from minimanc import engine, inputs, models, optim, rollout
 from minimanc.checks import check_int
 from minimanc.dagger.teachers import WorldTeacher
+from minimanc.diagnose import policies
 from minimanc.diagnose import privileged as P
 from minimanc.layers import dense, flatten, init_dense
 from minimanc.models.backbone import backbone
@@ -286,10 +287,10 @@ class PerceivingPolicy:
         return u, v, {}
 
 
-class OraclePerceivingPolicy(P.PrivilegedPolicy):
+class OraclePerceivingPolicy(policies.PrivilegedPolicy):
     """A diagnostic of the modular learner: its own speed and last acceleration
     (:data:`ODOMETER`) and the features ``exact`` from the world's human's own perception in
-    the state the closed loop reached (as :class:`~minimanc.diagnose.privileged.PrivilegedPolicy`
+    the state the closed loop reached (as :class:`~minimanc.diagnose.policies.PrivilegedPolicy`
     reads them), every other feature read from the raster by ``perception``; ``driver``
     trained with the same split (:func:`fit_driver` with ``exact`` = :data:`ODOMETER` +
     ``exact``). Which perception errors cost the closed loop shows as the gain of making one
@@ -337,7 +338,7 @@ def dagger_driver(perception: Perception, train_ds: Any, val_ds: Any, rounds: in
     model = P.fit_privileged(X, Y, steps=steps, seed=seed)
 
     def score(m: P.Privileged) -> dict[str, float]:
-        return P.evaluate_policy(OraclePerceivingPolicy(perception, m, vteacher), val_ds,
+        return policies.evaluate_policy(OraclePerceivingPolicy(perception, m, vteacher), val_ds,
                                  agents=agents)
 
     out = [Round(len(X), score(model))]

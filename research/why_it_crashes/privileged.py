@@ -48,6 +48,7 @@ from scoring import cells, log
 
 from minimanc import world
 from minimanc.dagger.teachers import AGENTS, WorldTeacher
+from minimanc.diagnose import policies
 from minimanc.diagnose import privileged as P
 from minimanc.studies import provenance
 
@@ -138,13 +139,14 @@ def main() -> None:
             pred = predict_scenes(model, Xv, *val_head, scene_steps=T)
             rmse.append(np.sqrt(((pred - Yv) ** 2).mean(0)))
             for agents in AGENTS:
-                runs[agents].append(P.evaluate_policy(policy_of(model, teachers[agents]),
+                runs[agents].append(policies.evaluate_policy(policy_of(model, teachers[agents]),
                                                       val, agents))
                 log(f"bc {agents} seed {seed}: "
                     f"{runs[agents][-1]['at_fault_collision_rate']:.1f} % at fault, "
                     f"ADE {runs[agents][-1]['ade']:.2f}", t0)
         for agents in AGENTS:
-            ex = P.evaluate_policy(P.ExpertPolicy(teachers[agents]), val, agents=agents)
+            ex = policies.evaluate_policy(policies.ExpertPolicy(teachers[agents]), val,
+                                          agents=agents)
             lines += [f"agents `{agents}`", "", *table([row("Expert", [ex]),
                                                         row("Privileged BC", runs[agents])]), ""]
         r = np.array(rmse)
@@ -160,7 +162,7 @@ def main() -> None:
             runs = []
             for seed in range(args.ablation_seeds):
                 model = fit(X, Y, drop=drop, seed=seed)
-                runs.append(P.evaluate_policy(policy_of(model, teachers["reactive"]), val,
+                runs.append(policies.evaluate_policy(policy_of(model, teachers["reactive"]), val,
                                               "reactive"))
             name = "all inputs" if not drop else f"without `{drop[0]}`"
             rows.append(row(name, runs))
@@ -176,7 +178,7 @@ def main() -> None:
             for seed in range(args.ablation_seeds):
                 model = fit(X, Y, without=without, seed=seed)
                 for a in AGENTS:
-                    runs[a].append(P.evaluate_policy(policy_of(model, teachers[a]), val, a))
+                    runs[a].append(policies.evaluate_policy(policy_of(model, teachers[a]), val, a))
             for a in AGENTS:
                 rows.append(row(f"{name}, `{a}`", runs[a]))
             log(f"information {name}: " + ", ".join(
@@ -196,7 +198,7 @@ def main() -> None:
             for seed in range(args.ablation_seeds):
                 Xn = P.blur(X, noise, np.random.default_rng([seed, 1]))
                 model = fit(Xn, Y, seed=seed)
-                runs.append(P.evaluate_policy(policy_of(model, teachers["reactive"],
+                runs.append(policies.evaluate_policy(policy_of(model, teachers["reactive"],
                                                         noise=noise, seed=seed),
                                               val, "reactive"))
             rows.append(row(name, runs))
@@ -221,7 +223,7 @@ def main() -> None:
                     f"{r.metrics['at_fault_collision_rate']:.1f} % at fault", t0)
             model = fit_any(args.head, Xm, Ym, more_lane, more_motion, steps=args.steps,
                             seed=seed)
-            bc.append(P.evaluate_policy(policy_of(model, teachers["reactive"]), val,
+            bc.append(policies.evaluate_policy(policy_of(model, teachers["reactive"]), val,
                                         "reactive"))
             log(f"bc at equal labels seed {seed}: "
                 f"{bc[-1]['at_fault_collision_rate']:.1f} % at fault", t0)

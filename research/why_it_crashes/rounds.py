@@ -17,6 +17,7 @@ from heads import fit_any, head_inputs, policy_of
 from minimanc import rollout
 from minimanc.checks import check_int
 from minimanc.dagger import WorldTeacher
+from minimanc.diagnose import policies
 from minimanc.diagnose import privileged as P
 
 
@@ -48,7 +49,7 @@ def dagger_rounds(train: Any, val: Any, rounds: int, per_round: int, agents: str
     X, Y = P.demonstrations(train, expert=teacher.expert)
     lane, motion = head_inputs(train) if head == "dmp" else (None, None)
     model = fit_any(head, X, Y, lane, motion, drop=drop, steps=steps, seed=seed)
-    out = [Round(len(X), P.evaluate_policy(policy_of(model, vteacher), val, agents=agents))]
+    out = [Round(len(X), policies.evaluate_policy(policy_of(model, vteacher), val, agents=agents))]
     order = np.random.default_rng(seed).permutation(len(np.asarray(train.ego)))
     for r in range(rounds):
         pick = order[(np.arange(per_round) + r * per_round) % len(order)]
@@ -61,6 +62,6 @@ def dagger_rounds(train: Any, val: Any, rounds: int, per_round: int, agents: str
             ln, mn = policy.visited_head_inputs()
             lane, motion = np.concatenate([lane, ln]), np.concatenate([motion, mn])
         model = fit_any(head, X, Y, lane, motion, steps=steps, seed=seed + r + 1, init=model)
-        out.append(Round(len(X), P.evaluate_policy(policy_of(model, vteacher), val,
+        out.append(Round(len(X), policies.evaluate_policy(policy_of(model, vteacher), val,
                                                    agents=agents)))
     return out
