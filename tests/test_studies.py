@@ -341,8 +341,6 @@ def _changed(field, value):
         return "random" if value == "uniform" else "uniform"
     if field == "dtype":
         return "float64" if value == "float32" else "float32"
-    if field == "speed_scale":
-        return "change" if value == "level" else "level"
     if value is None:
         return 3
     if isinstance(value, int):

@@ -12,8 +12,8 @@ import pytest
 
 from minimanc import models, world
 from minimanc.cli import main
+from minimanc.diagnose.bounds import BOUND_ROWS
 from minimanc.studies import PRESETS, Study, StudyConfig, reproduce
-from minimanc.studies.bounds import BOUND_ROWS
 from minimanc.studies.recorded import (
     BOUNDS_OMITTED,
     GENERATED,

@@ -55,9 +55,6 @@ def saliency(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = Non
     """
     cfg = cfg or ModelConfig()
     eng = get_engine(engine) if isinstance(engine, str) else (engine or get_engine("numpy"))
-    if cfg.predicate_pool != "global":
-        raise ValueError("saliency (CAM, eq. 7) needs the predicates of global average pooling; "
-                         f"got predicate_pool={cfg.predicate_pool!r}")
     if "vagn" not in params or "predicates" not in params:
         raise ValueError("saliency needs the parameters of a vAGN model (manc or vagn_only); "
                          f"got params with keys {sorted(params)}")

@@ -12,7 +12,6 @@ name          forward pass
 ``rvs_g``     flatten(f(bev)) ⊕ flatten(f(goal_bev)) ⊕ n → LSTM(64) → FC(2) · s
 ``manc``      p = σ(Linear(GAP(f))) (eq. 7) → q = vAGN(p, q') (eqs. 8–9) →
               gains = FC(q) → one DMP step (eqs. 10–11) → [speed, yaw rate]
-              (``gains_input="q+predicates"``: gains = FC(q ⊕ p))
 ``vagn_only`` p (eq. 7) → q = vAGN(p, q') → FC(64) on q ⊕ n → FC(2) · s
 ``dmp_only``  p (eq. 7) → gains = FC(p) → one DMP step → [speed, yaw rate]
 ============= =================================================================
@@ -108,9 +107,7 @@ def predicate_layer(rng: np.random.Generator, cfg: ModelConfig) -> dict:
 
     A model whose parameters hold ``"predicates"`` gets ``enc["predicates"]`` ``(B, M)``
     from the shared encoder (:func:`minimanc.models.forward.encode`; through
-    ``cfg.predicate_activation``). With ``cfg.predicate_pool="flat"`` it reads
-    ``flatten(f)`` (``h·w·C`` inputs) and starts as exactly the same function: the same
-    draw, each cell's weights ``w / (h·w)``.
+    ``cfg.predicate_activation``).
 
     Parameters
     ----------
@@ -123,11 +120,7 @@ def predicate_layer(rng: np.random.Generator, cfg: ModelConfig) -> dict:
     dict
         ``w`` ``(C, M)``, ``b`` ``(M,)``.
     """
-    p = layers.init_dense(rng, cfg.channels[-1], cfg.n_predicates)
-    if cfg.predicate_pool == "flat":
-        cells = cfg.feature_size ** 2
-        p = {**p, "w": np.tile(np.asarray(p["w"]), (cells, 1)) / cells}
-    return p
+    return layers.init_dense(rng, cfg.channels[-1], cfg.n_predicates)
 
 
 def vagn_layer(rng: np.random.Generator, cfg: ModelConfig) -> dict:
@@ -327,8 +320,7 @@ def _rvs_g_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig,
 
 def manc_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
     """MANC's ``init``: eq. 7's :func:`predicate_layer`, the :func:`vagn_layer` and the
-    :func:`gains_layer` of eq. 11 on q (or on ``q ⊕ p`` with
-    ``cfg.gains_input="q+predicates"``).
+    :func:`gains_layer` of eq. 11 on q.
 
     Parameters
     ----------
@@ -342,10 +334,10 @@ def manc_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
     dict
         ``{"predicates", "vagn", "gains"}``.
     """
-    M, N = cfg.n_predicates, cfg.n_states
+    N = cfg.n_states
     return {"predicates": predicate_layer(rng, cfg),
             "vagn": vagn_layer(rng, cfg),
-            "gains": gains_layer(rng, N + M if cfg.gains_input == "q+predicates" else N, cfg)}
+            "gains": gains_layer(rng, N, cfg)}
 
 
 def manc_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
@@ -372,8 +364,7 @@ def manc_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) 
         ``q``, ``alpha``, ``beta``.
     """
     q = vagn_step(params, enc, state, eng)
-    x = q if cfg.gains_input == "q" else eng.xp.concatenate([q, enc["predicates"]], axis=-1)
-    controls, aux = dmp_step(gains_fc(params, x, eng), enc, cfg, eng)  # FC(q) of eq. 11
+    controls, aux = dmp_step(gains_fc(params, q, eng), enc, cfg, eng)  # FC(q) of eq. 11
     return controls, {"q": q}, {"q": q, **aux}
 
 

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import metrics, rollout, train, world
-from minimanc.metrics.diagnostics import collision_taxonomy
+from minimanc.diagnose.collisions import collision_taxonomy
 from minimanc.studies.provenance import write_json
 
 _WORKER_DATA: dict[str, Any] = {}
@@ -90,7 +90,7 @@ def score(traj: Any, ds: Any) -> dict:
     """Every metric of the rollout ``traj`` on ``ds`` (its rows are ``ds``'s scenes in
     order), averaged over the scenes (:func:`scene_scores`; the same numbers as
     :func:`minimanc.metrics.evaluate`, and :data:`TRACK_METRICS`), the collisions by kind
-    (:func:`minimanc.metrics.diagnostics.collision_taxonomy`, keys prefixed
+    (:func:`minimanc.diagnose.collision_taxonomy`, keys prefixed
     :data:`CONTACT_PREFIX`), and ``"families"``:
     the same averages over the scenes of each of :data:`SCENE_FAMILIES` present (with
     ``n_scenes``)."""

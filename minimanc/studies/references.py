@@ -1,6 +1,6 @@
 """Chapter 9 — the rows of Table I that no training makes: :class:`References` drives the
 logged human, MANC's DMP head at constant gains (the "DMP prior") and the bounds
-(:data:`minimanc.studies.bounds.BOUND_ROWS`: the expert, the style floor) on a study's
+(:data:`minimanc.diagnose.bounds.BOUND_ROWS`: the expert, the style floor) on a study's
 validation split, and keeps their scores in memory."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import time
 from typing import Any
 
 from minimanc import metrics, models, rollout
-from minimanc.studies import bounds
+from minimanc.diagnose import bounds
 from minimanc.studies.cache import StudyFiles
 from minimanc.studies.jobs import score
 from minimanc.studies.recorded import is_recorded
@@ -30,7 +30,7 @@ class References:
 
     @property
     def bound_rows(self) -> tuple[str, ...]:
-        """The bound rows of Table I (:data:`minimanc.studies.bounds.BOUND_ROWS`); none on
+        """The bound rows of Table I (:data:`minimanc.diagnose.bounds.BOUND_ROWS`); none on
         recorded data (:mod:`minimanc.studies.recorded`)."""
         return () if is_recorded(self.config) else bounds.BOUND_ROWS
 
@@ -47,7 +47,7 @@ class References:
             if name == "human":
                 traj = rollout.human(val, agents=agents)
             elif name == "expert":
-                traj, _ = bounds.expert_rollout(val, agents)
+                traj = bounds.expert_rollout(val, agents=agents)
             elif name == "style_floor":  # one drive, ados reacting, scored under either protocol
                 if self._floor is None:
                     self._floor = bounds.floor_rollout(val, bounds.median_style())

@@ -91,7 +91,6 @@ from minimanc.train.fit import (
     cast_floats,
     fit,
     open_loop_loss,
-    perception_moments,
     sweep_lr,
 )
 from minimanc.train.many import fit_many, fit_seeds
@@ -115,7 +114,6 @@ __all__ = [
     "dataset_shape",
     "open_loop_loss",
     "fit",
-    "perception_moments",
     "fit_many",
     "fit_seeds",
     "initial_q",

@@ -7,7 +7,8 @@ writes the mean ± std over seeds of BC and of DAgger's last round, and DAgger's
 round, with the run's provenance, to ``--out`` (markdown, quoted by the README) and the
 per-run numbers to the JSON beside it.
 
-    python benchmarks/dagger_study.py [--seeds 3] [--out results/dagger_study.md]
+    python research/dagger_study/dagger_study.py [--seeds 3] \
+        [--out research/dagger_study/results/dagger_study.md]
 
 Each run keeps its checkpoints under ``--work`` (default ``runs/dagger_study``): a rerun
 after an interruption resumes where it stopped.
@@ -90,7 +91,7 @@ def markdown(runs: dict, seeds: int, seconds: float) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
-    ap.add_argument("--out", default="results/dagger_study.md")
+    ap.add_argument("--out", default="research/dagger_study/results/dagger_study.md")
     ap.add_argument("--work", default="runs/dagger_study")
     args = ap.parse_args()
     t0 = time.perf_counter()

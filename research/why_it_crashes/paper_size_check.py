@@ -6,7 +6,7 @@ human replay and MANC's DMP head at fixed gains (no learning). A cheap look at t
 regime the ``full`` preset of ``minimanc reproduce`` does not reach; the complete study at
 this size is ``minimanc reproduce --preset paper``.
 
-    python benchmarks/paper_size_check.py [--val 100] [--epochs 6] [--out FILE.md]
+    python research/why_it_crashes/paper_size_check.py [--val 100] [--epochs 6] [--out FILE.md]
 
 Prints the figures and writes them, with the run's provenance (command, date, versions,
 machine), to ``--out`` (markdown, quoted by the README; ``--out ''`` writes nothing).
@@ -52,7 +52,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--val", type=int, default=100, help="validation scenes driven")
     ap.add_argument("--epochs", type=int, default=6)
-    ap.add_argument("--out", default="results/paper_size_check.md",
+    ap.add_argument("--out", default="research/why_it_crashes/results/paper_size_check.md",
                     help="markdown file for the figures ('' = print only)")
     args = ap.parse_args()
     t_start = time.perf_counter()

@@ -1,23 +1,24 @@
 """The privileged learner: behaviour cloning on the numbers the world's expert perceives
-(:mod:`minimanc.dagger.privileged`), driven closed loop on the paper preset's split.
+(:mod:`minimanc.diagnose.privileged`; MANC's heads: :mod:`heads`), driven closed loop on
+the paper preset's split.
 
-Three parts, each a section of the results file:
+Five parts, each a section of the results file:
 
 * **Behaviour cloning**: the MLP trained by Algorithm 1 on the human's logged states of
   the ``--train`` training scenes, over ``--seeds`` training seeds, driven on the
   ``--val`` validation scenes under both protocols, next to the expert driven the same
-  way (:class:`~minimanc.dagger.privileged.ExpertPolicy`): open-loop RMSE, ADE with its
+  way (:class:`~minimanc.diagnose.ExpertPolicy`): open-loop RMSE, ADE with its
   along-/cross-track split, collisions and at-fault collisions (mean ± std over seeds).
 * **Ablation**: the same with one input group of
-  :data:`~minimanc.dagger.privileged.FEATURE_GROUPS` removed, reactive ados.
+  :data:`~minimanc.diagnose.FEATURE_GROUPS` removed, reactive ados.
 * **What one image can show** (``--parts information``): the learner without the speeds
   a single raster frame does not hold, under both protocols.
 * **A perception that errs** (``--parts noise``): the learner trained on demonstrations
-  whose features carry independent Gaussian errors (:func:`~minimanc.dagger.privileged.blur`)
+  whose features carry independent Gaussian errors (:func:`~minimanc.diagnose.blur`)
   and driven with the same errors, reactive ados: how exact gap, closing speed and own speed
   must be perceived for the privileged learner to stay safe.
 * **DAgger**: ``--rounds`` rounds of ``--per-round`` training scenes each
-  (:func:`~minimanc.dagger.privileged.dagger_rounds`, reactive ados), the closed-loop
+  (:func:`rounds.dagger_rounds`, reactive ados), the closed-loop
   metrics after every round, against behaviour cloning given the same number of labels
   as extra demonstrations (more scenes of the same draw), over ``--dagger-seeds`` training
   seeds.
@@ -29,7 +30,8 @@ MANC's DMP head (the MLP predicts its gain logits): MANC's head on the expert's 
 vAGN, ``FC(q)`` and the DMP head), ``--head vagn_predicates`` the same with ``FC(q ⊕ p)``;
 these two in the parts ``bc``, ``ablation``, ``information`` and ``noise`` only.
 
-Run: ``python benchmarks/privileged.py --out results/privileged.md``
+Run: ``python research/why_it_crashes/privileged.py
+--out research/why_it_crashes/results/privileged.md``
 """
 
 from __future__ import annotations
@@ -37,13 +39,17 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from heads import HEADS, fit_any, head_inputs, policy_of, predict_scenes
+from rounds import dagger_rounds
 from scoring import cells, log
 
 from minimanc import world
-from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS, WorldTeacher
+from minimanc.diagnose import policies
+from minimanc.diagnose import privileged as P
 from minimanc.studies import provenance
 
 N_TUNE = 40
@@ -98,7 +104,7 @@ def main() -> None:
     ap.add_argument("--per-round", type=int, default=65)
     ap.add_argument("--dagger-seeds", type=int, default=1)
     ap.add_argument("--parts", default="bc,ablation,dagger")
-    ap.add_argument("--head", choices=P.HEADS, default="acceleration")
+    ap.add_argument("--head", choices=HEADS, default="acceleration")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     parts = args.parts.split(",")
@@ -115,9 +121,12 @@ def main() -> None:
     Xv, Yv = P.demonstrations(val)
     reads_lane = args.head != "acceleration"  # MANC's DMP head reads the lane and motion
     T = train.n_steps
-    head = dict(head=args.head, scene_steps=T,
-                **dict(zip(("lane", "motion"), P.head_inputs(train)))) if reads_lane else {}
-    val_head = P.head_inputs(val) if reads_lane else (None, None)
+    lane, motion = head_inputs(train) if reads_lane else (None, None)
+    val_head = head_inputs(val) if reads_lane else (None, None)
+
+    def fit(X: np.ndarray, Y: np.ndarray, **kw: Any) -> Any:  # one learner of --head
+        return fit_any(args.head, X, Y, lane, motion, steps=args.steps, scene_steps=T, **kw)
+
     log(f"demonstrations: {len(X)} training, {len(Xv)} validation states", t0)
     teachers = {a: WorldTeacher(val, agents=a) for a in AGENTS}
     sections: dict[str, list[str]] = {}
@@ -126,17 +135,18 @@ def main() -> None:
         lines, rmse = [], []
         runs: dict[str, list[dict]] = {a: [] for a in AGENTS}
         for seed in range(args.seeds):  # one learner per seed, driven under both protocols
-            model = P.fit_privileged(X, Y, steps=args.steps, seed=seed, **head)
-            pred = P.predict_scenes(model, Xv, *val_head, scene_steps=T)
+            model = fit(X, Y, seed=seed)
+            pred = predict_scenes(model, Xv, *val_head, scene_steps=T)
             rmse.append(np.sqrt(((pred - Yv) ** 2).mean(0)))
             for agents in AGENTS:
-                runs[agents].append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers[agents]),
+                runs[agents].append(policies.evaluate_policy(policy_of(model, teachers[agents]),
                                                       val, agents))
                 log(f"bc {agents} seed {seed}: "
                     f"{runs[agents][-1]['at_fault_collision_rate']:.1f} % at fault, "
                     f"ADE {runs[agents][-1]['ade']:.2f}", t0)
         for agents in AGENTS:
-            ex = P.evaluate_policy(P.ExpertPolicy(teachers[agents]), val, agents)
+            ex = policies.evaluate_policy(policies.ExpertPolicy(teachers[agents]), val,
+                                          agents=agents)
             lines += [f"agents `{agents}`", "", *table([row("Expert", [ex]),
                                                         row("Privileged BC", runs[agents])]), ""]
         r = np.array(rmse)
@@ -151,9 +161,9 @@ def main() -> None:
         for drop in ((),) + tuple((g,) for g in P.FEATURE_GROUPS if g != "speed"):
             runs = []
             for seed in range(args.ablation_seeds):
-                model = P.fit_privileged(X, Y, drop=drop, steps=args.steps, seed=seed, **head)
-                runs.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"]), val,
-                                          "reactive"))
+                model = fit(X, Y, drop=drop, seed=seed)
+                runs.append(policies.evaluate_policy(policy_of(model, teachers["reactive"]), val,
+                                              "reactive"))
             name = "all inputs" if not drop else f"without `{drop[0]}`"
             rows.append(row(name, runs))
             log(f"ablation {name}: {np.mean([r['at_fault_collision_rate'] for r in runs]):.1f} "
@@ -166,11 +176,9 @@ def main() -> None:
         for name, without in INFORMATION.items():
             runs = {a: [] for a in AGENTS}
             for seed in range(args.ablation_seeds):
-                model = P.fit_privileged(X, Y, without=without, steps=args.steps, seed=seed,
-                                         **head)
+                model = fit(X, Y, without=without, seed=seed)
                 for a in AGENTS:
-                    runs[a].append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers[a]), val,
-                                                 a))
+                    runs[a].append(policies.evaluate_policy(policy_of(model, teachers[a]), val, a))
             for a in AGENTS:
                 rows.append(row(f"{name}, `{a}`", runs[a]))
             log(f"information {name}: " + ", ".join(
@@ -189,10 +197,10 @@ def main() -> None:
             runs = []
             for seed in range(args.ablation_seeds):
                 Xn = P.blur(X, noise, np.random.default_rng([seed, 1]))
-                model = P.fit_privileged(Xn, Y, steps=args.steps, seed=seed, **head)
-                runs.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"],
-                                                             noise=noise, seed=seed),
-                                          val, "reactive"))
+                model = fit(Xn, Y, seed=seed)
+                runs.append(policies.evaluate_policy(policy_of(model, teachers["reactive"],
+                                                        noise=noise, seed=seed),
+                                              val, "reactive"))
             rows.append(row(name, runs))
             log(f"noise {name}: {np.mean([r['at_fault_collision_rate'] for r in runs]):.1f} "
                 "% at fault", t0)
@@ -205,18 +213,17 @@ def main() -> None:
         per_seed, bc = [], []
         more = ds.subset(np.r_[np.arange(args.train), np.arange(n, n + extra)])
         Xm, Ym = P.demonstrations(more)
-        more_head = dict(head=args.head, scene_steps=T,
-                         **dict(zip(("lane", "motion"), P.head_inputs(more)))) \
-            if reads_lane else {}
+        more_lane, more_motion = head_inputs(more) if reads_lane else (None, None)
         for seed in range(args.dagger_seeds):
-            per_seed.append(P.dagger_rounds(train, val, args.rounds, args.per_round,
-                                            agents="reactive", steps=args.steps, seed=seed,
-                                            head=args.head))
+            per_seed.append(dagger_rounds(train, val, args.rounds, args.per_round,
+                                          agents="reactive", steps=args.steps, seed=seed,
+                                          head=args.head))
             for i, r in enumerate(per_seed[-1]):
                 log(f"dagger seed {seed} round {i}: "
                     f"{r.metrics['at_fault_collision_rate']:.1f} % at fault", t0)
-            model = P.fit_privileged(Xm, Ym, steps=args.steps, seed=seed, **more_head)
-            bc.append(P.evaluate_policy(P.PrivilegedPolicy(model, teachers["reactive"]), val,
+            model = fit_any(args.head, Xm, Ym, more_lane, more_motion, steps=args.steps,
+                            seed=seed)
+            bc.append(policies.evaluate_policy(policy_of(model, teachers["reactive"]), val,
                                         "reactive"))
             log(f"bc at equal labels seed {seed}: "
                 f"{bc[-1]['at_fault_collision_rate']:.1f} % at fault", t0)

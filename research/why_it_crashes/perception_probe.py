@@ -1,7 +1,7 @@
 """What the image models perceive: a linear probe
-(:func:`minimanc.metrics.diagnostics.linear_probe`) from each model's backbone features of a
+(:func:`minimanc.diagnose.linear_probe`) from each model's backbone features of a
 state to what the world's human perceives there
-(:mod:`minimanc.dagger.privileged`: its own speed, the gap and speed difference to its leader,
+(:mod:`minimanc.diagnose.privileged`: its own speed, the gap and speed difference to its leader,
 the distance to the point where it must yield, the braking bound of the curves ahead, the lateral
 offset and heading error) and to the acceleration the human applied.
 
@@ -13,7 +13,8 @@ what each trained model's head reads (the CNN's hidden layer FC(64); MANC's pred
 the first ``--probe-train`` training scenes (its ridge chosen from :data:`RIDGES` on their
 last quarter) and scored on the validation scenes.
 
-Run: ``python benchmarks/perception_probe.py --out results/perception_probe.md``
+Run: ``python research/why_it_crashes/perception_probe.py
+--out research/why_it_crashes/results/perception_probe.md``
 """
 
 from __future__ import annotations
@@ -25,9 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from minimanc import engine, inputs, models, train, world
-from minimanc.dagger import privileged as P
+from minimanc.diagnose import linear_probe
+from minimanc.diagnose import privileged as P
 from minimanc.layers import dense
-from minimanc.metrics.diagnostics import linear_probe
 from minimanc.models.backbone import activate
 from minimanc.models.forward import encode
 from minimanc.studies import provenance as results
@@ -36,14 +37,12 @@ N_TRAIN, N_TUNE, N_VAL = 650, 40, 200
 RIDGES = (1.0, 10.0, 100.0, 1000.0, 10000.0)
 TARGETS = ("v", "gap", "dv", "has_leader", "stop", "a_curve", "lateral", "heading")
 MODELS = {"untrained CNN backbone": None,
-          "CNN (parity, speed change)": ("cnn", "parity", "change", "change", "global", 0.0),
-          "CNN (paper)": ("cnn", "paper", "level", "level", "global", 0.0),
-          "MANC (paper)": ("manc", "paper", "level", "level", "global", 0.0),
-          "MANC (flat predicates, perception loss, speed scale)":
-              ("manc", "paper", "level", "change", "flat", 1.0)}
-"""label → (model, setting, speed_output, speed_scale, predicate_pool, perception_weight)."""
-PERCEIVE = tuple(f for f in P.FEATURES if f != "a_prev")
-"""The perception loss's targets (as in ``benchmarks/fixes.py``)."""
+          "CNN (parity)": ("cnn", "parity"),
+          "CNN (paper)": ("cnn", "paper"),
+          "MANC (paper)": ("manc", "paper")}
+"""label → (model, setting). The committed results also probed models trained with switches
+measured and deleted since (the speed as a change, the loss's speed scale, the flat
+predicates, the auxiliary perception loss; ``REPORT.md`` names their commits)."""
 
 
 def representations(name: str, params: dict, ds, cfg, batch: int = 500
@@ -110,12 +109,10 @@ def main() -> None:
             name, cfg = "cnn", models.ModelConfig()
             params = models.init(name, np.random.default_rng(0), cfg, dtype=np.float32)
         else:
-            name, setting, out, scale, pool, w = spec
-            cfg = models.ModelConfig(setting=setting, speed_output=out, predicate_pool=pool)
-            tc = train.TrainConfig(epochs=args.epochs, lr=args.lr, seed=0, speed_scale=scale,
-                                   perception_weight=w)
-            targets = P.perceived(tr, PERCEIVE) if w > 0 else None
-            params = train.fit(name, tr, cfg, tc, progress=False, perception=targets).params
+            name, setting = spec
+            cfg = models.ModelConfig(setting=setting)
+            tc = train.TrainConfig(epochs=args.epochs, lr=args.lr, seed=0)
+            params = train.fit(name, tr, cfg, tc, progress=False).params
         reps, repsv = representations(name, params, ptr, cfg), representations(name, params,
                                                                                  val, cfg)
         for part in reps if spec is not None else ("backbone",):

@@ -7,7 +7,8 @@ scenes, in that order; only the validation scenes are driven); each raster varia
 generated once (``cache=True``). The paper setting (what each model is given) is kept;
 only the image changes. Training: 6 epochs, learning rate ``--lr``, engine ``jax``.
 
-Run: ``python benchmarks/history_fix.py --out results/history_fix.md``
+Run: ``python research/why_it_crashes/history_fix.py
+--out research/why_it_crashes/results/history_fix.md``
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Chapter 11 — the modular learner: a perception learned from the raster, feeding the
+"""The modular learner: a perception learned from the raster, feeding the
 privileged learner (the two halves of Chen et al. 2019's *Learning by Cheating*, the second
 one trained on what the first perceives).
 
@@ -8,15 +8,17 @@ the two questions the end-to-end one leaves tangled: *can* the raster be read fo
 numbers the world's human drives on, and does a controller that reads those numbers drive?
 
 **Perception.** :func:`fit_perception` trains the CNN backbone of :mod:`minimanc.models`
-(its convolutions of the raster, flattened) with a linear read-out to the standardised
-:data:`PERCEIVE` features of :mod:`minimanc.dagger.privileged` in every logged state
-(:func:`minimanc.train.fit`'s auxiliary perception loss at a weight that makes the control
-loss negligible), or, with ``hidden`` units, a read-out with one hidden layer trained on the
-perception loss alone, which with ``route=True`` also reads the lane targets (the route
-ahead that MANC's DMP gets). :meth:`Perception.read` returns the features in their units.
+(its convolutions of the raster, flattened) with a read-out to the standardised
+:data:`PERCEIVE` features of :mod:`minimanc.diagnose.privileged` in every logged state, on
+the perception loss alone: a linear read-out, or, with ``hidden`` units, one hidden layer,
+which with ``route=True`` also reads the lane targets (the route ahead that MANC's DMP
+gets). :meth:`Perception.read` returns the features in their units. (Until the switch was
+deleted, the linear read-out was trained by :func:`minimanc.train.fit` with the control loss
+and an auxiliary perception loss at a weight that made the control loss negligible: see
+``REPORT.md``.)
 
 **Driving.** :func:`fit_driver` trains the privileged MLP
-(:func:`minimanc.dagger.privileged.fit_privileged`) on the features the perception *reads* in
+(:func:`minimanc.diagnose.privileged.fit_privileged`) on the features the perception *reads* in
 the training states (not the exact ones, so that it learns to drive on its own perception's
 errors), with the last acceleration taken from the perceived speeds. :class:`PerceivingPolicy`
 drives it closed loop on the rendered raster alone: it reads no number from the simulator.
@@ -31,19 +33,17 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from rounds import Round
 from tqdm import tqdm
 
-from minimanc import engine, inputs, models, optim, rollout, train
+from minimanc import engine, inputs, models, optim, rollout
 from minimanc.checks import check_int
-from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import WorldTeacher
+from minimanc.diagnose import policies
+from minimanc.diagnose import privileged as P
 from minimanc.layers import dense, flatten, init_dense
 from minimanc.models.backbone import backbone
 from minimanc.world.geometry import DT
-
-__all__ = ["ODOMETER", "PERCEIVE", "OraclePerceivingPolicy", "Perception", "PerceivingPolicy",
-           "check_features", "dagger_driver", "fit_driver", "fit_perception", "fit_reader",
-           "observe_states", "read_dataset", "with_exact", "with_last_acceleration"]
 
 PERCEIVE: tuple[str, ...] = tuple(f for f in P.FEATURES if f != "a_prev")
 """What the perception reads: every privileged feature but the last acceleration (a
@@ -109,29 +109,22 @@ class Perception:
 
 
 def fit_perception(train_ds: Any, targets: np.ndarray | None = None, epochs: int = 6,
-                   lr: float = 1e-3, seed: int = 0, weight: float = 100.0,
-                   cfg: models.ModelConfig | None = None, progress: bool = False,
-                   hidden: int = 0, route: bool = False, batch: int = 64) -> Perception:
+                   lr: float = 1e-3, seed: int = 0, cfg: models.ModelConfig | None = None,
+                   progress: bool = False, hidden: int = 0, route: bool = False,
+                   batch: int = 64) -> Perception:
     """Train a :class:`Perception` on every logged state of ``train_ds``; ``targets``
     ``(S, T, K)`` are its :data:`PERCEIVE` features
-    (:func:`minimanc.dagger.privileged.perceived`, computed when not given).
+    (:func:`minimanc.diagnose.privileged.perceived`, computed when not given).
 
-    With ``hidden = 0`` and no ``route`` it is the CNN of :mod:`minimanc.models` trained by
-    :func:`minimanc.train.fit` with its auxiliary perception loss at ``weight`` (a linear
-    read-out of the flattened backbone features). Otherwise the backbone and a read-out
-    with one hidden ReLU layer of ``hidden`` units (and the lane targets with ``route``)
-    are trained on the perception loss alone (mean squared error of the standardised
-    features, Adam at ``lr``, minibatches of ``batch`` states, ``epochs`` passes)."""
+    The CNN backbone of :mod:`minimanc.models` and a read-out of its flattened features
+    (linear with ``hidden = 0``, else with one hidden ReLU layer of ``hidden`` units; with
+    ``route`` it also reads the lane targets) are trained on the perception loss alone: the
+    mean squared error of the standardised features, Adam at ``lr``, minibatches of
+    ``batch`` states, ``epochs`` passes (:func:`fit_reader`)."""
     y = P.perceived(train_ds, PERCEIVE) if targets is None else np.asarray(targets, float)
     if y.ndim != 3 or y.shape[2] != len(PERCEIVE):
         raise ValueError(f"targets must have shape (S, T, {len(PERCEIVE)}), got {y.shape}")
     cfg = cfg or models.ModelConfig(setting="paper")
-    if hidden == 0 and not route:
-        tc = train.TrainConfig(epochs=epochs, lr=lr, seed=seed, perception_weight=weight)
-        res = train.fit("cnn", train_ds, cfg, tc, progress=progress, perception=y)
-        mean, std = train.perception_moments(y, train.subset_scenes(len(y), tc.subset,
-                                                                    tc.seed))
-        return Perception(res.params, [res.readout], mean, std, cfg)
     return fit_reader(train_ds, y, cfg, epochs, lr, seed, hidden, route, batch, progress)
 
 
@@ -148,9 +141,9 @@ def observe_states(ds: Any, s: np.ndarray, t: np.ndarray, route: bool
 def fit_reader(train_ds: Any, y: np.ndarray, cfg: models.ModelConfig, epochs: int, lr: float,
                seed: int, hidden: int, route: bool, batch: int, progress: bool = False
                ) -> Perception:
-    """The :class:`Perception` with a hidden read-out layer of :func:`fit_perception`
-    (arguments as there; ``y`` the ``(S, T, K)`` targets)."""
-    hidden = check_int("hidden", hidden, 1)
+    """The :class:`Perception` of :func:`fit_perception` (arguments as there; ``y`` the
+    ``(S, T, K)`` targets)."""
+    hidden = check_int("hidden", hidden, 0)
     epochs, batch = check_int("epochs", epochs, 1), check_int("batch", batch, 1)
     rng = np.random.default_rng(seed)
     S, T = y.shape[:2]
@@ -166,8 +159,8 @@ def fit_reader(train_ds: Any, y: np.ndarray, cfg: models.ModelConfig, epochs: in
     probe = Perception(params, [], mean, std, cfg, route=route)
     n_in = int(np.prod(backbone(params["backbone"], bev[:1], cfg, probe._eng).shape[1:]))
     n_in += lane.shape[1] * 2 if route else 0
-    readout = [init_dense(rng, n_in, hidden, np.float32),
-               init_dense(rng, hidden, len(PERCEIVE), np.float32)]
+    sizes = [n_in, hidden, len(PERCEIVE)] if hidden else [n_in, len(PERCEIVE)]
+    readout = [init_dense(rng, a, b, np.float32) for a, b in zip(sizes[:-1], sizes[1:])]
     xp = probe._eng.xp
 
     def loss(p: dict, bev_b: Any, lane_b: Any, z_b: Any) -> Any:
@@ -226,7 +219,7 @@ difference of two speeds) when a driver takes its speed from it instead of the r
 
 
 def check_features(names: Sequence[str]) -> tuple[str, ...]:
-    """``names`` as a tuple if each is one of :data:`~minimanc.dagger.privileged.FEATURES`,
+    """``names`` as a tuple if each is one of :data:`~minimanc.diagnose.privileged.FEATURES`,
     else a ValueError naming the first that is not."""
     for n in names:
         if n not in P.FEATURES:
@@ -262,7 +255,7 @@ def fit_driver(perception: Perception, train_ds: Any, steps: int = 3000, seed: i
 
 class PerceivingPolicy:
     """The modular learner as a closed-loop driver: each step, ``perception`` reads the
-    rendered raster and ``driver`` (a :class:`~minimanc.dagger.privileged.Privileged`
+    rendered raster and ``driver`` (a :class:`~minimanc.diagnose.privileged.Privileged`
     learner) turns what it read into ``[clip(v̂ + a Δt, 0, V_MAX), ω]``, ``v̂`` the perceived
     speed; with ``odometer=True`` ``v̂`` is the ego's own speed (the ``motion`` input, as
     MANC's DMP receives it) and only the rest is read from the raster. Its state is the
@@ -294,10 +287,10 @@ class PerceivingPolicy:
         return u, v, {}
 
 
-class OraclePerceivingPolicy(P.PrivilegedPolicy):
+class OraclePerceivingPolicy(policies.PrivilegedPolicy):
     """A diagnostic of the modular learner: its own speed and last acceleration
     (:data:`ODOMETER`) and the features ``exact`` from the world's human's own perception in
-    the state the closed loop reached (as :class:`~minimanc.dagger.privileged.PrivilegedPolicy`
+    the state the closed loop reached (as :class:`~minimanc.diagnose.policies.PrivilegedPolicy`
     reads them), every other feature read from the raster by ``perception``; ``driver``
     trained with the same split (:func:`fit_driver` with ``exact`` = :data:`ODOMETER` +
     ``exact``). Which perception errors cost the closed loop shows as the gain of making one
@@ -326,13 +319,13 @@ class OraclePerceivingPolicy(P.PrivilegedPolicy):
 
 def dagger_driver(perception: Perception, train_ds: Any, val_ds: Any, rounds: int,
                   per_round: int, agents: str = "reactive", seed: int = 0, steps: int = 3000,
-                  read: np.ndarray | None = None, progress: bool = False) -> list[P.Round]:
+                  read: np.ndarray | None = None, progress: bool = False) -> list[Round]:
     """DAgger for the modular learner's driver (its perception fixed): round 0 is
     :func:`fit_driver` with the odometer; each further round drives ``per_round`` training
     scenes (a seeded order, cycling) with the current driver under ``agents``, keeps what the
     perception read in every state reached with the world's human's label there, aggregates
     and retrains from the previous weights (as
-    :func:`~minimanc.dagger.privileged.dagger_rounds` does for the privileged learner).
+    :func:`rounds.dagger_rounds` does for the privileged learner).
     Every round is driven on ``val_ds`` under ``agents``; ``read`` is what ``perception``
     reads in ``train_ds``'s logged states (:func:`read_dataset`, computed when not given)."""
     rounds = check_int("rounds", rounds, 0)
@@ -345,9 +338,10 @@ def dagger_driver(perception: Perception, train_ds: Any, val_ds: Any, rounds: in
     model = P.fit_privileged(X, Y, steps=steps, seed=seed)
 
     def score(m: P.Privileged) -> dict[str, float]:
-        return P.evaluate_policy(OraclePerceivingPolicy(perception, m, vteacher), val_ds, agents)
+        return policies.evaluate_policy(OraclePerceivingPolicy(perception, m, vteacher), val_ds,
+                                 agents=agents)
 
-    out = [P.Round(len(X), score(model))]
+    out = [Round(len(X), score(model))]
     order = np.random.default_rng(seed).permutation(len(np.asarray(train_ds.ego)))
     for r in range(rounds):
         pick = order[(np.arange(per_round) + r * per_round) % len(order)]
@@ -357,5 +351,5 @@ def dagger_driver(perception: Perception, train_ds: Any, val_ds: Any, rounds: in
         Xn, Yn = policy.visited()
         X, Y = np.concatenate([X, Xn]), np.concatenate([Y, Yn])
         model = P.fit_privileged(X, Y, steps=steps, seed=seed + r + 1, init=model)
-        out.append(P.Round(len(X), score(model)))
+        out.append(Round(len(X), score(model)))
     return out

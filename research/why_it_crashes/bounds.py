@@ -1,6 +1,6 @@
 """The bounds of Table I: the expert, and the style floor no style-blind learner can beat.
 
-**Expert.** The world's human (:func:`minimanc.studies.bounds.expert_rollout`) drives the
+**Expert.** The world's human (:func:`minimanc.diagnose.expert_rollout`) drives the
 validation scenes through the same simulators and the same time loop as the learned
 policies, under both protocols (replayed and reactive ados); the metrics are
 :func:`minimanc.metrics.evaluate`'s. A state the expert refuses to label (off the
@@ -11,13 +11,14 @@ drivable area, far from its route) is driven with the last applied controls and 
 that a controller seeing only the scene cannot know. Every validation scene is re-driven
 by the world's own driver on the scene's own random stream (same map, traffic and noise
 draws), with the style replaced by the population's median style (the median of each
-field over ``--population`` draws; :func:`minimanc.studies.bounds.floor_rollout`), the
+field over ``--population`` draws; :func:`minimanc.diagnose.floor_rollout`), the
 ados reacting to it: its ADE to the logged human (mean, median, 90th percentile), the
 along- and cross-track parts (:func:`minimanc.metrics.trajectory.along_cross_track`), the
 mean speed difference and its at-fault collisions. Re-driving with the scene's own style
 must reproduce the log (checked first).
 
-Run: ``python benchmarks/bounds.py --scenes 200 --seed 777 --out results/bounds.md``
+Run: ``python research/why_it_crashes/bounds.py --scenes 200 --seed 777
+--out research/why_it_crashes/results/bounds.md``
 """
 
 from __future__ import annotations
@@ -31,9 +32,9 @@ import numpy as np
 
 from minimanc import metrics, world
 from minimanc.dagger.teachers import AGENTS
+from minimanc.diagnose import expert_rollout, floor_rollout, median_style
 from minimanc.metrics.trajectory import ade, along_cross_track
 from minimanc.studies import provenance
-from minimanc.studies.bounds import expert_rollout, floor_rollout, median_style
 from minimanc.world.geometry import DT
 
 
@@ -41,10 +42,10 @@ def expert_lines(ds) -> list[str]:
     out = [f"{'protocol':10s} {'ADE m':>7s} {'at fault %':>11s} {'collision %':>12s} "
            f"{'off road %':>11s} {'refused':>8s}"]
     for agents in AGENTS:
-        traj, refused = expert_rollout(ds, agents)
+        traj = expert_rollout(ds, agents=agents)
         m = metrics.evaluate(traj, ds)
         out.append(f"{agents:10s} {m['ade']:7.2f} {m['at_fault_collision_rate']:11.1f} "
-                   f"{m['collision_rate']:12.1f} {m['off_road_rate']:11.1f} {refused:8d}")
+                   f"{m['collision_rate']:12.1f} {m['off_road_rate']:11.1f} {traj.refused:8d}")
     return out
 
 

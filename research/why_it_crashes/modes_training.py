@@ -14,7 +14,8 @@ scenes, open loop (the model sees the human's observations):
 - ``short_windows``: 10-step windows from random offsets, with random q' (no window
   starts at the scene's first step, so q cannot count steps from a known start).
 
-    python benchmarks/modes_training.py [--seeds 2] [--workers 2] [--out results/modes_training.md]
+    python research/why_it_crashes/modes_training.py [--seeds 2] [--workers 2] \
+        [--out research/why_it_crashes/results/modes_training.md]
 
 Prints one row per variant and writes them, with the run's provenance, to ``--out``
 (markdown, quoted by the README; ``--out ''`` writes nothing) and ``.json`` beside it.
@@ -107,7 +108,7 @@ def main() -> None:
     ap.add_argument("--lr", type=float, default=3e-4, help="MANC's learning rate (default: "
                     "the one the paper preset's tuning picks)")
     ap.add_argument("--variants", default=",".join(VARIANTS))
-    ap.add_argument("--out", default="results/modes_training.md")
+    ap.add_argument("--out", default="research/why_it_crashes/results/modes_training.md")
     args = ap.parse_args()
     names = args.variants.split(",")
     unknown = [v for v in names if v not in VARIANTS]

@@ -1,4 +1,4 @@
-"""The modular learner (:mod:`minimanc.dagger.perceiving`): a perception trained on the raster
+"""The modular learner (:mod:`perceiving`, beside this script): a perception trained on the raster
 to read the numbers the world's human drives on, and the privileged MLP trained on what it
 reads, driven closed loop on the raster alone.
 
@@ -8,7 +8,7 @@ matter), and the closed loop under both protocols (mean ± std over ``--seeds`` 
 seed trains both halves), for each ``--speed`` source: ``raster`` (the driver reads its own
 speed from the raster too) and ``odometer`` (its own speed is the ego's, as MANC's DMP gets
 it; only the rest is read). Both drivers of a seed share its perception. ``--oracle GROUP
-...`` adds a diagnostic row per feature group of ``minimanc.dagger.privileged.FEATURE_GROUPS``:
+...`` adds a diagnostic row per feature group of ``minimanc.diagnose.FEATURE_GROUPS``:
 the odometer driver with that group taken from the world's own perception in the reached
 state (``OraclePerceivingPolicy``), the rest still read: the gain of one exact group is what
 its perception errors cost; ``--perceived GROUP ...`` the converse, every group exact but
@@ -17,14 +17,16 @@ row with every feature exact, the bound of the pipeline). ``--dagger R`` adds DA
 odometer driver (``dagger_driver``: R rounds of ``--per-round`` training scenes, the
 perception fixed), reactive ados. Read it against
 ``results/privileged.md`` (the same MLP on the exact features, and on one frame) and
-``results/privileged_noise.md`` (the same MLP with independent errors of known size).
+``results/privileged_noise.md`` (the same MLP with independent errors of known size). The
+perception is trained on the perception loss alone (:func:`perceiving.fit_perception`).
 
 The data is the paper preset's draw (data seed 0: 650 training, 40 tuning, 200 validation
 scenes, then ``--extra`` further training scenes of the same draw, as
-``benchmarks/data_scale.py`` takes them) rendered with ``--history`` steps of faded history
+``data_scale.py`` takes them) rendered with ``--history`` steps of faded history
 (``RasterConfig.history``).
 
-Run: ``python benchmarks/perceive_drive.py --out results/perceive_drive.md``
+Run: ``python research/why_it_crashes/perceive_drive.py
+--out research/why_it_crashes/results/perceive_drive.md``
 """
 
 from __future__ import annotations
@@ -34,12 +36,13 @@ import time
 from pathlib import Path
 
 import numpy as np
+import perceiving as M
 from scoring import HEAD, N_TRAIN, N_TUNE, N_VAL, SHOW, cells, log
 
 from minimanc import world
-from minimanc.dagger import perceiving as M
-from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import AGENTS, WorldTeacher
+from minimanc.diagnose import policies
+from minimanc.diagnose import privileged as P
 from minimanc.studies import provenance
 from minimanc.studies.jobs import scene_families
 
@@ -51,7 +54,6 @@ def main() -> None:
     ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--epochs", type=int, default=6)
     ap.add_argument("--lr", type=float, default=1e-3)
-    ap.add_argument("--weight", type=float, default=100.0)
     ap.add_argument("--speed", nargs="+", choices=("raster", "odometer"), default=["raster"])
     ap.add_argument("--hidden", type=int, default=0,
                     help="a read-out with one hidden ReLU layer of this many units (0: linear)")
@@ -92,8 +94,7 @@ def main() -> None:
     curve: list[list] = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         perception = M.fit_perception(tr, y, epochs=args.epochs, lr=args.lr, seed=seed,
-                                      weight=args.weight, hidden=args.hidden,
-                                      route=args.route)
+                                      hidden=args.hidden, route=args.route)
         read_tr = M.read_dataset(perception, tr)
         read_v = M.read_dataset(perception, val).reshape(yv.shape)
         err = read_v - yv
@@ -110,7 +111,7 @@ def main() -> None:
                                   exact=M.ODOMETER if odo else ())
             for a in AGENTS:
                 policy = M.PerceivingPolicy(perception, driver, odometer=odo)
-                runs[sp, a].append(P.evaluate_policy(policy, val, a))
+                runs[sp, a].append(policies.evaluate_policy(policy, val, a))
                 log(f"seed {seed} speed from {sp}, {a}: "
                     f"{runs[sp, a][-1]['at_fault_collision_rate']:.1f} % at fault, "
                     f"ADE {runs[sp, a][-1]['ade']:.2f}", t0)
@@ -120,7 +121,7 @@ def main() -> None:
             for a in AGENTS:
                 policy = M.OraclePerceivingPolicy(perception, driver,
                                                   WorldTeacher(val, agents=a), exact)
-                runs[row, a].append(P.evaluate_policy(policy, val, a))
+                runs[row, a].append(policies.evaluate_policy(policy, val, a))
                 log(f"seed {seed} {row}, {a}: "
                     f"{runs[row, a][-1]['at_fault_collision_rate']:.1f} % at fault, "
                     f"ADE {runs[row, a][-1]['ade']:.2f}", t0)
@@ -137,8 +138,7 @@ def main() -> None:
             f"(paper preset draw: {N_TRAIN + args.extra} training, {N_VAL} validation "
             f"scenes; history "
             f"{args.history}; {args.epochs} epochs, lr {args.lr:g}, "
-            + (f"hidden layer {args.hidden}" if args.hidden else
-               f"perception weight {args.weight:g}")
+            + (f"hidden layer {args.hidden}" if args.hidden else "linear read-out")
             + (", route" if args.route else "")
             + f"; {args.seeds} seeds)\n\n## What the perception reads\n\n"
             "On the validation scenes, mean over seeds.\n\n"
