@@ -73,6 +73,7 @@ from minimanc.studies.config import (
     TABLE_MODELS,
     Run,
     StudyConfig,
+    presets_table,
 )
 from minimanc.studies.config import canonical_setting as canonical_setting
 from minimanc.studies.figures import pick_scenes as pick_scenes
@@ -93,4 +94,5 @@ __all__ = [
     "findings",
     "table_markdown",
     "reproduce",
+    "presets_table",
 ]

@@ -147,6 +147,20 @@ PRESETS: dict[str, StudyConfig] = {
 and ``paper`` (the paper's data sizes)."""
 
 
+def presets_table() -> str:
+    """:data:`PRESETS` as a Markdown table (``docs/reproduce.md`` shows it): per preset its
+    scenes, image size, epochs, learning rates, seeds and the q-states and data fractions of
+    the studies."""
+    lines = ["| preset | train / tune / validation scenes | BEV px | epochs | learning rates "
+             "| seeds | q-states | data fractions |", "|---|---|---|---|---|---|---|---|"]
+    for name, c in PRESETS.items():
+        lines.append(f"| `{name}` | {c.n_train} / {c.n_tune} / {c.n_val} | {c.image_size} | "
+                     f"{c.training.epochs} | {', '.join(f'{x:g}' for x in c.lrs)} | "
+                     f"{c.n_seeds} | {', '.join(str(n) for n in c.q_states)} | "
+                     f"{', '.join(f'{f:g}' for f in c.fractions)} |")
+    return "\n".join(lines)
+
+
 @dataclass(frozen=True)
 class Run:
     """One trained model: ``model``, information ``setting``, ``n_states``, data
