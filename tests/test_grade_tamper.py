@@ -448,6 +448,7 @@ def test_a_subclass_or_foreign_object_is_refused_in_the_notebook(value, message)
     ([["float", 1.5]], "a string was expected"),
     ([["int", True]], "a bad int"),
     ([["list", [5], None]], "a reference to node 5"),
+    ([["list", [["global", "os", "system"]], None]], "a value written in place of kind"),
     (["not a node"], "node 0 is not a node"),
 ])
 def test_the_tests_read_only_plain_data(nodes, message):

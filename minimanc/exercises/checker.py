@@ -355,8 +355,14 @@ class TestsProcess:
         self.process.stdin.write(json.dumps(plan) + "\n")
         self.process.stdin.flush()
         threading.Thread(target=self._read, daemon=True).start()
-        self.address = self._wait(lambda m: m.get("address"), max(timeout, 120),
-                                  "did not start")
+        self.address: list | None = None
+
+    def started(self) -> None:
+        """Block until the process has imported what the plain cells import and listens
+        (the notebook's kernel starts meanwhile; its first cell must wait for this)."""
+        if self.address is None:
+            self.address = self._wait(lambda m: m.get("address"), max(self.timeout, 120),
+                                      "did not start")
 
     def _read(self) -> None:
         for line in self.process.stdout:
@@ -414,7 +420,8 @@ class TestsProcess:
     def skip(self, gid: str) -> None:
         """Tell the process that grade cell ``gid`` will not be served (its serving cell
         ended without a verdict), so it moves on to the next one."""
-        with contextlib.suppress(OSError, EOFError, ValueError):
+        with contextlib.suppress(OSError, EOFError, ValueError, TestsStopped):
+            self.started()
             conn = Client(tuple(self.address), authkey=bytes.fromhex(self.authkey))
             try:
                 Wire(conn, "notebook", {}).send(("skip", gid, self.tokens[gid]))
@@ -424,6 +431,7 @@ class TestsProcess:
     def serve_source(self, gid: str, exercise: str, forbids: list[str],
                      names: list[str]) -> str:
         """The cell the kernel runs in place of grade cell ``gid``."""
+        self.started()
         args = (list(self.address), self.authkey, gid, self.tokens[gid], exercise, forbids,
                 names)
         return ("import minimanc.exercises.serving as _minimanc_serving\n"

@@ -43,6 +43,7 @@ _SHELLS = {"obj": 0, "array": 0, "same": 0, "list": 1, "objarray": 1, "dict": 2,
            "ref": 4}   # kind -> when it is filled (objects first: dict keys may hash them)
 
 
+_IN_PLACE = frozenset({"none", "bool", "int", "float", "str"})
 _LEAVES = frozenset({"none", "bool", "int", "float", "complex", "str", "bytes", "range",
                      "scalar", "jax", "handle", "enum"})   # nodes without children
 
@@ -119,6 +120,10 @@ class Decoder:
     def get(self, i: Any) -> Any:
         if type(i) is int and 0 <= i < len(self.objs) and self.objs[i] is not _MISSING:
             return self.objs[i]
+        if type(i) is list:   # a value written in place
+            if not i or i[0] not in _IN_PLACE:
+                raise RefusedAnswer(f"a value written in place of kind {i[:1]!r}")
+            return self.build(i)
         i = self.index(i)
         stack, visiting = [i], set()
         while stack:
@@ -138,24 +143,27 @@ class Decoder:
         return self.objs[i]
 
     def children(self, node: list) -> list[int]:
+        """The nodes an immutable node is built from (values written in place aside)."""
         kind = node[0]
         if kind in ("tuple", "frozenset"):
-            return [self.index(c) for c in node[1]]
-        if kind == "ntuple":
-            return [self.index(c) for c in node[3]]
-        if kind == "slice":
-            return [self.index(c) for c in node[1:4]]
-        if kind == "exception":
-            return [self.index(node[3])]
-        if self.wire.tests:
+            refs = node[1]
+        elif kind == "ntuple":
+            refs = node[3]
+        elif kind == "slice":
+            refs = node[1:4]
+        elif kind == "exception":
+            refs = node[3:4]
+        elif self.wire.tests:
             return []
-        if kind == "function":
-            return [self.index(c) for c in node[3:4] + node[6:9]]
-        if kind == "method":
-            return [self.index(node[1])]
-        if kind == "reduce":
-            return [self.index(c) for c in node[1:6] if c != -1]
-        return []
+        elif kind == "function":
+            refs = node[3:4] + node[6:9]
+        elif kind == "method":
+            refs = node[1:2]
+        elif kind == "reduce":
+            refs = [c for c in node[1:6] if c != -1]
+        else:
+            return []
+        return [self.index(c) for c in refs if type(c) is not list]
 
     def build(self, node: list) -> Any:
         kind = node[0]

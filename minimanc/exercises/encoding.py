@@ -67,7 +67,18 @@ class Encoder:
         self.scopes: dict[tuple[int, int], dict] = {}
         self.parts: set[int] = set()   # ids of the encoder's own containers: never mirrored
 
-    def ref(self, obj: Any) -> int:
+    def ref(self, obj: Any) -> int | list:
+        """The index of ``obj``'s node; a float, int, bool, str or ``None`` is written in
+        place instead (most of a message's values: no node, no index)."""
+        t = type(obj)
+        if t is float:
+            return ["float", repr(obj)]
+        if t is int or t is bool:
+            return [t.__name__, obj]
+        if t is str:
+            return ["str", obj]
+        if obj is None:
+            return ["none"]
         index = self.memo.get(id(obj))
         if index is None:
             index = self.memo[id(obj)] = len(self.nodes)

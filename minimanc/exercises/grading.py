@@ -362,21 +362,22 @@ def grade(
     try:
         tests = TestsProcess(_tests_cells(reference_nb), list(slots), names,
                              source.resolve().parent, timeout, _kernel_python())
-    except (TestsStopped, OSError) as exc:
+    except OSError as exc:
         raise GradeRefused(f"cannot start the tests' process: {_one_line(exc)}") from None
     try:
         forbids = forbidden_functions(reference_nb)
-        for gid, index in slots.items():
+        serving = {}
+        for gid, index in slots.items():   # the serving cells are written when reached
             exercise = exercise_of.get(gid, gid)
-            cells[index] = nbformat.v4.new_code_cell(
-                tests.serve_source(gid, exercise, forbids.get(exercise, []), names))
+            cells[index] = nbformat.v4.new_code_cell("pass")
+            serving[gid] = (exercise, forbids.get(exercise, []), names)
         # importing the serving side (nbformat, ...) is a cell of its own, well inside the
         # cell timeout
         cells.insert(0, nbformat.v4.new_code_cell(_SERVING))
         slots = {gid: index + 1 for gid, index in slots.items()}
         run_nb = nbformat.v4.new_notebook(metadata=copy.deepcopy(student.metadata))
         run_nb.cells = cells
-        run = _Run(tests, slots)
+        run = _Run(tests, slots, serving)
         crashed, timed_out = _execute_for_grading(run_nb, path, timeout, report, run)
     finally:
         tests.stop()
@@ -432,10 +433,19 @@ class _Run:
     until the tests' process is ready for it; after one, make sure it is not waiting
     for a grade cell that will never come."""
 
-    def __init__(self, tests: TestsProcess, slots: dict[str, int]) -> None:
-        self.tests = tests
+    def __init__(self, tests: TestsProcess, slots: dict[str, int],
+                 serving: dict[str, tuple]) -> None:
+        self.tests, self.serving = tests, serving
         self.at = {index: gid for gid, index in slots.items()}
         self.stalled: dict[str, str] = {}
+
+    def start(self) -> None:
+        """Once the kernel is up, before its first cell: the tests' process must be
+        listening (it started first; the two start side by side)."""
+        try:
+            self.tests.started()
+        except TestsStopped as exc:
+            raise GradeRefused(f"cannot start the tests' process: {_one_line(exc)}") from None
 
     def before(self, cell, cell_index: int) -> None:
         gid = self.at.get(cell_index)
@@ -445,7 +455,8 @@ class _Run:
             self.tests.wait_ready(gid)
         except TestsStopped as exc:
             self.stalled[gid] = str(exc)
-            cell.source = "pass"
+            return
+        cell.source = self.tests.serve_source(gid, *self.serving[gid])
 
     def after(self, cell_index: int) -> None:
         gid = self.at.get(cell_index)
@@ -516,12 +527,15 @@ def _execute_for_grading(nb, path: Path, timeout: int, report: GradeReport, run:
         run.after(cell_index)
 
     client = notebook_client(nb, path.resolve().parent, timeout, allow_errors=True)
+    client.on_notebook_start = lambda **_: run.start()
     client.on_cell_execute = on_execute
     client.on_cell_executed = on_executed
     try:
         client.execute()
     except NoSuchKernel as exc:
         raise GradeRefused(f"cannot start a Python kernel: {_one_line(exc)}") from None
+    except GradeRefused:
+        raise
     except DeadKernelError:
         report.notes.append("the kernel died; later cells were not run")
         return "not run: the kernel died", timed_out
