@@ -4,23 +4,18 @@ The grade cells run in a process of their own; the notebook answers their calls 
 data. Each scenario below is a notebook of a small course (:data:`COURSE`, graded like a
 chapter) in which some exercises hold a wrong answer next to a tamper that made a wrong
 answer pass under an in-process grader (or that reaches for the tests some other way):
-every such exercise scores 0, and the honest notebook scores full marks. The last tests
-send crafted messages to the tests' side of the wire, without a kernel.
+every such exercise scores 0, and the honest notebook scores full marks. What the tests'
+side of the wire reads, crafted messages included, is tested in ``test_grade_wire.py``.
 """
 
 from __future__ import annotations
 
-import threading
-from multiprocessing import Pipe
 from pathlib import Path
 
 import nbformat
-import numpy as np
 import pytest
 
 from minimanc import exercises
-from minimanc.exercises.checker import NotebookFunction
-from minimanc.exercises.wire import Wire
 
 COURSE = '''# %%
 import math
@@ -367,106 +362,3 @@ def test_forged_verdicts_are_dropped(reports):
     assert rows["ex_matrix_tests"].points == 0
     assert "RuntimeError: forged verdicts into" in rows["ex_matrix_tests"].message, \
         report.format()
-
-
-# -------------------------------------------------------------- the wire, without a kernel
-def send_to_tests(value, classes=None):
-    """``value`` sent by a notebook's wire and read by the tests' wire."""
-    here, there = Pipe()
-    message = Wire(here, "notebook", {}).encode(value)
-    tests = Wire(there, "tests", {}, classes or {}, NotebookFunction, 5)
-    got = {}
-    reader = threading.Thread(target=lambda: got.setdefault("value", tests.recv()))
-    reader.start()
-    here.send_bytes(message)
-    reader.join()
-    return got["value"]
-
-
-def forged(nodes: list, root: int = 0, buffers=()):
-    """A hand-made message read by the tests' wire (what a tampered notebook could send)."""
-    import json
-    import struct
-
-    parts = [json.dumps({"root": root, "nodes": nodes}).encode(), *buffers]
-    here, there = Pipe()
-    here.send_bytes(struct.pack(f"<I{len(parts)}Q", len(parts), *map(len, parts))
-                    + b"".join(parts))
-    return Wire(there, "tests", {}, {}, NotebookFunction, 5).recv()
-
-
-@pytest.mark.parametrize("value", [
-    1.0, -0.0, float("nan"), 2, True, None, "s", b"\x00b", 1 + 2j, (1, [2.0, {"a": 3}]),
-    {1, 2}, frozenset({3}), slice(1, None, 2), range(3), np.float64(1.5), np.int32(3),
-    np.bool_(True), np.str_("u"), np.zeros((2, 3)), np.array(["a", "bc"]),
-    np.array([1.0, None], dtype=object), np.arange(6).reshape(2, 3)[:, ::2],
-])
-def test_plain_values_arrive_as_their_exact_type(value):
-    got = send_to_tests(value)
-    assert type(got) is type(value)
-    if isinstance(value, np.ndarray):
-        assert got.dtype == value.dtype and got.shape == value.shape
-        assert [repr(x) for x in got.ravel()] == [repr(x) for x in value.ravel()]
-    else:
-        assert repr(got) == repr(value)
-
-
-def notebook_class(name: str, bases: tuple = (), **body):
-    """A class as a notebook cell defines it (module ``__main__``)."""
-    return type(name, bases, {"__module__": "__main__", **body})
-
-
-@pytest.mark.parametrize("value, message", [
-    (notebook_class("S", (str,), __eq__=lambda s, o: True, __hash__=str.__hash__)("x"),
-     "a S, a str subclass; return a plain str"),
-    ((1.0, notebook_class("F", (float,))(2.0)), "a F, a float subclass; return a plain float"),
-    (np.arange(3).view(notebook_class("A", (np.ndarray,))), "an ndarray subclass"),
-    ([{"k": notebook_class("Int", (int,))(1)}], "an Int, an int subclass; return a plain int"),
-    (notebook_class("D", (dict,))(), "a D, a dict subclass; return a plain dict"),
-    (notebook_class("F64", (np.float64,))(1.0), "a F64, a float subclass; return a plain float"),
-    (object(), "an object, not a plain type"),
-])
-def test_a_subclass_or_foreign_object_is_refused_in_the_notebook(value, message):
-    with pytest.raises(exercises.RefusedAnswer) as info:
-        send_to_tests(value)
-    assert message in str(info.value)
-
-
-@pytest.mark.parametrize("nodes, message", [
-    ([["function", [3, 11], 0, 0, "f", "f", 0, 0, 0]], "a value of kind 'function'"),
-    ([["global", "os", "system"]], "a value of kind 'global'"),
-    ([["module", "os"]], "a value of kind 'module'"),
-    ([["reduce", 1, 2, -1, -1, -1], ["str", "x"], ["tuple", []]], "a value of kind 'reduce'"),
-    ([["obj", "__main__", "Rigged", [], None]], "an object of class Rigged, which the tests"),
-    ([["obj", "os", "PathLike", [], None]], "an object of class PathLike"),
-    ([["obj", "minimanc.models.config", "ModelConfig", ["__class__", 1], None], ["int", 1]],
-     "the attributes of a ModelConfig"),
-    ([["ref", 7]], "a reference to an object the tests did not send"),
-    ([["array", "O", [1], 0]], "an array of dtype 'O'"),
-    ([["array", "V8", [1], 0]], "an array of dtype 'V8'"),
-    ([["tuple", [0]]], "a cycle through immutable values"),
-    ([["float", 1.5]], "a string was expected"),
-    ([["int", True]], "a bad int"),
-    ([["list", [5], None]], "a reference to node 5"),
-    ([["list", [["global", "os", "system"]], None]], "a value written in place of kind"),
-    (["not a node"], "node 0 is not a node"),
-])
-def test_the_tests_read_only_plain_data(nodes, message):
-    import minimanc.models.config  # noqa: F401 - its class is the one a forged node names
-
-    with pytest.raises(exercises.RefusedAnswer) as info:
-        forged(nodes, buffers=[b"\x00" * 8])
-    assert message in str(info.value)
-
-
-def test_an_exception_arrives_as_its_class_and_a_notebook_class_as_the_tests_class():
-    def init(self, a, b):
-        self.a, self.b = a, b
-
-    ours = notebook_class("Pair", __init__=init)
-    theirs = notebook_class("Pair", __init__=init, __eq__=lambda s, o: True)
-    got = send_to_tests((KeyError("k"), exercises.ForbiddenFunctionError("no"), theirs(1, [2])),
-                        classes={"Pair": ours})
-    assert type(got[0]) is KeyError and got[0].args == ("k",)
-    assert type(got[1]) is exercises.ForbiddenFunctionError and str(got[1]) == "no"
-    assert type(got[2]) is ours and (got[2].a, got[2].b) == (1, [2])

@@ -41,7 +41,6 @@ from minimanc.autodiff import Box, custom_vjp
 from minimanc.exercises.markers import BEGIN_HIDDEN, END_HIDDEN
 from minimanc.exercises.values import RefusedAnswer
 from minimanc.exercises.wire import Wire
-from minimanc.tree import leaves
 
 __all__ = [
     "NotebookFunction",
@@ -105,9 +104,24 @@ def _signed(text: str, key: str) -> str:
     return hmac.new(bytes.fromhex(key), text.encode(), hashlib.sha256).hexdigest() + " " + text
 
 
-def _jax_traced(values: Sequence) -> bool:
-    core = getattr(sys.modules.get("jax"), "core", None)
-    return core is not None and any(isinstance(v, core.Tracer) for v in leaves(list(values)))
+def _holds(values: Sequence, kind: type | None) -> bool:
+    """Whether an instance of ``kind`` is among ``values`` or inside their tuples, lists
+    and dicts (a pytree's leaves, whatever its keys)."""
+    if kind is None:
+        return False
+    stack, seen = list(values), set()
+    while stack:
+        value = stack.pop()
+        if isinstance(value, kind):
+            return True
+        if isinstance(value, (tuple, list, dict)) and id(value) not in seen:
+            seen.add(id(value))
+            stack += value.values() if isinstance(value, dict) else value
+    return False
+
+
+def _tracer_class() -> type | None:
+    return getattr(getattr(sys.modules.get("jax"), "core", None), "Tracer", None)
 
 
 # ------------------------------------------------------------------------ the stand-ins
@@ -127,22 +141,21 @@ class NotebookFunction:
         return self.name
 
     def __call__(self, *args, **kwargs):
-        if _jax_traced(args) or _jax_traced(list(kwargs.values())):
+        if _holds([args, kwargs], _tracer_class()):
             raise TypeError(f"{self.name} was called with a JAX tracer: the notebook's "
                             "functions run in another process, where JAX cannot trace them "
                             "(differentiate with engine('numpy'), or compare values)")
-        if any(isinstance(v, Box) for v in leaves([args, kwargs])):
+        if _holds([args, kwargs], Box):
             return self.traced(args, kwargs)
         return self.request("call", self.hid, args, kwargs)
 
     def traced(self, args: tuple, kwargs: dict):
         """A call on traced values (``engine("numpy")``): one tape node whose backward pass
         asks the kernel for the vector-Jacobian product of the student's function."""
-        if any(isinstance(v, Box) for v in leaves(list(kwargs.values()))):
+        if _holds([kwargs], Box):
             raise TypeError(f"{self.name}: a traced keyword argument; pass traced values "
                             "positionally")
-        diff = tuple(i for i, a in enumerate(args) if any(isinstance(v, Box)
-                                                           for v in leaves(a)))
+        diff = tuple(i for i, a in enumerate(args) if _holds([a], Box))
         static = tuple(i for i in range(len(args)) if i not in diff)
         node = custom_vjp(lambda *a: self.request("call", self.hid, a, kwargs), static)
         node.defvjp(lambda *a: self.request("forward", self.hid, a, kwargs, diff),
