@@ -12,8 +12,11 @@ subclasses is used by the tests. A grade cell may differentiate a notebook funct
 ``engine("numpy")`` (its gradient is computed in the kernel, one backward call per
 cotangent); a JAX transformation of one cannot cross processes and raises a ``TypeError``.
 
-The verdicts go to the grader on a pipe that only this process writes (the process's
-standard output, the cells' prints going to ``os.devnull``).
+The verdicts go to the grader on this process's standard output (the cells' prints go to
+``os.devnull``), each line signed with a key the notebook never sees: another process of
+the same user may write into the pipe, not sign. What stays out of reach of this design is
+the operating system: code that runs as the grading user can still edit installed files
+or debug this process (a notebook one does not trust is graded in a container).
 """
 
 from __future__ import annotations
