@@ -414,7 +414,7 @@ for epoch in range(6):
     print(f"epoch {epoch}: mean loss {np.mean(losses[-24:]):.3f}   "
           f"test accuracy {test_acc[-1]:.3f}")
 assert test_acc[-1] >= 0.95, test_acc
-assert len(losses) == 6 * 24 and np.mean(losses[-24:]) < 0.1  # stored run: 0.001
+assert len(losses) == 6 * 24 and np.mean(losses[-24:]) < 0.1
 
 # %%
 fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(10, 3.2))
