@@ -350,9 +350,10 @@ assert gap[-1] < 0.5 * gap[tt <= 10][-1]
 # Here is the smallest version: a demonstration (10 velocities) made with
 # unknown gains, and Adam on the two logits through a 10-step rollout, with our
 # NumPy autodiff engine (`engine("jax")` gives the same gradients). The loss
-# landscape on the left is one *batched* rollout: 1600 gain pairs at once.
+# landscape on the left is one *batched* rollout: 1600 gain pairs at once. (60 Adam
+# steps: the fitted gains are checked by the assert, to 3 %, not by their digits.)
 
-# %%
+# %% tags=["nbval-ignore-output"]
 eng = engine("numpy")
 xp = eng.xp
 N = 10
