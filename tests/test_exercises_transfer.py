@@ -53,6 +53,7 @@ from __future__ import annotations
 import ast
 import copy
 import difflib
+import functools
 import re
 import textwrap
 from pathlib import Path
@@ -118,6 +119,7 @@ def statement_shapes(source: str) -> list[tuple[str, ...]]:
     return shapes
 
 
+@functools.cache
 def same_line(a: tuple[str, ...], b: tuple[str, ...]) -> bool:
     """Whether two statements are of one kind and their shapes agree on at least
     ``SAME_LINE`` of their tokens."""
@@ -384,17 +386,27 @@ def formulas(source: str) -> set[str]:
     return found
 
 
-def answer_leaks(visible: str, solution: str) -> str | None:
-    """Why the visible grade-cell code ``visible`` gives away the solution region
-    ``solution`` (a run of statements, a reordered copy, a formula), or None."""
-    shapes, shown = statement_shapes(solution), statement_shapes(visible)
+def code_parts(source: str) -> tuple[list[tuple[str, ...]], set[str]]:
+    """The statement shapes and the formulas of ``source``."""
+    return statement_shapes(source), formulas(source)
+
+
+def leak_of(visible: tuple[list, set], solution: tuple[list, set]) -> str | None:
+    """Why visible grade-cell code gives away a solution region, both as
+    :func:`code_parts`: a run of statements, a reordered copy, a formula; or None."""
+    (shown, shown_formulas), (shapes, answer_formulas) = visible, solution
     run = longest_shared_run(shapes, shown)
     if run >= MIN_SHARED:
         return f"{run} statements in a row"
-    if is_reordered_copy(shapes, shown):
+    if len(shapes) >= MIN_REORDERED and is_reordered_copy(shapes, shown):
         return f"{reordered_shared(shapes, shown)} of {len(shapes)} statements, reordered"
-    common = formulas(solution) & formulas(visible)
+    common = answer_formulas & shown_formulas
     return f"the formula {sorted(common)[0]!r}" if common else None
+
+
+def answer_leaks(visible: str, solution: str) -> str | None:
+    """:func:`leak_of` for the visible code ``visible`` and the solution region ``solution``."""
+    return leak_of(code_parts(visible), code_parts(solution))
 
 
 def grade_cell_leaks(solutions: Path) -> dict[str, str]:
@@ -403,14 +415,14 @@ def grade_cell_leaks(solutions: Path) -> dict[str, str]:
     found: dict[str, str] = {}
     for path in sorted(solutions.glob("*.ipynb")):
         cells = nbformat.read(path, as_version=4).cells
-        answers = {exercises.grade_id(c): "\n\n".join(solution_regions(c.source))
+        answers = {exercises.grade_id(c): code_parts("\n\n".join(solution_regions(c.source)))
                    for c in cells if exercises.is_solution_cell(c) and c.cell_type == "code"}
         for cell in cells:
             if not exercises.is_grade_cell(cell) or cell.cell_type != "code":
                 continue
-            visible = exercises.strip_hidden(cell.source, f"{path.name}")
+            visible = code_parts(exercises.strip_hidden(cell.source, f"{path.name}"))
             for exercise, answer in answers.items():
-                why = answer_leaks(visible, answer)
+                why = leak_of(visible, answer)
                 if why:
                     found[f"{path.name} {exercises.grade_id(cell)}"] = f"{exercise}: {why}"
                     break
