@@ -244,8 +244,9 @@ assert np.allclose(got[:40], qs[:40], atol=1e-9), "angles below pi: expected the
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# $\exp(\tfrac{\Delta t}{2}\eta_k) = q_{k+1} * \bar q_k$. Choose the sign of that
-# product before taking `Q.log` (tutorial section 3).
+# Multiply eq. 5 on the right by the inverse of $q_k$ to isolate the exponential,
+# then undo the exponential with `Q.log` — after choosing which of the two signs
+# of the quaternion turns the short way (tutorial section 3).
 # </details>
 
 # %% solution id=ex04_4 title="Angular velocities from logged orientations" forbids="minimanc.quaternion.orientation_error"  # noqa: E501
