@@ -62,8 +62,9 @@ workdir = Path(tempfile.mkdtemp(prefix="minimanc09_"))
 
 # %%
 config = studies.StudyConfig(
-    preset="lesson", n_train=32, n_tune=4, n_val=10, image_size=32, epochs=3, batch_size=32,
-    lrs=(3e-3,), n_seeds=1, q_states=(3, 6), fractions=(0.5, 1.0),
+    preset="lesson", n_train=32, n_tune=4, n_val=10, image_size=32,
+    training=train.TrainConfig(epochs=3, batch_size=32), lrs=(3e-3,), n_seeds=1,
+    q_states=(3, 6), fractions=(0.5, 1.0),
     sample_models=("cnn", "manc"), explain_scenes=1,
 )
 study = studies.Study(config, workdir, engine="jax", workers=0, progress=False)
@@ -423,9 +424,10 @@ plt.show()
 # and reports it in its findings (`vagn_modes_*`), with the rule it applies.
 
 # %% [markdown]
-# Can a change to training make them modes? `benchmarks/modes_training.py` trains MANC
-# at the paper's data size under four variants of Algorithm 1 and applies the same
-# measure (its table is in the README, quoted from `results/modes_training.md`). The ζ
+# Can a change to training make them modes? `research/why_it_crashes/modes_training.py`
+# trains MANC at the paper's data size under four variants of Algorithm 1 and applies the
+# same measure (its table is in `research/why_it_crashes/REPORT.md`, quoted from
+# `research/why_it_crashes/results/modes_training.md`). The ζ
 # penalty changes nothing and a random initial q' alone barely helps. What helps is
 # training on **short windows that start anywhere in a scene, from a random q'**
 # (`train.TrainConfig(dmp_seq_len=10, q_init="random")`): no window begins at the
@@ -520,10 +522,10 @@ assert (workdir / "table1.md").exists() and (workdir / "results.json").exists()
 # ## 9. What the measured studies found
 # The tables of a finished run are in its `table1.md`; the project's measured runs are
 # committed under `results/` (each file ends with its provenance: the command, the date,
-# the package versions and the machine) and the README quotes them, so that no number
-# is typed by hand. `python -m pytest tests/test_results.py` fails when a number in the
-# README differs from its file. Read there what reproduces of the paper and what does
-# not: the findings are the same sentences section 7 printed, generated from the
+# the package versions and the machine) and the README and the research reports quote
+# them, so that no number is typed by hand. `minimanc results check` fails when a quoted
+# number differs from its file (`docs/reproduce.md`). Read there what reproduces of the
+# paper and what does not: the findings are the same sentences section 7 printed, generated from the
 # numbers of the committed run.
 
 # %% [markdown]
