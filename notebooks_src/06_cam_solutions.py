@@ -72,8 +72,8 @@ assert np.allclose(got[0, 0], [[1.0, 9.0]]), (
     f"f = [[1, 3]], a = [[0.25, 0.75]], w = [[2]] (p - b = 5): expected the map [[1, 9]]; "
     f"got {np.round(got[0, 0], 4).tolist()}")
 f_r, w_r = rng.random((2, 4, 5, 3)), rng.normal(size=(3, 2))
-got = np.asarray(pooled_cams(f_r, np.full((4, 5), 1 / 20), w_r))
 ref = cam.class_activation_maps(f_r, w_r)
+got = np.asarray(pooled_cams(f_r, np.full((4, 5), 1 / 20), w_r))
 assert got.shape == ref.shape and np.allclose(got, ref), (
     f"uniform a = 1 / (H W) (eq. 7's plain mean): expected the tutorial's CAMs, e.g. image 0, "
     f"pixel (0, 0): {np.round(ref[0, :, 0, 0], 4).tolist()}; got "
@@ -82,15 +82,16 @@ assert got.shape == ref.shape and np.allclose(got, ref), (
 test_rng = np.random.default_rng(610)  # the tests' own draws, not the notebook's rng
 fr, wr = test_rng.normal(size=(3, 6, 4, 5)), test_rng.normal(size=(5, 2))
 ar, br = test_rng.random((6, 4)) * 3.0, test_rng.normal(size=2)
-got = np.asarray(pooled_cams(fr, ar, wr))
-assert got.shape == (3, 2, 6, 4), f"B = 3, M = 2, 6 x 4: expected (3, 2, 6, 4); got {got.shape}"
 p_ref = np.einsum("bhwk,hw,km->bm", fr, ar, wr) + br            # the head, written out
-assert np.allclose(got.mean(axis=(2, 3)) + br, p_ref), (
-    f"random features, a summing to {ar.sum():.3f}: expected mean_xy M + b = p = "
-    f"{np.round(p_ref[0], 4).tolist()} for image 0; got "
-    f"{np.round(got.mean(axis=(2, 3))[0] + br, 4).tolist()}")
+a_sum = ar.sum()
 bumped = fr.copy()
 bumped[1, 2, 3] += 1.0                                           # one pixel of image 1
+got = np.asarray(pooled_cams(fr, ar, wr))
+assert got.shape == (3, 2, 6, 4), f"B = 3, M = 2, 6 x 4: expected (3, 2, 6, 4); got {got.shape}"
+assert np.allclose(got.mean(axis=(2, 3)) + br, p_ref), (
+    f"random features, a summing to {a_sum:.3f}: expected mean_xy M + b = p = "
+    f"{np.round(p_ref[0], 4).tolist()} for image 0; got "
+    f"{np.round(got.mean(axis=(2, 3))[0] + br, 4).tolist()}")
 moved = np.abs(np.asarray(pooled_cams(bumped, ar, wr)) - got).sum(axis=1) > 1e-12
 assert moved[1, 2, 3] and moved.sum() == 1, (
     f"features changed at pixel (2, 3) of image 1 only: expected the maps to change there "
@@ -256,6 +257,7 @@ assert np.allclose(got, [[[6.0, 0.0]]]), (
 test_rng = np.random.default_rng(630)  # the tests' own draws, not the notebook's rng
 fr, wr = test_rng.normal(size=(3, 5, 4, 6)), test_rng.normal(size=(6, 3))
 ar = test_rng.random((5, 4)) * 2.0
+a_sum, refs = ar.sum(), []
 for i in range(3):
     ref = []
     for n in range(3):   # Grad-CAM by its definition; p is linear, so a central difference
@@ -266,10 +268,11 @@ for i in range(3):
             g[idx] = (np.einsum("hwk,hw,k->", fr[n] + e, ar, wr[:, i])
                       - np.einsum("hwk,hw,k->", fr[n] - e, ar, wr[:, i])) / 2e-3
         ref.append(np.maximum(np.einsum("hwk,k->hw", fr[n], g.mean(axis=(0, 1))), 0.0))
-    ref = np.stack(ref)
+    refs.append(np.stack(ref))
+for i, ref in enumerate(refs):
     got = np.asarray(weighted_grad_cam(fr, ar, wr, i))
     assert got.shape == ref.shape and np.allclose(got, ref, atol=1e-8), (
-        f"random features, a summing to {ar.sum():.3f}, predicate {i}: expected image 0 = "
+        f"random features, a summing to {a_sum:.3f}, predicate {i}: expected image 0 = "
         f"{np.round(ref[0], 3).tolist()}; got "
         f"{np.round(got[0], 3).tolist() if got.shape == ref.shape else got.shape}")
 ### END HIDDEN TESTS
@@ -369,10 +372,10 @@ def q_of(q0, pp, j):    # eqs. 8-9 written out, state j, for the NumPy engine's 
     return xp.matmul(E / xp.sum(E, axis=0, keepdims=True), q0)[j]
 
 
+refs = [np.stack([np.asarray(eng.grad(lambda pp, n=n, j=j: q_of(qh[n], pp, j))(ph[n]))
+                  for j in range(N4)]) for n in range(6)]
 got = np.asarray(vagn_jacobian(qh, ph, Wh))
-for n in range(6):
-    ref = np.stack([np.asarray(eng.grad(lambda pp, n=n, j=j: q_of(qh[n], pp, j))(ph[n]))
-                    for j in range(N4)])
+for n, ref in enumerate(refs):
     assert got.shape == (6, N4, M4) and np.allclose(got[n], ref, rtol=1e-11, atol=1e-12), (
         f"image {n}, random W, p and q_prev: expected J = {np.round(ref, 6).tolist()} (to "
         f"1e-11, closer than a finite difference); got "
@@ -423,11 +426,12 @@ def qj_of(x, q0, j):   # linear predicates of the features, then eqs. 8-9, writt
     return xp.matmul(E / xp.sum(E, axis=0, keepdims=True), q0)[j]
 
 
+refs = {(j, n): np.maximum(np.einsum("hwk,k->hw", fh[n], np.asarray(
+    eng.grad(qj_of)(fh[n], qg[n], j)).mean(axis=(0, 1))), 0.0) for j in range(4) for n in range(3)}
 for j in range(4):
     got = np.asarray(q_grad_cam(fh, wh, bh, qg, Wg, j))
     for n in range(3):
-        g = np.asarray(eng.grad(qj_of)(fh[n], qg[n], j))
-        ref = np.maximum(np.einsum("hwk,k->hw", fh[n], g.mean(axis=(0, 1))), 0.0)
+        ref = refs[j, n]
         assert got.shape == (3, 4, 5) and np.allclose(got[n], ref, atol=1e-10), (
             f"image {n}, q-state {j}: expected the Grad-CAM {np.round(ref, 5).tolist()}; got "
             f"{np.round(got[n], 5).tolist() if got.shape == (3, 4, 5) else got.shape}")
@@ -506,18 +510,20 @@ test_rng = np.random.default_rng(660)  # the tests' own draws, not the notebook'
 fr = test_rng.normal(size=(6, 4, 5, 3))
 Ur, b1r = test_rng.normal(size=(3, 7)), test_rng.normal(size=7)
 Vr, cr = test_rng.normal(size=(7, 2)), test_rng.normal(size=2)
+g = fr.mean(axis=(1, 2))
+# the Jacobian of the head at each image, by central differences, and its value
+jacs = [np.stack([(mlp_head(fr[n:n + 1] + e, Ur, b1r, Vr, cr)
+                   - mlp_head(fr[n:n + 1] - e, Ur, b1r, Vr, cr))[0] / 2e-6
+                  for e in 1e-6 * np.eye(3)]) for n in range(6)]
+p_all = mlp_head(fr, Ur, b1r, Vr, cr)
 w, b = (np.asarray(x) for x in effective_head(fr, Ur, b1r, Vr, cr))
 assert w.shape == (6, 3, 2) and b.shape == (6, 2), (
     f"B = 6, K = 3, M = 2: expected (6, 3, 2) and (6, 2); got {w.shape}, {b.shape}")
-g = fr.mean(axis=(1, 2))
-for n in range(6):   # the Jacobian of the head at this image, by central differences
-    jac = np.stack([(mlp_head(fr[n:n + 1] + e, Ur, b1r, Vr, cr)
-                     - mlp_head(fr[n:n + 1] - e, Ur, b1r, Vr, cr))[0] / 2e-6
-                    for e in 1e-6 * np.eye(3)])
+for n, jac in enumerate(jacs):
     assert np.allclose(w[n], jac, atol=1e-6), (
         f"image {n}: expected w_eff = dp/d gap(f) = {np.round(jac, 4).tolist()}; "
         f"got {np.round(w[n], 4).tolist()}")
-    p_n = mlp_head(fr[n:n + 1], Ur, b1r, Vr, cr)[0]
+    p_n = p_all[n]
     assert np.allclose(g[n] @ w[n] + b[n], p_n), (
         f"image {n}: expected gap(f) w_eff + b_eff = p = {np.round(p_n, 4).tolist()}; "
         f"got {np.round(g[n] @ w[n] + b[n], 4).tolist()}")
@@ -534,17 +540,19 @@ test_rng = np.random.default_rng(661)  # the tests' own draws, not the notebook'
 fr = test_rng.normal(size=(5, 3, 4, 3))
 Ur, b1r = test_rng.normal(size=(3, 6)), test_rng.normal(size=6)
 Vr, cr = test_rng.normal(size=(6, 2)), test_rng.normal(size=2)
-got = np.asarray(mlp_cams(fr, Ur, b1r, Vr, cr))
-assert got.shape == (5, 2, 3, 4), f"B = 5, M = 2, 3 x 4: expected (5, 2, 3, 4); got {got.shape}"
+cases = []
 for n in range(5):   # the tests' own per-image weights: the units that are on, written out
     z = fr[n].mean(axis=(0, 1)) @ Ur + b1r
     w_n = sum(np.outer(Ur[:, d], Vr[d]) for d in range(6) if z[d] > 0)
-    ref = np.einsum("hwk,km->mhw", fr[n], w_n)
+    b_n = sum(b1r[d] * Vr[d] for d in range(6) if z[d] > 0) + cr
+    cases.append((np.einsum("hwk,km->mhw", fr[n], w_n), b_n,
+                  mlp_head(fr[n:n + 1], Ur, b1r, Vr, cr)[0]))
+got = np.asarray(mlp_cams(fr, Ur, b1r, Vr, cr))
+assert got.shape == (5, 2, 3, 4), f"B = 5, M = 2, 3 x 4: expected (5, 2, 3, 4); got {got.shape}"
+for n, (ref, b_n, p_n) in enumerate(cases):
     assert np.allclose(got[n], ref), (
         f"image {n}: expected the CAMs sum_k w_eff[k, i] f_k with its own active units; "
         f"largest difference {np.abs(got[n] - ref).max():.3g}")
-    b_n = sum(b1r[d] * Vr[d] for d in range(6) if z[d] > 0) + cr
-    p_n = mlp_head(fr[n:n + 1], Ur, b1r, Vr, cr)[0]
     assert np.allclose(got[n].mean(axis=(1, 2)) + b_n, p_n), (
         f"image {n}: expected mean_xy M + b_eff = p = {np.round(p_n, 4).tolist()}; "
         f"got {np.round(got[n].mean(axis=(1, 2)) + b_n, 4).tolist()}")

@@ -84,9 +84,9 @@ test_rng = np.random.default_rng(810)  # the tests' own draws, not the notebook'
 lo_box, span = np.array([a_lo, b_lo, a_lo, b_lo]), np.array([a_hi - a_lo, b_hi - b_lo] * 2)
 for n_states in (3, 6, 9):
     w8, b8 = test_rng.normal(size=(n_states, 4)) * 3, test_rng.normal(size=4)
-    low, high = (np.asarray(x, float) for x in gain_range(w8, b8))
     qs = np.concatenate([np.eye(n_states), test_rng.dirichlet(np.ones(n_states) * 0.3, 4000)])
     gains = lo_box + span / (1.0 + np.exp(-(qs @ w8 + b8)))   # the squashing, written out
+    low, high = (np.asarray(x, float) for x in gain_range(w8, b8))
     assert np.allclose(low, gains.min(axis=0)) and np.allclose(high, gains.max(axis=0)), (
         f"N = {n_states}, random w and b: expected low {np.round(gains.min(axis=0), 4).tolist()} "
         f"and high {np.round(gains.max(axis=0), 4).tolist()} (reached, never passed, by any "
@@ -390,41 +390,45 @@ def manc_reference(params, obs, q_prev, activation="sigmoid"):
     psi_g = np.clip(2.0 * py / (px ** 2 + py ** 2) * v0, -np.pi / 2, np.pi / 2)
     speed = one_step(v0, at(np.clip(4.0 + 2.0 * v0, 4.0, 40.0), 0), al[:, 0], be[:, 0])
     return np.stack([speed, one_step(w0, psi_g, al[:, 1], be[:, 1])], axis=-1), q
+
+
+u_ref, q_ref = manc_reference(params, obs, q_prev)   # before manc_step sees the arrays
+p2 = models.init("manc", np.random.default_rng(5), cfg)
+u2_ref, q2_ref = manc_reference(p2, obs, q_ref)
 ### END HIDDEN TESTS
 u, q = manc_step(params, obs, q_prev, cfg)
 assert np.shape(u) == (4, 2) and np.shape(q) == (4, cfg.n_states), \
     f"expected controls (4, 2) and q (4, {cfg.n_states}); got {np.shape(u)}, {np.shape(q)}"
 assert np.allclose(q.sum(axis=1), 1.0), f"each q must be a distribution; row sums {q.sum(axis=1)}"
 ### BEGIN HIDDEN TESTS
-u_ref, q_ref = manc_reference(params, obs, q_prev)
-assert np.allclose(q, q_ref, atol=1e-9), f"global pool, sigmoid: expected q = {q_ref}; got {q}"
+assert np.allclose(q, q_ref, atol=1e-9), f"sigmoid predicates: expected q = {q_ref}; got {q}"
 assert np.allclose(u, u_ref, atol=1e-6), (
-    f"global pool, sigmoid: expected controls {u_ref}; got {u}")
-p2 = models.init("manc", np.random.default_rng(5), cfg)
+    f"sigmoid predicates: expected controls {u_ref}; got {u}")
 u2, q2 = manc_step(p2, obs, q, cfg)  # q carried over from the first step
-u2_ref, q2_ref = manc_reference(p2, obs, q_ref)
 assert np.allclose(q2, q2_ref, atol=1e-9) and np.allclose(u2, u2_ref, atol=1e-6), (
-    f"global pool, second step (other weights, q carried over): expected controls "
+    f"sigmoid predicates, second step (other weights, q carried over): expected controls "
     f"{u2_ref}, q {q2_ref}; got {u2}, {q2}")
 ### END HIDDEN TESTS
 
 # %% grade id=ex08_4_variants_tests points=2
 cfg_linear = models.ModelConfig(predicate_activation="linear")
 params_linear = models.init("manc", np.random.default_rng(852), cfg_linear)
+### BEGIN HIDDEN TESTS
+ul_ref, ql_ref = manc_reference(params_linear, obs, q_prev, activation="linear")
+### END HIDDEN TESTS
 u_l, q_l = manc_step(params_linear, obs, q_prev, cfg_linear)
 assert np.shape(u_l) == (4, 2) and np.shape(q_l) == (4, cfg.n_states), (
     f"linear predicates: expected controls (4, 2) and q (4, {cfg.n_states}); got "
     f"{np.shape(u_l)}, {np.shape(q_l)}")
 ### BEGIN HIDDEN TESTS
-ul_ref, ql_ref = manc_reference(params_linear, obs, q_prev, activation="linear")
 assert np.allclose(q_l, ql_ref, atol=1e-9) and np.allclose(u_l, ul_ref, atol=1e-6), (
     f"linear predicates: expected controls {ul_ref}, q {ql_ref}; got {u_l}, {q_l}")
 c = models.ModelConfig(predicate_activation="linear")
 pc = models.init("manc", np.random.default_rng(853), c)
 obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model=models.get("manc"))
 q3 = vagn.random_state(np.random.default_rng(850), c.n_states, size=2)
-u3, q3_out = manc_step(pc, obs3, q3, c)
 u3_ref, q3_ref = manc_reference(pc, obs3, q3, activation="linear")
+u3, q3_out = manc_step(pc, obs3, q3, c)
 assert np.allclose(q3_out, q3_ref, atol=1e-9) and np.allclose(u3, u3_ref, atol=1e-6), (
     f"linear predicates, first and last steps of a scene: expected controls {u3_ref}, "
     f"q {q3_ref}; got {u3}, {q3_out}")

@@ -261,9 +261,9 @@ for _ in range(11):
                           h[:, 2] + w * 0.5], -1))
 hum9 = np.stack(hum9, 1)
 pol9 = hum9 + np.concatenate([test_rng.normal(0, 3, (3, 12, 2)), np.zeros((3, 12, 1))], -1)
-got = np.asarray(path_offset(pol9, hum9))
 want = np.array([[nearest9(pol9[s, t, :2], hum9[s, :, :2])[0] for t in range(12)]
                  for s in range(3)])
+got = np.asarray(path_offset(pol9, hum9))
 assert got.shape == want.shape and np.allclose(got, want, atol=1e-9), (
     f"3 random humans, policies scattered around them: expected scene 0 offsets "
     f"{np.round(want[0], 4).tolist()}; got "
@@ -309,10 +309,12 @@ for _ in range(11):
                           h[:, 2] + w * 0.5], -1))
 hum9 = np.stack(hum9, 1)
 pol9 = hum9 + np.concatenate([test_rng.normal(0, 3, (3, 12, 2)), np.zeros((3, 12, 1))], -1)
-got = np.asarray(path_lag(pol9, hum9))
+wants = []
 for s in range(3):
     arc9 = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(hum9[s, :, :2], axis=0).T))])
-    want = np.array([nearest9(pol9[s, t, :2], hum9[s, :, :2])[1] - arc9[t] for t in range(12)])
+    wants.append([nearest9(pol9[s, t, :2], hum9[s, :, :2])[1] - arc9[t] for t in range(12)])
+got = np.asarray(path_lag(pol9, hum9))
+for s, want in enumerate(np.array(wants)):
     assert got.shape == (3, 12) and np.allclose(got[s], want, atol=1e-9), (
         f"random human {s}, a policy scattered around it: expected lags "
         f"{np.round(want, 4).tolist()}; got "
@@ -385,16 +387,17 @@ def first_contact9(r, v, R, horizon=20.0, step=1e-3):
 test_rng = np.random.default_rng(930)  # the tests' own draws, not the notebook's rng
 r9 = test_rng.uniform(-40, 40, (5, 8, 2))
 v9 = test_rng.uniform(-15, 15, (5, 8, 2))
+wants = {idx: first_contact9(r9[idx], v9[idx], 3.0) for idx in np.ndindex(5, 8)}
+r9_shown, v9_shown = np.round(r9, 3), np.round(v9, 3)
 got = np.asarray(disc_ttc(r9, v9, 3.0))
 assert got.shape == (5, 8), f"a (5, 8) batch: expected shape (5, 8); got {got.shape}"
-for idx in np.ndindex(5, 8):
-    want = first_contact9(r9[idx], v9[idx], 3.0)
+for idx, want in wants.items():
     ok = (got[idx] == np.inf) if np.isinf(want) else np.isclose(got[idx], want, atol=1e-6)
     if np.isinf(want):   # contact after the tests' horizon also counts as a time
         ok = ok or got[idx] > 20.0 - 1e-9
     assert ok, (
-        f"relative position {np.round(r9[idx], 3).tolist()}, velocity "
-        f"{np.round(v9[idx], 3).tolist()}, radius 3: expected {want} s; got {got[idx]!r}")
+        f"relative position {r9_shown[idx].tolist()}, velocity "
+        f"{v9_shown[idx].tolist()}, radius 3: expected {want} s; got {got[idx]!r}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -593,6 +596,7 @@ def log9(rng_, S, T):
 
 
 humans9, controls9 = log9(test_rng, 5, 30)
+cases9 = []
 for delta in ((0.0, 0.0, 0.2), (-2.0, 1.5, -0.3), (3.0, -0.5, 2.5)):
     c0, s0 = np.cos(humans9[:, 0, 2]), np.sin(humans9[:, 0, 2])
     p = humans9[:, 0] + np.stack([c0 * delta[0] - s0 * delta[1], s0 * delta[0] + c0 * delta[1],
@@ -601,7 +605,8 @@ for delta in ((0.0, 0.0, 0.2), (-2.0, 1.5, -0.3), (3.0, -0.5, 2.5)):
     for t in range(29):
         p = unicycle9(p, controls9[:, t])
         want.append(p[:, :2])
-    want = np.stack(want, 1)
+    cases9.append((delta, np.stack(want, 1)))
+for delta, want in cases9:
     got = np.asarray(replay_positions(humans9, delta))
     assert got.shape == want.shape, f"delta = {delta}: expected shape {want.shape}, got {got.shape}"
     worst = np.abs(got - want).max()
@@ -643,12 +648,15 @@ def humans9(rng_, S, T):
 
 test_rng = np.random.default_rng(961)  # the tests' own draws, not the notebook's rng
 humans9b = humans9(test_rng, 6, 41)
-got = np.asarray(heading_budget(humans9b, 0.5))
+wants9 = []
 for k in range(6):
     lo, hi = 0.0, np.pi        # bisection on the tests' own ADE, increasing on [0, pi]
     for _ in range(100):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if rotated_ade9(humans9b[k:k + 1], mid)[0] <= 0.5 else (lo, mid)
+    wants9.append(lo)
+got = np.asarray(heading_budget(humans9b, 0.5))
+for k, lo in enumerate(wants9):
     assert math.isclose(got[k], lo, rel_tol=1e-6), (
         f"random human {k}, ade_max = 0.5 m: expected a budget of {lo:.6g} rad, got {got[k]!r}")
 logged9 = np.asarray(heading_budget(ds.ego.astype(float), 2.0))
@@ -718,7 +726,9 @@ def track9(controller, human, controls, delta):
                           np.full(len(h0), delta[2])], axis=-1)
     poses = [pose]
     for t in range(human.shape[1] - 1):
-        u = np.asarray(controller(pose, human[:, t], controls[:, t]), dtype=float)
+        # copies: what the controller does to its arguments stays with it
+        u = np.asarray(controller(pose.copy(), human[:, t].copy(), controls[:, t].copy()),
+                       dtype=float)
         assert u.shape == (len(h0), 2), f"step {t}: expected controls (S, 2), got {u.shape}"
         assert np.all((u[:, 0] >= 0) & (u[:, 0] <= 20)) and np.all(np.abs(u[:, 1]) <= 1.2), (
             f"delta = {delta}, step {t}: expected speed in [0, 20] and |yaw rate| <= 1.2, got "
