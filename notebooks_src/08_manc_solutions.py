@@ -9,7 +9,7 @@
 # The tutorial assembled MANC and showed what its head outputs for a few gains. Here
 # you work out what it does: which gains FC(q) can reach (8.1), the speed the head
 # settles at in closed loop (8.2) and the gradient that trains the gains (8.3), the
-# step of eq. 7 read literally, which the tutorial did not show (8.4), whether the head keeps
+# step of the eq.-7 variants the tutorial did not show (8.4), whether the head keeps
 # its lane, and up to which speed (8.5), how many q-states MANC can afford before it
 # loses its size advantage (8.6) — and then you design its four gains for a given
 # driver (8.7). Each grade cell checks values computed by the tests on their own
@@ -309,16 +309,23 @@ for v0, gx, a, b in test_rng.uniform((0.0, 4.0, 0.5, 0.05), (20.0, 40.0, 20.0, 5
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 8.4 — the MANC step of eq. 7 and its literal variant (transfer)
-# The tutorial assembled MANC's step for the paper's eq. 7 as the library reads it:
-# globally pooled features through a sigmoid. `ModelConfig` has a further reading of eq. 7
-# the tutorial did not show: `predicate_activation="linear"`, eq. 7 literally, the
-# predicates are the logits themselves (no squashing).
+# ## Exercise 8.4 — the MANC step when the predicates see where a feature fires (transfer)
+# The tutorial assembled MANC's step for the paper's eq. 7 as the library reads it: the
+# last feature map averaged over the image, then a sigmoid. Eq. 7 can be read two further
+# ways, and the tutorial showed neither:
 #
-# Write `manc_step(params, obs, q_prev, cfg)` for any `cfg` (either activation): the
-# controls `(B, 2)` of the DMP head (eqs. 10–11, `models.dmp_head`) and the new
-# `q (B, N)` (eqs. 8–9, `vagn.step`). Use the pieces of the library the tutorial used
-# (`models.backbone`, `vagn.step`, `models.dmp_head`); `models.step` (and
+# * **flat pooling** (`pool="flat"`): the predicate layer reads the whole last feature map,
+#   flattened per sample in its stored (row, column, channel) order, instead of its
+#   spatial mean, so the predicates keep *where* a feature fires. The library builds no
+#   such model: the cell below gives one, `params_flat`, whose predicate weights have
+#   another shape;
+# * **linear predicates** (`cfg.predicate_activation == "linear"`): eq. 7 literally, the
+#   predicates are the logits themselves (no squashing).
+#
+# Write `manc_step(params, obs, q_prev, cfg, pool="mean")` for either pooling and either
+# activation: the controls `(B, 2)` of the DMP head (eqs. 10–11, `models.dmp_head`) and
+# the new `q (B, N)` (eqs. 8–9, `vagn.step`). Use the pieces of the library the tutorial
+# used (`models.backbone`, `vagn.step`, `models.dmp_head`); `models.step` (and
 # `models.sequence`, `rollout.replay`) are disabled while grading: the tests rebuild the
 # step from the equations alone (their own convolution, eqs. 8–9 with `einsum`, the DMP as
 # a matrix power).
@@ -331,15 +338,23 @@ for v0, gx, a, b in test_rng.uniform((0.0, 4.0, 0.5, 0.05), (20.0, 40.0, 20.0, 5
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Print `params["predicates"]["w"].shape` and compare it with the shape of the features:
-# that tells you what the layer must be given. Branch on `cfg.predicate_activation`.
+# Compare `params_flat["predicates"]["w"].shape` with the shape of the features: that
+# tells you what the layer must be given. Branch on `pool` and `cfg.predicate_activation`.
 # </details>
 
-# %% solution id=ex08_4 title="The MANC step of eq. 7 and its variant" forbids="minimanc.models.step,minimanc.models.sequence,minimanc.rollout.replay"  # noqa: E501
-def manc_step(params, obs, q_prev, cfg):
+# %%
+n_flat = models.backbone(params["backbone"], obs["bev"][:1], cfg, eng).size   # one image
+flat_rng = np.random.default_rng(852)
+params_flat = {**params, "predicates": {
+    "w": flat_rng.normal(size=(n_flat, cfg.n_predicates)) * 0.05,
+    "b": flat_rng.normal(size=cfg.n_predicates) * 0.1}}
+print("flat-pooling predicate weights:", params_flat["predicates"]["w"].shape)
+
+# %% solution id=ex08_4 title="The MANC step of the eq.-7 variants" forbids="minimanc.models.step,minimanc.models.sequence,minimanc.rollout.replay"  # noqa: E501
+def manc_step(params, obs, q_prev, cfg, pool="mean"):
     ### BEGIN SOLUTION
     f = models.backbone(params["backbone"], obs["bev"], cfg, eng)
-    pooled = f.mean(axis=(1, 2))
+    pooled = f.reshape(f.shape[0], -1) if pool == "flat" else f.mean(axis=(1, 2))
     z = pooled @ params["predicates"]["w"] + params["predicates"]["b"]
     p = z if cfg.predicate_activation == "linear" else 0.5 * (1.0 + np.tanh(0.5 * z))
     q = vagn.step(q_prev, p, params["vagn"]["W"])
@@ -350,7 +365,7 @@ def manc_step(params, obs, q_prev, cfg):
 
 # %% grade id=ex08_4_tests points=2
 ### BEGIN HIDDEN TESTS
-def manc_reference(params, obs, q_prev, activation="sigmoid"):
+def manc_reference(params, obs, q_prev, activation="sigmoid", pool="mean"):
     """Eqs. 7-11 written out with NumPy, for a ModelConfig of default shape and gains."""
     sig = lambda z: 1.0 / (1.0 + np.exp(-z))  # noqa: E731
     h = np.asarray(obs["bev"], dtype=float)
@@ -359,7 +374,7 @@ def manc_reference(params, obs, q_prev, activation="sigmoid"):
         a = sum(np.einsum("bhwc,ck->bhwk", hp[:, i:i + 2 * n:2, j:j + 2 * n:2], layer["w"][i, j])
                 for i in range(3) for j in range(3)) + layer["b"]
         h = a * sig(a)
-    pooled = h.mean(axis=(1, 2))
+    pooled = h.reshape(len(h), -1) if pool == "flat" else h.mean(axis=(1, 2))
     z = pooled @ params["predicates"]["w"] + params["predicates"]["b"]
     p = z if activation == "linear" else sig(z)
     A = np.maximum(np.einsum("bm,mij->bij", p, params["vagn"]["W"]), 0.0)  # eq. 8 + ReLU
@@ -413,8 +428,38 @@ assert np.allclose(q2, q2_ref, atol=1e-9) and np.allclose(u2, u2_ref, atol=1e-6)
 # %% grade id=ex08_4_variants_tests points=2
 cfg_linear = models.ModelConfig(predicate_activation="linear")
 params_linear = models.init("manc", np.random.default_rng(852), cfg_linear)
+c_both = models.ModelConfig(predicate_activation="linear")
+both_rng = np.random.default_rng(853)
+p_both = {**models.init("manc", both_rng, c_both), "predicates": {
+    "w": both_rng.normal(size=params_flat["predicates"]["w"].shape) * 0.05,
+    "b": both_rng.normal(size=c_both.n_predicates) * 0.1}}
+obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model=models.get("manc"))
+q3 = vagn.random_state(np.random.default_rng(850), c_both.n_states, size=2)
 ### BEGIN HIDDEN TESTS
+# the references, before manc_step sees the arrays
+uf_ref, qf_ref = manc_reference(params_flat, obs, q_prev, pool="flat")
 ul_ref, ql_ref = manc_reference(params_linear, obs, q_prev, activation="linear")
+u3_ref, q3_ref = manc_reference(p_both, obs3, q3, activation="linear", pool="flat")
+### END HIDDEN TESTS
+u_f, q_f = manc_step(params_flat, obs, q_prev, cfg, pool="flat")
+assert np.shape(u_f) == (4, 2) and np.shape(q_f) == (4, cfg.n_states), (
+    f"flat pooling: expected controls (4, 2) and q (4, {cfg.n_states}); got {np.shape(u_f)}, "
+    f"{np.shape(q_f)}")
+u_l, q_l = manc_step(params_linear, obs, q_prev, cfg_linear)
+assert np.shape(u_l) == (4, 2) and np.shape(q_l) == (4, cfg.n_states), (
+    f"linear predicates: expected controls (4, 2) and q (4, {cfg.n_states}); got "
+    f"{np.shape(u_l)}, {np.shape(q_l)}")
+### BEGIN HIDDEN TESTS
+assert np.allclose(q_f, qf_ref, atol=1e-9) and np.allclose(u_f, uf_ref, atol=1e-6), (
+    f"flat pooling, sigmoid predicates: expected controls {uf_ref}, q {qf_ref}; got {u_f}, "
+    f"{q_f}")
+assert np.allclose(q_l, ql_ref, atol=1e-9) and np.allclose(u_l, ul_ref, atol=1e-6), (
+    f"mean pooling, linear predicates: expected controls {ul_ref}, q {ql_ref}; got {u_l}, "
+    f"{q_l}")
+u3, q3_out = manc_step(p_both, obs3, q3, c_both, pool="flat")
+assert np.allclose(q3_out, q3_ref, atol=1e-9) and np.allclose(u3, u3_ref, atol=1e-6), (
+    f"flat pooling, linear predicates, first and last steps of a scene: expected controls "
+    f"{u3_ref}, q {q3_ref}; got {u3}, {q3_out}")
 ### END HIDDEN TESTS
 u_l, q_l = manc_step(params_linear, obs, q_prev, cfg_linear)
 assert np.shape(u_l) == (4, 2) and np.shape(q_l) == (4, cfg.n_states), (
