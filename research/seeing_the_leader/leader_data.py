@@ -31,8 +31,10 @@ from minimanc.world.geometry import DT, EGO_LENGTH
 
 DATA_DIR = Path(os.environ.get("SEEING_DATA", "/work/data/seeing"))
 """Where the draw and every cache of this study live (outside the repository)."""
-WORLD_FILE = DATA_DIR / "world_850x0.npz"
-"""The seed-0 draw of 850 scenes (``minimanc data generate --scenes 850 --seed 0``)."""
+WORLD_FILE = Path(os.environ.get("SEEING_WORLD", DATA_DIR / "world_850x0.npz"))
+"""The seed-0 draw (``minimanc data generate --scenes 850 --seed 0``); a longer draw of the
+same seed (``SEEING_WORLD``) starts with the same 850 scenes and adds scenes for the data
+scale check."""
 TRAIN = range(0, 300)
 """Training scenes of every perception variant."""
 TRAIN_LARGE = range(0, 600)
