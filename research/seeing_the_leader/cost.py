@@ -24,7 +24,6 @@ Run: ``python research/seeing_the_leader/cost.py`` (writes ``results/cost.md``);
 from __future__ import annotations
 
 import argparse
-import statistics
 import time
 from pathlib import Path
 
@@ -57,19 +56,25 @@ BACKBONES = {"course (16, 32, 32) + GAP": ((16, 32, 32), "gap"),
 CLOSED_LOOP_BATCH = 8
 
 
-def _median_time(fn, reps: int) -> float:
-    fn()
-    times = []
-    for _ in range(reps):
-        t0 = time.perf_counter()
+def interleaved(fns: dict, reps: int) -> dict:
+    """Seconds per call of each function of ``fns`` (name → function of no argument): each
+    called once to compile and warm up, then ``reps`` rounds in which every function runs
+    once in turn; the least of its rounds (other processes on the machine only add)."""
+    for fn in fns.values():
         fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+    best = {k: float("inf") for k in fns}
+    for _ in range(reps):
+        for k, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            best[k] = min(best[k], time.perf_counter() - t0)
+    return best
 
 
-def backbone_time(shape: tuple[int, int, int], convs: tuple[int, ...], readout: str,
-                  frames: int, grad: bool, reps: int) -> float:
-    """Seconds of the backbone's forward (and backward, ``grad``) pass on ``frames`` rasters."""
+def backbone_fn(shape: tuple[int, int, int], convs: tuple[int, ...], readout: str,
+                frames: int, grad: bool):
+    """The backbone's forward (and backward, ``grad``) pass on ``frames`` rasters of
+    ``shape``, compiled: a function of no argument that waits for its result."""
     eng = engine("jax")
     rng = np.random.default_rng(0)
     params, c_in = [], shape[2]
@@ -86,12 +91,12 @@ def backbone_time(shape: tuple[int, int, int], convs: tuple[int, ...], readout: 
 
     fn = eng.jit(eng.value_and_grad(f) if grad else f)
     x = (np.random.default_rng(1).random((frames,) + shape) < 0.2).astype(np.float32)
-    return _median_time(lambda: np.asarray(fn(params, x)[0] if grad else fn(params, x)), reps)
+    return lambda: np.asarray(fn(params, x)[0] if grad else fn(params, x))
 
 
-def train_step_time(name: str, ds, reps: int) -> tuple[float, int]:
-    """Seconds per training step of model ``name`` on today's raster (batch 64 in its window
-    setup) and the frames a step reads."""
+def train_step_fn(name: str, ds):
+    """One training step of model ``name`` on today's raster (batch 64 in its window setup),
+    as a function of no argument, and the frames a step reads."""
     eng = engine("jax")
     cfg = models.ModelConfig(image_size=64)
     tc = train.TrainConfig(batch_size=64, dtype="float32")
@@ -110,18 +115,12 @@ def train_step_time(name: str, ds, reps: int) -> tuple[float, int]:
         float(loss)
         state["p"], state["o"] = like(p, params, eng.xp), like(o, opt, eng.xp)
 
-    return _median_time(go, reps), int(s.size)
+    return go, int(s.size)
 
 
-def train_step_times(ds, reps: int) -> dict[str, tuple[float, int]]:
-    """``model → (seconds per training step, frames per step)`` for the paper preset's models."""
-    names = sorted({m for m, _ in plan(PRESETS["paper"])["train"]})
-    return {name: train_step_time(name, ds, reps) for name in names}
-
-
-def closed_loop_render(ds, cfg: RasterConfig, reps: int) -> float:
-    """Seconds to build the observation of one closed-loop step of 8 scenes (re-rendered from
-    the poses, with the recorded history)."""
+def render_fn(ds, cfg: RasterConfig):
+    """Building the observation of one closed-loop step of 8 scenes (re-rendered from the
+    poses, with the recorded history), as a function of no argument."""
     idx = np.arange(CLOSED_LOOP_BATCH)
     t = 12
     poses = np.asarray(ds.ego[idx, t], dtype=np.float64)
@@ -134,9 +133,8 @@ def closed_loop_render(ds, cfg: RasterConfig, reps: int) -> float:
     maps = [ds.maps[i] for i in idx]
     goal = np.asarray(ds.ego[idx, -1], dtype=np.float64)
     motion = np.zeros((CLOSED_LOOP_BATCH, 2), np.float32)
-    return _median_time(lambda: inputs.from_state(maps, poses, ado, valid, goal, cfg,
-                                                  motion=motion, keys=("bev", "lane_target"),
-                                                  history=past), reps)
+    return lambda: inputs.from_state(maps, poses, ado, valid, goal, cfg, motion=motion,
+                                     keys=("bev", "lane_target"), history=past)
 
 
 def main() -> None:
@@ -148,21 +146,22 @@ def main() -> None:
     t_start = time.perf_counter()
     full = L.world()
     ds = full.subset(slice(0, 40))
-    steps = train_step_times(ds, reps)
+    names = sorted({m for m, _ in plan(PRESETS["paper"])["train"]})
+    made = {name: train_step_fn(name, ds) for name in names}
+    secs = interleaved({name: fn for name, (fn, _) in made.items()}, reps)
+    steps = {name: (secs[name], made[name][1]) for name in names}
     lines = ["# What the learner's raster costs\n",
-             "One process, one XLA thread, float32, JAX; medians of "
-             f"{reps} repetitions on a shared 2-core machine.\n",
+             "One process, one XLA thread, float32, JAX; each figure the least of "
+             f"{reps} interleaved repetitions on a shared 2-core machine.\n",
              "## Backbone forward + backward, per training step (ms)\n",
              "| raster | input H×W×C | " + " | ".join(
                  f"{b}, {n} frames" for b in BACKBONES for n in (40, 64)) + " |",
              "|---|---|" + "---|" * (2 * len(BACKBONES))]
-    bb: dict = {}
+    bb = interleaved({(r, b, n): backbone_fn(cfg.input_shape, c, ro, n, True)
+                      for r, cfg in RASTERS.items() for b, (c, ro) in BACKBONES.items()
+                      for n in (40, 64)}, reps)
     for rname, cfg in RASTERS.items():
-        cells = []
-        for bname, (convs, ro) in BACKBONES.items():
-            for n in (40, 64):
-                bb[rname, bname, n] = backbone_time(cfg.input_shape, convs, ro, n, True, reps)
-                cells.append(f"{1e3 * bb[rname, bname, n]:.0f}")
+        cells = [f"{1e3 * bb[rname, b, n]:.0f}" for b in BACKBONES for n in (40, 64)]
         lines.append(f"| {rname} | {'×'.join(map(str, cfg.input_shape))} | "
                      + " | ".join(cells) + " |")
     lines += ["", "## Training step of each model (ms; batch 64 in its window setup)\n",
@@ -185,14 +184,16 @@ def main() -> None:
     lines += ["", "## Closed-loop step, 8 scenes (ms)\n",
               "| raster | observation (render + lane targets) | course backbone forward | "
               "perception backbone forward | total (course) |", "|---|---|---|---|---|"]
+    render = interleaved({r: render_fn(full, cfg) for r, cfg in RASTERS.items()}, reps)
+    fwd = interleaved({(r, b): backbone_fn(cfg.input_shape, c, ro, CLOSED_LOOP_BATCH, False)
+                       for r, cfg in RASTERS.items() for b, (c, ro) in BACKBONES.items()},
+                      reps)
     cl: dict = {}
-    for rname, cfg in RASTERS.items():
-        render = closed_loop_render(full, cfg, reps)
-        fwd = {b: backbone_time(cfg.input_shape, c, ro, CLOSED_LOOP_BATCH, False, reps)
-               for b, (c, ro) in BACKBONES.items()}
-        cl[rname] = render + fwd[course]
-        lines.append(f"| {rname} | {1e3 * render:.1f} | {1e3 * fwd[course]:.1f} | "
-                     f"{1e3 * fwd[list(BACKBONES)[1]]:.1f} | {1e3 * cl[rname]:.1f} |")
+    for rname in RASTERS:
+        cl[rname] = render[rname] + fwd[rname, course]
+        lines.append(f"| {rname} | {1e3 * render[rname]:.1f} | "
+                     f"{1e3 * fwd[rname, course]:.1f} | "
+                     f"{1e3 * fwd[rname, list(BACKBONES)[1]]:.1f} | {1e3 * cl[rname]:.1f} |")
     # the paper preset
     c = PRESETS["paper"]
     p = plan(c)
