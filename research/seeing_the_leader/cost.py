@@ -48,6 +48,10 @@ RASTERS = {
     "today: RGB 64×64 (40 m × ±25 m, 0.78 m/px)": RasterConfig(),
     "channels 60 m × ±25 m, 0.78 m/px, history 2, route":
         RasterConfig.from_extent(60.0, 25.0, 50 / 64, encoding="channels", history=2, route=True),
+    "channels 60 m × ±20 m, 0.78 m/px, history 2, route":
+        RasterConfig.from_extent(60.0, 20.0, 50 / 64, encoding="channels", history=2, route=True),
+    "channels 60 m × ±16 m, 0.78 m/px, history 2, route":
+        RasterConfig.from_extent(60.0, 16.0, 50 / 64, encoding="channels", history=2, route=True),
     "channels 60 m × ±25 m, 0.5 m/px, history 2, route":
         RasterConfig.from_extent(60.0, 25.0, 0.5, encoding="channels", history=2, route=True),
 }
@@ -57,18 +61,20 @@ CLOSED_LOOP_BATCH = 8
 
 
 def interleaved(fns: dict, reps: int) -> dict:
-    """Seconds per call of each function of ``fns`` (name → function of no argument): each
-    called once to compile and warm up, then ``reps`` rounds in which every function runs
-    once in turn; the least of its rounds (other processes on the machine only add)."""
+    """CPU seconds per call of each function of ``fns`` (name → function of no argument):
+    each called once to compile and warm up, then ``reps`` rounds in which every function
+    runs once in turn; the median of its rounds. CPU time (this process's, all its threads)
+    is the work done: with one XLA thread it hardly depends on what else the shared machine
+    runs, which wall time does."""
     for fn in fns.values():
         fn()
-    best = {k: float("inf") for k in fns}
+    times: dict = {k: [] for k in fns}
     for _ in range(reps):
         for k, fn in fns.items():
-            t0 = time.perf_counter()
+            t0 = time.process_time()
             fn()
-            best[k] = min(best[k], time.perf_counter() - t0)
-    return best
+            times[k].append(time.process_time() - t0)
+    return {k: float(np.median(v)) for k, v in times.items()}
 
 
 def backbone_fn(shape: tuple[int, int, int], convs: tuple[int, ...], readout: str,
@@ -151,8 +157,9 @@ def main() -> None:
     secs = interleaved({name: fn for name, (fn, _) in made.items()}, reps)
     steps = {name: (secs[name], made[name][1]) for name in names}
     lines = ["# What the learner's raster costs\n",
-             "One process, one XLA thread, float32, JAX; each figure the least of "
-             f"{reps} interleaved repetitions on a shared 2-core machine.\n",
+             "One process, one XLA thread, float32, JAX; each figure the median CPU time "
+             f"of {reps} interleaved repetitions (the work done, whatever else the shared "
+             "2-core machine runs).\n",
              "## Backbone forward + backward, per training step (ms)\n",
              "| raster | input H×W×C | " + " | ".join(
                  f"{b}, {n} frames" for b in BACKBONES for n in (40, 64)) + " |",
