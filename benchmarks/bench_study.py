@@ -78,11 +78,12 @@ def main() -> None:
     for (m, f), n in sorted(p["train"].items()):
         if m not in by:
             continue
-        each = c.epochs * by[m]["epoch_s"] * f
+        epochs = c.training.epochs
+        each = epochs * by[m]["epoch_s"] * f
         total_train += n * each
-        print(f"| train {m} f={f:g} ({c.epochs} epochs) | {n} | {each:.0f} | {n * each:.0f} |")
+        print(f"| train {m} f={f:g} ({epochs} epochs) | {n} | {each:.0f} | {n * each:.0f} |")
         if "seeds_s" in by[m]:
-            total_seeds += n / len(c.seeds) * c.epochs * by[m]["seeds_s"] * f
+            total_seeds += n / len(c.seeds) * epochs * by[m]["seeds_s"] * f
     n_roll = sum(p["rollouts"].values())
     n_cpu = usable_cpus()
     roll_each = float(np.mean([r["rollout_s"] for r in rows if "rollout_s" in r] or [math.nan]))

@@ -239,7 +239,7 @@ CHAPTERS: tuple[Chapter, ...] = (
             prerequisites="Chapter 9 (behaviour cloning, the closed-loop metrics).",
             minutes=(45, 60)),
     Chapter(12, "12_why_it_crashes", "why the driver crashes",
-            (), ("minimanc.viz.investigation",),
+            ("minimanc.diagnose",), ("minimanc.viz.investigation",),
             "the median style and the track errors, the expert's perception, an ablation "
             "table, faded history at another decay, a small input set",
             objectives=(

@@ -5,14 +5,13 @@
 # `check.py`), its pytrees `minimanc.tree` and `minimanc.engine`. Read
 # `tutorials/01_autodiff.ipynb` first.
 #
-# You will write the pieces of a reverse-mode engine yourself: summing a
-# cotangent back over broadcasting, the vector-Jacobian products (VJPs) of
-# `multiply`, `exp`, `sum` and `matmul`, the topological sort of the tape,
-# `grad` itself for a small scalar engine, and finally the computation graph
-# with the cotangent that flows along each of its edges. Then two things the
-# tutorial does not show: the VJPs of a linear solve (1.7, derived by you) and an
-# experiment on the step of a finite difference (1.8) with a written answer,
-# graded by hand. The last cell draws the chapter's graph figure from *your*
+# You will derive the pieces of a reverse-mode engine the tutorial does not print:
+# the VJPs of `np.tile`, `cumsum`, `max` (with ties) and `sort`, and of a batched,
+# broadcast matrix product; the topological sort of the tape; forward mode on the
+# same tape (1.5); the computation graph with the cotangent that flows along each
+# of its edges (1.6); the VJPs of a linear solve (1.7); and an experiment on the
+# step of a finite difference (1.8) with a written answer, graded by hand. The
+# last cell draws the chapter's graph figure from *your*
 # `edge_cotangents`. Every grade cell checks your code against central
 # differences or the library. Replace each
 # `raise NotImplementedError(...)` with your code and run the grade cell below
@@ -39,177 +38,254 @@ from minimanc.viz.exercises import plot_edge_cotangents
 rng = np.random.default_rng(0)
 
 # %% [markdown]
-# ## Exercise 1.1 — sum a cotangent back over broadcasting
-# When `x` of shape `shape` is broadcast to the shape of `g` (new leading axes,
-# and axes of size one stretched), every element of `x` is copied several
-# times. The VJP of a copy is a sum: return `g` summed back to `shape`.
-# Example: `shape=(3, 1)`, `g.shape == (2, 3, 4)` → sum over axis 0 (new) and
-# axis 2 (stretched, keeping it with size one).
-
-# %% solution id=ex01_1 title="Unbroadcast a cotangent" forbids="minimanc.autodiff.unbroadcast"  # noqa: E501
-def my_unbroadcast(shape, g):
-    ### BEGIN SOLUTION
-    g = np.asarray(g)
-    extra = g.ndim - len(shape)
-    if extra > 0:
-        g = g.sum(axis=tuple(range(extra)))
-    stretched = tuple(i for i, n in enumerate(shape) if n == 1 and g.shape[i] != 1)
-    if stretched:
-        g = g.sum(axis=stretched, keepdims=True)
-    return g
-    ### END SOLUTION
-
-# %% grade id=ex01_1_tests points=2
-g = np.arange(24.0).reshape(2, 3, 4)
-out = my_unbroadcast((3, 1), g)
-assert out.shape == (3, 1), f"shape (3, 1) expected, got {out.shape}"
-assert np.allclose(out, g.sum(axis=(0, 2))[:, None]), "(3, 1): sum over axis 0 (new) and 2"
-assert np.allclose(my_unbroadcast((4,), g), g.sum(axis=(0, 1))), "(4,): sum over axes 0, 1"
-assert np.allclose(my_unbroadcast((2, 3, 4), g), g), "same shape: g unchanged"
-### BEGIN HIDDEN TESTS
-got0 = my_unbroadcast((), g)
-assert np.shape(got0) == () and np.isclose(got0, g.sum()), \
-    f"shape (): expected the sum of all of g, {g.sum():g}, got {got0!r}"
-# the sums written out by hand: new leading axes go, stretched axes of size one stay
-expected = {(1, 1, 4): g.sum(axis=(0, 1), keepdims=True),
-            (2, 1, 1): g.sum(axis=(1, 2), keepdims=True),
-            (1,): np.array([g.sum()]),
-            (1, 3, 1): g.sum(axis=(0, 2), keepdims=True)}
-for shape, want in expected.items():
-    got = my_unbroadcast(shape, g)
-    assert np.shape(got) == shape, f"shape {shape}: expected shape {shape}, got {np.shape(got)}"
-    assert np.allclose(got, want), \
-        f"shape {shape}: expected {want.ravel().tolist()}, got {np.ravel(got).tolist()}"
-got13 = my_unbroadcast((1, 3, 1), g)[0, :, 0]
-want13 = [float(g[:, i].sum()) for i in range(3)]
-assert np.allclose(got13, want13), f"shape (1, 3, 1): expected {want13}, got {got13.tolist()}"
-### END HIDDEN TESTS
-
-# %% [markdown]
-# ## Exercise 1.2 — VJPs of `multiply`, `exp` and `sum`
-# A VJP receives the output cotangent `g`, the forward result `ans` and the
-# forward arguments, and returns the cotangent of one argument, **with that
-# argument's shape**. Write:
+# ## Exercise 1.1 — the VJP of `np.tile`
+# Broadcasting copies each *element* along new or stretched axes, and its VJP sums
+# the copies back (tutorial section 3). `np.tile(x, reps)` copies the *whole array*
+# as blocks instead: `np.tile([1, 2], 3)` is `[1, 2, 1, 2, 1, 2]`, and
+# `np.tile(x, (2, 3))` lays 2 × 3 copies of a 2-D `x` side by side. NumPy's rules:
+# when `reps` is shorter than `x.ndim` it is padded with ones in front; when it is
+# longer, `x` first gets leading axes of size one.
 #
-# * `multiply_vjp_x(g, ans, x, y)`: cotangent of `x` in `x * y` (both may be
-#   broadcast — use `unbroadcast(x, ...)` from the library);
-# * `exp_vjp(g, ans, x)`: cotangent of `x` in `exp(x)` (reuse `ans`);
-# * `sum_vjp(g, ans, x, axis=None, keepdims=False)`: cotangent of `x` in
-#   `np.sum(x, axis, keepdims)` — every element of `x` receives the cotangent of
-#   the sum it went into (`np.expand_dims` and `np.broadcast_to` help).
-#
-# The grade cell registers them on fresh primitives with `defvjp` and checks
-# the gradients with `check_grads`.
-
-# %% solution id=ex01_2 title="VJPs of multiply, exp and sum"
-def multiply_vjp_x(g, ans, x, y):
-    ### BEGIN SOLUTION
-    return unbroadcast(x, g * y)
-    ### END SOLUTION
-
-
-def exp_vjp(g, ans, x):
-    ### BEGIN SOLUTION
-    return g * ans
-    ### END SOLUTION
-
-
-def sum_vjp(g, ans, x, axis=None, keepdims=False):
-    ### BEGIN SOLUTION
-    if axis is not None and not keepdims:
-        g = np.expand_dims(g, axis)
-    return np.broadcast_to(g, np.shape(x))
-    ### END SOLUTION
-
-# %% grade id=ex01_2_tests points=3
-my_multiply = primitive(np.multiply)
-defvjp(my_multiply, multiply_vjp_x, lambda g, ans, x, y: multiply_vjp_x(g, ans, y, x))
-my_exp = primitive(np.exp)
-defvjp(my_exp, exp_vjp)
-
-
-@primitive
-def my_sum(x, axis=None, keepdims=False):
-    return np.sum(x, axis=axis, keepdims=keepdims)
-
-
-defvjp(my_sum, sum_vjp)
-
-a, b = rng.normal(size=(3, 1)), rng.normal(size=(4,))
-assert np.allclose(multiply_vjp_x(np.ones((3, 4)), None, a, b), b.sum() * np.ones((3, 1))), \
-    "x of shape (3, 1) times y (4,): each x_i receives sum_j g_ij y_j"
-check_grads(lambda a, b: my_sum(my_exp(my_multiply(a, b)) * a), a, b, verbose=False)
-check_grads(lambda x: anp.sum(my_sum(my_exp(x), axis=1) ** 2), rng.normal(size=(2, 3)),
-            verbose=False)
-### BEGIN HIDDEN TESTS
-test_rng = np.random.default_rng(120)  # the tests' own draws, not the notebook's rng
-cases2 = [("sum(x * x, axis=(0, 2), keepdims=True), x (2, 3, 2)",
-           lambda x: anp.sum(my_sum(x * x, axis=(0, 2), keepdims=True) ** 2),
-           (test_rng.normal(size=(2, 3, 2)),)),
-          ("sum(x, axis=-1), x (2, 3)", lambda x: anp.sum(my_sum(x, axis=-1) * np.arange(2.0)),
-           (test_rng.normal(size=(2, 3)),)),
-          ("sum((a b)^2), a (2, 1, 3), b (4, 1)", lambda a, b: my_sum(my_multiply(a, b) ** 2),
-           (test_rng.normal(size=(2, 1, 3)), test_rng.normal(size=(4, 1))))]
-for case2, f2, args2 in cases2:
-    try:
-        check_grads(f2, *args2, verbose=False)
-    except AssertionError as exc:
-        raise AssertionError(f"{case2}: expected the central differences, got: "
-                             f"{' '.join(str(exc).split())[:160]}") from None
-### END HIDDEN TESTS
-
-# %% [markdown]
-# ## Exercise 1.3 — VJP of a matrix product
-# For $Y = AB$ with $A \in \mathbb{R}^{n\times k}$, $B \in \mathbb{R}^{k\times m}$ and
-# cotangent $\bar Y$, derive $\bar A$ and $\bar B$ from
-# $Y_{ij} = \sum_l A_{il} B_{lj}$. Return both as a tuple. Never build the
-# Jacobian.
+# Write `tile_vjp(g, x_shape, reps)`: the cotangent of `x` (shape `x_shape`) for the
+# cotangent `g` of `np.tile(x, reps)`. Use array operations, not a loop over
+# elements. The autodiff engine is switched off while this exercise is graded.
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
-# One entry $A_{il}$ enters every $Y_{ij}$ of row $i$: its cotangent is a sum over
-# $j$ of $\bar Y_{ij}$ times the local derivative $\partial Y_{ij}/\partial A_{il}$.
+# Which entries of the tiled array are copies of `x[i]`? In one dimension they are
+# `n` apart, not next to each other as with `np.repeat`.
 # </details>
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# A sum over a shared index of two arrays is a matrix product. Write the sum of
-# Hint 1 out, then find the product of $\bar Y$ and $B$ (transposed or not) whose
-# shape is $A$'s; do the same for $\bar B$.
+# Give every axis of `g` two axes, (which copy, where in `x`), by one reshape; the
+# copies are then one axis each, to be summed.
 # </details>
 
-# %% solution id=ex01_3 title="VJP of matmul" forbids="minimanc.autodiff.numpy._matmul_vjp_x,minimanc.autodiff.numpy._matmul_vjp_y"  # noqa: E501
-def matmul_vjps(g, A, B):
+# %% solution id=ex01_1 title="The VJP of np.tile" forbids="minimanc.autodiff.reverse.backward"
+def tile_vjp(g, x_shape, reps):
     ### BEGIN SOLUTION
-    return g @ B.T, A.T @ g
+    reps = (reps,) if np.ndim(reps) == 0 else tuple(reps)
+    d = max(len(reps), len(x_shape))
+    shape = (1,) * (d - len(x_shape)) + tuple(x_shape)
+    reps = (1,) * (d - len(reps)) + reps
+    pairs = [n for pair in zip(reps, shape) for n in pair]   # (copy, position) per axis
+    summed = np.asarray(g).reshape(pairs).sum(axis=tuple(range(0, 2 * d, 2)))
+    return summed.reshape(x_shape)
+    ### END SOLUTION
+
+# %% grade id=ex01_1_tests points=2
+got1 = tile_vjp(np.arange(6.0), (2,), 3)
+assert np.shape(got1) == (2,), f"x of shape (2,), reps 3: expected shape (2,); got {np.shape(got1)}"
+assert np.allclose(got1, [6.0, 9.0]), \
+    f"x of shape (2,), reps 3, g = [0, 1, ..., 5]: expected [6, 9]; got {got1}"
+got1 = tile_vjp(np.arange(8.0).reshape(4, 2), (2, 2), (2, 1))
+assert np.allclose(got1, [[4.0, 6.0], [8.0, 10.0]]), (
+    f"x (2, 2), reps (2, 1), g = arange(8) as (4, 2): expected [[4, 6], [8, 10]]; "
+    f"got {np.asarray(got1).tolist()}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(110)  # the tests' own draws, not the notebook's rng
+for shape, reps in [((3,), (2, 4)), ((2, 3), 2), ((2, 1, 3), (3, 1, 2)), ((4, 2), (1, 1)),
+                    ((2, 3), (2, 2, 1, 3)), ((), (3, 2)), ((5,), ())]:
+    xh = test_rng.normal(size=shape)
+    gh = test_rng.normal(size=np.tile(xh, reps).shape)
+    got = np.asarray(tile_vjp(gh, shape, reps))
+    assert got.shape == shape, f"x {shape}, reps {reps}: expected shape {shape}; got {got.shape}"
+    # the adjoint identity <tile(x), g> = <x, tile_vjp(g)>, and every entry by its copies
+    lhs, rhs = float(np.sum(np.tile(xh, reps) * gh)), float(np.sum(xh * got))
+    assert np.isclose(lhs, rhs), \
+        f"x {shape}, reps {reps}: expected <tile(x), g> = <x, vjp> = {lhs:.6f}; got {rhs:.6f}"
+    for idx in np.ndindex(*shape):
+        e = np.zeros(shape)
+        e[idx] = 1.0
+        want = float(np.sum(np.tile(e, reps) * gh))
+        assert np.isclose(got[idx], want), \
+            f"x {shape}, reps {reps}, entry {idx}: expected {want:.6f}; got {got[idx]:.6f}"
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 1.2 — VJPs of `cumsum`, `max` and `sort`
+# Three primitives the tutorial never differentiated. A VJP receives the output
+# cotangent `g`, the forward result `ans` and the forward arguments, and returns
+# the cotangent of `x`, **with the shape of `x`**. Work each one out from what the
+# forward pass does with every entry of `x`:
+#
+# * `cumsum_vjp(g, ans, x, axis)`: `np.cumsum(x, axis)` (an integer `axis`);
+# * `max_vjp(g, ans, x, axis, keepdims=False)`: `np.max(x, axis, keepdims)` (an
+#   integer `axis`); where several entries tie for the maximum, they **share** its
+#   cotangent equally;
+# * `sort_vjp(g, ans, x)`: `np.sort(x, axis=-1)`.
+#
+# The grade cell registers them on fresh primitives with `defvjp` and checks the
+# gradients with `check_grads` and on hand-made cases. The library's own VJPs of
+# `cumsum` and `max` are switched off while this exercise is graded.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# A VJP asks, for every entry $x_j$: which outputs did it enter, and with what local
+# derivative? For `cumsum` that is many outputs, for `max` at most one (or a tie),
+# for `sort` exactly one.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# `cumsum`: a sum over the outputs *after* $j$ — a cumulative sum run backwards.
+# `max`: compare `x` with the maximum kept as an axis of size one. `sort`: the
+# permutation that sorted `x` (`np.argsort`) says where each entry went;
+# `np.put_along_axis` sends each cotangent back.
+# </details>
+
+# %% solution id=ex01_2 title="VJPs of cumsum, max and sort" forbids="minimanc.autodiff.reductions._cumsum_vjp,minimanc.autodiff.reductions._chooser_vjp"  # noqa: E501
+def cumsum_vjp(g, ans, x, axis):
+    ### BEGIN SOLUTION
+    return np.flip(np.cumsum(np.flip(g, axis), axis), axis)
+    ### END SOLUTION
+
+
+def max_vjp(g, ans, x, axis, keepdims=False):
+    ### BEGIN SOLUTION
+    if not keepdims:
+        g, ans = np.expand_dims(g, axis), np.expand_dims(ans, axis)
+    hit = x == ans
+    return g * hit / hit.sum(axis=axis, keepdims=True)
+    ### END SOLUTION
+
+
+def sort_vjp(g, ans, x):
+    ### BEGIN SOLUTION
+    out = np.zeros(np.shape(x))
+    np.put_along_axis(out, np.argsort(x, axis=-1), g, axis=-1)
+    return out
+    ### END SOLUTION
+
+# %% grade id=ex01_2_tests points=3
+@primitive
+def my_cumsum(x, axis):
+    return np.cumsum(x, axis=axis)
+
+
+@primitive
+def my_max(x, axis, keepdims=False):
+    return np.max(x, axis=axis, keepdims=keepdims)
+
+
+@primitive
+def my_sort(x):
+    return np.sort(x, axis=-1)
+
+
+defvjp(my_cumsum, cumsum_vjp)
+defvjp(my_max, max_vjp)
+defvjp(my_sort, sort_vjp)
+got2 = cumsum_vjp(np.array([1.0, 2.0, 3.0]), None, np.zeros(3), 0)
+assert np.allclose(got2, [6.0, 5.0, 3.0]), \
+    f"cumsum of 3 entries, g = [1, 2, 3]: expected [6, 5, 3]; got {got2}"
+x2 = np.array([[1.0, 3.0, 3.0], [2.0, 0.0, 1.0]])
+got2 = max_vjp(np.array([6.0, 4.0]), x2.max(axis=1), x2, 1)
+assert np.allclose(got2, [[0.0, 3.0, 3.0], [4.0, 0.0, 0.0]]), (
+    f"max over axis 1 of [[1, 3, 3], [2, 0, 1]] (a tie in row 0), g = [6, 4]: expected "
+    f"[[0, 3, 3], [4, 0, 0]]; got {np.asarray(got2).tolist()}")
+got2 = sort_vjp(np.array([10.0, 20.0, 30.0]), None, np.array([3.0, 1.0, 2.0]))
+assert np.allclose(got2, [30.0, 10.0, 20.0]), \
+    f"sort of [3, 1, 2], g = [10, 20, 30]: expected [30, 10, 20]; got {got2}"
+check_grads(lambda x: anp.sum(my_cumsum(x, 1) ** 2), rng.normal(size=(2, 4)), verbose=False)
+check_grads(lambda x: anp.sum(my_max(x, 0) ** 3), rng.normal(size=(3, 2)), verbose=False)
+check_grads(lambda x: anp.sum(my_sort(x) * np.arange(5.0)), rng.normal(size=(2, 5)),
+            verbose=False)
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(120)  # the tests' own draws, not the notebook's rng
+cases2 = [("cumsum over axis 0 of (4, 3)", lambda x: anp.sum(my_cumsum(x, 0) * np.arange(12.0)
+                                                               .reshape(4, 3)),
+           test_rng.normal(size=(4, 3))),
+          ("cumsum over axis -1 of (2, 3, 4)", lambda x: anp.sum(my_cumsum(x, -1) ** 2),
+           test_rng.normal(size=(2, 3, 4))),
+          ("max over axis 2, keepdims, (2, 3, 4)",
+           lambda x: anp.sum(my_max(x, 2, True) * np.arange(6.0).reshape(2, 3, 1)),
+           test_rng.normal(size=(2, 3, 4))),
+          ("max over axis -2 of (3, 4, 2)", lambda x: anp.sum(anp.sin(my_max(x, -2))),
+           test_rng.normal(size=(3, 4, 2))),
+          ("sort of (3, 2, 6)", lambda x: anp.sum(my_sort(x) ** 2 * np.arange(6.0)),
+           test_rng.normal(size=(3, 2, 6)))]
+for case2, f2, x2h in cases2:
+    try:
+        check_grads(f2, x2h, verbose=False)
+    except AssertionError as exc:
+        raise AssertionError(f"{case2}: expected the central differences, got: "
+                             f"{' '.join(str(exc).split())[:160]}") from None
+tie = np.array([[2.0, 2.0, 2.0, 1.0]])
+got = np.asarray(max_vjp(np.array([[9.0]]), tie.max(axis=1, keepdims=True), tie, 1, True))
+assert np.shape(got) == (1, 4) and np.allclose(got, [[3.0, 3.0, 3.0, 0.0]]), \
+    f"a three-way tie, keepdims, g = 9: expected [[3, 3, 3, 0]]; got {got.tolist()}"
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 1.3 — the VJP of a batched matrix product
+# The tutorial gives the VJPs of $Y = AB$ for two matrices. `np.matmul` (`@`) also
+# multiplies **stacks** of matrices: `A` of shape `(..., n, k)` times `B` of shape
+# `(..., k, m)`, the leading (batch) axes broadcast against each other — a batch of
+# inputs `(5, 2, 3)` times one weight matrix `(3, 4)`, or `(2, 1, n, k)` times
+# `(3, k, m)`. Write `batched_matmul_vjps(g, A, B)` returning `(A_bar, B_bar)`, the
+# cotangents of `A` and `B` **with their shapes**, for both at least 2-D. Never build
+# the Jacobian. The library's VJPs of `matmul` and `einsum` are switched off while
+# this exercise is graded.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Each matrix of the stack is an ordinary product, with the tutorial's rule. A
+# matrix reused by several products of the batch (a broadcast one) receives the
+# cotangents of all its uses.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Transpose only the last two axes (`np.swapaxes(..., -1, -2)`), and sum a
+# broadcast operand's cotangent back to its shape (chapter 1's `unbroadcast`).
+# </details>
+
+# %% solution id=ex01_3 title="VJP of a batched matmul" forbids="minimanc.autodiff.numpy._matmul_vjp_x,minimanc.autodiff.numpy._matmul_vjp_y,minimanc.autodiff.numpy._einsum_vjp"  # noqa: E501
+def batched_matmul_vjps(g, A, B):
+    ### BEGIN SOLUTION
+    return (unbroadcast(A, g @ np.swapaxes(B, -1, -2)),
+            unbroadcast(B, np.swapaxes(A, -1, -2) @ g))
     ### END SOLUTION
 
 # %% grade id=ex01_3_tests points=2
 my_matmul = primitive(np.matmul)
-defvjp(my_matmul, lambda g, ans, A, B: matmul_vjps(g, A, B)[0],
-       lambda g, ans, A, B: matmul_vjps(g, A, B)[1])
-A, B = rng.normal(size=(3, 4)), rng.normal(size=(4, 2))
-gA, gB = matmul_vjps(np.ones((3, 2)), A, B)
-assert gA.shape == A.shape and gB.shape == B.shape, "dA has the shape of A, dB of B"
-check_grads(lambda A, B: anp.sum(anp.tanh(my_matmul(A, B))), A, B, verbose=False)
+defvjp(my_matmul, lambda g, ans, A, B: batched_matmul_vjps(g, A, B)[0],
+       lambda g, ans, A, B: batched_matmul_vjps(g, A, B)[1])
+A3, B3 = np.ones((4, 2, 5)), rng.normal(size=(5, 3))
+gA, gB = batched_matmul_vjps(np.ones((4, 2, 3)), A3, B3)
+assert np.shape(gA) == (4, 2, 5) and np.shape(gB) == (5, 3), \
+    f"A (4, 2, 5), B (5, 3): expected shapes (4, 2, 5), (5, 3); got {np.shape(gA)}, {np.shape(gB)}"
+assert np.allclose(gB, 8.0), \
+    f"A = ones (4, 2, 5), B (5, 3), g = ones (4, 2, 3): expected B_bar = 8 everywhere; got {gB}"
+check_grads(lambda A, B: anp.sum(anp.tanh(my_matmul(A, B))), rng.normal(size=(3, 2, 4)),
+            rng.normal(size=(4, 2)), verbose=False)
 ### BEGIN HIDDEN TESTS
-W = rng.normal(size=(3, 2))
-# d/dA sum((A B) * W) = W B^T and d/dB = A^T W, written element by element
-ref_A = np.array([[sum(W[i, j] * B[l, j] for j in range(2)) for l in range(4)] for i in range(3)])
-ref_B = np.array([[sum(A[i, l] * W[i, j] for i in range(3)) for j in range(2)] for l in range(4)])
-mine = grad(lambda A, B: anp.sum(my_matmul(A, B) * W), argnums=(0, 1))(A, B)
-for name3, want3, got3 in (("A", ref_A, mine[0]), ("B", ref_B, mine[1])):
-    assert np.shape(got3) == want3.shape and np.allclose(got3, want3), \
-        (f"grad of sum((A B) * W) for A (3, 4), B (4, 2), the cotangent of {name3}: expected "
-         f"{np.round(want3, 4).tolist()}, got {np.round(np.asarray(got3), 4).tolist()}")
-gA, gB = matmul_vjps(W, A, B)
-assert np.allclose(gA, ref_A) and np.allclose(gB, ref_B), \
-    (f"matmul_vjps(W, A, B), W (3, 2): expected a max error 0, got "
-     f"{max(np.abs(gA - ref_A).max(), np.abs(gB - ref_B).max()):.3g}")
+test_rng = np.random.default_rng(130)  # the tests' own draws, not the notebook's rng
+for sa, sb in [((3, 4), (4, 2)), ((2, 1, 3, 4), (5, 4, 2)), ((3, 4), (6, 4, 2)),
+               ((1, 2, 3), (4, 3, 5)), ((2, 3, 4), (2, 4, 1))]:
+    Ah, Bh = test_rng.normal(size=sa), test_rng.normal(size=sb)
+    Wh = test_rng.normal(size=np.matmul(Ah, Bh).shape)
+    gA, gB = batched_matmul_vjps(Wh, Ah, Bh)
+    # d/dA sum((A @ B) * W), entry by entry with central differences
+    for name, arg, got in (("A", Ah, gA), ("B", Bh, gB)):
+        assert np.shape(got) == arg.shape, \
+            f"A {sa}, B {sb}: expected the cotangent of {name} of shape {arg.shape}; got " \
+            f"{np.shape(got)}"
+        want = np.zeros(arg.shape)
+        for idx in np.ndindex(*arg.shape):
+            e = np.zeros(arg.shape)
+            e[idx] = 1e-6
+            hi = (Ah + e, Bh) if name == "A" else (Ah, Bh + e)
+            lo = (Ah - e, Bh) if name == "A" else (Ah, Bh - e)
+            want[idx] = (np.sum(np.matmul(*hi) * Wh) - np.sum(np.matmul(*lo) * Wh)) / 2e-6
+        err = np.abs(np.asarray(got) - want).max()
+        assert err < 1e-6, f"A {sa}, B {sb}, the cotangent of {name}: max error {err:.3g}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## A scalar engine for the last two exercises
+# ## A scalar engine for exercises 1.4–1.6
 # To see the whole backward pass at once, here is a complete tape for
 # scalars: a `Var` holds a value, its `parents` (a tuple) and the **local
 # derivatives** $\partial\,\text{self} / \partial\,\text{parent}$ (a tuple of
@@ -317,51 +393,85 @@ assert [id(n) for n in again] == [id(n) for n in order], \
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 1.5 — `grad` itself
-# Write `var_grad(f)`: it returns a function that takes floats `xs`, wraps
-# them in `Var`s, runs `f`, and returns the tuple of derivatives
-# $\partial f / \partial x_i$. Seed the output's cotangent with 1, walk the
-# nodes in topological order (use the library's
-# `toposort(end, parents_of=lambda v: v.parents)`, so this exercise does not
-# depend on the previous one), and **add** `g * local_grad` into each parent's
-# cotangent. An input that does not influence the output has derivative 0.
+# ## Exercise 1.5 — forward mode on the tape
+# Reverse mode (tutorial sections 4–5) runs the chain rule from the output back
+# and gives the derivative of one output with respect to every input. **Forward
+# mode** runs it the other way, from the inputs to the outputs: choose a direction
+# $t$ in input space, and carry along every node the derivative of its value in
+# that direction, $\frac{d}{d\varepsilon}\,\text{node}(x + \varepsilon t)$ at
+# $\varepsilon = 0$. One forward sweep gives the directional derivative of *every*
+# output at once.
+#
+# Write `var_jvp(f, xs, tangents)`: wrap the floats `xs` in `Var`s, run `f` on them
+# (it returns one `Var` or a tuple of `Var`s), and return `(values, derivatives)`,
+# two tuples with one float per output: the outputs' values and their derivatives
+# in the direction `tangents`. Use the recorded tape: each node's `parents` and
+# `local_grads` (the library's `toposort(end, parents_of=lambda v: v.parents)` orders
+# the nodes below one output). Constants inside `f` become `Var`s too.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Which nodes know their tangent before anything is computed, and what does a node
+# need from its parents to know its own? In which order must the nodes be visited?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Keep a dictionary `id(node) → tangent`, seeded at the inputs; every other leaf is a
+# constant. Visit each output's nodes in the reverse of `toposort`'s order (each node
+# after its parents) and apply the chain rule with the local derivatives; nodes
+# shared by two outputs are computed once.
+# </details>
 
-# %% solution id=ex01_5 title="grad from scratch"
-def var_grad(f):
-    def df(*xs):
-        ### BEGIN SOLUTION
-        inputs = [Var(x) for x in xs]
-        out = f(*inputs)
-        cot = {id(out): 1.0}
-        for node in toposort(out, parents_of=lambda v: v.parents):
-            g = cot.get(id(node), 0.0)
-            for parent, local in zip(node.parents, node.local_grads):
-                cot[id(parent)] = cot.get(id(parent), 0.0) + g * local
-        return tuple(cot.get(id(v), 0.0) for v in inputs)
-        ### END SOLUTION
-
-    return df
+# %% solution id=ex01_5 title="Forward mode on the tape"
+def var_jvp(f, xs, tangents):
+    ### BEGIN SOLUTION
+    inputs = [Var(x) for x in xs]
+    out = f(*inputs)
+    outs = out if isinstance(out, tuple) else (out,)
+    tangent = {id(v): float(t) for v, t in zip(inputs, tangents)}
+    for end in outs:
+        for node in reversed(toposort(end, parents_of=lambda v: v.parents)):
+            if id(node) not in tangent:
+                tangent[id(node)] = sum(local * tangent[id(parent)] for parent, local
+                                        in zip(node.parents, node.local_grads))
+    return tuple(v.value for v in outs), tuple(tangent[id(v)] for v in outs)
+    ### END SOLUTION
 
 # %% grade id=ex01_5_tests points=3
-def central(f, xs, eps=1e-6):
-    out = []
-    for i in range(len(xs)):
-        hi = [v + (eps if j == i else 0.0) for j, v in enumerate(xs)]
-        lo = [v - (eps if j == i else 0.0) for j, v in enumerate(xs)]
-        out.append((f(*map(Var, hi)).value - f(*map(Var, lo)).value) / (2 * eps))
-    return out
+def h5(x, y):
+    return x * y, vsin(x) + 2.0
 
 
-def h(x, y):
-    return vsin(x * y) + x * vexp(y)
-
-
-assert np.isclose(var_grad(lambda x: x * x)(3.0)[0], 6.0), "d(x x)/dx = 2x = 6: add both uses"
-assert np.allclose(var_grad(h)(0.4, -1.2), central(h, [0.4, -1.2]), atol=1e-8), \
-    "gradient of h must match central differences"
+values5, derivs5 = var_jvp(h5, (0.4, -1.2), (1.0, 0.0))
+assert np.allclose(values5, (-0.48, math.sin(0.4) + 2.0)), \
+    f"h(x, y) = (x y, sin x + 2) at (0.4, -1.2): expected values (-0.48, 2.3894); got {values5}"
+assert np.allclose(derivs5, (-1.2, math.cos(0.4))), (
+    f"h at (0.4, -1.2) in the direction (1, 0): expected derivatives (-1.2, 0.9211); "
+    f"got {derivs5}")
+_, derivs5 = var_jvp(lambda x: x * x, (3.0,), (1.0,))
+assert np.allclose(derivs5, (6.0,)), f"x * x at 3 in the direction 1: expected (6,); got {derivs5}"
 ### BEGIN HIDDEN TESTS
-got5 = var_grad(lambda x, y: x * 2.0)(1.0, 5.0)
-assert got5 == (2.0, 0.0), f"f(x, y) = 2 x at (1, 5), y unused: expected (2.0, 0.0), got {got5}"
+def central5(f, xs, ts, eps=1e-6):
+    """Directional central differences of every output of f (on Vars)."""
+    hi = f(*[Var(x + eps * t) for x, t in zip(xs, ts)])
+    lo = f(*[Var(x - eps * t) for x, t in zip(xs, ts)])
+    hi, lo = (hi, lo) if isinstance(hi, tuple) else ((hi,), (lo,))
+    return [(a.value - b.value) / (2 * eps) for a, b in zip(hi, lo)]
+
+
+def k5(a, b, c):
+    shared = vexp(a * b)
+    return shared * c + vsin(c * c - a), shared - 3.0 * b, a
+
+
+for xs, ts in (((0.1, 0.2, 0.3), (1.0, -2.0, 0.5)), ((-0.7, 1.1, 0.4), (0.0, 0.0, 1.0))):
+    got, want = var_jvp(k5, xs, ts)[1], central5(k5, xs, ts)
+    assert np.allclose(got, want, atol=1e-8), (
+        f"k at {xs}, direction {ts}: expected {np.round(want, 6).tolist()} (central "
+        f"differences); got {got}")
+got5 = var_jvp(lambda x, y: x * 2.0, (1.0, 5.0), (0.0, 1.0))[1]
+assert np.allclose(got5, (0.0,)), f"2 x in the direction of the unused y: expected (0,); got {got5}"
 
 
 def long_chain(x):
@@ -370,20 +480,15 @@ def long_chain(x):
     return x
 
 
-got5 = var_grad(long_chain)(1.0)[0]
-assert np.isclose(got5, 0.9999**5000), \
-    f"5000 steps x <- 0.9999 x + 0.001: expected {0.9999 ** 5000:.6f}, got {got5!r}"
-k = lambda a, b, c: vexp(a * b) * c + vsin(c * c - a)  # noqa: E731
-got5, want5 = var_grad(k)(0.1, 0.2, 0.3), central(k, [0.1, 0.2, 0.3])
-assert np.allclose(got5, want5, atol=1e-8), \
-    (f"k(a, b, c) = exp(a b) c + sin(c c - a) at (0.1, 0.2, 0.3): expected "
-     f"{np.round(want5, 6).tolist()} (central differences), got {got5}")
+got5 = var_jvp(long_chain, (1.0,), (2.0,))[1][0]
+assert np.isclose(got5, 2 * 0.9999 ** 5000), \
+    f"5000 steps x <- 0.9999 x + 0.001, tangent 2: expected {2 * 0.9999 ** 5000:.6f}; got {got5}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
 # ## Exercise 1.6 — the computation graph, with the cotangent on each edge
-# `var_grad` keeps one number per node and forgets how it was assembled. Keep
-# the pieces instead: every edge `parent → child` (the child used the parent)
+# The tutorial's backward pass keeps one cotangent per node and forgets how it was
+# assembled. Keep the pieces instead: every edge `parent → child` (the child used the parent)
 # carries the cotangent $\bar g_\text{child}\,\partial\,\text{child}/\partial\,\text{parent}$,
 # and a node's cotangent $\bar g$ is the **sum over the edges that leave it**
 # ($\bar g = 1$ at the output).
@@ -430,8 +535,10 @@ c = math.cos(0.49)
 assert edges[0][0] is s_ and edges[0][1] is y, \
     "first edge: sin -> add (the output's edges come first, its parents in tuple order)"
 assert edges[1][0] is x and edges[1][1] is y, "second edge: x -> add"
-assert np.allclose([ct for _, _, ct in edges], [1.0, 1.0, c, 0.7 * c, 0.7 * c]), \
-    "cotangents: 1, 1, cos(x^2), x cos(x^2), x cos(x^2)"
+got6 = [ct for _, _, ct in edges]
+assert np.allclose(got6, [1.0, 1.0, c, 0.7 * c, 0.7 * c]), (
+    f"sin(x x) + x at x = 0.7: expected the cotangents [1, 1, 0.8823, 0.6176, 0.6176] in "
+    f"this order; got {np.round(got6, 4).tolist()}")
 x_bar = sum(ct for p, _, ct in edges if p is x)
 fd = (math.sin(0.7001 ** 2) + 0.7001 - math.sin(0.6999 ** 2) - 0.6999) / 0.0002
 assert abs(x_bar - fd) < 1e-6, f"the edges leaving x must add up to df/dx = {fd:.6f}"
@@ -481,9 +588,10 @@ assert np.isclose(gy_lib, np.cos(-0.48) * 0.4 + 0.4 * np.exp(-1.2))
 
 # %% [markdown]
 # ## The same, with the library
-# `minimanc.autodiff.grad` does on arrays what `var_grad` does on scalars, with
-# the VJPs you wrote above (they are in `minimanc/autodiff/numpy.py`). From here
-# on the notebooks use the library, so they run even if an exercise above is
+# `minimanc.autodiff.grad` does on arrays what your `edge_cotangents` does on
+# scalars (each input's cotangent is the sum of the edges that leave it), with VJPs
+# like the ones above (in the modules behind `minimanc/autodiff/numpy.py`). From
+# here on the notebooks use the library, so they run even if an exercise above is
 # unfinished.
 
 # %%

@@ -414,7 +414,7 @@ for epoch in range(6):
     print(f"epoch {epoch}: mean loss {np.mean(losses[-24:]):.3f}   "
           f"test accuracy {test_acc[-1]:.3f}")
 assert test_acc[-1] >= 0.95, test_acc
-assert len(losses) == 6 * 24 and np.mean(losses[-24:]) < 0.1  # stored run: 0.001
+assert len(losses) == 6 * 24 and np.mean(losses[-24:]) < 0.1
 
 # %%
 fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(10, 3.2))
@@ -469,7 +469,7 @@ batch = (x_train[:32], np.eye(2)[y_train[:32]])
 loss_np, grads_np = eng.value_and_grad(loss_fn)(params64, *batch, eng)
 jax_step = jeng.jit(lambda p, s, x, y: (jeng.value_and_grad(loss_fn)(p, x, y, jeng), s))
 (loss_jx, grads_jx), _ = jax_step(params64, None, *batch)
-print(f"loss numpy {float(loss_np):.10f}   jax {float(loss_jx):.10f}")
+print(f"loss numpy {float(loss_np):.6f}   jax {float(loss_jx):.6f}")
 assert abs(float(loss_np) - float(loss_jx)) < 1e-5
 
 worst = max(float(np.max(np.abs(grads_np[k][n] - np.asarray(grads_jx[k][n]))))
@@ -480,7 +480,7 @@ assert worst < 1e-6
 new_np, _ = optim.adam_update(grads_np, optim.adam_init(params64), params64, lr=1e-2)
 new_jx, _ = optim.adam_update(grads_jx, optim.adam_init(params64), params64, lr=1e-2)
 loss_after = (float(loss_fn(new_np, *batch, eng)), float(loss_fn(new_jx, *batch, jeng)))
-print(f"loss after one Adam step: numpy {loss_after[0]:.8f}   jax {loss_after[1]:.8f}")
+print(f"loss after one Adam step: numpy {loss_after[0]:.6f}   jax {loss_after[1]:.6f}")
 assert abs(loss_after[0] - loss_after[1]) < 1e-5
 
 # %% [markdown]

@@ -22,157 +22,169 @@ from minimanc.viz.exercises import plot_stability_boundary
 rng = np.random.default_rng(0)
 
 # %% [markdown]
-# ## Exercise 3.1 — damping ratio and classification
-# Write `damping_ratio(alpha, beta)` (eq. 13, $\zeta = \alpha / (2\sqrt{\alpha\beta})$,
-# for α, β > 0) and `classify(alpha, beta)` returning one of
-# `"underdamped"` (ζ < 1), `"critically damped"` (ζ = 1), `"overdamped"`
-# (ζ > 1), or `"unstable"` when α ≤ 0 or β ≤ 0 (the system then does not
-# converge to the goal). Scalars in, a float / a string out.
+# ## Exercise 3.1 — gains for a damping ratio and a settling time
+# The tutorial reads ζ and the motion off given gains. A designer goes the other
+# way: *"critically damped, settled within 2 s"*. Write `gains_for(zeta, t_settle)`
+# returning `(alpha, beta)`, two floats, such that the continuous system of eq. (12)
 #
-# ζ = 1 means α = 4β, which floating point rarely hits exactly: call the system
-# critically damped when $|\alpha - 4\beta| \le 10^{-9}\,\alpha$ (the library's
-# `dmp.CRITICAL_RTOL`; it is $|1 - 1/\zeta^2| \le 10^{-9}$), so ζ = 1 ± 1e-12 is
-# critically damped and ζ = 1 ± 1e-8 is not. While this exercise is graded,
-# `dmp.damping_ratio` and `dmp.classify` are switched off: write your own.
-# The two functions are graded separately: `damping_ratio` 1 point, `classify` 2.
+# * has the damping ratio `zeta` (eq. 13), and
+# * its **slowest** characteristic root has the real part $-4/t_\text{settle}$, so
+#   that the error's envelope shrinks by $e^{-4} \approx 1.8\,\%$ within `t_settle`.
+#
+# Both arguments are positive; ζ may lie on either side of 1. Graded in two parts:
+# ζ ≤ 1 (1 point) and ζ > 1 (2 points).
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Write the two roots of eq. (12) with $\omega_n = \sqrt{\alpha\beta}$ and ζ. When they
+# are complex (or double), what is their real part? When they are real, which one
+# is the slow one?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Solve for $\omega_n$ from the slow root in each regime, then recover α and β from
+# $\omega_n$ and ζ. Check that both regimes agree at ζ = 1.
+# </details>
 
-# %% solution id=ex03_1 title="Damping ratio and classification" forbids="minimanc.dmp.damping_ratio,minimanc.dmp.classify"  # noqa: E501
-def damping_ratio(alpha, beta):
+# %% solution id=ex03_1 title="Gains for a damping ratio and a settling time"
+def gains_for(zeta, t_settle):
     ### BEGIN SOLUTION
-    return alpha / (2.0 * np.sqrt(alpha * beta))
-    ### END SOLUTION
-
-
-def classify(alpha, beta):
-    ### BEGIN SOLUTION
-    if alpha <= 0 or beta <= 0:
-        return "unstable"
-    if abs(alpha - 4.0 * beta) <= 1e-9 * alpha:
-        return "critically damped"
-    return "underdamped" if damping_ratio(alpha, beta) < 1 else "overdamped"
+    rate = 4.0 / t_settle                     # the slow root is -rate
+    if zeta <= 1.0:
+        omega = rate / zeta                   # complex or double roots: real part -zeta omega
+    else:
+        omega = rate / (zeta - math.sqrt(zeta * zeta - 1.0))
+    return 2.0 * zeta * omega, omega / (2.0 * zeta)
     ### END SOLUTION
 
 # %% grade id=ex03_1_zeta_tests points=1
-z = damping_ratio(4.0, 1.0)
-assert np.isclose(z, 1.0), f"alpha=4, beta=1: expected zeta = 4/(2*2) = 1, got {z!r}"
-z = damping_ratio(1.0, 1.0)
-assert np.isclose(z, 0.5), f"alpha=beta=1: expected zeta = 1/(2*1) = 0.5, got {z!r}"
+a1, b1 = gains_for(0.5, 4.0)
+assert np.isclose(a1, 2.0) and np.isclose(b1, 2.0), \
+    f"zeta = 0.5, t_settle = 4 s: expected (alpha, beta) = (2, 2); got ({a1!r}, {b1!r})"
+a1, b1 = gains_for(1.0, 2.0)
+assert np.isclose(a1, 4.0) and np.isclose(b1, 1.0), \
+    f"zeta = 1, t_settle = 2 s: expected (alpha, beta) = (4, 1); got ({a1!r}, {b1!r})"
 ### BEGIN HIDDEN TESTS
+def slow_root(a, b):
+    """The tests' own roots: eigenvalues of the companion matrix of eq. (12)."""
+    return np.linalg.eigvals(np.array([[0.0, 1.0], [-a * b, -a]])).real.max()
+
+
 test_rng = np.random.default_rng(310)  # the tests' own draws, not the notebook's rng
-for a, b in test_rng.uniform(0.01, 50, size=(200, 2)):
-    z, expected = damping_ratio(a, b), 0.5 * np.sqrt(a / b)
-    assert np.isclose(z, expected, rtol=1e-9), \
-        f"alpha={a}, beta={b}: expected zeta = ½√(α/β) = {expected}, got {z!r}"
+for z, ts in zip(test_rng.uniform(0.05, 1.0, 100), test_rng.uniform(0.5, 20.0, 100)):
+    a, b = gains_for(float(z), float(ts))
+    assert np.isclose(0.5 * np.sqrt(a / b), z, rtol=1e-9), \
+        f"zeta = {z:.4f}, t_settle = {ts:.3f}: your gains ({a:.6g}, {b:.6g}) have another zeta"
+    assert np.isclose(slow_root(a, b), -4.0 / ts, rtol=1e-6), (
+        f"zeta = {z:.4f}, t_settle = {ts:.3f}: expected the slowest root's real part "
+        f"{-4.0 / ts:.6f}; got {slow_root(a, b):.6f}")
 ### END HIDDEN TESTS
 
 # %% grade id=ex03_1_tests points=2
-for (a, b), expected in (((4.0, 1.0), "critically damped"), ((1.0, 1.0), "underdamped"),
-                         ((16.0, 1.0), "overdamped"), ((-1.0, 1.0), "unstable")):
-    got = classify(a, b)
-    assert got == expected, f"alpha={a}, beta={b}: expected {expected!r}, got {got!r}"
+a1, b1 = gains_for(1.25, 2.0)
+assert np.isclose(a1, 10.0) and np.isclose(b1, 1.6), \
+    f"zeta = 1.25, t_settle = 2 s: expected (alpha, beta) = (10, 1.6); got ({a1!r}, {b1!r})"
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(311)  # the tests' own draws, not the notebook's rng
-for b in (0.25, 1.0, 6.25, 40.0):   # zeta = 1 + d: alpha = 4 beta (1 + d)^2
-    for d, expected in ((1e-12, "critically damped"), (-1e-12, "critically damped"),
-                        (1e-10, "critically damped"), (-1e-10, "critically damped"),
-                        (1e-8, "overdamped"), (-1e-8, "underdamped")):
-        got = classify(4 * b * (1 + d) ** 2, b)
-        assert got == expected, \
-            f"beta={b}, zeta = 1 + {d:g}: expected {expected!r}, got {got!r}"
-for a, b in test_rng.uniform(0.01, 50, size=(200, 2)):
-    got, expected = classify(a, b), "underdamped" if a < 4 * b else "overdamped"
-    assert got == expected, f"alpha={a}, beta={b}: expected {expected!r}, got {got!r}"
-for a in test_rng.uniform(0.1, 50, size=20):
-    got = classify(a, a / 4)
-    assert got == "critically damped", \
-        f"alpha={a}, beta = alpha/4: expected 'critically damped', got {got!r}"
-for a, b in ((1.0, 0.0), (0.0, 1.0), (1.0, -3.0)):
-    got = classify(a, b)
-    assert got == "unstable", \
-        f"alpha={a}, beta={b} (a gain <= 0): expected 'unstable', got {got!r}"
+for z, ts in zip(test_rng.uniform(1.0001, 8.0, 100), test_rng.uniform(0.5, 20.0, 100)):
+    a, b = gains_for(float(z), float(ts))
+    assert np.isclose(0.5 * np.sqrt(a / b), z, rtol=1e-9), \
+        f"zeta = {z:.4f}, t_settle = {ts:.3f}: your gains ({a:.6g}, {b:.6g}) have another zeta"
+    lam = np.roots([1.0, a, a * b]).real.max()     # the slow root, by np.roots
+    assert np.isclose(lam, -4.0 / ts, rtol=1e-6), (
+        f"zeta = {z:.4f}, t_settle = {ts:.3f}: expected the slowest root {-4.0 / ts:.6f}; "
+        f"got {lam:.6f} (the fast root is not the one that sets the settling time)")
+a, b = gains_for(1.0 + 1e-12, 2.0)
+assert np.isclose(a, 4.0) and np.isclose(b, 1.0), \
+    f"zeta = 1 + 1e-12, t_settle = 2 s: expected about (4, 1); got ({a!r}, {b!r})"
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 3.2 — one integrator step
-# Advance eq. (10) by one step of `h` seconds, goal and gains held fixed.
-# With $a(y, \dot y) = \alpha(\beta(g - y) - \dot y)$:
+# ## Exercise 3.2 — an integrator the tutorial does not have: implicit Euler
+# Explicit Euler evaluates the right-hand side of eq. (10) at the *old* state,
+# semi-implicit Euler half at the new one. **Implicit (backward) Euler** evaluates
+# all of it at the new state: with $a(y, \dot y) = \alpha(\beta(g - y) - \dot y)$,
 #
-# * `method="euler"` (explicit): $y' = y + h\dot y$, $\dot y' = \dot y + h\,a(y, \dot y)$;
-# * `method="semi_implicit"`: $\dot y' = \dot y + h\,a(y, \dot y)$, then $y' = y + h\,\dot y'$.
+# $$y' = y + h\,\dot y', \qquad \dot y' = \dot y + h\, a(y', \dot y').$$
 #
-# Return `(y_next, dy_next)`. It must work on NumPy arrays of any shape
-# (elementwise arithmetic only) and raise `ValueError` for any other method.
-# `dmp.step` is switched off while this exercise is graded.
+# These are two equations for the two unknowns $y', \dot y'$. Solve them in closed
+# form and write `implicit_euler_step(y, dy, goal, alpha, beta, h)` returning
+# `(y_next, dy_next)`. It must work elementwise on NumPy arrays of any shape (no
+# `np.linalg.solve`, no iteration).
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# The equations are linear in $y'$ and $\dot y'$: substitute the first into the second.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# You get one equation for $\dot y'$ whose coefficient is a number built from $h$, α
+# and β; divide by it. Then $y'$ follows from the first equation. Check your answer
+# by putting it back into both equations.
+# </details>
 
-# %% solution id=ex03_2 title="One integrator step" forbids="minimanc.dmp.step"
-def integrator_step(y, dy, goal, alpha, beta, h, method):
+# %% solution id=ex03_2 title="Implicit Euler step"
+def implicit_euler_step(y, dy, goal, alpha, beta, h):
     ### BEGIN SOLUTION
-    acc = alpha * (beta * (goal - y) - dy)
-    if method == "euler":
-        return y + h * dy, dy + h * acc
-    if method == "semi_implicit":
-        dy_next = dy + h * acc
-        return y + h * dy_next, dy_next
-    raise ValueError(f"unknown method {method!r}")
+    det = 1.0 + h * alpha + h * h * alpha * beta
+    dy_next = (dy + h * alpha * beta * (goal - y)) / det
+    return y + h * dy_next, dy_next
     ### END SOLUTION
 
 # %% grade id=ex03_2_tests points=3
-y1, dy1 = integrator_step(1.0, 0.0, 0.0, 4.0, 1.0, 0.5, "euler")
-assert np.isclose(y1, 1.0) and np.isclose(dy1, -2.0), \
-    f"euler from y=1, dy=0: expected y' = y + h*dy = 1, dy' = -2, got {y1!r}, {dy1!r}"
-y1, dy1 = integrator_step(1.0, 0.0, 0.0, 4.0, 1.0, 0.5, "semi_implicit")
-assert np.isclose(y1, 0.0) and np.isclose(dy1, -2.0), \
-    f"semi_implicit: expected dy' = -2 first, then y' = y + h*dy' = 0, got {y1!r}, {dy1!r}"
-try:
-    integrator_step(1.0, 0.0, 0.0, 4.0, 1.0, 0.5, "leapfrog")
-    raise AssertionError("method='leapfrog': expected a ValueError, got a return value")
-except ValueError:
-    pass
+y2, dy2 = implicit_euler_step(1.0, 0.0, 0.0, 4.0, 1.0, 0.5)
+assert np.isclose(y2, 0.75) and np.isclose(dy2, -0.5), \
+    f"y = 1, dy = 0, goal 0, alpha 4, beta 1, h 0.5: expected (0.75, -0.5); got ({y2!r}, {dy2!r})"
+y2, dy2 = 1.0, 0.0
+for _ in range(12):   # the textbook gains that explicit Euler blows up at h = 0.5
+    y2, dy2 = implicit_euler_step(y2, dy2, 0.0, 25.0, 6.25, 0.5)
+assert abs(y2) < 0.05, \
+    f"alpha 25, beta 6.25, h 0.5, 12 steps from y = 1: expected |y| < 0.05; got {y2!r}"
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(320)  # the tests' own draws, not the notebook's rng
-for method in ("euler", "semi_implicit"):
-    y, dy, g = test_rng.normal(size=(3, 5, 2))
-    a, b = test_rng.uniform(0.5, 10, size=(2, 5, 1))
-    yn, dyn = integrator_step(y, dy, g, a, b, 0.1, method)
-    ref_dy = dy + 0.1 * a * (b * (g - y) - dy)
-    ref_y = y + 0.1 * (dy if method == "euler" else ref_dy)
-    assert np.shape(yn) == (5, 2), f"{method}: expected shape (5, 2), got {np.shape(yn)}"
-    np.testing.assert_allclose(dyn, ref_dy, err_msg=f"{method}, arrays (5, 2): dy'")
-    np.testing.assert_allclose(yn, ref_y, err_msg=f"{method}, arrays (5, 2): y'")
-dy1 = integrator_step(np.ones(3), 0.0, 0.0, 4.0, 1.0, 0.5, "euler")[1]
-assert np.allclose(dy1, -2.0), \
-    f"y = ones(3), scalar dy: expected dy' = -2 in every entry, got {dy1}"
+y, dy, g = test_rng.normal(size=(3, 5, 2))
+a, b = test_rng.uniform(0.5, 30, size=(2, 5, 1))
+for h in (0.05, 0.5, 2.0):
+    yn, dyn = implicit_euler_step(y, dy, g, a, b, h)
+    assert np.shape(yn) == (5, 2) and np.shape(dyn) == (5, 2), \
+        f"arrays (5, 2), h = {h}: expected shapes (5, 2); got {np.shape(yn)}, {np.shape(dyn)}"
+    # the defining equations, evaluated at your new state
+    np.testing.assert_allclose(yn, y + h * dyn, rtol=1e-10, atol=1e-12,
+                               err_msg=f"arrays (5, 2), h = {h}: y' = y + h dy' must hold")
+    np.testing.assert_allclose(dyn, dy + h * a * (b * (g - yn) - dyn), rtol=1e-10, atol=1e-12,
+                               err_msg=f"arrays (5, 2), h = {h}: dy' = dy + h a(y', dy') must hold")
+yn = implicit_euler_step(np.ones(3), 0.0, 0.0, 4.0, 1.0, 0.5)[0]
+assert np.allclose(yn, 0.75), f"y = ones(3), scalar dy: expected 0.75 in every entry; got {yn}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
 # ## Exercise 3.3 — the stable range of α for explicit Euler
 # One explicit Euler step maps $[e, \dot e]$ by $M = I + hA$ with
 # $A = \begin{pmatrix} 0 & 1 \\ -\alpha\beta & -\alpha \end{pmatrix}$, so its
-# eigenvalues are $1 + h\lambda$ for the roots λ of eq. (12). The step is
-# stable iff $|1 + h\lambda| < 1$ for both roots. Work it out:
-#
-# * complex roots (α < 4β): $|1 + h\lambda|^2 = 1 - h\alpha + h^2\alpha\beta$;
-# * real roots (α ≥ 4β): the more negative root must satisfy $h\lambda > -2$.
-#
-# Write `max_stable_alpha_euler(beta, h)` returning the supremum of the stable
-# α (stable exactly for 0 < α < that value), or `0.0` if no α > 0 is stable.
-# `dmp.max_stable_alpha` is switched off while this exercise is graded.
+# eigenvalues are $1 + h\lambda$ for the roots λ of eq. (12); the step is stable iff
+# both lie strictly inside the unit circle. Derive for which α > 0 that holds and
+# write `max_stable_alpha_euler(beta, h)`: the supremum of the stable α (stable
+# exactly for 0 < α < that value), or `0.0` if no α > 0 is stable. The library's
+# stability functions (`dmp.max_stable_alpha`, `dmp.spectral_radius`,
+# `dmp.step_matrix`, `dmp.step_stable`) are switched off while this exercise is graded.
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
-# Each regime gives one condition on α. Ask in which regime the bound is
-# reached, and what the complex-root condition says about hβ.
+# The roots λ are complex for small α and real for large α. Each regime gives one
+# condition on α; ask in which regime the bound is reached.
 # </details>
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Solve $1 - h\alpha + h^2\alpha\beta < 1$ for the complex roots and
-# $h\lambda_{min} > -2$ for the real ones, then check which one binds at the
-# border α = 4β. The answer is a one-line formula with one special case (mind
-# the case h·β = 1 exactly).
+# For complex roots, $|1 + h\lambda|^2$ needs only the sum and the product of the two
+# roots, which eq. (12) gives you. For real roots only the more negative one can
+# leave the circle, and only through −1. Mind the case where the complex-root
+# condition cannot hold for any α.
 # </details>
 
-# %% solution id=ex03_3 title="Stable range of alpha for explicit Euler" forbids="minimanc.dmp.max_stable_alpha"  # noqa: E501
+# %% solution id=ex03_3 title="Stable range of alpha for explicit Euler" forbids="minimanc.dmp.max_stable_alpha,minimanc.dmp.spectral_radius,minimanc.dmp.step_matrix,minimanc.dmp.step_stable"  # noqa: E501
 def max_stable_alpha_euler(beta, h):
     ### BEGIN SOLUTION
     if h * beta >= 1.0:
@@ -181,20 +193,12 @@ def max_stable_alpha_euler(beta, h):
     ### END SOLUTION
 
 # %% grade id=ex03_3_tests points=4
-# the reference value comes from the spectral radius, by bisection on alpha
-lo, hi = 1.0, 20.0  # stable at lo, unstable at hi (beta = 0.5, h = 0.5)
-for _ in range(60):
-    mid = 0.5 * (lo + hi)
-    lo, hi = (mid, hi) if dmp.spectral_radius(mid, 0.5, 0.5, "euler", 1) < 1 else (lo, mid)
 got = max_stable_alpha_euler(0.5, 0.5)
-assert np.isclose(got, lo), f"beta=0.5, h=0.5: expected {lo:.4f} (bisection on rho), got {got!r}"
+assert np.isclose(got, 4.571429), f"beta = 0.5, h = 0.5: expected 4.571429; got {got!r}"
+got = max_stable_alpha_euler(1.0, 0.25)
+assert np.isclose(got, 9.142857), f"beta = 1, h = 0.25: expected 9.142857; got {got!r}"
 got = max_stable_alpha_euler(3.0, 0.5)
-assert got == 0.0, f"beta=3, h=0.5 (h*beta = 1.5 >= 1): expected 0.0, got {got!r}"
-a_max = max_stable_alpha_euler(1.0, 0.25)
-rho = dmp.spectral_radius(0.99 * a_max, 1.0, 0.25, "euler", 1)
-assert rho < 1, f"beta=1, h=0.25: 0.99 x your bound {a_max!r} must be stable, rho = {rho:.4f}"
-rho = dmp.spectral_radius(1.01 * a_max, 1.0, 0.25, "euler", 1)
-assert rho > 1, f"beta=1, h=0.25: 1.01 x your bound {a_max!r} must be unstable, rho = {rho:.4f}"
+assert got == 0.0, f"beta = 3, h = 0.5: expected 0.0; got {got!r}"
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(330)  # the tests' own draws, not the notebook's rng
 for h, b in ((0.5, 2.0), (0.25, 4.0), (0.125, 8.0)):   # h*beta = 1 exactly: marginal
@@ -211,44 +215,56 @@ for b, h, expected in ((1.5, 0.5, 6.4), (1e-6, 0.5, 4.0 / (0.5 * (2.0 - 5e-7))))
     got = max_stable_alpha_euler(b, h)
     assert math.isclose(got, expected, rel_tol=1e-9), \
         f"beta={b}, h={h}: expected {expected}, got {got!r}"
+for b, h in ((0.5, 0.5), (1.0, 0.25), (1.9, 0.5)):     # the bound against the step matrix
+    a_max = max_stable_alpha_euler(b, h)
+    for a, inside in ((0.99 * a_max, True), (1.01 * a_max, False)):
+        M = np.eye(2) + h * np.array([[0.0, 1.0], [-a * b, -a]])
+        rho = np.abs(np.linalg.eigvals(M)).max()
+        assert (rho < 1) == inside, (
+            f"beta={b}, h={h}: your bound {a_max!r}; alpha = {a:.4f} should be "
+            f"{'stable' if inside else 'unstable'}, got rho = {rho:.4f}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 3.4 — the forcing-term weights from one demonstration
-# The full DMP of eq. (1) adds
-# $f(x) = \frac{\sum_i \psi_i(x) w_i}{\sum_i \psi_i(x)}\, x\,(g - y_0)$, with the phase
-# $x(t) = e^{-\alpha_x t}$ (τ = 1) and Gaussians $\psi_i(x) = e^{-h_i (x - c_i)^2}$.
-# Write `lwr_weights(demo, dt, alpha, beta, centres, widths, alpha_x)` returning
-# the weights, shape `(n_basis, D)`, for a demonstration `demo` of shape `(T + 1, D)`:
+# ## Exercise 3.4 — the forcing-term weights by global least squares
+# The tutorial (7.3) fits the forcing term by *locally* weighted regression: each
+# weight $w_i$ on its own, as if its basis function were alone. But the DMP adds the
+# **normalised** mixture $f(x) = \frac{\sum_i \psi_i(x) w_i}{\sum_i \psi_i(x)}\, x\,(g - y_0)$,
+# so the weights act together. Fit them together: write
+# `global_forcing_weights(demo, dt, alpha, beta, centres, widths, alpha_x)` returning
+# the weights, shape `(n_basis, D)`, that minimise $\sum_k (f(x_k) - f_{target,k})^2$ for
+# each dimension, with $f_{target}$ the tutorial's, $\psi_i(x) = e^{-\kappa_i (x - c_i)^2}$
+# (`widths` are the $\kappa_i$), the phase $x_k = e^{-\alpha_x k\,\Delta t}$ (τ = 1),
+# $y_0$ = `demo[0]`, $g$ = `demo[-1]`, and $\dot y, \ddot y$ by
+# `np.gradient(..., dt, axis=0, edge_order=2)` applied twice (as the library does).
+# `demo` has shape `(T + 1, D)`. The grade cell checks the fit by rolling the DMP
+# out with your weights.
 #
-# 1. $y_0$ = `demo[0]`, $g$ = `demo[-1]`, $t_k = k\,\Delta t$, $x_k = e^{-\alpha_x t_k}$;
-# 2. $\dot y, \ddot y$ by finite differences: `np.gradient(..., dt, axis=0, edge_order=2)`
-#    (applied twice);
-# 3. the target $f_{target} = \ddot y - \alpha(\beta(g - y) - \dot y)$ and $s = x\,(g - y_0)$;
-# 4. locally weighted regression, each weight and dimension on its own:
-#    $w_{id} = \frac{\sum_k \psi_i(x_k)\, s_{kd}\, f_{target,kd}}{\sum_k \psi_i(x_k)\, s_{kd}^2}$.
+# <details><summary>Hint 1 (the idea)</summary>
 #
-# `dmp.fit_forcing_weights` is switched off while this exercise is graded.
+# $f(x_k)$ is linear in the weights: for each dimension it is a matrix (one row per
+# time step, one column per basis function) times the weight vector.
+# </details>
 #
-# <details><summary>Hint (if the rollout misses the demo)</summary>
+# <details><summary>Hint 2 (the method)</summary>
 #
-# The basis is **not** normalised in step 4 (it is in $f$). If the rollout
-# below misses the demo by metres, check the sign of the phase
-# ($e^{-\alpha_x t}$, not $e^{+\alpha_x t}$) and that $s$ carries the factor x.
+# Build that matrix from the normalised basis and the factor $x\,(g - y_0)$, then
+# solve the least-squares problem (`np.linalg.lstsq`), one dimension at a time.
 # </details>
 
-# %% solution id=ex03_4 title="Forcing-term weights by locally weighted regression" forbids="minimanc.dmp.fit_forcing_weights"  # noqa: E501
-def lwr_weights(demo, dt, alpha, beta, centres, widths, alpha_x):
+# %% solution id=ex03_4 title="Forcing-term weights by global least squares"
+def global_forcing_weights(demo, dt, alpha, beta, centres, widths, alpha_x):
     ### BEGIN SOLUTION
     y = np.asarray(demo, dtype=float)
     dy = np.gradient(y, dt, axis=0, edge_order=2)
     ddy = np.gradient(dy, dt, axis=0, edge_order=2)
     g, y0 = y[-1], y[0]
     x = np.exp(-alpha_x * np.arange(len(y)) * dt)
-    psi = np.exp(-widths * (x[:, None] - centres) ** 2)  # (T + 1, n)
+    psi = np.exp(-widths * (x[:, None] - centres) ** 2)          # (T + 1, n)
+    design = psi / psi.sum(axis=1, keepdims=True) * x[:, None]   # f = design @ w * (g - y0)
     f_target = ddy - alpha * (beta * (g - y) - dy)
-    s = x[:, None] * (g - y0)
-    return (psi.T @ (s * f_target)) / (psi.T @ (s * s))
+    return np.stack([np.linalg.lstsq(design * (g - y0)[d], f_target[:, d], rcond=None)[0]
+                     for d in range(y.shape[1])], axis=1)
     ### END SOLUTION
 
 # %% grade id=ex03_4_tests points=3
@@ -256,93 +272,81 @@ t4 = np.arange(101) * 0.01
 m4 = 10 * t4**3 - 15 * t4**4 + 6 * t4**5  # minimum jerk from 0 to 1 in 1 s
 demo4 = np.stack([2 * m4, m4 + 0.8 * np.sin(np.pi * t4) ** 2], axis=-1)
 ax4 = -np.log(0.01)  # the phase falls to 0.01 at t = 1 s
-c4, h4 = dmp.basis_centres(30, ax4, 1.0)
-w4 = lwr_weights(demo4, 0.01, 25.0, 6.25, c4, h4, ax4)
-assert np.shape(w4) == (30, 2), \
-    f"30 basis functions, D = 2: expected shape (30, 2) (n_basis, D), got {np.shape(w4)}"
+centres4, widths4 = dmp.basis_centres(10, ax4, 1.0)
+w4 = global_forcing_weights(demo4, 0.01, 25.0, 6.25, centres4, widths4, ax4)
+assert np.shape(w4) == (10, 2), \
+    f"10 basis functions, D = 2: expected shape (10, 2) (n_basis, D), got {np.shape(w4)}"
 r4 = dmp.rollout(demo4[0], np.zeros(2), demo4[-1], 25.0, 6.25, 0.01, 100,
-                 forcing=dmp.Forcing(np.asarray(w4), c4, h4, ax4))
+                 forcing=dmp.Forcing(np.asarray(w4), centres4, widths4, ax4))
 err4 = np.abs(r4.y - demo4).max()
-assert err4 < 0.03, f"the fitted DMP should follow the demo within 3 cm, missed by {err4:.3f} m"
+assert err4 < 0.01, (f"the tutorial's swerving demo with 10 basis functions: expected the DMP "
+                     f"to follow it within 1 cm; missed by {err4:.3f} m")
 ### BEGIN HIDDEN TESTS
-# independent oracle: each w_id is a weighted least-squares fit, solved with lstsq
+# independent oracle: the normal equations of the same least-squares problem
 x4 = np.exp(-ax4 * t4)
 dy4 = np.gradient(demo4, 0.01, axis=0, edge_order=2)
 f4 = np.gradient(dy4, 0.01, axis=0, edge_order=2) - 25.0 * (6.25 * (demo4[-1] - demo4) - dy4)
-s4 = x4[:, None] * (demo4[-1] - demo4[0])
-for i in (0, 7, 29):
-    sw = np.sqrt(np.exp(-h4[i] * (x4 - c4[i]) ** 2))
-    for d in range(2):
-        ref = np.linalg.lstsq((sw * s4[:, d])[:, None], sw * f4[:, d], rcond=None)[0][0]
-        assert np.isclose(w4[i, d], ref, rtol=1e-8), \
-            f"minimum-jerk demo: expected w[{i}, {d}] = {ref:.6g}, got {w4[i, d]!r}"
+psi4 = np.exp(-widths4 * (x4[:, None] - centres4) ** 2)
+for d in range(2):
+    phi = psi4 / psi4.sum(axis=1, keepdims=True) * (x4 * (demo4[-1, d] - demo4[0, d]))[:, None]
+    ref = np.linalg.solve(phi.T @ phi, phi.T @ f4[:, d])
+    assert np.allclose(np.asarray(w4)[:, d], ref, rtol=1e-6, atol=1e-6 * np.abs(ref).max()), \
+        (f"swerving demo, dimension {d}: expected w = {np.round(ref[:3], 3).tolist()}..., got "
+         f"{np.round(np.asarray(w4)[:3, d], 3).tolist()}...")
 # another demo, other gains, 1-D, a different duration (dt = 0.02, 2 s)
 t5 = np.arange(101) * 0.02
 demo5 = (1 - np.cos(np.pi * t5 / 2.0))[:, None] * 1.5  # from 0 to 3, at rest at both ends
 ax5 = -np.log(0.01) / 2.0  # x(2 s) = 0.01
-c5, h5 = dmp.basis_centres(20, ax5, 2.0)
-w5 = lwr_weights(demo5, 0.02, 10.0, 2.5, c5, h5, ax5)
+centres5, widths5 = dmp.basis_centres(20, ax5, 2.0)
+w5 = global_forcing_weights(demo5, 0.02, 10.0, 2.5, centres5, widths5, ax5)
 r5 = dmp.rollout(demo5[0], np.zeros(1), demo5[-1], 10.0, 2.5, 0.02, 100,
-                 forcing=dmp.Forcing(np.asarray(w5), c5, h5, ax5))
+                 forcing=dmp.Forcing(np.asarray(w5), centres5, widths5, ax5))
 err5 = np.abs(r5.y - demo5).max()
-assert err5 < 0.07, \
-    f"a cosine reach from 0 to 3 m, dt = 0.02: expected within 7 cm, missed by {err5:.3f} m"
+assert err5 < 0.01, \
+    f"a cosine reach from 0 to 3 m, dt = 0.02: expected within 1 cm, missed by {err5:.3f} m"
 ### END HIDDEN TESTS
 
 # %% [markdown]
 # ## Exercise 3.5 — the stable range of α for semi-implicit Euler
-# The package integrates with semi-implicit Euler (velocity first, then the
-# position with the new velocity). One sub-step of `h` maps $[e, \dot e]$ by
-#
-# $$M = \begin{pmatrix} 1 - h^2\alpha\beta & h(1 - h\alpha) \\
-#                      -h\alpha\beta & 1 - h\alpha \end{pmatrix},
-# \qquad \det M = 1 - h\alpha, \quad \mathrm{tr}\, M = 2 - h\alpha - h^2\alpha\beta.$$
-#
-# Jury's conditions say both eigenvalues of a 2×2 matrix lie strictly inside
-# the unit circle iff $|\det M| < 1$, $1 - \mathrm{tr} + \det > 0$ and
-# $1 + \mathrm{tr} + \det > 0$. Work them out for α, β > 0 and write
-# `max_stable_alpha_semi_implicit(beta, h)`: the supremum of the stable α
-# (stable exactly for 0 < α < that value).
-#
-# `dmp.max_stable_alpha` is switched off while this exercise is graded.
+# The package integrates with semi-implicit Euler: velocity first, then the position
+# with the *new* velocity (tutorial section 3). One sub-step of `h` is a linear map
+# $M$ of $[e, \dot e]$; derive it. Jury's conditions say both eigenvalues of a real
+# 2×2 matrix lie strictly inside the unit circle iff $|\det M| < 1$,
+# $1 - \mathrm{tr}\,M + \det M > 0$ and $1 + \mathrm{tr}\,M + \det M > 0$. Work them out
+# for α, β > 0 and write `max_stable_alpha_semi_implicit(beta, h)`: the supremum of
+# the stable α (stable exactly for 0 < α < that value). The library's stability
+# functions are switched off while this exercise is graded.
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
-# Write each of the three conditions as an inequality in α for fixed β and h;
-# the stable range is where all three hold.
+# Write one sub-step as two lines, $\dot e' = \dots$ and $e' = e + h\,\dot e'$, and
+# substitute the first into the second: the columns of $M$ follow. Each Jury
+# condition is then an inequality in α for fixed β and h.
 # </details>
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# One of the three conditions always holds, one gives $h\alpha < 2$, and one
-# gives the answer; check that the answer is always below $2/h$, so it is the
-# one that binds.
+# The determinant and trace are short. One condition always holds, one bounds
+# $h\alpha$ alone, and one gives the answer; check which of the last two binds.
 # </details>
 
-# %% solution id=ex03_5 title="Stable range of alpha for semi-implicit Euler" forbids="minimanc.dmp.max_stable_alpha"  # noqa: E501
+# %% solution id=ex03_5 title="Stable range of alpha for semi-implicit Euler" forbids="minimanc.dmp.max_stable_alpha,minimanc.dmp.spectral_radius,minimanc.dmp.step_matrix,minimanc.dmp.step_stable"  # noqa: E501
 def max_stable_alpha_semi_implicit(beta, h):
     ### BEGIN SOLUTION
-    # 1 - tr + det = h² α β > 0 always; |det| < 1 ⟺ 0 < hα < 2;
-    # 1 + tr + det = 4 − hα (2 + hβ) > 0 ⟺ α < 4 / (h (2 + hβ)) ≤ 2/h
+    # det M = 1 - h alpha, tr M = 2 - h alpha - h^2 alpha beta
+    # 1 - tr + det = h^2 alpha beta > 0 always; |det| < 1 <=> 0 < h alpha < 2;
+    # 1 + tr + det = 4 - h alpha (2 + h beta) > 0 <=> alpha < 4 / (h (2 + h beta)) <= 2/h
     return 4.0 / (h * (2.0 + h * beta))
     ### END SOLUTION
 
 # %% grade id=ex03_5_tests points=3
-got = max_stable_alpha_semi_implicit(0.0, 0.5)
-assert np.isclose(got, 4.0), f"beta -> 0, h = 0.5: expected 4.0, got {got!r}"
-# the reference value comes from the spectral radius, by bisection on alpha
-lo, hi = 1.0, 100.0  # stable at lo, unstable at hi (beta = 5, h = 0.05)
-for _ in range(60):
-    mid = 0.5 * (lo + hi)
-    lo, hi = (mid, hi) if dmp.spectral_radius(mid, 5.0, 0.05, "semi_implicit", 1) < 1 else (lo, mid)
+got = max_stable_alpha_semi_implicit(1.0, 0.5)
+assert np.isclose(got, 3.2), f"beta = 1, h = 0.5: expected 3.2; got {got!r}"
 got = max_stable_alpha_semi_implicit(5.0, 0.05)
-assert np.isclose(got, lo), \
-    f"the package's corner beta = 5 at h = 0.05: expected {lo:.2f} (bisection on rho), got {got!r}"
-a5 = max_stable_alpha_semi_implicit(1.0, 0.25)
-rho = dmp.spectral_radius(0.99 * a5, 1.0, 0.25, "semi_implicit", 1)
-assert rho < 1, f"beta=1, h=0.25: 0.99 x your bound {a5!r} must be stable, rho = {rho:.4f}"
-rho = dmp.spectral_radius(1.01 * a5, 1.0, 0.25, "semi_implicit", 1)
-assert rho > 1, f"beta=1, h=0.25: 1.01 x your bound {a5!r} must be unstable, rho = {rho:.4f}"
+assert np.isclose(got, 35.555556), \
+    f"the package's corner beta = 5 at h = 0.05: expected 35.555556; got {got!r}"
+got = max_stable_alpha_semi_implicit(0.1, 0.25)
+assert np.isclose(got, 7.901235), f"beta = 0.1, h = 0.25: expected 7.901235; got {got!r}"
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(350)  # the tests' own draws, not the notebook's rng
 for b in test_rng.uniform(0.05, 5, size=20):
@@ -484,8 +488,8 @@ for b in test_rng.uniform(0.05, 8.0, size=12):
 #   least 4 (in 1/s²), with $\alpha_\text{lo}, \beta_\text{lo} > 0$.
 #
 # Use your own bounds of 3.3, 3.5 and 3.6 to choose (3 points; the grade cell
-# checks the box with its own step matrices). Then defend your choice in the
-# written answer below.
+# steps the corners of your box and checks the whole box). Then defend your choice
+# in the written answer below.
 
 # %% solution id=ex03_7 title="A stable gain box for one sub-step"
 def gain_box():
@@ -497,16 +501,6 @@ def gain_box():
     ### END SOLUTION
 
 # %% grade id=ex03_7_tests points=3
-def step_matrix7(a, b, h, method):
-    """The tests' own one-step matrices on the state (e, de/dt)."""
-    hA = h * np.array([[0.0, 1.0], [-a * b, -a]])
-    if method == "euler":
-        return np.eye(2) + hA
-    if method == "rk2":
-        return np.eye(2) + hA + 0.5 * hA @ hA
-    return np.array([[1.0 - h * h * a * b, h * (1.0 - h * a)], [-h * a * b, 1.0 - h * a]])
-
-
 box7 = gain_box()
 assert isinstance(box7, tuple) and len(box7) == 3, \
     f"expected (method, (alpha_lo, alpha_hi), (beta_lo, beta_hi)), got {box7!r}"
@@ -519,11 +513,35 @@ area7 = (a_hi - a_lo) * (b_hi - b_lo)
 assert area7 >= 4, f"expected an area of at least 4, got {area7:.3f}"
 assert 4 * b_lo <= a_hi and a_lo <= 4 * b_hi, (
     f"alpha {(a_lo, a_hi)}, beta {(b_lo, b_hi)}: expected a pair with alpha = 4 beta, got none")
+for a7, b7 in ((a_lo, b_lo), (a_lo, b_hi), (a_hi, b_lo), (a_hi, b_hi)):
+    e7, v7 = 1.0, 0.0
+    for _ in range(400):   # 400 steps of 0.5 s from the error 1, by the method's definition
+        if method7 == "euler":
+            e7, v7 = e7 + 0.5 * v7, v7 + 0.5 * (-a7 * b7 * e7 - a7 * v7)
+        elif method7 == "semi_implicit":
+            v7 = v7 + 0.5 * (-a7 * b7 * e7 - a7 * v7)
+            e7 = e7 + 0.5 * v7
+        else:
+            k1 = (v7, -a7 * b7 * e7 - a7 * v7)
+            k2 = (v7 + 0.5 * k1[1], -a7 * b7 * (e7 + 0.5 * k1[0]) - a7 * (v7 + 0.5 * k1[1]))
+            e7, v7 = e7 + 0.25 * (k1[0] + k2[0]), v7 + 0.25 * (k1[1] + k2[1])
+    assert abs(e7) < 1e-3, (f"{method7}, h = 0.5, the corner alpha = {a7:.3f}, beta = {b7:.3f}: "
+                            f"expected the error to die out in 400 steps; it is {abs(e7):.3g}")
+### BEGIN HIDDEN TESTS
+def step_matrix7(a, b, h, method):
+    """The tests' own one-step matrices on the state (e, de/dt)."""
+    hA = h * np.array([[0.0, 1.0], [-a * b, -a]])
+    if method == "euler":
+        return np.eye(2) + hA
+    if method == "rk2":
+        return np.eye(2) + hA + 0.5 * hA @ hA
+    return np.array([[1.0 - h * h * a * b, h * (1.0 - h * a)], [-h * a * b, 1.0 - h * a]])
+
+
 worst7 = max((np.abs(np.linalg.eigvals(step_matrix7(a, b, 0.5, method7))).max(), a, b)
              for a in np.linspace(a_lo, a_hi, 25) for b in np.linspace(b_lo, b_hi, 25))
 assert worst7[0] < 1, (f"{method7}, h = 0.5: expected every pair stable, got a spectral radius "
                        f"{worst7[0]:.4f} at alpha = {worst7[1]:.3f}, beta = {worst7[2]:.3f}")
-### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(370)  # the tests' own draws, not the notebook's rng
 for a, b in zip(test_rng.uniform(a_lo, a_hi, 400), test_rng.uniform(b_lo, b_hi, 400)):
     rho7 = np.abs(np.linalg.eigvals(step_matrix7(a, b, 0.5, method7))).max()

@@ -1,5 +1,5 @@
 # %% [markdown]
-# # Chapter 4 — Graded exercises: quaternion algebra, orientation error, integration, a turning goal
+# # Chapter 4 — Graded exercises: quaternion matrices, logged orientations, body rates
 #
 # Module built in this chapter: **`minimanc.quaternion`**. Read the tutorial
 # `tutorials/04_quaternions.ipynb` first. Replace each
@@ -11,7 +11,7 @@
 # `q[..., 1:]` and `np.stack(..., axis=-1)`).
 
 # %%
-import warnings
+import math
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -30,216 +30,326 @@ def random_unit(n, gen=None):
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 # %% [markdown]
-# ## Exercise 4.1 — the quaternion product (eq. 3)
-# $(v_1 + \mathbf u_1) * (v_2 + \mathbf u_2) = (v_1 v_2 - \mathbf u_1\cdot\mathbf u_2)
-# + (v_1\mathbf u_2 + v_2\mathbf u_1 + \mathbf u_1\times\mathbf u_2)$.
+# ## Exercise 4.1 — the product as a matrix
+# The product of eq. (3) is linear in each factor: for a fixed $p$, $q \mapsto p * q$
+# is a 4×4 matrix $L(p)$, and for a fixed $q$, $p \mapsto p * q$ is another, $R(q)$:
+#
+# $$p * q = L(p)\, q = R(q)\, p .$$
+#
+# Derive both from eq. 3 and write `left_matrix(p)` and `right_matrix(q)`: arrays
+# `(..., 4, 4)` for quaternions `(..., 4)` in the order (w, x, y, z). `Q.multiply` is
+# switched off while this exercise is graded.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Column $j$ of $L(p)$ is $p * e_j$ for the basis quaternions $1, i, j, k$; the same
+# for $R(q)$ with $e_j * q$.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Expand eq. 3 into its four components and read off the coefficient of each
+# component of $q$ (or of $p$). The two matrices differ only where the cross product
+# enters: its sign flips.
+# </details>
 
-# %% solution id=ex04_1 title="Quaternion product" forbids="minimanc.quaternion.multiply"
-def multiply(p, q):
+# %% solution id=ex04_1 title="The product as a matrix" forbids="minimanc.quaternion.multiply"
+def left_matrix(p):
     ### BEGIN SOLUTION
-    p, q = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
-    v1, u1 = p[..., :1], p[..., 1:]
-    v2, u2 = q[..., :1], q[..., 1:]
-    w = v1 * v2 - np.sum(u1 * u2, axis=-1, keepdims=True)
-    u = v1 * u2 + v2 * u1 + np.cross(u1, u2)
-    return np.concatenate([w, u], axis=-1)
+    w, x, y, z = np.moveaxis(np.asarray(p, dtype=float), -1, 0)
+    return np.stack([np.stack([w, -x, -y, -z], -1), np.stack([x, w, -z, y], -1),
+                     np.stack([y, z, w, -x], -1), np.stack([z, -y, x, w], -1)], -2)
+    ### END SOLUTION
+
+
+def right_matrix(q):
+    ### BEGIN SOLUTION
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
+    return np.stack([np.stack([w, -x, -y, -z], -1), np.stack([x, w, z, -y], -1),
+                     np.stack([y, -z, w, x], -1), np.stack([z, y, -x, w], -1)], -2)
     ### END SOLUTION
 
 # %% grade id=ex04_1_tests points=2
 i, j, k = np.eye(4)[1:]
-assert np.allclose(multiply(i, j), k) and np.allclose(multiply(j, i), -k), (
-    f"expected i*j = k = [0, 0, 0, 1] and j*i = -k; got {multiply(i, j)} and {multiply(j, i)}")
-assert np.allclose(multiply(i, i), -ID), f"expected i*i = -1 = [-1, 0, 0, 0]; got {multiply(i, i)}"
-got = multiply(ID, [0.5, 0.5, 0.5, 0.5])
-assert np.allclose(got, [0.5, 0.5, 0.5, 0.5]), (
-    f"the identity (1, 0, 0, 0) times q = (0.5, 0.5, 0.5, 0.5): expected q; got {got}")
+got = np.asarray(left_matrix(i)) @ j
+assert np.allclose(got, k), f"L(i) j = i * j: expected k = [0, 0, 0, 1]; got {got}"
+got = np.asarray(right_matrix(i)) @ j
+assert np.allclose(got, -k), f"R(i) j = j * i: expected -k = [0, 0, 0, -1]; got {got}"
+got = np.asarray(left_matrix(ID))
+assert np.allclose(got, np.eye(4)), f"L(1): expected the 4 x 4 identity; got {got.tolist()}"
+got = np.asarray(right_matrix([0.5, 0.5, 0.5, 0.5])) @ ID
+assert np.allclose(got, [0.5, 0.5, 0.5, 0.5]), \
+    f"R(q) 1 = 1 * q for q = (0.5, 0.5, 0.5, 0.5): expected q; got {got}"
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(410)  # the tests' own draws, not the notebook's rng
 p, q = random_unit(50, test_rng), random_unit(50, test_rng)
-w, x, y, z = np.moveaxis(p, -1, 0)
-left = np.stack([np.stack([w, -x, -y, -z], -1), np.stack([x, w, -z, y], -1),
-                 np.stack([y, z, w, -x], -1), np.stack([z, -y, x, w], -1)], -2)
-got, expected = np.asarray(multiply(p, q)), np.einsum("nij,nj->ni", left, q)
-bad = int(np.argmax(np.abs(got - expected).max(axis=-1))) if got.shape == expected.shape else 0
-assert got.shape == expected.shape and np.allclose(got, expected), (
-    f"a batch of 50 random unit p, q: expected p * q = L(p) q, e.g. sample {bad}: "
-    f"{np.round(expected[bad], 4)}; got {np.round(got[bad], 4) if got.ndim == 2 else got.shape}")
-shape = np.shape(multiply(p[:, None], q[None, :5]))
-assert shape == (50, 5, 4), f"(50, 1, 4) times (1, 5, 4): expected shape (50, 5, 4); got {shape}"
-norms = np.linalg.norm(multiply(p, q), axis=-1)
-assert np.allclose(norms, 1.0), (
-    f"unit p, q: expected |p * q| = 1; got norms from {norms.min():.4f} to {norms.max():.4f}")
+pw, pu, qw, qu = p[:, :1], p[:, 1:], q[:, :1], q[:, 1:]   # eq. 3, written out
+want = np.concatenate([pw * qw - np.sum(pu * qu, -1, keepdims=True),
+                       pw * qu + qw * pu + np.cross(pu, qu)], -1)
+for name, got in (("L(p) q", np.einsum("nij,nj->ni", np.asarray(left_matrix(p)), q)),
+                  ("R(q) p", np.einsum("nij,nj->ni", np.asarray(right_matrix(q)), p))):
+    assert np.allclose(got, want), (
+        f"a batch of 50 random unit p, q: expected {name} = p * q, e.g. sample 0: "
+        f"{np.round(want[0], 4)}; got {np.round(got[0], 4)}")
+shape = np.shape(left_matrix(p.reshape(5, 10, 4)))
+assert shape == (5, 10, 4, 4), f"a (5, 10, 4) batch: expected shape (5, 10, 4, 4); got {shape}"
+L = np.asarray(left_matrix(p))
+assert np.allclose(np.einsum("nji,njk->nik", L, L), np.eye(4)), \
+    "unit p: expected L(p) orthogonal (|p * q| = |q|)"
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 4.2 — the logarithmic map (eq. 4)
-# $\log q = \theta\,\mathbf u / \lVert\mathbf u\rVert$ with the angle
-# θ = `arctan2(‖u‖, w)` (the accurate form of `arccos(w)` for unit q), and
-# $\log q = \mathbf 0$ when $\mathbf u = \mathbf 0$ (the identity). Return an
-# array `(..., 3)`. No sign flip: θ lies in [0, π]. Inputs are unit
-# quaternions other than −1. Avoid dividing by zero (no warnings!).
+# ## Exercise 4.2 — the rotation matrix of a quaternion
+# A unit quaternion rotates a vector $v$ by the sandwich $q\,(0, v)\,\bar q$
+# (tutorial section 1), and `Q.to_matrix` turns $q$ into the 3×3 rotation matrix that
+# does the same. Derive that matrix and write `to_matrix(q)`: `(..., 3, 3)` for unit
+# quaternions `(..., 4)`. `Q.to_matrix` and `Q.rotate` are switched off while this
+# exercise is graded.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# The sandwich is two products: with the matrices of 4.1 it is one 4×4 matrix acting
+# on $(0, v)$. What does it do to the first component, and which block is the 3×3
+# rotation?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# $q\,(0, v)\,\bar q = L(q)\,R(\bar q)\,(0, v)$; take the lower-right 3×3 block. Or
+# expand the product by hand and simplify with $w^2 + x^2 + y^2 + z^2 = 1$.
+# </details>
 
-# %% solution id=ex04_2 title="Quaternion log" forbids="minimanc.quaternion.log"
-def quat_log(q):
+# %% solution id=ex04_2 title="The rotation matrix of a quaternion" forbids="minimanc.quaternion.to_matrix,minimanc.quaternion.rotate"  # noqa: E501
+def to_matrix(q):
     ### BEGIN SOLUTION
     q = np.asarray(q, dtype=float)
-    u = q[..., 1:]
-    nu = np.linalg.norm(u, axis=-1, keepdims=True)
-    theta = np.arctan2(nu, q[..., :1])
-    safe = np.where(nu > 0, nu, 1.0)
-    return np.where(nu > 0, theta * u / safe, 0.0)
+    conj = q * np.array([1.0, -1.0, -1.0, -1.0])
+    return (left_matrix(q) @ right_matrix(conj))[..., 1:, 1:]
     ### END SOLUTION
 
 # %% grade id=ex04_2_tests points=3
-half = np.array([np.cos(0.3), 0.0, 0.0, np.sin(0.3)])   # rotation by 0.6 rad about z
-assert np.allclose(quat_log(half), [0.0, 0.0, 0.3]), (
-    f"log of (cos 0.3, 0, 0, sin 0.3) is the half-angle vector [0, 0, 0.3]; got {quat_log(half)}")
-assert np.allclose(quat_log(ID), 0.0), f"log of the identity is [0, 0, 0]; got {quat_log(ID)}"
+got = np.asarray(to_matrix(Q.from_axis_angle(np.array([0.0, 0.0, 1.0]), np.pi / 2)))
+assert np.allclose(got, [[0, -1, 0], [1, 0, 0], [0, 0, 1]]), \
+    f"90 deg about z: expected [[0, -1, 0], [1, 0, 0], [0, 0, 1]]; got {np.round(got, 4).tolist()}"
+got = np.asarray(to_matrix([0.5, 0.5, 0.5, 0.5]))
+assert np.allclose(got @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]), (
+    f"q = (0.5, 0.5, 0.5, 0.5), 120 deg about (1, 1, 1): expected it to take x to y; got "
+    f"{np.round(got @ [1.0, 0.0, 0.0], 4)}")
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(420)  # the tests' own draws, not the notebook's rng
-with warnings.catch_warnings():
-    warnings.simplefilter("error")
-    got = quat_log(ID)
-    assert np.allclose(got, 0.0), f"the identity, warnings as errors: expected [0, 0, 0]; got {got}"
-    qs = random_unit(100, test_rng)
-    back = Q.exp(quat_log(qs))
-    bad = int(np.argmax(np.abs(back - qs).max(axis=-1)))
-    assert np.allclose(back, qs), (
-        f"100 random unit q: expected exp(log q) = q, e.g. q = {np.round(qs[bad], 4)}; "
-        f"got exp(log q) = {np.round(back[bad], 4)}")
-    longest = np.linalg.norm(quat_log(qs), axis=-1).max()
-    assert longest <= np.pi + 1e-12, (
-        f"principal branch: expected |log q| = atan2(|u|, w) in [0, pi]; got {longest:.4f}")
-    shape = np.shape(quat_log(qs.reshape(10, 10, 4)))
-    assert shape == (10, 10, 3), f"a (10, 10, 4) batch: expected shape (10, 10, 3); got {shape}"
-    tiny = np.array([np.cos(1e-9), np.sin(1e-9), 0.0, 0.0])
-    got = quat_log(tiny)[0]
-    assert np.isclose(got, 1e-9, rtol=1e-9), (
-        f"a 2e-9 rad rotation about x: expected log = 1e-9 (use atan2(|u|, w); arccos(w) "
-        f"gives 0); got {got!r}")
+qs, vs = random_unit(100, test_rng), test_rng.normal(size=(100, 3))
+R = np.asarray(to_matrix(qs))
+assert R.shape == (100, 3, 3), f"a batch of 100: expected shape (100, 3, 3); got {R.shape}"
+sandwich = Q.multiply(Q.multiply(qs, np.concatenate([np.zeros((100, 1)), vs], -1)),
+                      qs * np.array([1.0, -1.0, -1.0, -1.0]))[:, 1:]
+got = np.einsum("nij,nj->ni", R, vs)
+bad = int(np.argmax(np.abs(got - sandwich).max(axis=-1)))
+assert np.allclose(got, sandwich), (
+    f"100 random q, v: expected R(q) v = q (0, v) q*, e.g. {np.round(sandwich[bad], 4)}; "
+    f"got {np.round(got[bad], 4)}")
+assert np.allclose(np.asarray(to_matrix(-qs)), R), "q and -q are one rotation: expected one matrix"
+assert np.allclose(np.linalg.det(R), 1.0), "expected rotations: determinant 1"
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 4.3 — the exponential map (eq. 6)
-# $\exp\boldsymbol\omega = \cos\lVert\boldsymbol\omega\rVert + \sin\lVert\boldsymbol\omega\rVert\,
-# \boldsymbol\omega/\lVert\boldsymbol\omega\rVert$, and $1 + \mathbf 0$ at ω = 0.
-# `omega` has shape `(..., 3)`; return `(..., 4)`.
+# ## Exercise 4.3 — the quaternion of a rotation matrix
+# Logged data often stores orientations as rotation matrices. Go back: write
+# `from_matrix(R)` returning the unit quaternion `(..., 4)` with $w \ge 0$ whose
+# rotation matrix is `R` `(..., 3, 3)`. It must be accurate for **every** rotation,
+# including rotations by π (a U-turn), where $w = 0$.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# From your 4.2: the trace of the matrix gives $w^2$; the diagonal entries give
+# $x^2, y^2, z^2$; sums and differences of opposite off-diagonal entries give the
+# products $wx, xy, \dots$.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Dividing by a component close to 0 loses everything. Take the square root of the
+# **largest** of $w^2, x^2, y^2, z^2$, and get the other three from the products with
+# it; then fix the overall sign so that $w \ge 0$.
+# </details>
 
-# %% solution id=ex04_3 title="Quaternion exp" forbids="minimanc.quaternion.exp"
-def quat_exp(omega):
+# %% solution id=ex04_3 title="The quaternion of a rotation matrix"
+def from_matrix(R):
     ### BEGIN SOLUTION
-    omega = np.asarray(omega, dtype=float)
-    n = np.linalg.norm(omega, axis=-1, keepdims=True)
-    safe = np.where(n > 0, n, 1.0)
-    sinc = np.where(n > 0, np.sin(n) / safe, 1.0)
-    return np.concatenate([np.cos(n), sinc * omega], axis=-1)
+    R = np.asarray(R, dtype=float)
+    t = np.trace(R, axis1=-2, axis2=-1)
+    d0, d1, d2 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
+    squares = np.stack([1 + t, 1 + d0 - d1 - d2, 1 - d0 + d1 - d2, 1 - d0 - d1 + d2], -1) / 4
+    wx, wy, wz = ((R[..., 2, 1] - R[..., 1, 2]) / 4, (R[..., 0, 2] - R[..., 2, 0]) / 4,
+                  (R[..., 1, 0] - R[..., 0, 1]) / 4)
+    xy, xz, yz = ((R[..., 0, 1] + R[..., 1, 0]) / 4, (R[..., 0, 2] + R[..., 2, 0]) / 4,
+                  (R[..., 1, 2] + R[..., 2, 1]) / 4)
+    products = np.stack([np.stack([squares[..., 0], wx, wy, wz], -1),   # row a: q_a * q
+                         np.stack([wx, squares[..., 1], xy, xz], -1),
+                         np.stack([wy, xy, squares[..., 2], yz], -1),
+                         np.stack([wz, xz, yz, squares[..., 3]], -1)], -2)
+    big = np.argmax(squares, axis=-1)
+    row = np.take_along_axis(products, big[..., None, None], axis=-2)[..., 0, :]
+    q = row / np.sqrt(np.take_along_axis(squares, big[..., None], axis=-1))
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0, -q, q)
     ### END SOLUTION
 
 # %% grade id=ex04_3_tests points=3
-assert np.allclose(quat_exp(np.zeros(3)), ID), f"exp(0) = (1, 0, 0, 0); got {quat_exp(np.zeros(3))}"  # noqa: E501
-got = quat_exp([0.0, 0.0, 0.3])
-assert np.allclose(got, [np.cos(0.3), 0.0, 0.0, np.sin(0.3)]), (
-    f"omega = [0, 0, 0.3]: expected (cos 0.3, 0, 0, sin 0.3) = (0.9553, 0, 0, 0.2955); got {got}")
-got = quat_exp([np.pi / 2, 0.0, 0.0])
-assert np.allclose(got, [0.0, 1.0, 0.0, 0.0]), (
-    f"omega = [pi/2, 0, 0]: expected i = (0, 1, 0, 0); got {got}")
+got = np.asarray(from_matrix(np.eye(3)))
+assert np.allclose(got, ID), f"the identity matrix: expected (1, 0, 0, 0); got {got}"
+got = np.asarray(from_matrix(np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])))
+assert np.allclose(got, [np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)]), \
+    f"90 deg about z: expected (0.7071, 0, 0, 0.7071); got {np.round(got, 4)}"
+got = np.asarray(from_matrix(np.diag([1.0, -1.0, -1.0])))
+assert np.allclose(np.abs(got), [0.0, 1.0, 0.0, 0.0]), \
+    f"180 deg about x, diag(1, -1, -1): expected (0, ±1, 0, 0); got {np.round(got, 4)}"
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(430)  # the tests' own draws, not the notebook's rng
-with warnings.catch_warnings():
-    warnings.simplefilter("error")
-    w = test_rng.normal(size=(100, 3))
-    n = np.linalg.norm(w, axis=-1, keepdims=True)
-    got, expected = np.asarray(quat_exp(w)), np.concatenate([np.cos(n), np.sin(n) * w / n], -1)
-    bad = int(np.argmax(np.abs(got - expected).max(axis=-1))) if got.shape == expected.shape else 0
-    assert got.shape == expected.shape and np.allclose(got, expected), (
-        f"100 random omega, e.g. {np.round(w[bad], 4)}: expected (cos|w|, sin|w| w/|w|) = "
-        f"{np.round(expected[bad], 4)}; "
-        f"got {np.round(got[bad], 4) if got.ndim == 2 else got.shape}")
-    w = w / np.linalg.norm(w, axis=-1, keepdims=True) * test_rng.uniform(0, 3.1, size=(100, 1))
-    back = Q.log(quat_exp(w))
-    bad = int(np.argmax(np.abs(back - w).max(axis=-1)))
-    assert np.allclose(back, w), (
-        f"|omega| < pi: expected log(exp w) = w, e.g. w = {np.round(w[bad], 4)}; "
-        f"got {np.round(back[bad], 4)}")
-    shape = np.shape(quat_exp(np.zeros((2, 5, 3))))
-    assert shape == (2, 5, 4), (
-        f"a (2, 5, 3) batch of zeros, warnings as errors: expected shape (2, 5, 4); got {shape}")
+axes = test_rng.normal(size=(60, 3))
+axes /= np.linalg.norm(axes, axis=-1, keepdims=True)
+angles = np.concatenate([test_rng.uniform(0, np.pi, 40), np.full(10, np.pi),
+                         np.pi - 10.0 ** -test_rng.uniform(3, 9, 10)])
+qs = Q.from_axis_angle(axes, angles)
+qs = np.where(qs[:, :1] < 0, -qs, qs)
+R = Q.to_matrix(qs)
+got = np.asarray(from_matrix(R))
+assert got.shape == (60, 4), f"a batch of 60: expected shape (60, 4); got {got.shape}"
+back = Q.to_matrix(got / np.linalg.norm(got, axis=-1, keepdims=True))
+worst = int(np.argmax(np.abs(back - R).max(axis=(1, 2))))
+assert np.allclose(back, R, atol=1e-9), (
+    f"rotation by {angles[worst]:.9f} rad about {np.round(axes[worst], 3)}: expected a "
+    f"quaternion with this matrix; yours gives a matrix off by "
+    f"{np.abs(back - R).max(axis=(1, 2))[worst]:.2e}")
+assert np.allclose(np.linalg.norm(got, axis=-1), 1.0, atol=1e-12), "expected unit quaternions"
+assert np.all(got[:, 0] >= 0), "expected w >= 0"
+assert np.allclose(got[:40], qs[:40], atol=1e-9), "angles below pi: expected the w >= 0 quaternion"
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 4.4 — the orientation error, the short way round
-# The DMP's error term is $2\log(g * \bar q)$ (eq. 2): the rotation vector
-# that turns q into g. But $g * \bar q$ and its negative are the same rotation,
-# and their logs differ (θ versus π − θ). Pick the representative with
-# $w \ge 0$ before taking the log, so that the error angle is at most π and
-# the DMP turns the short way. You may use the library's `Q.multiply`,
-# `Q.conjugate` and `Q.log` (or your own functions above). Shapes `(..., 4)`
-# in, `(..., 3)` out.
+# ## Exercise 4.4 — angular velocities from logged orientations
+# Eq. 5 turns an angular velocity into the next orientation,
+# $q_{k+1} = \exp(\tfrac{\Delta t}{2}\,\eta_k) * q_k$ (world frame, τ = 1). A data set goes
+# the other way: it logs orientations every $\Delta t$, and the controls (a yaw rate)
+# must be recovered from them. Write `angular_velocities(qs, dt)`: for `qs` of shape
+# `(K + 1, 4)` return the `(K, 3)` constant world-frame angular velocities that take
+# each $q_k$ to $q_{k+1}$ in `dt`, **the short way round** (a turn of at most π per
+# step). The log may store any sample as $q$ or $-q$. `Q.orientation_error` is
+# switched off while this exercise is graded.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Solve eq. 5 for $\eta_k$: which quaternion is $\exp(\tfrac{\Delta t}{2}\eta_k)$? Then
+# remember that $r$ and $-r$ are the same rotation with different logarithms.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Multiply eq. 5 on the right by the inverse of $q_k$ to isolate the exponential,
+# then undo the exponential with `Q.log` — after choosing which of the two signs
+# of the quaternion turns the short way (tutorial section 3).
+# </details>
 
-# %% solution id=ex04_4 title="Orientation error with the sign choice" forbids="minimanc.quaternion.orientation_error"  # noqa: E501
-def orientation_error(g, q):
+# %% solution id=ex04_4 title="Angular velocities from logged orientations" forbids="minimanc.quaternion.orientation_error"  # noqa: E501
+def angular_velocities(qs, dt):
     ### BEGIN SOLUTION
-    r = Q.multiply(g, Q.conjugate(q))
+    qs = np.asarray(qs, dtype=float)
+    r = Q.multiply(qs[1:], Q.conjugate(qs[:-1]))
     r = np.where(r[..., :1] < 0, -r, r)
-    return 2.0 * Q.log(r)
+    return 2.0 * Q.log(r) / dt
     ### END SOLUTION
 
 # %% grade id=ex04_4_tests points=4
-e = orientation_error(Q.from_yaw(np.deg2rad(-170.0)), Q.from_yaw(np.deg2rad(170.0)))
-assert np.allclose(np.rad2deg(e), [0.0, 0.0, 20.0]), (
-    f"from 170 deg to -170 deg is +20 deg about z, not -340; got {np.rad2deg(e)} deg")
-got = orientation_error(ID, ID)
-assert np.allclose(got, 0.0), f"g = q = identity: expected [0, 0, 0]; got {got}"
+got = np.asarray(angular_velocities(Q.from_yaw(np.deg2rad([170.0, -170.0])), 0.5))
+assert np.shape(got) == (1, 3), f"two orientations: expected shape (1, 3); got {np.shape(got)}"
+assert np.allclose(got, [[0.0, 0.0, 0.698132]]), (
+    f"yaw 170 deg, then -170 deg, 0.5 s apart: expected the short turn, +20 deg in 0.5 s = "
+    f"(0, 0, 0.698132) rad/s; got {np.round(got, 6).tolist()}")
+got = np.asarray(angular_velocities(np.stack([ID, -Q.from_yaw(0.1)]), 0.1))
+assert np.allclose(got, [[0.0, 0.0, 1.0]]), (
+    f"yaw 0, then yaw 0.1 logged as -q, 0.1 s apart: expected (0, 0, 1) rad/s; got "
+    f"{np.round(got, 6).tolist()}")
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(440)  # the tests' own draws, not the notebook's rng
-g, q = random_unit(100, test_rng), random_unit(100, test_rng)
-e = np.asarray(orientation_error(g, q))
-r = Q.multiply(g, Q.conjugate(q))
-short = np.where(r[..., :1] < 0, -r, r)
-got = Q.exp(e / 2)
-bad = int(np.argmax(np.abs(got - short).max(axis=-1)))
-assert np.allclose(got, short), (
-    f"100 random g, q: expected exp(e / 2) = the w >= 0 representative of g q*, e.g. "
-    f"{np.round(short[bad], 4)}; got {np.round(got[bad], 4)}")
-longest = np.linalg.norm(e, axis=-1).max()
-assert longest <= np.pi + 1e-12, f"expected the error angle |e| <= pi; got {longest:.4f}"
-for name, other in (("-g", orientation_error(-g, q)), ("-q", orientation_error(g, -q))):
-    diff = np.abs(np.asarray(other) - e).max()
-    assert np.allclose(other, e), (
-        f"{name} is the same rotation: expected the same error; largest change {diff:.3g}")
-got = orientation_error(-ID, ID)
-assert np.allclose(got, 0.0), f"g = -1 (the identity rotation), q = 1: expected 0; got {got}"
+etas = test_rng.normal(size=(50, 3))
+etas *= (test_rng.uniform(0.0, 0.95 * np.pi, (50, 1)) / 0.5) / np.linalg.norm(etas, axis=-1,
+                                                                             keepdims=True)
+path = [random_unit(1, test_rng)[0]]
+for eta in etas:
+    path.append(Q.multiply(Q.exp(0.25 * eta), path[-1]))   # eq. 5 with dt = 0.5, written out
+logged = np.where(test_rng.random((51, 1)) < 0.5, -1.0, 1.0) * np.array(path)
+got = np.asarray(angular_velocities(logged, 0.5))
+assert got.shape == (50, 3), f"51 orientations: expected shape (50, 3); got {got.shape}"
+bad = int(np.argmax(np.abs(got - etas).max(axis=-1)))
+assert np.allclose(got, etas, atol=1e-9), (
+    f"a random 3-D path with random sign jumps, turns up to 171 deg per step: at step {bad} "
+    f"expected {np.round(etas[bad], 4)}; got {np.round(got[bad], 4)}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 4.5 — the sign guard between logged steps
-# A logged orientation sequence may jump from $q$ to $-q$ between two steps
-# (both are the same rotation; a simulator or a conversion routine picks either
-# sign). Differences and interpolation between consecutive samples then see
-# a huge jump. The authors' environment repairs the log step by step: **flip
-# $q_t$ to $-q_t$ whenever $\lVert q_t - q_{t-1}\rVert > 1.8$**, where $q_{t-1}$
-# is the previous quaternion *after* its own repair. Write
-# `sign_continuous(qs, threshold=1.8)` for `qs` of shape `(T, 4)`: keep `qs[0]`,
-# apply the rule to every later step in order, return a new array (do not
-# modify `qs`).
+# ## Exercise 4.5 — the sign guard between logged steps: its limit, and a better one
+# The authors' environment repairs a logged sequence step by step: it flips $q_t$ to
+# $-q_t$ whenever $\lVert q_t - q_{t-1}\rVert > 1.8$, against the previous quaternion
+# *after* its own repair. Such a norm rule with a threshold $c$ works only while the
+# true step between two samples rotates by less than some angle: beyond it, either a
+# sign jump slips through or a genuine step gets flipped.
 #
-# Why 1.8? For unit quaternions $\lVert q - p\rVert^2 = 2 - 2\,q\cdot p$, and
-# $q\cdot p = \pm\cos(\varphi/2)$ for the rotation $\varphi \in [0, \pi]$ that
-# takes one to the other. A genuine step has $q\cdot p \ge 0$ and is never
-# flipped; a sign jump is caught when $\cos(\varphi/2) > 0.62$, i.e. for steps
-# that rotate by less than about 103° — always the case at a car's data rate.
+# 1. `guard_limit(c)`: the largest rotation angle $\varphi \in [0, \pi]$ (radians) per
+#    step up to which the rule with threshold $c$ (with $0 < c < 2$) repairs every sign
+#    jump and never flips a genuine step. (1 point)
+# 2. `sign_continuous(qs)`: a repair of your design for `qs` of shape `(T, 4)` that
+#    keeps `qs[0]` and makes the sequence sign-continuous for **every** step below
+#    π; return a new array (do not modify `qs`). (1 point)
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# For unit quaternions $\lVert q - p\rVert^2 = 2 - 2\,q\cdot p$, and $q \cdot p =
+# \cos(\varphi/2)$ for a genuine step by $\varphi$. What is the distance after a sign jump?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Write one inequality for "the jump is caught" and one for "the genuine step is
+# kept"; the limit is where the first of them fails. Which threshold makes both hold
+# up to π, and what does it test in terms of $q \cdot p$?
+# </details>
 
-# %% solution id=ex04_5 title="Sign continuity of a logged sequence"
-def sign_continuous(qs, threshold=1.8):
+# %% solution id=ex04_5 title="The sign guard's limit and a better guard"
+def guard_limit(c):
+    ### BEGIN SOLUTION
+    caught = 2.0 * math.acos(max(-1.0, min(1.0, c * c / 2.0 - 1.0)))   # 2 + 2 cos(phi/2) > c^2
+    kept = 2.0 * math.acos(max(-1.0, min(1.0, 1.0 - c * c / 2.0)))     # 2 - 2 cos(phi/2) <= c^2
+    return min(caught, kept, math.pi)
+    ### END SOLUTION
+
+
+def sign_continuous(qs):
     ### BEGIN SOLUTION
     qs = np.asarray(qs, dtype=float)
     out = [qs[0]]
     for q in qs[1:]:
-        out.append(-q if np.linalg.norm(q - out[-1]) > threshold else q)
+        out.append(-q if np.dot(q, out[-1]) < 0 else q)
     return np.array(out)
     ### END SOLUTION
 
-# %% grade id=ex04_5_tests points=2
+# %% grade id=ex04_5_limit_tests points=1
+got = guard_limit(1.8)
+assert np.isclose(got, 1.804107), \
+    f"the authors' threshold 1.8: expected 1.804107 rad (103.37 deg); got {got!r}"
+got = guard_limit(1.0)
+assert np.isclose(got, 2.094395), f"threshold 1: expected 2.094395 rad (120 deg); got {got!r}"
+### BEGIN HIDDEN TESTS
+for c in (0.5, 1.2, math.sqrt(2), 1.6, 1.95):
+    phis = np.linspace(0.0, np.pi, 20001)[1:]
+    p, step = ID, Q.from_axis_angle(np.array([0.3, -0.5, 0.8]), phis)   # genuine steps by phi
+    jump_caught = np.linalg.norm(-step - p, axis=-1) > c
+    genuine_kept = np.linalg.norm(step - p, axis=-1) <= c
+    ok = jump_caught & genuine_kept
+    want = phis[np.argmin(ok)] if not ok.all() else np.pi
+    got = guard_limit(c)
+    assert abs(got - want) < 2e-4, f"threshold {c:.4f}: expected {want:.4f} rad; got {got!r}"
+### END HIDDEN TESTS
+
+# %% grade id=ex04_5_tests points=1
 psi = np.linspace(0.0, 4 * np.pi, 41)          # two full turns, 18 deg per step
 smooth = Q.from_yaw(psi)                       # continuous: (cos psi/2, 0, 0, sin psi/2)
 signs = np.where(np.random.default_rng(45).random(41) < 0.5, -1.0, 1.0)
@@ -248,89 +358,87 @@ logged = signs[:, None] * smooth
 fixed = sign_continuous(logged)
 assert np.shape(fixed) == (41, 4), f"expected shape (41, 4); got {np.shape(fixed)}"
 wrong = np.flatnonzero(~np.isclose(np.asarray(fixed), smooth).all(axis=-1))
-assert np.allclose(fixed, smooth), (
-    f"two yaw turns with random sign jumps: expected the continuous sequence (flip q_t when "
-    f"|q_t - q_(t-1)| > 1.8, against the repaired q_(t-1)); steps {wrong[:5].tolist()} differ, "
-    f"e.g. step {wrong[0]}: expected {np.round(smooth[wrong[0]], 3)}, got "
-    f"{np.round(np.asarray(fixed)[wrong[0]], 3)}" if len(wrong) else "")
+assert len(wrong) == 0, (
+    f"two yaw turns, 18 deg per step, random sign jumps: expected the continuous sequence; "
+    f"steps {wrong[:5].tolist()} differ")
 assert np.allclose(logged, signs[:, None] * smooth), (
     "expected sign_continuous to leave its input unchanged; got the input modified in place")
 ### BEGIN HIDDEN TESTS
 rng_s = np.random.default_rng(451)
 path = [random_unit(1, rng_s)[0]]
-for _ in range(60):                            # a smooth 3-D path, steps of tens of degrees
-    path.append(Q.integrate(path[-1], rng_s.normal(size=3) * 0.35, 1.0))
+for _ in range(60):                            # a 3-D path with steps up to 170 deg
+    axis = rng_s.normal(size=3)
+    path.append(Q.multiply(Q.from_axis_angle(axis / np.linalg.norm(axis),
+                                             rng_s.uniform(0.5, 2.97)), path[-1]))
 path = np.array(path)
 s = np.where(rng_s.random(61) < 0.5, -1.0, 1.0)
 out = np.asarray(sign_continuous(s[:, None] * path))
 same = np.isclose(out, s[0] * path).all(axis=-1) if out.shape == path.shape else [False]
 wrong = np.flatnonzero(~np.asarray(same))
 assert len(wrong) == 0, (
-    f"a random 3-D path with random sign jumps: expected the continuous path with the sign "
-    f"of its first sample; {len(wrong)} of 61 samples differ, first at step {wrong[0]}")
-q_a, q_b = ID, Q.from_yaw(np.deg2rad(126.0))   # a 126-deg step with a sign jump
-kept = np.asarray(sign_continuous(np.stack([q_a, -q_b])))
-assert np.allclose(kept[1], -q_b), (
-    f"a 126-deg step with a sign jump, |q_t - q_(t-1)| = 1.70 < 1.8: expected it kept "
-    f"({np.round(-q_b, 3)}; the rule only catches jumps across steps below about 103 deg); "
-    f"got {np.round(kept[1], 3)}")
-flipped = np.asarray(sign_continuous(np.stack([q_a, -q_b]), threshold=np.sqrt(2)))[1]
-assert np.allclose(flipped, q_b), (
-    f"the same step with threshold = sqrt(2) (flip whenever q_t . q_(t-1) < 0): expected "
-    f"{np.round(q_b, 3)}; got {np.round(flipped, 3)}")
+    f"a random 3-D path with steps of 30 to 170 deg and random sign jumps: expected the "
+    f"continuous path with the sign of its first sample; {len(wrong)} of 61 samples differ, "
+    f"first at step {wrong[0] if len(wrong) else -1}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 4.6 — integrating an angular velocity (eq. 5)
-# Eq. 5 advances an orientation by the rotation an angular velocity η (rad/s,
-# world frame) makes in δt: $q_{k+1} = \exp(\tfrac{\delta t}{2}\,\eta_k) * q_k$
-# (the paper's $\eta/\tau$ with τ = 1), renormalised so that rounding cannot
-# carry q off the sphere. Write `integrate_sequence(q0, etas, dt)` for `q0` of
-# shape `(4,)` and `etas` of shape `(K, 3)`: return all orientations
-# $q_0, \dots, q_K$, shape `(K + 1, 4)`. Left-multiply: η is in the world frame.
-# You may use `Q.exp` and `Q.multiply` (or your functions above);
-# `Q.integrate` is disabled while this exercise is graded.
+# ## Exercise 4.6 — integrating angular velocities measured in the body frame
+# Eq. 5 takes η in the **world** frame. A car's gyroscope measures its angular
+# velocity $\omega$ in its **own** axes (x forward, y left, z up, turning with the car).
+# Derive the update for body-frame rates and write `integrate_body_rates(q0, omegas,
+# dt)`: `q0` of shape `(4,)`, `omegas` of shape `(K, 3)` (body frame, rad/s, each held
+# for `dt`); return the orientations $q_0, \dots, q_K$, shape `(K + 1, 4)`, renormalised
+# every step so that rounding cannot carry them off the sphere.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# A vector with body coordinates $\omega$ has the world coordinates $q\,(0, \omega)\,\bar q$.
+# Put that into eq. 5 and simplify the product.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# $\exp$ of a rotated vector is the rotated quaternion: $\exp(q\,u\,\bar q) = q\,\exp(u)\,\bar q$.
+# What is left of $q\,\exp(u)\,\bar q * q$?
+# </details>
 
-# %% solution id=ex04_6 title="Integrating an angular velocity" forbids="minimanc.quaternion.integrate"  # noqa: E501
-def integrate_sequence(q0, etas, dt):
+# %% solution id=ex04_6 title="Integrating body-frame angular velocities"
+def integrate_body_rates(q0, omegas, dt):
     ### BEGIN SOLUTION
     qs = [np.asarray(q0, dtype=float)]
-    for eta in np.asarray(etas, dtype=float):
-        q = Q.multiply(Q.exp(0.5 * dt * eta), qs[-1])
+    for omega in np.asarray(omegas, dtype=float):
+        q = Q.multiply(qs[-1], Q.exp(0.5 * dt * omega))   # body frame: multiply on the right
         qs.append(q / np.linalg.norm(q))
     return np.array(qs)
     ### END SOLUTION
 
 # %% grade id=ex04_6_tests points=3
-eta_c = np.array([0.3, -0.5, 1.2])
-traj = integrate_sequence(ID, np.tile(eta_c, (40, 1)), 0.5)
-assert np.shape(traj) == (41, 4), f"K = 40 steps give K + 1 = 41 orientations; got {np.shape(traj)}"  # noqa: E501
-assert np.allclose(traj[0], ID), f"expected the first orientation q0 = (1, 0, 0, 0); got {traj[0]}"
-exact = Q.exp(40 * 0.5 * eta_c / 2)
-assert np.allclose(traj[-1], exact), (
-    f"a constant eta = [0.3, -0.5, 1.2], 40 steps of 0.5 s: expected the exact "
-    f"q_K = exp(K dt eta / 2) q0 = {np.round(exact, 4)}; got {np.round(traj[-1], 4)}")
+traj = np.asarray(integrate_body_rates(Q.from_yaw(np.pi / 2), np.array([[np.pi, 0.0, 0.0]]), 0.5))
+assert np.shape(traj) == (2, 4), f"K = 1 step: expected 2 orientations; got {np.shape(traj)}"
+assert np.allclose(traj[1], [0.5, 0.5, 0.5, 0.5]), (
+    f"facing yaw 90 deg, rolling about the car's own x axis at pi rad/s for 0.5 s: expected "
+    f"(0.5, 0.5, 0.5, 0.5); got {np.round(traj[1], 4)}")
+traj = np.asarray(integrate_body_rates(ID, np.tile([0.0, 0.0, 0.4], (10, 1)), 0.5))
+assert np.allclose(Q.to_yaw(traj[-1]), 2.0), \
+    f"a yaw rate of 0.4 rad/s for 10 steps of 0.5 s: expected yaw 2.0; got {Q.to_yaw(traj[-1])}"
 ### BEGIN HIDDEN TESTS
-x_rate, z_rate = np.array([np.pi, 0.0, 0.0]), np.array([0.0, 0.0, np.pi])
-two = integrate_sequence(ID, np.stack([x_rate, z_rate]), 0.5)     # 90 deg about x, then z
-world = Q.multiply(Q.exp(z_rate / 4), Q.exp(x_rate / 4))
-assert np.allclose(two[-1], world), (
-    f"90 deg about x, then about z (world frame, eq. 5 left-multiplies): expected "
-    f"{np.round(world, 4)}; got {np.round(two[-1], 4)}")
-q0_r = random_unit(1, np.random.default_rng(460))[0]
-etas_r = np.random.default_rng(46).normal(size=(2000, 3)) * 3.0
-long = integrate_sequence(q0_r, etas_r, 0.1)
-drift = np.abs(np.linalg.norm(long, axis=1) - 1).max()
-assert drift < 1e-12, (
-    f"2000 random steps: expected |q| = 1 (renormalise); got |q| off by {drift:.2e}")
-first = Q.multiply(Q.exp(0.05 * etas_r[0]), q0_r)
-assert np.allclose(long[1], first), (
-    f"expected q_1 = exp(dt/2 eta_0) q0 = {np.round(first, 4)}; got {np.round(long[1], 4)}")
-k = 1234
-step_k = Q.multiply(Q.exp(0.05 * etas_r[k]), long[k])
-assert np.allclose(long[k + 1], step_k), (
-    f"step {k}: expected q_(k+1) = exp(dt/2 eta_k) q_k = {np.round(step_k, 4)}; "
-    f"got {np.round(long[k + 1], 4)}")
+test_rng = np.random.default_rng(460)  # the tests' own draws, not the notebook's rng
+q0_r = random_unit(1, test_rng)[0]
+om_r = test_rng.normal(size=(300, 3)) * 2.0
+got = np.asarray(integrate_body_rates(q0_r, om_r, 0.1))
+world, q = [q0_r], q0_r
+for om in om_r:   # the same motion in the world frame: rotate each rate by the current q
+    eta = Q.multiply(Q.multiply(q, np.concatenate([[0.0], om])), Q.conjugate(q))[1:]
+    q = Q.multiply(Q.exp(0.05 * eta), q)
+    world.append(q / np.linalg.norm(q))
+world = np.array(world)
+assert got.shape == (301, 4), f"300 steps: expected shape (301, 4); got {got.shape}"
+bad = int(np.argmax(np.abs(got - world).max(axis=-1)))
+assert np.allclose(got, world, atol=1e-9), (
+    f"300 random body rates: at step {bad} expected {np.round(world[bad], 4)} (the world-frame "
+    f"rates written out); got {np.round(got[bad], 4)}")
+drift = np.abs(np.linalg.norm(got, axis=1) - 1).max()
+assert drift < 1e-12, f"expected |q| = 1 (renormalise); got |q| off by {drift:.2e}"
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -522,9 +630,9 @@ assert e1 > 0.25 * e0, (
 
 # %% [markdown]
 # ## Putting it together
-# The library's quaternion DMP uses exactly this error. From here on the cells
-# use `minimanc.quaternion`, so they run even while the exercises are open: the
-# DMP turns a car from 170° to −170° through 180°, the short way.
+# The library's quaternion DMP takes its error the short way, with the sign choice
+# of 4.4. From here on the cells use `minimanc.quaternion`, so they run even while
+# the exercises are open: the DMP turns a car from 170° to −170° through 180°.
 
 # %%
 r = Q.quaternion_rollout(Q.from_yaw(np.deg2rad(170.0)), np.zeros(3),
@@ -535,30 +643,27 @@ assert np.isclose(yaw[-1], 190.0, atol=0.1) and np.all(np.diff(yaw) >= 0)
 
 # %% [markdown]
 # ## Your figure
-# Left: the turn from 170° to −170° of section 3, the DMP's error computed by
-# **your** `orientation_error` (solid) over the library's (dashed): a wrong sign
-# choice turns the long way, −340°. Right: a goal turning at 30°/s. The plain
-# DMP (dashed) trails it; goal − **your** `steady_lag` must run on top of it
-# once the start is forgotten, and **your** `tracking_rollout` on the goal
-# (dashed). A function that raises is named in the title.
+# Left: the yaw rate recovered from a logged drive weaving across ±180° whose samples
+# were stored with random signs, by **your** `angular_velocities` (solid) over the
+# library's (dashed): a wrong sign choice shows as spikes of hundreds of °/s. Right: a
+# goal turning at 30°/s. The plain DMP (dashed) trails it; goal − **your**
+# `steady_lag` must run on top of it once the start is forgotten, and **your**
+# `tracking_rollout` on the goal (dashed). A function that raises is named in the
+# title.
 
 # %%
 def yaw_deg(qs):
     return np.rad2deg(np.unwrap(Q.to_yaw(np.asarray(qs))))
 
 
-def dmp_with_error(error, q, g, alpha, beta, steps, substeps=dmp.DEFAULT_SUBSTEPS):
-    """Section 5's DMP with its error term computed by ``error``; yaw (deg) after each step."""
-    eta, out, h = np.zeros(3), [q], dmp.DT / substeps
-    for n in range(steps * substeps):
-        eta = eta + h * alpha * (beta * np.asarray(error(g, q)) - eta)
-        q = Q.integrate(q, eta, h)
-        if (n + 1) % substeps == 0:
-            out.append(q)
-    return yaw_deg(out)
-
-
-q170, g170 = Q.from_yaw(np.deg2rad(170.0)), Q.from_yaw(np.deg2rad(-170.0))
+t_log = np.arange(17) * dmp.DT
+yaw_log = np.pi + 1.5 * np.sin(0.4 * t_log)              # weaving across +-180 deg
+flips = np.where(np.random.default_rng(4).random(17) < 0.5, -1.0, 1.0)
+logged_fig = flips[:, None] * Q.from_yaw(yaw_log)
+rate_lib = np.rad2deg(np.array([Q.orientation_error(b, a)[2] for a, b in
+                                zip(logged_fig[:-1], logged_fig[1:])]) / dmp.DT)
+print(f"library: yaw rate from {rate_lib.min():.1f} to {rate_lib.max():.1f} deg/s")
+assert np.allclose(rate_lib, np.rad2deg(np.diff(yaw_log)) / dmp.DT)
 om_fig, n_fig, h_fig = np.array([0.0, 0.0, np.deg2rad(30.0)]), 24, dmp.DT / dmp.DEFAULT_SUBSTEPS
 t_fig = np.arange(n_fig + 1) * dmp.DT
 goal_yaw = yaw_deg(goal_path(ID, om_fig, t_fig))
@@ -567,17 +672,18 @@ plain = yaw_deg(Q.quaternion_rollout(ID, np.zeros(3), goal_path(ID, om_fig, h_fi
 print(f"plain DMP after {n_fig * dmp.DT:.0f} s: {plain[-1] - goal_yaw[-1]:.1f} deg from the goal")
 assert abs(plain[-1] - goal_yaw[-1] + 30.0) < 0.5   # it trails by 30 deg/s over beta = 1
 fig, axes = plt.subplots(1, 2, figsize=(12, 3.8))
-vx.plot_curve_attempts(np.arange(17) * dmp.DT, [
-    ("orientation_error", lambda: dmp_with_error(orientation_error, q170, g170, 4.0, 1.0, 16),
-     dmp_with_error(Q.orientation_error, q170, g170, 4.0, 1.0, 16))],
-    ax=axes[0], title="170° → −170°: the short way is +20°")
+vx.plot_curve_attempts(t_log[1:], [
+    ("angular_velocities",
+     lambda: np.rad2deg(np.asarray(angular_velocities(logged_fig, dmp.DT))[:, 2]), rate_lib)],
+    ax=axes[0], title="yaw rate from a log with sign jumps (deg/s)")
 vx.plot_curve_attempts(t_fig, [
     ("goal − steady_lag", lambda: goal_yaw - np.rad2deg(np.asarray(steady_lag(om_fig, 4.0,
                                                                               1.0))[2]), plain),
     ("tracking_rollout", lambda: yaw_deg(tracking_rollout(ID, ID, om_fig, 4.0, 1.0, dmp.DT,
                                                           n_fig)), goal_yaw)],
     ax=axes[1], title="a goal turning at 30°/s (dashed: plain DMP, goal)")
+axes[0].set_ylabel("yaw rate (deg/s)")
+axes[1].set_ylabel("unwrapped yaw (deg)")
 for ax in axes:
     ax.set_xlabel("t (s)")
-    ax.set_ylabel("unwrapped yaw (deg)")
 plt.show()

@@ -368,8 +368,8 @@ assert np.all(np.isnan(g_naive)) and np.allclose(g_ours, [0.0, 1.0, 1.0, 1.0])
 #   last two should be the orientation gains $\alpha_q, \beta_q$.
 # * **The sign guard $\lVert q - q_{prev}\rVert > 1.8$** comes from the authors'
 #   environment, not the paper. It repairs a sign jump only across steps that
-#   rotate by less than about 103° (exercise 4.5); the rule
-#   $q\cdot q_{prev} < 0$ (threshold $\sqrt2$) would catch every jump.
+#   rotate by less than a limiting angle; exercise 4.5 derives the limit and
+#   designs a guard without one.
 # * **Gradients at the identity** are not discussed in the paper: eqs. 4 and
 #   6 as written (a case split on $\mathbf u = 0$) give NaN gradients under
 #   autodiff; our double `where` keeps them exact (section 7).

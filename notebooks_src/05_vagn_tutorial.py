@@ -71,10 +71,13 @@ for p in ([1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1]):
     T = vagn.transition_matrix(np.array(p, float), W_hand)
     assert np.allclose(T.sum(axis=0), 1.0)
     print(f"p = {p}\n{T}\n")
+to_cruise = vagn.transition_matrix(np.array([1.0, 0.0, 0.0]), W_hand)[CRUISE]
+print(f"road clear: each column sends {to_cruise.min():.2f} to {to_cruise.max():.2f} of its "
+      f"mass to cruise")
 
 # %% [markdown]
-# With only *road clear* ($p = [1, 0, 0]$) every column sends ≈ 0.84–0.97 of
-# its mass to *cruise*. With road clear **and** crossing traffic, the −3 of the
+# With only *road clear* ($p = [1, 0, 0]$) every column sends most of its mass to
+# *cruise* (the last line above). With road clear **and** crossing traffic, the −3 of the
 # crossing predicate cancels the +3 of road clear on the cruise row: predicates
 # interact through the sum of eq. 8, not one at a time.
 #
@@ -310,8 +313,7 @@ assert gaps[0] > 0.6 and gaps[8] < 1e-3 and np.all(np.diff(gaps) <= 1e-12)
 # The course's training (chapters 8–9) resets $q'$ at the start of each
 # *window* of consecutive steps (a whole 20-s scene for MANC), so the
 # automaton's memory is exercised; `TrainConfig(q_seq_len=1)` is Algorithm 1's
-# single step for the vAGN-only model. Exercise 5.5 writes the per-sample
-# reset for a minibatch.
+# single step for the vAGN-only model.
 #
 # ## Summary
 # * `transition_matrix(p, W)` is eqs. 8–9: a predicate-weighted sum of

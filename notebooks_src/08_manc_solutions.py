@@ -287,25 +287,19 @@ for c, manc_total, cnn_total in ((models.ModelConfig(n_states=3, channels=(8, 16
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 8.5 — the MANC step of the two eq.-7 variants
+# ## Exercise 8.5 — the MANC step of eq. 7 and its literal variant
 # The tutorial assembled MANC's step for the paper's eq. 7 as the library reads it:
-# globally pooled features through a sigmoid. `ModelConfig` has two further readings of
-# eq. 7, and the tutorial showed neither:
+# globally pooled features through a sigmoid. `ModelConfig` has a further reading of eq. 7
+# the tutorial did not show: `predicate_activation="linear"`, eq. 7 literally, the
+# predicates are the logits themselves (no squashing).
 #
-# * `predicate_pool="flat"`: the predicate layer reads the whole feature map, flattened per
-#   sample in its stored (row, column, channel) order, instead of its spatial mean, so the
-#   predicates keep *where* a feature fires;
-# * `predicate_activation="linear"`: eq. 7 literally, the predicates are the logits
-#   themselves (no squashing).
-#
-# Write `manc_step(params, obs, q_prev, cfg)` for any `cfg` (either pool, either
-# activation): the controls `(B, 2)` of the DMP head (eqs. 10–11, `models.dmp_head`) and
-# the new `q (B, N)` (eqs. 8–9, `vagn.step`). Use the pieces of the library the tutorial
-# used (`models.backbone`, `vagn.step`, `models.dmp_head`); `models.step` (and
+# Write `manc_step(params, obs, q_prev, cfg)` for any `cfg` (either activation): the
+# controls `(B, 2)` of the DMP head (eqs. 10–11, `models.dmp_head`) and the new
+# `q (B, N)` (eqs. 8–9, `vagn.step`). Use the pieces of the library the tutorial used
+# (`models.backbone`, `vagn.step`, `models.dmp_head`); `models.step` (and
 # `models.sequence`, `rollout.replay`) are disabled while grading: the tests rebuild the
 # step from the equations alone (their own convolution, eqs. 8–9 with `einsum`, the DMP as
-# a matrix power). The parameters of a flat-pool MANC come from
-# `models.init("manc", rng, cfg)` with that `cfg`: check their shapes first.
+# a matrix power).
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
@@ -315,19 +309,15 @@ for c, manc_total, cnn_total in ((models.ModelConfig(n_states=3, channels=(8, 16
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Print `params["predicates"]["w"].shape` for both pools and compare it with the shape of
-# the features: that tells you what the layer must be given. Branch on `cfg.predicate_pool`
-# and `cfg.predicate_activation`.
+# Print `params["predicates"]["w"].shape` and compare it with the shape of the features:
+# that tells you what the layer must be given. Branch on `cfg.predicate_activation`.
 # </details>
 
-# %% solution id=ex08_5 title="The MANC step of the eq.-7 variants" forbids="minimanc.models.step,minimanc.models.sequence,minimanc.rollout.replay"  # noqa: E501
+# %% solution id=ex08_5 title="The MANC step of eq. 7 and its variant" forbids="minimanc.models.step,minimanc.models.sequence,minimanc.rollout.replay"  # noqa: E501
 def manc_step(params, obs, q_prev, cfg):
     ### BEGIN SOLUTION
     f = models.backbone(params["backbone"], obs["bev"], cfg, eng)
-    if cfg.predicate_pool == "flat":
-        pooled = f.reshape(f.shape[0], -1)
-    else:
-        pooled = f.mean(axis=(1, 2))
+    pooled = f.mean(axis=(1, 2))
     z = pooled @ params["predicates"]["w"] + params["predicates"]["b"]
     p = z if cfg.predicate_activation == "linear" else 0.5 * (1.0 + np.tanh(0.5 * z))
     q = vagn.step(q_prev, p, params["vagn"]["W"])
@@ -338,7 +328,7 @@ def manc_step(params, obs, q_prev, cfg):
 
 # %% grade id=ex08_5_tests points=2
 ### BEGIN HIDDEN TESTS
-def manc_reference(params, obs, q_prev, pool="global", activation="sigmoid"):
+def manc_reference(params, obs, q_prev, activation="sigmoid"):
     """Eqs. 7-11 written out with NumPy, for a ModelConfig of default shape and gains."""
     sig = lambda z: 1.0 / (1.0 + np.exp(-z))  # noqa: E731
     h = np.asarray(obs["bev"], dtype=float)
@@ -347,7 +337,7 @@ def manc_reference(params, obs, q_prev, pool="global", activation="sigmoid"):
         a = sum(np.einsum("bhwc,ck->bhwk", hp[:, i:i + 2 * n:2, j:j + 2 * n:2], layer["w"][i, j])
                 for i in range(3) for j in range(3)) + layer["b"]
         h = a * sig(a)
-    pooled = h.reshape(len(h), -1) if pool == "flat" else h.mean(axis=(1, 2))
+    pooled = h.mean(axis=(1, 2))
     z = pooled @ params["predicates"]["w"] + params["predicates"]["b"]
     p = z if activation == "linear" else sig(z)
     A = np.maximum(np.einsum("bm,mij->bij", p, params["vagn"]["W"]), 0.0)  # eq. 8 + ReLU
@@ -397,26 +387,25 @@ assert np.allclose(q2, q2_ref, atol=1e-9) and np.allclose(u2, u2_ref, atol=1e-6)
 ### END HIDDEN TESTS
 
 # %% grade id=ex08_5_variants_tests points=2
-cfg_flat = models.ModelConfig(predicate_pool="flat")
-params_flat = models.init("manc", np.random.default_rng(852), cfg_flat)
-u_f, q_f = manc_step(params_flat, obs, q_prev, cfg_flat)
-assert np.shape(u_f) == (4, 2) and np.shape(q_f) == (4, cfg.n_states), (
-    f"flat pool: expected controls (4, 2) and q (4, {cfg.n_states}); got {np.shape(u_f)}, "
-    f"{np.shape(q_f)}")
+cfg_linear = models.ModelConfig(predicate_activation="linear")
+params_linear = models.init("manc", np.random.default_rng(852), cfg_linear)
+u_l, q_l = manc_step(params_linear, obs, q_prev, cfg_linear)
+assert np.shape(u_l) == (4, 2) and np.shape(q_l) == (4, cfg.n_states), (
+    f"linear predicates: expected controls (4, 2) and q (4, {cfg.n_states}); got "
+    f"{np.shape(u_l)}, {np.shape(q_l)}")
 ### BEGIN HIDDEN TESTS
-uf_ref, qf_ref = manc_reference(params_flat, obs, q_prev, pool="flat")
-assert np.allclose(q_f, qf_ref, atol=1e-9) and np.allclose(u_f, uf_ref, atol=1e-6), (
-    f"flat pool, sigmoid: expected controls {uf_ref}, q {qf_ref}; got {u_f}, {q_f}")
-for pool in ("global", "flat"):
-    c = models.ModelConfig(predicate_pool=pool, predicate_activation="linear")
-    pc = models.init("manc", np.random.default_rng(853), c)
-    obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model=models.get("manc"))
-    q3 = vagn.random_state(np.random.default_rng(850), c.n_states, size=2)
-    u3, q3_out = manc_step(pc, obs3, q3, c)
-    u3_ref, q3_ref = manc_reference(pc, obs3, q3, pool=pool, activation="linear")
-    assert np.allclose(q3_out, q3_ref, atol=1e-9) and np.allclose(u3, u3_ref, atol=1e-6), (
-        f"{pool} pool, linear predicates, first and last steps of a scene: expected controls "
-        f"{u3_ref}, q {q3_ref}; got {u3}, {q3_out}")
+ul_ref, ql_ref = manc_reference(params_linear, obs, q_prev, activation="linear")
+assert np.allclose(q_l, ql_ref, atol=1e-9) and np.allclose(u_l, ul_ref, atol=1e-6), (
+    f"linear predicates: expected controls {ul_ref}, q {ql_ref}; got {u_l}, {q_l}")
+c = models.ModelConfig(predicate_activation="linear")
+pc = models.init("manc", np.random.default_rng(853), c)
+obs3 = inputs.from_dataset(ds, [1, 0], [0, 39], model=models.get("manc"))
+q3 = vagn.random_state(np.random.default_rng(850), c.n_states, size=2)
+u3, q3_out = manc_step(pc, obs3, q3, c)
+u3_ref, q3_ref = manc_reference(pc, obs3, q3, activation="linear")
+assert np.allclose(q3_out, q3_ref, atol=1e-9) and np.allclose(u3, u3_ref, atol=1e-6), (
+    f"linear predicates, first and last steps of a scene: expected controls {u3_ref}, "
+    f"q {q3_ref}; got {u3}, {q3_out}")
 ### END HIDDEN TESTS
 
 # %% [markdown]

@@ -62,8 +62,9 @@ workdir = Path(tempfile.mkdtemp(prefix="minimanc09_"))
 
 # %%
 config = studies.StudyConfig(
-    preset="lesson", n_train=32, n_tune=4, n_val=10, image_size=32, epochs=3, batch_size=32,
-    lrs=(3e-3,), n_seeds=1, q_states=(3, 6), fractions=(0.5, 1.0),
+    preset="lesson", n_train=32, n_tune=4, n_val=10, image_size=32,
+    training=train.TrainConfig(epochs=3, batch_size=32), lrs=(3e-3,), n_seeds=1,
+    q_states=(3, 6), fractions=(0.5, 1.0),
     sample_models=("cnn", "manc"), explain_scenes=1,
 )
 study = studies.Study(config, workdir, engine="jax", workers=0, progress=False)

@@ -24,8 +24,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-from minimanc import dagger, inputs, metrics, world
-from minimanc.rollout.reactive import simulate_reactive
+from minimanc import dagger, inputs, metrics, rollout, world
 from minimanc.viz.dagger import plot_round_attempts
 
 ds = world.generate(5, seed=0, raster=world.RasterConfig(size=16), workers=1)
@@ -416,7 +415,7 @@ class LinearPolicy:
 
 def closed_loop_ade(W):
     """ADE (m) of the linear policy on the validation scenes, among reactive ados."""
-    traj = simulate_reactive(LinearPolicy(W), val, progress=False)
+    traj = rollout.simulate(LinearPolicy(W), val, progress=False, agents="reactive")
     return float(metrics.evaluate(traj, val)["ade"])
 
 

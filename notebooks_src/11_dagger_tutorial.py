@@ -40,7 +40,6 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import dagger, inputs, rollout, train, world
-from minimanc.rollout.reactive import simulate_reactive
 
 np.set_printoptions(precision=2, suppress=True)
 workdir = Path(tempfile.mkdtemp(prefix="minimanc11_"))
@@ -79,7 +78,7 @@ tc = train.TrainConfig(epochs=4, batch_size=64, seed=0)
 bc = {"manc": dagger.behaviour_cloning("manc", teacher, budget, rounds, cfg=cfg, train_cfg=tc,
                                        engine="jax", out=workdir / "manc", progress=False)}
 policy = rollout.ModelPolicy("manc", bc["manc"].params, cfg, "jax")
-traj = simulate_reactive(policy, val, progress=False)
+traj = rollout.simulate(policy, val, progress=False, agents="reactive")
 err = np.linalg.norm(traj.ego[..., :2] - val.ego[..., :2], axis=-1)  # (scenes, T)
 for t in (0, 10, 20, 30, 39):
     print(f"t = {t:2d} ({t * pool.dt:4.1f} s): distance to the human {err[:, t].mean():5.1f} m "

@@ -1,8 +1,9 @@
 # %% [markdown]
 # # Chapter 12 — Graded exercises: the bounds, the expert's perception, the ablation, faded history
 #
-# Module built in this chapter: `minimanc.viz.investigation` (its figures); the exercises
-# use `minimanc.studies.bounds`, `minimanc.dagger.privileged` and `minimanc.world.history`.
+# Modules built in this chapter: `minimanc.diagnose` and `minimanc.viz.investigation` (its
+# figures); the exercises use `minimanc.diagnose.bounds`, `minimanc.diagnose.privileged` and
+# `minimanc.world.history`.
 # Read the tutorial `tutorials/12_why_it_crashes.ipynb` first. Replace each
 # `raise NotImplementedError(...)` with your code and run the grade cell below it;
 # `minimanc grade exercises/12_why_it_crashes.ipynb` scores the notebook.
@@ -21,10 +22,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import world
-from minimanc.dagger import privileged as P
 from minimanc.dagger.expert import HumanExpert
+from minimanc.diagnose import bounds
+from minimanc.diagnose import privileged as P
 from minimanc.metrics.trajectory import along_cross_track
-from minimanc.studies import bounds
 from minimanc.viz.investigation import plot_investigation_attempts
 from minimanc.world.driver import HumanStyle, random_style
 
@@ -72,7 +73,7 @@ print(f"{len(train)} training scenes ({X.shape[0]} states), {len(val)} validatio
 # `human[..., 2]`, then average the absolute values over the time axis.
 # </details>
 
-# %% solution id=ex12_1 title="The style floor of a scene" forbids="minimanc.studies.bounds.median_style,minimanc.metrics.trajectory.ade,minimanc.metrics.trajectory.along_cross_track"  # noqa: E501
+# %% solution id=ex12_1 title="The style floor of a scene" forbids="minimanc.diagnose.bounds.median_style,minimanc.metrics.trajectory.ade,minimanc.metrics.trajectory.along_cross_track"  # noqa: E501
 def median_of(styles):
     ### BEGIN SOLUTION
     names = [f.name for f in dataclasses.fields(HumanStyle)]
@@ -217,7 +218,7 @@ for scenes in ([3], [0, 5]):
 # from the ego to the point ahead onto the ego's left axis, with the ego's yaw `sit.pose[2]`.
 # </details>
 
-# %% solution id=ex12_2 title="What the expert perceives" forbids="minimanc.dagger.privileged.features"  # noqa: E501
+# %% solution id=ex12_2 title="What the expert perceives" forbids="minimanc.diagnose.privileged.features"  # noqa: E501
 def leader_stop(sit):
     ### BEGIN SOLUTION
     per, v = sit.perceived, float(sit.ego.v)
@@ -567,9 +568,10 @@ assert np.all(small <= 1.15 * every), (
 # %% [markdown]
 # **Written question (graded by hand, 3 points).** Which features did you remove, and why
 # could the learner do without them? In your ablation table (12.3), which group's removal
-# costs the most acceleration error open loop, and what does `results/privileged.md`
-# ("Ablation") report for the same group closed loop? Explain the difference, and say which
-# of your removals you would check closed loop before building an image model on them.
+# costs the most acceleration error open loop, and what does
+# `research/why_it_crashes/REPORT.md` ("Ablation") report for the same group closed loop?
+# Explain the difference, and say which of your removals you would check closed loop before
+# building an image model on them.
 
 # %% [markdown] answer id=ex12_w title="Reading an ablation" points=3
 # ### BEGIN SOLUTION

@@ -1,22 +1,22 @@
 # %% [markdown]
 # # Chapter 12 — Why the driver crashes
 #
-# Module built in this chapter: `minimanc.viz.investigation` (the chapter's figures); it
-# puts to work `minimanc.studies.bounds` (the expert and the style floor),
-# `minimanc.dagger.privileged` (a learner given what the expert perceives),
-# `minimanc.world.history` (faded history in the raster) and
+# Modules built in this chapter: `minimanc.diagnose` — its `bounds` (the expert and the style
+# floor), `privileged` and `policies` (a learner given what the expert perceives, driving),
+# `probe` and `collisions` — and `minimanc.viz.investigation` (the chapter's figures); it
+# puts to work `minimanc.world.history` (faded history in the raster) and
 # `minimanc.metrics.safety` (the collision taxonomy).
 #
 # Every behaviour-cloned controller of chapters 9–11 collides in a sizeable share of the
 # validation scenes, also among ados that react to it, where the human whose logs it copies
 # never does. This chapter walks through the investigation that finds out why, with the
-# library's own parts, on a course-sized world (the committed results under `results/` are
-# the same measurements at the paper's size):
+# library's own parts, on a course-sized world (`research/why_it_crashes/REPORT.md` records
+# the same measurements at the paper's size, and the investigation's further experiments):
 #
 # | question | the library's answer |
 # |---|---|
 # | the best any learner can do? | `bounds.expert_rollout`, `bounds.floor_rollout` |
-# | learning or information? | `P.fit_privileged`, `P.PrivilegedPolicy` (what the expert sees) |
+# | learning or information? | `P.fit_privileged`, `PrivilegedPolicy` (what the expert sees) |
 # | which information? | `P.fit_privileged(..., drop=[group])`: the ablation |
 # | how does it crash? | `metrics.safety.collision_events`: the taxonomy |
 # | can the image carry it? | `world.RasterConfig(history=H)`, `world.history` |
@@ -40,11 +40,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from minimanc import metrics, rollout, world
-from minimanc.dagger import privileged as P
 from minimanc.dagger.teachers import WorldTeacher
+from minimanc.diagnose import PrivilegedPolicy, bounds
+from minimanc.diagnose import privileged as P
 from minimanc.metrics.safety import collision_events
 from minimanc.metrics.trajectory import ade, along_cross_track
-from minimanc.studies import bounds
 from minimanc.viz.investigation import plot_history_boxes
 
 np.set_printoptions(precision=2, suppress=True)
@@ -64,8 +64,10 @@ assert (len(train), len(val), T) == (40, 8, 40)
 # %% [markdown]
 # ## 2. The bounds every number is read against
 # **The expert.** The world's own human driver (`minimanc.dagger.expert.HumanExpert`),
-# asked in every state the closed loop reaches (`privileged.ExpertPolicy`), drives through
-# the same time loop and the same simulator as every learned policy. Here the ados react
+# asked in every state the closed loop reaches (`policies.ExpertPolicy`), drives through
+# the same time loop and the same simulator as every learned policy (`bounds.expert_rollout`
+# takes the protocol as `agents=` and returns a `rollout.Rollout`, as `rollout.simulate`
+# does, with the states the expert could not be asked in as `refused`). Here the ados react
 # to the ego (`agents="reactive"`, chapter 9's second protocol). If the pipeline is sound
 # (labels paired with the right step, no unit slip, the expert asked in the state the
 # policy reached) it reproduces the log: no distance to the human, no collision.
@@ -75,11 +77,12 @@ assert (len(train), len(val), T) == (40, 8, 40)
 # `nbval-ignore-output` and check what they show with an `assert`.
 
 # %% tags=["nbval-ignore-output"]
-expert_traj, refused = bounds.expert_rollout(val, "reactive")
+expert_traj = bounds.expert_rollout(val, agents="reactive")
 expert = metrics.evaluate(expert_traj, val)
 print(f"expert: ADE {expert['ade']:.2f} m, at fault {expert['at_fault_collision_rate']:.1f} %, "
-      f"off road {expert['off_road_rate']:.1f} %, refused {refused}")
-assert expert["ade"] < 1e-3 and expert["at_fault_collision_rate"] == 0 and refused == 0
+      f"off road {expert['off_road_rate']:.1f} %, refused {expert_traj.refused}")
+assert expert["ade"] < 1e-3 and expert["at_fault_collision_rate"] == 0
+assert expert_traj.refused == 0
 
 # %% [markdown]
 # **The style floor.** Each scene's human draws a hidden *style*
@@ -106,12 +109,13 @@ assert np.abs(own.ego - val.ego[:2]).max() < 1e-3
 assert 0 < floor_ade.mean() < 20 and np.abs(along).mean() > np.abs(cross).mean()
 
 # %% [markdown]
-# Almost all of the floor's error is *along* the road: a driver of another style keeps
-# the lane like the human but drives it at another speed. `results/bounds.md` reports the
-# same at the paper's size (200 scenes): the expert at zero, the floor a few metres, its
-# along-track part nearly all of it, and no at-fault collision of the median-style driver.
-# The learned image models of Table I trail the human by more than twice the floor's ADE
-# and collide where the floor never does: hidden style does not explain them.
+# Almost all of the floor's error is *along* the road: a driver of another style keeps the
+# lane like the human but drives it at another speed. `research/why_it_crashes/REPORT.md` (its
+# section on the bounds) reports the same at the paper's size (200 scenes): the expert at
+# zero, the floor a few metres, its along-track part nearly all of it, and no at-fault
+# collision of the median-style driver. The learned image models of Table I trail the human by
+# more than twice the floor's ADE and collide where the floor never does: hidden style does
+# not explain them.
 
 # %% [markdown]
 # ## 3. The privileged learner: is it the learning or the information?
@@ -144,7 +148,7 @@ assert X[k, P.FEATURES.index("gap")] < P.FAR and np.all(np.isfinite(X))
 # An MLP (two tanh layers of 32) on the standardised features predicts both controls; it
 # is trained by Algorithm 1 (`P.fit_privileged`: minibatches, mean squared error of each output
 # divided by its spread, Adam, cosine decay) and drives closed loop through
-# `P.PrivilegedPolicy`, which asks the expert for its perception in every state it
+# `PrivilegedPolicy`, which asks the expert for its perception in every state it
 # reaches and applies $[\mathrm{clip}(v + a\,\Delta t, 0, V_{max}), \omega]$. A course-sized
 # run (1500 steps on 1600 states): read its numbers against the bounds above.
 
@@ -154,7 +158,7 @@ STEPS, HIDDEN = 1500, (32, 32)
 
 def drive(model):
     """The closed-loop rollout of a privileged learner on the validation scenes."""
-    policy = P.PrivilegedPolicy(model, WorldTeacher(val, agents="reactive"))
+    policy = PrivilegedPolicy(model, WorldTeacher(val, agents="reactive"))
     return rollout.simulate(policy, val, agents="reactive", progress=False)
 
 
@@ -170,13 +174,13 @@ assert full.losses[-1] < full.losses[0] and np.all(rmse < Yv.std(0))
 assert np.isfinite(full_m["ade"]) and full_m["ade"] < 8 * floor_ade.mean()
 
 # %% [markdown]
-# Forty demonstrations (1600 states) are few for this learner: it trails the style floor
-# by a multiple and collides in some of the 8 scenes, and another training seed moves both
-# numbers a lot (try `seed=1`). `results/privileged.md` measures the same learner at the
-# paper's size (650 training scenes, 200 validation scenes, 3 seeds): at the style floor's
-# ADE and within a few points of the expert's collision rate, where the image models of
-# Table I collide several times as often. Given the expert's information and enough data,
-# behaviour cloning works; what the image models lack is information.
+# Forty demonstrations (1600 states) are few for this learner: it trails the style floor by a
+# multiple and collides in some of the 8 scenes, and another training seed moves both numbers
+# a lot (try `seed=1`). `research/why_it_crashes/REPORT.md` measures the same learner at the
+# paper's size (650 training scenes, 200 validation scenes, 3 seeds): at the style floor's ADE
+# and within a few points of the expert's collision rate, where the image models of Table I
+# collide several times as often. Given the expert's information and enough data, behaviour
+# cloning works; what the image models lack is information.
 
 # %% [markdown]
 # ## 4. Which information? The ablation
@@ -198,27 +202,25 @@ for name, m in table.items():
 assert table["without lane"]["ade"] > table["all inputs"]["ade"], "the lane steers it"
 
 # %% [markdown]
-# At the paper's size (`results/privileged.md`, "Ablation"): without the `leader` group
-# (the gap and the speed difference to the vehicle ahead) the learner runs into the
-# vehicle ahead about as often as the image models; without `history` (its last
-# acceleration) it does *better* — the copycat of causal confusion (de Haan et al. 2019):
-# a learner that sees its last control learns to repeat it. And given only what one raster
-# frame can show — positions, but neither its own speed nor the closing speed — it falls to
-# the image models' level ("What one image can show").
+# At the paper's size (`research/why_it_crashes/REPORT.md`, "Ablation"): without the `leader`
+# group (the gap and the speed difference to the vehicle ahead) the learner runs into the
+# vehicle ahead about as often as the image models; without `history` (its last acceleration)
+# it does *better* — the copycat of causal confusion (de Haan et al. 2019): a learner that
+# sees its last control learns to repeat it. And given only what one raster frame can show —
+# positions, but neither its own speed nor the closing speed — it falls to the image models'
+# level ("What one image can show").
 
 # %% [markdown]
 # The same learner can also be made to drive through MANC's own parts, to ask which of them
-# keeps MANC from driving: `P.fit_privileged(..., head="dmp", lane=..., motion=...)` lets
-# the MLP predict the four gain logits of eq. 11 and drives through MANC's DMP head
-# (`P.head_inputs` gives the lane target and the motion of every state); `head="vagn"`
-# lets it predict MANC's predicates, followed by vAGN, `FC(q)` and the head, trained on
-# whole scenes (`scene_steps=T`); `head="vagn_predicates"` lets the gains read the
-# predicates beside q. At the paper's size (`results/privileged_dmp.md`,
-# `results/privileged_vagn.md`, `results/privileged_vagn_predicates.md`) the DMP head
-# drives as well as the plain output, the automaton with `FC(q)` drives well for some
+# keeps MANC from driving (the investigation's own code, `research/why_it_crashes/heads.py`,
+# not the library's): the MLP predicts the four gain logits of eq. 11 and drives through
+# MANC's DMP head; or it predicts MANC's predicates, followed by vAGN, `FC(q)` and the head,
+# trained on whole scenes; or the gains read the predicates beside q. At the paper's size
+# (`research/why_it_crashes/REPORT.md`, "MANC's pieces on the expert's perception") the DMP
+# head drives as well as the plain output, the automaton with `FC(q)` drives well for some
 # training seeds and at the image models' level for others, and with `FC(q ⊕ p)` every seed
-# drives: each part of MANC works when it perceives what the expert perceives, so what
-# MANC lacks is in its predicates, its perception of the leader.
+# drives: each part of MANC works when it perceives what the expert perceives, so what MANC
+# lacks is in its predicates, its perception of the leader.
 
 # %% [markdown]
 # ## 5. How does it crash? The collision taxonomy
@@ -291,13 +293,13 @@ assert past.ego_valid.all(), "step 20 has two past steps"
 
 # %% [markdown]
 # The gap between the ego's current and past boxes is its speed times $\Delta t$; the change
-# of the gap to the leader between the frames is the closing speed. Measured for the CNN
-# over three seeds (`results/history_fix_cnn.md`), faded history lowers its at-fault rate by
-# a little more than the seed spread and leaves it far above the privileged learner's:
-# the information is now in the image, but a convolutional reading of two faded boxes does
-# not yet recover it to the precision a speed command needs (`results/perceive_drive.md`
-# and `results/privileged_noise.md`: an error of half a metre per second in its own speed
-# costs the privileged learner more than losing its leader).
+# of the gap to the leader between the frames is the closing speed. Measured for the CNN over
+# three seeds (`research/why_it_crashes/REPORT.md`), faded history lowers its at-fault rate by
+# a little more than the seed spread and leaves it far above the privileged learner's: the
+# information is now in the image, but a convolutional reading of two faded boxes does not yet
+# recover it to the precision a speed command needs (the report's modular learner and its "A
+# perception that errs": an error of half a metre per second in its own speed costs the
+# privileged learner more than losing its leader).
 
 # %% [markdown]
 # ## Paper vs. this course

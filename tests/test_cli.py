@@ -149,7 +149,7 @@ def test_reproduce_sets_the_training_window_of_the_dmp_models(monkeypatch, tmp_p
     with pytest.raises(SystemExit):
         cli.main(["reproduce", "--preset", "tiny", "--out", str(tmp_path / "o"),
                   "--dmp-seq-len", "8", "--epochs", "2"])
-    assert seen["config"].training.dmp_seq_len == 8 and seen["config"].epochs == 2
+    assert seen["config"].training.dmp_seq_len == 8 and seen["config"].training.epochs == 2
     for argv, option in ((["--dmp-seq-len", "0"], "--dmp-seq-len"), (["--epochs", "-1"],
                                                                       "--epochs")):
         code = cli.main(["reproduce", "--preset", "tiny", "--out", str(tmp_path / "p"), *argv])

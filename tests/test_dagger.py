@@ -17,7 +17,6 @@ from hypothesis import strategies as st
 from minimanc import dagger, inputs, rollout, train, world
 from minimanc.dagger.expert import HumanExpert
 from minimanc.errors import UsageError
-from minimanc.rollout.reactive import simulate_reactive
 from minimanc.world.datareader import load
 from minimanc.world.datawriter import save
 
@@ -191,7 +190,7 @@ def test_beta_zero_drives_the_policy_among_reactive_ados(teacher, split):
     pool, _ = split
     policy = rollout.FixedGainsPolicy()
     col = dagger.collect(policy, teacher, [2, 3], 0.0, seed=0)
-    ref = simulate_reactive(policy, pool, scenes=[2, 3], progress=False)
+    ref = rollout.simulate(policy, pool, scenes=[2, 3], progress=False, agents="reactive")
     assert col.expert_share == 0.0 and len(col.data) == 2
     assert np.allclose(col.data.ego, ref.ego.astype(np.float32), atol=1e-5)
     assert np.allclose(col.data.ado, np.where(ref.ado_valid[..., None], ref.ado, 0.0),
@@ -489,7 +488,7 @@ def test_a_policy_driven_scene_records_the_applied_controls_and_they_survive_a_f
     pool, _ = split
     policy = rollout.FixedGainsPolicy()
     col = dagger.collect(policy, teacher, [2, 3], 0.0, seed=0)
-    ref = simulate_reactive(policy, pool, scenes=[2, 3], progress=False)
+    ref = rollout.simulate(policy, pool, scenes=[2, 3], progress=False, agents="reactive")
     driven = inputs.driven_controls(col.data)
     np.testing.assert_allclose(driven[:, :-1], ref.controls, rtol=1e-6, atol=1e-6)
     assert np.abs(driven[:, :-1] - col.data.controls[:, :-1]).max() > 0.1  # not the labels

@@ -36,6 +36,7 @@ MODULES: tuple[str, ...] = (
     "minimanc.viz.saliency",
     "minimanc.models.dmp_head",
     "minimanc.chapters",
+    "minimanc.diagnose",
 )
 """Modules whose public functions must carry numpydoc sections."""
 

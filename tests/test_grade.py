@@ -207,6 +207,61 @@ def test_a_swallowed_exception_does_not_pass(course):
     assert rows(exercises.grade(path))["ex_a_tests"].points == 0
 
 
+BROKEN_SETUP = '''# %%
+import builtins
+
+IN_TESTS = not hasattr(builtins, "get_ipython")   # the tests' process, not a kernel
+
+# %%
+if IN_TESTS:
+    raise RuntimeError("the setup broke")
+
+# %% solution id=ex_a title="One"
+def one():
+    ### BEGIN SOLUTION
+    return 1
+    ### END SOLUTION
+
+# %% grade id=ex_a_tests points=1
+assert one() == 1
+
+# %%
+while IN_TESTS:
+    pass
+
+# %% solution id=ex_b title="Two"
+def two():
+    ### BEGIN SOLUTION
+    return 2
+    ### END SOLUTION
+
+# %% grade id=ex_b_tests points=1
+assert two() == 2
+'''
+
+
+def test_a_setup_that_fails_or_hangs_in_the_tests_process_is_reported(tmp_path):
+    """The solutions notebook's own cells run again in the tests' process: one that fails
+    there is named in a note, one that never ends stops only the grade cells after it."""
+    (tmp_path / "broken_solutions.py").write_text(BROKEN_SETUP)
+    exercises.convert(tmp_path / "broken_solutions.py", tmp_path / "solutions" / "broken.ipynb")
+    exercises.build(tmp_path / "solutions", tmp_path / "exercises")
+    solutions = nbformat.read(tmp_path / "solutions" / "broken.ipynb", as_version=4)
+    nb = nbformat.read(tmp_path / "exercises" / "broken.ipynb", as_version=4)
+    for mine, ref in zip(nb.cells, solutions.cells):
+        if exercises.is_solution_cell(mine):
+            mine.source = ref.source
+    nbformat.write(nb, tmp_path / "exercises" / "broken.ipynb")
+    report = exercises.grade(tmp_path / "exercises" / "broken.ipynb", timeout=15)
+    got = rows(report)
+    assert got["ex_a_tests"].points == 1
+    assert got["ex_b_tests"].points == 0
+    assert got["ex_b_tests"].message == ("not run: the tests' process stalled: no progress in "
+                                         "15 s")
+    assert any("the tests' own setup failed (cell 1: RuntimeError: the setup broke)" in n
+               for n in report.notes), report.notes
+
+
 # ------------------------------------------------------------------ library shadowing
 @pytest.mark.parametrize("code", [
     "classify = dmp.classify",
@@ -382,6 +437,7 @@ def test_chapter_3_boundary_mistakes_fail_the_hidden_tests(tmp_path):
 def test_instrumented_grade_cells_stay_valid_python(source, labelled):
     import ast
 
-    out, ok = exercises.instrument_grade_source(source, "NONCE")
+    out, ok = exercises.instrument_grade_source(source)
     ast.parse(out)
-    assert ok is labelled and out.endswith("print('NONCE')")
+    assert ok is labelled and out.startswith('_minimanc_grading_part = "visible"\n')
+    assert ('_minimanc_grading_part = "hidden"' in out) is (labelled and "HIDDEN" in source)

@@ -319,3 +319,43 @@ def test_a_literal_import_module_call_is_an_import():
     top, inner = _imports("minimanc.metrics.table", source)
     assert top == [("importlib", 1), ("minimanc.viz.style", 3)]
     assert [(t, line) for t, line, _ in inner] == [("minimanc.highway", 8)]
+
+
+def reached(seeds: set[str]) -> set[str]:
+    """The modules ``seeds`` import, transitively (inside functions too), with the packages
+    that hold them (importing a module runs its parents' ``__init__``)."""
+    seen: set[str] = set()
+    stack = list(seeds)
+    while stack:
+        module = stack.pop()
+        if module in seen or module not in MODULES:
+            continue
+        seen.add(module)
+        parts = module.split(".")
+        stack += [".".join(parts[:i]) for i in range(1, len(parts))]
+        top, inner = _imports(module)
+        stack += [t for t in (_own(t) for t, *_ in top + inner) if t]
+    return seen
+
+
+def test_every_module_is_reached_from_a_notebook_or_the_command_line():
+    """A module is in ``minimanc/`` because a notebook builds or uses it, or the command line
+    runs it; what only ``research/`` or ``benchmarks/`` uses lives there."""
+    from minimanc.cli import CORE, PLUGINS
+
+    seeds = {"minimanc", "minimanc.__main__", "minimanc.cli", *CORE, *PLUGINS}
+    for path in sorted((ROOT / "notebooks_src").glob("*.py")):
+        source = path.read_text(encoding="utf-8")
+        for node in ast.walk(ast.parse(source)):
+            if isinstance(node, ast.Import | ast.ImportFrom):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                    [node.module or ""] + [f"{node.module}.{a.name}" for a in node.names]
+                seeds |= {m for m in (_own(n) for n in names if n.startswith("minimanc")) if m}
+    missing = sorted(set(MODULES) - reached(seeds))
+    assert missing == [], f"modules no notebook and no command reaches: {missing}"
+
+
+def test_reached_follows_imports_and_parent_packages():
+    got = reached({"minimanc.dagger.loop"})
+    assert {"minimanc", "minimanc.dagger", "minimanc.dagger.loop", "minimanc.train"} <= got
+    assert "minimanc.exercises" not in got and "minimanc.cli" not in got

@@ -161,28 +161,6 @@ def test_sequence_chooses_the_feedback_per_window(name, eng_np, eng_jax):
     assert np.abs(fed[1:, ~rows] - logged[1:, ~rows]).max() > 1e-6
 
 
-def test_manc_gains_can_read_the_predicates_beside_q(eng_np):
-    """``gains_input="q+predicates"``: the gains FC reads ``q ⊕ p`` (its weights on ``q``
-    alone give eq. 11's MANC back); anything else is refused."""
-    cfg = models.ModelConfig(**{**CFG.to_dict(), "channels": CFG.channels,
-                                "gains_input": "q+predicates"})
-    rng = np.random.default_rng(5)
-    params = models.init("manc", rng, cfg)
-    N, M = cfg.n_states, cfg.n_predicates
-    assert params["gains"]["w"].shape == (N + M, 4)
-    obs = inputs.select(_obs(rng, cfg), models.get("manc"))
-    state = models.initial_state("manc", B, cfg, dtype=np.float64)
-    both, _, aux = models.step("manc", params, obs, state, cfg, eng_np)
-    plain = {**params, "gains": {"w": params["gains"]["w"][:N], "b": params["gains"]["b"]}}
-    only_q, _, _ = models.step("manc", plain, obs, state, CFG, eng_np)
-    assert np.abs(both - only_q).max() > 1e-6  # the predicates move the gains
-    plain["gains"]["w"] = np.concatenate([plain["gains"]["w"], np.zeros((M, 4))])
-    again, _, _ = models.step("manc", plain, obs, state, cfg, eng_np)
-    np.testing.assert_allclose(again, only_q, rtol=1e-12, atol=1e-12)
-    with pytest.raises(ValueError, match="gains_input must be"):
-        models.ModelConfig(gains_input="p")
-
-
 def test_step_under_jit(eng_jax):
     rng = np.random.default_rng(3)
     params = models.init("manc", rng, CFG, dtype=np.float32)

@@ -399,7 +399,7 @@ def test_simulators_of_generated_scenes_refuse_recorded_ones(imported):
     seed; an imported scene (attempts 0: no draw) is refused, never swapped for a generated
     one (the bounds say why: the dataset is recorded)."""
     from minimanc import rollout
-    from minimanc.studies import bounds
+    from minimanc.diagnose import bounds
 
     _, _, ds = imported
     assert ds.meta["attempts"] == [0, 0] and ds.meta["source"] == "nuscenes"
@@ -408,7 +408,7 @@ def test_simulators_of_generated_scenes_refuse_recorded_ones(imported):
     with pytest.raises(ValueError, match=r"style floor re-drives .* recorded \(nuscenes\)"):
         bounds.floor_rollout(ds, bounds.median_style(50))
     with pytest.raises(ValueError, match=r"expert re-drives .* recorded \(nuscenes\)"):
-        bounds.expert_rollout(ds, "replay")
+        bounds.expert_rollout(ds, agents="replay")
 
 
 def test_train_and_drive_on_imported_scenes(dataroot, tmp_path):

@@ -58,7 +58,7 @@ def test_human_controls_reproduce_the_logged_ados(ds):
 
 
 def test_followers_stop_behind_an_ego_that_stands_still(ds):
-    still = reactive.simulate_reactive(Still(), ds, progress=False)
+    still = rollout.simulate(Still(), ds, progress=False, agents="reactive")
     replay = rollout.simulate(Still(), ds, progress=False)
     hits_replay = metrics.collisions(replay.ego, ds.ado, ds.ado_valid)
     hits_reactive = metrics.collisions(still.ego, still.ado, still.ado_valid)
@@ -75,7 +75,7 @@ def test_followers_stop_behind_an_ego_that_stands_still(ds):
 
 def test_arrivals_are_the_logs_whatever_the_policy(ds):
     """Slot k holds the same vehicle (its size) under any policy; arrivals enter when clear."""
-    still = reactive.simulate_reactive(Still(), ds, progress=False)
+    still = rollout.simulate(Still(), ds, progress=False, agents="reactive")
     both = still.ado_valid & ds.ado_valid
     np.testing.assert_allclose(still.ado[..., 3:][both], ds.ado[..., 3:][both], atol=1e-5)
     # every ado of the log appears, an arrival whose entry is blocked a little later
@@ -87,13 +87,16 @@ def test_arrivals_are_the_logs_whatever_the_policy(ds):
 
 
 def test_batching_and_save_load(ds, tmp_path):
-    a = reactive.simulate_reactive(Still(), ds, scenes=[2, 5, 7], batch_size=2, progress=False)
-    b = reactive.simulate_reactive(Still(), ds, scenes=[5], progress=False)
+    a = rollout.simulate(Still(), ds, scenes=[2, 5, 7], batch_size=2, progress=False,
+                         agents="reactive")
+    b = rollout.simulate(Still(), ds, scenes=[5], progress=False, agents="reactive")
     np.testing.assert_array_equal(a.ado[1], b.ado[0])
     np.testing.assert_array_equal(a.ego[1], b.ego[0])
-    back = reactive.ReactiveRollout.load(a.save(tmp_path / "r.npz"))
+    back = rollout.Rollout.load(a.save(tmp_path / "r.npz"))
     np.testing.assert_array_equal(back.ado, a.ado)
     assert back.agents == "reactive" and list(back.scenes) == [2, 5, 7]
+    with pytest.raises(ValueError, match="holds the ados it simulated"):
+        rollout.Rollout("x", "paper", a.ego, a.controls, agents="reactive")
 
 
 def test_simulator_protocol_directly(ds):
@@ -124,7 +127,7 @@ def test_refuses_datasets_it_cannot_regenerate(ds):
     with pytest.raises(ValueError, match="does not regenerate"):
         reactive.record_human(moved, 3)
     with pytest.raises(ValueError, match="steps"):
-        reactive.simulate_reactive(Still(), ds, steps=0, progress=False)
+        rollout.simulate(Still(), ds, steps=0, progress=False, agents="reactive")
 
 
 def test_a_split_regenerates_from_its_scene_index(ds):

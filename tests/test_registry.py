@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-from minimanc import engine, inputs, layers, models, rollout, train, world
+from minimanc import engine, inputs, layers, metrics, models, rollout, studies, train, world
 from minimanc.layers import dense, flatten
-from minimanc.models import registry
+from minimanc.models import registry, zoo
 from minimanc.viz import style
 
 
@@ -31,6 +33,24 @@ def _toy_head(params, enc, state, cfg, eng):
 
 TOY = models.ModelSpec("toy_linear", "Toy", "feedforward", registry.observes_goal(),
                        _toy_init, _toy_encode, _toy_head, window="seq_len", colour="#000000")
+
+
+# MANC whose gains read q and the predicates, FC(q ⊕ p), from MANC's public pieces
+# (the example of minimanc.models.zoo's docstring)
+def _qp_init(rng, cfg, n_num):
+    return {"predicates": zoo.predicate_layer(rng, cfg), "vagn": zoo.vagn_layer(rng, cfg),
+            "gains": zoo.gains_layer(rng, cfg.n_states + cfg.n_predicates, cfg)}
+
+
+def _qp_head(params, enc, state, cfg, eng):
+    q = zoo.vagn_step(params, enc, state, eng)
+    x = eng.xp.concatenate([q, enc["predicates"]], axis=-1)
+    controls, aux = zoo.dmp_step(zoo.gains_fc(params, x, eng), enc, cfg, eng)
+    return controls, {"q": q}, {"q": q, **aux}
+
+
+MANC_QP = models.ModelSpec("manc_qp", "MANC FC(q ⊕ p)", "vagn", registry.observes_structured(),
+                           _qp_init, zoo.dmp_encode, _qp_head, window="dmp_seq_len", dmp=True)
 
 
 def test_a_new_model_is_one_entry_and_runs_through_the_public_api(ds):
@@ -72,6 +92,56 @@ def test_a_new_model_is_one_entry_and_runs_through_the_public_api(ds):
         models.init("toy_linear", np.random.default_rng(0), cfg)
     with pytest.raises(ValueError, match="name must be one of"):
         models.get("toy_linear")
+
+
+def test_a_manc_variant_registered_outside_the_package_trains_and_drives_closed_loop():
+    """MANC with gains FC(q ⊕ p), registered here from the public pieces: it trains two steps
+    on the tiny preset's data and drives its validation scenes among reactive ados."""
+    c = studies.PRESETS["tiny"]
+    n = c.n_train + c.n_tune + c.n_val
+    data = world.generate(n, seed=c.data_seed, raster=world.RasterConfig(size=c.image_size),
+                          workers=1)
+    train_ds, val_ds = data.subset(slice(0, c.n_train)), data.subset(slice(c.n_train + c.n_tune, n))
+    cfg = models.ModelConfig(image_size=c.image_size, n_states=4)
+    with models.registered(MANC_QP):
+        assert models.vagn_models()[-1] == "manc_qp" and "manc_qp" in models.dmp_models()
+        params = models.init("manc_qp", np.random.default_rng(0), cfg)
+        manc = models.init("manc", np.random.default_rng(0), cfg)
+        assert params["gains"]["w"].shape == (cfg.n_states + cfg.n_predicates, 4)
+        np.testing.assert_array_equal(params["vagn"]["W"], manc["vagn"]["W"])  # same draws
+        fit = train.fit("manc_qp", train_ds, cfg, replace(c.training, batch_size=8),
+                        engine="numpy", progress=False)
+        assert fit.name == "manc_qp" and fit.steps == 2 and np.all(np.isfinite(fit.history))
+        traj = rollout.closed_loop(fit, val_ds, engine="numpy", progress=False,
+                                   agents="reactive")
+        assert traj.name == "manc_qp" and traj.ego.shape == val_ds.ego.shape
+        assert set(traj.aux) == {"q", "alpha", "beta", "predicates"}
+        np.testing.assert_allclose(traj.aux["q"].sum(-1), 1.0, atol=1e-5)
+        assert np.isfinite(metrics.evaluate(traj, val_ds)["ade"])
+    assert "manc_qp" not in models.names()
+
+
+def test_a_head_sees_the_same_inputs_in_a_step_and_in_a_training_window(ds):
+    """The head contract of ModelSpec: ``enc`` holds what ``encode`` returned and the
+    predicates, never the backbone features, in models.step as in models.sequence."""
+    seen = []
+
+    def head(params, enc, state, cfg, eng):
+        seen.append(sorted(enc))
+        return zoo.manc_head(params, enc, state, cfg, eng)
+
+    spec = models.ModelSpec("manc_seen", "seen", "vagn", registry.observes_structured(),
+                            zoo.manc_init, zoo.dmp_encode, head, window="dmp_seq_len", dmp=True)
+    cfg = models.ModelConfig(image_size=32, channels=(4, 8), n_states=3)
+    eng = engine("numpy")
+    with models.registered(spec):
+        params = models.init("manc_seen", np.random.default_rng(0), cfg)
+        obs = inputs.from_dataset(ds, [0, 1], [3, 7], "paper", model=spec)
+        state = models.initial_state("manc_seen", 2, cfg, dtype=np.float64)
+        models.step("manc_seen", params, obs, state, cfg, eng)
+        seq = {k: v[None] for k, v in obs.items()}  # (L = 1, B = 2, ...)
+        models.sequence("manc_seen", params, seq, state, cfg, eng, feedback_motion=True)
+    assert seen[0] == seen[-1] == ["lane_target", "motion", "predicates"]
 
 
 def test_the_families_and_windows_of_the_six_models_come_from_their_specs():

@@ -481,3 +481,56 @@ def test_open_loop_is_replay_on_many_scenes(ds):
         one = rollout.replay("manc", params32, ds, s, cfg)
         assert np.allclose(many["q"][row], one["q"], atol=1e-5)
         assert np.allclose(many["controls"][row], one["controls"], atol=1e-4)
+
+
+def test_the_training_result_is_accepted_where_its_parts_are(ds):
+    """``closed_loop(fit, ds)`` (and open_loop, replay, ModelPolicy) equal the explicit form
+    ``(name, params, ds, cfg)``; a result given with its parts again is refused."""
+    from minimanc import train
+
+    cfg = models.ModelConfig(image_size=32, n_states=3)
+    params = models.init("manc", np.random.default_rng(4), cfg)
+    fit = train.FitResult(name="manc", params=params, history=[], cfg=cfg,
+                          train_cfg=train.TrainConfig(), steps=7)  # Adam steps, not the loop's
+    kw = dict(scenes=[0, 3], steps=3, progress=False)
+    whole = rollout.closed_loop(fit, ds, engine="numpy", agents="reactive", **kw)
+    parts = rollout.closed_loop("manc", params, ds, cfg, "numpy", agents="reactive", **kw)
+    assert whole.name == "manc" and whole.agents == "reactive"
+    np.testing.assert_array_equal(whole.ego, parts.ego)
+    np.testing.assert_array_equal(whole.aux["q"], parts.aux["q"])
+    assert rollout.closed_loop(fit, ds, engine="numpy", scenes=[1], progress=False
+                               ).ego.shape == (1, ds.ego.shape[1], 3)  # every step of the log
+    a = rollout.open_loop(fit, ds, scenes=[1])
+    b = rollout.open_loop("manc", params, ds, cfg, "numpy", scenes=[1])
+    np.testing.assert_array_equal(a["controls"], b["controls"])
+    np.testing.assert_array_equal(rollout.replay(fit, ds, 2)["controls"],
+                                  rollout.replay("manc", params, ds, 2, cfg)["controls"])
+    policy = rollout.ModelPolicy(fit, engine="numpy")
+    assert (policy.model, policy.cfg, policy.engine.name) == ("manc", cfg, "numpy")
+    with pytest.raises(TypeError, match="leave out params and cfg"):
+        rollout.closed_loop(fit, params, ds, cfg)
+    with pytest.raises(TypeError, match="leave out params and cfg"):
+        rollout.ModelPolicy(fit, cfg=cfg)
+    with pytest.raises(TypeError, match="leave out params and cfg"):
+        rollout.open_loop(fit, ds, "numpy")  # options after the result are keywords
+
+
+def test_drive_on_route_drives_a_bare_head_along_the_route_and_refuses_bad_controls():
+    from minimanc import dmp
+
+    cfg = models.ModelConfig()
+    m = world.random_map(np.random.default_rng(3), "curved")
+    p, h = m.route_pose(m.start_s)
+    start, motion = np.array([p[0], p[1], h]), np.array([5.0, 0.0])
+    logits = np.array([[*dmp.logits_from_gains(4.0, 0.45), *dmp.logits_from_gains(3.0, 1.0)]])
+
+    def head(lane, mot):
+        return models.dmp_head(logits, lane, mot, cfg)[0]
+
+    poses, u = rollout.drive_on_route(head, m, start, motion, 12)
+    assert poses.shape == (13, 3) and u.shape == (12, 2)
+    np.testing.assert_allclose(poses[1], world.unicycle_step(start, u[0], world.DT))
+    s, lat = world.project_to_route(m, poses[:, :2], poses[:, 2])
+    assert np.all(np.diff(s) > 0) and np.abs(lat).max() < 1.0   # it follows the route
+    with pytest.raises(ValueError, match="shape \\(1, 2\\)"):
+        rollout.drive_on_route(lambda lane, mot: np.zeros(3), m, start, motion, 2)

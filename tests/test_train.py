@@ -259,3 +259,24 @@ def test_bad_config_raises(ds):
         train.fit("cnn", ds, CFG, _tc(), engine="torch", progress=False)
     with pytest.raises(ValueError, match="resume"):
         train.fit("cnn", ds, CFG, _tc(), engine="numpy", resume=True, progress=False)
+
+
+def test_the_training_result_is_accepted_where_its_parts_are(ds, tmp_path):
+    """``open_loop_loss(fit, ds)`` is the loss as trained (the fit's normalisation);
+    ``save_checkpoint(path, fit)`` writes what ``load_fit`` reads back."""
+    fit = train.fit("manc", ds, CFG, _tc(epochs=2), engine="numpy", progress=False)
+    assert train.open_loop_loss(fit, ds, engine="numpy") == train.open_loop_loss(
+        "manc", fit.params, ds, CFG, "numpy", std=fit.control_std)
+    assert train.open_loop_loss(fit, ds, engine="numpy", std=np.ones(2)) == \
+        train.open_loop_loss("manc", fit.params, ds, CFG, "numpy", std=np.ones(2))
+    back = train.load_fit(train.save_checkpoint(tmp_path / "fit.npz", fit))
+    assert (back.name, back.cfg, back.train_cfg, back.history, back.steps) == \
+        (fit.name, fit.cfg, fit.train_cfg, fit.history, fit.steps)
+    assert train.load_checkpoint(tmp_path / "fit.npz")["epoch"] == 2
+    np.testing.assert_array_equal(back.control_std, fit.control_std)
+    for x, y in zip(tree.leaves(back.params), tree.leaves(fit.params)):
+        np.testing.assert_array_equal(x, y)
+    with pytest.raises(TypeError, match="accepts_fit needs"):
+        train.accepts_fit()(lambda name, params: None)
+    with pytest.raises(TypeError, match="lacks \\['std'\\]"):
+        train.accepts_fit({"std": lambda f: f.control_std})(lambda name, params, cfg: None)

@@ -319,3 +319,42 @@ def test_plot_study_rounds_draws_dagger_by_round_and_bc_per_model():
         "MANC DAgger", "MANC BC", "CNN DAgger", "CNN BC"]
     assert ax.get_ylabel() == style.METRIC_LABELS["ade"]
     plt.close(fig)
+
+
+# --------------------------------------------------------------------- the exercises' figures
+def _stub():
+    raise NotImplementedError("Exercise ex99_1: to do")
+
+
+def test_automaton_panels_fall_back_to_the_reference():
+    W = vagn.init_vagn(np.random.default_rng(0), 2, 3, scale=1.0)
+    T = vagn.transition_matrix(np.array([1.0, 0.0]), W)
+    qs = vagn.rollout(vagn.uniform_state(3), np.ones((4, 2)), W)
+    axes = automaton.plot_automaton_attempts([("T", "T", lambda: T, T), ("todo", "T", _stub, T),
+                                              ("bad", "q", lambda: -qs, None),
+                                              ("q", "q", lambda: qs, qs)])
+    titles = [ax.get_title() for ax in axes]
+    assert titles[0] == "T (yours)" and titles[3] == "q (yours)"
+    assert titles[1].startswith("todo: reference\nyours: NotImplementedError")
+    assert titles[2].startswith("bad: nothing\nyours: ")         # not a distribution
+    assert axes[1].patches or axes[1].collections               # the reference was drawn
+
+
+def test_automaton_panels_refuse_unknown_kinds_and_axes_counts():
+    with pytest.raises(ValueError, match="kinds must be 'T' or 'q'"):
+        automaton.plot_automaton_attempts([("x", "graph", _stub, None)])
+    _, axes = plt.subplots(1, 2)
+    with pytest.raises(ValueError, match="expected 1 axes, got 2"):
+        automaton.plot_automaton_attempts([("x", "T", _stub, None)], axes=axes)
+
+
+def test_overlays_draw_yours_or_name_the_error():
+    image = np.zeros((4, 4, 3), np.uint8)
+    ramp = np.arange(16.0).reshape(4, 4)
+    axes = saliency.plot_overlay_attempts(image, [("mine", lambda: ramp, None),
+                                                  ("todo", _stub, ramp), ("none", _stub, None)])
+    assert len(axes) == 4 and axes[1].get_title() == "mine"
+    assert axes[2].get_title().startswith("todo: reference\nyours: NotImplementedError")
+    assert axes[2].images and not axes[3].images
+    with pytest.raises(ValueError, match="expected 2 axes, got 1"):
+        saliency.plot_overlay_attempts(image, [("x", _stub, None)], axes=[axes[0]])

@@ -170,10 +170,6 @@ def test_the_drive_figure_puts_a_head_on_the_road_and_names_a_stub():
     def library(lane, mot):
         return models.dmp_head(logits, lane, mot, cfg)[0]
 
-    poses, u = vx.drive_on_route(library, m, start, motion, 12)
-    assert poses.shape == (13, 3) and u.shape == (12, 2)
-    s, lat = world.project_to_route(m, poses[:, :2], poses[:, 2])
-    assert np.all(np.diff(s) > 0) and np.abs(lat).max() < 1.0   # it follows the route
     fig = vx.plot_drive_attempts(m, start, motion, library, library, steps=12)
     assert "paths at most 0.00 m apart" in fig._suptitle.get_text()
     lines = fig.axes[1].get_lines()
@@ -192,8 +188,6 @@ def test_the_drive_figure_puts_a_head_on_the_road_and_names_a_stub():
     fig = vx.plot_drive_attempts(m, start, motion, stub, library, steps=12)
     assert "your head: NotImplementedError: Exercise ex08_2: stub" in fig._suptitle.get_text()
     assert len(fig.axes[1].get_lines()) == 1
-    with pytest.raises(ValueError, match="shape \\(1, 2\\)"):
-        vx.drive_on_route(lambda lane, mot: np.zeros(3), m, start, motion, 2)
     plt.close("all")
 
 
@@ -229,3 +223,22 @@ def test_the_track_error_figure_draws_your_split_over_the_library_and_names_erro
     with pytest.raises(ValueError, match="human must have shape"):
         vx.plot_track_error_attempts({}, human[0], stub)
     plt.close("all")
+
+
+def _stub():
+    raise NotImplementedError("Exercise ex99_1: to do")
+
+
+def test_curves_draw_yours_over_the_reference_and_name_a_stub():
+    x = np.arange(5.0)
+    ax = vx.plot_curve_attempts(x, [("mine", lambda: x ** 2, x ** 2), ("todo", _stub, -x)],
+                                title="t")
+    labels = [line.get_label() for line in ax.get_lines()]
+    assert labels == ["mine: reference", "mine: yours", "todo: reference"]
+    assert "todo: NotImplementedError: Exercise ex99_1" in ax.get_title()
+
+
+def test_curves_refuse_a_wrong_length_in_the_title():
+    ax = vx.plot_curve_attempts(np.arange(3.0), [("short", lambda: [1.0, 2.0], None)])
+    assert ax.get_title() == "short: expected 3 values, got shape (2,)"
+    assert not ax.get_lines()

@@ -124,7 +124,7 @@ def _policy(path: str, engine: str, option: str = "--checkpoints") -> Any:
         fit = train.load_fit(path)
     except ValueError as e:  # missing (ValueError) or unreadable (CheckpointError)
         raise UsageError(f"{option} {e}") from e
-    return rollout.ModelPolicy(fit.name, fit.params, fit.cfg, engine)
+    return rollout.ModelPolicy(fit, engine=engine)
 
 
 def cmd_eval(args: argparse.Namespace) -> int:

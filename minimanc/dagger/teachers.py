@@ -13,7 +13,7 @@ import numpy as np
 from minimanc import metrics, rollout
 from minimanc.dagger.expert import HumanExpert
 from minimanc.rollout import AGENTS, BATCH_SIZE, LogReplay, Simulator
-from minimanc.rollout.reactive import ReactiveSim, simulate_reactive
+from minimanc.rollout.reactive import ReactiveSim
 from minimanc.world.geometry import DT, wrap_angle
 from minimanc.world.scenes import Dataset
 
@@ -126,10 +126,7 @@ class WorldTeacher:
     def evaluate(self, policy: Any, progress: bool = False) -> dict[str, float]:
         if self.val is None:
             return {}
-        if self.agents == "reactive":
-            traj = simulate_reactive(policy, self.val, progress=progress)
-        else:
-            traj = rollout.simulate(policy, self.val, progress=progress)
+        traj = rollout.simulate(policy, self.val, progress=progress, agents=self.agents)
         return metrics.evaluate(traj, self.val)
 
 

@@ -25,10 +25,11 @@ The graded notebooks follow nbgrader's conventions without its database:
   ``solutions/<assignment>.ipynb``, never against the notebook's own. A
   solution cell may list library functions it asks the student to write
   (``minimanc.forbids``); they raise while that exercise's grade cells run
-  (:func:`shadow`). The tools grade cells rely on are captured before any student
-  cell runs and restored (and named) before each grade cell; answers must have
-  exact plain types (:mod:`~minimanc.exercises.integrity`). Written answers are
-  listed apart, "to grade by hand", never in the automatic total.
+  (:func:`shadow`). The grade cells run in a process of their own that no student
+  cell reaches (:mod:`~minimanc.exercises.checker`); the notebook answers their calls
+  with plain data (:mod:`~minimanc.exercises.serving`,
+  :mod:`~minimanc.exercises.values`). Written answers are listed apart, "to grade by
+  hand", never in the automatic total.
 
 Notebooks are authored in the "percent" format (:func:`convert`), see
 CONTRIBUTING.md.
@@ -37,9 +38,11 @@ The package has one module per job, and every name is re-exported here:
 :mod:`~minimanc.exercises.markers` (markers, metadata, validation),
 :mod:`~minimanc.exercises.builder` (solutions → exercises),
 :mod:`~minimanc.exercises.conversion` (percent format, execution),
-:mod:`~minimanc.exercises.grading` (grading), :mod:`~minimanc.exercises.integrity`
-(pristine tools and strict answers while grading) and
-:mod:`~minimanc.exercises.shadowing` (library shadowing).
+:mod:`~minimanc.exercises.grading` (grading), :mod:`~minimanc.exercises.checker` (the
+tests' process), :mod:`~minimanc.exercises.serving` (the notebook's answers),
+:mod:`~minimanc.exercises.wire` with :mod:`~minimanc.exercises.values`,
+:mod:`~minimanc.exercises.encoding` and :mod:`~minimanc.exercises.decoding` (what crosses
+between them, and how) and :mod:`~minimanc.exercises.shadowing` (library shadowing).
 """
 
 from __future__ import annotations
@@ -48,6 +51,7 @@ from minimanc.exercises.builder import (
     build,
     make_exercise,
 )
+from minimanc.exercises.checker import instrument_grade_source
 from minimanc.exercises.conversion import (
     KERNEL_ARGS,
     TIMEOUT_ENAME,
@@ -61,17 +65,13 @@ from minimanc.exercises.grading import (
     GradeRefused,
     GradeReport,
     GradeRow,
+    answer_names,
     assignment_of,
     exercise_of_grade_cells,
     find_source,
     forbidden_functions,
     grade,
-    instrument_grade_source,
     read_notebook,
-)
-from minimanc.exercises.integrity import (
-    RefusedAnswer,
-    TamperedDuringGrading,
 )
 from minimanc.exercises.markers import (
     ANSWER_PLACEHOLDER,
@@ -100,6 +100,7 @@ from minimanc.exercises.shadowing import (
     resolve,
     shadow,
 )
+from minimanc.exercises.values import RefusedAnswer
 
 __all__ = [
     "ANSWER_PLACEHOLDER",
@@ -120,7 +121,7 @@ __all__ = [
     "RefusedAnswer",
     "Shadow",
     "TIMEOUT_ENAME",
-    "TamperedDuringGrading",
+    "answer_names",
     "answer_written",
     "assignment_name",
     "assignment_of",

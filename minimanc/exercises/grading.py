@@ -1,15 +1,16 @@
 """Chapter 0 — grading a notebook against the authoritative tests of its solutions notebook.
 
-:func:`grade` executes a notebook and scores each grade cell against the grade
-cells (hidden tests included) of ``solutions/<assignment>.ipynb``, never
-against the notebook's own; while an exercise's grade cells run, the library
-functions it ``forbids`` raise (:func:`minimanc.exercises.shadow`). Before any
-student cell runs, the tools grade cells rely on are captured; before each grade
-cell whatever student code replaced is restored and named on the grade cell's
-row, and the grade cell runs against the captured tools with strict answer types
-(:mod:`minimanc.exercises.integrity`). Written answers (markdown answer cells) are
-graded by hand: the report lists them apart, with their points and whether the
-student wrote anything, and never adds them to the automatic total.
+:func:`grade` executes a notebook and scores each grade cell against the grade cells
+(hidden tests included) of ``solutions/<assignment>.ipynb``, never against the
+notebook's own. The grade cells run in a separate process that no student cell can
+reach (:mod:`minimanc.exercises.checker`): it runs the solutions notebook's own plain
+cells, and when the notebook reaches a grade cell the notebook answers the tests' calls
+of its functions with plain data (:mod:`minimanc.exercises.serving`,
+:mod:`minimanc.exercises.values`); while an exercise is graded, the library functions it
+``forbids`` raise in the notebook (:func:`minimanc.exercises.shadow`). Written answers
+(markdown answer cells) are graded by hand: the report lists them apart, with their
+points and whether the student wrote anything, and never adds them to the automatic
+total.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import ast
 import copy
 import json
 import re
-import secrets
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,12 +27,11 @@ from pathlib import Path
 import nbformat
 
 from minimanc.errors import UsageError
+from minimanc.exercises.checker import TestsProcess, TestsStopped
 from minimanc.exercises.conversion import TIMEOUT_ENAME, notebook_client
-from minimanc.exercises.integrity import defined_names, imported_names, read_names
 from minimanc.exercises.markers import (
-    BEGIN_HIDDEN,
-    END_HIDDEN,
     META_KEY,
+    RAISES_TAG,
     NotebookFormatError,
     answer_written,
     cell_source,
@@ -51,12 +51,12 @@ __all__ = [
     "GradeRefused",
     "GradeReport",
     "GradeRow",
+    "answer_names",
     "assignment_of",
     "exercise_of_grade_cells",
     "find_source",
     "forbidden_functions",
     "grade",
-    "instrument_grade_source",
     "read_notebook",
 ]
 
@@ -77,7 +77,6 @@ class GradeRow:
     max_points: float
     message: str = ""
     hidden: bool = False
-    tampered: list[str] = field(default_factory=list)
     title: str = ""
 
 
@@ -238,13 +237,6 @@ def _first_error(cell) -> str | None:
     return None
 
 
-def _stdout(cell) -> str:
-    return "".join(
-        o.get("text", "") for o in cell.get("outputs", [])
-        if o.get("output_type") == "stream" and o.get("name") == "stdout"
-    )
-
-
 def exercise_of_grade_cells(nb) -> dict[str, str]:
     """grade_id of each grade cell → id of the nearest solution cell before it."""
     out, current = {}, None
@@ -264,113 +256,38 @@ def forbidden_functions(nb) -> dict[str, list[str]]:
     }
 
 
-_PART = "_minimanc_grading_part"
-_GUARD = "_minimanc_grading_guard"
+def answer_names(nb) -> list[str]:
+    """The names the solution cells bind at top level (functions, classes, values): the
+    names whose values the tests take from the student's notebook."""
+    names: list[str] = []
+    for cell in nb.cells:
+        if not is_solution_cell(cell):
+            continue
+        try:
+            tree = ast.parse(cell_source(cell))
+        except SyntaxError:
+            continue
+        for node in tree.body:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                names.append(node.name)
+            elif isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
+                targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+                names += [n.id for t in targets for n in ast.walk(t) if isinstance(n, ast.Name)]
+    return sorted(set(names))
 
 
-def instrument_grade_source(source: str, nonce: str) -> tuple[str, bool]:
-    """The grade cell to execute: it records whether a hidden test is running and
-    prints ``nonce`` as its last act (so a swallowed exception does not pass).
-
-    Returns the source and whether hidden regions could be labelled (the marker
-    lines become assignments at their indentation; if that is not valid Python
-    the cell runs unlabelled).
-    """
-    lines = source.split("\n")
-    labelled = []
-    for line in lines:
-        stripped = line.strip()
-        indent = line[: len(line) - len(line.lstrip())]
-        if stripped.startswith(BEGIN_HIDDEN):
-            labelled.append(f'{indent}{_PART} = "hidden"')
-        elif stripped.startswith(END_HIDDEN):
-            labelled.append(f'{indent}{_PART} = "visible"')
-        else:
-            labelled.append(line)
-    head, tail = f'{_PART} = "visible"\n', f"\nprint({nonce!r})"
-    candidate = head + "\n".join(labelled) + tail
-    try:
-        ast.parse(candidate)
-        return candidate, True
-    except SyntaxError:
-        return head + source + tail, False
-
-
-def _setup_source(targets: list[str], exercise: str) -> str:
-    return (
-        "import minimanc.exercises\n"
-        f"{_GUARD} = minimanc.exercises.shadow({targets!r}, {exercise!r}, globals())"
-    )
-
-
-_INTEGRITY = "import minimanc.exercises.integrity as _minimanc_integrity\n"
-
-
-def _capture_source(reference) -> str:
-    """The first cell: capture the tools (the solutions notebook's imports) before
-    any student cell runs."""
-    plain = [cell_source(c) for c in reference.cells if c.cell_type == "code"
-             and not is_grade_cell(c) and not is_solution_cell(c)]
-    classes = [n for c in reference.cells if c.cell_type == "code" and not is_grade_cell(c)
-               for n in defined_names(cell_source(c))[1]]
-    return (_INTEGRITY + f"_minimanc_integrity.capture({imported_names(plain)!r}, "
-            f"{sorted(set(classes))!r})\ndel _minimanc_integrity")
-
-
-def _restore_source(token: str, read: list[str], answers: list[str]) -> str:
-    return (_INTEGRITY + f"_minimanc_integrity.restore({token!r}, globals(), {read!r}, "
-            f"{answers!r})\ndel _minimanc_integrity")
-
-
-def _run_source(source: str, answers: list[str], gid: str) -> str:
-    return (_INTEGRITY + f"_minimanc_integrity.run_grade({source!r}, globals(), {answers!r}, "
-            f"{f'<grade cell {gid}>'!r})")
-
-
-def _probe_source(nonce: str, token: str, guarded: bool) -> str:
-    restore = f"    {_GUARD}.restore()\n" if guarded else "    pass\n"
-    return (
-        f"try:\n{restore}finally:\n"
-        f"    {_INTEGRITY}"
-        f"    _minimanc_integrity.check_after({token!r})\n"
-        f"    print({nonce!r} + ':' + str(globals().get({_PART!r}, '?')))"
-    )
-
-
-@dataclass
-class _Slot:
-    """Where one expected grade cell sits in the notebook being executed, and the
-    tokens its cells print (fresh for each grade cell, so a token seen in one
-    cell's output cannot be replayed in another)."""
-
-    check: int
-    grade: int
-    probe: int
-    labelled: bool
-    nonce: str
-    before: str
-    after: str
-
-
-def _found(cell, token: str) -> list[str] | None:
-    """The names printed after ``token`` by a restore/check call, None if absent.
-
-    The last such line counts: a ``pre_run_cell`` callback of the student's, run
-    before the restore removes it, may have printed a forged one earlier.
-    """
-    for line in reversed(_stdout(cell).splitlines()):
-        if line.startswith(token + ":"):
-            try:
-                names = json.loads(line[len(token) + 1:])
-            except json.JSONDecodeError:
-                return None
-            return [str(n) for n in names] if isinstance(names, list) else None
-    return None
-
-
-def _listing(names: list[str], limit: int = 6) -> str:
-    more = f" and {len(names) - limit} more" if len(names) > limit else ""
-    return ", ".join(names[:limit]) + more
+def _tests_cells(reference_nb) -> list[dict]:
+    """The solutions notebook's code cells as the tests' process runs them: its plain
+    cells and its grade cells (never its solution cells)."""
+    out = []
+    for index, cell in enumerate(reference_nb.cells):
+        if cell.cell_type != "code" or is_solution_cell(cell):
+            continue
+        grade_cell = is_grade_cell(cell)
+        out.append({"kind": "grade" if grade_cell else "plain", "source": cell_source(cell),
+                    "index": index, "gid": grade_id(cell) if grade_cell else None,
+                    "raises": RAISES_TAG in cell.metadata.get("tags", [])})
+    return out
 
 
 def grade(
@@ -384,15 +301,16 @@ def grade(
     The tests always come from the solutions notebook (``source``, or
     ``solutions/<assignment>.ipynb`` found via :func:`find_source` from the
     assignment id in the notebook's metadata); the notebook's own grade cells are
-    never trusted. Grade cells are matched by ``grade_id``: moved cells are fine;
-    a deleted one (or one whose metadata was removed) scores 0 and is listed; a
-    duplicated one is scored once. While an exercise's grade cells run, the
-    library functions it ``forbids`` raise (see :func:`shadow`). A cell that runs
-    longer than ``timeout`` seconds is interrupted; a crashed kernel leaves the
-    remaining cells unscored.
+    never trusted, and they run in a process of their own (see the module docstring).
+    Grade cells are matched by ``grade_id``: moved cells are fine; a deleted one (or
+    one whose metadata was removed) scores 0 and is listed; a duplicated one is scored
+    once. While an exercise's grade cells run, the library functions it ``forbids``
+    raise (see :func:`shadow`). A cell that runs longer than ``timeout`` seconds is
+    interrupted; a crashed kernel leaves the remaining cells unscored.
 
-    Raises :class:`GradeRefused` when the notebook cannot be read or its source
-    cannot be identified; otherwise never raises for what the notebook does.
+    Raises :class:`GradeRefused` when the notebook cannot be read, its source cannot
+    be identified or the tests' process cannot start; otherwise never raises for what
+    the notebook does.
     """
     path = Path(path)
     student = read_notebook(path)
@@ -435,68 +353,115 @@ def grade(
         report.notes.append("the tests changed since this notebook was built; graded with "
                             "the current ones")
     exercise_of = exercise_of_grade_cells(reference_nb)
-    forbids = forbidden_functions(reference_nb)
     titles = {grade_id(c): str(c.metadata.get(META_KEY, {}).get("title", ""))
               for c in reference_nb.cells if is_solution_cell(c)}
     report.answers = _answer_rows(student, reference_nb, source.name)
 
-    answers = {grade_id(c): defined_names(cell_source(c))[0]
-               for c in reference_nb.cells if is_solution_cell(c)}
-    cells, slots = _grading_cells(student, reference, exercise_of, forbids, answers, report)
-    # importing the package (nbformat, ...) and capturing are two cells, each well
-    # inside the cell timeout
-    cells[:0] = [nbformat.v4.new_code_cell(_INTEGRITY + "del _minimanc_integrity"),
-                 nbformat.v4.new_code_cell(_capture_source(reference_nb))]
-    for slot in slots.values():
-        slot.check, slot.grade, slot.probe = slot.check + 2, slot.grade + 2, slot.probe + 2
-    run_nb = nbformat.v4.new_notebook(metadata=copy.deepcopy(student.metadata))
-    run_nb.cells = cells
-    crashed, timed_out = _execute_for_grading(run_nb, path, timeout, report)
-    grade_indices = {s.grade for s in slots.values()}
-    stopped = len([i for i in timed_out if i not in grade_indices])
+    cells, slots = _grading_cells(student, reference, report)
+    names = answer_names(reference_nb)
+    try:
+        tests = TestsProcess(_tests_cells(reference_nb), list(slots), names,
+                             source.resolve().parent, timeout, _kernel_python())
+    except OSError as exc:
+        raise GradeRefused(f"cannot start the tests' process: {_one_line(exc)}") from None
+    try:
+        forbids = forbidden_functions(reference_nb)
+        serving = {}
+        for gid, index in slots.items():   # the serving cells are written when reached
+            exercise = exercise_of.get(gid, gid)
+            cells[index] = nbformat.v4.new_code_cell("pass")
+            serving[gid] = (exercise, forbids.get(exercise, []), names)
+        # importing the serving side (nbformat, ...) is a cell of its own, well inside the
+        # cell timeout
+        cells.insert(0, nbformat.v4.new_code_cell(_SERVING))
+        slots = {gid: index + 1 for gid, index in slots.items()}
+        run_nb = nbformat.v4.new_notebook(metadata=copy.deepcopy(student.metadata))
+        run_nb.cells = cells
+        run = _Run(tests, slots, serving)
+        crashed, timed_out = _execute_for_grading(run_nb, path, timeout, report, run)
+    finally:
+        tests.stop()
+    stopped = len([i for i in timed_out if i not in set(slots.values())])
     if stopped:
         report.notes.append(f"{stopped} cell(s) of yours stopped: timeout after {timeout} s")
+    report.notes += [f"the tests' own setup failed ({e}); tell your instructor"
+                     for e in tests.setup_errors]
     for gid, ref in reference.items():
         max_points = float(nbgrader_metadata(ref).get("points", 0))
-        slot = slots.get(gid)
-        if slot is None:
-            report.rows.append(GradeRow(
-                gid, 0.0, max_points, "missing: grade cell deleted or its metadata removed"
-            ))
-            continue
-        cell = run_nb.cells[slot.grade]
-        probe = _stdout(run_nb.cells[slot.probe])
-        nonce = slot.nonce
-        part = probe.rsplit(":", 1)[-1].strip() if nonce in probe else "?"
-        error = _first_error(cell)
-        before = _found(run_nb.cells[slot.check], slot.before)
-        after = _found(run_nb.cells[slot.probe], slot.after)
-        if slot.grade in timed_out:
-            row = GradeRow(gid, 0.0, max_points, f"timeout after {timeout} s")
-        elif error:
-            hidden = slot.labelled and part == "hidden"
-            message = f"hidden test failed: {error}" if hidden else error
-            row = GradeRow(gid, 0.0, max_points, message, hidden)
-        elif cell.execution_count is None:
-            row = GradeRow(gid, 0.0, max_points, crashed or "not executed")
-        elif f"{nonce}\n" not in _stdout(cell):
-            row = GradeRow(gid, 0.0, max_points, "the tests did not run to the end")
-        elif before is None or after is None:
-            row = GradeRow(gid, 0.0, max_points, "the grader's integrity checks did not run")
+        row = GradeRow(gid, 0.0, max_points, title=titles.get(exercise_of.get(gid, gid), ""))
+        index = slots.get(gid)
+        verdict = tests.verdicts.get(gid) if index is not None else None
+        if index is None:
+            row.message = "missing: grade cell deleted or its metadata removed"
+        elif index in timed_out:
+            row.message = f"timeout after {timeout} s"
+        elif gid in run.stalled:
+            row.message = f"not run: {run.stalled[gid]}"
+        elif run_nb.cells[index].execution_count is None:
+            row.message = crashed or "not executed"
+        elif verdict is None or "passed" not in verdict:
+            error = _first_error(run_nb.cells[index])
+            row.message = "the tests did not run" + (f": {error}" if error else "")
+        elif verdict["passed"]:
+            row.points = max_points
         else:
-            row = GradeRow(gid, max_points, max_points)
-        row.title = titles.get(exercise_of.get(gid, gid), "")
-        if after:
-            row.points, row.tampered = 0.0, list(after)
-            row.message = (f"tampered: your code replaced {_listing(after)} while the tests "
-                           "ran; the tests do not count") + (f" ({row.message})" if row.message
-                                                             else "")
-        elif before:
-            row.tampered = list(before)
-            row.message = (f"tampered: your code replaced {_listing(before)}; the tests used "
-                           "the originals") + (f"; {row.message}" if row.message else "")
+            row.hidden = bool(verdict.get("hidden"))
+            message = str(verdict.get("message", ""))
+            row.message = f"hidden test failed: {message}" if row.hidden else message
         report.rows.append(row)
     return report
+
+
+_SERVING = "import minimanc.exercises.serving\ndel minimanc"
+
+
+def _kernel_python() -> str | None:
+    """The interpreter of the ``python3`` kernel (the tests' process uses the same one, so
+    functions sent by their code run there); None for this one."""
+    from jupyter_client.kernelspec import KernelSpecManager  # Jupyter only when grading
+
+    try:
+        argv = KernelSpecManager().get_kernel_spec("python3").argv
+    except Exception:  # noqa: BLE001 - no such kernelspec: the kernel start reports it
+        return None
+    plain = {"python", f"python{sys.version_info[0]}", "python{}.{}".format(*sys.version_info)}
+    return None if not argv or argv[0] in plain else argv[0]
+
+
+class _Run:
+    """What happens around the serving cells while the notebook runs: before one, wait
+    until the tests' process is ready for it; after one, make sure it is not waiting
+    for a grade cell that will never come."""
+
+    def __init__(self, tests: TestsProcess, slots: dict[str, int],
+                 serving: dict[str, tuple]) -> None:
+        self.tests, self.serving = tests, serving
+        self.at = {index: gid for gid, index in slots.items()}
+        self.stalled: dict[str, str] = {}
+
+    def start(self) -> None:
+        """Once the kernel is up, before its first cell: the tests' process must be
+        listening (it started first; the two start side by side)."""
+        try:
+            self.tests.started()
+        except TestsStopped as exc:
+            raise GradeRefused(f"cannot start the tests' process: {_one_line(exc)}") from None
+
+    def before(self, cell, cell_index: int) -> None:
+        gid = self.at.get(cell_index)
+        if gid is None:
+            return
+        try:
+            self.tests.wait_ready(gid)
+        except TestsStopped as exc:
+            self.stalled[gid] = str(exc)
+            return
+        cell.source = self.tests.serve_source(gid, *self.serving[gid])
+
+    def after(self, cell_index: int) -> None:
+        gid = self.at.get(cell_index)
+        if gid is not None and gid not in self.stalled and self.tests.verdict(gid) is None:
+            self.tests.skip(gid)
 
 
 def _answer_rows(student, reference_nb, name: str) -> list[AnswerRow]:
@@ -521,10 +486,9 @@ def _answer_rows(student, reference_nb, name: str) -> list[AnswerRow]:
     return rows
 
 
-def _grading_cells(student, reference, exercise_of, forbids, answers, report):
-    """The cells to execute: the student's cells, with each expected grade cell
-    replaced by the authoritative one, wrapped in the integrity check, its
-    shadowing set-up and its probe (see :func:`grade`)."""
+def _grading_cells(student, reference, report):
+    """The cells to execute: the student's code cells, each expected grade cell replaced
+    by a placeholder for its serving cell (``slots``: grade id -> its index)."""
     cells, slots = [], {}
     for cell in student.cells:
         gid = grade_id(cell) if is_grade_cell(cell) else None
@@ -538,24 +502,12 @@ def _grading_cells(student, reference, exercise_of, forbids, answers, report):
         if gid in slots:
             report.notes.append(f"grade cell {gid} is duplicated; the first copy is scored")
             continue
-        exercise = exercise_of.get(gid, gid)
-        targets = forbids.get(exercise, [])
-        nonce, before, after = (f"minimanc-grade-{secrets.token_hex(8)}" for _ in range(3))
-        source = cell_source(reference[gid])
-        names = answers.get(exercise, [])
-        cells.append(nbformat.v4.new_code_cell(
-            _restore_source(before, sorted(read_names(source)), names)))
-        check = len(cells) - 1
-        if targets:
-            cells.append(nbformat.v4.new_code_cell(_setup_source(targets, exercise)))
-        src, labelled = instrument_grade_source(source, nonce)
-        cells.append(nbformat.v4.new_code_cell(_run_source(src, names, gid)))
-        cells.append(nbformat.v4.new_code_cell(_probe_source(nonce, after, bool(targets))))
-        slots[gid] = _Slot(check, len(cells) - 2, len(cells) - 1, labelled, nonce, before, after)
+        slots[gid] = len(cells)
+        cells.append(None)
     return cells, slots
 
 
-def _execute_for_grading(nb, path: Path, timeout: int, report: GradeReport):
+def _execute_for_grading(nb, path: Path, timeout: int, report: GradeReport, run: _Run):
     """Run every cell, errors allowed.
 
     Returns (reason execution stopped early or None, indices of timed-out cells).
@@ -565,17 +517,25 @@ def _execute_for_grading(nb, path: Path, timeout: int, report: GradeReport):
 
     timed_out: set[int] = set()
 
+    def on_execute(cell, cell_index, **_):
+        run.before(cell, cell_index)
+
     def on_executed(cell, cell_index, execute_reply, **_):
         content = (execute_reply or {}).get("content", {})
         if content.get("ename") == TIMEOUT_ENAME:
             timed_out.add(cell_index)
+        run.after(cell_index)
 
     client = notebook_client(nb, path.resolve().parent, timeout, allow_errors=True)
+    client.on_notebook_start = lambda **_: run.start()
+    client.on_cell_execute = on_execute
     client.on_cell_executed = on_executed
     try:
         client.execute()
     except NoSuchKernel as exc:
         raise GradeRefused(f"cannot start a Python kernel: {_one_line(exc)}") from None
+    except GradeRefused:
+        raise
     except DeadKernelError:
         report.notes.append("the kernel died; later cells were not run")
         return "not run: the kernel died", timed_out

@@ -57,7 +57,7 @@ def evaluate(traj: Any, ds: Any, gap: float = CLOSE_GAP) -> dict[str, float]:
 
     The ados are the rollout's own when it holds them
     (``traj.ado``, ``traj.ado_valid``: the reactive protocol,
-    :class:`minimanc.rollout.reactive.ReactiveRollout`), else the dataset's log.
+    ``agents="reactive"``), else the dataset's log.
     Keys: :data:`ALL_METRICS`; ``close_encounters``, ``collision_rate``,
     ``off_road_rate``, ``at_fault_collision_rate`` and ``ttc_rate`` in percent,
     ``route_progress`` a ratio, the rest in m or m/s².

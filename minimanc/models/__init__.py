@@ -53,10 +53,8 @@ from __future__ import annotations
 from minimanc.models import registry
 from minimanc.models.backbone import backbone
 from minimanc.models.config import (
-    CHANGE_SCALE,
     CONTROL_SCALE,
     DEFAULT_GAINS,
-    SPEED_OUTPUTS,
     ModelConfig,
     gain_logits,
 )
@@ -85,10 +83,8 @@ from minimanc.models.zoo import BUILTIN
 
 __all__ = [
     "BUILTIN",
-    "CHANGE_SCALE",
     "CONTROL_SCALE",
     "DEFAULT_GAINS",
-    "SPEED_OUTPUTS",
     "ModelConfig",
     "ModelSpec",
     "backbone",

@@ -12,21 +12,14 @@ from minimanc import dmp, inputs
 from minimanc.checks import check_int
 from minimanc.world.lanes import TARGET_SPACING
 
-__all__ = ["CHANGE_SCALE", "CONTROL_SCALE", "DEFAULT_GAINS", "SPEED_OUTPUTS", "TARGET_SPACING",
-           "ModelConfig", "gain_box_corners", "gain_logits", "lookahead_rule"]
+__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "TARGET_SPACING", "ModelConfig", "gain_box_corners",
+           "gain_logits", "lookahead_rule"]
 
 # TARGET_SPACING (the metres of route between the lane-target points the heads see,
 # obs["lane_target"] at 4 · (1 … K) m) is the world's, re-exported for the heads.
 
 CONTROL_SCALE: tuple[float, float] = (10.0, 0.5)
 """Output scale of the direct heads: ``controls = o · (10 m/s, 0.5 rad/s)``."""
-
-SPEED_OUTPUTS: tuple[str, ...] = ("level", "change")
-"""What a direct head's first output is: the speed, or its change over one step."""
-
-CHANGE_SCALE: float = 2.0
-"""Output scale (m/s) of a direct head's speed change per step with ``speed_output="change"``
-(4 m/s² over a 0.5 s step)."""
 
 DEFAULT_GAINS: tuple[float, float, float, float] = (1.0, 0.45, 2.5, 1.15)
 """Initial ``(α_y, β_y, α_q, β_q)`` of the DMP heads (the bias of the gains FC):
@@ -116,16 +109,8 @@ class ModelConfig:
     ``gains_scale`` (initial scale of the gains FC relative to Glorot),
     ``orientation`` ("yaw": the orientation DMP on the yaw angle, or
     "quaternion": eq. 2 with unit quaternions — equal results for yaw-only
-    driving), ``vagn_scale`` the std of vAGN's initial weights, ``dt`` the
-    step (s), ``speed_output`` ("level": the direct heads predict the speed itself;
-    "change": its change over one step, added to the current speed of ``motion``, so the
-    model must see ``motion``; the DMP heads always integrate from ``motion``) and
-    ``predicate_pool`` ("global": eq. 7, ``p = σ(Linear(GAP(f)))``; "flat": the predicates
-    read the flattened feature map, ``p = σ(Linear(flatten(f)))``, which keeps *where* a
-    feature fires — not the paper's form, and CAM, eq. 7's saliency, is not defined for it),
-    ``gains_input`` of MANC's gains FC ("q": eq. 11, ``FC(q)``; "q+predicates":
-    ``FC(q ⊕ p)``, the predicates read beside the automaton's state — DMP-only's path added
-    to MANC's, not the paper's form).
+    driving), ``vagn_scale`` the std of vAGN's initial weights and ``dt`` the
+    step (s).
 
     ``dt`` must keep the default DMP integrator (:data:`minimanc.dmp.DEFAULT_METHOD`,
     :data:`minimanc.dmp.DEFAULT_SUBSTEPS` sub-steps) stable at every corner of the gain
@@ -151,9 +136,6 @@ class ModelConfig:
     gains_scale: float = 3.0
     vagn_scale: float = 4.0
     dt: float = dmp.DT
-    speed_output: str = "level"
-    predicate_pool: str = "global"
-    gains_input: str = "q"
 
     def __post_init__(self) -> None:
         for name in ("n_states", "n_predicates", "image_size", "hidden", "k_targets"):
@@ -191,15 +173,6 @@ class ModelConfig:
             raise ValueError(f"gains_scale must be > 0, got gains_scale={self.gains_scale!r}")
         if not self.vagn_scale > 0.0:
             raise ValueError(f"vagn_scale must be > 0, got vagn_scale={self.vagn_scale!r}")
-        if self.predicate_pool not in ("global", "flat"):
-            raise ValueError(f"predicate_pool must be 'global' or 'flat', got "
-                             f"predicate_pool={self.predicate_pool!r}")
-        if self.gains_input not in ("q", "q+predicates"):
-            raise ValueError(f"gains_input must be 'q' or 'q+predicates', got "
-                             f"gains_input={self.gains_input!r}")
-        if self.speed_output not in SPEED_OUTPUTS:
-            raise ValueError(f"speed_output must be one of {SPEED_OUTPUTS}, got "
-                             f"speed_output={self.speed_output!r}")
         self._check_dt()
 
     def _check_dt(self) -> None:
@@ -232,9 +205,6 @@ class ModelConfig:
         """A JSON-able dict (for checkpoints)."""
         d = asdict(self)
         d["channels"] = list(d["channels"])
-        for k, default in (("speed_output", "level"), ("predicate_pool", "global")):
-            if d[k] == default:  # the form before the option: old checkpoints match
-                del d[k]
         return d
 
 

@@ -17,7 +17,7 @@ __all__ = ["saliency"]
 
 
 def saliency(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = None,
-             eng: Any = None, upsample_to_input: bool = True) -> dict:
+             engine: Any = None, upsample_to_input: bool = True) -> dict:
     """Per-q-state saliency of a vAGN model (paper Figs. 3–4), NumPy float64 arrays.
 
     Runs eq. 7 on ``obs["bev"]`` and one vAGN step (eqs. 8–9) from ``q_prev``.
@@ -33,7 +33,7 @@ def saliency(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = Non
     q_prev : array, shape (B, N)
         The q-distribution before the step.
     cfg : ModelConfig, optional
-    eng : Engine, optional
+    engine : Engine or str, optional
         Runs the backbone (default: the NumPy engine).
     upsample_to_input : bool
         Upsample the maps to the image size.
@@ -54,10 +54,7 @@ def saliency(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = Non
         If ``params`` are not a vAGN model's, or ``q_prev`` is not a distribution.
     """
     cfg = cfg or ModelConfig()
-    eng = eng or get_engine("numpy")
-    if cfg.predicate_pool != "global":
-        raise ValueError("saliency (CAM, eq. 7) needs the predicates of global average pooling; "
-                         f"got predicate_pool={cfg.predicate_pool!r}")
+    eng = get_engine(engine) if isinstance(engine, str) else (engine or get_engine("numpy"))
     if "vagn" not in params or "predicates" not in params:
         raise ValueError("saliency needs the parameters of a vAGN model (manc or vagn_only); "
                          f"got params with keys {sorted(params)}")

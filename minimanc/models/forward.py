@@ -18,17 +18,16 @@ import numpy as np
 
 from minimanc import inputs, layers, vagn
 from minimanc.checks import check_int, check_rng
-from minimanc.layers import dense, flatten
+from minimanc.layers import dense
 from minimanc.models import registry
 from minimanc.models.backbone import backbone
-from minimanc.models.config import CHANGE_SCALE, CONTROL_SCALE, ModelConfig
+from minimanc.models.config import ModelConfig
 from minimanc.models.registry import ModelSpec, get
 from minimanc.tree import leaves as tree_leaves
 from minimanc.tree import map as tree_map
 
 __all__ = [
     "cast_tree",
-    "changes_speed",
     "check_obs",
     "check_per_scene",
     "encode",
@@ -253,28 +252,12 @@ def encode(spec: ModelSpec, params: dict, obs: dict, cfg: ModelConfig, eng: Any)
     f = backbone(params["backbone"], obs["bev"], cfg, eng)
     enc: dict = {"features": f}
     if "predicates" in params:
-        if cfg.predicate_pool == "flat":
-            pooled = flatten(f, xp)
-        else:
-            pooled = xp.mean(xp.mean(f, axis=1), axis=1)  # GAP of eq. 7
+        pooled = xp.mean(xp.mean(f, axis=1), axis=1)  # GAP of eq. 7
         z = dense(params["predicates"], pooled, eng.xp)
         enc["predicates"] = eng.nn.sigmoid(z) if cfg.predicate_activation == "sigmoid" else z
     num = inputs.numeric_features(obs, spec, cfg.setting, xp=xp)
     enc.update(spec.encode(params, obs, f, num, cfg, eng))
-    if changes_speed(spec, cfg):
-        enc["speed_now"] = obs["motion"][:, :1]
     return enc
-
-
-def changes_speed(spec: ModelSpec, cfg: ModelConfig) -> bool:
-    """Whether ``spec``'s head predicts the change of speed (``cfg.speed_output="change"``,
-    a direct head); ValueError if it does not see the ``motion`` it changes."""
-    if cfg.speed_output != "change" or spec.dmp:
-        return False
-    if "motion" not in inputs.visible(spec, cfg.setting):
-        raise ValueError(f"speed_output='change' needs a model that sees 'motion'; "
-                         f"{spec.name!r} does not in setting {cfg.setting!r} (use 'parity')")
-    return True
 
 
 def run_head(spec: ModelSpec, params: dict, enc: dict, state: dict, cfg: ModelConfig,
@@ -299,11 +282,6 @@ def run_head(spec: ModelSpec, params: dict, enc: dict, state: dict, cfg: ModelCo
         The spec's ``aux`` and, for models with eq. 7, ``predicates`` ``(B, M)``.
     """
     controls, new_state, aux = spec.head(params, enc, state, cfg, eng)
-    if enc.get("speed_now") is not None:  # speed_output="change": v = v_now + Δv
-        xp = eng.xp
-        k = CHANGE_SCALE / CONTROL_SCALE[0]
-        controls = xp.concatenate([enc["speed_now"] + controls[:, :1] * k, controls[:, 1:]],
-                                  axis=-1)
     if "predicates" in enc:
         aux = {"predicates": enc["predicates"], **aux}
     return controls, new_state, aux
@@ -341,14 +319,14 @@ def step(name: str, params: dict, obs: dict, state: dict, cfg: ModelConfig | Non
     cfg = cfg or ModelConfig()
     check_obs(name, obs, cfg, 1)
     enc = encode(spec, params, obs, cfg, eng)
+    features = enc.pop("features")  # the head reads the features through encode only
     controls, new_state, aux = run_head(spec, params, enc, state, cfg, eng)
-    aux["features"] = enc["features"]
+    aux["features"] = features
     return controls, new_state, aux
 
 
 def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConfig | None,
-             eng: Any, feedback_motion: Any = False, return_aux: bool = False,
-             with_features: bool = False) -> tuple:
+             eng: Any, feedback_motion: Any = False, return_aux: bool = False) -> tuple:
     """Run ``L`` steps on time-major observations.
 
     Equal to ``L`` calls of :func:`step` (tested), but the backbone runs once on
@@ -371,10 +349,7 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
         an array chooses per window.
     return_aux : bool
         Also return the per-step ``aux`` of :func:`step` stacked along time
-        (``features`` excluded unless ``with_features``).
-    with_features : bool
-        With ``return_aux``: ``aux["features"]`` holds the backbone features ``(L, B, h, w,
-        C)`` of every step (an auxiliary loss on what the backbone perceives reads them).
+        (``features`` excluded).
 
     Returns
     -------
@@ -395,7 +370,7 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
             xp.reshape(xp.asarray(v), (L * B,) + tuple(v.shape[2:]))
             for k, v in obs_seq.items() if k in seen}
     enc = encode(spec, params, flat, cfg, eng)
-    features = enc.pop("features")
+    enc.pop("features")
     per_row = not isinstance(feedback_motion, bool)
     feedback = spec.dmp and (per_row or feedback_motion)
     rows = xp.reshape(xp.asarray(feedback_motion), (B, 1)) if feedback and per_row else True
@@ -418,7 +393,5 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
     (state, _, _), (outs, auxs) = eng.scan(body, (dict(state), prev0, 0), xs)
     if not return_aux:
         return outs, state
-    if with_features:
-        auxs = {**auxs, "features": xp.reshape(features, (L, B) + tuple(features.shape[1:]))}
     return outs, state, auxs
 

@@ -6,8 +6,10 @@ it ``observes`` in each information setting (:mod:`minimanc.inputs` reads it),
 the :class:`~minimanc.train.TrainConfig` field that sets its training ``window``,
 whether it ends in the ``dmp`` head of eqs. 10–11, and the three functions that
 make it: ``init`` (its parameters after the shared backbone), ``encode`` (per
-frame, no recurrence) and ``head`` (one time step). Adding a model is one
-:func:`register_model` call; :func:`names` (and :func:`vagn_models`, :func:`lstm_models`,
+frame, no recurrence) and ``head`` (one time step); what each receives and returns is
+:class:`ModelSpec`'s docstring. Adding a model is one :func:`register_model` call (or
+``with registered(spec):`` for a block); MANC's pieces to build one from are public
+(:mod:`minimanc.models.zoo`); :func:`names` (and :func:`vagn_models`, :func:`lstm_models`,
 :func:`dmp_models`), the CLI choices, the window rule of :mod:`minimanc.train` and the
 plot labels follow.
 
@@ -97,16 +99,41 @@ class ModelSpec:
     init : callable
         ``init(rng, cfg, n_num) -> dict``: the parameters besides ``"backbone"``, drawn
         from ``rng`` after the backbone's; ``n_num`` is the length of the model's
-        :func:`minimanc.inputs.numeric_features`. A ``"predicates"`` entry (a dense layer
-        ``C → M``) makes the shared encoder compute eq. 7's predicates.
+        :func:`minimanc.inputs.numeric_features` in ``cfg.setting``. A ``"predicates"`` entry
+        (a dense layer ``C → M``, :func:`minimanc.models.zoo.predicate_layer`) makes the
+        shared encoder compute eq. 7's predicates for the head.
     encode : callable
-        ``encode(params, obs, f, num, cfg, eng) -> dict``: the per-frame inputs of the
-        head (no recurrence), from the observations ``obs`` (cast to the parameters'
-        dtype), the backbone's features ``f`` ``(B, h, w, C)`` and the numbers ``num``
-        ``(B, F)`` (or ``None``). Values are arrays with the batch axis first, or
-        ``None``; the head also receives ``predicates`` ``(B, M)`` when computed.
+        ``encode(params, obs, f, num, cfg, eng) -> dict``: the per-frame part (no
+        recurrence), run on every frame at once. ``obs`` holds the keys the model observes
+        in ``cfg.setting`` (:func:`minimanc.inputs.visible`), cast to the parameters' dtype:
+        ``bev`` ``(B, H, W, 3)``, ``goal`` ``(B, 3)``, ``lane_target`` ``(B, K, 2)``,
+        ``motion`` ``(B, 2)``, ``goal_bev``; ``f`` ``(B, h, w, C)`` are the backbone's features
+        of ``obs["bev"]`` and ``num`` ``(B, F)`` the numbers of
+        :func:`minimanc.inputs.numeric_features` (``None`` when the model sees none). In a
+        training window (:func:`minimanc.models.sequence`) ``B`` counts every frame of every
+        window (``L·B``), except ``goal_bev`` (:data:`minimanc.inputs.SCENE_CONSTANT_KEYS`:
+        one per window). Returns arrays with the frames on the first axis, or ``None``.
     head : callable
-        ``head(params, enc, state, cfg, eng) -> (controls (B, 2), new_state, aux)``.
+        ``head(params, enc, state, cfg, eng) -> (controls, new_state, aux)``: one time
+        step. ``enc`` is what ``encode`` returned, for this step's ``B`` rows, and
+        ``predicates`` ``(B, M)`` when the parameters hold ``"predicates"`` (eq. 7 through
+        ``cfg.predicate_activation``); never the backbone's features (read them in
+        ``encode``). In the training windows of a ``dmp`` model with ``motion_feedback``,
+        ``enc["motion"]`` is the model's own controls of the previous step after the first
+        (so a ``dmp`` model's ``encode`` returns ``motion``). ``state`` is the family's
+        (:func:`minimanc.models.initial_state`): ``{}`` (feedforward), ``{"h", "c"}``
+        ``(B, hidden)`` (lstm), ``{"q"}`` ``(B, N)`` (vagn: q' of eq. 9). Returns
+        ``controls`` ``(B, 2)`` = ``[speed (m/s), yaw rate (rad/s)]``; ``new_state`` with the
+        keys and shapes of ``state`` (the time loop of :func:`minimanc.models.sequence` and
+        the closed loop carry it over); ``aux``, a dict of ``(B, ...)`` arrays with the same
+        keys at every step: ``q`` for the vagn family and ``alpha``, ``beta`` ``(B, 2)`` for a
+        ``dmp`` head are what a rollout records (:data:`minimanc.rollout.AUX_KEYS`;
+        ``predicates`` is added by :func:`minimanc.models.step`, not by the head).
+    ``init``, ``encode`` and ``head`` are pure functions of the engine ``eng`` (its
+    ``eng.xp``, ``eng.nn``, no in-place assignment: CONTRIBUTING.md), so that a model runs
+    and trains on both engines. MANC's pieces to build a variant from are the public
+    functions of :mod:`minimanc.models.zoo` (its docstring registers MANC with gains
+    ``FC(q ⊕ p)`` in a dozen lines).
     window : str or None
         The :class:`~minimanc.train.TrainConfig` field giving the training window length
         (``None``: one step).

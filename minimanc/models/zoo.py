@@ -12,13 +12,42 @@ name          forward pass
 ``rvs_g``     flatten(f(bev)) ⊕ flatten(f(goal_bev)) ⊕ n → LSTM(64) → FC(2) · s
 ``manc``      p = σ(Linear(GAP(f))) (eq. 7) → q = vAGN(p, q') (eqs. 8–9) →
               gains = FC(q) → one DMP step (eqs. 10–11) → [speed, yaw rate]
-              (``gains_input="q+predicates"``: gains = FC(q ⊕ p))
 ``vagn_only`` p (eq. 7) → q = vAGN(p, q') → FC(64) on q ⊕ n → FC(2) · s
 ``dmp_only``  p (eq. 7) → gains = FC(p) → one DMP step → [speed, yaw rate]
 ============= =================================================================
 
 (The authors' RvS has a Gaussian action head; ours predicts the mean only and
 is trained with the same MSE as all others.)
+
+MANC's pieces are public, each one equation, so that a variant is a new
+:class:`~minimanc.models.ModelSpec` of a few lines (the contract of ``init``, ``encode`` and
+``head`` is the spec's docstring):
+
+* parameters: :func:`predicate_layer` (eq. 7), :func:`vagn_layer` (eqs. 8–9),
+  :func:`gains_layer` (the FC of eq. 11);
+* per frame: :func:`dmp_encode` (the lane target and the motion the DMP head reads);
+* per step: :func:`vagn_step` (q from q' and the predicates), :func:`gains_fc` (the gains'
+  four logits), :func:`dmp_step` (one DMP step, eqs. 10–11 → ``[speed, yaw rate]``);
+* MANC itself: :func:`manc_init` and :func:`manc_head`, made of the above.
+
+For example MANC whose gains read q and the predicates, ``FC(q ⊕ p)``::
+
+    from minimanc import models
+    from minimanc.models import zoo
+
+    def init(rng, cfg, n_num):
+        return {"predicates": zoo.predicate_layer(rng, cfg), "vagn": zoo.vagn_layer(rng, cfg),
+                "gains": zoo.gains_layer(rng, cfg.n_states + cfg.n_predicates, cfg)}
+
+    def head(params, enc, state, cfg, eng):
+        q = zoo.vagn_step(params, enc, state, eng)
+        x = eng.xp.concatenate([q, enc["predicates"]], axis=-1)
+        controls, aux = zoo.dmp_step(zoo.gains_fc(params, x, eng), enc, cfg, eng)
+        return controls, {"q": q}, {"q": q, **aux}
+
+    models.register_model(models.ModelSpec(
+        "manc_qp", "MANC FC(q ⊕ p)", "vagn", models.registry.observes_structured(),
+        init, zoo.dmp_encode, head, window="dmp_seq_len", dmp=True))
 """
 
 from __future__ import annotations
@@ -39,7 +68,8 @@ from minimanc.models.registry import (
     register_model,
 )
 
-__all__ = ["BUILTIN", "control_scale", "flat_size", "gains_layer", "predicate_layer"]
+__all__ = ["BUILTIN", "control_scale", "dmp_encode", "dmp_step", "flat_size", "gains_fc",
+           "gains_layer", "manc_head", "manc_init", "predicate_layer", "vagn_layer", "vagn_step"]
 
 
 def flat_size(cfg: ModelConfig) -> int:
@@ -73,14 +103,42 @@ def control_scale(eng: Any) -> Any:
 
 
 def predicate_layer(rng: np.random.Generator, cfg: ModelConfig) -> dict:
-    """Eq. 7's predicate layer ``Linear(GAP(f))``: ``w`` ``(C, M)``, ``b`` ``(M,)``. With
-    ``cfg.predicate_pool="flat"`` it reads ``flatten(f)`` (``h·w·C`` inputs) and starts as
-    exactly the same function: the same draw, each cell's weights ``w / (h·w)``."""
-    p = layers.init_dense(rng, cfg.channels[-1], cfg.n_predicates)
-    if cfg.predicate_pool == "flat":
-        cells = cfg.feature_size ** 2
-        p = {**p, "w": np.tile(np.asarray(p["w"]), (cells, 1)) / cells}
-    return p
+    """Eq. 7's predicate layer ``Linear(GAP(f))``, as ``params["predicates"]``.
+
+    A model whose parameters hold ``"predicates"`` gets ``enc["predicates"]`` ``(B, M)``
+    from the shared encoder (:func:`minimanc.models.forward.encode`; through
+    ``cfg.predicate_activation``).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    cfg : ModelConfig
+        Its ``channels[-1]`` (C) and ``n_predicates`` (M).
+
+    Returns
+    -------
+    dict
+        ``w`` ``(C, M)``, ``b`` ``(M,)``.
+    """
+    return layers.init_dense(rng, cfg.channels[-1], cfg.n_predicates)
+
+
+def vagn_layer(rng: np.random.Generator, cfg: ModelConfig) -> dict:
+    """The vAGN's weights ``W^p`` (eqs. 8–9), as ``params["vagn"]``.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    cfg : ModelConfig
+        Its ``n_predicates`` (M), ``n_states`` (N) and ``vagn_scale`` (the weights'
+        standard deviation, :func:`minimanc.vagn.init_vagn`).
+
+    Returns
+    -------
+    dict
+        ``{"W": (M, N, N)}``.
+    """
+    return {"W": vagn.init_vagn(rng, cfg.n_predicates, cfg.n_states, scale=cfg.vagn_scale)}
 
 
 def gains_layer(rng: np.random.Generator, n_in: int, cfg: ModelConfig) -> dict:
@@ -114,17 +172,87 @@ def _direct(params: dict, h: Any, eng: Any) -> Any:
     return dense(params["out"], h, eng.xp) * control_scale(eng)
 
 
-def _dmp(logits: Any, enc: dict, cfg: ModelConfig, eng: Any) -> tuple[Any, dict]:
-    return dmp_head(logits, enc["lane_target"], enc["motion"], cfg, xp=eng.xp)
+def dmp_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig, eng: Any) -> dict:
+    """The ``encode`` of the DMP models: what the DMP head reads of each frame.
 
+    Parameters
+    ----------
+    params, f, num, cfg
+        As every ``encode`` (:class:`~minimanc.models.ModelSpec`); unused.
+    obs : dict
+        ``lane_target`` ``(B, K, 2)`` and ``motion`` ``(B, 2)``.
+    eng : Engine
 
-def _dmp_inputs(obs: dict, eng: Any) -> dict:
+    Returns
+    -------
+    dict
+        ``{"lane_target", "motion"}`` as arrays of the engine (the head's inputs; in training
+        windows ``motion`` is fed back from the previous step, ``motion_feedback``).
+    """
     return {"lane_target": eng.xp.asarray(obs["lane_target"]),
             "motion": eng.xp.asarray(obs["motion"])}
 
 
-def _vagn_step(params: dict, enc: dict, state: dict, eng: Any) -> Any:
+def vagn_step(params: dict, enc: dict, state: dict, eng: Any) -> Any:
+    """One step of the automaton (eqs. 8–9): q from the previous q' and the predicates.
+
+    Parameters
+    ----------
+    params : dict
+        With ``"vagn"`` (:func:`vagn_layer`).
+    enc : dict
+        With ``"predicates"`` ``(B, M)`` (the model has a :func:`predicate_layer`).
+    state : dict
+        ``{"q": (B, N)}``, q' (the vAGN family's state).
+    eng : Engine
+
+    Returns
+    -------
+    array, shape (B, N)
+        q, a distribution per row (:func:`minimanc.vagn.step`).
+    """
     return vagn.step(state["q"], enc["predicates"], params["vagn"]["W"], xp=eng.xp)
+
+
+def gains_fc(params: dict, x: Any, eng: Any) -> Any:
+    """The gains FC of eq. 11 on its input ``x`` (q for MANC, p for DMP-only).
+
+    Parameters
+    ----------
+    params : dict
+        With ``"gains"`` (:func:`gains_layer` of ``x``'s width).
+    x : array, shape (B, n_in)
+    eng : Engine
+
+    Returns
+    -------
+    array, shape (B, 4)
+        The logits of ``(α_y, β_y, α_q, β_q)`` (:func:`dmp_step` maps them into the gain box).
+    """
+    return dense(params["gains"], x, eng.xp)
+
+
+def dmp_step(logits: Any, enc: dict, cfg: ModelConfig, eng: Any) -> tuple[Any, dict]:
+    """One DMP step of the head of eqs. 10–11 at the gains ``logits``, towards the lane target.
+
+    Parameters
+    ----------
+    logits : array, shape (B, 4)
+        From :func:`gains_fc`.
+    enc : dict
+        With ``lane_target`` ``(B, K, 2)`` and ``motion`` ``(B, 2)`` (:func:`dmp_encode`).
+    cfg : ModelConfig
+        The look-ahead rules and ``dt`` (:func:`minimanc.models.dmp_head`).
+    eng : Engine
+
+    Returns
+    -------
+    controls : array, shape (B, 2)
+        ``[speed, yaw rate]``.
+    aux : dict
+        ``alpha`` and ``beta`` ``(B, 2)``: the (position, orientation) gains.
+    """
+    return dmp_head(logits, enc["lane_target"], enc["motion"], cfg, xp=eng.xp)
 
 
 def _lstm(params: dict, enc: dict, state: dict, eng: Any) -> tuple[Any, dict, dict]:
@@ -190,22 +318,53 @@ def _rvs_g_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig,
 # --------------------------------------------------------------------------- manc
 
 
-def _manc_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
-    M, N = cfg.n_predicates, cfg.n_states
+def manc_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
+    """MANC's ``init``: eq. 7's :func:`predicate_layer`, the :func:`vagn_layer` and the
+    :func:`gains_layer` of eq. 11 on q.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    cfg : ModelConfig
+    n_num : int
+        Unused (MANC sees no numbers besides the DMP's inputs).
+
+    Returns
+    -------
+    dict
+        ``{"predicates", "vagn", "gains"}``.
+    """
+    N = cfg.n_states
     return {"predicates": predicate_layer(rng, cfg),
-            "vagn": {"W": vagn.init_vagn(rng, M, N, scale=cfg.vagn_scale)},
-            "gains": gains_layer(rng, N + M if cfg.gains_input == "q+predicates" else N, cfg)}
+            "vagn": vagn_layer(rng, cfg),
+            "gains": gains_layer(rng, N, cfg)}
 
 
-def _dmp_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig, eng: Any) -> dict:
-    return _dmp_inputs(obs, eng)
+def manc_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
+    """MANC's ``head``: q = vAGN(p, q') (:func:`vagn_step`), gains = FC(q) (:func:`gains_fc`),
+    one DMP step (:func:`dmp_step`) → ``[speed, yaw rate]``.
 
+    Parameters
+    ----------
+    params : dict
+        From :func:`manc_init`.
+    enc : dict
+        ``predicates``, ``lane_target``, ``motion`` (:func:`dmp_encode`).
+    state : dict
+        ``{"q": (B, N)}``.
+    cfg : ModelConfig
+    eng : Engine
 
-def _manc_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
-    q = _vagn_step(params, enc, state, eng)
-    x = q if cfg.gains_input == "q" else eng.xp.concatenate([q, enc["predicates"]], axis=-1)
-    logits = dense(params["gains"], x, eng.xp)  # FC(q) of eq. 11 (or FC(q ⊕ p))
-    controls, aux = _dmp(logits, enc, cfg, eng)
+    Returns
+    -------
+    controls : array, shape (B, 2)
+    new_state : dict
+        ``{"q": (B, N)}``.
+    aux : dict
+        ``q``, ``alpha``, ``beta``.
+    """
+    q = vagn_step(params, enc, state, eng)
+    controls, aux = dmp_step(gains_fc(params, q, eng), enc, cfg, eng)  # FC(q) of eq. 11
     return controls, {"q": q}, {"q": q, **aux}
 
 
@@ -213,9 +372,9 @@ def _manc_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any)
 
 
 def _vagn_only_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
-    M, N, H = cfg.n_predicates, cfg.n_states, cfg.hidden
+    N, H = cfg.n_states, cfg.hidden
     return {"predicates": predicate_layer(rng, cfg),
-            "vagn": {"W": vagn.init_vagn(rng, M, N, scale=cfg.vagn_scale)},
+            "vagn": vagn_layer(rng, cfg),
             "fc1": layers.init_dense(rng, N + n_num, H),
             "out": layers.init_dense(rng, H, 2)}
 
@@ -226,7 +385,7 @@ def _vagn_only_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfi
 
 
 def _vagn_only_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
-    q = _vagn_step(params, enc, state, eng)
+    q = vagn_step(params, enc, state, eng)
     x = _with_num([q], enc["num"], eng.xp)
     h = activate(dense(params["fc1"], x, eng.xp), cfg, eng)
     return _direct(params, h, eng), {"q": q}, {"q": q}
@@ -242,8 +401,7 @@ def _dmp_only_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> di
 
 
 def _dmp_only_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
-    logits = dense(params["gains"], enc["predicates"], eng.xp)
-    controls, aux = _dmp(logits, enc, cfg, eng)
+    controls, aux = dmp_step(gains_fc(params, enc["predicates"], eng), enc, cfg, eng)
     return controls, dict(state), aux
 
 
@@ -254,12 +412,12 @@ BUILTIN: tuple[ModelSpec, ...] = (
               _cnn_lstm_encode, _lstm_head, window="seq_len", colour="#ff7f0e"),
     ModelSpec("rvs_g", "RvS-G", "lstm", observes_goal(("goal_bev",)), _rvs_g_init,
               _rvs_g_encode, _lstm_head, window="seq_len", colour="#9467bd"),
-    ModelSpec("manc", "MANC", "vagn", observes_structured(), _manc_init, _dmp_encode,
-              _manc_head, window="dmp_seq_len", dmp=True, colour="#d62728"),
+    ModelSpec("manc", "MANC", "vagn", observes_structured(), manc_init, dmp_encode,
+              manc_head, window="dmp_seq_len", dmp=True, colour="#d62728"),
     ModelSpec("vagn_only", "vAGN-only", "vagn", observes_goal(), _vagn_only_init,
               _vagn_only_encode, _vagn_only_head, window="q_seq_len", colour="#2ca02c"),
     ModelSpec("dmp_only", "DMP-only", "feedforward", observes_structured(), _dmp_only_init,
-              _dmp_encode, _dmp_only_head, window="dmp_seq_len", dmp=True, colour="#8c564b"),
+              dmp_encode, _dmp_only_head, window="dmp_seq_len", dmp=True, colour="#8c564b"),
 )
 """The six controllers, registered in this order when :mod:`minimanc.models` is imported."""
 

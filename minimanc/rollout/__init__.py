@@ -47,6 +47,9 @@ open-loop trace of chapter 8 (:func:`replay`) is the same loop in a
 :class:`LogReplay` whose ego follows the log (``follow_log=True``) while the
 model is queried.
 
+The smallest loop, a bare head function alone on a map's route with no dataset, is
+:func:`drive_on_route` (the DMP head a student writes in chapter 8 drives with it).
+
 The recorded ``aux`` arrays keep the dtype the model computed them in (a
 float32 model's ``q`` stays float32), so their precision is known downstream.
 """
@@ -74,6 +77,7 @@ from minimanc.rollout.policies import (
     replay,
 )
 from minimanc.rollout.protocols import human, simulate
+from minimanc.rollout.route import drive_on_route
 
 __all__ = [
     "AGENTS",
@@ -92,6 +96,7 @@ __all__ = [
     "check_controls",
     "closed_loop",
     "drive",
+    "drive_on_route",
     "fixed_gains",
     "human",
     "observation",

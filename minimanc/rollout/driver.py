@@ -34,7 +34,7 @@ class Policy(Protocol):
     no rasterising).  ``scenes`` are the dataset indices of the batch rows.
 
     A policy that reads the simulator itself (the world's expert, a learner given the
-    expert's own perception: :mod:`minimanc.dagger.privileged`) has an optional
+    expert's own perception: :mod:`minimanc.diagnose.policies`) has an optional
     ``bind(sim)``, which :func:`drive` calls after ``sim.reset()``.
     """
 

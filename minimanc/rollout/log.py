@@ -48,7 +48,7 @@ class Rollout:
     ``t + 1``; ``aux[key] (S, T−1, ...)`` the model outputs at each decision
     (keys of :data:`AUX_KEYS` the model returned); ``scenes (S,)`` the
     dataset indices of the rows.  ``agents`` is the closed-loop protocol of the ados
-    (:data:`AGENTS`); under ``"reactive"`` the rollout holds the ados as they were
+    (:data:`AGENTS`); under ``"reactive"`` the rollout must hold the ados as they were
     simulated, ``ado (S, T, A, 5)`` and ``ado_valid (S, T, A)`` (the metrics use them
     instead of the dataset's log); under ``"replay"`` they are ``None`` (the log's).
     """
@@ -82,6 +82,9 @@ class Rollout:
             raise ValueError(f"agents must be one of {AGENTS}; got agents={self.agents!r}")
         if (self.ado is None) != (self.ado_valid is None):
             raise ValueError("ado and ado_valid must be given together")
+        if self.agents == "reactive" and self.ado is None:
+            raise ValueError("a rollout of agents='reactive' holds the ados it simulated: ado "
+                             "and ado_valid are required")
         if self.ado is not None:
             self.ado = np.asarray(self.ado, dtype=np.float64)
             self.ado_valid = np.asarray(self.ado_valid, dtype=bool)

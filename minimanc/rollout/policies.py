@@ -1,6 +1,12 @@
 """Chapter 9 — the drivers: a trained model (:class:`ModelPolicy`, :func:`closed_loop`, and
 :func:`replay`, its open-loop trace on the log) and the DMP head at constant gains
-(:class:`FixedGainsPolicy`, :func:`fixed_gains`)."""
+(:class:`FixedGainsPolicy`, :func:`fixed_gains`).
+
+A trained model is given whole, as the :class:`~minimanc.train.FitResult` of
+:func:`minimanc.train.fit` or :func:`minimanc.train.load_fit`
+(``closed_loop(fit, ds, agents="reactive")``), or in parts, its ``name``, ``params`` and
+``cfg`` (``closed_loop("manc", params, ds, cfg)``): :func:`minimanc.train.accepts_fit`. The
+engine is ``engine=`` everywhere, a name of :data:`minimanc.engine.ENGINES` or an engine."""
 
 from __future__ import annotations
 
@@ -22,6 +28,7 @@ from minimanc.rollout.log import (
     scene_index,
 )
 from minimanc.rollout.protocols import simulate
+from minimanc.train import FitResult, accepts_fit
 from minimanc.tree import leaves
 
 __all__ = ["FixedGainsPolicy", "ModelPolicy", "closed_loop", "fixed_gains", "open_loop",
@@ -31,30 +38,30 @@ __all__ = ["FixedGainsPolicy", "ModelPolicy", "closed_loop", "fixed_gains", "ope
 class ModelPolicy:
     """A :mod:`minimanc.models` controller as a :class:`Policy`.
 
-    ``params`` from :func:`minimanc.train.fit`; ``cfg`` its
-    :class:`~minimanc.models.ModelConfig` (its ``setting`` decides what the
-    model sees); ``eng`` an engine (``"jax"`` jits the step once per batch
-    size, unless ``jit=False``). The recurrent state starts as
-    :func:`minimanc.models.initial_state` with ``q_init`` ("uniform",
-    Algorithm 1's ``UniformInit``, or "random" with ``seed``: one generator per
-    scene, so that a row does not depend on its batch), or as ``initial`` (the
-    state of one row, repeated for every row) when given, and is carried over
-    between steps. Parameters and observations are cast to ``dtype``; the aux
-    outputs come back in it.
+    ``ModelPolicy(fit, engine="jax")`` with the :class:`~minimanc.train.FitResult` of
+    :func:`minimanc.train.fit`, or ``ModelPolicy(name, params, cfg, engine)`` with its
+    parts: ``cfg`` is the model's :class:`~minimanc.models.ModelConfig` (its ``setting``
+    decides what the model sees); ``engine`` a name of :data:`minimanc.engine.ENGINES` or
+    an engine (``"jax"`` jits the step once per batch size, unless ``jit=False``). The
+    recurrent state starts as :func:`minimanc.models.initial_state` with ``q_init``
+    ("uniform", Algorithm 1's ``UniformInit``, or "random" with ``seed``: one generator per
+    scene, so that a row does not depend on its batch), or as ``initial`` (the state of one
+    row, repeated for every row) when given, and is carried over between steps.
+    Parameters and observations are cast to ``dtype``; the aux outputs come back in it.
     """
 
-    def __init__(self, name: str, params: dict, cfg: Any, eng: Any,
+    @accepts_fit()
+    def __init__(self, name: str | FitResult, params: dict, cfg: Any, engine: Any = "jax",
                  q_init: str = "uniform", seed: int = 0, dtype: Any = np.float32,
                  initial: dict | None = None, jit: bool = True) -> None:
         models.check_name(name)
         if q_init not in ("uniform", "random"):
             raise ValueError(f"q_init must be 'uniform' or 'random'; got q_init={q_init!r}")
-        if isinstance(eng, str):
-            eng = get_engine(eng)
+        eng = get_engine(engine) if isinstance(engine, str) else engine
         self.model = name
         self.setting = cfg.setting
         self.cfg = cfg
-        self.eng = eng
+        self.engine = eng
         self.q_init = q_init
         self.seed = int(seed)
         self.dtype = dtype
@@ -70,15 +77,15 @@ class ModelPolicy:
 
     def initial_state(self, scenes: np.ndarray) -> dict:
         if self.initial is not None:
-            return {k: self.eng.xp.asarray(np.repeat(np.asarray(v), len(scenes), axis=0))
+            return {k: self.engine.xp.asarray(np.repeat(np.asarray(v), len(scenes), axis=0))
                     for k, v in self.initial.items()}
         if self.q_init == "uniform" or models.spec(self.model).family != "vagn":
-            return models.initial_state(self.model, len(scenes), self.cfg, xp=self.eng.xp,
+            return models.initial_state(self.model, len(scenes), self.cfg, xp=self.engine.xp,
                                         dtype=self.dtype)
         rows = [np.asarray(models.initial_state(
             self.model, 1, self.cfg, rng=np.random.default_rng([self.seed, int(s)]),
             mode="random", dtype=self.dtype)["q"]) for s in scenes]
-        return {"q": self.eng.xp.asarray(np.concatenate(rows))}
+        return {"q": self.engine.xp.asarray(np.concatenate(rows))}
 
     def __call__(self, obs: dict, state: Any, t: int, scenes: np.ndarray
                  ) -> tuple[np.ndarray, Any, dict]:
@@ -92,16 +99,20 @@ def _value(x: Any) -> Any:
     return getattr(x, "_value", getattr(x, "value", x))
 
 
-def replay(name: str, params: dict, ds: Any, scene: int, cfg: Any = None, eng: Any = None,
-           q_mode: str = "uniform") -> dict:
+@accepts_fit()
+def replay(name: str | FitResult, params: dict, ds: Any, scene: int, cfg: Any = None,
+           engine: Any = None, q_mode: str = "uniform") -> dict:
     """Open-loop trace of one logged scene: :func:`drive` in a :class:`LogReplay` that follows
     the log, so that the model sees the human's observations step by step while its
     recurrent state carries over (q for vAGN models).
 
+    ``replay(fit, ds, scene)`` with a :class:`~minimanc.train.FitResult`, or
+    ``replay(name, params, ds, scene, cfg)`` with its parts.
+
     Parameters
     ----------
-    name : str
-        A registered model.
+    name : str or FitResult
+        A registered model, or the training result (then leave out ``params`` and ``cfg``).
     params : dict
         Its parameters; the model runs in their dtype.
     ds : dataset
@@ -109,7 +120,7 @@ def replay(name: str, params: dict, ds: Any, scene: int, cfg: Any = None, eng: A
     scene : int
         The scene index.
     cfg : ModelConfig, optional
-    eng : Engine or str, optional
+    engine : Engine or str, optional
         Default: the NumPy engine. The step is not jitted.
     q_mode : str
         The initial q of vAGN models: "uniform", or "random" (one ``RandomInit`` draw
@@ -130,7 +141,7 @@ def replay(name: str, params: dict, ds: Any, scene: int, cfg: Any = None, eng: A
     """
     name = models.check_name(name)
     cfg = cfg or models.ModelConfig()
-    eng = get_engine(eng) if isinstance(eng, str) else (eng or get_engine("numpy"))
+    eng = get_engine(engine) if isinstance(engine, str) else (engine or get_engine("numpy"))
     S, T = check_dataset(ds)
     idx = scene_index(check_int("scene", scene, 0), S)
     if q_mode not in ("uniform", "random"):
@@ -146,23 +157,25 @@ def replay(name: str, params: dict, ds: Any, scene: int, cfg: Any = None, eng: A
     return out
 
 
-def open_loop(name: str, params: dict, ds: Any, cfg: Any, eng: Any = "numpy",
+@accepts_fit()
+def open_loop(name: str | FitResult, params: dict, ds: Any, cfg: Any, engine: Any = "numpy",
               scenes: Any = None, batch_size: int | None = None) -> dict[str, np.ndarray]:
     """The open-loop trace of :func:`replay` on many scenes at once: the model sees the
     logged human's observations at every step (the ego follows the log) while its
-    recurrent state carries over from the uniform initial q.
+    recurrent state carries over from the uniform initial q. ``open_loop(fit, ds)`` with a
+    :class:`~minimanc.train.FitResult`, or ``open_loop(name, params, ds, cfg)`` with its parts.
 
     Parameters
     ----------
-    name : str
-        A registered model.
+    name : str or FitResult
+        A registered model, or the training result (then leave out ``params`` and ``cfg``).
     params : dict
         Its parameters.
     ds : dataset
         A :mod:`minimanc.world` dataset.
     cfg : ModelConfig
         The model's configuration.
-    eng : Engine or str
+    engine : Engine or str
         Runs the step (jitted on JAX, once per batch size).
     scenes : array_like of int, optional
         Default: all.
@@ -179,7 +192,7 @@ def open_loop(name: str, params: dict, ds: Any, cfg: Any, eng: Any = "numpy",
     S, T = check_dataset(ds)
     idx = scene_index(scenes, S)
     bs = BATCH_SIZE if batch_size is None else check_int("batch_size", batch_size, 1)
-    policy = ModelPolicy(name, params, cfg, eng)
+    policy = ModelPolicy(name, params, cfg, engine)
     parts = []
     for i in range(0, len(idx), bs):
         run = drive(policy, LogReplay(ds, idx[i: i + bs], follow_log=True), T)
@@ -187,12 +200,13 @@ def open_loop(name: str, params: dict, ds: Any, cfg: Any, eng: Any = "numpy",
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
+@accepts_fit()
 def closed_loop(
-    name: str,
+    name: str | FitResult,
     params: dict,
     ds: Any,
     cfg: Any,
-    eng: Any = "jax",
+    engine: Any = "jax",
     setting: str | None = None,
     scenes: Any = None,
     batch_size: int | None = None,
@@ -202,19 +216,23 @@ def closed_loop(
     progress: bool = True,
     agents: str = "replay",
 ) -> Rollout:
-    """Closed-loop rollout of a model on the scenes of ``ds`` (:mod:`minimanc.rollout`).
+    """Closed-loop rollout of a trained model on the scenes of ``ds`` (:mod:`minimanc.rollout`).
+
+    ``closed_loop(fit, ds, agents="reactive")`` with the :class:`~minimanc.train.FitResult`
+    of :func:`minimanc.train.fit` (or :func:`~minimanc.train.load_fit`), or
+    ``closed_loop(name, params, ds, cfg, agents="reactive")`` with its parts.
 
     Parameters
     ----------
-    name : str
-        A registered model.
+    name : str or FitResult
+        A registered model, or the training result (then leave out ``params`` and ``cfg``).
     params : dict
-        From :func:`minimanc.train.fit`.
+        The model's parameters.
     ds : dataset
         A :mod:`minimanc.world` dataset.
     cfg : ModelConfig
         The model's configuration.
-    eng : Engine or str
+    engine : Engine or str
         Runs the policy (jitted on JAX).
     setting : str, optional
         Must agree with ``cfg.setting`` (a model runs in the information setting it
@@ -242,7 +260,7 @@ def closed_loop(
             f"setting={setting!r} differs from cfg.setting={cfg.setting!r}: a model is run in "
             "the information setting it was trained in"
         )
-    policy = ModelPolicy(name, params, cfg, eng, q_init=q_init, seed=seed)
+    policy = ModelPolicy(name, params, cfg, engine, q_init=q_init, seed=seed)
     return simulate(policy, ds, scenes=scenes, batch_size=batch_size, steps=steps,
                     progress=progress, desc=f"closed loop {name} ({cfg.setting}, {agents})",
                     agents=agents)
@@ -277,7 +295,7 @@ class FixedGainsPolicy:
         return np.asarray(u), state, {"alpha": aux["alpha"], "beta": aux["beta"]}
 
 
-def fixed_gains(ds: Any, scenes: Any = None, cfg: Any = None, gains: Any = None,
+def fixed_gains(ds: Any, scenes: Any = None, *, cfg: Any = None, gains: Any = None,
                 progress: bool = False, agents: str = "replay") -> Rollout:
     """Closed loop of :class:`FixedGainsPolicy` on ``ds`` (the "DMP prior" reference).
 

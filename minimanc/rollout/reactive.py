@@ -29,9 +29,10 @@ log: the ados' boxes equal the logged ones to float32 rounding (``tests/test_rea
 measures it), and there are no collisions.
 
 :class:`ReactiveSim` implements :class:`minimanc.rollout.Simulator`;
-:func:`simulate_reactive` runs any :class:`minimanc.rollout.Policy` in it and returns
-a :class:`ReactiveRollout` (a :class:`minimanc.rollout.Rollout` that also holds the
-ados as they were simulated, which the metrics then use instead of the log's).
+``minimanc.rollout.simulate(policy, ds, agents="reactive")`` runs any
+:class:`minimanc.rollout.Policy` in it and returns a :class:`minimanc.rollout.Rollout` that
+also holds the ados as they were simulated (the metrics then use them instead of the log's);
+:class:`LoggedControls` is the human's log as such a policy.
 """
 
 from __future__ import annotations
@@ -39,14 +40,14 @@ from __future__ import annotations
 import copy
 import json
 from collections import OrderedDict
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from minimanc import inputs
-from minimanc.rollout.driver import Policy, SceneState
-from minimanc.rollout.log import AGENTS, Rollout, k_targets_of, raster_config, run_batches
+from minimanc.rollout.driver import SceneState
+from minimanc.rollout.log import AGENTS, k_targets_of, raster_config
 from minimanc.world.driver import SceneRun
 from minimanc.world.generation import scene_stream
 from minimanc.world.geometry import DT
@@ -60,13 +61,11 @@ __all__ = [
     "SPAWN_CLEARANCE",
     "HumanRecord",
     "LoggedControls",
-    "ReactiveRollout",
     "ReactiveSim",
     "SceneKey",
     "record_human",
     "scene_key",
     "scene_stream",
-    "simulate_reactive",
     "start_scene",
 ]
 
@@ -320,45 +319,6 @@ class ReactiveSim:
 
     def ado_trajectory(self) -> tuple[np.ndarray, np.ndarray]:
         return np.stack(self._ado, axis=1), np.stack(self._valid, axis=1)
-
-
-# --------------------------------------------------------------------------- rollouts
-
-
-@dataclass
-class ReactiveRollout(Rollout):
-    """A :class:`minimanc.rollout.Rollout` of the ``"reactive"`` protocol: it must hold the
-    ados as they were simulated, ``ado (S, T, A, 5)`` and ``ado_valid (S, T, A)`` on the
-    rollout's clock (:func:`minimanc.metrics.evaluate` uses them instead of the dataset's
-    log). Saved and loaded as every rollout (:meth:`~minimanc.rollout.Rollout.save`)."""
-
-    agents: str = field(default="reactive")
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if self.ado is None:
-            raise ValueError("ado and ado_valid are required for a ReactiveRollout")
-
-
-def simulate_reactive(
-    policy: Policy,
-    ds: Any,
-    scenes: Any = None,
-    batch_size: int | None = None,
-    steps: int | None = None,
-    progress: bool = True,
-    desc: str | None = None,
-) -> ReactiveRollout:
-    """Run ``policy`` in closed loop among reactive ados on the scenes ``scenes`` of ``ds``.
-
-    :func:`minimanc.rollout.simulate` with ``agents="reactive"`` (the same batching loop,
-    :func:`minimanc.rollout.log.run_batches`, each batch :func:`minimanc.rollout.drive` in a
-    :class:`ReactiveSim`), as a :class:`ReactiveRollout`.
-    """
-    traj = run_batches(policy, ds, ReactiveSim, "reactive", scenes=scenes,
-                       batch_size=batch_size, steps=steps, progress=progress, desc=desc)
-    return ReactiveRollout(traj.name, traj.setting, traj.ego, traj.controls, traj.aux,
-                           traj.scenes, traj.ado, traj.ado_valid)
 
 
 class LoggedControls:

@@ -39,7 +39,7 @@ of an older format, a broken metrics file) is deleted with a note on stderr
 and recomputed, so a re-run always recovers.  A run that diverged is recorded
 (``diverged.json``) and scored as infinite without training it again.
 Trainings and closed-loop evaluations run in worker processes, one per CPU by
-default (:attr:`Study.workers`), or as Ray tasks.
+default (``Study(workers=...)``), or as Ray tasks.
 
 The findings (:func:`findings`) are generated from the numbers: each of the
 paper's claims is checked and reported as holding or not, with the values.
@@ -51,8 +51,16 @@ The package, one job per module:
   training, tuning and validation scenes, and what recorded data cannot do;
 * :mod:`~minimanc.studies.jobs` — the closed-loop evaluation of one run (in a worker
   process or inline) and the cache's atomic JSON files;
-* :mod:`~minimanc.studies.runner` — :class:`Study`: the cache, the worker pool, the
-  learning-rate sweeps and every study;
+* :mod:`~minimanc.studies.cache` — :class:`~minimanc.studies.cache.StudyFiles`: the data
+  and the cache of every run on disk;
+* :mod:`~minimanc.studies.executors` and :mod:`~minimanc.studies.submission` — where the jobs
+  run (worker processes or Ray tasks) and how a study hands them over;
+* :mod:`~minimanc.studies.training` and :mod:`~minimanc.studies.evaluation` — the trainings
+  and the closed-loop evaluations of the runs;
+* :mod:`~minimanc.studies.tuning` — the learning-rate sweeps;
+* :mod:`~minimanc.studies.references` — the rows no training makes (human, DMP prior,
+  bounds);
+* :mod:`~minimanc.studies.runner` — :class:`Study`: every study on these parts;
 * :mod:`~minimanc.studies.report` — :func:`findings` and :func:`table_markdown`;
 * :mod:`~minimanc.studies.figures` — the figures and the explainability scenes;
 * :mod:`~minimanc.studies.reproduction` — :func:`reproduce` (the ``minimanc reproduce``
@@ -65,6 +73,7 @@ from minimanc.studies.config import (
     TABLE_MODELS,
     Run,
     StudyConfig,
+    presets_table,
 )
 from minimanc.studies.config import canonical_setting as canonical_setting
 from minimanc.studies.figures import pick_scenes as pick_scenes
@@ -85,4 +94,5 @@ __all__ = [
     "findings",
     "table_markdown",
     "reproduce",
+    "presets_table",
 ]

@@ -7,8 +7,7 @@ from __future__ import annotations
 import hashlib
 import json
 from collections import Counter
-from dataclasses import asdict, dataclass, fields, replace
-from typing import Any
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -22,14 +21,7 @@ ABLATION_MODELS: tuple[str, ...] = ("manc", "vagn_only", "dmp_only")
 """The self-ablation of Fig. 8."""
 
 
-TRAIN_FIELDS: tuple[str, ...] = ("epochs", "batch_size", "max_steps_per_epoch", "seq_len",
-                                 "dmp_seq_len", "q_seq_len", "motion_feedback", "q_init",
-                                 "normalize", "dtype", "zeta_weight", "grad_clip")
-"""The :class:`~minimanc.train.TrainConfig` fields :class:`StudyConfig` also accepts as
-keywords (and shows as attributes); ``lr``, ``seed`` and ``subset`` are set per :class:`Run`."""
-
-
-@dataclass(frozen=True, init=False)
+@dataclass(frozen=True)
 class StudyConfig:
     """Sizes and budgets of a study. See :data:`PRESETS` for the named ones.
 
@@ -37,10 +29,9 @@ class StudyConfig:
     (``data_seed``, BEV ``image_size``). Training (the same for every model):
     ``training``, a :class:`~minimanc.train.TrainConfig` whose ``lr``, ``seed``
     and ``subset`` each :class:`Run` replaces (its learning rate from the sweep
-    ``lrs``, one of the ``n_seeds`` training seeds, its data fraction). The
-    fields of :data:`TRAIN_FIELDS` may also be given as keywords
-    (``StudyConfig(epochs=3)``, ``dataclasses.replace(c, dmp_seq_len=8)``) and
-    read as attributes (``c.epochs``). Studies: ``n_states`` of MANC in Table I,
+    ``lrs``, one of the ``n_seeds`` training seeds, its data fraction):
+    ``StudyConfig(training=TrainConfig(epochs=3))``, read as ``c.training.epochs``.
+    Studies: ``n_states`` of MANC in Table I,
     ``q_states``, ``fractions``, ``settings``; ``explain_scenes`` scenes get
     explainability figures. A given dataset file
     (:func:`minimanc.studies.recorded.data_config`): ``data_file`` (its path),
@@ -54,7 +45,7 @@ class StudyConfig:
     n_val: int = 200
     image_size: int = 64
     data_seed: int = 0
-    training: Any = None
+    training: train.TrainConfig = field(default_factory=train.TrainConfig)
     lrs: tuple[float, ...] = (1e-3, 3e-3)
     n_seeds: int = 3
     n_states: int = 6
@@ -69,28 +60,10 @@ class StudyConfig:
     data_hash: str = ""
     data_source: str = ""
 
-    def __init__(self, **kwargs: Any) -> None:
-        given = {k: kwargs.pop(k) for k in TRAIN_FIELDS if k in kwargs}
-        unknown = sorted(set(kwargs) - {f.name for f in fields(self)})
-        if unknown:
-            raise TypeError(f"StudyConfig got unknown arguments {unknown}")
-        tc = kwargs.get("training")
-        if tc is None:
-            tc = train.TrainConfig()
-        if not isinstance(tc, train.TrainConfig):
-            raise TypeError(f"training must be a minimanc.train.TrainConfig, got "
-                            f"training={tc!r}")
-        kwargs["training"] = replace(tc, **given) if given else tc
-        for f in fields(self):
-            object.__setattr__(self, f.name, kwargs.get(f.name, f.default))
-        self.__post_init__()
-
-    def __getattr__(self, name: str) -> Any:
-        if name in TRAIN_FIELDS:
-            return getattr(self.training, name)
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-
     def __post_init__(self) -> None:
+        if not isinstance(self.training, train.TrainConfig):
+            raise ValueError(f"training must be a minimanc.train.TrainConfig; got "
+                             f"training={self.training!r}")
         for name in ("n_train", "n_tune", "n_val", "image_size", "n_seeds", "n_states",
                      "explain_scenes"):
             check_int(name, getattr(self, name), 0 if name == "explain_scenes" else 1)
@@ -117,7 +90,8 @@ class StudyConfig:
                     raise ValueError(f"{group} must hold names from {models.names()}; "
                                      f"got {mdl!r}")
 
-    def train_config(self, model: str, lr: float, seed: int, fraction: float) -> Any:
+    def train_config(self, model: str, lr: float, seed: int, fraction: float
+                     ) -> train.TrainConfig:
         """The :class:`~minimanc.train.TrainConfig` of one run: :attr:`training` with its
         ``lr``, ``seed`` and ``subset`` (``model`` is accepted for per-model rules)."""
         models.check_name(model, "model")
@@ -149,28 +123,42 @@ class StudyConfig:
 PRESETS: dict[str, StudyConfig] = {
     # the test suite: seconds, numbers meaningless
     "tiny": StudyConfig(
-        preset="tiny", n_train=4, n_tune=1, n_val=2, image_size=32, epochs=1, batch_size=16,
-        max_steps_per_epoch=2, seq_len=4, lrs=(1e-3,), n_seeds=1, q_states=(3, 6),
-        fractions=(0.5, 1.0), explain_scenes=1,
+        preset="tiny", n_train=4, n_tune=1, n_val=2, image_size=32,
+        training=train.TrainConfig(epochs=1, batch_size=16, max_steps_per_epoch=2, seq_len=4),
+        lrs=(1e-3,), n_seeds=1, q_states=(3, 6), fractions=(0.5, 1.0), explain_scenes=1,
     ),
     # minutes on 2 cores (README): every study and the learning-rate sweep, one seed, small data
     "quick": StudyConfig(
-        preset="quick", n_train=64, n_tune=8, n_val=24, image_size=64, epochs=3,
-        batch_size=64, lrs=(1e-3, 3e-3), n_seeds=1,
+        preset="quick", n_train=64, n_tune=8, n_val=24, image_size=64,
+        training=train.TrainConfig(epochs=3, batch_size=64), lrs=(1e-3, 3e-3), n_seeds=1,
     ),
     # three seeds, more data and epochs than "quick"
     "full": StudyConfig(
-        preset="full", n_train=96, n_tune=16, n_val=48, image_size=64, epochs=4,
-        batch_size=64, lrs=(1e-3, 3e-3), n_seeds=3,
+        preset="full", n_train=96, n_tune=16, n_val=48, image_size=64,
+        training=train.TrainConfig(epochs=4, batch_size=64), lrs=(1e-3, 3e-3), n_seeds=3,
     ),
     # the paper's sizes: 650 training / 200 validation scenes, three seeds
     "paper": StudyConfig(
-        preset="paper", n_train=650, n_tune=40, n_val=200, image_size=64, epochs=6,
-        batch_size=64, lrs=(3e-4, 1e-3, 3e-3), n_seeds=3,
+        preset="paper", n_train=650, n_tune=40, n_val=200, image_size=64,
+        training=train.TrainConfig(epochs=6, batch_size=64), lrs=(3e-4, 1e-3, 3e-3), n_seeds=3,
     ),
 }
 """Named configurations: ``tiny`` (tests), ``quick`` (``--quick``), ``full`` (the default)
 and ``paper`` (the paper's data sizes)."""
+
+
+def presets_table() -> str:
+    """:data:`PRESETS` as a Markdown table (``docs/reproduce.md`` shows it): per preset its
+    scenes, image size, epochs, learning rates, seeds and the q-states and data fractions of
+    the studies."""
+    lines = ["| preset | train / tune / validation scenes | BEV px | epochs | learning rates "
+             "| seeds | q-states | data fractions |", "|---|---|---|---|---|---|---|---|"]
+    for name, c in PRESETS.items():
+        lines.append(f"| `{name}` | {c.n_train} / {c.n_tune} / {c.n_val} | {c.image_size} | "
+                     f"{c.training.epochs} | {', '.join(f'{x:g}' for x in c.lrs)} | "
+                     f"{c.n_seeds} | {', '.join(str(n) for n in c.q_states)} | "
+                     f"{', '.join(f'{f:g}' for f in c.fractions)} |")
+    return "\n".join(lines)
 
 
 @dataclass(frozen=True)

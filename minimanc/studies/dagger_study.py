@@ -61,12 +61,12 @@ def run_dagger(study: Any, models: Sequence[str] = ("manc", "cnn"), rounds: int 
     out: dict = {"agents": agents, "rounds": rounds, "beta": float(beta),
                  "labelled": int(budget.used), "models": {}}
     for model in models:
-        lr = study.lr(model, "paper")
+        lr = study.sweeps.lr(model, "paper")
         bcs, lasts, per_round = [], [], []
         for seed in study.config.seeds:
             cfg = dagger.default_config(train_ds, n_states=study.config.n_states)
             tc = study.config.train_config(model, lr, seed, 1.0)
-            base = Path(study.cache) / "dagger" / f"{model}-s{seed}"
+            base = study.files.dir / "dagger" / f"{model}-s{seed}"
             common = dict(cfg=cfg, train_cfg=tc, engine=study.engine, seed=seed,
                           progress=study.progress)
             bc = dagger.behaviour_cloning(model, teacher, budget, rounds, out=base / "bc",

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import engine, rollout, train
+from minimanc import rollout, train
 from minimanc.studies.runner import Study
 from minimanc.viz.explain import (
     plot_explain_trace,
@@ -99,8 +99,7 @@ def write_explanations(study: Study, figdir: Path) -> list[Path]:
     if study.recorded:  # no human modes on recorded data (minimanc.studies.recorded)
         return paths
     labels = study.human_modes()
-    q = rollout.open_loop(fit.name, fit.params, val, fit.cfg, engine(study.engine),
-                          scenes=scenes)["q"]
+    q = rollout.open_loop(fit, val, engine=study.engine, scenes=scenes)["q"]
     for k, s in enumerate(scenes):
         title = f"MANC open loop, scene {s} ({val.maps[s].kind}): q and the human's mode"
         paths.append(save_figure(plot_q_modes(q[k], labels[s], title),

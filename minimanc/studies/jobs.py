@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import engine, metrics, rollout, train, world
-from minimanc.metrics.diagnostics import collision_taxonomy
+from minimanc import metrics, rollout, train, world
+from minimanc.diagnose.collisions import collision_taxonomy
 from minimanc.studies.provenance import write_json
 
 _WORKER_DATA: dict[str, Any] = {}
@@ -90,7 +90,7 @@ def score(traj: Any, ds: Any) -> dict:
     """Every metric of the rollout ``traj`` on ``ds`` (its rows are ``ds``'s scenes in
     order), averaged over the scenes (:func:`scene_scores`; the same numbers as
     :func:`minimanc.metrics.evaluate`, and :data:`TRACK_METRICS`), the collisions by kind
-    (:func:`minimanc.metrics.diagnostics.collision_taxonomy`, keys prefixed
+    (:func:`minimanc.diagnose.collision_taxonomy`, keys prefixed
     :data:`CONTACT_PREFIX`), and ``"families"``:
     the same averages over the scenes of each of :data:`SCENE_FAMILIES` present (with
     ``n_scenes``)."""
@@ -148,8 +148,8 @@ def evaluate_job(job: dict) -> dict:
     ds = _load_split(job["data"], job["lo"], job["hi"])
     fit = train.load_fit(job["checkpoint"])
     try:
-        traj = rollout.closed_loop(fit.name, fit.params, ds, fit.cfg, engine(job["engine"]),
-                                   progress=False, agents=job.get("agents", "replay"))
+        traj = rollout.closed_loop(fit, ds, engine=job["engine"], progress=False,
+                                   agents=job.get("agents", "replay"))
     except rollout.BadControls as exc:  # a model whose closed loop blows up scores inf
         res = failed(str(exc))
         write_json(job["metrics"], res)

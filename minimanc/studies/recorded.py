@@ -18,7 +18,7 @@ Recorded data has logged boxes, not drivers: nothing can re-drive its scenes. So
   **reactive** protocol, which re-simulates the world's generated traffic around the
   policy's ego, is refused (:data:`REACTIVE_REFUSAL`; ados following their own logged
   path with IDM, as nuPlan does, are future work);
-* Table I has no **Expert** and **Style floor** rows (:mod:`minimanc.studies.bounds`): both
+* Table I has no **Expert** and **Style floor** rows (:mod:`minimanc.diagnose.bounds`): both
   re-drive each scene from the world's generator (map, traffic and driver drawn from the
   dataset's seed), which a recorded scene does not have (:data:`BOUNDS_OMITTED`);
 * the human's driving modes (:func:`minimanc.metrics.modes.human_modes`, what vAGN's q-states are

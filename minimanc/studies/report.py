@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc.studies.bounds import BOUND_ROWS
+from minimanc.diagnose.bounds import BOUND_ROWS
 from minimanc.studies.dagger_study import dagger_markdown
 from minimanc.studies.provenance import provenance_markdown
 from minimanc.viz.style import model_label
@@ -40,7 +40,7 @@ def _fmt(x: float) -> str:
 
 REFERENCE_ROWS: tuple[str, ...] = ("human", "dmp_prior", *BOUND_ROWS)
 """Table I's rows that are not learned models: the logged human, the DMP head at fixed
-gains (:func:`minimanc.rollout.fixed_gains`) and the bounds (:mod:`minimanc.studies.bounds`:
+gains (:func:`minimanc.rollout.fixed_gains`) and the bounds (:mod:`minimanc.diagnose.bounds`:
 the expert, the style floor)."""
 
 MODE_MIN_EXCESS: float = 0.05
@@ -346,7 +346,7 @@ _CONTACT_COLS = ("front", "stopped_ado", "lateral", "rear", "stopped_ego", "at_f
 
 
 def contact_table(table: dict, agents: str, setting: str, label: Any = str) -> list[str]:
-    """Lines of the table "collisions by kind" (:func:`minimanc.metrics.diagnostics.
+    """Lines of the table "collisions by kind" (:func:`minimanc.diagnose.
     collision_taxonomy`, mean over seeds of the contacts in the validation scenes) and the
     speed at the at-fault contacts next to the human's; nothing for results without it."""
     rows = [(m, agg) for m, agg in table.items() if "contacts_at_fault" in agg]

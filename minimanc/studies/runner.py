@@ -1,47 +1,176 @@
-"""Chapter 9 — :class:`Study`: every study of the paper on the runs of
-:class:`~minimanc.studies.runs.Runs` (Table I under both protocols of the ados, per scenario
-family, sample efficiency, q-states, self-ablation, parameter counts, and whether vAGN's
-q-states are driving modes), every job queued before any result is awaited."""
+"""Chapter 9 — :class:`Study`: every study of the paper on one
+:class:`~minimanc.studies.config.StudyConfig` (Table I under both protocols of the ados, per
+scenario family, sample efficiency, q-states, self-ablation, parameter counts, and whether
+vAGN's q-states are driving modes), every job queued before any result is awaited.
+
+A study is made of parts, one job each: its files (:class:`~minimanc.studies.cache.StudyFiles`:
+the data and the cache of every run), where its jobs run
+(:class:`~minimanc.studies.submission.Submitter`), its trainings
+(:class:`~minimanc.studies.training.Trainings`), its closed-loop evaluations
+(:class:`~minimanc.studies.evaluation.Evaluations`), its learning-rate sweeps
+(:class:`~minimanc.studies.tuning.Sweeps`) and the rows no training makes
+(:class:`~minimanc.studies.references.References`)."""
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import asdict
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
-from minimanc import engine, metrics, models, rollout, train
+from minimanc import metrics, models, rollout, train
+from minimanc.engine import ENGINES
 from minimanc.metrics import modes
-from minimanc.studies.config import Run, canonical_setting, plan
+from minimanc.rollout import check_agents
+from minimanc.studies.cache import StudyFiles
+from minimanc.studies.config import Run, StudyConfig, canonical_setting, plan
+from minimanc.studies.evaluation import Evaluations, families_of
+from minimanc.studies.executors import usable_cpus
+from minimanc.studies.jobs import enable_jax_cache
 from minimanc.studies.provenance import read_json_or_none, write_json
-from minimanc.studies.recorded import MODES_OMITTED
+from minimanc.studies.recorded import MODES_OMITTED, REACTIVE_REFUSAL, is_recorded
+from minimanc.studies.references import References
 from minimanc.studies.report import findings
-from minimanc.studies.runs import THREAD_ENV, Runs, families_of
+from minimanc.studies.submission import Submitter
+from minimanc.studies.training import Trainings
+from minimanc.studies.tuning import Sweeps
 
-__all__ = ["THREAD_ENV", "Study", "families_of"]
+__all__ = ["Study"]
 
 
-class Study(Runs):
-    """Runs the studies of one :class:`~minimanc.studies.config.StudyConfig` under ``out``
-    (see :mod:`minimanc.studies`; the arguments are those of
-    :class:`~minimanc.studies.runs.Runs`)."""
+class Study:
+    """The studies of one :class:`StudyConfig` under ``out``: trained, evaluated and cached.
+
+    ``engine`` trains and drives ("jax" or "numpy"); ``workers`` processes run the
+    trainings and closed-loop evaluations, every job queued as soon as what it needs is
+    known (0: everything inline in this process, one after the other; ``None``: one per
+    CPU this process may use, :func:`minimanc.studies.executors.usable_cpus`);
+    ``progress`` shows tqdm bars; ``log`` receives one line per event.
+    ``agents`` are the protocols of the ados Table I is reported under
+    (:data:`minimanc.rollout.AGENTS`, default both); the first one also tunes the
+    learning rates and scores the other studies.
+    ``executor``: ``"local"`` (this machine's ``workers`` processes) or ``"ray"``
+    (trainings and rollouts as Ray tasks: the cluster at ``ray_address`` or
+    ``RAY_ADDRESS``, else a local Ray with ``workers`` CPUs; the output directory must be
+    on a file system every node sees). ``seeds_together``:
+    train the runs of one configuration in one vmapped step
+    (:func:`minimanc.train.fit_many`; results equal to training them one by one, to
+    float32 rounding). Off by default: on XLA's CPU backend a convolution vmapped over
+    per-run kernels becomes a grouped convolution, slower than the separate ones
+    (``benchmarks/bench_study.py --seeds-together``).
+
+    Its parts: ``files`` (:class:`~minimanc.studies.cache.StudyFiles`), ``submitter``,
+    ``trainings``, ``evaluations``, ``sweeps``, ``references``; ``timing`` holds the
+    seconds spent per stage.
+    """
+
+    def __init__(self, config: StudyConfig, out: str | Path, engine: str = "jax",
+                 workers: int | None = None, progress: bool = True,
+                 log: Callable[[str], None] | None = None,
+                 agents: Sequence[str] = ("replay", "reactive"),
+                 executor: str = "local", ray_address: str | None = None,
+                 seeds_together: bool = False) -> None:
+        if not isinstance(config, StudyConfig):
+            raise ValueError(f"config must be a StudyConfig; got config={config!r}")
+        if engine not in ENGINES:
+            raise ValueError(f"engine must be one of {ENGINES}; got engine={engine!r}")
+        self.submitter = Submitter(executor, usable_cpus() if workers is None else workers,
+                                   ray_address)
+        if isinstance(agents, str) or len(agents) == 0 or len(set(agents)) != len(agents):
+            raise ValueError("agents must be a non-empty sequence of distinct protocols; got "
+                             f"agents={agents!r}")
+        self.agents = tuple(check_agents(a) for a in agents)
+        if is_recorded(config) and "reactive" in self.agents:
+            raise ValueError(REACTIVE_REFUSAL)
+        self.config = config
+        self.engine = engine
+        self.progress = progress
+        self.log = log or (lambda msg: None)
+        self.timing: dict[str, float] = {}
+        self.files = StudyFiles(config, out, engine, self.log, progress, self.timing)
+        if engine == "jax":
+            enable_jax_cache(self.files.jax_dir)
+        self.trainings = Trainings(self.files, self.submitter, engine, seeds_together,
+                                   self.log, progress, self.timing)
+        self.evaluations = Evaluations(self.trainings, self.files, self.submitter, engine,
+                                       self.agents[0], self.timing)
+        self.sweeps = Sweeps(self.evaluations)
+        self.references = References(self.files, self.timing)
+
+    # ----------------------------------------------------------------- the parts' main calls
+
+    @property
+    def primary(self) -> str:
+        """The protocol that tunes the learning rates and scores the other studies."""
+        return self.agents[0]
+
+    @property
+    def recorded(self) -> bool:
+        """Whether the study runs on recorded data (:mod:`minimanc.studies.recorded`)."""
+        return is_recorded(self.config)
+
+    def datasets(self) -> tuple[Any, Any, Any]:
+        """``(train, tune, val)`` (:meth:`StudyFiles.datasets`)."""
+        return self.files.datasets()
+
+    def checkpoint(self, run: Run) -> Path:
+        """The checkpoint of ``run`` (:meth:`StudyFiles.checkpoint`)."""
+        return self.files.checkpoint(run)
+
+    def model_config(self, run: Run) -> models.ModelConfig:
+        """The run's model configuration (:meth:`Trainings.model_config`)."""
+        return self.trainings.model_config(run)
+
+    def train_config(self, run: Run) -> train.TrainConfig:
+        """The run's training configuration (:meth:`Trainings.train_config`)."""
+        return self.trainings.train_config(run)
+
+    def fit(self, run: Run) -> Path:
+        """Train ``run`` (or reuse its checkpoint) and wait (:meth:`Trainings.fit`)."""
+        return self.trainings.fit(run)
+
+    def result(self, run: Run, split: str = "val", agents: str | None = None) -> dict:
+        """Metrics of ``run`` on ``split`` under ``agents`` (:meth:`Evaluations.result`)."""
+        return self.evaluations.result(run, split, agents)
+
+    def rollout(self, run: Run, split: str = "val", agents: str | None = None
+                ) -> rollout.Rollout:
+        """The saved rollout of ``run`` (:meth:`Evaluations.rollout`)."""
+        return self.evaluations.rollout(run, split, agents)
+
+    def close(self) -> None:
+        """Shut the worker processes down (:meth:`Submitter.close`)."""
+        self.submitter.close()
+
+    # ----------------------------------------------------------------- studies
+
+    def runs(self, model: str, setting: str = "paper", n_states: int | None = None,
+             fraction: float = 1.0) -> list[Run]:
+        """One :class:`Run` per seed, at ``model``'s tuned learning rate."""
+        setting = canonical_setting(model, setting)
+        n = self.config.n_states if n_states is None else int(n_states)
+        lr = self.sweeps.lr(model, setting)
+        return [Run(model, setting, n, float(fraction), s, lr) for s in self.config.seeds]
 
     def table1(self) -> dict:
         """``{agents: {setting: {model: aggregate}}}`` (Table I under each protocol), with
         the rows ``"human"``, ``"dmp_prior"`` (the DMP head at fixed gains) and the bounds
-        (:attr:`bound_rows`: the expert, the style floor; none on recorded data) first."""
+        (:attr:`References.bound_rows`: the expert, the style floor; none on recorded data)
+        first."""
         c = self.config
         for a in self.agents:
             for s in c.settings:
                 for m in c.table_models:
-                    self.submit_runs(self.runs(m, s), a)
+                    self.evaluations.submit_runs(self.runs(m, s), a)
         out = {}
+        ev, refs = self.evaluations, self.references
         for a in self.agents:
-            fixed = {"human": self.human(a), "dmp_prior": self.references(a)["dmp_prior"],
-                     **{b: metrics.aggregate([self.reference(b, a)]) for b in self.bound_rows}}
-            out[a] = {s: {**fixed, **{m: self.aggregate(self.runs(m, s), a)
+            fixed = {r: refs.aggregate(r, a) for r in ("human", "dmp_prior", *refs.bound_rows)}
+            out[a] = {s: {**fixed, **{m: ev.aggregate(self.runs(m, s), a)
                                       for m in c.table_models}} for s in c.settings}
         return out
 
@@ -52,9 +181,9 @@ class Study(Runs):
         c = self.config
         out: dict = {}
         for a in self.agents:
-            fixed = {m: families_of([self.reference(m, a)])
-                     for m in ("human", "dmp_prior", *self.bound_rows)}
-            out[a] = {s: {**fixed, **{m: self.aggregate_families(self.runs(m, s), a)
+            fixed = {m: families_of([self.references.score(m, a)])
+                     for m in ("human", "dmp_prior", *self.references.bound_rows)}
+            out[a] = {s: {**fixed, **{m: self.evaluations.aggregate_families(self.runs(m, s), a)
                                       for m in c.table_models}} for s in c.settings}
         return out
 
@@ -69,7 +198,7 @@ class Study(Runs):
         (:func:`minimanc.metrics.modes.human_modes`, ``(S, T)``), cached next to the dataset."""
         if self.recorded:
             raise ValueError(MODES_OMITTED)
-        path = self.derived_path("-val-modes.npy")
+        path = self.files.derived_path("-val-modes.npy")
         _, _, val = self.datasets()
         if path.exists():
             try:
@@ -78,7 +207,7 @@ class Study(Runs):
                     return labels
             except (OSError, ValueError):
                 pass
-            self.discard(path, "not the validation split's mode labels")
+            self.files.discard(path, "not the validation split's mode labels")
         labels = modes.human_modes(val)
         tmp = path.with_name(path.stem + ".tmp.npy")
         np.save(tmp, labels)
@@ -104,15 +233,14 @@ class Study(Runs):
         for m in self.vagn_models():
             per_seed = []
             for run in self.runs(m, setting):
-                path = self.cache / "modes" / f"{run.key}-val.json"
+                path = self.files.dir / "modes" / f"{run.key}-val.json"
                 cached = read_json_or_none(path) if path.exists() else None
                 if not isinstance(cached, dict) or "mi_bits" not in cached:
                     ck = self.fit(run)
-                    if self._diverged(run):
+                    if self.files.diverged(run):
                         continue
                     fit = train.load_fit(ck)
-                    q = rollout.open_loop(fit.name, fit.params, val, fit.cfg,
-                                          engine(self.engine))["q"]
+                    q = rollout.open_loop(fit, val, engine=self.engine)["q"]
                     cached = modes.mode_information(q, labels)
                     write_json(path, cached)
                 per_seed.append(cached)
@@ -126,28 +254,28 @@ class Study(Runs):
         c = self.config
         for m in c.sample_models:
             for f in c.fractions:
-                self.submit_runs(self.runs(m, setting, fraction=f))
+                self.evaluations.submit_runs(self.runs(m, setting, fraction=f))
         return {"setting": setting, "agents": self.primary, "fractions": list(c.fractions),
-                "models": {m: [self.aggregate(self.runs(m, setting, fraction=f))
+                "models": {m: [self.evaluations.aggregate(self.runs(m, setting, fraction=f))
                                for f in c.fractions] for m in c.sample_models}}
 
     def q_states(self, setting: str = "paper") -> dict:
         """``{"setting", "n_states", "results": [aggregate per n]}`` for MANC (Fig. 7)."""
         c = self.config
         for n in c.q_states:
-            self.submit_runs(self.runs("manc", setting, n_states=n))
+            self.evaluations.submit_runs(self.runs("manc", setting, n_states=n))
         return {"setting": setting, "agents": self.primary,
                 "n_states": [int(n) for n in c.q_states],
-                "results": [self.aggregate(self.runs("manc", setting, n_states=n))
+                "results": [self.evaluations.aggregate(self.runs("manc", setting, n_states=n))
                             for n in c.q_states]}
 
     def ablation(self, setting: str = "paper") -> dict:
         """``{"setting", "models": {model: aggregate}}`` (Fig. 8)."""
         c = self.config
         for m in c.ablation_models:
-            self.submit_runs(self.runs(m, setting))
+            self.evaluations.submit_runs(self.runs(m, setting))
         return {"setting": setting, "agents": self.primary,
-                "models": {m: self.aggregate(self.runs(m, setting))
+                "models": {m: self.evaluations.aggregate(self.runs(m, setting))
                            for m in c.ablation_models}}
 
     def param_counts(self) -> dict:
@@ -189,14 +317,14 @@ class Study(Runs):
         for a in self.agents:
             for s in c.settings:
                 for m in c.table_models:
-                    self.submit_runs(self.runs(m, s), a)
+                    self.evaluations.submit_runs(self.runs(m, s), a)
         for m in c.sample_models:
             for f in c.fractions:
-                self.submit_runs(self.runs(m, "paper", fraction=f))
+                self.evaluations.submit_runs(self.runs(m, "paper", fraction=f))
         for n in c.q_states:
-            self.submit_runs(self.runs("manc", "paper", n_states=n))
+            self.evaluations.submit_runs(self.runs("manc", "paper", n_states=n))
         for m in c.ablation_models:
-            self.submit_runs(self.runs(m, "paper"))
+            self.evaluations.submit_runs(self.runs(m, "paper"))
 
     # ----------------------------------------------------------------- everything
 
@@ -205,16 +333,16 @@ class Study(Runs):
         t0 = time.perf_counter()
         self.datasets()
         bar = train_bar = None
-        if self.progress and self.pooled:
+        if self.progress and self.submitter.pooled:
             train_bar = tqdm(total=self.n_trainings(), desc="reproduce: trainings",
                              unit="run", position=0)
             bar = tqdm(total=self.n_runs(), desc="reproduce: evaluations", unit="run",
                        position=1)
         elif self.progress:
             bar = tqdm(total=self.n_runs(), desc="reproduce: runs", unit="run")
-        self._bar, self._train_bar = bar, train_bar
+        self.evaluations.bar, self.trainings.bar = bar, train_bar
         try:
-            self.start_sweeps(self._sweep_pairs())
+            self.sweeps.start(self._sweep_pairs())
             self.submit_studies()
             results = {
                 "config": asdict(self.config),
@@ -235,9 +363,9 @@ class Study(Runs):
             for b in (train_bar, bar):
                 if b is not None:
                     b.close()
-            self._bar = self._train_bar = None
-        results["lr"] = {f"{m}-{s}": lr for (m, s), lr in sorted(self._lr.items())}
-        results["sweeps"] = self._sweeps
+            self.evaluations.bar = self.trainings.bar = None
+        results["lr"] = {f"{m}-{s}": lr for (m, s), lr in sorted(self.sweeps.chosen.items())}
+        results["sweeps"] = self.sweeps.scores
         results["findings"] = findings(results)
         self.timing["total"] = time.perf_counter() - t0
         results["timing_s"] = {k: round(v, 1) for k, v in self.timing.items()}
@@ -246,4 +374,4 @@ class Study(Runs):
     def explain_run(self) -> Run:
         """The run whose rollouts the explainability figures show: MANC, paper, seed 0."""
         c = self.config
-        return Run("manc", "paper", c.n_states, 1.0, 0, self.lr("manc", "paper"))
+        return Run("manc", "paper", c.n_states, 1.0, 0, self.sweeps.lr("manc", "paper"))

@@ -53,7 +53,13 @@ Algorithm 1 of the paper, for every controller of :mod:`minimanc.models`::
   ``ValueError`` naming the array, scene and step: one NaN would otherwise
   change the loss normalisation (:func:`control_std`) of every run.
 
-Modules: :mod:`~minimanc.train.config`, :mod:`~minimanc.train.batches`,
+* **The training result.** :func:`fit` returns a :class:`FitResult` (name, params, cfg,
+  control_std, ...); every function that runs a trained model takes it whole or in parts
+  (:func:`accepts_fit`): ``open_loop_loss(fit, ds)``, ``save_checkpoint(path, fit)``,
+  ``minimanc.rollout.closed_loop(fit, ds)``.
+
+Modules: :mod:`~minimanc.train.config`, :mod:`~minimanc.train.trained`,
+:mod:`~minimanc.train.batches`,
 :mod:`~minimanc.train.step` (loss and optimiser step),
 :mod:`~minimanc.train.checkpoint`, :mod:`~minimanc.train.fit`, :mod:`~minimanc.train.many`
 (several seeds or learning rates of one configuration in one vmapped step).
@@ -85,11 +91,11 @@ from minimanc.train.fit import (
     cast_floats,
     fit,
     open_loop_loss,
-    perception_moments,
     sweep_lr,
 )
 from minimanc.train.many import fit_many, fit_seeds
 from minimanc.train.step import loss_fn, make_step
+from minimanc.train.trained import accepts_fit
 
 __all__ = [
     "CHECKPOINT_NAME",
@@ -100,6 +106,7 @@ __all__ = [
     "SweepResult",
     "TrainConfig",
     "TrainingDiverged",
+    "accepts_fit",
     "bad_params",
     "batches",
     "cast_floats",
@@ -107,7 +114,6 @@ __all__ = [
     "dataset_shape",
     "open_loop_loss",
     "fit",
-    "perception_moments",
     "fit_many",
     "fit_seeds",
     "initial_q",

@@ -36,22 +36,12 @@ def subset_scenes(n_scenes: int, subset: float, seed: int) -> np.ndarray:
     return np.sort(perm[:n])
 
 
-def control_std(ds: Any, scenes: Any = None, speed: str = "level") -> np.ndarray:
-    """Standard deviation of ``[speed, yaw rate]`` over the given scenes (all by default);
-    with ``speed="change"`` the first entry is that of the labels' speed change over one
-    step, ``controls[t] − controls[t − 1]`` (:func:`minimanc.inputs.initial_motion` at
-    ``t = 0``; in a demonstration this is ``controls[t] − motion[t]``, and in a driven scene
-    it stays a statistic of the labels, not of the policy that drove)."""
+def control_std(ds: Any, scenes: Any = None) -> np.ndarray:
+    """Standard deviation of ``[speed, yaw rate]`` over the given scenes (all by default)."""
     c = np.asarray(ds.controls, dtype=np.float64)
-    idx = np.arange(len(c)) if scenes is None else np.asarray(scenes)
-    c = c[idx]
+    if scenes is not None:
+        c = c[np.asarray(scenes)]
     sd = c.reshape(-1, 2).std(axis=0)
-    if speed == "change":
-        first = inputs.initial_motion(ds)[idx, 0].astype(np.float64)
-        prev = np.concatenate([first[:, None], c[:, :-1, 0]], axis=1)
-        sd[0] = (c[..., 0] - prev).std()
-    elif speed != "level":
-        raise ValueError(f"speed must be 'level' or 'change', got speed={speed!r}")
     return np.where(sd > 1e-6, sd, 1.0)
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from minimanc import models
 from minimanc.train.config import PARAM_LIMIT, CheckpointError, FitResult, TrainConfig
+from minimanc.train.trained import CHECKPOINT_DEFAULTS, accepts_fit
 from minimanc.tree import from_flat_dict, to_flat_dict
 from minimanc.tree import map as tree_map
 from minimanc.world.datawriter import temp_prefix
@@ -80,11 +81,18 @@ def _meta(name: str, cfg: models.ModelConfig, tc: TrainConfig, epoch: int,
     return np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
 
 
-def save_checkpoint(path: str | Path, name: str, params: dict, cfg: models.ModelConfig,
-         train_cfg: TrainConfig | None = None, opt_state: Any = None, epoch: int = 0,
-         history: Sequence[float] = (), val_history: Sequence[float] = (), steps: int = 0,
-         std: Any = None) -> Path:
+@accepts_fit(CHECKPOINT_DEFAULTS)
+def save_checkpoint(path: str | Path, name: str | FitResult, params: dict,
+                    cfg: models.ModelConfig, train_cfg: TrainConfig | None = None,
+                    opt_state: Any = None, epoch: int = 0, history: Sequence[float] = (),
+                    val_history: Sequence[float] = (), steps: int = 0,
+                    std: Any = None) -> Path:
     """Write parameters (and optionally the optimiser state) atomically to ``path`` (.npz).
+
+    ``save_checkpoint(path, fit)`` writes a :class:`FitResult` (its configurations, loss
+    histories, steps, normalisation, and ``epoch = len(fit.history)``), which
+    :func:`load_fit` reads back; ``save_checkpoint(path, name, params, cfg, ...)`` writes
+    the parts.
 
     Refuses (``ValueError``) parameters that :func:`bad_params` rejects.
     """

@@ -50,12 +50,7 @@ class TrainConfig:
     ("float32"/"float64"), ``zeta_weight`` of the auxiliary
     :func:`minimanc.dmp.zeta_penalty` (DMP models), ``max_steps_per_epoch``
     (``None`` = all; for quick runs), ``grad_clip`` (global gradient-norm
-    clip, ``None`` = off), ``speed_scale`` (with ``normalize``: the speed error is divided by
-    the std of the logged speed, "level", or of its change over one step, "change", so that
-    an acceleration error weighs as much as a yaw-rate error of the same number of stds),
-    ``perception_weight`` (the weight of the auxiliary perception loss of
-    :func:`minimanc.train.step.loss_fn`: 0 = Algorithm 1 alone; > 0 needs the ``perception``
-    targets of :func:`minimanc.train.fit`).
+    clip, ``None`` = off).
     """
 
     epochs: int = 6
@@ -73,8 +68,6 @@ class TrainConfig:
     zeta_weight: float = 0.0
     max_steps_per_epoch: int | None = None
     grad_clip: float | None = 5.0
-    speed_scale: str = "level"
-    perception_weight: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("epochs", "batch_size", "seq_len", "dmp_seq_len", "q_seq_len"):
@@ -95,14 +88,6 @@ class TrainConfig:
         c = self.grad_clip
         if c is not None and not (isinstance(c, int | float) and math.isfinite(c) and c > 0):
             raise ValueError(f"grad_clip must be None or > 0, got grad_clip={c!r}")
-        w = self.perception_weight
-        if isinstance(w, bool) or not (isinstance(w, int | float) and math.isfinite(w)
-                                       and w >= 0):
-            raise ValueError(f"perception_weight must be a finite number >= 0, got "
-                             f"perception_weight={w!r}")
-        if self.speed_scale not in ("level", "change"):
-            raise ValueError(f"speed_scale must be 'level' or 'change', got "
-                             f"speed_scale={self.speed_scale!r}")
 
 
 @dataclass
@@ -113,8 +98,7 @@ class FitResult:
     ``val_history`` (open-loop validation loss per epoch, if ``val_ds``),
     ``name``, ``cfg``, ``train_cfg``, ``steps`` (optimiser steps),
     ``seconds`` (wall time of this call), ``control_std`` (the
-    normalisation used), ``readout`` (the auxiliary perception loss's linear read-out
-    ``{"w", "b"}`` of standardised targets, when it was trained with one; ``None`` otherwise).
+    normalisation used).
     """
 
     name: str
@@ -126,4 +110,3 @@ class FitResult:
     steps: int = 0
     seconds: float = 0.0
     control_std: np.ndarray = field(default_factory=lambda: np.ones(2))
-    readout: dict | None = None

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from minimanc import layers, models, optim
+from minimanc import models, optim
 from minimanc.engine import ENGINES, get_engine
 from minimanc.train.batches import (
     batches,
@@ -33,13 +33,14 @@ from minimanc.train.checkpoint import (
 )
 from minimanc.train.config import CHECKPOINT_NAME, DTYPES, FitResult, TrainConfig, TrainingDiverged
 from minimanc.train.step import loss_fn, make_step
+from minimanc.train.trained import STD_DEFAULT, accepts_fit
 from minimanc.tree import cast_floats
 from minimanc.world.datawriter import remove_temp_files
 from minimanc.world.fileformat import describe_non_finite, first_non_finite
 
 __all__ = ["RunState", "SweepResult", "cast_floats", "check_fit_args", "diverged_loss", "end_epoch",
-           "as_engine", "epoch_plan", "fit", "open_loop_loss", "perception_moments", "result_of",
-           "start_run", "step_batch", "sweep_lr"]
+           "as_engine", "epoch_plan", "fit", "open_loop_loss", "result_of", "start_run",
+           "step_batch", "sweep_lr"]
 
 
 def as_engine(engine: Any) -> Any:
@@ -85,7 +86,6 @@ class RunState:
     steps: int = 0
     ck_path: Path | None = None
     saved_epoch: int | None = None
-    perception: np.ndarray | None = None
 
 
 def check_fit_args(name: str, train_ds: Any, cfg: models.ModelConfig | None,
@@ -113,67 +113,24 @@ def check_fit_args(name: str, train_ds: Any, cfg: models.ModelConfig | None,
     return name, cfg, tc
 
 
-def standardised_perception(perception: Any, train_ds: Any, tc: TrainConfig,
-                       scenes: np.ndarray) -> np.ndarray | None:
-    """The auxiliary loss's targets ``(S, T, K)`` float64, standardised per column over the
-    run's training ``scenes`` (``None`` without the loss); ValueError for targets given
-    without ``tc.perception_weight`` (or the converse), of the wrong shape, or not finite."""
-    if perception is None:
-        if tc.perception_weight > 0:
-            raise ValueError("perception_weight > 0 needs perception targets (S, T, K) for the "
-                             "training scenes (e.g. minimanc.dagger.privileged."
-                             "perceived)")
-        return None
-    if tc.perception_weight == 0:
-        raise ValueError("perception targets were given but perception_weight is 0: set "
-                         "TrainConfig(perception_weight=...) > 0 or leave them out")
-    y = np.asarray(perception, dtype=np.float64)
-    shape = dataset_shape(train_ds)
-    if y.ndim != 3 or y.shape[:2] != tuple(shape) or y.shape[2] < 1:
-        raise ValueError(f"perception must have shape (S, T, K) = ({shape[0]}, {shape[1]}, K) "
-                         f"for the training data, got {y.shape}")
-    if not np.all(np.isfinite(y)):
-        raise ValueError("perception targets must be finite")
-    mean, std = perception_moments(y, scenes)
-    return (y - mean) / std
-
-
-def perception_moments(y: np.ndarray, scenes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-column mean and standard deviation (+1e-6) of targets ``y (S, T, K)`` over the
-    training ``scenes``: the standardisation of :func:`standardised_perception`."""
-    seen = np.asarray(y, dtype=np.float64)[scenes].reshape(-1, np.shape(y)[2])
-    return seen.mean(0), seen.std(0) + 1e-6
-
-
 def start_run(name: str, train_ds: Any, cfg: models.ModelConfig, tc: TrainConfig,
               checkpoint_dir: str | Path | None = None, resume: bool = False,
-              params: dict | None = None, perception: Any = None) -> RunState:
+              params: dict | None = None) -> RunState:
     """The :class:`RunState` of a run before its first epoch: the subset, the
     normalisation and fresh (or given) parameters cast to ``tc.dtype``, or, with
     ``resume``, the state of the checkpoint in ``checkpoint_dir`` (whose model and
-    configuration must match, except ``epochs`` and ``lr``). With ``perception`` targets
-    (:func:`standardised_perception`) the parameters gain ``"perception"``, the linear read-out
-    of the auxiliary loss (:func:`minimanc.train.step.loss_fn`: of the predicates where the
-    model has them, else of the backbone features), drawn from its own stream so that the
-    model's draw is unchanged."""
+    configuration must match, except ``epochs`` and ``lr``)."""
     dtype = DTYPES[tc.dtype]
     S, _ = dataset_shape(train_ds)
     scenes = subset_scenes(S, tc.subset, tc.seed)
-    std = control_std(train_ds, scenes, tc.speed_scale) if tc.normalize else np.ones(2)
+    std = control_std(train_ds, scenes) if tc.normalize else np.ones(2)
     ck_path = Path(checkpoint_dir) / CHECKPOINT_NAME if checkpoint_dir is not None else None
     if ck_path is not None:
         remove_temp_files(ck_path)  # left by a run that was killed while saving
     if params is None:
         params = models.init(name, np.random.default_rng(tc.seed), cfg)
-    targets = standardised_perception(perception, train_ds, tc, scenes)
-    if targets is not None and "perception" not in params:
-        n_in = cfg.n_predicates if "predicates" in params else \
-            cfg.feature_size ** 2 * cfg.channels[-1]
-        params = {**params, "perception": layers.init_dense(
-            np.random.default_rng([int(tc.seed), 7]), n_in, targets.shape[2])}
     params = cast_floats(params, dtype)
-    st = RunState(name, cfg, tc, scenes, std, params, optim.adam_init(params), ck_path=ck_path,
-                  perception=targets)
+    st = RunState(name, cfg, tc, scenes, std, params, optim.adam_init(params), ck_path=ck_path)
     if resume:
         if ck_path is None:
             raise ValueError("resume=True needs a checkpoint_dir")
@@ -229,14 +186,10 @@ def end_epoch(st: RunState, epoch: int, mean_loss: float, eng: Any, val_ds: Any 
 
 
 def result_of(st: RunState, seconds: float) -> FitResult:
-    """The :class:`FitResult` of a finished run: the controller's parameters, and the
-    auxiliary read-out apart (``readout``)."""
-    everything = to_numpy(st.params)
-    params = {k: v for k, v in everything.items() if k != "perception"}
-    return FitResult(name=st.name, params=params, history=list(st.history),
+    """The :class:`FitResult` of a finished run."""
+    return FitResult(name=st.name, params=to_numpy(st.params), history=list(st.history),
                      cfg=st.cfg, train_cfg=st.tc, val_history=list(st.val_history),
-                     steps=st.steps, seconds=seconds, control_std=np.asarray(st.std),
-                     readout=everything.get("perception"))
+                     steps=st.steps, seconds=seconds, control_std=np.asarray(st.std))
 
 
 def epoch_plan(st: RunState, train_ds: Any, epoch: int) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -252,8 +205,6 @@ def step_batch(st: RunState, train_ds: Any, s_idx: np.ndarray, t_idx: np.ndarray
     """The batch of one step: observations and controls, and Algorithm 1's q' (vAGN)."""
     dtype = DTYPES[st.tc.dtype]
     batch = make_batch(st.name, train_ds, s_idx, t_idx, st.cfg, dtype)
-    if st.perception is not None:
-        batch["perception"] = st.perception[s_idx, t_idx].astype(dtype)
     q0 = initial_q(st.name, s_idx.shape[1], st.cfg, st.tc, q_rng, dtype)
     if q0 is not None:
         batch["q0"] = q0
@@ -271,7 +222,6 @@ def fit(
     progress: bool = True,
     val_ds: Any = None,
     params: dict | None = None,
-    perception: Any = None,
 ) -> FitResult:
     """Train model ``name`` by behaviour cloning (Algorithm 1) on ``train_ds``.
 
@@ -282,16 +232,14 @@ def fit(
     ``epochs`` and ``lr`` which may be changed to extend a run); ``progress``:
     a tqdm bar with the running loss; ``val_ds``: also record the open-loop
     validation loss each epoch; ``params``: start from these instead of a
-    fresh initialisation; ``perception``: targets ``(S, T, K)`` of the auxiliary perception
-    loss for every state of ``train_ds`` (with ``train_cfg.perception_weight > 0``; see
-    :func:`minimanc.train.step.loss_fn`). Returns a :class:`FitResult`. Several seeds or
+    fresh initialisation. Returns a :class:`FitResult`. Several seeds or
     learning rates of one configuration train faster together:
     :func:`minimanc.train.fit_many`.
     """
     name, cfg, tc = check_fit_args(name, train_ds, cfg, train_cfg, val_ds)
     eng = as_engine(engine)
     t_start = time.perf_counter()
-    st = start_run(name, train_ds, cfg, tc, checkpoint_dir, resume, params, perception)
+    st = start_run(name, train_ds, cfg, tc, checkpoint_dir, resume, params)
     step_fn = make_step(name, cfg, tc, eng, 1.0 / st.std)
     st.params, st.opt_state = eng.device_put(st.params), eng.device_put(st.opt_state)
 
@@ -330,11 +278,16 @@ def fit(
     return result_of(st, time.perf_counter() - t_start)
 
 
-def open_loop_loss(name: str, params: dict, ds: Any, cfg: models.ModelConfig | None = None,
-                   engine: Any = "jax", std: Any = None, q_init: str = "uniform",
-                   batch_size: int = 256, dtype: Any = np.float32, scenes: Any = None,
-                   motion_feedback: bool = True) -> float:
+@accepts_fit(STD_DEFAULT)
+def open_loop_loss(name: str | FitResult, params: dict, ds: Any,
+                   cfg: models.ModelConfig | None = None, engine: Any = "jax", std: Any = None,
+                   q_init: str = "uniform", batch_size: int = 256, dtype: Any = np.float32,
+                   scenes: Any = None, motion_feedback: bool = True) -> float:
     """Open-loop loss of Algorithm 1 on a dataset (every sample once, no gradient).
+
+    ``open_loop_loss(fit, ds)`` with the :class:`FitResult` of :func:`fit` (``std`` then
+    defaults to its ``control_std``, the normalisation it was trained with), or
+    ``open_loop_loss(name, params, ds, cfg)`` with its parts.
 
     Feed-forward models and vAGN-only see each step with ``q'`` as in
     training; LSTM models run each scene from ``t = 0`` with their state

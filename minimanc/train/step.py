@@ -9,7 +9,6 @@ from typing import Any
 import numpy as np
 
 from minimanc import dmp, models, optim
-from minimanc.layers import dense
 from minimanc.train.config import DTYPES, TrainConfig
 from minimanc.tree import leaves as tree_leaves
 from minimanc.tree import map as tree_map
@@ -19,53 +18,35 @@ __all__ = ["global_norm", "hyper_args", "like", "loss_fn", "make_step", "scale_t
 
 
 def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: Any,
-            inv_std: Any, zeta_weight: float = 0.0, motion_feedback: Any = False,
-            perception_weight: float = 0.0) -> Any:
-    """Algorithm 1's loss on a batch of windows: ``mean(((â − a) / σ)²)`` (+ ζ penalty)
-    (+ perception loss).
+            inv_std: Any, zeta_weight: float = 0.0, motion_feedback: Any = False) -> Any:
+    """Algorithm 1's loss on a batch of windows: ``mean(((â − a) / σ)²)`` (+ ζ penalty).
 
     ``batch`` holds observations ``(L, b, ...)``, ``controls (L, b, 2)`` and,
     for vAGN models, ``q0 (b, N)`` (q'). ``inv_std`` is ``1/σ`` per control;
     ``motion_feedback`` see :func:`minimanc.models.sequence`; it never applies to the windows
     that ``driven (b,)`` marks (:func:`~minimanc.train.batches.make_batch`): a state another
     policy drove is shown with the speed it was driven at, as DAgger's labels are for that
-    state. With ``perception (L, b, K)``
-    in the batch (standardised targets of what the world's human perceives in each state)
-    and ``params["perception"]`` (a linear read-out of the visual predicates of eq. 7 for the
-    models that have them, which is all their planner reads of the image, and of the
-    flattened backbone features for the others), ``perception_weight · mean((read-out −
-    target)²)`` is added: an auxiliary loss that asks the perception to hold those
-    quantities (privileged supervision of the perception).
+    state.
     """
     xp = eng.xp
-    obs = {k: v for k, v in batch.items()
-           if k not in ("controls", "q0", "perception", "driven")}
+    obs = {k: v for k, v in batch.items() if k not in ("controls", "q0", "driven")}
     if motion_feedback and "driven" in batch:
         motion_feedback = xp.logical_not(batch["driven"])
-    L, b = batch["controls"].shape[:2]
+    b = batch["controls"].shape[1]
     spec = models.spec(name)
     if spec.family == "vagn":
         state = {"q": batch["q0"]}
     else:
         dtype = params["backbone"]["convs"][0]["w"].dtype
         state = models.initial_state(name, b, cfg, xp=xp, dtype=dtype)
-    zeta = zeta_weight > 0.0 and spec.dmp
-    perceive = perception_weight > 0.0 and "perception" in batch
-    if zeta or perceive:
+    extra = 0.0
+    if zeta_weight > 0.0 and spec.dmp:
         pred, _, aux = models.sequence(name, params, obs, state, cfg, eng,
-                                       feedback_motion=motion_feedback, return_aux=True,
-                                       with_features=perceive)
+                                       feedback_motion=motion_feedback, return_aux=True)
+        extra = zeta_weight * dmp.zeta_penalty(aux["alpha"], aux["beta"], xp=xp)
     else:
         pred, _ = models.sequence(name, params, obs, state, cfg, eng,
                                   feedback_motion=motion_feedback)
-    extra = 0.0
-    if zeta:
-        extra = zeta_weight * dmp.zeta_penalty(aux["alpha"], aux["beta"], xp=xp)
-    if perceive:
-        f = aux["predicates"] if "predicates" in aux else aux["features"]
-        read = dense(params["perception"], xp.reshape(f, (L * b, -1)), eng.xp)
-        miss = read - xp.reshape(batch["perception"], (L * b, -1))
-        extra = extra + perception_weight * xp.mean(miss * miss)
     err = (pred - batch["controls"]) * inv_std
     return xp.mean(err * err) + extra
 
@@ -106,8 +87,7 @@ def train_step_fn(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any)
     xp = eng.xp
 
     def objective(params, batch, inv):
-        return loss_fn(name, params, batch, cfg, eng, inv, tc.zeta_weight, tc.motion_feedback,
-                       tc.perception_weight)
+        return loss_fn(name, params, batch, cfg, eng, inv, tc.zeta_weight, tc.motion_feedback)
 
     vg = eng.value_and_grad(objective)
 

@@ -3,7 +3,7 @@ of the privileged learner, the student's next to the library's.
 
 The investigation reads a learned driver's closed-loop metrics (the ADE and the collisions
 of the paper's Table I) against the bounds every row is read against (the expert and the
-style floor, :mod:`minimanc.studies.bounds`), and asks which information a controller
+style floor, :mod:`minimanc.diagnose.bounds`), and asks which information a controller
 trained by behaviour cloning (the paper's Algorithm 1) lacks. Two of its pictures are drawn
 here:
 
@@ -12,7 +12,7 @@ here:
   history convention (:mod:`minimanc.world.history`: box ``j`` steps ago drawn at
   ``brightness[j - 1]``), as the raster of ``world.RasterConfig(history=H)`` draws them;
 * :func:`plot_input_ablation` — the privileged learner's open-loop RMSE of both controls (its
-  outputs ``[acceleration, yaw rate]``, :mod:`minimanc.dagger.privileged`) with each input
+  outputs ``[acceleration, yaw rate]``, :mod:`minimanc.diagnose.privileged`) with each input
   group removed, as a ratio to the learner given every input.
 
 :func:`plot_investigation_attempts` is chapter 12's exercise figure: the student's faded

@@ -22,6 +22,7 @@ import time
 import zlib
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -51,13 +52,23 @@ from minimanc.world.roads import build_map
 from minimanc.world.scenes import Dataset
 
 __all__ = [
-    "MAX_ATTEMPTS", "Estimate", "default_shard_scenes", "draw_scene", "estimate", "generate",
-    "scene_stream",
+    "MAX_ATTEMPTS", "POOL_DIED", "Estimate", "default_shard_scenes", "draw_scene", "estimate",
+    "generate", "scene_stream",
     "generate_file", "generate_scene", "generate_splits", "scene_nbytes",
 ]
 
 MAX_ATTEMPTS = 25
 """Redraws allowed per scene before giving up."""
+
+POOL_DIED: dict[str, str] = {
+    "spawn": ("minimanc.world: a worker process died; with JAX imported the workers are "
+              "spawned and re-run the calling script: put the call under "
+              "`if __name__ == \"__main__\":`, or pass workers=1"),
+    "fork": ("minimanc.world: a worker process died while generating scenes (out of "
+             "memory?); pass workers=1 to generate in this process"),
+}
+"""The one-line error of :func:`generate` (and :func:`generate_file`) when a worker process
+dies, by the way the workers were started."""
 
 
 def draw_scene(seed: int, index: int, attempt: int = 0
@@ -187,15 +198,25 @@ def _scene_shards(seed: int, n_scenes: int, cfg: RasterConfig, k_targets: int, m
         return
     # fork is cheap and works from unguarded scripts; once JAX is loaded (its threads
     # make fork unsafe) use fresh "spawn" processes, which notebooks support
-    ctx = mp.get_context("spawn" if "jax" in sys.modules else "fork")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as ex:
-        for chunk in chunks:
-            shard = []
-            size = max(1, min(8, len(chunk) // (2 * workers)))
-            for out in ex.map(_scene_worker, chunk, chunksize=size):
-                shard.append(out)
-                bar.update(1)
-            yield shard
+    method = "spawn" if "jax" in sys.modules else "fork"
+    try:
+        with ProcessPoolExecutor(max_workers=workers,
+                                 mp_context=mp.get_context(method)) as ex:
+            for chunk in chunks:
+                shard = []
+                size = max(1, min(8, len(chunk) // (2 * workers)))
+                for out in ex.map(_scene_worker, chunk, chunksize=size):
+                    shard.append(out)
+                    bar.update(1)
+                yield shard
+    except BrokenProcessPool as exc:
+        raise RuntimeError(POOL_DIED[method]) from exc
+    except RuntimeError as exc:
+        # a spawned worker that re-runs an unguarded script reaches this call again, and
+        # multiprocessing refuses to start processes while the worker is starting
+        if "bootstrapping phase" in str(exc):
+            raise RuntimeError(POOL_DIED["spawn"]) from None
+        raise
 
 
 def _append_meta(meta: dict, scenes: list[dict], start: int) -> None:
@@ -219,7 +240,8 @@ def generate(
     ``progress`` shows a tqdm bar; ``workers`` processes share the work
     (default: 2 when there are at least 64 scenes and 2 CPUs, else 1; they
     are forked, or spawned if JAX is already imported — scripts then need
-    the ``if __name__ == "__main__":`` guard);
+    the ``if __name__ == "__main__":`` guard, and without it the call stops with
+    the one-line error :data:`POOL_DIED` saying so);
     ``cache`` — ``True`` (directory ``$MINIMANC_CACHE`` or
     ``~/.cache/minimanc``) or a directory — reuses a saved result of the same
     arguments and version, and saves new results there. The whole dataset is

@@ -1,0 +1,66 @@
+"""Chapter 9 — the rows of Table I that no training makes: :class:`References` drives the
+logged human, MANC's DMP head at constant gains (the "DMP prior") and the bounds
+(:data:`minimanc.diagnose.bounds.BOUND_ROWS`: the expert, the style floor) on a study's
+validation split, and keeps their scores in memory."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from minimanc import metrics, models, rollout
+from minimanc.diagnose import bounds
+from minimanc.studies.cache import StudyFiles
+from minimanc.studies.jobs import score
+from minimanc.studies.recorded import is_recorded
+
+__all__ = ["References"]
+
+
+class References:
+    """The drivers without learning of a study whose data are ``files``; ``timing`` gets the
+    seconds spent driving them (``"references"``)."""
+
+    def __init__(self, files: StudyFiles, timing: dict[str, float] | None = None) -> None:
+        self.files = files
+        self.config = files.config
+        self.timing = {} if timing is None else timing
+        self._scores: dict[str, dict] = {}
+        self._floor: Any = None
+
+    @property
+    def bound_rows(self) -> tuple[str, ...]:
+        """The bound rows of Table I (:data:`minimanc.diagnose.bounds.BOUND_ROWS`); none on
+        recorded data (:mod:`minimanc.studies.recorded`)."""
+        return () if is_recorded(self.config) else bounds.BOUND_ROWS
+
+    def score(self, name: str, agents: str) -> dict:
+        """The scores (:func:`minimanc.studies.jobs.score`) of a driver without learning on
+        the validation split under ``agents``: ``"human"`` (the log, or the human's logged
+        controls among reactive ados), ``"dmp_prior"`` (MANC's DMP head at its initial
+        constant gains, :func:`minimanc.rollout.fixed_gains`: what the structure alone does,
+        the bar the learned gains must clear) or a bound of :attr:`bound_rows`."""
+        key = f"{name}-val-{agents}"
+        if key not in self._scores:
+            _, _, val = self.files.datasets()
+            t0 = time.perf_counter()
+            if name == "human":
+                traj = rollout.human(val, agents=agents)
+            elif name == "expert":
+                traj = bounds.expert_rollout(val, agents=agents)
+            elif name == "style_floor":  # one drive, ados reacting, scored under either protocol
+                if self._floor is None:
+                    self._floor = bounds.floor_rollout(val, bounds.median_style())
+                traj = self._floor
+            else:
+                cfg = models.ModelConfig(n_states=self.config.n_states,
+                                         image_size=self.config.image_size)
+                traj = rollout.fixed_gains(val, cfg=cfg, agents=agents)
+            self._scores[key] = score(traj, val)
+            self.timing["references"] = (self.timing.get("references", 0.0)
+                                          + time.perf_counter() - t0)
+        return self._scores[key]
+
+    def aggregate(self, name: str, agents: str) -> dict:
+        """:meth:`score` as a Table I row (:func:`minimanc.metrics.aggregate` of one run)."""
+        return metrics.aggregate([self.score(name, agents)])
