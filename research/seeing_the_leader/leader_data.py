@@ -3,7 +3,7 @@
 The draw is the paper preset's: 850 scenes of the world, seed 0, generated once with
 ``minimanc data generate --scenes 850 --seed 0`` into :data:`DATA_DIR` (outside git).
 :func:`targets` computes, for every logged state, what the world's human perceives there
-(:func:`minimanc.dagger.privileged.features`, the targets of the perception) and what the
+(:func:`minimanc.diagnose.privileged.features`, the targets of the perception) and what the
 measurements need beyond it: the leader's box in the ego frame, its speed, and whether
 the human brakes because of it (the car-following term binds). It is cached per block of
 scenes under :data:`DATA_DIR` (a killed run resumes where it stopped).
@@ -21,16 +21,16 @@ from pathlib import Path
 
 import numpy as np
 
-# the investigation's learner and its expert: imported here only, so that one line follows
-# the package when the investigation code moves
-from minimanc.dagger import privileged
 from minimanc.dagger.expert import HumanExpert
+from minimanc.diagnose import privileged
 from minimanc.world import load, to_ego_frame
 from minimanc.world.car_following import acc_acceleration
 from minimanc.world.geometry import DT, EGO_LENGTH
 
-DATA_DIR = Path(os.environ.get("SEEING_DATA", "/work/data/seeing"))
-"""Where the draw and every cache of this study live (outside the repository)."""
+DATA_DIR = Path(os.environ.get("SEEING_DATA",
+                               Path(__file__).resolve().parents[2] / "runs" / "seeing_the_leader"))
+"""Where the draw and every cache of this study live (``runs/seeing_the_leader`` of the
+checkout, which git ignores; ``SEEING_DATA`` names another directory)."""
 WORLD_FILE = Path(os.environ.get("SEEING_WORLD", DATA_DIR / "world_850x0.npz"))
 """The seed-0 draw (``minimanc data generate --scenes 850 --seed 0``); a longer draw of the
 same seed (``SEEING_WORLD``) starts with the same 850 scenes and adds scenes for the data
@@ -45,7 +45,7 @@ never trained on here)."""
 BLOCK = 50
 """Scenes per cache block of :func:`targets`."""
 FEATURES = privileged.FEATURES
-"""The expert's perceived numbers, in the order of :func:`minimanc.dagger.privileged.features`."""
+"""The expert's perceived numbers, in the order of :func:`minimanc.diagnose.privileged.features`."""
 FAR = privileged.FAR
 """Distances are clipped here (m)."""
 
