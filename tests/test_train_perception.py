@@ -206,6 +206,10 @@ def test_fit_refuses_targets_that_do_not_fit(ds, targets):
     with pytest.raises(ValueError, match="PerceptionTargets"):
         train.fit("cnn", ds, CFG, _tc(), engine="numpy", progress=False,
                   perception=targets.values)
+    warm = _params("cnn", len(targets.names) - 1)
+    with pytest.raises(ValueError, match="reads 11 targets"):
+        train.fit("cnn", ds, CFG, _tc(), engine="numpy", progress=False, perception=targets,
+                  params=warm)
     with pytest.raises(ValueError, match="perception_weight must be"):
         train.TrainConfig(perception_weight=-1.0)
     with pytest.raises(ValueError, match="needs perception targets"):

@@ -224,7 +224,11 @@ def with_perception(st: RunState, targets: PerceptionTargets | None, train_ds: A
     st.perception = {"values": standardised_targets(targets, st.scenes),
                      "mask": np.asarray(targets.mask),
                      "logit": np.asarray(targets.logit, dtype=np.float64)}
-    if "perception" not in st.params:
+    have = st.params.get("perception")
+    if have is not None and np.shape(have["b"]) != (len(targets.names),):
+        raise ValueError(f"params['perception'] reads {np.shape(have['b'])[0]} targets, the "
+                         f"perception targets are {len(targets.names)}")
+    if have is None:
         head = init_perception_head(np.random.default_rng([int(st.tc.seed), 41]), st.cfg,
                                     len(targets.names))
         st.params = {**st.params, "perception": cast_floats(head, DTYPES[st.tc.dtype])}

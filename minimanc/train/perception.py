@@ -183,12 +183,10 @@ def perception_term(params: dict, batch: dict, cfg: models.ModelConfig, eng: Any
         If the batch lacks those entries or the parameters lack ``"perception"`` (train with
         :func:`minimanc.train.fit`'s ``perception=``).
     """
-    missing = [k for k in BATCH_KEYS if k not in batch]
-    if missing or "perception" not in params:
-        raise ValueError("perception_weight > 0 needs perception targets: train with "
-                         "minimanc.train.fit(..., perception=minimanc.diagnose."
-                         f"perception_targets(ds)); the batch lacks {missing or 'nothing'}, "
-                         f"the parameters {'nothing' if 'perception' in params else 'the head'}")
+    if any(k not in batch for k in BATCH_KEYS) or "perception" not in params:
+        raise ValueError("perception_weight > 0 needs perception targets in the batch and the "
+                         "read-out in the parameters: train with minimanc.train.fit(..., "
+                         "perception=minimanc.diagnose.perception_targets(ds))")
     xp = eng.xp
     bev = batch["bev"]
     n = bev.shape[0] * bev.shape[1]
