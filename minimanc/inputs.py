@@ -6,7 +6,8 @@ samples (rows may come from different scenes and times):
 =============== ================= ========================================================
 key             dtype, shape      meaning (ego frame: +x forward, +y left, metres/radians)
 =============== ================= ========================================================
-``bev``         float32 (B,H,W,3) the BEV raster seen from the ego, ``uint8 / 255`` in [0, 1]
+``bev``         float32 (B,H,W,C) the BEV raster seen from the ego, in [0, 1]: RGB ``/ 255``
+                                  or binary planes (:func:`minimanc.world.to_input`)
 ``goal``        float32 (B,3)     the goal: the human's final pose ``[x, y, yaw]`` in the
                                   *current* ego frame (re-expressed every step)
 ``lane_target`` float32 (B,K,2)   the moving lane target: route centre points every
@@ -17,7 +18,7 @@ key             dtype, shape      meaning (ego frame: +x forward, +y left, metre
 ``motion``      float32 (B,2)     the ego's current motion ``[speed m/s, yaw rate rad/s]``:
                                   the controls it applied over the previous step (what a
                                   speedometer and a gyro measure)
-``goal_bev``    float32 (B,H,W,3) RvS-G only: the static map rendered at the goal pose
+``goal_bev``    float32 (B,H,W,C) RvS-G only: the static map rendered at the goal pose
                                   (:func:`minimanc.world.raster.rasterize_goal`)
 =============== ================= ========================================================
 
@@ -79,6 +80,7 @@ from typing import Any
 
 import numpy as np
 
+from minimanc.world.encodings import to_input
 from minimanc.world.geometry import goal_in_ego_frame
 from minimanc.world.lanes import K_TARGETS, Map
 from minimanc.world.maps import lane_targets
@@ -345,8 +347,10 @@ def from_dataset(
             )
     keys = visible(model, setting) if model is not None else KEYS[:4]
     obs: dict = {}
+    if "bev" in keys or "goal_bev" in keys:
+        cfg = _raster_config(ds, np.shape(ds.bev)[2])
     if "bev" in keys:
-        obs["bev"] = np.asarray(ds.bev[s, t], dtype=np.float32) / np.float32(255.0)
+        obs["bev"] = to_input(ds.bev[s, t], cfg)
     if "goal" in keys:
         obs["goal"] = np.asarray(ds.goal[s, t], dtype=np.float32)
     if "lane_target" in keys:
@@ -354,7 +358,7 @@ def from_dataset(
     if "motion" in keys:
         obs["motion"] = motion_at(ds, s, t)
     if "goal_bev" in keys:
-        obs["goal_bev"] = _dataset_goal_bevs(ds)[s].astype(np.float32) / np.float32(255.0)
+        obs["goal_bev"] = to_input(_dataset_goal_bevs(ds)[s], cfg)
     return obs
 
 
@@ -435,7 +439,7 @@ def from_state(
     obs: dict = {}
     if "bev" in keys:
         bev = rasterize_batch(map_list, poses, ado, ado_valid, cfg, history=history)
-        obs["bev"] = bev.astype(np.float32) / np.float32(255.0)
+        obs["bev"] = to_input(bev, cfg)
     if "goal" in keys:
         obs["goal"] = goal_in_ego_frame(goals, poses).astype(np.float32)
     if "lane_target" in keys:
@@ -445,7 +449,6 @@ def from_state(
     if "motion" in keys:
         obs["motion"] = mot
     if "goal_bev" in keys:
-        obs["goal_bev"] = np.stack(
-            [_goal_bev_from_state(map_list[b], goals[b], cfg) for b in range(B)]
-        ).astype(np.float32) / np.float32(255.0)
+        obs["goal_bev"] = to_input(np.stack(
+            [_goal_bev_from_state(map_list[b], goals[b], cfg) for b in range(B)]), cfg)
     return obs

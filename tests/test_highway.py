@@ -88,6 +88,30 @@ def test_bev_wrapper_shape_dtype_colours_and_ego_pixel():
     assert seen >= 1
 
 
+def test_bev_channels_with_history():
+    """The learner's encoding: binary planes, the ego's and the ados' past boxes drawn from
+    what the wrapper saw (none at reset), the same rasteriser as the world's."""
+    cfg = world.RasterConfig.from_extent(60.0, 16.0, 0.5, metres_behind=40.0,
+                                         encoding="channels", history=2)  # 1 s at 30 m/s
+    env = hw.BEVObservation(hw.make_env("highway-fast", steps=4), cfg)
+    obs, _ = env.reset(seed=0)
+    k = {n: i for i, n in enumerate(cfg.channel_names)}
+    assert obs.shape == cfg.input_shape and obs.dtype == np.uint8
+    assert env.observation_space.contains(obs) and env.observation_space.high.max() == 1
+    assert obs[..., k["vehicles"]].any() and obs[cfg.ego_pixel + (k["ego"],)] == 1
+    assert not obs[..., [k["ego_t-1"], k["vehicles_t-1"]]].any()
+    pose0 = hw.ego_pose(env)
+    for _ in range(2):
+        obs, *_ = env.step(np.zeros(2, np.float32))
+    # the ego's box two steps back is drawn where its pose then is in today's ego frame
+    e = world.to_ego_frame(pose0[:2], hw.ego_pose(env))
+    assert obs[cfg.ego_to_pixel(e) + (k["ego_t-2"],)] == 1
+    assert obs[..., k["vehicles_t-1"]].any() and obs[..., k["vehicles_t-2"]].any()
+    # a new episode starts without a past
+    obs, _ = env.reset(seed=1)
+    assert not obs[..., k["ego_t-1"]].any()
+
+
 def test_bev_keeps_right_hand_traffic_on_the_right():
     # ego in highway-env's lane 0 (top of its screen = the driver's left): the other lanes
     # must be to the ego's right in the BEV, i.e. at larger column indices.

@@ -12,6 +12,9 @@ where the human whose logs it copies never does. The chapter finds out why with 
   the expert perceives (:func:`features`, :func:`demonstrations`), trained by Algorithm 1
   (:func:`fit_privileged`); dropping input groups is the ablation that names the
   information that matters;
+* :mod:`minimanc.diagnose.perception_targets` — what an image model's perception must read:
+  the expert's numbers in every state with the mask of where each means something
+  (:func:`perception_targets`, the targets of ``TrainConfig.perception_weight``);
 * :mod:`minimanc.diagnose.policies` — the expert and that learner driving closed loop
   (:class:`ExpertPolicy`, :class:`PrivilegedPolicy`, :func:`evaluate_policy`);
 * :mod:`minimanc.diagnose.probe` — does a model's representation hold that information?
@@ -33,6 +36,12 @@ from minimanc.diagnose.bounds import (
     median_style,
 )
 from minimanc.diagnose.collisions import collision_taxonomy
+from minimanc.diagnose.perception_targets import (
+    LOGITS,
+    TARGETS,
+    leader_boxes,
+    perception_targets,
+)
 from minimanc.diagnose.policies import (
     ExpertPolicy,
     PrivilegedPolicy,
@@ -65,6 +74,8 @@ __all__ = [
     "FAR",
     "FEATURES",
     "FEATURE_GROUPS",
+    "LOGITS",
+    "TARGETS",
     "V_MAX",
     "ExpertPolicy",
     "ExpertRollout",
@@ -82,10 +93,12 @@ __all__ = [
     "fit_privileged",
     "floor_rollout",
     "kept",
+    "leader_boxes",
     "linear_probe",
     "median_style",
     "mlp_outputs",
     "perceived",
+    "perception_targets",
     "predict",
     "standardise",
 ]

@@ -62,7 +62,9 @@ Modules: :mod:`~minimanc.train.config`, :mod:`~minimanc.train.trained`,
 :mod:`~minimanc.train.batches`,
 :mod:`~minimanc.train.step` (loss and optimiser step),
 :mod:`~minimanc.train.checkpoint`, :mod:`~minimanc.train.fit`, :mod:`~minimanc.train.many`
-(several seeds or learning rates of one configuration in one vmapped step).
+(several seeds or learning rates of one configuration in one vmapped step),
+:mod:`~minimanc.train.perception` (the masked auxiliary perception loss,
+``TrainConfig.perception_weight``).
 """
 
 from __future__ import annotations
@@ -94,6 +96,12 @@ from minimanc.train.fit import (
     sweep_lr,
 )
 from minimanc.train.many import fit_many, fit_seeds
+from minimanc.train.perception import (
+    PerceptionTargets,
+    masked_perception_loss,
+    perception_outputs,
+    standardised_targets,
+)
 from minimanc.train.step import loss_fn, make_step
 from minimanc.train.trained import accepts_fit
 
@@ -103,6 +111,7 @@ __all__ = [
     "PARAM_LIMIT",
     "CheckpointError",
     "FitResult",
+    "PerceptionTargets",
     "SweepResult",
     "TrainConfig",
     "TrainingDiverged",
@@ -122,7 +131,10 @@ __all__ = [
     "loss_fn",
     "make_batch",
     "make_step",
+    "masked_perception_loss",
+    "perception_outputs",
     "save_checkpoint",
+    "standardised_targets",
     "subset_scenes",
     "sweep_lr",
     "window_len",

@@ -50,7 +50,10 @@ class TrainConfig:
     ("float32"/"float64"), ``zeta_weight`` of the auxiliary
     :func:`minimanc.dmp.zeta_penalty` (DMP models), ``max_steps_per_epoch``
     (``None`` = all; for quick runs), ``grad_clip`` (global gradient-norm
-    clip, ``None`` = off).
+    clip, ``None`` = off), ``perception_weight`` (λ of the masked auxiliary perception loss
+    of :mod:`minimanc.train.perception`, for every image model alike; > 0 needs the targets
+    of :func:`minimanc.train.fit`'s ``perception``). Its default 0 is Algorithm 1 alone:
+    the loss becomes a default only once the closed loop measures that it helps.
     """
 
     epochs: int = 6
@@ -68,6 +71,7 @@ class TrainConfig:
     zeta_weight: float = 0.0
     max_steps_per_epoch: int | None = None
     grad_clip: float | None = 5.0
+    perception_weight: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("epochs", "batch_size", "seq_len", "dmp_seq_len", "q_seq_len"):
@@ -88,6 +92,11 @@ class TrainConfig:
         c = self.grad_clip
         if c is not None and not (isinstance(c, int | float) and math.isfinite(c) and c > 0):
             raise ValueError(f"grad_clip must be None or > 0, got grad_clip={c!r}")
+        w = self.perception_weight
+        if isinstance(w, bool) or not (isinstance(w, int | float) and math.isfinite(w)
+                                       and w >= 0):
+            raise ValueError(f"perception_weight must be a finite number >= 0, got "
+                             f"perception_weight={w!r}")
 
 
 @dataclass

@@ -32,6 +32,11 @@ from minimanc.train.checkpoint import (
     to_numpy,
 )
 from minimanc.train.config import CHECKPOINT_NAME, DTYPES, FitResult, TrainConfig, TrainingDiverged
+from minimanc.train.perception import (
+    PerceptionTargets,
+    init_perception_head,
+    standardised_targets,
+)
 from minimanc.train.step import loss_fn, make_step
 from minimanc.train.trained import STD_DEFAULT, accepts_fit
 from minimanc.tree import cast_floats
@@ -40,7 +45,7 @@ from minimanc.world.fileformat import describe_non_finite, first_non_finite
 
 __all__ = ["RunState", "SweepResult", "cast_floats", "check_fit_args", "diverged_loss", "end_epoch",
            "as_engine", "epoch_plan", "fit", "open_loop_loss", "result_of", "start_run",
-           "step_batch", "sweep_lr"]
+           "step_batch", "sweep_lr", "with_perception"]
 
 
 def as_engine(engine: Any) -> Any:
@@ -69,8 +74,9 @@ class RunState:
     ``scenes`` (its training subset), ``std`` (the loss normalisation), ``params`` and
     ``opt_state`` (NumPy or engine arrays), ``start_epoch`` (0, or the resumed
     checkpoint's), ``history`` / ``val_history`` / ``steps`` so far, ``ck_path`` (``None``
-    without a ``checkpoint_dir``) and ``saved_epoch`` (epoch of the checkpoint this run
-    wrote or resumed, else ``None``).
+    without a ``checkpoint_dir``), ``saved_epoch`` (epoch of the checkpoint this run
+    wrote or resumed, else ``None``) and ``perception`` (the auxiliary loss's standardised
+    ``values``, ``mask`` and ``logit`` flags: :func:`with_perception`; ``None`` without).
     """
 
     name: str
@@ -86,6 +92,7 @@ class RunState:
     steps: int = 0
     ck_path: Path | None = None
     saved_epoch: int | None = None
+    perception: dict | None = None
 
 
 def check_fit_args(name: str, train_ds: Any, cfg: models.ModelConfig | None,
@@ -186,9 +193,54 @@ def end_epoch(st: RunState, epoch: int, mean_loss: float, eng: Any, val_ds: Any 
         st.saved_epoch = epoch + 1
 
 
+def with_perception(st: RunState, targets: PerceptionTargets | None, train_ds: Any) -> None:
+    """Give run ``st`` the auxiliary perception loss of ``targets`` (every state of
+    ``train_ds``; :mod:`minimanc.train.perception`): their standardised values over the run's
+    training scenes, and, unless a resumed checkpoint has it, the read-out
+    ``params["perception"]`` drawn from its own stream ``default_rng([seed, 41])`` (the
+    model's parameters stay those of a run without it).
+
+    Raises
+    ------
+    ValueError
+        For targets without ``perception_weight > 0`` or the converse, targets that are not
+        :class:`~minimanc.train.perception.PerceptionTargets` or whose ``(S, T)`` is not the
+        dataset's.
+    """
+    if targets is None:
+        if st.tc.perception_weight > 0:
+            raise ValueError("perception_weight > 0 needs perception targets: fit(..., "
+                             "perception=minimanc.diagnose.perception_targets(train_ds))")
+        return
+    if st.tc.perception_weight == 0:
+        raise ValueError("perception targets were given but perception_weight is 0: set "
+                         "TrainConfig(perception_weight=...) > 0 or leave them out")
+    if not isinstance(targets, PerceptionTargets):
+        raise ValueError(f"perception must be a train.perception.PerceptionTargets, got "
+                         f"{type(targets).__name__}")
+    shape = dataset_shape(train_ds)
+    if np.shape(targets.values)[:2] != shape:
+        raise ValueError(f"perception targets cover (S, T) = {np.shape(targets.values)[:2]}, "
+                         f"the training data {shape}")
+    st.perception = {"values": standardised_targets(targets, st.scenes),
+                     "mask": np.asarray(targets.mask),
+                     "logit": np.asarray(targets.logit, dtype=np.float64)}
+    have = st.params.get("perception")
+    if have is not None and np.shape(have["b"]) != (len(targets.names),):
+        raise ValueError(f"params['perception'] reads {np.shape(have['b'])[0]} targets, the "
+                         f"perception targets are {len(targets.names)}")
+    if have is None:
+        head = init_perception_head(np.random.default_rng([int(st.tc.seed), 41]), st.cfg,
+                                    len(targets.names))
+        st.params = {**st.params, "perception": cast_floats(head, DTYPES[st.tc.dtype])}
+        st.opt_state = optim.adam_init(st.params)
+
+
 def result_of(st: RunState, seconds: float) -> FitResult:
-    """The :class:`FitResult` of a finished run."""
-    return FitResult(name=st.name, params=to_numpy(st.params), history=list(st.history),
+    """The :class:`FitResult` of a finished run (the controller's parameters, without the
+    read-out of the auxiliary perception loss)."""
+    params = {k: v for k, v in to_numpy(st.params).items() if k != "perception"}
+    return FitResult(name=st.name, params=params, history=list(st.history),
                      cfg=st.cfg, train_cfg=st.tc, val_history=list(st.val_history),
                      steps=st.steps, seconds=seconds, control_std=np.asarray(st.std))
 
@@ -206,6 +258,10 @@ def step_batch(st: RunState, train_ds: Any, s_idx: np.ndarray, t_idx: np.ndarray
     """The batch of one step: observations and controls, and Algorithm 1's q' (vAGN)."""
     dtype = DTYPES[st.tc.dtype]
     batch = make_batch(st.name, train_ds, s_idx, t_idx, st.cfg, dtype)
+    if st.perception is not None:
+        batch["perception"] = st.perception["values"][s_idx, t_idx].astype(dtype)
+        batch["perception_mask"] = st.perception["mask"][s_idx, t_idx].astype(dtype)
+        batch["perception_logit"] = st.perception["logit"].astype(dtype)
     q0 = initial_q(st.name, s_idx.shape[1], st.cfg, st.tc, q_rng, dtype)
     if q0 is not None:
         batch["q0"] = q0
@@ -223,6 +279,7 @@ def fit(
     progress: bool = True,
     val_ds: Any = None,
     params: dict | None = None,
+    perception: PerceptionTargets | None = None,
 ) -> FitResult:
     """Train model ``name`` by behaviour cloning (Algorithm 1) on ``train_ds``.
 
@@ -235,7 +292,10 @@ def fit(
     ``epochs`` and ``lr`` which may be changed to extend a run); ``progress``:
     a tqdm bar with the running loss; ``val_ds``: also record the open-loop
     validation loss each epoch; ``params``: start from these instead of a
-    fresh initialisation. Returns a :class:`FitResult`. Several seeds or
+    fresh initialisation; ``perception``: the targets of the masked auxiliary perception
+    loss for every state of ``train_ds`` (:func:`minimanc.diagnose.perception_targets`),
+    with ``train_cfg.perception_weight > 0`` (:func:`with_perception`). Returns a
+    :class:`FitResult`. Several seeds or
     learning rates of one configuration train faster together:
     :func:`minimanc.train.fit_many`.
     """
@@ -243,6 +303,7 @@ def fit(
     eng = as_engine(engine)
     t_start = time.perf_counter()
     st = start_run(name, train_ds, cfg, tc, checkpoint_dir, resume, params)
+    with_perception(st, perception, train_ds)
     step_fn = make_step(name, cfg, tc, eng, 1.0 / st.std)
     st.params, st.opt_state = eng.device_put(st.params), eng.device_put(st.opt_state)
 

@@ -10,6 +10,7 @@ import numpy as np
 
 from minimanc import dmp, models, optim
 from minimanc.train.config import DTYPES, TrainConfig
+from minimanc.train.perception import BATCH_KEYS, perception_term
 from minimanc.tree import leaves as tree_leaves
 from minimanc.tree import map as tree_map
 
@@ -18,8 +19,11 @@ __all__ = ["global_norm", "hyper_args", "like", "loss_fn", "make_step", "scale_t
 
 
 def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: Any,
-            inv_std: Any, zeta_weight: float = 0.0, motion_feedback: Any = False) -> Any:
-    """Algorithm 1's loss on a batch of windows: ``mean(((â − a) / σ)²)`` (+ ζ penalty).
+            inv_std: Any, zeta_weight: float = 0.0, motion_feedback: Any = False,
+            perception_weight: float = 0.0) -> Any:
+    """Algorithm 1's loss on a batch of windows: ``mean(((â − a) / σ)²)`` (+ ζ penalty)
+    (+ ``perception_weight`` times the masked auxiliary perception loss,
+    :func:`minimanc.train.perception.perception_term`).
 
     ``batch`` holds observations ``(L, b, ...)``, ``controls (L, b, 2)`` and,
     for vAGN models, ``q0 (b, N)`` (q'). ``inv_std`` is ``1/σ`` per control;
@@ -29,7 +33,8 @@ def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: 
     state.
     """
     xp = eng.xp
-    obs = {k: v for k, v in batch.items() if k not in ("controls", "q0", "driven")}
+    obs = {k: v for k, v in batch.items()
+           if k not in ("controls", "q0", "driven", *BATCH_KEYS)}
     if motion_feedback and "driven" in batch:
         motion_feedback = xp.logical_not(batch["driven"])
     b = batch["controls"].shape[1]
@@ -47,6 +52,8 @@ def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: 
     else:
         pred, _ = models.sequence(name, params, obs, state, cfg, eng,
                                   feedback_motion=motion_feedback)
+    if perception_weight > 0.0:
+        extra = extra + perception_weight * perception_term(params, batch, cfg, eng)
     err = (pred - batch["controls"]) * inv_std
     return xp.mean(err * err) + extra
 
@@ -87,7 +94,8 @@ def train_step_fn(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any)
     xp = eng.xp
 
     def objective(params, batch, inv):
-        return loss_fn(name, params, batch, cfg, eng, inv, tc.zeta_weight, tc.motion_feedback)
+        return loss_fn(name, params, batch, cfg, eng, inv, tc.zeta_weight, tc.motion_feedback,
+                       tc.perception_weight)
 
     vg = eng.value_and_grad(objective)
 

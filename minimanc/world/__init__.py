@@ -11,7 +11,9 @@ package makes its own data:
   junctions and roundabout entries, cutting in;
 * :mod:`~minimanc.world.driver` — the human ego with a per-scene style;
 * :mod:`~minimanc.world.raster` — the ego-centric, heading-up BEV raster
-  with the nuScenes devkit colours;
+  in two encodings: the nuScenes devkit colours, or binary planes for a learner
+  (the ego's route, the vehicles of each past step apart);
+  :mod:`~minimanc.world.encodings` reads a stored raster back;
 * the dataset (see below) — :mod:`~minimanc.world.generation` (:func:`generate`,
   :func:`generate_file` streams any number of scenes to disk),
   :mod:`~minimanc.world.scenes` (the :class:`Dataset` in memory: build, subset, split),
@@ -60,6 +62,7 @@ from minimanc.world.driver import (
     random_style,
     simulate_scene,
 )
+from minimanc.world.encodings import planes, to_input, to_rgb
 from minimanc.world.fileformat import (
     FILE_FORMAT_VERSION,
     FORMAT_VERSION,
@@ -91,8 +94,10 @@ from minimanc.world.geometry import (
 from minimanc.world.lanes import K_TARGETS, TARGET_SPACING, Lane, Map
 from minimanc.world.maps import lane_targets, project_to_route, random_map, random_recipe
 from minimanc.world.raster import (
+    ENCODINGS,
     RasterConfig,
     box_mask,
+    channel_names,
     hue_colours,
     rasterize,
     rasterize_batch,
@@ -103,14 +108,14 @@ from minimanc.world.scenes import Dataset
 from minimanc.world.traffic import idm_acceleration
 
 __all__ = [
-    "DT", "Dataset", "DatasetFileError", "DatasetWriter", "EGO_LENGTH", "EGO_WIDTH", "Estimate",
-    "FILE_FORMAT_VERSION", "FORMAT_VERSION", "HumanStyle", "K_TARGETS", "Lane", "MAX_ADOS", "Map",
-    "RasterConfig", "TARGET_SPACING", "T_STEPS", "box_corners", "box_mask", "boxes_overlap",
-    "build_map", "check_arrays_finite", "check_scene", "controls_from_poses", "draw_scene",
-    "estimate",
-    "file_content_hash", "from_ego_frame", "generate", "generate_file", "generate_scene",
-    "generate_splits", "goal_in_ego_frame", "hue_colours", "idm_acceleration", "lane_targets",
-    "load", "project_to_route", "random_map", "random_recipe", "random_style", "rasterize",
-    "rasterize_batch", "rasterize_goal", "read_meta", "save", "simulate_scene", "to_ego_frame",
+    "DT", "Dataset", "DatasetFileError", "DatasetWriter", "EGO_LENGTH", "EGO_WIDTH", "ENCODINGS",
+    "Estimate", "FILE_FORMAT_VERSION", "FORMAT_VERSION", "HumanStyle", "K_TARGETS", "Lane",
+    "MAX_ADOS", "Map", "RasterConfig", "TARGET_SPACING", "T_STEPS", "box_corners", "box_mask",
+    "boxes_overlap", "build_map", "channel_names", "check_arrays_finite", "check_scene",
+    "controls_from_poses", "draw_scene", "estimate", "file_content_hash", "from_ego_frame",
+    "generate", "generate_file", "generate_scene", "generate_splits", "goal_in_ego_frame",
+    "hue_colours", "idm_acceleration", "lane_targets", "load", "planes", "project_to_route",
+    "random_map", "random_recipe", "random_style", "rasterize", "rasterize_batch",
+    "rasterize_goal", "read_meta", "save", "simulate_scene", "to_ego_frame", "to_input", "to_rgb",
     "unicycle_step", "wrap_angle",
 ]

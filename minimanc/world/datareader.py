@@ -29,6 +29,7 @@ from minimanc.world.fileformat import (
     DatasetFileError,
     array_sha256,
     check_meta,
+    check_raster_shapes,
     content_digest,
     describe_non_finite,
     first_non_finite,
@@ -99,6 +100,13 @@ class _Archive:
                 or sum(s["stop"] - s["start"] for s in shards) != n):
             raise DatasetFileError(f"{path}: header lists no consistent shards")
         check_meta(header.get("meta"), n, str(path), DatasetFileError)
+        if shards:  # the rasters are what the metadata's raster config stores
+            try:
+                arrays = shards[0]["arrays"]
+                bev, goal_bev = arrays["bev"]["shape"], arrays["goal_bev"]["shape"]
+            except (KeyError, TypeError) as e:
+                raise DatasetFileError(f"{path}: header lists no raster arrays") from e
+            check_raster_shapes(header["meta"], bev, goal_bev, str(path), DatasetFileError)
         return header
 
     @property

@@ -29,7 +29,8 @@ from minimanc.world.raster import RasterConfig
 __all__ = [
     "ARRAY_FIELDS", "FILE_FORMAT_VERSION", "FLOAT_FIELDS", "FORMAT_NAME", "FORMAT_VERSION",
     "HEADER_MEMBER", "META_KEYS", "PER_SCENE_KEYS", "SHARD_BYTES", "DatasetFileError",
-    "append_scenes", "array_sha256", "check_arrays_finite", "check_meta", "content_digest",
+    "append_scenes", "array_sha256", "check_arrays_finite", "check_meta", "check_raster_shapes",
+    "content_digest",
     "describe_non_finite", "empty_meta", "first_non_finite", "header_sha256", "member_name",
 ]
 
@@ -156,6 +157,18 @@ def check_meta(meta: Any, n: int, where: str, err: type[Exception] = ValueError)
     if not (isinstance(dt, int | float) and not isinstance(dt, bool) and math.isfinite(dt)
             and dt > 0):
         raise err(f"{where}: metadata 'dt' must be a positive number, got {dt!r}")
+
+
+def check_raster_shapes(meta: dict, bev: tuple[int, ...], goal_bev: tuple[int, ...],
+                        where: str, err: type[Exception] = ValueError) -> None:
+    """Raise ``err`` (prefixed by ``where``) unless the rasters' shapes ``bev (S, T, ...)``
+    and ``goal_bev (S, ...)`` are what the metadata's raster config stores per frame
+    (:attr:`RasterConfig.shape`: an RGB image, or the packed channels)."""
+    cfg = RasterConfig(**meta["raster"])
+    for name, shape, lead in (("bev", tuple(bev), 2), ("goal_bev", tuple(goal_bev), 1)):
+        if shape[lead:] != cfg.shape:
+            raise err(f"{where}: {name} frames have shape {shape[lead:]}, but the raster "
+                      f"config ({cfg.encoding}, {cfg.size}x{cfg.width}) stores {cfg.shape}")
 
 
 # --------------------------------------------------------------------------- checksums

@@ -172,7 +172,7 @@ def scene_nbytes(raster: RasterConfig | None = None, k_targets: int = K_TARGETS,
                  max_ados: int = MAX_ADOS, steps: int = T_STEPS) -> int:
     """Uncompressed bytes of one scene's arrays (the memory a scene takes in a shard)."""
     cfg = raster or RasterConfig()
-    px = cfg.size * cfg.size * 3
+    px = int(np.prod(cfg.shape))
     per_step = px + 4 * (3 + 2 + 3 + 2 * k_targets + 5 * max_ados) + max_ados
     return int(steps * per_step + px)
 

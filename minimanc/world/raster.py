@@ -1,26 +1,43 @@
-"""Chapter 7 — the bird's-eye-view (BEV) rasteriser: ego-centric, heading up, nuScenes colours.
+"""Chapter 7 — the bird's-eye-view (BEV) rasteriser: ego-centric, heading up, two encodings.
 
 The nuScenes devkit's prediction raster is 500 x 500 px at 0.1 m/px: 40 m
 ahead, 10 m behind and 25 m to each side of the agent, which sits at row 400,
 column 250 facing up. :class:`RasterConfig` keeps those *proportions* and
-scales the image down (64 x 64 by default: 0.78 m/px) for CPU training.
+scales the image down (64 x 64 by default: 0.78 m/px) for CPU training; any
+other view (a longer, narrower corridor: :meth:`RasterConfig.from_extent`) has
+``size`` rows and ``cols`` columns.
 
-Layers, each overwriting the previous where it draws (the devkit's order):
+One rasteriser draws every frame, in one of two **encodings**
+(``RasterConfig.encoding``):
 
-============== ================= ===========================================
-layer          colour (RGB)      source
-============== ================= ===========================================
-background     (0, 0, 0)
-walkway        (0, 0, 255)       map class grid
-drivable area  (255, 255, 255)   map class grid
-ped crossing   (119, 136, 153)   map class grid
-lanes          HSV hue by yaw    lane centrelines; same direction as the ego
-                                 = cyan (0, 255, 255), opposite = red
-faded history  colours × fade    the boxes of the last ``history`` steps
-                                 (ados and ego, oldest first; off by default)
-ado vehicles   (255, 255, 0)     oriented boxes
-ego            (255, 0, 0)       4.727 m x 1.907 m box at the ego pose
-============== ================= ===========================================
+* ``"rgb"`` — the devkit's look, for people and for the paper's setting: the layers
+  below, each overwriting the previous where it draws, in one uint8 RGB image;
+* ``"channels"`` — for a learner: one binary plane per layer (the field's practice:
+  Roach's policy reads 15 binary channels, l5kit one channel per history frame; the
+  faded RGB image is for display, :func:`~minimanc.world.encodings.to_rgb`), and the
+  ego's **route** ahead
+  (``route=True``), which at a junction says which of the lanes the ego takes. Each
+  past step's vehicles have their own plane, so motion is not blended away. Stored
+  bit-packed (:func:`pack`); :mod:`minimanc.world.encodings` reads them back.
+
+============= =============== ================================ ==============================
+layer         colour (RGB)    channel(s)                       source
+============= =============== ================================ ==============================
+background    (0, 0, 0)
+walkway       (0, 0, 255)     ``walkway``                      map class grid
+drivable area (255, 255, 255) ``drivable`` (crossings in)      map class grid
+ped crossing  (119, 136, 153) ``crossing``                     map class grid
+lanes         HSV hue by yaw  ``lane_same``, ``lane_opposite`` centrelines; within 90° of the
+                                                               ego's heading = cyan, else red
+route         —               ``route``                        the route on from the ego's
+                                                               projection, :data:`ROUTE_WIDTH`
+faded history colours × fade  ``ego_t-j``, ``vehicles_t-j``    past boxes, ego frame at t
+ado vehicles  (255, 255, 0)   ``vehicles``                     oriented boxes
+ego           (255, 0, 0)     ``ego``                          4.727 m x 1.907 m at the pose
+============= =============== ================================ ==============================
+
+A layer switched off (``draw_lanes``, ``draw_crossings``, ``draw_walkways``) has no
+plane; :attr:`RasterConfig.channel_names` lists the planes in order.
 
 Pixel convention: the pixel containing the ego-frame point ``(x, y)`` (x
 forward, y left) is ``row = floor((metres_ahead - x) / res_row)``,
@@ -28,7 +45,8 @@ forward, y left) is ``row = floor((metres_ahead - x) / res_row)``,
 :meth:`RasterConfig.ego_to_pixel`. Every frame is rendered by inverse mapping:
 each pixel centre is moved to the world, looked up in the map's class grid
 (:func:`minimanc.world.lanes.class_grid`) and tested against the boxes —
-vectorised NumPy, no Python loop over pixels, any ego pose.
+vectorised NumPy, no Python loop over pixels, any ego pose. Both encodings share
+every step; they differ only in what a step writes.
 """
 
 from __future__ import annotations
@@ -49,6 +67,7 @@ from minimanc.world.lanes import (
     Map,
     class_grid,
 )
+from minimanc.world.maps import project_to_route
 
 BACKGROUND = (0, 0, 0)
 DRIVABLE = (255, 255, 255)
@@ -56,22 +75,52 @@ PED_CROSSING = (119, 136, 153)
 WALKWAY = (0, 0, 255)
 VEHICLE = (255, 255, 0)
 EGO = (255, 0, 0)
+ROUTE = (0, 170, 0)  # display only (encodings.to_rgb): the RGB encoding draws no route
+SAME_LANE = (0, 255, 255)
+OPPOSITE_LANE = (255, 0, 0)
+
+ENCODINGS = ("rgb", "channels")
+"""The two encodings of the one rasteriser."""
+ROUTE_WIDTH = 2.0
+"""Width (m) of the band the route is drawn as (about a car's width)."""
+
+
+def channel_names(draw_crossings: bool = True, draw_walkways: bool = True,
+                  draw_lanes: bool = True, route: bool = False,
+                  history: int = 0) -> tuple[str, ...]:
+    """The planes of the ``"channels"`` encoding, in order: the map's (``drivable``, then
+    ``crossing``, ``walkway``, ``lane_same``, ``lane_opposite``, ``route`` where drawn), the
+    ego's (``ego``, ``ego_t-1`` … ``ego_t-H``) and the other vehicles' (``vehicles``,
+    ``vehicles_t-1`` … ``vehicles_t-H``), ``H = history``."""
+    names = ["drivable"]
+    names += ["crossing"] * bool(draw_crossings) + ["walkway"] * bool(draw_walkways)
+    names += ["lane_same", "lane_opposite"] * bool(draw_lanes) + ["route"] * bool(route)
+    for who in ("ego", "vehicles"):
+        names += [who] + [f"{who}_t-{j}" for j in range(1, history + 1)]
+    return tuple(names)
+
+
+def pack(img: np.ndarray) -> np.ndarray:
+    """Binary planes ``(..., C)`` (0/1) packed 8 to a byte along the last axis: uint8
+    ``(..., ceil(C / 8))`` (plane ``k`` is bit ``k % 8`` of byte ``k // 8``)."""
+    return np.packbits(np.asarray(img, dtype=np.uint8), axis=-1, bitorder="little")
 
 
 @dataclass(frozen=True)
 class RasterConfig:
-    """Raster geometry and layers. Defaults: nuScenes proportions at 64 x 64 px.
+    """Raster geometry, layers and encoding. Defaults: nuScenes proportions at 64 x 64 px, RGB.
 
-    ``size`` pixels cover ``metres_ahead + metres_behind`` vertically and
-    ``2 * metres_side`` horizontally (the defaults give square 0.78 m pixels;
-    the devkit's 500 px at 0.1 m/px is ``RasterConfig(size=500)``; the
-    authors' 250 px at 0.2 m/px is ``RasterConfig(size=250)``).
-    ``lane_width_m`` is the drawn width of lane centrelines (devkit: 5 px at
-    0.1 m/px = 0.5 m), never thinner than one pixel. ``draw_lanes``, ``draw_walkways``
-    and ``draw_crossings`` switch those map layers; ``ego_length`` and ``ego_width`` (m)
-    size the ego's box. ``history`` is the number of past
-    steps drawn as faded boxes under the current ones (:mod:`minimanc.world.history`; 0,
-    the authors' environment, draws none).
+    ``size`` rows cover ``metres_ahead + metres_behind`` and ``cols`` columns (default
+    ``size``: a square image) cover ``2 * metres_side`` (the defaults give square
+    0.78 m pixels; the devkit's 500 px at 0.1 m/px is ``RasterConfig(size=500)``; the
+    authors' 250 px at 0.2 m/px is ``RasterConfig(size=250)``; a corridor is
+    :meth:`from_extent`). ``lane_width_m`` is the drawn width of lane centrelines
+    (devkit: 5 px at 0.1 m/px = 0.5 m), never thinner than one pixel. ``draw_lanes``,
+    ``draw_walkways`` and ``draw_crossings`` switch those map layers; ``ego_length`` and
+    ``ego_width`` (m) size the ego's box. ``history`` is the number of past steps drawn
+    (:mod:`minimanc.world.history`; 0, the authors' environment, draws none): faded boxes under the current ones in RGB, one plane per
+    step in channels. ``encoding`` is ``"rgb"`` or ``"channels"`` (:data:`ENCODINGS`);
+    ``route`` draws the ego's route ahead (channels only).
     """
 
     size: int = 64
@@ -85,9 +134,14 @@ class RasterConfig:
     ego_length: float = EGO_LENGTH
     ego_width: float = EGO_WIDTH
     history: int = 0
+    cols: int | None = None
+    encoding: str = "rgb"
+    route: bool = False
 
     def __post_init__(self) -> None:
         check_int("size", self.size, 8)
+        if self.cols is not None:
+            check_int("cols", self.cols, 8)
         check_int("history", self.history, 0, MAX_HISTORY)
         for name in ("metres_ahead", "metres_side", "ego_length", "ego_width",
                      "lane_width_m"):
@@ -96,19 +150,68 @@ class RasterConfig:
                 raise ValueError(f"{name} must be positive and finite, got {v!r}")
         if not (np.isfinite(self.metres_behind) and self.metres_behind >= 0):
             raise ValueError(f"metres_behind must be >= 0, got {self.metres_behind!r}")
+        if self.encoding not in ENCODINGS:
+            raise ValueError(f"encoding must be one of {ENCODINGS}, got {self.encoding!r}")
+        for name in ("draw_lanes", "draw_walkways", "draw_crossings", "route"):
+            if not isinstance(getattr(self, name), bool | np.bool_):
+                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        if self.route and self.encoding != "channels":
+            raise ValueError("route=True needs encoding='channels' (the RGB raster keeps the "
+                             "devkit's layers and draws no route)")
+
+    @classmethod
+    def from_extent(cls, metres_ahead: float, metres_side: float, resolution: float,
+                    metres_behind: float = 10.0, **fields) -> RasterConfig:
+        """The view ``metres_ahead`` ahead, ``metres_behind`` behind and ``metres_side`` to
+        each side at about ``resolution`` m/px: ``size = round((ahead + behind) /
+        resolution)`` rows, ``cols = round(2 side / resolution)`` columns (the pixels are
+        exactly square when the extents are multiples of the resolution); ``fields`` are
+        the other fields."""
+        if not (np.isfinite(resolution) and resolution > 0):
+            raise ValueError(f"resolution must be positive and finite, got {resolution!r}")
+        size = int(round((metres_ahead + metres_behind) / resolution))
+        cols = int(round(2.0 * metres_side / resolution))
+        return cls(size=size, cols=cols, metres_ahead=metres_ahead,
+                   metres_behind=metres_behind, metres_side=metres_side, **fields)
 
     def as_meta(self) -> dict:
-        """The config as a dataset's metadata stores it: every field, ``history`` only when
-        it is drawn (so a history-free dataset's metadata and checksums are those of the
-        format before the option)."""
+        """The config as a dataset's metadata stores it: every field, those added after the
+        format's first version (``history``, ``cols``, ``encoding``, ``route``) only when
+        they differ from their defaults (so the metadata and checksums of a dataset drawn
+        without them are those of the format before them)."""
         d = asdict(self)
-        if d["history"] == 0:
-            del d["history"]
+        for name, default in (("history", 0), ("cols", None), ("encoding", "rgb"),
+                              ("route", False)):
+            if d[name] == default:
+                del d[name]
         return d
 
     @property
+    def width(self) -> int:
+        """Columns of the image."""
+        return self.size if self.cols is None else self.cols
+
+    @property
+    def channel_names(self) -> tuple[str, ...]:
+        """The planes a learner reads: ``("red", "green", "blue")`` in RGB, else
+        :func:`channel_names` of this config's layers."""
+        if self.encoding == "rgb":
+            return ("red", "green", "blue")
+        return channel_names(self.draw_crossings, self.draw_walkways, self.draw_lanes,
+                             self.route, self.history)
+
+    @property
+    def input_shape(self) -> tuple[int, int, int]:
+        """``(H, W, C)`` of the planes a learner reads (:func:`to_input`)."""
+        return (self.size, self.width, len(self.channel_names))
+
+    @property
     def shape(self) -> tuple[int, int, int]:
-        return (self.size, self.size, 3)
+        """``(H, W, bytes)`` of one stored frame: RGB ``(H, W, 3)``; channels bit-packed,
+        ``ceil(C / 8)`` bytes per pixel (:func:`pack`)."""
+        if self.encoding == "rgb":
+            return (self.size, self.width, 3)
+        return (self.size, self.width, -(-len(self.channel_names) // 8))
 
     @property
     def res_row(self) -> float:
@@ -118,7 +221,7 @@ class RasterConfig:
     @property
     def res_col(self) -> float:
         """Metres per pixel along the ego's y axis (columns)."""
-        return 2.0 * self.metres_side / self.size
+        return 2.0 * self.metres_side / self.width
 
     @property
     def resolution(self) -> float:
@@ -149,9 +252,8 @@ class RasterConfig:
 
 @functools.lru_cache(maxsize=16)
 def _pixel_centres(cfg: RasterConfig) -> tuple[np.ndarray, np.ndarray]:
-    r = np.arange(cfg.size, dtype=np.float64) + 0.5
-    x = cfg.metres_ahead - r * cfg.res_row
-    y = cfg.metres_side - r * cfg.res_col
+    x = cfg.metres_ahead - (np.arange(cfg.size, dtype=np.float64) + 0.5) * cfg.res_row
+    y = cfg.metres_side - (np.arange(cfg.width, dtype=np.float64) + 0.5) * cfg.res_col
     X, Y = np.meshgrid(x, y, indexing="ij")
     return X, Y
 
@@ -240,11 +342,11 @@ def _check_pose(ego_pose: np.ndarray) -> np.ndarray:
     return pose
 
 
-def _draw_boxes(img: np.ndarray, poses: np.ndarray, fb: np.ndarray, b: np.ndarray,
-                cfg: RasterConfig, colour: np.ndarray) -> None:
-    """Paint the world boxes ``b (N, 5)`` into the frames ``fb (N,)`` of ``img`` (seen from
-    ``poses``): every (frame, box) tested on a square crop of pixels around the box."""
-    size = cfg.size
+def _box_pixels(poses: np.ndarray, fb: np.ndarray, b: np.ndarray, cfg: RasterConfig
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pixels ``(frame, row, col)`` of the world boxes ``b (N, 5)`` in the frames ``fb (N,)``
+    (seen from ``poses``): every (frame, box) tested on a square crop of pixels around it."""
+    H, W = cfg.size, cfg.width
     X, Y = _pixel_centres(cfg)
     cos, sin = np.cos(poses[fb, 2]), np.sin(poses[fb, 2])
     dx, dy = b[:, 0] - poses[fb, 0], b[:, 1] - poses[fb, 1]
@@ -255,7 +357,8 @@ def _draw_boxes(img: np.ndarray, poses: np.ndarray, fb: np.ndarray, b: np.ndarra
            & (np.abs(by) - half < cfg.metres_side))
     fb, b, bx, by, half = fb[vis], b[vis], bx[vis], by[vis], half[vis]
     if not len(fb):
-        return
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty, empty
     byaw = b[:, 2] - poses[fb, 2]
     K = int(np.ceil(half.max() / cfg.resolution)) + 1
     off = np.arange(-K, K + 1)
@@ -263,8 +366,8 @@ def _draw_boxes(img: np.ndarray, poses: np.ndarray, fb: np.ndarray, b: np.ndarra
     cc = np.floor((cfg.metres_side - by) / cfg.res_col).astype(np.intp)
     rr = rc[:, None, None] + off[None, :, None] + 0 * off[None, None, :]
     ca = cc[:, None, None] + 0 * off[None, :, None] + off[None, None, :]
-    ok = (rr >= 0) & (rr < size) & (ca >= 0) & (ca < size)
-    rcl, ccl = np.clip(rr, 0, size - 1), np.clip(ca, 0, size - 1)
+    ok = (rr >= 0) & (rr < H) & (ca >= 0) & (ca < W)
+    rcl, ccl = np.clip(rr, 0, H - 1), np.clip(ca, 0, W - 1)
     px = X[rcl, ccl] - bx[:, None, None]
     py = Y[rcl, ccl] - by[:, None, None]
     c, s = np.cos(byaw)[:, None, None], np.sin(byaw)[:, None, None]
@@ -272,19 +375,60 @@ def _draw_boxes(img: np.ndarray, poses: np.ndarray, fb: np.ndarray, b: np.ndarra
     v = -s * px + c * py
     ok &= (np.abs(u) <= b[:, 3, None, None] / 2) & (np.abs(v) <= b[:, 4, None, None] / 2)
     ff = np.broadcast_to(fb[:, None, None], ok.shape)
-    img[ff[ok], rr[ok], ca[ok]] = colour
+    return ff[ok], rr[ok], ca[ok]
+
+
+def _stamps(f: np.ndarray, row: np.ndarray, col: np.ndarray, width_m: float,
+            cfg: RasterConfig):
+    """For each pixel offset of a square stamp ``width_m`` wide (at least one pixel): the
+    points ``ok`` inside the image and their ``(frame, row, col)``."""
+    thick = max(int(round(width_m / cfg.resolution)), 1)
+    lo = -(thick // 2)
+    for dr in range(lo, lo + thick):
+        for dc in range(lo, lo + thick):
+            r, cc = row + dr, col + dc
+            ok = (r >= 0) & (r < cfg.size) & (cc >= 0) & (cc < cfg.width)
+            yield ok, f[ok], r[ok], cc[ok]
+
+
+def _route_pixels(m: Map, poses: np.ndarray, frames: list[int], cfg: RasterConfig
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(frame, row, col)`` of the route's centreline from each ego's projection on it to
+    the far edge of the view, sampled every half pixel (the route ends where the map's does)."""
+    P = poses[frames]
+    s0, _ = project_to_route(m, P[:, :2], P[:, 2])
+    s0 = np.atleast_1d(s0)
+    reach = float(np.hypot(max(cfg.metres_ahead, cfg.metres_behind), cfg.metres_side)) + 1.0
+    ds = np.arange(0.0, reach, cfg.resolution / 2.0)
+    sq = s0[:, None] + ds[None, :]
+    keep = sq <= m.route_s[-1]
+    pts, _ = m.route_pose(np.minimum(sq, m.route_s[-1]))
+    c, s = np.cos(P[:, 2])[:, None], np.sin(P[:, 2])[:, None]
+    dx, dy = pts[..., 0] - P[:, 0, None], pts[..., 1] - P[:, 1, None]
+    ex, ey = c * dx + s * dy, -s * dx + c * dy
+    row = np.floor((cfg.metres_ahead - ex) / cfg.res_row).astype(np.intp)
+    col = np.floor((cfg.metres_side - ey) / cfg.res_col).astype(np.intp)
+    f = np.broadcast_to(np.asarray(frames)[:, None], sq.shape)
+    return f[keep], row[keep], col[keep]
 
 
 def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
             valid: np.ndarray | None, cfg: RasterConfig, draw_ego: bool,
             history: History | None = None) -> np.ndarray:
-    """Render S frames at once (checked inputs): see :func:`rasterize_batch`."""
+    """Render S frames at once (checked inputs): see :func:`rasterize_batch`. Every step
+    computes which pixels a layer covers; the RGB encoding paints them in the layer's
+    colour (later layers over earlier ones), the channels encoding sets the layer's plane."""
     S = poses.shape[0]
-    size = cfg.size
+    H, W = cfg.size, cfg.width
+    rgb = cfg.encoding == "rgb"
+    plane = {name: k for k, name in enumerate(cfg.channel_names)}
     X, Y = _pixel_centres(cfg)
     cos, sin = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    img = np.empty((S, size, size, 3), dtype=np.uint8)
-    lut = _class_lut(cfg)
+    if rgb:
+        img = np.empty((S, H, W, 3), dtype=np.uint8)
+        lut = _class_lut(cfg)
+    else:
+        img = np.zeros((S, H, W, len(plane)), dtype=np.uint8)
     groups: dict[int, tuple[Map, list[int]]] = {}
     for i, m in enumerate(maps):
         groups.setdefault(id(m), (m, []))[1].append(i)
@@ -300,8 +444,16 @@ def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
         gy = s * X + c * Y + ((poses[idx, 1] - origin[1]) / gres)[:, None, None]
         ix = np.clip(np.floor(gx), 0, gw - 1).astype(np.intp)
         iy = np.clip(np.floor(gy), 0, gh - 1).astype(np.intp)
-        img[idx] = np.take(lut, np.take(grid, iy * gw + ix), axis=0)
-        # lanes: dense centreline samples scattered into the image, coloured by relative yaw
+        cls = np.take(grid, iy * gw + ix)
+        if rgb:
+            img[idx] = np.take(lut, cls, axis=0)
+        else:
+            img[idx, ..., plane["drivable"]] = (cls == CLASS_DRIVABLE) | (cls == CLASS_CROSSING)
+            if cfg.draw_crossings:
+                img[idx, ..., plane["crossing"]] = cls == CLASS_CROSSING
+            if cfg.draw_walkways:
+                img[idx, ..., plane["walkway"]] = cls == CLASS_WALKWAY
+        # lanes: dense centreline samples scattered into the image, by relative yaw
         if cfg.draw_lanes:
             samples = m.lane_samples(float(cfg.resolution / 2.0))
             # query square around the centre of the view
@@ -324,32 +476,52 @@ def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
             f = np.concatenate(fs)
             row = np.concatenate(rows).astype(np.intp)
             col = np.concatenate(cols).astype(np.intp)
-            colours = _HUE_LUT[np.minimum(np.concatenate(qs).astype(np.intp), _N_HUE - 1)]
-            thick = max(int(round(cfg.lane_width_m / cfg.resolution)), 1)
-            lo = -(thick // 2)
-            for dr in range(lo, lo + thick):
-                for dc in range(lo, lo + thick):
-                    r, cc = row + dr, col + dc
-                    ok = (r >= 0) & (r < size) & (cc >= 0) & (cc < size)
-                    img[f[ok], r[ok], cc[ok]] = colours[ok]
-    if history is not None:  # faded past boxes, oldest first, under the current ones
+            q = np.minimum(np.concatenate(qs).astype(np.intp), _N_HUE - 1)
+            if rgb:
+                colours = _HUE_LUT[q]
+            else:  # same direction: the lane's heading within 90 degrees of the ego's
+                which = np.where((q < _N_HUE // 4) | (q >= 3 * _N_HUE // 4),
+                                 plane["lane_same"], plane["lane_opposite"])
+            for ok, ff, rr, cc in _stamps(f, row, col, cfg.lane_width_m, cfg):
+                if rgb:
+                    img[ff, rr, cc] = colours[ok]
+                else:
+                    img[ff, rr, cc, which[ok]] = 1
+        if cfg.route:
+            f, row, col = _route_pixels(m, poses, idx_list, cfg)
+            for _, ff, rr, cc in _stamps(f, row, col, ROUTE_WIDTH, cfg):
+                img[ff, rr, cc, plane["route"]] = 1
+    if history is not None:  # past boxes, oldest first, under the current ones
         shade = fade(history.steps)
         ego_box = np.array([cfg.ego_length, cfg.ego_width])
         for j in range(history.steps - 1, -1, -1):
             fb, kb = np.nonzero(history.ado_valid[:, j])
-            _draw_boxes(img, poses, fb, history.ado[fb, j, kb], cfg,
-                        np.round(np.array(VEHICLE) * shade[j]).astype(np.uint8))
+            ff, rr, cc = _box_pixels(poses, fb, history.ado[fb, j, kb], cfg)
+            if rgb:
+                img[ff, rr, cc] = np.round(np.array(VEHICLE) * shade[j]).astype(np.uint8)
+            else:
+                img[ff, rr, cc, plane[f"vehicles_t-{j + 1}"]] = 1
             fe = np.nonzero(history.ego_valid[:, j])[0]
             boxes = np.concatenate([history.ego[fe, j], np.broadcast_to(ego_box,
                                                                         (len(fe), 2))], axis=1)
-            _draw_boxes(img, poses, fe, boxes, cfg,
-                        np.round(np.array(EGO) * shade[j]).astype(np.uint8))
+            ff, rr, cc = _box_pixels(poses, fe, boxes, cfg)
+            if rgb:
+                img[ff, rr, cc] = np.round(np.array(EGO) * shade[j]).astype(np.uint8)
+            else:
+                img[ff, rr, cc, plane[f"ego_t-{j + 1}"]] = 1
     if ado is not None:
         fb, kb = np.nonzero(valid)
-        _draw_boxes(img, poses, fb, ado[fb, kb], cfg, np.array(VEHICLE, dtype=np.uint8))
+        ff, rr, cc = _box_pixels(poses, fb, ado[fb, kb], cfg)
+        if rgb:
+            img[ff, rr, cc] = np.array(VEHICLE, dtype=np.uint8)
+        else:
+            img[ff, rr, cc, plane["vehicles"]] = 1
     if draw_ego:
-        img[:, _ego_mask(cfg)] = EGO
-    return img
+        if rgb:
+            img[:, _ego_mask(cfg)] = EGO
+        else:
+            img[:, _ego_mask(cfg), plane["ego"]] = 1
+    return img if rgb else pack(img)
 
 
 def rasterize(
@@ -361,7 +533,8 @@ def rasterize(
     draw_ego: bool = True,
     history: History | None = None,
 ) -> np.ndarray:
-    """Render the BEV raster seen from ``ego_pose = [x, y, yaw]`` (world frame): uint8 (H, W, 3).
+    """Render the BEV raster seen from ``ego_pose = [x, y, yaw]`` (world frame), as stored:
+    uint8 ``cfg.shape`` (RGB ``(H, W, 3)``; channels bit-packed, :func:`planes` unpacks).
 
     ``ado (A, 5)`` are world boxes ``[x, y, yaw, length, width]``; rows with
     ``ado_valid`` False are skipped. Any pose works (the closed loop renders
@@ -394,7 +567,8 @@ def rasterize_batch(
     """Rasterise S frames: ``ego_poses (S, 3)``, ``ado (S, A, 5)``, ``ado_valid (S, A)``.
 
     ``maps`` is one map per frame, or a single map for all. Returns uint8
-    ``(S, H, W, 3)``; frames are rendered together (vectorised over frames).
+    ``(S, *cfg.shape)`` as stored (see :func:`rasterize`); frames are rendered together
+    (vectorised over frames).
     ``history``: the frames' past (:class:`History` of ``S`` frames and
     ``cfg.history`` steps), required when ``cfg.history > 0`` and ados are drawn.
     """
@@ -421,5 +595,7 @@ def rasterize_batch(
 
 
 def rasterize_goal(m: Map, goal_pose: np.ndarray, cfg: RasterConfig | None = None) -> np.ndarray:
-    """Goal raster for RvS-G: the static map seen from the goal pose, ego box at the goal."""
+    """Goal raster for RvS-G: the static map seen from the goal pose, ego box at the goal
+    (in the channels encoding: the map's planes and the route on from the goal, the ego's,
+    no vehicles)."""
     return rasterize(m, goal_pose, None, None, cfg)

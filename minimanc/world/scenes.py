@@ -21,6 +21,7 @@ from minimanc.world.fileformat import (
     PER_SCENE_KEYS,
     check_arrays_finite,
     check_meta,
+    check_raster_shapes,
     content_digest,
 )
 from minimanc.world.geometry import DT
@@ -66,14 +67,14 @@ class Dataset:
     and ``scene_index`` (index of each scene in its generation run).
     """
 
-    bev: np.ndarray  # uint8 (S, T, H, W, 3) raster at the logged ego pose, ados at step t
+    bev: np.ndarray  # uint8 (S, T, *raster.shape) raster at the logged ego pose, ados at t
     ego: np.ndarray  # float32 (S, T, 3) logged ego pose [x, y, yaw], world frame
     controls: np.ndarray  # float32 (S, T, 2) [speed, yaw rate] applied from t to t+1
     goal: np.ndarray  # float32 (S, T, 3) final human pose in the ego frame at step t
     lane_target: np.ndarray  # float32 (S, T, K, 2) route points ahead every 4 m, ego frame
     ado: np.ndarray  # float32 (S, T, A, 5) [x, y, yaw, length, width], world frame
     ado_valid: np.ndarray  # bool (S, T, A)
-    goal_bev: np.ndarray  # uint8 (S, H, W, 3) static raster seen from the goal (RvS-G)
+    goal_bev: np.ndarray  # uint8 (S, *raster.shape) static raster seen from the goal (RvS-G)
     maps: Sequence[Map] = field(repr=False)
     meta: dict = field(repr=False)
 
@@ -98,6 +99,7 @@ class Dataset:
         arrays = {f: np.stack([np.asarray(sc[f]) for sc in scenes]) for f in ARRAY_FIELDS}
         check_arrays_finite(arrays, what)
         check_meta(meta, len(scenes), what)
+        check_raster_shapes(meta, arrays["bev"].shape, arrays["goal_bev"].shape, what)
         built = {i: m for i, m in enumerate(maps or ()) if m is not None}
         return cls(**arrays, maps=LazyMaps(meta["recipes"], built), meta=meta)
 
