@@ -120,7 +120,7 @@ def test_a_shape_that_disagrees_with_the_data_is_refused_in_one_line(data):
                       engine="numpy", progress=False)
     fit = train.fit("cnn", train_ds, models.ModelConfig(**SMALL), TC, engine="numpy",
                     progress=False)
-    with pytest.raises(ValueError, match="ds's BEV planes"):
+    with pytest.raises(ValueError, match="^ds's BEV planes"):
         rollout.closed_loop(fit, rgb, engine="numpy", steps=2, progress=False)
     obs = {"bev": np.zeros((1, *other)), "goal": np.zeros((1, 3))}
     with pytest.raises(ValueError, match=r"obs\['bev'\]'s BEV planes"):
@@ -145,7 +145,7 @@ def test_the_checkpoint_keeps_the_shape_and_is_refused_on_other_data(data, tmp_p
     b = rollout.closed_loop(back, val_ds, engine="numpy", steps=2, progress=False)
     np.testing.assert_array_equal(a.controls, b.controls)
     other = world.generate(2, seed=2, raster=world.RasterConfig(size=16), workers=1)
-    with pytest.raises(ValueError, match="ds's BEV planes"):
+    with pytest.raises(ValueError, match="^ds's BEV planes"):
         rollout.closed_loop(back, other, engine="numpy", steps=2, progress=False)
     with pytest.raises(ValueError, match="checkpoint at"):
         train.fit("manc", other, models.ModelConfig(**SMALL), TC, engine="numpy",

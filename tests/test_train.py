@@ -261,7 +261,7 @@ def test_bad_config_raises(ds):
         train.TrainConfig(subset=0.0)
     with pytest.raises(ValueError, match="q_init"):
         train.TrainConfig(q_init="zeros")
-    with pytest.raises(ValueError, match=r"input_shape=\(64, 64, 3\) does not match train_ds"):
+    with pytest.raises(ValueError, match=r"train_ds's BEV planes \(32, 32, 3\) .* \(64, 64, 3\)"):
         train.fit("cnn", ds, models.ModelConfig(input_shape=(64, 64, 3)), _tc(), engine="numpy",
                   progress=False)
     with pytest.raises(ValueError, match="engine"):
