@@ -92,7 +92,7 @@ print("validation map kinds:", [m.kind for m in val_ds.maps])
 
 # %% tags=["nbval-ignore-output"]
 manc_run = studies.Run("manc", "paper", config.n_states, 1.0, 0, config.lrs[0])
-manc_cfg = study.model_config(manc_run)
+manc_cfg = train.config_for_data(study.model_config(manc_run), train_ds)  # the data's (H, W, C)
 fit = train.fit("manc", train_ds, manc_cfg, study.train_config(manc_run), engine="jax",
                 checkpoint_dir=study.checkpoint(manc_run).parent, progress=False)
 print("epoch losses:", [round(x, 3) for x in fit.history])
