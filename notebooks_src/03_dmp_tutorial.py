@@ -505,7 +505,7 @@ forcing = dmp.fit_forcing_weights(demo, dt_demo, a_d, b_d, n_basis=30)
 # $\tau\ddot u = \alpha(\beta(1 - u) - \dot u) + x\,\sum\psi_i w_i/\sum\psi_i$, which does
 # not depend on $g$. So a new goal stretches each coordinate of the same motion
 # about the start, and — because $x \to 0$ — every rollout ends exactly at its
-# goal (`tests/test_dmp.py` checks both).
+# goal (`tests/test_dmp_forcing.py` checks both).
 
 # %%
 goals = np.array([[2.0, 1.0], [1.5, 2.0], [3.0, -0.5], [-1.0, 1.5]])

@@ -1,10 +1,18 @@
 # %% [markdown]
-# # Chapter 6 — Exercises: class activation maps, Grad-CAM, baselines, q-state saliency
+# # Chapter 6 — Exercises: class activation maps beyond the tutorial's head
 #
 # Module built in this chapter: `minimanc.cam` (paper section IV-A, eq. 7,
 # and the saliency maps of the execution traces, section V). Replace each
 # `raise NotImplementedError(...)` with your code and run the grade cell
 # below it; `minimanc grade exercises/06_cam.ipynb` scores the notebook.
+#
+# The tutorial split the predicates of one head — conv → global average pooling →
+# linear — into class activation maps, and found Grad-CAM equal to them. Here you
+# carry the same ideas to heads and questions it did not show: a pooling that
+# weighs the pixels (6.1, 6.3), where on the input a CAM pixel can look (6.2), the
+# backward pass of the vAGN that turns predicate maps into q-state maps (6.4), a
+# head with a hidden layer (6.5), and a head whose CAM points at the wrong object
+# on purpose (6.6).
 #
 # Layouts: features are channels-last `(B, H, W, K)`; the linear head's weight
 # is `(K, M)` so that `p = gap(f) @ w + b`; CAMs are `(B, M, H, W)`; vAGN
@@ -20,275 +28,417 @@ from minimanc.viz.saliency import overlay, plot_overlay_attempts
 rng = np.random.default_rng(0)
 
 # %% [markdown]
-# ## Exercise 6.1 — class activation maps
-# For features `(B, H, W, K)` and head weights `w` of shape `(K, M)`, return
-# $M_i(x, y) = \sum_k w_{ki} f_k(x, y)$ with shape `(B, M, H, W)` (predicate
-# axis before the spatial axes). No bias: the bias is not located anywhere in
-# the image. Because only an average and a linear map follow the features,
-# $\mathrm{mean}_{xy} M_i + b_i = p_i$ exactly — the CAM identity the tests check.
-
-# %% solution id=ex06_1 title="Class activation maps" forbids="minimanc.cam.class_activation_maps"  # noqa: E501
-def class_activation_maps(features, w):
-    ### BEGIN SOLUTION
-    return np.einsum("bhwk,km->bmhw", np.asarray(features, float), np.asarray(w, float))
-    ### END SOLUTION
-
-# %% grade id=ex06_1_tests points=3
-f = rng.random((2, 4, 5, 3))
-w = rng.normal(size=(3, 2))
-b = rng.normal(size=2)
-maps = class_activation_maps(f, w)
-assert maps.shape == (2, 2, 4, 5), (
-    f"expected CAMs of shape (B, M, H, W) = (2, 2, 4, 5); got {maps.shape}")
-p = f.mean(axis=(1, 2)) @ w + b
-assert np.allclose(maps.mean(axis=(2, 3)) + b, p), (
-    f"random f (2, 4, 5, 3): expected the CAM identity mean_xy M_i + b_i = p_i = "
-    f"{np.round(p, 4).tolist()}; got {np.round(maps.mean(axis=(2, 3)) + b, 4).tolist()}")
-assert np.allclose(maps[1, 0], f[1] @ w[:, 0]), (
-    f"image 1, predicate 0: expected sum_k w[k, 0] f_k = f[1] @ w[:, 0], e.g. pixel (0, 0) "
-    f"{f[1, 0, 0] @ w[:, 0]:.4f}; got {maps[1, 0, 0, 0]:.4f}")
-### BEGIN HIDDEN TESTS
-test_rng = np.random.default_rng(610)  # the tests' own draws, not the notebook's rng
-fr, wr = test_rng.normal(size=(3, 6, 2, 5)), test_rng.normal(size=(5, 4))
-ref = np.stack([[fr[n] @ wr[:, m] for m in range(4)] for n in range(3)])
-got = np.asarray(class_activation_maps(fr, wr))
-assert got.shape == ref.shape and np.allclose(got, ref), (
-    f"random f (3, 6, 2, 5), w (5, 4): expected f[n] @ w[:, m] for every image n and "
-    f"predicate m, shape {ref.shape}; got shape {got.shape}"
-    + (f", largest difference {np.abs(got - ref).max():.3g}" if got.shape == ref.shape else ""))
-one = np.zeros((1, 2, 2, 2))
-one[0, 1, 0] = [1.0, 2.0]
-got = np.asarray(class_activation_maps(one, np.array([[3.0], [-1.0]])))[0, 0]
-assert np.allclose(got, [[0.0, 0.0], [1.0, 0.0]]), (
-    f"one pixel with f = (1, 2) and w = (3, -1): expected [[0, 0], [1, 0]]; got {got.tolist()}")
-### END HIDDEN TESTS
-
-# %% [markdown]
-# ## Exercise 6.2 — the overlay normalisation
-# Overlays show the *ranking* of pixels, so each map is min–max normalised to
-# $[0, 1]$: $(s - \min s)/(\max s - \min s)$, separately for every map of a
-# stack `(..., H, W)`. A constant map has no ranking: return zeros for it
-# (not `nan`).
-
-# %% solution id=ex06_2 title="Min-max normalisation of saliency maps" forbids="minimanc.cam.minmax_normalize"  # noqa: E501
-def normalise(maps):
-    ### BEGIN SOLUTION
-    maps = np.asarray(maps, float)
-    lo = maps.min(axis=(-2, -1), keepdims=True)
-    span = maps.max(axis=(-2, -1), keepdims=True) - lo
-    return np.where(span > 0, (maps - lo) / np.where(span > 0, span, 1.0), 0.0)
-    ### END SOLUTION
-
-# %% grade id=ex06_2_tests points=2
-s = np.array([[1.0, 3.0], [5.0, 2.0]])
-assert np.allclose(normalise(s), [[0.0, 0.5], [1.0, 0.25]]), (
-    f"(s - 1) / (5 - 1) = [[0, 0.5], [1, 0.25]]; got {normalise(s)}")
-stack = np.stack([s, 10 * s - 4])
-got = np.asarray(normalise(stack))
-assert np.allclose(got, normalise(s)[None]), (
-    f"the stack [s, 10 s - 4], each map on its own: expected both [[0, 0.5], [1, 0.25]]; "
-    f"got {np.round(got, 4).tolist()}")
-flat = np.asarray(normalise(np.full((3, 3), 7.0)))
-assert np.all(np.isfinite(flat)) and np.allclose(flat, 0.0), (
-    f"a constant 3 x 3 map: expected zeros (not nan); got {flat.tolist()}")
-### BEGIN HIDDEN TESTS
-test_rng = np.random.default_rng(620)  # the tests' own draws, not the notebook's rng
-sr = test_rng.normal(size=(2, 3, 6, 5))
-lo, hi = sr.min(axis=(2, 3), keepdims=True), sr.max(axis=(2, 3), keepdims=True)
-got, ref = np.asarray(normalise(sr)), (sr - lo) / (hi - lo)
-assert got.shape == ref.shape and np.allclose(got, ref), (
-    f"a (2, 3, 6, 5) stack, over the last two axes only: expected map (0, 0) to span "
-    f"[0, 1]; got shape {got.shape}, map (0, 0) from {got[0, 0].min():.3f} to "
-    f"{got[0, 0].max():.3f}" if got.ndim == 4 else f"expected shape (2, 3, 6, 5); got {got.shape}")
-### END HIDDEN TESTS
-
-# %% [markdown]
-# ## Exercise 6.3 — Grad-CAM
-# Grad-CAM (Selvaraju et al. 2017) needs only the features $f_k(x, y)$ and the
-# gradient $g_k(x, y) = \partial y / \partial f_k(x, y)$ of one score $y$: weigh
-# each feature map by its average gradient and keep the positive part,
+# ## Exercise 6.1 — CAMs for a pooling that weighs the pixels (transfer)
+# Eq. 7 pools the features by their plain mean over the image. A variant weighs
+# the positions with a fixed map $a(x, y) \ge 0$ (say, more weight on the road in
+# front of the ego; $a$ need not sum to one):
 #
-# $$\alpha_k = \mathrm{mean}_{xy}\, g_k(x, y),\qquad
-#   \text{Grad-CAM}(x, y) = \mathrm{ReLU}\Big(\sum_k \alpha_k f_k(x, y)\Big).$$
+# $$p_i = \sum_{x, y} a(x, y) \sum_k f_k(x, y)\, W_{ki} + b_i .$$
 #
-# `features` and `grads` are `(B, H, W, K)`; return `(B, H, W)`. The tests
-# check what the tutorial claims: for conv → GAP → linear the gradient is
-# $W_{ki}/(HW)$ at every pixel, so Grad-CAM is $\mathrm{ReLU}(M_i)/(HW)$.
-
-# %% solution id=ex06_3 title="Grad-CAM" forbids="minimanc.cam.grad_cam"
-def grad_cam(features, grads):
-    ### BEGIN SOLUTION
-    features, grads = np.asarray(features, float), np.asarray(grads, float)
-    alpha = grads.mean(axis=(-3, -2))                       # (B, K)
-    return np.maximum(np.einsum("bhwk,bk->bhw", features, alpha), 0.0)
-    ### END SOLUTION
-
-# %% grade id=ex06_3_tests points=2
-f = np.zeros((1, 2, 2, 2))
-f[0, 0, 0] = [1.0, 0.0]
-f[0, 1, 1] = [0.0, 1.0]
-g = np.zeros((1, 2, 2, 2))
-g[0, 0, 0] = [4.0, -8.0]                  # alpha = mean over the 4 pixels = (1, -2)
-gc = grad_cam(f, g)
-assert gc.shape == (1, 2, 2), f"expected Grad-CAM of shape (B, H, W) = (1, 2, 2); got {gc.shape}"
-assert np.allclose(gc, [[[1.0, 0.0], [0.0, 0.0]]]), (
-    f"alpha = (1, -2): pixel (0, 0) gives 1, pixel (1, 1) gives ReLU(-2) = 0; got {gc}")
-fr = rng.random((3, 4, 5, 6))
-wr = rng.normal(size=(6, 2))
-gr = np.broadcast_to(wr[:, 1] / 20, fr.shape)   # d p_1 / d f for conv -> GAP -> linear
-got, ref = np.asarray(grad_cam(fr, gr)), np.maximum(fr @ wr[:, 1], 0) / 20
-assert got.shape == ref.shape and np.allclose(got, ref), (
-    f"the gradient of conv -> GAP -> linear (4 x 5 features): expected ReLU(CAM_1) / (H W), "
-    f"e.g. image 0, pixel (0, 0): {ref[0, 0, 0]:.4f}; got "
-    f"{got[0, 0, 0] if got.ndim == 3 else got.shape}")
-### BEGIN HIDDEN TESTS
-test_rng = np.random.default_rng(630)  # the tests' own draws, not the notebook's rng
-fr, gr = test_rng.normal(size=(2, 3, 4, 5)), test_rng.normal(size=(2, 3, 4, 5))
-ref = np.zeros((2, 3, 4))
-for n in range(2):
-    a = [gr[n, :, :, k].sum() / 12 for k in range(5)]
-    for y in range(3):
-        for x in range(4):
-            ref[n, y, x] = max(0.0, sum(a[k] * fr[n, y, x, k] for k in range(5)))
-got = np.asarray(grad_cam(fr, gr))
-assert got.shape == ref.shape and np.allclose(got, ref), (
-    f"random features and gradients, each image with its own alpha_k = mean_xy g_k: expected "
-    f"image 1 = {np.round(ref[1], 3).tolist()}; got "
-    f"{np.round(got[1], 3).tolist() if got.shape == ref.shape else got.shape}")
-### END HIDDEN TESTS
-
-# %% [markdown]
-# ## Exercise 6.4 — the data-set baseline
-# CAMs are defined only up to a map that is the same in every image: adding
-# $B_i(x, y)$ to $M_i$ and $-\mathrm{mean}_{xy} B_i$ to $b_i$ gives the same
-# predictor. The ego vehicle, present in every BEV, can therefore carry any
-# amount of CAM mass. Remove it with the **data-set baseline**, the mean CAM
-# over the training images $\bar M_i(x, y)$:
-#
-# $$\tilde M_i = M_i - \bar M_i,\qquad \tilde b_i = b_i + \mathrm{mean}_{xy} \bar M_i,$$
-#
-# so that $\mathrm{mean}_{xy}\tilde M_i + \tilde b_i = p_i$ still holds. Given
-# `cams` `(B, M, H, W)`, the training CAMs `train_cams` `(B', M, H, W)` and the
-# bias `b` `(M,)`, return `(centred_cams, new_bias)`.
-
-# %% solution id=ex06_4 title="CAMs centred on the data-set baseline" forbids="minimanc.cam.explain"  # noqa: E501
-def centre_on_baseline(cams, train_cams, b):
-    ### BEGIN SOLUTION
-    baseline = np.asarray(train_cams, float).mean(axis=0)      # (M, H, W)
-    return np.asarray(cams, float) - baseline, np.asarray(b, float) + baseline.mean(axis=(-2, -1))
-    ### END SOLUTION
-
-# %% grade id=ex06_4_tests points=3
-train = np.array([[[[1.0, 3.0]]], [[[3.0, 5.0]]]])      # (2, 1, 1, 2): baseline [[2, 4]]
-test = np.array([[[[2.0, 7.0]]]])
-c, b_new = centre_on_baseline(test, train, np.array([0.5]))
-assert np.allclose(c, [[[[0.0, 3.0]]]]), f"test CAM minus baseline [[2, 4]] = [[0, 3]]; got {c}"
-assert np.allclose(b_new, [3.5]), f"new bias = 0.5 + mean(baseline) = 0.5 + 3 = 3.5; got {b_new}"
-cams_r, train_r = rng.normal(size=(4, 3, 5, 6)), rng.normal(size=(9, 3, 5, 6))
-b_r = rng.normal(size=3)
-c, b_new = centre_on_baseline(cams_r, train_r, b_r)
-p_before = cams_r.mean(axis=(-2, -1)) + b_r
-p_after = np.asarray(c).mean(axis=(-2, -1)) + b_new
-assert np.allclose(p_after, p_before), (
-    f"random CAMs: expected unchanged predictions mean_xy(centred) + new bias = "
-    f"{np.round(p_before[0], 4)} for image 0; got {np.round(p_after[0], 4)}")
-### BEGIN HIDDEN TESTS
-c_tr, _ = centre_on_baseline(train_r, train_r, b_r)
-worst = np.abs(np.asarray(c_tr).mean(axis=0)).max()
-assert worst < 1e-9, (
-    f"the training CAMs centred on their own baseline: expected mean 0; got up to {worst:.3g}")
-test_rng = np.random.default_rng(640)  # the tests' own draws, not the notebook's rng
-ego = test_rng.normal(size=(3, 5, 6))            # a map common to every image
-c2, b2 = centre_on_baseline(cams_r + ego, train_r + ego, b_r - ego.mean(axis=(-2, -1)))
-assert np.allclose(c2, c) and np.allclose(b2, b_new), (
-    f"the same map added to every CAM (its mean taken from b): expected the same centred "
-    f"CAMs and bias {np.round(b_new, 4)}; got bias {np.round(b2, 4)}, CAMs off by up to "
-    f"{np.abs(np.asarray(c2) - c).max():.3g}")
-### END HIDDEN TESTS
-
-# %% [markdown]
-# ## Exercise 6.5 — where does each q-state look?
-# One vAGN step (chapter 5, eq. 9) turns the predicates into
-# $q = \mathrm{colsoftmax}(\mathrm{ReLU}(\sum_i p_i W_i))\, q_{prev}$. The
-# per-q-state saliency carries the CAMs through it by the first-order
-# influence of each predicate on each state:
-#
-# $$J_{ji} = \frac{\partial q_j}{\partial p_i},\qquad S_j(x, y) = \sum_i J_{ji}\, M_i(x, y).$$
-#
-# Given `q_prev` `(N,)`, predicates `p` `(B, M)`, weights `W` `(M, N, N)` and
-# CAMs `cams` `(B, M, H, W)`, return `S` `(B, N, H, W)`. Get $J$ from
-# `vagn.step(q_prev, p, W)` (the library's eq. 9, allowed here) by **central
-# differences** — $J_{:, i} \approx (q(p + h e_i) - q(p - h e_i)) / 2h$ with
-# $h = 10^{-6}$, every image at once since the rows of `p` are independent —
-# or with `engine("numpy").grad` of $\sum_{batch} q_j$, one $j$ at a time.
+# Write `pooled_cams(features, a, w)`: the class activation maps of this head,
+# shape `(B, M, H, W)`, for features `(B, H, W, K)`, the weighting `a` `(H, W)` and
+# `w` `(K, M)`. As in the tutorial they must split each prediction over the pixels
+# exactly — $\mathrm{mean}_{xy} M_i + b_i = p_i$ for every image — with each pixel's
+# value depending only on that pixel's features, and linearly (no features, no map).
+# Those three requirements leave one answer.
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
-# $J$ has one column per predicate: how much does q move when only $p_i$
-# moves? The rows of `p` are independent images, so one perturbed call of
-# `vagn.step` serves the whole batch.
+# Write $p_i - b_i$ as a mean over the pixels of something that belongs to each pixel.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Multiply and divide by the number of pixels; check your maps on a 1 × 2 image by
+# hand.
+# </details>
+
+# %% solution id=ex06_1 title="CAMs for a weighted pooling"
+def pooled_cams(features, a, w):
+    ### BEGIN SOLUTION
+    f = np.asarray(features, float)
+    H, W = f.shape[1:3]
+    scaled = H * W * np.asarray(a, float)[None, :, :, None] * f   # pixel weight, times HW
+    return np.einsum("bhwk,km->bmhw", scaled, np.asarray(w, float))
+    ### END SOLUTION
+
+# %% grade id=ex06_1_tests points=3
+f1 = np.array([1.0, 3.0]).reshape(1, 1, 2, 1)          # one image, 1 x 2 pixels, K = 1
+got = np.asarray(pooled_cams(f1, np.array([[0.25, 0.75]]), np.array([[2.0]])))
+assert got.shape == (1, 1, 1, 2), (
+    f"one image of 1 x 2 pixels, K = M = 1: expected maps of shape (1, 1, 1, 2); got "
+    f"{got.shape}")
+assert np.allclose(got[0, 0], [[1.0, 9.0]]), (
+    f"f = [[1, 3]], a = [[0.25, 0.75]], w = [[2]] (p - b = 5): expected the map [[1, 9]]; "
+    f"got {np.round(got[0, 0], 4).tolist()}")
+f_r, w_r = rng.random((2, 4, 5, 3)), rng.normal(size=(3, 2))
+ref = cam.class_activation_maps(f_r, w_r)
+got = np.asarray(pooled_cams(f_r, np.full((4, 5), 1 / 20), w_r))
+assert got.shape == ref.shape and np.allclose(got, ref), (
+    f"uniform a = 1 / (H W) (eq. 7's plain mean): expected the tutorial's CAMs, e.g. image 0, "
+    f"pixel (0, 0): {np.round(ref[0, :, 0, 0], 4).tolist()}; got "
+    f"{np.round(got[0, :, 0, 0], 4).tolist() if got.shape == ref.shape else got.shape}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(610)  # the tests' own draws, not the notebook's rng
+fr, wr = test_rng.normal(size=(3, 6, 4, 5)), test_rng.normal(size=(5, 2))
+ar, br = test_rng.random((6, 4)) * 3.0, test_rng.normal(size=2)
+p_ref = np.einsum("bhwk,hw,km->bm", fr, ar, wr) + br            # the head, written out
+a_sum = ar.sum()
+bumped = fr.copy()
+bumped[1, 2, 3] += 1.0                                           # one pixel of image 1
+got = np.asarray(pooled_cams(fr, ar, wr))
+assert got.shape == (3, 2, 6, 4), f"B = 3, M = 2, 6 x 4: expected (3, 2, 6, 4); got {got.shape}"
+assert np.allclose(got.mean(axis=(2, 3)) + br, p_ref), (
+    f"random features, a summing to {a_sum:.3f}: expected mean_xy M + b = p = "
+    f"{np.round(p_ref[0], 4).tolist()} for image 0; got "
+    f"{np.round(got.mean(axis=(2, 3))[0] + br, 4).tolist()}")
+moved = np.abs(np.asarray(pooled_cams(bumped, ar, wr)) - got).sum(axis=1) > 1e-12
+assert moved[1, 2, 3] and moved.sum() == 1, (
+    f"features changed at pixel (2, 3) of image 1 only: expected the maps to change there "
+    f"only; they changed at {np.argwhere(moved).tolist()}")
+zero = np.asarray(pooled_cams(np.zeros((1, 6, 4, 5)), ar, wr))
+assert np.allclose(zero, 0.0), f"no features: expected zero maps; got up to {np.abs(zero).max()}"
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 6.2 — where on the input can a CAM pixel look? (derivation)
+# The tutorial's CAMs live on the 16 × 16 feature grid and were upsampled to 32 × 32
+# to be read against the objects' boxes. How precisely can a CAM pixel localise
+# anything? Feature pixel $(r, c)$ depends only on a window of input pixels, its
+# **receptive field**. Write `receptive_box(r, c, convs, image_shape)`: for a stack
+# of convolutions `convs = [(kernel, stride, padding), ...]` (input first, applied as
+# `layers.conv` applies them: square kernels, zero padding on every side), return the
+# box `(r0, c0, r1, c1)` of the input pixels that can change feature pixel `(r, c)`,
+# rows `r0 ≤ row < r1` and columns `c0 ≤ col < c1`, clipped to the image
+# `image_shape = (H, W)`. Kernels are at least as large as their strides.
+# (Take care at the borders: a layer may drop its last rows.)
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Follow one row index backwards, layer by layer: which rows of the layer below does
+# one output row read? A window of windows is a window.
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Walk backwards from the feature pixel, one layer at a time, carrying a window of
+# rows (and one of columns). Padding is not a pixel: at every layer, keep the window
+# inside that layer — whose size you get by walking forwards first.
+# </details>
+
+# %% solution id=ex06_2 title="The receptive field of a CAM pixel"
+def receptive_box(r, c, convs, image_shape):
+    ### BEGIN SOLUTION
+    sizes = [tuple(image_shape)]                     # each layer's (rows, cols), input first
+    for kernel, stride, padding in convs:
+        sizes.append(tuple((n + 2 * padding - kernel) // stride + 1 for n in sizes[-1]))
+    box = [(r, r + 1), (c, c + 1)]                   # half-open windows, feature layer
+    for (kernel, stride, padding), below in zip(convs[::-1], sizes[-2::-1]):
+        # an output index i reads the rows stride * i - padding ... + kernel - 1 below,
+        # of which only those inside the layer exist (the rest is padding)
+        box = [(max(stride * lo - padding, 0), min(stride * (hi - 1) - padding + kernel, n))
+               for (lo, hi), n in zip(box, below)]
+    (r0, r1), (c0, c1) = box
+    return r0, c0, r1, c1
+    ### END SOLUTION
+
+# %% grade id=ex06_2_tests points=3
+EXTRACTOR = [(3, 1, 1), (3, 2, 1)]   # the tutorial's cam.init_extractor: 32 x 32 -> 16 x 16
+got = tuple(int(v) for v in receptive_box(8, 5, EXTRACTOR, (32, 32)))
+assert got == (14, 8, 19, 13), (
+    f"the tutorial's extractor, feature pixel (8, 5): expected the input box (14, 8, 19, 13); "
+    f"got {got}")
+got = tuple(int(v) for v in receptive_box(0, 15, EXTRACTOR, (32, 32)))
+assert got == (0, 28, 3, 32), (
+    f"the tutorial's extractor, feature pixel (0, 15), at the image's edge: expected "
+    f"(0, 28, 3, 32); got {got}")
+### BEGIN HIDDEN TESTS
+from minimanc import engine, layers  # noqa: E402
+
+
+def reads(n_in, kernel, stride, padding):
+    """0/1 matrix (n_out, n_in): which input indices each output index of one conv reads."""
+    n_out = (n_in + 2 * padding - kernel) // stride + 1
+    m = np.zeros((n_out, n_in))
+    for i in range(n_out):
+        lo = stride * i - padding
+        m[i, max(lo, 0):max(min(lo + kernel, n_in), 0)] = 1.0
+    return m
+
+
+def support_box(r, c, convs, shape):
+    """The input rows and columns that reach feature pixel (r, c): the product of the
+    layers' 0/1 matrices along each axis (a conv stack reads rows and columns alike)."""
+    box = []
+    for index, n in zip((r, c), shape):
+        chain = np.eye(n)
+        for kernel, stride, padding in convs:
+            chain = reads(chain.shape[0], kernel, stride, padding) @ chain
+        hit = np.nonzero(chain[index] > 0)[0]
+        box.append((int(hit.min()), int(hit.max()) + 1))
+    (r0, r1), (c0, c1) = box
+    return r0, c0, r1, c1
+
+
+# one case against the library's own convolution: where the gradient of the pixel is not 0
+eng = engine("numpy")
+stack = [{"w": np.random.default_rng(620).normal(size=(3, 3, 1, 1)), "b": np.zeros(1)}
+         for _ in range(2)]
+
+
+def pixel(x):
+    h = layers.conv(stack[0], x, eng.nn, stride=1, padding=1)
+    return eng.xp.sum(layers.conv(stack[1], h, eng.nn, stride=2, padding=1)[0, 7, 0])
+
+
+grad = np.abs(np.asarray(eng.grad(pixel)(np.zeros((1, 16, 12, 1)))))[0, :, :, 0]
+rows, cols = np.nonzero(grad > 1e-12)
+want = (int(rows.min()), int(cols.min()), int(rows.max()) + 1, int(cols.max()) + 1)
+assert want == support_box(7, 0, [(3, 1, 1), (3, 2, 1)], (16, 12))   # the oracle itself
+got = tuple(int(v) for v in receptive_box(7, 0, [(3, 1, 1), (3, 2, 1)], (16, 12)))
+assert got == want, (
+    f"the tutorial's extractor on a 16 x 12 image, feature pixel (7, 0): expected the box "
+    f"{want} (where the gradient of that pixel is not zero); got {got}")
+cases = [([(3, 1, 1), (3, 2, 1)], (32, 32), (7, 9)),
+         ([(5, 2, 2), (3, 1, 0), (3, 2, 1)], (40, 36), (3, 4)),
+         ([(3, 2, 1), (3, 2, 1), (3, 2, 1)], (64, 64), (4, 2)),
+         ([(4, 2, 1), (2, 2, 0), (3, 1, 1)], (30, 30), (0, 6)),
+         ([(3, 2, 0), (5, 1, 2)], (25, 29), (11, 0)),
+         ([(7, 3, 3), (3, 2, 1)], (50, 41), (8, 6))]
+for convs, shape, (r, c) in cases:
+    want = support_box(r, c, convs, shape)
+    got = tuple(int(v) for v in receptive_box(r, c, convs, shape))
+    assert got == want, (
+        f"convs {convs}, image {shape}, feature pixel ({r}, {c}): expected the box {want} "
+        f"(the input pixels that reach it); got {got}")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 6.3 — Grad-CAM of the weighted pooling (derivation)
+# The tutorial showed that Grad-CAM — weigh each feature map $f_k$ by the mean over the
+# pixels of $\partial p_i / \partial f_k(x, y)$, sum, keep the positive part — equals
+# the CAM for conv → GAP → linear, up to a positive factor. Work it out for the head
+# of 6.1: write `weighted_grad_cam(features, a, w, i)`, the Grad-CAM of predicate `i`,
+# shape `(B, H, W)`, from the derivative you work out by hand (no autodiff). Then
+# compare it with your maps of 6.1: where can the two disagree?
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# $p_i$ is linear in every $f_k(x, y)$: its derivative is a number per pixel and
+# channel. Which numbers does averaging over the pixels keep?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Differentiate the sum of 6.1 with respect to one $f_k(x, y)$, average over $(x, y)$,
+# and only then form the weighted sum of the feature maps.
+# </details>
+
+# %% solution id=ex06_3 title="Grad-CAM of the weighted pooling" forbids="minimanc.cam.grad_cam"
+def weighted_grad_cam(features, a, w, i):
+    ### BEGIN SOLUTION
+    f = np.asarray(features, float)
+    H, W = f.shape[1:3]
+    alpha = np.asarray(a, float).sum() / (H * W) * np.asarray(w, float)[:, i]   # (K,)
+    return np.maximum(f @ alpha, 0.0)
+    ### END SOLUTION
+
+# %% grade id=ex06_3_tests points=3
+f3 = np.zeros((1, 1, 2, 2))
+f3[0, 0, 0] = [1.0, 0.0]
+f3[0, 0, 1] = [0.0, 1.0]
+a3 = np.array([[0.0, 4.0]])              # only the right pixel is pooled
+got = np.asarray(weighted_grad_cam(f3, a3, np.array([[3.0], [-1.0]]), 0))
+assert got.shape == (1, 1, 2), f"B = 1, 1 x 2 pixels: expected shape (1, 1, 2); got {got.shape}"
+assert np.allclose(got, [[[6.0, 0.0]]]), (
+    f"a = [[0, 4]], pixel features (1, 0) and (0, 1), w = (3, -1): expected Grad-CAM "
+    f"[[6, 0]]; got {np.round(got, 4).tolist()}")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(630)  # the tests' own draws, not the notebook's rng
+fr, wr = test_rng.normal(size=(3, 5, 4, 6)), test_rng.normal(size=(6, 3))
+ar = test_rng.random((5, 4)) * 2.0
+a_sum, refs = ar.sum(), []
+for i in range(3):
+    ref = []
+    for n in range(3):   # Grad-CAM by its definition; p is linear, so a central difference
+        g = np.zeros((5, 4, 6))                              # of it is exact to rounding
+        for idx in np.ndindex(5, 4, 6):
+            e = np.zeros((5, 4, 6))
+            e[idx] = 1e-3
+            g[idx] = (np.einsum("hwk,hw,k->", fr[n] + e, ar, wr[:, i])
+                      - np.einsum("hwk,hw,k->", fr[n] - e, ar, wr[:, i])) / 2e-3
+        ref.append(np.maximum(np.einsum("hwk,k->hw", fr[n], g.mean(axis=(0, 1))), 0.0))
+    refs.append(np.stack(ref))
+for i, ref in enumerate(refs):
+    got = np.asarray(weighted_grad_cam(fr, ar, wr, i))
+    assert got.shape == ref.shape and np.allclose(got, ref, atol=1e-8), (
+        f"random features, a summing to {a_sum:.3f}, predicate {i}: expected image 0 = "
+        f"{np.round(ref[0], 3).tolist()}; got "
+        f"{np.round(got[0], 3).tolist() if got.shape == ref.shape else got.shape}")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# ## Exercise 6.4 — the backward pass of the vAGN step (derivation)
+# The tutorial carried the predicate maps to the q-states through
+# $J_{ji} = \partial q_j / \partial p_i$ and let `cam.explain` compute $J$. Derive it.
+# One vAGN step (chapter 5, eqs. 8–9) is
+#
+# $$A = \sum_i p_i W_i,\qquad T = \mathrm{colsoftmax}\big(\mathrm{ReLU}(A)\big),\qquad
+#   q = T\, q_{prev},$$
+#
+# the softmax taken down each column of $T$ (every column sums to one).
+#
+# 1. `vagn_jacobian(q_prev, p, W)`: $J$ of shape `(B, N, M)` for `q_prev` `(B, N)`,
+#    predicates `p` `(B, M)` and weights `W` `(M, N, N)`, **in closed form** — no
+#    finite differences, no autodiff: the tests compare it with an exact Jacobian to
+#    1e-11, closer than a finite difference gets. Where $A$ is exactly 0 the ReLU
+#    counts as inactive. (3 points)
+# 2. `q_grad_cam(features, w, b, q_prev, W, j)`: the Grad-CAM of q-state $j$ (the
+#    recipe of 6.3, with $q_j$ in place of $p_i$) for the tutorial's head, linear
+#    predicates $p = \mathrm{gap}(f)\,w + b$ feeding one vAGN step; shape `(B, H, W)`.
+#    (2 points)
+#
+# `cam.vagn_jacobian`, `cam.explain` and `models.saliency` are switched off while this
+# exercise is graded.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Chain rule in three links: how one entry of $T$ moves with the entries of its own
+# column, how the ReLU passes a change of $A$ on, and how $A$ moves with $p_i$. Only
+# column $j$ of $T$ multiplies $q_{prev, j}$.
 # </details>
 #
 # <details><summary>Hint 2 (two checks you can do yourself)</summary>
 #
-# Every $\sum_j S_j(x, y)$ is zero (the $q_j$ sum to one whatever $p$ is, so
-# $\sum_j J_{ji} = 0$); and with $N = 2$, $M = 1$,
-# $W_0 = \begin{pmatrix}1 & 0\\ 0 & 0\end{pmatrix}$, $q_{prev} = (1, 0)$ you get
-# $q_0 = \sigma(p)$, so $J_{00} = \sigma(p)(1 - \sigma(p))$.
+# Every column of $J$ sums to zero (the $q_j$ sum to one whatever $p$ is); and with
+# $N = 2$, $M = 1$, $W_0 = \begin{pmatrix}1 & 0\\ 0 & 0\end{pmatrix}$,
+# $q_{prev} = (1, 0)$ and $p > 0$, $q_0$ is the logistic sigmoid of $p$. Compare with
+# a central difference of `vagn.step` at a few random points while you work.
 # </details>
 
-# %% solution id=ex06_5 title="Per-q-state saliency" forbids="minimanc.cam.vagn_jacobian,minimanc.cam.q_state_saliency,minimanc.cam.explain,minimanc.models.saliency"  # noqa: E501
-def q_saliency(q_prev, p, W, cams):
+# %% solution id=ex06_4 title="The backward pass of the vAGN step" forbids="minimanc.cam.vagn_jacobian,minimanc.cam.explain,minimanc.models.saliency"  # noqa: E501
+def vagn_jacobian(q_prev, p, W):
     ### BEGIN SOLUTION
-    p = np.asarray(p, float)
-    h, M = 1e-6, p.shape[-1]
-    cols = []
-    for i in range(M):
-        e = np.zeros(M)
-        e[i] = h
-        cols.append((vagn.step(q_prev, p + e, W) - vagn.step(q_prev, p - e, W)) / (2 * h))
-    J = np.stack(cols, axis=-1)                                # (B, N, M)
-    return np.einsum("bji,bihw->bjhw", J, np.asarray(cams, float))
+    q_prev, p, W = (np.asarray(x, float) for x in (q_prev, p, W))
+    A = np.einsum("bm,mij->bij", p, W)                          # eq. 8
+    R = np.maximum(A, 0.0)
+    E = np.exp(R - R.max(axis=1, keepdims=True))
+    T = E / E.sum(axis=1, keepdims=True)                         # eq. 9, columns sum to one
+    D = (A > 0)[:, None] * W[None]                               # dR/dp_m, (B, M, N, N)
+    # dT_aj/dp_m = T_aj (D_m,aj - sum_c T_cj D_m,cj): the softmax's Jacobian per column
+    dT = T[:, None] * (D - np.einsum("bcj,bmcj->bmj", T, D)[:, :, None, :])
+    return np.einsum("bmaj,bj->bam", dT, q_prev)
     ### END SOLUTION
 
-# %% grade id=ex06_5_tests points=4
-W1 = np.zeros((1, 2, 2))
-W1[0, 0, 0] = 1.0
-M1 = np.arange(6.0).reshape(1, 1, 2, 3)
-S1 = q_saliency(np.array([1.0, 0.0]), np.array([[np.log(3.0)]]), W1, M1)
-assert S1.shape == (1, 2, 2, 3), f"expected S of shape (B, N, H, W) = (1, 2, 2, 3); got {S1.shape}"
-# sigma(log 3) = 3/4, so J_00 = 3/4 * 1/4 = 0.1875 and J_10 = -0.1875
-assert np.allclose(S1[0, 0], 0.1875 * M1[0, 0], atol=1e-6), (
-    f"S_0 = sigma'(log 3) M_0 = 0.1875 M_0; got {S1[0, 0]}")
-assert np.allclose(S1[0, 1], -0.1875 * M1[0, 0], atol=1e-6), (
-    f"S_1 = -0.1875 M_0 (probability leaves q_1 as it enters q_0); got {S1[0, 1]}")
+
+def q_grad_cam(features, w, b, q_prev, W, j):
+    ### BEGIN SOLUTION
+    f = np.asarray(features, float)
+    p = f.mean(axis=(1, 2)) @ w + b
+    J = vagn_jacobian(q_prev, p, W)                              # (B, N, M)
+    alpha = J[:, j] @ np.asarray(w, float).T / (f.shape[1] * f.shape[2])  # (B, K)
+    return np.maximum(np.einsum("bhwk,bk->bhw", f, alpha), 0.0)
+    ### END SOLUTION
+
+# %% grade id=ex06_4_jacobian_tests points=3
+W4 = np.zeros((1, 2, 2))
+W4[0, 0, 0] = 1.0
+J4 = np.asarray(vagn_jacobian(np.array([[1.0, 0.0]]), np.array([[np.log(3.0)]]), W4))
+assert J4.shape == (1, 2, 1), f"B = 1, N = 2, M = 1: expected J of shape (1, 2, 1); got {J4.shape}"
+assert np.allclose(J4[0, :, 0], [0.1875, -0.1875], rtol=0, atol=1e-12), (
+    f"N = 2, M = 1, W_0 = [[1, 0], [0, 0]], q_prev = (1, 0), p = log 3: expected "
+    f"J = [0.1875, -0.1875] to 1e-12 (closer than a finite difference gets); got "
+    f"{J4[0, :, 0].tolist()}")
 Wr, pr = rng.normal(size=(3, 4, 4)), rng.normal(size=(5, 3))
-cams_r = rng.normal(size=(5, 3, 6, 7))
-Sr = q_saliency(vagn.uniform_state(4), pr, Wr, cams_r)
-worst = np.abs(np.asarray(Sr).sum(axis=1)).max()
-assert worst < 1e-6, (
-    f"random W (3, 4, 4), 5 images: expected sum_j S_j = 0 at every pixel (the q_j sum to "
-    f"one, so sum_j dq_j/dp_i = 0); got up to {worst:.3g}")
+Jr = np.asarray(vagn_jacobian(vagn.uniform_state(4)[None].repeat(5, 0), pr, Wr))
+worst = np.abs(Jr.sum(axis=1)).max()
+assert Jr.shape == (5, 4, 3) and worst < 1e-12, (
+    f"random W (3, 4, 4), 5 images: expected each column of J to sum to zero (the q_j sum to "
+    f"one); got shape {Jr.shape}, column sums up to {worst:.3g}")
 ### BEGIN HIDDEN TESTS
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
+from minimanc import engine  # noqa: E402, F811
 
-from minimanc import engine  # noqa: E402
+eng = engine("numpy")
+xp = eng.xp
+test_rng = np.random.default_rng(640)  # the tests' own draws, not the notebook's rng
+M4, N4 = 3, 5
+Wh = test_rng.normal(size=(M4, N4, N4)) * 2.0
+ph, qh = test_rng.normal(size=(6, M4)), test_rng.dirichlet(np.ones(N4), size=6)
 
-engine("jax")                               # turns on float64 in JAX
-q0 = np.random.default_rng(650).dirichlet(np.ones(4))
-Sr = np.asarray(q_saliency(q0, pr, Wr, cams_r))
-for n in range(5):
-    J = np.asarray(jax.jacobian(lambda pp: vagn.step(q0, pp, Wr, xp=jnp))(jnp.asarray(pr[n])))
-    ref = np.einsum("ji,ihw->jhw", J, cams_r[n])
-    assert np.allclose(Sr[n], ref, atol=1e-6), (
-        f"image {n}, a random q_prev: expected S_j = sum_i (dq_j/dp_i) M_i (JAX's Jacobian of "
-        f"eq. 9), e.g. S at pixel (0, 0) = {np.round(ref[:, 0, 0], 5)}; got "
-        f"{np.round(Sr[n][:, 0, 0], 5)}")
+
+def q_of(q0, pp, j):    # eqs. 8-9 written out, state j, for the NumPy engine's autodiff
+    R = xp.maximum(xp.einsum("m,mij->ij", pp, Wh), 0.0)
+    E = xp.exp(R - xp.max(R, axis=0, keepdims=True))
+    return xp.matmul(E / xp.sum(E, axis=0, keepdims=True), q0)[j]
+
+
+refs = [np.stack([np.asarray(eng.grad(lambda pp, n=n, j=j: q_of(qh[n], pp, j))(ph[n]))
+                  for j in range(N4)]) for n in range(6)]
+got = np.asarray(vagn_jacobian(qh, ph, Wh))
+for n, ref in enumerate(refs):
+    assert got.shape == (6, N4, M4) and np.allclose(got[n], ref, rtol=1e-11, atol=1e-12), (
+        f"image {n}, random W, p and q_prev: expected J = {np.round(ref, 6).tolist()} (to "
+        f"1e-11, closer than a finite difference); got "
+        f"{np.round(got[n], 6).tolist() if got.shape == (6, N4, M4) else got.shape}")
+Wk = np.zeros((2, 2, 2))
+Wk[0, 0, 0], Wk[1, 0, 0] = 1.0, 1.0                  # A_00 = p_0 + p_1 = 0 exactly: a kink
+Wk[0, 1, 1] = 2.0
+got = np.asarray(vagn_jacobian(np.array([[0.5, 0.5]]), np.array([[1.0, -1.0]]), Wk))[0]
+s = np.exp(2.0) / (1.0 + np.exp(2.0))                # column 1: softmax of (0, 2)
+want = np.array([[-0.5 * s * (1 - s) * 2.0, 0.0], [0.5 * s * (1 - s) * 2.0, 0.0]])
+assert np.allclose(got, want, atol=1e-12), (
+    f"A = 0 exactly in one entry (the ReLU counts as inactive there): expected "
+    f"{np.round(want, 6).tolist()}; got {np.round(got, 6).tolist()}")
+### END HIDDEN TESTS
+
+# %% grade id=ex06_4_gradcam_tests points=2
+f4 = rng.random((2, 3, 4, 5))
+w4, b4 = rng.normal(size=(5, 3)), rng.normal(size=3)
+W4r, q4 = rng.normal(size=(3, 4, 4)), vagn.uniform_state(4)[None].repeat(2, 0)
+g0, g1 = (np.asarray(q_grad_cam(f4, w4, b4, q4, W4r, j)) for j in (0, 1))
+assert g0.shape == (2, 3, 4) and np.all(g0 >= 0), (
+    f"2 images of 3 x 4: expected a non-negative map of shape (2, 3, 4); got shape "
+    f"{g0.shape}, smallest value {g0.min():.3g}")
+W2 = np.zeros((1, 2, 2))
+W2[0, 1, :] = 1.0                                    # the predicate sends q to state 1
+f2 = np.zeros((1, 1, 2, 1))
+f2[0, 0] = [[2.0], [0.0]]
+got = np.asarray(q_grad_cam(f2, np.array([[1.0]]), np.array([0.0]),
+                            np.array([[0.5, 0.5]]), W2, 1))
+assert np.allclose(got, [[[0.196612, 0.0]]], atol=1e-6), (
+    f"N = 2, one predicate p = gap(f) = 1 sending q to state 1, features [[2], [0]]: expected "
+    f"the Grad-CAM of q_1 [[0.196612, 0]]; got {np.round(got, 6).tolist()}")
+### BEGIN HIDDEN TESTS
+from minimanc import engine  # noqa: E402, F811
+
+eng = engine("numpy")
+xp = eng.xp
+test_rng = np.random.default_rng(641)  # the tests' own draws, not the notebook's rng
+fh = test_rng.random((3, 4, 5, 6))
+wh, bh = test_rng.normal(size=(6, 3)), test_rng.normal(size=3)
+Wg, qg = test_rng.normal(size=(3, 4, 4)) * 2.0, test_rng.dirichlet(np.ones(4), size=3)
+
+
+def qj_of(x, q0, j):   # linear predicates of the features, then eqs. 8-9, written out
+    pp = xp.matmul(xp.mean(x, axis=(0, 1)), wh) + bh
+    R = xp.maximum(xp.einsum("m,mij->ij", pp, Wg), 0.0)
+    E = xp.exp(R - xp.max(R, axis=0, keepdims=True))
+    return xp.matmul(E / xp.sum(E, axis=0, keepdims=True), q0)[j]
+
+
+refs = {(j, n): np.maximum(np.einsum("hwk,k->hw", fh[n], np.asarray(
+    eng.grad(qj_of)(fh[n], qg[n], j)).mean(axis=(0, 1))), 0.0) for j in range(4) for n in range(3)}
+for j in range(4):
+    got = np.asarray(q_grad_cam(fh, wh, bh, qg, Wg, j))
+    for n in range(3):
+        ref = refs[j, n]
+        assert got.shape == (3, 4, 5) and np.allclose(got[n], ref, atol=1e-10), (
+            f"image {n}, q-state {j}: expected the Grad-CAM {np.round(ref, 5).tolist()}; got "
+            f"{np.round(got[n], 5).tolist() if got.shape == (3, 4, 5) else got.shape}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 6.6 — CAMs for a head with a hidden ReLU layer
+# ## Exercise 6.5 — CAMs for a head with a hidden ReLU layer (derivation)
 # The CAM identity needs a *linear* head after the pooling. Put a hidden ReLU
 # layer in it:
 #
@@ -316,12 +466,13 @@ for n in range(5):
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Write ReLU(z) as $m \odot z$ with the image's 0/1 mask $m = [z > 0]$ and
-# expand $(m \odot (gU + b_1))V + c$; separate the part that multiplies $g$.
-# The batch axis now sits on the weights too (`np.einsum` with three operands).
+# For one image, a unit that is on passes its input unchanged and a unit that is
+# off outputs 0: write that image's head without the ReLU, then read off what
+# multiplies $\mathrm{gap}(f)$ and what does not. The batch axis now sits on the
+# weights too (`np.einsum` with three operands).
 # </details>
 
-# %% solution id=ex06_6 title="CAMs for a head with a hidden ReLU layer"
+# %% solution id=ex06_5 title="CAMs for a head with a hidden ReLU layer"
 def effective_head(features, U, b1, V, c):
     ### BEGIN SOLUTION
     g = np.asarray(features, float).mean(axis=(1, 2))            # (B, K)
@@ -339,10 +490,10 @@ def mlp_cams(features, U, b1, V, c):
 
 # %%
 def mlp_head(features, U, b1, V, c):
-    """The head of 6.6: p = ReLU(gap(f) U + b1) V + c, shape (B, M)."""
+    """The head of 6.5: p = ReLU(gap(f) U + b1) V + c, shape (B, M)."""
     return np.maximum(np.asarray(features).mean(axis=(1, 2)) @ U + b1, 0.0) @ V + c
 
-# %% grade id=ex06_6_head_tests points=2
+# %% grade id=ex06_5_head_tests points=2
 U6, b16 = np.array([[1.0, -1.0], [0.0, 2.0]]), np.array([0.0, -3.0])
 V6, c6 = np.array([[1.0], [5.0]]), np.array([0.5])
 f6 = np.zeros((1, 1, 2, 2))              # B = 1, H = 1, W = 2, K = 2
@@ -359,24 +510,26 @@ test_rng = np.random.default_rng(660)  # the tests' own draws, not the notebook'
 fr = test_rng.normal(size=(6, 4, 5, 3))
 Ur, b1r = test_rng.normal(size=(3, 7)), test_rng.normal(size=7)
 Vr, cr = test_rng.normal(size=(7, 2)), test_rng.normal(size=2)
+g = fr.mean(axis=(1, 2))
+# the Jacobian of the head at each image, by central differences, and its value
+jacs = [np.stack([(mlp_head(fr[n:n + 1] + e, Ur, b1r, Vr, cr)
+                   - mlp_head(fr[n:n + 1] - e, Ur, b1r, Vr, cr))[0] / 2e-6
+                  for e in 1e-6 * np.eye(3)]) for n in range(6)]
+p_all = mlp_head(fr, Ur, b1r, Vr, cr)
 w, b = (np.asarray(x) for x in effective_head(fr, Ur, b1r, Vr, cr))
 assert w.shape == (6, 3, 2) and b.shape == (6, 2), (
     f"B = 6, K = 3, M = 2: expected (6, 3, 2) and (6, 2); got {w.shape}, {b.shape}")
-g = fr.mean(axis=(1, 2))
-for n in range(6):   # the Jacobian of the head at this image, by central differences
-    jac = np.stack([(mlp_head(fr[n:n + 1] + e, Ur, b1r, Vr, cr)
-                     - mlp_head(fr[n:n + 1] - e, Ur, b1r, Vr, cr))[0] / 2e-6
-                    for e in 1e-6 * np.eye(3)])
+for n, jac in enumerate(jacs):
     assert np.allclose(w[n], jac, atol=1e-6), (
         f"image {n}: expected w_eff = dp/d gap(f) = {np.round(jac, 4).tolist()}; "
         f"got {np.round(w[n], 4).tolist()}")
-    p_n = mlp_head(fr[n:n + 1], Ur, b1r, Vr, cr)[0]
+    p_n = p_all[n]
     assert np.allclose(g[n] @ w[n] + b[n], p_n), (
         f"image {n}: expected gap(f) w_eff + b_eff = p = {np.round(p_n, 4).tolist()}; "
         f"got {np.round(g[n] @ w[n] + b[n], 4).tolist()}")
 ### END HIDDEN TESTS
 
-# %% grade id=ex06_6_cams_tests points=2
+# %% grade id=ex06_5_cams_tests points=2
 M6 = np.asarray(mlp_cams(f6, U6, b16, V6, c6))
 assert M6.shape == (1, 1, 1, 2), (
     f"B = 1, M = 1, a 1 x 2 feature map: expected CAMs of shape (1, 1, 1, 2); got {M6.shape}")
@@ -387,26 +540,28 @@ test_rng = np.random.default_rng(661)  # the tests' own draws, not the notebook'
 fr = test_rng.normal(size=(5, 3, 4, 3))
 Ur, b1r = test_rng.normal(size=(3, 6)), test_rng.normal(size=6)
 Vr, cr = test_rng.normal(size=(6, 2)), test_rng.normal(size=2)
-got = np.asarray(mlp_cams(fr, Ur, b1r, Vr, cr))
-assert got.shape == (5, 2, 3, 4), f"B = 5, M = 2, 3 x 4: expected (5, 2, 3, 4); got {got.shape}"
+cases = []
 for n in range(5):   # the tests' own per-image weights: the units that are on, written out
     z = fr[n].mean(axis=(0, 1)) @ Ur + b1r
     w_n = sum(np.outer(Ur[:, d], Vr[d]) for d in range(6) if z[d] > 0)
-    ref = np.einsum("hwk,km->mhw", fr[n], w_n)
+    b_n = sum(b1r[d] * Vr[d] for d in range(6) if z[d] > 0) + cr
+    cases.append((np.einsum("hwk,km->mhw", fr[n], w_n), b_n,
+                  mlp_head(fr[n:n + 1], Ur, b1r, Vr, cr)[0]))
+got = np.asarray(mlp_cams(fr, Ur, b1r, Vr, cr))
+assert got.shape == (5, 2, 3, 4), f"B = 5, M = 2, 3 x 4: expected (5, 2, 3, 4); got {got.shape}"
+for n, (ref, b_n, p_n) in enumerate(cases):
     assert np.allclose(got[n], ref), (
         f"image {n}: expected the CAMs sum_k w_eff[k, i] f_k with its own active units; "
         f"largest difference {np.abs(got[n] - ref).max():.3g}")
-    b_n = sum(b1r[d] * Vr[d] for d in range(6) if z[d] > 0) + cr
-    p_n = mlp_head(fr[n:n + 1], Ur, b1r, Vr, cr)[0]
     assert np.allclose(got[n].mean(axis=(1, 2)) + b_n, p_n), (
         f"image {n}: expected mean_xy M + b_eff = p = {np.round(p_n, 4).tolist()}; "
         f"got {np.round(got[n].mean(axis=(1, 2)) + b_n, 4).tolist()}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 6.7 — open experiment: a head that looks at the ego
-# The tutorial's CNN put most of its pedestrian CAM on the ego vehicle and
-# called the map *ambiguous*. Make that ambiguity yourself. Below are scenes
+# ## Exercise 6.6 — open experiment: a head that looks at the ego (design)
+# The tutorial's CNN put part of its pedestrian CAM on the ego vehicle, and the
+# tutorial called the map *ambiguous*. Make that ambiguity yourself. Below are scenes
 # with a road, the ego (red, always at the same place) and, in most, a vehicle
 # (yellow), and the hand-made features of "Putting it together": channel 0
 # fires on yellow, channel 1 on red. The head `W_VEH = [[2], [0]]`, `B_VEH = [0]`
@@ -415,9 +570,10 @@ for n in range(5):   # the tests' own per-image weights: the units that are on, 
 # Write `ego_head()` returning `(w, b)`, shapes `(2, 1)` and `(1,)`: a head that
 # makes **the same predictions** as `W_VEH`, `B_VEH` on every such scene (to
 # 1e-9; the tests draw scenes of their own), but whose raw CAM **peaks on the
-# ego** in every scene. Then check with your `centre_on_baseline` (6.4) where
-# the centred maps of your head peak. Checked automatically: the predictions,
-# the raw peaks on the ego, and the centred peaks back on the vehicle.
+# ego** in every scene. Then centre your head's maps on the tutorial's data-set
+# baseline (subtract their mean over the scenes) and look where they peak.
+# Checked automatically: the predictions, the raw peaks on the ego, and the
+# centred peaks back on the vehicle.
 # Then answer the written question below the grade cell.
 
 # %%
@@ -453,7 +609,7 @@ p_veh = F_ego.mean(axis=(1, 2)) @ W_VEH + B_VEH
 print("scenes:", X_ego.shape, "| with a vehicle:", sum(s[1] is not None for s in scenes))
 assert np.allclose(p_veh[:, 0][[s[1] is None for s in scenes]], 0.0)
 
-# %% solution id=ex06_7 title="Open experiment: a head whose CAM looks at the ego"
+# %% solution id=ex06_6 title="Open experiment: a head whose CAM looks at the ego"
 def ego_head():
     ### BEGIN SOLUTION
     # the ego's red mass is the same in every scene (24 of 1024 pixels): any weight on
@@ -462,7 +618,7 @@ def ego_head():
     return np.array([[2.0], [w_red]]), np.array([-w_red * 24 / 1024])
     ### END SOLUTION
 
-# %% grade id=ex06_7_tests points=3
+# %% grade id=ex06_6_tests points=3
 w7, b7 = (np.asarray(x, dtype=float) for x in ego_head())
 assert w7.shape == (2, 1) and b7.shape == (1,), (
     f"expected w of shape (2, 1) and b of shape (1,); got {w7.shape}, {b7.shape}")
@@ -494,19 +650,19 @@ for k, (_, box) in enumerate(held):
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# **Written question (6.7).** Your head and `W_VEH` make the same predictions
+# **Written question (6.6).** Your head and `W_VEH` make the same predictions
 # on every scene; their raw CAMs disagree completely. Which one is "right", and
 # what does that say about reading a raw CAM as the answer to "where does the
-# network look"? Why does the data-set baseline (6.4) repair your head here,
+# network look"? Why does the tutorial's data-set baseline repair your head here,
 # and describe a data set on which it would *not* (where would the baseline
 # fail to tell the ego from the object)?
 
-# %% [markdown] answer id=ex06_7_w title="Which CAM is right" points=2
+# %% [markdown] answer id=ex06_6_w title="Which CAM is right" points=2
 # ### BEGIN SOLUTION
 # Neither is more right: the two heads are the same predictor on this data,
 # because the ego's red mass is identical in every scene, so w_red·(red mass) is
 # a constant that the bias cancels. The CAM splits p over pixels, but only up to
-# a map common to all images (6.4), so a raw CAM answers "where is the evidence
+# a map common to all images (the tutorial, section 5), so a raw CAM answers "where is the evidence
 # *in this decomposition*", not "where does the network look"; a reading needs
 # a reference. The data-set baseline subtracts the mean CAM, which contains the
 # ego's contribution exactly (it is the same in every scene): what remains is
@@ -561,28 +717,33 @@ assert tuple(cam.peak_location(S[0, 1])) == (int(r), int(c))
 
 # %% [markdown]
 # ## Your figure
-# One scene of 6.7, with maps made by **your** functions: the vehicle head's CAM
-# (your `class_activation_maps`, normalised by your `normalise`), your
-# `ego_head`'s raw CAM (it should sit on the ego) and the same map centred by
-# your `centre_on_baseline` over the 40 scenes (back on the vehicle). A
-# function that raises is named, and the library's map (where there is one) drawn.
+# One scene of 6.6, with maps made by **your** functions: the vehicle head's CAM
+# (your `pooled_cams` with the plain mean, drawn over the library's when yours
+# raises), your `weighted_grad_cam` for the same head pooled over the rows below the
+# ego only — where this scene's vehicle is not, so the head does not see it — your
+# `ego_head`'s raw CAM (it should sit on the ego) and the same map centred on the mean
+# over the 40 scenes (back on the vehicle). A function that raises is named in its
+# panel's title.
 
 # %%
 k_fig = next(k for k, (_, box) in enumerate(scenes) if box is not None)
+PLAIN = np.full((32, 32), 1 / 1024)            # eq. 7's mean as a weighting
+BELOW = np.zeros((32, 32))
+BELOW[30:] = 1.0                               # the two rows below the ego
 
 
 def ego_cams():
-    """CAMs (40, 1, 32, 32) of your ego_head over the 40 scenes, and its bias."""
-    w, b = ego_head()
-    return class_activation_maps(F_ego, np.asarray(w)), np.asarray(b)
+    """CAMs (40, 32, 32) of your ego_head over the 40 scenes."""
+    w, _ = ego_head()
+    return np.asarray(pooled_cams(F_ego, PLAIN, np.asarray(w)))[:, 0]
 
 
 print("the vehicle in this scene:", scenes[k_fig][1])
 plot_overlay_attempts(X_ego[k_fig], [
-    ("vehicle CAM", lambda: normalise(class_activation_maps(F_ego[k_fig:k_fig + 1], W_VEH)[0, 0]),
+    ("vehicle CAM", lambda: pooled_cams(F_ego[k_fig:k_fig + 1], PLAIN, W_VEH)[0, 0],
      cam.class_activation_maps(F_ego[k_fig:k_fig + 1], W_VEH)[0, 0]),
-    ("ego head, raw", lambda: ego_cams()[0][k_fig, 0], None),
-    ("ego head, centred", lambda: centre_on_baseline(*ego_cams()[:1], ego_cams()[0],
-                                                     ego_cams()[1])[0][k_fig, 0], None)])
+    ("Grad-CAM, rows 30-31", lambda: weighted_grad_cam(F_ego[k_fig:k_fig + 1], BELOW, W_VEH,
+                                                       0)[0], None),
+    ("ego head, raw", lambda: ego_cams()[k_fig], None),
+    ("ego head, centred", lambda: (ego_cams() - ego_cams().mean(axis=0))[k_fig], None)])
 plt.show()
-

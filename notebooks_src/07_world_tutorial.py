@@ -150,10 +150,9 @@ print("spacing:", np.linalg.norm(np.diff(targets, axis=0), axis=1).round(2))
 # tested pixel by pixel in their own frame. All vectorised NumPy, any pose —
 # the closed loop re-renders from the policy's own pose every step.
 #
-# The pixel that holds an ego-frame point $(x, y)$ is
-# $\mathrm{row} = \lfloor (40 - x)/\text{res\_row} \rfloor$,
-# $\mathrm{col} = \lfloor (25 - y)/\text{res\_col} \rfloor$
-# (`cfg.ego_to_pixel`; a world point goes through `world.to_ego_frame` first).
+# `cfg.ego_to_pixel` gives the pixel that holds an ego-frame point (a world
+# point goes through `world.to_ego_frame` first); exercise 7.2 derives it from
+# the layout above.
 
 # %%
 cfg = world.RasterConfig()
@@ -161,8 +160,9 @@ print(f"{cfg.size}x{cfg.size} px, {cfg.res_row:.4f} m/px, ego pixel {cfg.ego_pix
 ado = np.array([[ego_pose[0] + 10 * np.cos(ego_pose[2]), ego_pose[1] + 10 * np.sin(ego_pose[2]),
                  ego_pose[2], 4.5, 1.9]])                  # one car 10 m straight ahead
 img = world.rasterize(m, ego_pose, ado, np.array([True]), cfg)
-print("pixel (38, 32):", img[38, 32])                      # floor((40 - 10) / 0.78125) = 38
-assert np.array_equal(img[38, 32], [255, 255, 0])
+car_pixel = tuple(int(i) for i in cfg.ego_to_pixel(np.array([10.0, 0.0])))
+print("pixel of the point 10 m ahead:", car_pixel, img[car_pixel])
+assert car_pixel == (38, 32) and np.array_equal(img[car_pixel], [255, 255, 0])
 big = world.rasterize(m, ego_pose, ado, np.array([True]), world.RasterConfig(size=250))
 fig, axs = plt.subplots(1, 2, figsize=(8, 4))
 axs[0].imshow(img)
@@ -218,11 +218,11 @@ print(f"standing start:  {float(world.idm_acceleration(0.0, 13.0, np.inf, 0.0)):
 #   comfortable deceleration). Commands reach the pedals after the reaction
 #   delay — except hard braking.
 # * **Lateral**: pure pursuit of a route point ahead, shifted by an
-#   Ornstein–Uhlenbeck lateral offset. With that point at $(x_t, y_t)$ in the
-#   ego frame, the circular arc tangent to the heading through it has
-#   curvature $\kappa = 2 y_t / (x_t^2 + y_t^2)$, and the yaw rate is
-#   $\omega = v\kappa$ (clipped to $|\kappa| \le 0.25$ m⁻¹, $|\omega| \le
-#   1.2$ rad/s). On a circle the arc *is* the circle: $\kappa = 1/R$.
+#   Ornstein–Uhlenbeck lateral offset: the ego drives the circular arc tangent
+#   to its heading through that point, so its yaw rate is $\omega = v\kappa$
+#   with $\kappa$ the arc's curvature (exercise 7.6 derives it from the point's
+#   ego-frame coordinates), clipped to $|\kappa| \le 0.25$ m⁻¹, $|\omega| \le
+#   1.2$ rad/s. On a circle the arc *is* the circle: $\kappa = 1/R$.
 # * The controls are $[v, \omega]$ and the pose follows the unicycle above,
 #   so **integrating the logged controls reproduces the logged trajectory**.
 # * A scene in which the human would leave the drivable area or touch an ado
@@ -442,7 +442,7 @@ assert ados[1] > ados[0] == 3  # the sample's car_lead, car_oncoming and bicycle
 #   released environment we use speed and **yaw rate** on a unicycle with
 #   explicit Euler at Δt = 0.5 s. The text never defines the goal pose; we
 #   take the environment's: the human's last pose, re-expressed in the
-#   current ego frame every step (exercise 7.1).
+#   current ego frame every step (section 1; exercise 7.1 asks how it moves).
 # * **The ados in closed loop.** The paper says "all agents are rolled out
 #   synchronously" and, in the next paragraph, that the ados "move according
 #   to the trajectories recorded in the dataset": a replay that does not

@@ -182,9 +182,11 @@ assert speeds[0] < 8.0 < speeds[-1] and yaws[0] < 0.0
 
 # %% [markdown]
 # With **constant** gains (no CNN at all) the head already follows lanes: on
-# our few scenes it predicts the human's controls much better than simply
-# repeating the previous control, above all the yaw rate. This built-in lane
-# following is the structural advantage the paper claims for the DMP.
+# our few scenes it predicts the human's **yaw rate** better than simply
+# repeating the previous control (the assert checks it). Its speed is another
+# matter — constant gains know nothing of the human's pace, and the cell prints
+# which of the two predicts the speed better. This built-in lane following is the
+# structural advantage the paper claims for the DMP.
 
 # %%
 S, T = ds.ego.shape[:2]
@@ -198,6 +200,8 @@ print("RMSE [speed m/s, yaw rate rad/s]")
 print("  copy the previous control:", rmse(o["motion"]).round(3))
 print("  DMP head, constant gains: ", rmse(u_dmp).round(3))
 print("  zero yaw rate:            ", np.sqrt(np.mean(human[:, 1] ** 2)).round(3))
+better = ["the DMP head" if d < c else "copying" for d, c in zip(rmse(u_dmp), rmse(o["motion"]))]
+print(f"closer to the human: speed by {better[0]}, yaw rate by {better[1]}")
 assert rmse(u_dmp)[1] < rmse(o["motion"])[1]
 
 # %% [markdown]
@@ -220,8 +224,8 @@ g_np = e_np.grad(lambda p: loss(p, e_np))(params)
 g_jax = e_jax.jit(e_jax.grad(lambda p: loss(p, e_jax)))(params)
 worst = max(float(np.max(np.abs(np.asarray(a) - np.asarray(b))))
             for a, b in zip(tree.leaves(g_np), tree.leaves(g_jax)))
-print(f"{len(tree.leaves(g_np))} parameter arrays, largest |difference| < 1e-12:",
-      worst < 1e-12)
+print(f"{len(tree.leaves(g_np))} parameter arrays, largest |difference| < 1e-6:",
+      worst < 1e-6)
 assert worst < 1e-6
 
 # %% [markdown]
@@ -293,7 +297,7 @@ err = np.mean(np.abs(tr["controls"] - tr["human"]), axis=0)
 print(f"mean |speed error| {err[0]:.2f} m/s, mean |yaw-rate error| {err[1]:.3f} rad/s")
 assert np.all((tr["alpha"] >= dmp.ALPHA_RANGE[0]) & (tr["alpha"] <= dmp.ALPHA_RANGE[1]))
 assert np.allclose(tr["q"].sum(axis=1), 1.0, atol=1e-5)
-assert err[0] < 3.0 and err[1] < 0.2  # stored run: 0.51 m/s and 0.022 rad/s
+assert err[0] < 3.0 and err[1] < 0.2
 
 # %% [markdown]
 # ### Per-q-state saliency
@@ -351,10 +355,10 @@ assert np.allclose(ex["q"][0], tr["q"][t], atol=1e-5)
 #   0.5 s, which is what the unicycle does with a speed control (exercise 8.2).
 # * **The goals g, g_q** are "a moving target along the center lane" in the
 #   paper, with no rule. Ours: g is the lane point L_y = 4 m + 2 s · v0 ahead
-#   (exercise 8.6), so the goal moves with the speed the network never sees;
+#   (exercise 8.2), so the goal moves with the speed the network never sees;
 #   g_q is the heading after 1 s on the pure-pursuit arc through the lane
-#   point 5 m + 1 s · v0 ahead (exercise 8.3), which corrects a lateral offset
-#   that the lane's own heading would not.
+#   point 5 m + 1 s · v0 ahead, which corrects a lateral offset that the lane's
+#   own heading would not (exercise 8.5 works out how well, and up to which speed).
 # * **The orientation DMP** is eq. 2 about the vertical axis; for yaw-only
 #   driving it equals the 1-D DMP on the yaw angle, which runs by default
 #   (`orientation="quaternion"` runs eq. 2 literally, same numbers, tested).
@@ -370,9 +374,10 @@ assert np.allclose(ex["q"][0], tr["q"][t], atol=1e-5)
 #   learning rate's scale changes).
 # * **Information.** The paper's comparison models get the BEV and the goal
 #   pose, while MANC's DMP gets the lane target: the "parity" setting gives
-#   them the lane target and the motion too (exercise 8.7), so a remaining
+#   them the lane target and the motion too (section 2), so a remaining
 #   gap is the architecture's. The authors' RvS-G has a Gaussian action head;
 #   ours predicts the mean, trained with the same MSE as all others.
 # * **Size.** The paper reports MANC with "more than 30 % less parameters";
-#   ours has 14,916, about a tenth of the CNN's (section 3), because its head
-#   reads the global average of the features.
+#   ours has about a tenth of the CNN's (section 3 prints the counts), because
+#   its head reads the global average of the features (exercise 8.6 counts how
+#   many q-states it can afford before that advantage is gone).

@@ -1,22 +1,24 @@
 # %% [markdown]
-# # Chapter 10 — Exercises: the controller in a real driving simulator
+# # Chapter 10 — Exercises: what the simulator does to the controller
 #
 # Module built in this chapter: `minimanc.highway` (highway-env as a sandbox for the
 # MANC controller). Replace each `raise NotImplementedError(...)` with your code and
 # run the grade cell below it; `minimanc grade exercises/10_highway_sandbox.ipynb`
 # scores the notebook.
 #
-# Four pieces connect a policy trained on BEV rasters to highway-env (1–4), and two
-# exercises build on them (5–6):
+# The tutorial plugged the chapter-7 controller into highway-env: an adapter from
+# `[speed, yaw rate]` to the bicycle's `[acceleration, steering]`, the BEV of the live
+# scene, logged controls chosen so that a perfect imitator reproduces the expert. Here
+# you find out what that plumbing implies:
 #
-# 1. an **action adapter**: the models output `[speed, yaw rate]`; highway-env's ego is
-#    a kinematic bicycle driven by `[acceleration, steering]`;
-# 2. the **BEV observation**: highway-env's vehicles drawn into the chapter-7 raster;
-# 3. a **metric**: how often a driver collides;
-# 4. the **logged controls** of a demonstration: what a perfect imitator must output
-#    for the adapter to reproduce the expert;
-# 5. **what the logs record in a turn** (transfer): the unicycle speed of the bicycle's
-#    sub-steps, and the command that logs a given one;
+# 1. **what the bicycle can turn** (transfer): the largest yaw rate one step can realise;
+# 2. **did the ego hit anything?** (derivation): an overlap test for oriented boxes;
+# 3. **a crash detector for 2 Hz logs** (design): highway-env's crashes leave no
+#    overlapping boxes in the logs — find another sign of them;
+# 4. **which logged controls reproduce the expert** (experiment): replay three ways of
+#    logging the speed and measure;
+# 5. **what the logs record in a turn** (derivation): the unicycle speed of the
+#    bicycle's sub-steps, and the command that logs a given one;
 # 6. an **open experiment**: a driver that yields at the roundabout, with a written
 #    answer.
 #
@@ -36,201 +38,95 @@ from minimanc import metrics, world
 from minimanc.viz.highway import plot_episode_attempts
 
 # %% [markdown]
-# ## Exercise 10.1 — the action adapter
-# highway-env moves the ego as a kinematic bicycle of length $L$: with steering
-# angle $\delta$ the slip angle is $\beta = \arctan(\tan\delta / 2)$, the heading rate
-# $\dot\psi = v \sin\beta / (L/2)$ and $\dot v = a$. An action is held for
-# $\Delta t = 0.5$ s and integrated in sub-steps of $h = 0.1$ s (the heading uses
-# the speed *before* each sub-step's update).
+# ## Exercise 10.1 — what the bicycle can turn (transfer)
+# The tutorial inverted the bicycle for a commanded yaw rate; ask the opposite
+# question: how fast can the ego turn at all? Over one step of $\Delta t$ the adapter
+# applies the P-controller's acceleration $a = \operatorname{clip}((v^* - v)/\Delta t,
+# \pm a_{max})$ and a steering angle of at most `steer_max` in magnitude; highway-env
+# integrates the bicycle in sub-steps of $h$, the heading with the speed *before* each
+# sub-step's update. Write `max_yaw_rate(v, v_cmd, length=5.0, dt=0.5, substep=0.1,
+# a_max=5.0, steer_max=np.pi/4)`: the largest magnitude of the world yaw rate (the
+# heading change over the step divided by $\Delta t$) that one step can realise from the
+# speed `v` when the speed command is `v_cmd` (speeds stay positive). A float.
 #
-# Write `adapter(controls, speed)` that returns the normalised `ContinuousAction`
-# `[a / a_max, delta / steer_max]`:
+# <details><summary>Hint 1 (the idea)</summary>
 #
-# * speed: a P-controller $a = (v^* - v)/\Delta t$, clipped to $\pm a_{max}$;
-# * yaw rate: invert the bicycle at the mean speed of the sub-steps,
-#   $\bar v = v + a(\Delta t - h)/2$: $\beta = \arcsin(\dot\psi^* L / (2\bar v))$
-#   (clip the argument to $[-1, 1]$), $\delta = \arctan(2\tan\beta)$, clipped to
-#   $\pm$ `steer_max`. **Mind the mirror**: the world yaw rate $\omega^*$ is
-#   $-\dot\psi^*$ in highway-env.
-# * If $|\bar v| < 0.1$ m/s no yaw rate is reachable: use $\delta = 0$.
+# Which steering angle turns the most, and which speeds does the heading see during the
+# step?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Sum the heading changes of the sub-steps; the speed grows by $a h$ from one sub-step
+# to the next.
+# </details>
 
-# %% solution id=ex10_1 title="Action adapter" forbids="minimanc.highway.controls_to_action"  # noqa: E501
-def adapter(controls, speed, length=5.0, dt=0.5, substep=0.1, a_max=5.0,
-            steer_max=np.pi / 4):
+# %% solution id=ex10_1 title="What the bicycle can turn" forbids="minimanc.highway.controls_to_action"  # noqa: E501
+def max_yaw_rate(v, v_cmd, length=5.0, dt=0.5, substep=0.1, a_max=5.0, steer_max=np.pi / 4):
     ### BEGIN SOLUTION
-    v_cmd, omega = float(controls[0]), float(controls[1])
-    a = float(np.clip((v_cmd - speed) / dt, -a_max, a_max))
-    v_mean = speed + a * (dt - substep) / 2.0
-    if abs(v_mean) < 0.1:
-        delta = 0.0
-    else:
-        beta = np.arcsin(np.clip(-omega * length / (2.0 * v_mean), -1.0, 1.0))
-        delta = float(np.clip(np.arctan(2.0 * np.tan(beta)), -steer_max, steer_max))
-    return np.array([a / a_max, delta / steer_max])
+    a = float(np.clip((v_cmd - v) / dt, -a_max, a_max))
+    n = int(round(dt / substep))
+    v_mean = v + a * substep * (n - 1) / 2          # the mean of the sub-steps' speeds
+    beta = np.arctan(np.tan(steer_max) / 2)         # full lock
+    return float(abs(v_mean) * np.sin(beta) / (length / 2))
     ### END SOLUTION
 
 # %% grade id=ex10_1_tests points=3
-out = adapter(np.array([11.0, 0.0]), 10.0)
-assert np.allclose(out, [2.0 / 5.0, 0.0]), f"a = 2 m/s² and no steering: [0.4, 0], got {out}"
-left = adapter(np.array([10.0, 0.2]), 10.0)
-assert left[1] < 0, "a world left turn (omega > 0) is a negative highway-env steering"
-beta = np.arctan(np.tan(left[1] * np.pi / 4) / 2)
-assert np.isclose(10.0 * np.sin(beta) / 2.5, -0.2), "the bicycle must turn at 0.2 rad/s"
-assert np.allclose(adapter(np.array([40.0, 3.0]), 10.0), [1.0, -1.0]), (
-    "out of range: clip both to [1, -1] (full throttle, full steering to the world's left)")
-# in the simulator: the yaw rate is tracked exactly, the speed reached at the end of a step
-env = hw.make_env("highway-fast", steps=12, config={"vehicles_count": 0})
-env.reset(seed=0)
-yaw0 = hw.ego_pose(env)[2]
-for _ in range(6):
-    env.step(adapter(np.array([23.0, 0.1]), env.vehicle.speed).astype(np.float32))
-    yaw1 = hw.ego_pose(env)[2]
-    assert abs(world.wrap_angle(yaw1 - yaw0) / 0.5 - 0.1) < 1e-6, (
-        "highway-env should turn at exactly 0.1 rad/s (world frame) over each 0.5 s step")
-    yaw0 = yaw1
-assert abs(env.vehicle.speed - 23.0) < 1e-6, "the commanded 23 m/s should be reached"
+got = max_yaw_rate(15.0, 5.0)
+assert abs(got - 2.5043961) < 1e-6, (
+    f"v = 15 m/s, command 5 m/s (braking at 5 m/s^2): expected 2.5043961 rad/s; got {got!r}")
+got = max_yaw_rate(10.0, 10.0)
+assert abs(got - 1.7888544) < 1e-6, (
+    f"v = 10 m/s, command 10 m/s (no acceleration): expected 1.7888544 rad/s; got {got!r}")
 ### BEGIN HIDDEN TESTS
+def full_lock10(v, v_cmd, length, dt, h, a_max, steer_max):
+    """The tests' own sub-steps at full lock: highway-env's bicycle written out."""
+    a = min(max((v_cmd - v) / dt, -a_max), a_max)
+    beta = np.arctan(0.5 * np.tan(steer_max))
+    heading = 0.0
+    for _ in range(int(round(dt / h))):
+        heading += v * np.sin(beta) / (length / 2) * h
+        v += a * h
+    return heading / dt
+
+
 test_rng = np.random.default_rng(101)  # the tests' own draws, not the notebook's rng
-for _ in range(30):
-    u = np.array([test_rng.uniform(-2, 35), test_rng.uniform(-1, 1)])
-    v = test_rng.uniform(-1, 30)
-    out = np.asarray(adapter(u, v), dtype=float)
-    case = f"command [{u[0]:.3f}, {u[1]:.3f}] at v = {v:.3f}"
-    assert out.shape == (2,), (
-        f"{case}: expected the action [a / a_max, delta / steer_max]; got {out}")
-    a = np.clip((u[0] - v) / 0.5, -5.0, 5.0)                   # the P-controller
-    assert np.isclose(out[0], a / 5.0), (
-        f"{case}: expected the acceleration {a / 5.0:.4f} (clipped P-controller, / a_max); "
-        f"got {out[0]:.4f}")
-    v_mean = v + a * (0.5 - 0.1) / 2
-    delta = out[1] * np.pi / 4
-    if abs(v_mean) < 0.1:
-        assert out[1] == 0.0, f"{case}: |v_mean| < 0.1 m/s, expected steering 0; got {out[1]}"
-        continue
-    # the bicycle realises omega = -v_mean sin(beta) / (L / 2), unless the steering saturates
-    omega = -v_mean * np.sin(np.arctan(np.tan(delta) / 2)) / 2.5
-    assert abs(out[1]) <= 1.0 + 1e-12, f"{case}: expected steering in [-1, 1]; got {out[1]}"
-    if abs(out[1]) < 1.0 - 1e-9 and abs(u[1] * 2.5 / v_mean) < 1.0:
-        assert np.isclose(omega, u[1], atol=1e-6), (
-            f"{case}: expected the bicycle to turn at {u[1]:.4f} rad/s (world frame); your "
-            f"steering {out[1]:.4f} turns it at {omega:.4f}")
-    else:  # saturated: the closest reachable rate, turning the requested way
-        assert np.sign(omega) == np.sign(u[1]) or u[1] == 0.0, (
-            f"{case}, saturated: expected a turn to the requested side ({np.sign(u[1]):+.0f}); "
-            f"your steering {out[1]:.4f} turns at {omega:.4f} rad/s")
-out = np.asarray(adapter(np.array([0.0, 0.5]), 0.0), dtype=float)
-assert np.allclose(out, [0.0, 0.0]), f"standing still, command [0, 0.5]: expected [0, 0]; got {out}"
+for v, v_cmd in test_rng.uniform((3.0, 3.0), (30.0, 30.0), (10, 2)):
+    for length, dt, h, a_max, steer in ((5.0, 0.5, 0.1, 5.0, np.pi / 4),
+                                        (4.0, 1.0, 0.05, 3.0, 0.5), (5.5, 0.6, 0.2, 8.0, 0.3)):
+        want = full_lock10(v, v_cmd, length, dt, h, a_max, steer)
+        got = max_yaw_rate(v, v_cmd, length, dt, h, a_max, steer)
+        assert type(got) is float and np.isclose(got, want, rtol=1e-9), (
+            f"v = {v:.3f}, command {v_cmd:.3f}, L = {length}, dt = {dt}, h = {h}, a_max = "
+            f"{a_max}, steer_max = {steer}: expected the float {want:.6f}; got {got!r}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 10.2 — vehicles into the BEV
-# The BEV observation is the chapter-7 raster of the road network seen from the ego,
-# with the other vehicles drawn as yellow boxes. highway-env gives each vehicle's
-# `position` $(x, y)$, `heading` $\psi$, `LENGTH` and `WIDTH` in *its* frame.
-#
-# Write `vehicle_boxes(ego, others, max_ado)`: `ego` is the ego's highway-env
-# `(x, y, heading)`, `others` an `(n, 5)` array of highway-env
-# `[x, y, heading, length, width]`. Return `(boxes, valid)`: `boxes` `(max_ado, 5)`
-# world boxes `[x, y, yaw, length, width]` (mirrored frame, yaw wrapped to
-# $(-\pi, \pi]$ with `world.wrap_angle`) of the `max_ado` vehicles nearest to the ego,
-# nearest first (a stable sort on the distance); unused rows are zero with
-# `valid` False.
-
-# %% solution id=ex10_2 title="Vehicle boxes for the BEV" forbids="minimanc.highway.ado_boxes"  # noqa: E501
-def vehicle_boxes(ego, others, max_ado=16):
-    ### BEGIN SOLUTION
-    others = np.asarray(others, dtype=float).reshape(-1, 5)
-    boxes = np.zeros((max_ado, 5))
-    valid = np.zeros(max_ado, dtype=bool)
-    d = np.linalg.norm(others[:, :2] - np.asarray(ego[:2], float), axis=1)
-    for row, i in enumerate(np.argsort(d, kind="stable")[:max_ado]):
-        x, y, h, length, width = others[i]
-        boxes[row] = [x, -y, world.wrap_angle(-h), length, width]
-        valid[row] = True
-    return boxes, valid
-    ### END SOLUTION
-
-# %% [markdown]
-# A live roundabout scene for the test below: the BEV that the library's wrapper
-# `hw.BEVObservation` draws after 1.5 s, and the highway-env state it was drawn from.
-
-# %%
-env = hw.BEVObservation(hw.make_env("roundabout", steps=4))
-obs, _ = env.reset(seed=2)
-for _ in range(3):
-    obs, *_ = env.step(np.zeros(2, np.float32))
-u = env.unwrapped
-ego = (u.vehicle.position[0], u.vehicle.position[1], u.vehicle.heading)
-others = np.array([[*o.position, o.heading, o.LENGTH, o.WIDTH]
-                   for o in u.road.vehicles if o is not u.vehicle])
-print(f"{len(others)} other vehicles; BEV {obs.shape}")
-
-# %% grade id=ex10_2_tests points=3
-b, v = vehicle_boxes((0.0, 0.0, 0.0), np.array([[10.0, 4.0, 0.5, 5.0, 2.0],
-                                                 [3.0, 0.0, 0.0, 5.0, 2.0]]), max_ado=3)
-assert b.shape == (3, 5), "boxes should have shape (max_ado, 5) = (3, 5)"
-assert v.tolist() == [True, True, False], "two vehicles: two valid rows, then an unused one"
-assert np.allclose(b[0], [3.0, 0.0, 0.0, 5.0, 2.0]), "nearest first"
-assert np.allclose(b[1], [10.0, -4.0, -0.5, 5.0, 2.0]), "mirror y and the heading"
-assert np.allclose(b[2], 0.0), "unused rows are zero"
-# the raster drawn from your boxes equals the library's BEV observation
-boxes, valid = vehicle_boxes(ego, others, 16)
-mine = world.rasterize(env.map, hw.ego_pose(env), boxes, valid, env.cfg)
-assert np.array_equal(mine, obs), "your BEV differs from BEVObservation's"
-### BEGIN HIDDEN TESTS
-# an oracle written out: Python's sort is stable, the mirror is (x, -y, -heading)
-order = sorted(range(len(others)), key=lambda i: np.hypot(*(others[i, :2] - ego[:2])))[:16]
-for row, i in enumerate(order):
-    x, y, h, length, width = others[i]
-    want = np.array([x, -y, world.wrap_angle(-h), length, width])
-    assert np.allclose(boxes[row], want), (
-        f"the roundabout scene, row {row}: expected vehicle {i} mirrored, "
-        f"{np.round(want, 3).tolist()}; got {np.round(boxes[row], 3).tolist()}")
-want = [True] * len(order) + [False] * (16 - len(order))
-assert valid.tolist() == want, (
-    f"the roundabout scene: expected {len(order)} valid rows, then unused ones; got "
-    f"{valid.tolist()}")
-# headings wrap to (-pi, pi]; equal distances keep the input order; max_ado cuts
-tie = np.array([[0.0, 5.0, 3.5, 4.0, 2.0], [5.0, 0.0, -np.pi, 4.5, 1.8],
-                [0.0, -5.0, np.pi, 5.0, 2.0], [9.0, 0.0, 0.0, 5.0, 2.0]])
-b3, v3 = vehicle_boxes((0.0, 0.0, 0.0), tie, 3)
-assert np.allclose(b3, [[0.0, -5.0, 2 * np.pi - 3.5, 4.0, 2.0],
-                        [5.0, 0.0, np.pi, 4.5, 1.8],
-                        [0.0, 5.0, np.pi, 5.0, 2.0]]), (
-    f"three vehicles at 5 m, max_ado = 3: expected them in input order, yaw = wrap(-heading) "
-    f"in (-pi, pi], the one at 9 m cut; got {np.round(b3, 3).tolist()}")
-assert v3.all(), f"three vehicles, max_ado = 3: expected three valid rows; got {v3.tolist()}"
-b0, v0 = vehicle_boxes((1.0, 1.0, 0.0), np.zeros((0, 5)), 4)
-assert np.allclose(b0, 0.0) and not v0.any(), (
-    f"no other vehicle: expected all rows zero and invalid; got {np.round(b0, 3).tolist()}, "
-    f"{v0.tolist()}")
-test_rng = np.random.default_rng(102)  # the tests' own draws, not the notebook's rng
-rand = np.column_stack([test_rng.normal(size=(20, 2)) * 30, test_rng.uniform(-4, 4, 20),
-                        np.full(20, 5.0), np.full(20, 2.0)])
-b2, v2 = vehicle_boxes((1.0, 2.0, 0.3), rand, 8)
-assert v2.sum() == 8 and np.all(np.abs(b2[:, 2]) <= np.pi), (
-    f"20 random vehicles, max_ado = 8: expected 8 valid rows, yaw in (-pi, pi]; got "
-    f"{int(v2.sum())} rows, yaws {np.round(b2[:, 2], 3).tolist()}")
-dist = np.linalg.norm(b2[:, :2] - [1.0, -2.0], axis=1)
-assert np.all(np.diff(dist) >= 0), (
-    f"20 random vehicles: expected rows sorted by distance to the (mirrored) ego; got "
-    f"distances {np.round(dist, 2).tolist()}")
-### END HIDDEN TESTS
-
-# %% [markdown]
-# ## Exercise 10.3 — the collision rate
+# ## Exercise 10.2 — did the ego hit anything? (derivation)
 # A closed-loop evaluation reports the share of episodes in which the ego hits
-# another vehicle. Boxes are `[x, y, yaw, length, width]`; two oriented rectangles
-# overlap unless some axis separates them (the separating-axis theorem: for
-# rectangles, test the 4 edge directions of the two boxes — project both boxes'
-# corners on each axis and check whether the intervals are disjoint).
+# another vehicle. Boxes are `[x, y, yaw, length, width]`, oriented rectangles in any
+# direction: two boxes touch when they share a point (a common edge counts; two
+# corners just apart do not). Write `collision_rate(ego, ado, ado_valid, length,
+# width)`: `ego` `(E, T, 3)` poses, `ado` `(E, T, A, 5)` boxes, `ado_valid` `(E, T, A)`.
+# Return the percentage of the `E` episodes in which the ego box (`length` × `width`)
+# touches a valid ado box at some step. `world.box_corners(boxes)` gives the corners
+# `(..., 4, 2)`; an overlap test of the bounding boxes is not enough (the tests rotate
+# the boxes).
 #
-# Write `collision_rate(ego, ado, ado_valid, length, width)`: `ego` `(E, T, 3)` poses,
-# `ado` `(E, T, A, 5)` boxes, `ado_valid` `(E, T, A)`. Return the percentage of the
-# `E` episodes in which the ego box (`length` × `width`) overlaps a valid ado box at
-# some step. `world.box_corners(boxes)` gives the corners `(..., 4, 2)`.
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Two convex shapes are apart exactly when some straight line separates them. For two
+# rectangles, which few directions of that line is it enough to try?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Look at both boxes' shadows on a line (the interval of their corners' projections):
+# disjoint shadows on one line prove the boxes apart. The lines to try are normal to
+# the boxes' edges.
+# </details>
 
-# %% solution id=ex10_3 title="Collision rate" forbids="minimanc.metrics.collisions"  # noqa: E501
+# %% solution id=ex10_2 title="Did the ego hit anything?" forbids="minimanc.metrics.collisions"  # noqa: E501
 def collision_rate(ego, ado, ado_valid, length=world.EGO_LENGTH, width=world.EGO_WIDTH):
     ### BEGIN SOLUTION
     ego = np.asarray(ego, float)
@@ -249,7 +145,7 @@ def collision_rate(ego, ado, ado_valid, length=world.EGO_LENGTH, width=world.EGO
     return 100.0 * float(hit.mean())
     ### END SOLUTION
 
-# %% grade id=ex10_3_tests points=3
+# %% grade id=ex10_2_tests points=3
 ego = np.zeros((2, 3, 3))                               # two episodes, ego at the origin
 ado = np.zeros((2, 3, 1, 5))
 ado[..., :] = [20.0, 0.0, 0.0, 4.0, 2.0]                # far away
@@ -283,87 +179,192 @@ assert np.allclose(per_step, [1, 1, 3, 5, 4]), (
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 10.4 — the logged controls of a demonstration
-# Behaviour cloning learns the controls logged with each state. For a perfect imitator
-# to reproduce the expert through the adapter of 10.1, the logged control of step $t$
-# must be what the adapter *realises* over that step: the P-controller reaches the
-# commanded speed at the **end** of the step, and the steering realises the **mean**
-# yaw rate over it. So, from the recorded states $t = 0 \dots T$,
-#
-# $$u[t] = \big[\,v[t+1],\ \operatorname{wrap}(\psi_w[t+1] - \psi_w[t]) / \Delta t\,\big],
-#   \qquad t = 0 \dots T-1,$$
-#
-# with the world yaw $\psi_w$ and the difference wrapped to $(-\pi, \pi]$
-# (`world.wrap_angle`): a heading that crosses $\pm\pi$ turns by a small angle, not
-# by almost $2\pi$. Speeds are highway-env's `vehicle.speed`, in m/s.
-#
-# Write `logged_controls(poses, speeds, dt=0.5)`: `poses` `(T+1, 3)` world poses,
-# `speeds` `(T+1,)`; return `(T, 2)`. Taking the speed at the *start* of the step, or
-# the unicycle speed `world.controls_from_poses`, is the natural wrong choice: the
-# replay then lags the expert.
+# ## Using the pieces: does a driver that ignores traffic crash?
+# From here on the notebook uses the library (`hw.controls_to_action`,
+# `metrics.collisions`, `hw.Episode.controls`), so it runs even with unfinished
+# exercises. A *lane follower* drives the lane target at a constant 10 m/s with pure
+# pursuit, blind to other vehicles; the expert (highway-env's IDM/MOBIL, which also
+# yields at the roundabout entry) sees them. Same seeds, same roundabout.
 
-# %% solution id=ex10_4 title="Logged controls"
-def logged_controls(poses, speeds, dt=0.5):
+# %%
+def lane_follower(obs):
+    x, y = obs["lane_target"][2]                       # the target point 12 m ahead
+    curvature = 2.0 * y / (x * x + y * y)              # pure pursuit
+    return np.array([10.0, 10.0 * curvature])
+
+
+seeds = [100_000 + i for i in range(5)]
+runs = {"expert": [hw.run_episode("roundabout", s, "expert", steps=16, record_bev=False)
+                   for s in seeds],
+        "lane follower": [hw.run_episode("roundabout", s, lane_follower, steps=16,
+                                         record_bev=False) for s in seeds]}
+rates, overlaps = {}, {}
+for name, eps in runs.items():
+    ego = np.stack([ep.poses for ep in eps])
+    ado = np.stack([ep.ado for ep in eps])
+    valid = np.stack([ep.ado_valid for ep in eps])
+    rates[name] = 100.0 * np.mean([ep.collided for ep in eps])
+    overlaps[name] = 100.0 * metrics.collisions(ego, ado, valid).mean()
+    close = 100.0 * metrics.close_encounters(ego, ado, valid).mean()
+    print(f"{name:<14} crashed (highway-env) {rates[name]:5.1f} %   box overlap at 2 Hz "
+          f"{overlaps[name]:5.1f} %   close encounters {close:5.1f} % of steps")
+assert rates["lane follower"] > rates["expert"]
+assert overlaps["lane follower"] == overlaps["expert"] == 0.0
+
+# %% [markdown]
+# The blind lane follower crashes more often than the expert — yet the box overlap of
+# exercise 10.2, computed on the states logged every 0.5 s, finds no collision at all
+# (the assert checks it). highway-env tests contacts every 0.1 s and, when two boxes
+# are about to intersect, pushes them apart (`impact`) and marks both `crashed`: logged
+# states never overlap. On the chapter-7 logs (ados replayed, nothing pushes back) the
+# overlap test is the right one; in highway-env the simulator's `crashed` flag is the
+# collision measure (`hw.ClosedLoopResult.metrics["collision_rate"]`). Avoiding the
+# other vehicles is what the BEV is for: the tutorial trains MANC and a CNN on the
+# expert's demonstrations and compares them in closed loop.
+
+# %% [markdown]
+# ## Exercise 10.3 — a crash detector for 2 Hz logs (design)
+# A log from another simulator (or from a real car) has no `crashed` flag: only the
+# states every 0.5 s. Design a rule that tells from them whether the ego crashed:
+# `crashed_from_log(poses, speeds, ado, ado_valid)` returns a bool for one episode of
+# `hw.run_episode` (`poses` `(T+1, 3)`, `speeds` `(T+1,)`, `ado` `(T+1, A, 5)`,
+# `ado_valid` `(T+1, A)`; the ego is `world.EGO_LENGTH` × `world.EGO_WIDTH` here too).
+# It must agree with highway-env's flag on the ten episodes of `runs` above, and on
+# an episode the tests draw on another seed. Look at what a crash
+# leaves in the logs before you choose; `metrics.ado_gaps` and your 10.2 are yours to
+# use. Defend the rule in the written answer of 10.6.
+
+# %% solution id=ex10_3 title="A crash detector for 2 Hz logs"
+def crashed_from_log(poses, speeds, ado, ado_valid):
     ### BEGIN SOLUTION
-    poses, speeds = np.asarray(poses, dtype=float), np.asarray(speeds, dtype=float)
-    yaw_rate = world.wrap_angle(np.diff(poses[:, 2])) / dt
-    return np.stack([speeds[1:], yaw_rate], axis=-1)
+    # highway-env pushes the boxes apart on impact: a crash leaves two boxes a few
+    # centimetres apart, closer than a driver passes another without touching
+    gaps = metrics.ado_gaps(np.asarray(poses)[None], np.asarray(ado)[None],
+                            np.asarray(ado_valid)[None])[0]
+    gaps = np.where(np.asarray(ado_valid, bool), gaps, np.inf)
+    return bool(gaps.min() < 0.3)
     ### END SOLUTION
 
-# %% grade id=ex10_4_tests points=4
-toy = logged_controls(np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.1], [10.0, 0.5, 0.0]]),
-                      np.array([10.0, 10.0, 12.0]))
-assert toy.shape == (2, 2), "T + 1 = 3 states give T = 2 controls"
-assert np.allclose(toy, [[10.0, 0.2], [12.0, -0.2]]), (
-    "[speed at t + 1, yaw change / 0.5 s]: [[10, 0.2], [12, -0.2]]")
-wrap = logged_controls(np.array([[0.0, 0.0, 3.1], [1.0, 0.0, -3.1]]), np.array([2.0, 2.0]))
-assert np.allclose(wrap, [[2.0, (2 * np.pi - 6.2) / 0.5]]), (
-    "3.1 -> -3.1 rad is a left turn of 2π - 6.2 = 0.083 rad, not -6.2 rad")
-# in the simulator: drive an empty highway with commands the adapter can realise, log the
-# states, and the logged controls give the commands back
-env = hw.make_env("highway-fast", steps=12, config={"vehicles_count": 0})
-env.reset(seed=0)
-act = hw.ActionAdapter(env)
-commands = np.array([(24.0, 0.0), (22.0, 0.05), (20.0, 0.1), (21.0, -0.08), (23.0, -0.05)])
-states, speeds = [hw.ego_pose(env)], [env.vehicle.speed]
-for c in commands:
-    env.step(act(c))
-    states.append(hw.ego_pose(env))
-    speeds.append(env.vehicle.speed)
-logged = logged_controls(np.array(states), np.array(speeds))
-assert np.allclose(logged, commands, atol=1e-6), (
-    f"the logged controls should be the commands the adapter realised:\n{commands}\ngot\n{logged}")
+# %% grade id=ex10_3_tests points=3
+wrong10 = []
+for name, eps in runs.items():
+    for ep in eps:
+        said = crashed_from_log(ep.poses, ep.speeds, ep.ado, ep.ado_valid)
+        assert type(said) in (bool, np.bool_), f"expected a bool; got {type(said).__name__}"
+        if bool(said) != ep.collided:
+            wrong10.append(f"{name}, seed {ep.seed}: crashed {ep.collided}, said {bool(said)}")
+assert not wrong10, f"the ten episodes of runs: expected highway-env's flag; {wrong10}"
 ### BEGIN HIDDEN TESTS
-ep = hw.run_episode("roundabout", 3, "expert", steps=12, record_bev=False)
-u_ep = np.asarray(logged_controls(ep.poses, ep.speeds), dtype=float)
-assert u_ep.shape == (12, 2), (
-    f"an expert episode of 12 actions (13 states): expected controls (12, 2); got {u_ep.shape}")
-assert np.array_equal(u_ep[:, 0], ep.speeds[1:]), (
-    f"an expert episode: expected the speeds reached at the end of each step "
-    f"{np.round(ep.speeds[1:4], 3).tolist()}...; got {np.round(u_ep[:3, 0], 3).tolist()}...")
-yaw = world.wrap_angle(ep.poses[0, 2] + np.cumsum(u_ep[:, 1]) * 0.5)
-gap = float(np.abs(world.wrap_angle(yaw - ep.poses[1:, 2])).max())
-assert gap < 1e-9, (
-    f"an expert episode: expected the yaw rates to integrate to every logged yaw; got a "
-    f"largest difference of {gap:.3g} rad")
-half = np.asarray(logged_controls(ep.poses, ep.speeds, dt=0.25), dtype=float)
-assert np.allclose(half[:, 1], 2 * u_ep[:, 1]), (
-    f"dt = 0.25: expected twice the yaw rates of dt = 0.5, {np.round(2 * u_ep[:3, 1], 4).tolist()}"
-    f"...; got {np.round(half[:3, 1], 4).tolist()}...")
-circle = np.stack([np.zeros(9), np.zeros(9), world.wrap_angle(0.9 * np.arange(9))], -1)
-got = np.asarray(logged_controls(circle, np.ones(9)), dtype=float)[:, 1]
-assert np.allclose(got, 1.8), (
-    f"a steady turn of 0.9 rad per step, across ±π: expected 1.8 rad/s at every step; got "
-    f"{np.round(got, 3).tolist()}")
+def fast_follower10(obs):
+    x, y = obs["lane_target"][2]
+    return np.array([10.0, 10.0 * 2.0 * y / (x * x + y * y)])
+
+
+held10 = hw.run_episode("roundabout", 200_000, fast_follower10, steps=16, record_bev=False)
+said10 = bool(crashed_from_log(held10.poses, held10.speeds, held10.ado, held10.ado_valid))
+assert said10 == held10.collided, (
+    f"a held-out episode (seed 200000): expected highway-env's flag {held10.collided}; got "
+    f"{said10}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 10.5 — what the logs record in a turn (transfer)
+# ## Exercise 10.4 — which logged controls reproduce the expert? (experiment)
+# The tutorial logs the speed reached at the *end* of each step, and says that a
+# replay of the log then reproduces the expert while other choices would make it lag.
+# Measure it. For an expert episode, log the yaw rate as the mean over the step
+# ($\operatorname{wrap}(\psi[t+1] - \psi[t]) / \Delta t$) and the speed of step $t$ in
+# three ways: `"end"`, the speed at the end of the step, `speeds[t+1]`; `"start"`, the
+# speed at its start, `speeds[t]`; `"unicycle"`, the unicycle speed of chapter 7,
+# `world.controls_from_poses(poses)[t, 0]`. Replay each log through the library's
+# adapter from the episode's seed (`hw.run_episode(ep.scenario, ep.seed, policy,
+# steps=ep.steps, record_bev=False)`, the policy returning the logged control of step
+# `obs["t"]`) and measure the ADE to the expert (the mean over the $T + 1$ states of
+# the distance between the positions).
+#
+# Write `logging_experiment(episodes)`: a dict mapping `"end"`, `"start"` and
+# `"unicycle"` to the mean of that ADE over `episodes` (floats, m). `hw.replay_error`
+# is switched off while this exercise is graded. (4 points.) Then answer the written
+# question below.
+
+# %% solution id=ex10_4 title="Which logged controls reproduce the expert?" forbids="minimanc.highway.replay_error"  # noqa: E501
+def logging_experiment(episodes):
+    ### BEGIN SOLUTION
+    table = {"end": [], "start": [], "unicycle": []}
+    for ep in episodes:
+        yaw_rate = world.wrap_angle(np.diff(ep.poses[:, 2])) / 0.5
+        speed = {"end": ep.speeds[1:], "start": ep.speeds[:-1],
+                 "unicycle": world.controls_from_poses(ep.poses)[:, 0]}
+        for rule, v in speed.items():
+            u = np.stack([v, yaw_rate], axis=-1)
+            replay = hw.run_episode(ep.scenario, ep.seed, lambda obs, u=u: u[obs["t"]],
+                                    steps=ep.steps, record_bev=False)
+            gap = np.linalg.norm(replay.poses[:, :2] - ep.poses[:, :2], axis=1)
+            table[rule].append(float(gap.mean()))
+    return {rule: float(np.mean(ades)) for rule, ades in table.items()}
+    ### END SOLUTION
+
+# %% grade id=ex10_4_tests points=4 tags=["nbval-ignore-output"]
+# replays in a simulator: float rounding may move the printed digits between machines
+short10 = hw.run_episode("roundabout", seeds[0], "expert", steps=8, record_bev=False)  # 4 s
+### BEGIN HIDDEN TESTS
+ep10 = short10   # the reference replay, before the experiment sees the episode
+rate10 = world.wrap_angle(np.diff(ep10.poses[:, 2])) / 0.5
+want10 = {}
+for rule, v10 in (("unicycle", world.controls_from_poses(ep10.poses)[:, 0]),):
+    u10 = np.stack([v10, rate10], axis=-1)
+    rp10 = hw.run_episode(ep10.scenario, ep10.seed, lambda obs, u=u10: u[obs["t"]],
+                          steps=ep10.steps, record_bev=False)
+    want10[rule] = float(np.linalg.norm(rp10.poses[:, :2] - ep10.poses[:, :2], axis=1).mean())
+### END HIDDEN TESTS
+table10 = logging_experiment([short10])
+print({rule: round(ade, 2) for rule, ade in table10.items()})
+assert sorted(table10) == ["end", "start", "unicycle"], (
+    f"expected the keys 'end', 'start', 'unicycle'; got {sorted(table10)}")
+assert all(type(x) is float and x >= 0.0 for x in table10.values()), (
+    f"expected three non-negative floats; got {table10}")
+assert table10["end"] < min(table10["start"], table10["unicycle"]), (
+    f"the expert of seed {seeds[0]}, 4 s: expected the log of the tutorial ('end') to replay "
+    f"closest to the expert; got {table10}")
+### BEGIN HIDDEN TESTS
+for rule, want in want10.items():
+    assert np.isclose(table10[rule], want, rtol=1e-6, atol=1e-9), (
+        f"the expert of seed {seeds[0]}, the {rule!r} log: expected the replay's ADE "
+        f"{want:.4f} m; got {table10[rule]:.4f}")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# **Written question (10.4, graded by hand, 2 points).** Why does the `"start"` log lag
+# behind the expert, and why is the `"unicycle"` one also off — in which phases of an
+# episode does each error arise? A policy trained on the chapter-7 world learned
+# unicycle speeds: what should the adapter do with its commands in highway-env (10.5
+# answers part of it)?
+
+# %% [markdown] answer id=ex10_4_w title="Which log reproduces the expert" points=2
+# ### BEGIN SOLUTION
+# On the 4 s expert episode the tutorial's log replays to 0.06 m of the expert on
+# average, the start-of-step speed to 1.71 m, the unicycle speed to 0.99 m. The adapter's
+# P-controller reaches the commanded speed at the end of the step: a log of the speed
+# at the start asks, at every step, for the speed the expert already had, so whenever
+# the expert accelerates or brakes the replay is one step behind its speed changes and
+# the position error accumulates (it never catches up, since it is never asked for
+# more). The unicycle speed is the displacement along the heading over the step: while
+# accelerating it is the mean speed of the step, between the start and the end speeds
+# (the replay lags by half a step's speed change), and in a turn the bicycle slips by β
+# and turns within the step, so the displacement along the initial heading is shorter
+# than $v\,\Delta t$ (10.5): the replay drives slower than the expert in the ring. A
+# policy trained on unicycle speeds should have its commands converted: in a turn,
+# command the speed that logs the unicycle speed it asked for (10.5's `command_for`),
+# and when the speed changes, ask for the end-of-step speed the unicycle mean implies
+# (about $2v_u - v$, clipped by the adapter's saturation).
+# ### END SOLUTION
+
+# %% [markdown]
+# ## Exercise 10.5 — what the logs record in a turn (derivation)
 # The tutorial measured that the *unicycle* speed — the displacement along the heading
 # divided by $\Delta t$, what `world.controls_from_poses` and the chapter-7 logs record —
 # is a little lower than the bicycle's speed in a turn, and explained it roughly. Derive
 # it exactly for highway-env's integration. The ego already drives at the commanded
-# speed $v$ ($a = 0$) and the adapter of 10.1 realises the yaw rate $\omega$ with the
+# speed $v$ ($a = 0$) and the adapter realises the yaw rate $\omega$ with the
 # world-frame slip angle $\beta$, $\sin\beta = \omega L / (2v)$. Over the step, $n =
 # \Delta t / h = 5$ Euler sub-steps: the position moves by $v h$ along $\psi_k + \beta$,
 # then the heading turns by $\omega h$ ($\psi_{k+1} = \psi_k + \omega h$).
@@ -456,7 +457,7 @@ def substeps(v, omega, length=5.0, dt=0.5, h=0.1):  # the sub-steps written out
     return x / dt
 
 
-for command in ((15.0, 0.5), (25.0, -0.2), (18.0, 1.0)):
+for command in ((25.0, -0.2), (18.0, 1.0)):
     want, start = logged_speed(command)
     got = unicycle_speed(*command)
     assert abs(start - command[0]) < 1e-9 and abs(got - want) < 1e-5, (
@@ -497,51 +498,7 @@ for v, omega, length, dt, h in ((10.0, 0.8, 5.0, 0.5, 0.1), (3.0, 1.1, 5.0, 0.5,
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Using the pieces: does a driver that ignores traffic crash?
-# From here on the notebook uses the library (`hw.controls_to_action`,
-# `hw.BEVObservation`, `metrics.collisions`, `hw.Episode.controls`), so it runs even
-# with unfinished exercises. A *lane follower* drives the lane target at a constant 10 m/s with
-# pure pursuit, blind to other vehicles; the expert (highway-env's IDM/MOBIL, which
-# also yields at the roundabout entry) sees them. Same seeds, same roundabout.
-
-# %%
-def lane_follower(obs):
-    x, y = obs["lane_target"][2]                       # the target point 12 m ahead
-    curvature = 2.0 * y / (x * x + y * y)              # pure pursuit
-    return np.array([10.0, 10.0 * curvature])
-
-
-seeds = [100_000 + i for i in range(6)]
-runs = {"expert": [hw.run_episode("roundabout", s, "expert", steps=16, record_bev=False)
-                   for s in seeds],
-        "lane follower": [hw.run_episode("roundabout", s, lane_follower, steps=16,
-                                         record_bev=False) for s in seeds]}
-rates = {}
-for name, eps in runs.items():
-    ego = np.stack([ep.poses for ep in eps])
-    ado = np.stack([ep.ado for ep in eps])
-    valid = np.stack([ep.ado_valid for ep in eps])
-    rates[name] = 100.0 * np.mean([ep.collided for ep in eps])
-    overlap = 100.0 * metrics.collisions(ego, ado, valid).mean()
-    close = 100.0 * metrics.close_encounters(ego, ado, valid).mean()
-    print(f"{name:<14} crashed (highway-env) {rates[name]:5.1f} %   box overlap at 2 Hz "
-          f"{overlap:5.1f} %   close encounters {close:5.1f} % of steps")
-assert rates["lane follower"] > rates["expert"]
-
-# %% [markdown]
-# The blind lane follower crashes in most episodes, the expert in none — yet the box
-# overlap of exercise 10.3, computed on the states logged every 0.5 s, finds no
-# collision at all. highway-env tests contacts every 0.1 s and, when two boxes are
-# about to intersect, pushes them apart (`impact`) and marks both `crashed`: logged
-# states never overlap. On the chapter-7 logs (ados replayed, nothing pushes back) the
-# overlap test is the right one; in highway-env the simulator's `crashed` flag is the
-# collision measure (`hw.ClosedLoopResult.metrics["collision_rate"]`), and the box-gap
-# metric `metrics.close_encounters` still sees the near misses. Avoiding the other
-# vehicles is what the BEV is for: the tutorial trains MANC and a CNN on the expert's
-# demonstrations and compares them in closed loop.
-
-# %% [markdown]
-# ## Exercise 10.6 — open experiment: a driver that yields
+# ## Exercise 10.6 — open experiment: a driver that yields (design)
 # The lane follower crashes because it never looks at the other vehicles. Design a
 # driver that does, with the same pure-pursuit steering: `careful_driver(obs)` returns
 # `[speed, yaw rate]` for one observation of `hw.run_episode` — `obs["pose"]` the ego's
@@ -549,7 +506,7 @@ assert rates["lane follower"] > rates["expert"]
 # `[x, y, yaw, length, width]` (`(A, 5)`, rows where `obs["ado_valid"]`),
 # `obs["lane_target"]` `(K, 2)` in the ego frame (12 m ahead: row 2), `obs["speed"]`.
 # A rule of your own: when to slow down or wait, how far ahead and how wide to look,
-# how fast to drive when the way is clear. The grade cell drives it on the six seeds
+# how fast to drive when the way is clear. The grade cell drives it on the five seeds
 # above and checks that it crashes **at most once and less often than the lane
 # follower**, with a **mean speed of at least 4 m/s** (waiting forever is not driving);
 # the hidden tests drive it on four roundabout seeds of their own with the same bar (at
@@ -573,15 +530,15 @@ def careful_driver(obs):
 
 # %% grade id=ex10_6_tests points=2
 careful = [hw.run_episode("roundabout", s, careful_driver, steps=16, record_bev=False)
-           for s in seeds]                                   # the six seeds above, about 8 s
+           for s in seeds]                                   # the five seeds above
 careful_speed = float(np.mean([ep.speeds.mean() for ep in careful]))
 crashes = int(sum(ep.collided for ep in careful))
 follower = int(sum(ep.collided for ep in runs["lane follower"]))
 assert crashes <= 1 and crashes < follower, (
-    f"the six seeds: expected at most one crash and fewer than the lane follower's "
+    f"the five seeds: expected at most one crash and fewer than the lane follower's "
     f"{follower}; got {crashes}")
 assert careful_speed >= 4.0, (
-    f"the six seeds: expected a mean speed of at least 4 m/s; got {careful_speed:.2f} m/s")
+    f"the five seeds: expected a mean speed of at least 4 m/s; got {careful_speed:.2f} m/s")
 ### BEGIN HIDDEN TESTS
 held_out = [hw.run_episode("roundabout", 200_000 + i, careful_driver, steps=16,
                            record_bev=False) for i in range(4)]
@@ -602,13 +559,15 @@ assert mean_speed >= 4.0, (
 # from the expert's demonstrations to reproduce your rule, and why do six
 # collision-free demonstrations at the roundabout entry teach little of it? (c) Why is
 # "no crash" not enough to call a driver good here — name two numbers of
-# `hw.drive_episodes` you would also report.
+# `hw.drive_episodes` you would also report. (d) Defend your crash detector of 10.3:
+# what does a crash leave in highway-env's logs, and when would your rule raise a false
+# alarm or miss one?
 
 # %% [markdown] answer id=ex10_6_w title="What a yielding rule needs to see" points=3
 # ### BEGIN SOLUTION
 # (a) The rule keeps pure pursuit and sets the speed to 0 when a vehicle is in a box
 # 20 m ahead and ±8 m sideways, or within 12 m and not behind; otherwise 7 m/s. On
-# the six seeds it does not crash (the lane follower crashes in four) at about 5 m/s.
+# the five seeds it does not crash (the lane follower crashes in four) at about 5 m/s.
 # It fails when the danger does not come from the box it watches: a vehicle
 # approaching fast from the side at the entry (its box enters the window too late, at
 # 2 Hz a vehicle moves 5 m between decisions) or a follower that does not expect the
@@ -626,11 +585,19 @@ assert mean_speed >= 4.0, (
 # progress along the route (or the goal distance) and the ADE to the expert, the
 # off-road rate, and the close encounters (near misses) — `hw.drive_episodes`'
 # `mean_speed`, `ade`, `off_road_rate`.
+# (d) Mine says "crashed" when a valid box comes within 0.3 m of the ego's at a logged
+# step. highway-env pushes two boxes apart on impact, so a crash leaves them a few
+# centimetres apart (0.05–0.14 m in these runs), while the closest a driver passed
+# another without a crash was 0.42 m. It misses a crash whose impact throws the boxes
+# farther apart than 0.3 m before the next logged step, and it raises a false alarm in
+# dense traffic where vehicles pass within 0.3 m without touching (a tight merge,
+# stopped queues); a rule that also asked for the ego's sudden stop after the contact
+# (highway-env brakes a crashed ego) would be sharper.
 # ### END SOLUTION
 
 # %% [markdown]
 # ## Your figure
-# **Your** `careful_driver` on the first of the six seeds (solid), over the library's
+# **Your** `careful_driver` on the first of the five seeds (solid), over the library's
 # expert and the lane follower of the same seed (dashed): the paths through the
 # roundabout (a cross marks the first crashed step) and the speeds. A driver that
 # yields should slow down near the entry as the expert does and reach the exit without
@@ -638,9 +605,15 @@ assert mean_speed >= 4.0, (
 # episodes are drawn.
 
 # %%
+def your_episode():
+    """Your driver on seeds[0]: the graded run when it exists (no second run)."""
+    if "careful" in globals():
+        return careful[0]
+    return hw.run_episode("roundabout", seeds[0], careful_driver, steps=16, record_bev=False)
+
+
 plot_episode_attempts(
-    {"your careful_driver": lambda: hw.run_episode("roundabout", seeds[0], careful_driver,
-                                                   steps=16, record_bev=False)},
+    {"your careful_driver": your_episode},
     {"expert": runs["expert"][0], "lane follower": runs["lane follower"][0]})
 plt.tight_layout()
 plt.show()

@@ -129,7 +129,8 @@ assert np.allclose(yaw_rate, commands[:, 1], atol=1e-6)
 
 # %% [markdown]
 # The yaw rate is exact. The speed is reached at the end of each step once the
-# acceleration is below 5 m/s² (25 → 15 m/s takes two saturated steps). The
+# acceleration is below 5 m/s²; before that the ego brakes at the limit, 2.5 m/s per
+# step (the first rows: the empty highway starts faster than 15 m/s). The
 # *unicycle* speed — the displacement along the heading divided by $\Delta t$, as in
 # the chapter-7 logs — is a little lower in turns (the bicycle slips by $\beta$ and
 # turns within the step: a factor $\cos(\beta + \omega\Delta t/2)$) and lags by half a
@@ -140,7 +141,7 @@ assert np.allclose(yaw_rate, commands[:, 1], atol=1e-6)
 # place (`hw.install_expert`), following the route to a destination drawn per episode
 # (roundabout exit; intersection left/straight/right) at a desired speed drawn per
 # episode (its style). Plain IDM only watches the car ahead and drives into
-# circulating traffic at roundabout entries (≈ 40 % of episodes crash); our expert
+# circulating traffic at roundabout entries, where it often crashes; our expert
 # adds gap acceptance there (`hw.ExpertVehicle`), and episodes where it still collides
 # are skipped, as chapter 7 redraws scenes where the human collides.
 #
@@ -284,37 +285,17 @@ assert np.isfinite(wm["ade"]) and 0 <= wm["collision_rate"] <= 100
 #     runs/world_manc/checkpoint.npz --episodes 8 --out eval.json
 # ```
 #
-# One run of exactly these commands (36 demonstrations, 8 evaluation episodes per
-# scenario, seeds from 100000; about 10 minutes on two cores):
-#
-# | scenario | driver | collision % | off-road % | ADE m | speed m/s |
-# |---|---|---:|---:|---:|---:|
-# | roundabout | expert | 0.0 | 0.0 | 0.00 | 6.00 |
-# | roundabout | MANC | 25.0 | 12.5 | 8.94 | 6.71 |
-# | roundabout | CNN | 12.5 | 50.0 | 6.18 | 5.10 |
-# | roundabout | MANC trained on the world | 0.0 | 0.0 | 7.03 | 5.36 |
-# | intersection | expert | 0.0 | 0.0 | 0.00 | 5.95 |
-# | intersection | MANC | 50.0 | 0.0 | 7.91 | 5.11 |
-# | intersection | CNN | 37.5 | 50.0 | 7.70 | 4.66 |
-# | intersection | MANC trained on the world | 50.0 | 0.0 | 6.96 | 5.36 |
-# | highway-fast | expert | 0.0 | 0.0 | 0.00 | 20.79 |
-# | highway-fast | MANC | 12.5 | 0.0 | 11.76 | 21.77 |
-# | highway-fast | CNN | 0.0 | 0.0 | 33.95 | 12.88 |
-# | highway-fast | MANC trained on the world | 0.0 | 0.0 | 20.56 | 15.44 |
-#
-# Read it with care: 8 episodes per cell (one episode is 12.5 %), one training seed,
-# one data set, and measured when MANC still trained on 8-step windows (whole-scene
-# windows, chapter 8, are the default now; this table has not been re-measured).
-# What it does show: MANC's DMP head keeps the car on the road — it
-# tracks the lane target, also when trained on the chapter-7 world only — but neither
-# MANC has learned to *wait*: at the roundabout entry the expert slows to 2–4 m/s and
-# yields, the highway-trained MANC keeps about 7 m/s (its collisions), the
-# world-trained one about 5 m/s (slow enough to slip through in these 8 episodes); at
-# the intersection both collide in half of the episodes. The CNN does slow down at the
-# entry, but it leaves the road in half of the junction episodes and on the highway
-# it drives far too slowly (its ADE). Things to try: the `parity` setting (every
-# model gets the lane target), more demonstrations and epochs, several seeds, and
-# `minimanc highway render --checkpoint ...` to watch a failure.
+# `eval.json` then holds, per scenario and driver, the collision and off-road rates,
+# the ADE to the expert and the mean speed, and `minimanc highway eval` prints them as a
+# table. Things to look for in it: whether MANC's DMP head keeps the car on the road —
+# it tracks the lane target, also when trained on the chapter-7 world only; whether
+# either model has learned to *wait* at the roundabout entry, where the expert slows
+# down and yields (compare the mean speeds, and watch a failure with `minimanc highway
+# render --checkpoint ...`); and whether the CNN, which has no lane target in the paper
+# setting, stays on the road and keeps the expert's pace on the highway. Read it with
+# care: with 8 episodes per cell one episode is 12.5 %, and one training seed on one data
+# set says nothing about the spread. Things to try: the `parity` setting (every model
+# gets the lane target), more demonstrations and epochs, several seeds.
 
 # %% [markdown]
 # ## Paper vs. this course

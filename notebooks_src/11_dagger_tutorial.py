@@ -34,6 +34,7 @@
 
 # %%
 import tempfile
+import time
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -175,9 +176,10 @@ assert np.array_equal(motion, applied) and inputs.driven_rows(fixed.data).all()
 # ## 4. BC vs DAgger at the same budget: a small run
 # MANC and the CNN baseline, 3 rounds, $p = 0.5$, one seed, 4 epochs per training,
 # evaluated in closed loop on the 8 validation scenes among reactive ados after every
-# round. (About two minutes on two cores with JAX.)
+# round. This is the notebook's long cell: it prints how long it took.
 
 # %% tags=["nbval-ignore-output"]
+t0 = time.perf_counter()
 runs = {}
 for name in ("manc", "cnn"):
     out = workdir / name
@@ -193,6 +195,7 @@ for name, res in runs.items():
     for label, r in (("BC", bc[name]), ("DAgger", res.rounds[-1])):
         print(f"| {name} | {label} | {r.labelled} | "
               + " | ".join(f"{r.metrics[k]:.1f}" for k in keys) + " |")
+print(f"BC and DAgger for both models took {time.perf_counter() - t0:.0f} s")
 for name, res in runs.items():
     assert [r.labelled for r in res.rounds] == [240, 480, 720, 960]
     assert bc[name].labelled == res.rounds[-1].labelled == 960, "equal label budgets"
@@ -215,9 +218,9 @@ assert all(len(res.rounds) == rounds + 1 for res in runs.values())
 # %% [markdown]
 # What to read in it, honestly: one seed and 24 scenes are far too few to rank
 # anything, and a difference smaller than the spread over seeds (chapter 9) means
-# nothing. Round 0 has a quarter of the labels, so its error is the largest; the
-# question is where the last round ends against the BC line, which used as many
-# labels. Run the study with several seeds before drawing a conclusion:
+# nothing. Round 0 has a quarter of the labels; the question is where the last round
+# ends against the BC line, which used as many labels. Run the study with several seeds
+# before drawing a conclusion:
 #
 # ```
 # minimanc dagger --model manc --sim world --rounds 3 --beta 0.5 --scenes 24 --out runs/manc

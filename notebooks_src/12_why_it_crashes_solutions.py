@@ -8,9 +8,12 @@
 # `raise NotImplementedError(...)` with your code and run the grade cell below it;
 # `minimanc grade exercises/12_why_it_crashes.ipynb` scores the notebook.
 #
-# 1. **The style floor of a scene**: the population's median style, the track errors.
-# 2. **What the expert perceives**: the leader, stop and lane features from a `Situation`.
-# 3. **The ablation table**: build it, and read the missing input off it.
+# 1. **The style floor, field by field**: the track errors, and which part of the hidden
+#    style the floor's error comes from.
+# 2. **What the expert perceives and what it demands**: the braking a leader asks for, the
+#    lane seen from the ego.
+# 3. **Two ways to ask which input matters**: the ablation table, and shuffling an input
+#    instead of removing it.
 # 4. **Faded history at another decay**: the past boxes a raster draws.
 # 5. **An open experiment**: a small input set, and a written answer.
 
@@ -38,49 +41,44 @@ print(f"{len(train)} training scenes ({X.shape[0]} states), {len(val)} validatio
       f"({Xv.shape[0]} states), {len(P.FEATURES)} features")
 
 # %% [markdown]
-# ## Exercise 12.1 — the style floor of a scene
-# The style floor re-drives a scene with the population's **median style** and measures
-# how far that driver ends up from the logged human.
+# ## Exercise 12.1 — the style floor, field by field
+# The style floor (tutorial section 2) re-drives a scene with the population's median style
+# and measures how far that driver ends up from the logged human. Which part of the hidden
+# style is the error made of?
 #
-# * `median_of(styles)`: for a list of `HumanStyle`s, the `HumanStyle` whose every field
-#   is the median of that field over the list (a Python `float`; for an even number of
-#   styles the mean of the two middle values). `dataclasses.fields(HumanStyle)` lists the
-#   fields.
 # * `track_errors(ego, human)`: for driven poses `ego (S, T, 3)` and the human's
-#   `human (S, T, 3)` (`[x, y, yaw]`), with $d_t = p_t - p^{human}_t$ and the human's heading
-#   $\psi_t$, return three arrays of shape `(S,)`: the ADE $\frac1T\sum_t \lVert d_t\rVert$,
-#   the mean $|d_t \cdot (\cos\psi_t, \sin\psi_t)|$ (along the human's heading) and the mean
-#   $|d_t \cdot (-\sin\psi_t, \cos\psi_t)|$ (across it). The driven yaw does not enter.
-# * `style_floor(ds, scenes, styles)`: re-drive the scenes `scenes` of `ds` with the median
-#   of `styles` (`bounds.floor_rollout(ds, style, scenes=...)`) and return a dict with the
-#   means over those scenes of your three errors: `{"ade": ..., "along": ..., "cross": ...}`
-#   (floats).
+#   `human (S, T, 3)` (`[x, y, yaw]`), return three arrays of shape `(S,)`, each a mean over
+#   the steps: the ADE (the mean distance between the two positions), the mean absolute
+#   part of the displacement *along* the human's heading at that step, and the mean
+#   absolute part *across* it. The driven yaw does not enter.
+# * `field_floor(ds, scenes, styles, field)`: re-drive each scene `s` of `scenes` of `ds`
+#   (`bounds.floor_rollout`) with the field-wise median of the list `styles` (a `float` per
+#   field; for an even number of styles the mean of the two middle values), except that
+#   the field named `field` takes the scene's own value, `ds.tags[s]["style"][field]`
+#   (`field=None`: no exception, the plain floor). Return a dict with the means over those
+#   scenes of your three errors, `{"ade": ..., "along": ..., "cross": ...}` (floats).
 #
-# `bounds.median_style`, `metrics.trajectory.ade` and `metrics.trajectory.along_cross_track`
-# are switched off while this exercise is graded.
+# `field_floor(val, range(6), styles, "v0")` next to `field_floor(val, range(6), styles,
+# None)` says how much of the floor the desired speed alone explains. `bounds.median_style`,
+# `metrics.trajectory.ade` and `metrics.trajectory.along_cross_track` are switched off
+# while this exercise is graded.
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
-# The along and across components are the displacement seen in the human's own frame: a
-# rotation by $-\psi_t$. A rotation keeps lengths, so $\text{along}^2 + \text{cross}^2 =
-# \lVert d_t\rVert^2$ at every step (the visible test checks it).
+# Along and across are the displacement seen in the human's own frame at that step, as
+# chapter 7 put points into the ego's frame. A rotation keeps lengths: what must
+# $\text{along}^2 + \text{cross}^2$ be at every step?
 # </details>
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Build the median with a dict comprehension over the field names and `HumanStyle(**...)`.
-# For the errors, take `d = ego[..., :2] - human[..., :2]` and the cosine and sine of
-# `human[..., 2]`, then average the absolute values over the time axis.
+# The styles are dataclasses: `dataclasses.fields`, `dataclasses.replace` and
+# `HumanStyle(**...)` build one from another. Each scene needs its own style, so its own
+# re-drive. Check the whole with a population of one: a scene's own style re-drives its
+# log, so its floor is zero.
 # </details>
 
-# %% solution id=ex12_1 title="The style floor of a scene" forbids="minimanc.diagnose.bounds.median_style,minimanc.metrics.trajectory.ade,minimanc.metrics.trajectory.along_cross_track"  # noqa: E501
-def median_of(styles):
-    ### BEGIN SOLUTION
-    names = [f.name for f in dataclasses.fields(HumanStyle)]
-    return HumanStyle(**{n: float(np.median([getattr(s, n) for s in styles])) for n in names})
-    ### END SOLUTION
-
-
+# %% solution id=ex12_1 title="The style floor, field by field" forbids="minimanc.diagnose.bounds.median_style,minimanc.metrics.trajectory.ade,minimanc.metrics.trajectory.along_cross_track"  # noqa: E501
 def track_errors(ego, human):
     ### BEGIN SOLUTION
     e, h = np.asarray(ego, dtype=float), np.asarray(human, dtype=float)
@@ -92,38 +90,19 @@ def track_errors(ego, human):
     ### END SOLUTION
 
 
-def style_floor(ds, scenes, styles):
+def field_floor(ds, scenes, styles, field):
     ### BEGIN SOLUTION
-    traj = bounds.floor_rollout(ds, median_of(styles), scenes=scenes)
-    dist, along, cross = track_errors(traj.ego, np.asarray(ds.ego)[list(scenes)])
-    return {"ade": float(dist.mean()), "along": float(along.mean()),
-            "cross": float(cross.mean())}
+    names = [f.name for f in dataclasses.fields(HumanStyle)]
+    mid = HumanStyle(**{n: float(np.median([getattr(s, n) for s in styles])) for n in names})
+    rows = []
+    for s in scenes:
+        style = mid if field is None else dataclasses.replace(
+            mid, **{field: float(ds.tags[s]["style"][field])})
+        traj = bounds.floor_rollout(ds, style, scenes=[s])
+        rows.append([float(x[0]) for x in track_errors(traj.ego, np.asarray(ds.ego)[[s]])])
+    ade_, along, cross = np.mean(rows, axis=0)
+    return {"ade": float(ade_), "along": float(along), "cross": float(cross)}
     ### END SOLUTION
-
-# %% grade id=ex12_1_median_tests points=1
-base = random_style(np.random.default_rng(0))
-trio = [dataclasses.replace(base, v0=v, T=t) for v, t in ((8.0, 1.0), (14.0, 2.0), (10.0, 1.2))]
-got = median_of(trio)
-assert isinstance(got, HumanStyle), f"expected a HumanStyle, got {type(got).__name__}"
-assert (got.v0, got.T) == (10.0, 1.2), (
-    f"v0 8, 14, 10 and T 1.0, 2.0, 1.2: expected the medians v0 = 10.0, T = 1.2, got "
-    f"v0 = {got.v0!r}, T = {got.T!r}")
-assert got.reaction == base.reaction, "a field equal in every style keeps its value"
-### BEGIN HIDDEN TESTS
-test_rng = np.random.default_rng(1210)  # the tests' own draws, not the notebook's
-for n in (101, 40):
-    styles = [random_style(test_rng) for _ in range(n)]
-    got = median_of(styles)
-    for f in dataclasses.fields(HumanStyle):
-        want = float(np.median([getattr(s, f.name) for s in styles]))
-        assert type(getattr(got, f.name)) is float, (
-            f"{n} styles, field {f.name}: expected a float, got {type(getattr(got, f.name))}")
-        assert math.isclose(getattr(got, f.name), want, rel_tol=1e-12), (
-            f"{n} styles, field {f.name}: expected the median {want!r}, got "
-            f"{getattr(got, f.name)!r}")
-pair = median_of([dataclasses.replace(base, v0=8.0), dataclasses.replace(base, v0=12.0)])
-assert pair.v0 == 10.0, f"two styles, v0 8 and 12: expected 10.0 (the mean), got {pair.v0!r}"
-### END HIDDEN TESTS
 
 # %% grade id=ex12_1_errors_tests points=2
 human1 = np.zeros((1, 3, 3))
@@ -156,45 +135,61 @@ spun[..., 2] += 1.0
 assert np.allclose(track_errors(spun, human2)[1], want[1]), "the driven yaw must not enter"
 ### END HIDDEN TESTS
 
-# %% grade id=ex12_1_floor_tests points=1
-pop = [random_style(np.random.default_rng(k)) for k in range(31)]
-got = style_floor(val, [3], pop)
+
+# %% grade id=ex12_1_floor_tests points=2
+own3 = HumanStyle(**val.tags[3]["style"])
+got = field_floor(val, [3], [own3], None)
 assert set(got) == {"ade", "along", "cross"}, f"expected keys ade, along, cross; got {set(got)}"
+assert got["ade"] < 1e-3, (
+    f"validation scene 3, a population of one style, scene 3's own: expected the log "
+    f"re-driven (ADE below 0.001 m), got {got['ade']:.4f} m")
+pop = [random_style(np.random.default_rng(k)) for k in range(31)]
+got = field_floor(val, [3], pop, "v0")
 assert max(got["along"], got["cross"]) <= got["ade"] + 1e-9 <= got["along"] + got["cross"] + 2e-9, (
-    f"validation scene 3: the ADE must lie between max(along, cross) and along + cross "
-    f"(a triangle at every step); got {got}")
+    f"validation scene 3, 31 styles, own v0: the ADE must lie between max(along, cross) and "
+    f"along + cross (a triangle at every step); got {got}")
 ### BEGIN HIDDEN TESTS
 names = [f.name for f in dataclasses.fields(HumanStyle)]
 mid = HumanStyle(**{n: float(np.median([getattr(s, n) for s in pop])) for n in names})
-for scenes in ([3], [0, 5]):
-    ref = bounds.floor_rollout(val, mid, scenes=scenes)
-    d = ref.ego[..., :2] - np.asarray(val.ego)[scenes][..., :2]
-    want = float(np.hypot(d[..., 0], d[..., 1]).mean())
-    got = style_floor(val, scenes, pop)
+even = pop[:30]
+mid_even = HumanStyle(**{n: float(np.median([getattr(s, n) for s in even])) for n in names})
+for scenes, field, styles, middle in (([3], "v0", pop, mid), ([0, 5], "T", pop, mid),
+                                      ([1], None, even, mid_even)):
+    ade_s, along_s = [], []
+    for s in scenes:   # the reference, computed before the call
+        style = middle if field is None else dataclasses.replace(
+            middle, **{field: float(val.tags[s]["style"][field])})
+        ego_s = bounds.floor_rollout(val, style, scenes=[s]).ego[0]
+        d = ego_s[:, :2] - np.asarray(val.ego[s], dtype=float)[:, :2]
+        h = np.asarray(val.ego[s], dtype=float)[:, 2]
+        ade_s.append(np.hypot(d[:, 0], d[:, 1]).mean())
+        along_s.append(np.abs(d[:, 0] * np.cos(h) + d[:, 1] * np.sin(h)).mean())
+    want, want_along = float(np.mean(ade_s)), float(np.mean(along_s))
+    got = field_floor(val, scenes, styles, field)
+    case = f"validation scenes {scenes}, {len(styles)} styles, own field {field}"
+    assert all(type(got[k]) is float for k in ("ade", "along", "cross")), (
+        f"{case}: expected three floats, got {got!r}")
     assert math.isclose(got["ade"], want, rel_tol=1e-9), (
-        f"validation scenes {scenes}, the median of 31 styles: expected the floor's ADE "
-        f"{want:.4f} m, got {got['ade']!r}")
-    h = np.asarray(val.ego, dtype=float)[scenes]
-    along = np.abs(d[..., 0] * np.cos(h[..., 2]) + d[..., 1] * np.sin(h[..., 2])).mean()
-    assert math.isclose(got["along"], float(along), rel_tol=1e-9), (
-        f"validation scenes {scenes}: expected the floor's along-track error {along:.4f} m, "
+        f"{case}: expected the floor's ADE {want:.4f} m, got {got['ade']!r}")
+    assert math.isclose(got["along"], want_along, rel_tol=1e-9), (
+        f"{case}: expected the floor's along-track error {want_along:.4f} m, "
         f"got {got['along']!r}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 12.2 — what the expert perceives
+# ## Exercise 12.2 — what the expert perceives, and what it demands
 # `HumanExpert(ds).situation(scene, t, pose, speed)` returns a `Situation` with
 # `sit.ego` (the ego `Vehicle`: `.v` its speed, `.s` its arc length on its path),
 # `sit.path` (its route: `sit.path.pose(s)` returns `((x, y), heading)` of the point at arc
 # length `s`), `sit.pose` (the asked `[x, y, yaw]`) and `sit.perceived`, a dict with the
-# leader's `gap` (m) and speed `v_lead` (m/s), the `stop` distance to where the ego must
-# yield and `a_curve` (`math.inf` where there is no leader or no stop point). With
-# `FAR = P.FAR` (60 m):
+# leader's `gap` (m) and speed `v_lead` (m/s) (`math.inf` without a leader).
 #
-# * `leader_stop(sit)` returns the array `[gap, dv, has_leader, stop, has_stop]`:
-#   `gap` clipped at `FAR` (and `FAR` without a leader), `dv = v_lead − v` (0 without a
-#   leader), `has_leader` 1.0 or 0.0; `stop` clipped at `FAR` (`FAR` without one),
-#   `has_stop` 1.0 or 0.0.
+# * `braking_needed(gap, v, v_lead, s0=2.0)`: how hard must the ego brake for its leader?
+#   Return the constant deceleration $b \ge 0$ (m/s²) that, applied from now until the ego
+#   has come down to the leader's speed (the leader holds its speed), keeps the gap at `s0`
+#   metres or more: the smallest such $b$. It is 0 when the ego is not closing in (or
+#   `gap` is `math.inf`), and `math.inf` when it is closing in with the gap already at most
+#   `s0`. The arguments may be floats or arrays that broadcast; return a float or an array.
 # * `lane(sit)` returns `[lateral, heading, ahead_5, ahead_10, ahead_20]`: with `(px, py), h`
 #   the path's point at the ego's arc length, `lateral` is the ego's offset from it across
 #   the path (positive to the path's left), `heading` the ego's yaw minus `h` wrapped to
@@ -206,26 +201,30 @@ for scenes in ([3], [0, 5]):
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
-# Every one of these is a coordinate in some frame: the path's frame at the ego (for
-# `lateral`) or the ego's frame (for `ahead_d`). A frame rotated by an angle θ has its left
-# axis along $(-\sin\theta, \cos\theta)$.
+# Braking: watch the leader from the leader: in its frame the ego comes closer at the
+# closing speed and slows down at $b$; how far does it travel before it stops closing in?
+# Lane: every number is a coordinate in some frame, the path's frame at the ego (for
+# `lateral`) or the ego's frame (for `ahead_d`).
 # </details>
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Test `math.isfinite(sit.perceived["gap"])` for the leader. For `lateral`, project the
-# offset `(x − px, y − py)` onto the path's left axis; for `ahead_d`, project the offset
-# from the ego to the point ahead onto the ego's left axis, with the ego's yaw `sit.pose[2]`.
+# Braking: set that distance equal to the room there is, solve for $b$, then treat the
+# three special cases with `np.where` (the case that divides by zero must not reach the
+# division). Lane: a frame rotated by an angle θ has its left axis along
+# $(-\sin\theta, \cos\theta)$; which operation gives a vector's component along an axis?
 # </details>
 
-# %% solution id=ex12_2 title="What the expert perceives" forbids="minimanc.diagnose.privileged.features"  # noqa: E501
-def leader_stop(sit):
+# %% solution id=ex12_2 title="What the expert perceives and demands" forbids="minimanc.diagnose.privileged.features"  # noqa: E501
+def braking_needed(gap, v, v_lead, s0=2.0):
     ### BEGIN SOLUTION
-    per, v = sit.perceived, float(sit.ego.v)
-    lead, stop = math.isfinite(per["gap"]), math.isfinite(per["stop"])
-    return np.array([min(per["gap"], P.FAR) if lead else P.FAR,
-                     per["v_lead"] - v if lead else 0.0, float(lead),
-                     min(per["stop"], P.FAR) if stop else P.FAR, float(stop)])
+    gap, v, v_lead = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (gap, v, v_lead)))
+    closing = np.maximum(v - v_lead, 0.0)
+    room = np.where(np.isfinite(gap) & (gap > s0), gap - s0, 1.0)
+    # relative motion: the closing speed w falls to 0 over w^2 / (2 b) metres
+    b = np.where(closing > 0, closing**2 / (2.0 * room), 0.0)
+    b = np.where(np.isinf(gap), 0.0, np.where((closing > 0) & (gap <= s0), np.inf, b))
+    return float(b) if b.ndim == 0 else b
     ### END SOLUTION
 
 
@@ -241,40 +240,40 @@ def lane(sit):
     return np.array(out)
     ### END SOLUTION
 
-# %% grade id=ex12_2_leader_tests points=2
-sits = [(s, t, expert.situation(s, t, train.ego[s, t], expert.steps(s)[t].speed))
-        for s in range(6) for t in (0, 15, 30)]
-for s, t, sit in sits:
-    got = np.asarray(leader_stop(sit), dtype=float)
-    assert got.shape == (5,), f"scene {s}, step {t}: expected 5 values, got shape {got.shape}"
-    assert set(got[[2, 4]]) <= {0.0, 1.0}, (
-        f"scene {s}, step {t}: has_leader and has_stop must be 0.0 or 1.0, got {got[[2, 4]]}")
-    assert 0 <= got[0] <= P.FAR and 0 <= got[3] <= P.FAR, (
-        f"scene {s}, step {t}: gap and stop must lie in [0, FAR = 60], got {got[[0, 3]]}")
-    if got[2] == 0.0:
-        assert got[0] == P.FAR and got[1] == 0.0, (
-            f"scene {s}, step {t}, no leader: expected gap FAR = 60 and dv 0, got "
-            f"{np.round(got[:2], 3).tolist()}")
-assert any(leader_stop(sit)[2] == 1.0 for _, _, sit in sits), "some of these states have a leader"
+# %% grade id=ex12_2_braking_tests points=2
+cases = ((22.0, 10.0, 0.0, 2.5, "gap 22 m, 10 m/s behind a standing car"),
+         (30.0, 8.0, 10.0, 0.0, "gap 30 m, the leader drives away"),
+         (math.inf, 12.0, 0.0, 0.0, "no leader"),
+         (1.5, 5.0, 4.0, math.inf, "gap 1.5 m < s0, closing at 1 m/s"))
+for gap2, v2, lead2, want2, case2 in cases:
+    got2 = float(braking_needed(gap2, v2, lead2))
+    assert got2 == want2 or math.isclose(got2, want2, rel_tol=1e-9), (
+        f"{case2}: expected b = {want2} m/s², got {got2!r}")
 ### BEGIN HIDDEN TESTS
-kinds = set()
-for s in range(len(train)):
-    for t in range(0, 40, 3):
-        sit = expert.situation(s, t, train.ego[s, t], expert.steps(s)[t].speed)
-        per, v = sit.perceived, sit.ego.v
-        lead, stop = math.isfinite(per["gap"]), math.isfinite(per["stop"])
-        kinds |= {("lead", lead), ("stop", stop), ("far", lead and per["gap"] > P.FAR)}
-        want = np.array([min(per["gap"], P.FAR) if lead else P.FAR,
-                         per["v_lead"] - v if lead else 0.0, float(lead),
-                         min(per["stop"], P.FAR) if stop else P.FAR, float(stop)])
-        got = np.asarray(leader_stop(sit), dtype=float)
-        assert np.allclose(got, want, rtol=1e-12, atol=1e-12), (
-            f"scene {s}, step {t} (leader: {lead}, stop point: {stop}): expected "
-            f"[gap, dv, has_leader, stop, has_stop] = {np.round(want, 3).tolist()}, got "
-            f"{np.round(got, 3).tolist()}")
-assert {("lead", True), ("lead", False), ("stop", True)} <= kinds, kinds
+test_rng = np.random.default_rng(1220)  # the tests' own draws, not the notebook's
+gap2 = test_rng.uniform(0.5, 80, 200)
+v2, lead2 = test_rng.uniform(0, 20, 200), test_rng.uniform(0, 20, 200)
+gap2[:10] = np.inf
+s0_2 = 3.0
+w2 = np.maximum(v2 - lead2, 0.0)
+want2 = np.array([0.0 if (not math.isfinite(g) or w == 0) else
+                  (math.inf if g <= s0_2 else w * w / (2 * (g - s0_2)))
+                  for g, w in zip(gap2, w2)])   # the reference, before the call
+got2 = np.asarray(braking_needed(gap2, v2, lead2, s0=s0_2), dtype=float)
+assert got2.shape == (200,), f"200 cases: expected 200 decelerations, got shape {got2.shape}"
+fin = np.isfinite(want2)
+assert np.array_equal(np.isinf(got2), ~fin) and np.allclose(got2[fin], want2[fin], rtol=1e-9), (
+    f"200 random gaps and speeds, s0 = 3: expected {np.round(want2[10:14], 4).tolist()} ..., "
+    f"got {np.round(got2[10:14], 4).tolist()} ...")
+# braking at the answer from gap g, closing at w, the gap's smallest value is s0
+g, w = 40.0, 9.0
+b = float(braking_needed(g, 9.0, 0.0, s0=s0_2))
+tt = np.linspace(0.0, w / b, 20001)
+closest = float(np.min(g - w * tt + 0.5 * b * tt**2))
+assert abs(closest - s0_2) < 1e-6, (
+    f"gap 40 m, closing at 9 m/s, s0 = 3: braking at your b the gap must end at 3 m, "
+    f"got {closest:.4f} m")
 ### END HIDDEN TESTS
-
 # %% grade id=ex12_2_lane_tests points=2
 s, t = 2, 10
 sit = expert.situation(s, t, train.ego[s, t], expert.steps(s)[t].speed)
@@ -318,44 +317,49 @@ for s in range(len(train)):
             f"got {np.round(got, 4).tolist()}")
 ### END HIDDEN TESTS
 
+
 # %% [markdown]
-# ## Exercise 12.3 — the ablation table
+# ## Exercise 12.3 — two ways to ask which input matters
 # The tutorial dropped two input groups and drove the learners closed loop. Build the whole
 # table open loop, which is cheap: each learner is trained on the demonstrations and scored
-# on the validation states.
+# on the validation states; then ask the same question a second way, without retraining.
 #
 # * `ablation_table(X, Y, Xv, Yv, groups, steps)` returns a dict: the row `"all inputs"`,
 #   then one row `"without <group>"` per group of `groups`, in that order; each row is the
-#   tuple `(rmse_acceleration, rmse_yaw_rate)` (floats) of the learner
-#   `P.fit_privileged(X, Y, drop=..., hidden=(16, 16), steps=steps, seed=0)`
-#   predicting `Yv` from `Xv`
-#   (`P.predict`). The RMSE of one output is $\sqrt{\text{mean}((\hat y - y)^2)}$ over the
-#   states.
-# * `missing_input(table, column)`: `column` 0 (acceleration) or 1 (yaw rate); return the
-#   group (the name without `"without "`) whose row has the largest RMSE in that column.
-#   Raise `ValueError` naming the parameter for a column other than 0 or 1, or a table
-#   with no `"without ..."` row.
+#   tuple `(rmse_acceleration, rmse_yaw_rate)` (floats), the root mean squared error of
+#   each output on the validation states `Xv` (labels `Yv`) of the tutorial's learner
+#   trained on `X, Y` without that group, at a smaller size: two hidden layers of 16,
+#   `steps` steps, `seed=0`.
+# * `shuffled_rmse(model, Xv, Yv, group, seed)`: keep one trained learner `model` (every
+#   input) and break the link between one group and the outputs instead: give every
+#   validation state the values of that group's features of another state, by the rows of
+#   one permutation `np.random.default_rng(seed).permutation(len(Xv))` (the same for all of
+#   the group's columns; the other columns stay), and return the learner's two RMSEs
+#   `(acceleration, yaw rate)` as floats on those states. Raise `ValueError` naming `group`
+#   for a name that is not a group of `P.FEATURE_GROUPS`.
+#
+# The written answer below compares the two readings.
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
-# `drop=[]` is the learner with every input. The removal that costs most is the row with
-# the largest error: the other rows are compared with each other, not with zero.
+# The ablation retrains, so the learner can lean on another input that carries the same
+# information; shuffling keeps the learner and only takes the information away from it.
+# A removal that costs much is a row with a large error: compare the rows with each other.
 # </details>
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Loop over `[None] + list(groups)`; for each, fit, predict, take the root of the mean
-# squared error along axis 0. For the reading, filter the keys that start with
-# `"without "` and take the `max` with a key function.
+# The tutorial's section 4 shows how a group is dropped. For the shuffle, find the group's
+# columns in the feature vector from the names, and work on a copy of the states.
 # </details>
 
-# %% solution id=ex12_3 title="The ablation table"
+# %% solution id=ex12_3 title="Two ways to ask which input matters"
 def ablation_table(X, Y, Xv, Yv, groups, steps):
     ### BEGIN SOLUTION
     table = {}
     for group in [None, *groups]:
         model = P.fit_privileged(X, Y, drop=[] if group is None else [group], hidden=(16, 16),
-                      steps=steps, seed=0)
+                                 steps=steps, seed=0)
         rmse = np.sqrt(((P.predict(model, Xv) - Yv) ** 2).mean(axis=0))
         table["all inputs" if group is None else f"without {group}"] = (float(rmse[0]),
                                                                         float(rmse[1]))
@@ -363,14 +367,16 @@ def ablation_table(X, Y, Xv, Yv, groups, steps):
     ### END SOLUTION
 
 
-def missing_input(table, column):
+def shuffled_rmse(model, Xv, Yv, group, seed):
     ### BEGIN SOLUTION
-    if column not in (0, 1):
-        raise ValueError(f"column must be 0 or 1, got column={column!r}")
-    rows = [name for name in table if name.startswith("without ")]
-    if not rows:
-        raise ValueError(f"table has no 'without ...' row: {list(table)}")
-    return max(rows, key=lambda name: table[name][column])[len("without "):]
+    if group not in P.FEATURE_GROUPS:
+        raise ValueError(f"group must be one of {list(P.FEATURE_GROUPS)}, got group={group!r}")
+    cols = [P.FEATURES.index(name) for name in P.FEATURE_GROUPS[group]]
+    order = np.random.default_rng(seed).permutation(len(Xv))
+    Xs = np.array(Xv, copy=True)
+    Xs[:, cols] = Xs[order][:, cols]
+    rmse = np.sqrt(((P.predict(model, Xs) - Yv) ** 2).mean(axis=0))
+    return float(rmse[0]), float(rmse[1])
     ### END SOLUTION
 
 # %% grade id=ex12_3_table_tests points=2
@@ -398,30 +404,34 @@ for name, drop in (("all inputs", []), ("without lane", ["lane"]),
         f"{np.round(want, 4).tolist()}, got {np.round(row, 4).tolist()}")
 ### END HIDDEN TESTS
 
-# %% grade id=ex12_3_missing_tests points=2
-toy = {"all inputs": (0.3, 0.03), "without leader": (0.35, 0.03),
-       "without history": (0.5, 0.031), "without lane": (0.31, 0.09)}
-for column, want in ((0, "history"), (1, "lane")):
-    got = missing_input(toy, column)
-    assert got == want, f"the toy table, column {column}: expected {want!r}, got {got!r}"
-### BEGIN HIDDEN TESTS
-assert missing_input({"all inputs": (9.0, 9.0), "without stop": (0.1, 0.2)}, 0) == "stop", (
-    "one 'without' row: expected it even when 'all inputs' is larger (it is not a group)")
-assert missing_input({"without a b": (1.0, 2.0), "all inputs": (0.5, 0.5),
-                      "without curve": (1.5, 0.1)}, 1) == "a b", "the name after 'without '"
-for bad_column in (2, -1, "acc"):
-    try:
-        missing_input(toy, bad_column)
-    except ValueError as err:
-        assert "column" in str(err), f"column={bad_column!r}: the error must name 'column'"
-    else:
-        raise AssertionError(f"column={bad_column!r}: expected a ValueError")
+
+# %% grade id=ex12_3_shuffle_tests points=2
+model3 = P.fit_privileged(X[:400], Y[:400], hidden=(16, 16), steps=60, seed=0)
+base3 = np.sqrt(((P.predict(model3, Xv) - Yv) ** 2).mean(axis=0))
+got3 = shuffled_rmse(model3, Xv, Yv, "lane", 0)
+assert len(got3) == 2 and all(type(v) is float for v in got3), (
+    f"expected a tuple of two floats (acceleration, yaw rate), got {got3!r}")
+assert got3[1] > base3[1], (
+    f"a learner of 60 steps, the lane group shuffled with seed 0: expected a yaw-rate RMSE above "
+    f"the unshuffled {base3[1]:.4f} rad/s, got {got3[1]:.4f}")
+assert shuffled_rmse(model3, Xv, Yv, "lane", 0) == got3, "the same seed must give the same RMSEs"
 try:
-    missing_input({"all inputs": (0.3, 0.03)}, 0)
-except ValueError:
-    pass
+    shuffled_rmse(model3, Xv, Yv, "weather", 0)
+except ValueError as err:
+    assert "group" in str(err), f"group='weather': the ValueError must name 'group', got {err}"
 else:
-    raise AssertionError("a table without any 'without ...' row: expected a ValueError")
+    raise AssertionError("group='weather' is not a group: expected a ValueError")
+### BEGIN HIDDEN TESTS
+for group, seed in (("leader", 3), ("speed", 5), ("history", 0)):
+    cols = [P.FEATURES.index(n) for n in P.FEATURE_GROUPS[group]]
+    order = np.random.default_rng(seed).permutation(len(Xv))
+    Xs = np.array(Xv, copy=True)
+    Xs[:, cols] = np.asarray(Xv)[order][:, cols]
+    want = np.sqrt(((P.predict(model3, Xs) - Yv) ** 2).mean(axis=0))   # before the call
+    got = shuffled_rmse(model3, Xv, Yv, group, seed)
+    assert np.allclose(got, want, rtol=1e-6), (
+        f"the group {group} shuffled with seed {seed}: expected RMSEs "
+        f"{np.round(want, 5).tolist()}, got {np.round(got, 5).tolist()}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -446,15 +456,14 @@ else:
 # <details><summary>Hint 1 (the idea)</summary>
 #
 # The boxes are those of earlier rows of the same arrays; only which rows, which slots and
-# how bright change with `t`, `steps` and `decay`. Near the start of the track there are
-# fewer than `steps` past steps.
+# how bright change with `t`, `steps` and `decay`.
 # </details>
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Loop over `j` in `range(1, min(steps, t) + 1)`; collect `ego[t - j]`, then
-# `ado[t - j][ado_valid[t - j]]`, with a brightness list of the same lengths; stack with
-# `np.array(...).reshape(-1, 3)` (and `(-1, 5)`) so that empty results keep their shapes.
+# Count, for each `j`, whether step $t - j$ exists; a boolean row of `ado_valid` picks the
+# valid slots of a step in slot order. Near the start of a track the answer may be empty:
+# empty arrays must still have the shapes `(0, 3)` and `(0, 5)`.
 # </details>
 
 # %% solution id=ex12_4 title="Faded history at another decay" forbids="minimanc.world.history.history_of,minimanc.world.history.latest_history"  # noqa: E501
@@ -568,7 +577,8 @@ assert np.all(small <= 1.15 * every), (
 # %% [markdown]
 # **Written question (graded by hand, 3 points).** Which features did you remove, and why
 # could the learner do without them? In your ablation table (12.3), which group's removal
-# costs the most acceleration error open loop, and what does
+# costs the most acceleration error open loop, and does shuffling that group
+# (`shuffled_rmse`) rank it the same way? Say why the two readings can differ. What does
 # `research/why_it_crashes/REPORT.md` ("Ablation") report for the same group closed loop?
 # Explain the difference, and say which of your removals you would check closed loop before
 # building an image model on them.
@@ -580,15 +590,21 @@ assert np.all(small <= 1.15 * every), (
 # `a_curve` together) and `dv` (open loop the next acceleration follows mostly from the last
 # one and the gap). Open loop, removing `history` (the last acceleration) costs the most
 # acceleration error: the human's acceleration changes slowly (reaction delay, bounded
-# jerk), so the last one predicts the next. Closed loop the committed ablation says the
-# opposite: without `history` the learner collides *less* than with every input. A learner
-# that leans on its last acceleration copies its own previous command (the copycat of causal
-# confusion, de Haan et al. 2019); on the human's states that is right, in its own states it
-# keeps accelerating when it should brake. An open-loop score judges each prediction on the
-# human's states and cannot see that. The removal I would check closed loop first is `dv`:
-# the closing speed matters in the rare states just before a rear-end collision, which
-# barely move an RMSE over all states, and the ablation's `leader` row shows what losing it
-# costs in collisions.
+# jerk), so the last one predicts the next. Shuffling `history` raises the acceleration
+# error of the learner with every input the most as well. The two readings answer different
+# questions: shuffling asks what *this* learner uses (it still trusts the shuffled input and
+# is misled by it), retraining asks what the learner *needs* (it can lean on another input
+# that carries the same information). They differ most for information two groups share:
+# the flags and the clipped distances, or the curve and the path points ahead. Closed loop
+# the committed ablation says the opposite of the open-loop ranking:
+# without `history` the learner collides *less* than with every input. A learner that leans
+# on its last acceleration copies its own previous command (the copycat of causal confusion,
+# de Haan et al. 2019); on the human's states that is right, in its own states it keeps
+# accelerating when it should brake. An open-loop score, retrained or shuffled, judges each
+# prediction on the human's states and cannot see that. The removal I would check closed
+# loop first is `dv`: the closing speed matters in the rare states just before a rear-end
+# collision, which barely move an RMSE over all states, and the ablation's `leader` row shows
+# what losing it costs in collisions.
 # ### END SOLUTION
 
 # %% [markdown]

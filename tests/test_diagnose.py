@@ -6,6 +6,8 @@ collision of the ego's fault, faster than the human."""
 
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 import pytest
 
@@ -236,3 +238,11 @@ def test_linear_probe_reads_a_linear_quantity_and_not_noise():
         linear_probe(z[:400], y[:300], z[400:], y[400:])
     with pytest.raises(ValueError, match="finite"):
         linear_probe(np.full((4, 2), np.nan), y[:4], z[:4, :2], y[:4])
+
+
+def test_every_rollout_takes_the_scenes_then_the_protocol_by_keyword():
+    """One calling convention: ``(ds, [policy or style,] scenes, *, agents=...)``."""
+    for fn in (expert_rollout, floor_rollout, rollout.human, rollout.simulate):
+        params = inspect.signature(fn).parameters
+        assert params["agents"].kind is inspect.Parameter.KEYWORD_ONLY, fn.__name__
+        assert params["scenes"].kind is inspect.Parameter.POSITIONAL_OR_KEYWORD, fn.__name__

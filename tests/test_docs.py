@@ -112,3 +112,22 @@ def test_the_checks_catch_a_dead_link_and_a_stale_name(tmp_path: Path) -> None:
     assert resolves("minimanc.world.generate") and resolves("minimanc.diagnose.bounds")
     assert heading_slug("Reading a result: the bound rows") == "reading-a-result-the-bound-rows"
     assert not REPO_PATH.match("minimanc reproduce") and REPO_PATH.match("research/x/REPORT.md")
+
+
+def python_blocks(markdown: str, section: str) -> list[str]:
+    """The fenced ``python`` blocks of the ``## section`` of a Markdown text."""
+    body = markdown.split(f"\n## {section}\n", 1)[1].split("\n## ", 1)[0]
+    return re.findall(r"```python\n(.*?)```", body, re.S)
+
+
+def test_the_readme_s_library_example_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    """The README's example generates data, trains MANC, drives it closed loop and prints
+    a line of metrics for MANC and for the human's log (whose ADE is 0 by definition)."""
+    (block,) = python_blocks((ROOT / "README.md").read_text(encoding="utf-8"),
+                             "Reusing the library")
+    exec(compile(block, "README.md", "exec"), {"__name__": "readme_example"})
+    lines = capsys.readouterr().out.splitlines()
+    assert [ln.split()[0] for ln in lines] == ["MANC", "human"]
+    assert re.fullmatch(r"human +ADE +0\.00 m  collisions +0%", lines[1]), lines[1]
+    ade = float(lines[0].split()[2])
+    assert 0.0 < ade < 100.0

@@ -472,11 +472,7 @@ def test_a_copied_function_in_a_grade_cell_is_a_leak():
 
 #: Grade cells of chapters outside this branch that still show a solution's formula;
 #: their owners remove them (the test fails until the list is exactly what is found).
-KNOWN_LEAKS = {
-    "07_world.ipynb ex07_7_matrix_tests": "ex07_6",
-    "07_world.ipynb ex07_8_tests": "ex07_6",
-    "08_manc.ipynb ex08_1_tests": "ex08_1",
-}
+KNOWN_LEAKS: dict[str, str] = {}
 
 
 def test_no_visible_grade_cell_shows_a_solution_of_its_notebook():

@@ -388,23 +388,18 @@ def test_cli_exercises_without_an_action_names_only_the_action():
 
 # ------------------------------------------------------------------ a real chapter
 def test_chapter_3_boundary_mistakes_fail_the_hidden_tests(tmp_path):
-    """A renamed copy outside the course: ``z == 1.0`` and ``h*beta > 1`` lose the
-    hidden tests, ``classify = dmp.classify`` is refused, a correct step passes."""
+    """A renamed copy outside the course: ``h*beta > 1`` loses the hidden tests, a
+    ``gains_for`` without its overdamped branch loses 3.1's second grade cell,
+    ``dmp.max_stable_alpha`` is refused, a correct implicit Euler step passes."""
     nb = nbformat.read(ROOT / "exercises" / "03_dmp.ipynb", as_version=4)
     answers = {
-        "ex03_1": "def damping_ratio(alpha, beta):\n"
-                  "    return alpha / (2.0 * np.sqrt(alpha * beta))\n\n\n"
-                  "def classify(alpha, beta):\n"
-                  "    if alpha <= 0 or beta <= 0:\n        return 'unstable'\n"
-                  "    z = damping_ratio(alpha, beta)\n"
-                  "    if z == 1.0:\n        return 'critically damped'\n"
-                  "    return 'underdamped' if z < 1 else 'overdamped'",
-        "ex03_2": "def integrator_step(y, dy, goal, alpha, beta, h, method):\n"
-                  "    acc = alpha * (beta * (goal - y) - dy)\n"
-                  "    if method == 'euler':\n        return y + h * dy, dy + h * acc\n"
-                  "    if method == 'semi_implicit':\n"
-                  "        return y + h * (dy + h * acc), dy + h * acc\n"
-                  "    raise ValueError(method)",
+        "ex03_1": "def gains_for(zeta, t_settle):\n"
+                  "    omega = 4.0 / (t_settle * zeta)\n"
+                  "    return 2.0 * zeta * omega, omega / (2.0 * zeta)",
+        "ex03_2": "def implicit_euler_step(y, dy, goal, alpha, beta, h):\n"
+                  "    dy_next = (dy + h * alpha * beta * (goal - y))"
+                  " / (1.0 + h * alpha + h * h * alpha * beta)\n"
+                  "    return y + h * dy_next, dy_next",
         "ex03_3": "def max_stable_alpha_euler(beta, h):\n"
                   "    if h * beta > 1.0:\n        return 0.0\n"
                   "    return 4.0 / (h * (2.0 - h * beta))",
@@ -417,14 +412,16 @@ def test_chapter_3_boundary_mistakes_fail_the_hidden_tests(tmp_path):
     report = exercises.grade(path, roots=[ROOT])
     got = rows(report)
     assert report.source == str(ROOT / "solutions" / "03_dmp.ipynb")
-    assert got["ex03_1_tests"].hidden and "1e-12" in got["ex03_1_tests"].message
+    assert got["ex03_1_zeta_tests"].points == got["ex03_1_zeta_tests"].max_points
+    assert got["ex03_1_tests"].points == 0 and "(10, 1.6)" in got["ex03_1_tests"].message
     assert got["ex03_2_tests"].points == got["ex03_2_tests"].max_points
     assert got["ex03_3_tests"].hidden and "h*beta = 1" in got["ex03_3_tests"].message
     for cell in nb.cells:
-        if exercises.grade_id(cell) == "ex03_1":
-            cell.source = "damping_ratio = dmp.damping_ratio\nclassify = dmp.classify"
+        if exercises.grade_id(cell) == "ex03_3":
+            cell.source = ("def max_stable_alpha_euler(beta, h):\n"
+                           "    return dmp.max_stable_alpha(beta, h, 'euler', 1)")
     nbformat.write(nb, path)
-    row = rows(exercises.grade(path, roots=[ROOT]))["ex03_1_tests"]
+    row = rows(exercises.grade(path, roots=[ROOT]))["ex03_3_tests"]
     assert row.points == 0 and "disabled while grading" in row.message
 
 

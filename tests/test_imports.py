@@ -335,7 +335,20 @@ def reached(seeds: set[str]) -> set[str]:
         stack += [".".join(parts[:i]) for i in range(1, len(parts))]
         top, inner = _imports(module)
         stack += [t for t in (_own(t) for t, *_ in top + inner) if t]
+        stack += [t for t in (_own(t) for t in _imports_in_sent_code(module)) if t]
     return seen
+
+
+SENT_IMPORT = re.compile(r"^\s*import (minimanc[\w.]*)", re.MULTILINE)
+
+
+def _imports_in_sent_code(module: str) -> list[str]:
+    """The minimanc modules imported by code a module sends to another process as a string
+    (the grader's cells run in the notebook's kernel): ``"import minimanc.x as y\\n..."``."""
+    tree = ast.parse(MODULES[module].read_text(encoding="utf-8"))
+    strings = [n.value for n in ast.walk(tree)
+               if isinstance(n, ast.Constant) and isinstance(n.value, str)]
+    return [m for text in strings for m in SENT_IMPORT.findall(text)]
 
 
 def test_every_module_is_reached_from_a_notebook_or_the_command_line():
@@ -359,3 +372,8 @@ def test_reached_follows_imports_and_parent_packages():
     got = reached({"minimanc.dagger.loop"})
     assert {"minimanc", "minimanc.dagger", "minimanc.dagger.loop", "minimanc.train"} <= got
     assert "minimanc.exercises" not in got and "minimanc.cli" not in got
+
+
+def test_reached_follows_imports_in_code_sent_to_a_kernel():
+    assert "minimanc.exercises.serving" in _imports_in_sent_code("minimanc.exercises.checker")
+    assert "minimanc.exercises.serving" in reached({"minimanc.exercises.checker"})

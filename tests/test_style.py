@@ -153,3 +153,22 @@ def test_no_module_reaches_into_another_modules_private_names():
              *(ROOT / "notebooks_src").glob("*.py")]
     bad = {str(p.relative_to(ROOT)): r for p in sorted(files) if (r := _private_reach_ins(p))}
     assert not bad, f"private names used across modules: {bad}"
+
+
+MAX_LINES = 600
+
+
+def test_no_tracked_python_file_is_over_600_lines():
+    """Every tracked ``.py`` file of minimanc/, tests/, research/, benchmarks/ and .ci/ has at
+    most 600 lines, so that a module holds one concept (split a longer one by concept, tests
+    included). Notebook sources (notebooks_src/) are exempt: a chapter's notebook is one file."""
+    if not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout: the tracked files are unknown")
+    listed = subprocess.run(
+        ["git", "ls-files", "-z", "--", "minimanc", "tests", "research", "benchmarks", ".ci"],
+        cwd=ROOT, capture_output=True, text=True, check=True).stdout.split("\0")
+    tracked = [ROOT / name for name in listed if name.endswith(".py")]
+    assert any(p.name == "test_style.py" for p in tracked), "git ls-files listed no test file"
+    too_long = {str(p.relative_to(ROOT)): n for p in tracked
+                if p.is_file() and (n := len(p.read_text().splitlines())) > MAX_LINES}
+    assert not too_long, f"files over {MAX_LINES} lines (split them by concept): {too_long}"

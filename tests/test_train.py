@@ -245,6 +245,11 @@ def test_evaluate_runs_dmp_models_on_whole_scenes_with_their_own_speed(ds):
         assert val == pytest.approx(ref, rel=1e-6)
 
 
+def test_without_a_config_the_model_takes_the_data_s_image_size(ds):
+    fit = train.fit("cnn", ds, None, _tc(), engine="numpy", progress=False)
+    assert fit.cfg.image_size == ds.bev.shape[2] == 32
+
+
 def test_bad_config_raises(ds):
     with pytest.raises(ValueError, match="lr"):
         train.TrainConfig(lr=-1.0)

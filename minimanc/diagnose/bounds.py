@@ -71,7 +71,7 @@ def check_generated(ds: Any, what: str) -> None:
                          f"dataset is recorded ({source}) and has none")
 
 
-def expert_rollout(ds: Any, agents: str = "replay", scenes: Any = None,
+def expert_rollout(ds: Any, scenes: Any = None, *, agents: str = "replay",
                    progress: bool = False) -> ExpertRollout:
     """The expert's closed loop, Table I's "Expert" row.
 
@@ -79,11 +79,11 @@ def expert_rollout(ds: Any, agents: str = "replay", scenes: Any = None,
     ----------
     ds : minimanc.world.Dataset
         A dataset that regenerates (:func:`minimanc.world.generate`).
+    scenes : array_like of int, optional
+        The scenes to drive (default: all).
     agents : str, optional (default: "replay")
         The ados' protocol (:data:`minimanc.rollout.AGENTS`), as in
         :func:`minimanc.rollout.simulate`.
-    scenes : array_like of int, optional
-        The scenes to drive (default: all).
     progress : bool, optional (default: False)
         A progress bar.
 
@@ -123,8 +123,8 @@ def median_style(n: int = 20000, seed: int = 0) -> HumanStyle:
                          for f in fields(HumanStyle)})
 
 
-def floor_rollout(ds: Any, style: HumanStyle | None, agents: str = "reactive",
-                  scenes: Any = None) -> rollout.Rollout:
+def floor_rollout(ds: Any, style: HumanStyle | None, scenes: Any = None, *,
+                  agents: str = "reactive") -> rollout.Rollout:
     """Scenes re-driven by the world's human with another style, Table I's "Style floor".
 
     The world re-simulates each scene from its own draw: its ados react to the re-driven
@@ -138,10 +138,10 @@ def floor_rollout(ds: Any, style: HumanStyle | None, agents: str = "reactive",
     style : minimanc.world.driver.HumanStyle or None
         The style every scene is driven with (``None``: each scene's own, which reproduces
         the log).
-    agents : str, optional (default: "reactive")
-        The ados' protocol, as in :func:`minimanc.rollout.simulate`.
     scenes : array_like of int, optional
         The scenes to re-drive (default: all).
+    agents : str, optional (default: "reactive")
+        The ados' protocol, as in :func:`minimanc.rollout.simulate`.
 
     Returns
     -------

@@ -101,17 +101,18 @@ def check_fit_args(name: str, train_ds: Any, cfg: models.ModelConfig | None,
     """``(name, cfg, train_cfg)`` of :func:`fit` checked against each other and the data
     (defaults filled in); a ``ValueError`` naming the argument otherwise."""
     name = models.check_name(name)
-    cfg = cfg or models.ModelConfig()
+    dataset_shape(train_ds)
+    H = np.asarray(train_ds.bev[:1, :1]).shape[2]
+    cfg = cfg or models.ModelConfig(image_size=H)
     tc = train_cfg or TrainConfig()
     if not isinstance(cfg, models.ModelConfig):
         raise ValueError(f"cfg must be a models.ModelConfig, got cfg={cfg!r}")
     if not isinstance(tc, TrainConfig):
         raise ValueError(f"train_cfg must be a train.TrainConfig, got train_cfg={tc!r}")
-    dataset_shape(train_ds)
-    H = np.asarray(train_ds.bev[:1, :1]).shape[2]
     if H != cfg.image_size:
         raise ValueError(f"cfg.image_size={cfg.image_size} does not match the dataset's "
-                         f"BEV size {H}")
+                         f"{H} px BEV (its raster sets the size): pass "
+                         f"models.ModelConfig(image_size={H}, ...), or no cfg")
     for label, data in (("train_ds", train_ds), ("val_ds", val_ds)):
         found = first_non_finite(data) if data is not None else None
         if found is not None:
@@ -282,7 +283,9 @@ def fit(
 ) -> FitResult:
     """Train model ``name`` by behaviour cloning (Algorithm 1) on ``train_ds``.
 
-    ``cfg``: the model's :class:`~minimanc.models.ModelConfig`;
+    ``cfg``: the model's :class:`~minimanc.models.ModelConfig` (default: the defaults at
+    the dataset's image size; the raster sets the size, and a ``cfg`` that disagrees is
+    refused);
     ``train_cfg``: :class:`TrainConfig`; ``engine``: "jax" (jitted) or
     "numpy"; ``checkpoint_dir``: write ``checkpoint.npz`` every epoch;
     ``resume``: continue from it (its model and configs must match, except

@@ -115,11 +115,13 @@ class RasterConfig:
     0.78 m pixels; the devkit's 500 px at 0.1 m/px is ``RasterConfig(size=500)``; the
     authors' 250 px at 0.2 m/px is ``RasterConfig(size=250)``; a corridor is
     :meth:`from_extent`). ``lane_width_m`` is the drawn width of lane centrelines
-    (devkit: 5 px at 0.1 m/px = 0.5 m), never thinner than one pixel. ``history`` is the
-    number of past steps drawn (:mod:`minimanc.world.history`; 0, the authors'
-    environment, draws none): faded boxes under the current ones in RGB, one plane per
-    step in channels. ``encoding`` is ``"rgb"`` or ``"channels"`` (:data:`ENCODINGS`);
-    ``route`` draws the ego's route ahead (channels only).
+    (devkit: 5 px at 0.1 m/px = 0.5 m), never thinner than one pixel. ``draw_lanes``,
+    ``draw_walkways`` and ``draw_crossings`` switch those map layers; ``ego_length`` and
+    ``ego_width`` (m) size the ego's box. ``history`` is the number of past steps drawn
+    (:mod:`minimanc.world.history`; 0, the authors' environment, draws none): faded boxes
+    under the current ones in RGB, one plane per step in channels. ``encoding`` is
+    ``"rgb"`` or ``"channels"`` (:data:`ENCODINGS`); ``route`` draws the ego's route ahead
+    (channels only).
     """
 
     size: int = 64

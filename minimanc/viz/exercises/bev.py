@@ -51,7 +51,7 @@ def plot_bev_attempts(
     ahead, column 0 is ``cfg.metres_side`` to the left); an ado box is the set of
     pixels whose centres lie inside it in its own frame, and a world point falls into
     the pixel of its ego-frame coordinates. On the right the ado boxes are put into the
-    ego frame by the student's ``pose_in_ego_frame`` and rasterised by their
+    ego frame by ``pose_in_ego_frame`` and rasterised by the student's
     ``box_pixels`` (magenta), and the human's future path is put into pixels by their
     ``world_to_pixel`` (dots; the library's pixels are rings). The title counts what
     agrees with the library, or names the function that raised.
@@ -68,8 +68,11 @@ def plot_bev_attempts(
         World points to put into pixels (the human's future positions).
     cfg : RasterConfig
         The raster of ``bev``.
-    pose_in_ego_frame, world_to_pixel, box_pixels : callable
-        The student's functions of exercises 7.1, 7.2 and 7.3.
+    pose_in_ego_frame : callable
+        ``(poses (A, 3), ego_pose (3,)) -> (A, 3)``: world poses into the ego frame
+        (chapter 7 passes the library's ``world.goal_in_ego_frame``).
+    world_to_pixel, box_pixels : callable
+        The student's functions of exercises 7.2 and 7.3.
 
     Returns
     -------
