@@ -1,6 +1,6 @@
 """The core configurations hold only settings of the documented API: every field of
 ``ModelConfig``, ``TrainConfig`` and ``RasterConfig`` is documented in its class's docstring
-and read by the library outside the class itself (no field kept for a switch that was
+and read by the library (by its methods or elsewhere) (no field kept for a switch that was
 measured and rejected: their record is research/why_it_crashes/REPORT.md)."""
 
 from __future__ import annotations
@@ -20,12 +20,15 @@ FIELDS = [(cls, f.name) for cls in CONFIGS for f in dataclasses.fields(cls)]
 
 
 def library_text_outside(cls: type) -> str:
-    """The library's source with the class's own definition cut out."""
+    """The library's source with the class's docstring and field declarations cut out
+    (its methods stay: a field its own methods read is read)."""
     own = inspect.getsource(cls)
+    body = own.replace(cls.__doc__ or "", "")
+    body = re.sub(r"^    \w+: [^\n]*$", "", body, flags=re.M)
     texts = []
     for path in sorted((ROOT / "minimanc").rglob("*.py")):
         text = path.read_text(encoding="utf-8")
-        texts.append(text.replace(own, "") if own in text else text)
+        texts.append(text.replace(own, body) if own in text else text)
     return "\n".join(texts)
 
 

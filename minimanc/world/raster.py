@@ -111,17 +111,15 @@ class RasterConfig:
     """Raster geometry, layers and encoding. Defaults: nuScenes proportions at 64 x 64 px, RGB.
 
     ``size`` rows cover ``metres_ahead + metres_behind`` and ``cols`` columns (default
-    ``size``: a square image) cover ``2 * metres_side`` (the defaults give square
-    0.78 m pixels; the devkit's 500 px at 0.1 m/px is ``RasterConfig(size=500)``; the
-    authors' 250 px at 0.2 m/px is ``RasterConfig(size=250)``; a corridor is
-    :meth:`from_extent`). ``lane_width_m`` is the drawn width of lane centrelines
-    (devkit: 5 px at 0.1 m/px = 0.5 m), never thinner than one pixel. ``draw_lanes``,
-    ``draw_walkways`` and ``draw_crossings`` switch those map layers; ``ego_length`` and
-    ``ego_width`` (m) size the ego's box. ``history`` is the number of past steps drawn
-    (:mod:`minimanc.world.history`; 0, the authors' environment, draws none): faded boxes
-    under the current ones in RGB, one plane per step in channels. ``encoding`` is
-    ``"rgb"`` or ``"channels"`` (:data:`ENCODINGS`); ``route`` draws the ego's route ahead
-    (channels only).
+    ``size``: square) cover ``2 * metres_side`` (defaults: 0.78 m pixels; the devkit's
+    0.1 m/px is ``size=500``, the authors' 0.2 m/px ``size=250``; a corridor is
+    :meth:`from_extent`). Lane centrelines are ``lane_width_m`` wide (devkit: 0.5 m), at
+    least one pixel; ``draw_lanes``, ``draw_walkways`` and ``draw_crossings`` switch those
+    layers; ``ego_length`` and ``ego_width`` (m) size the ego's box. ``history`` past steps
+    are drawn (:mod:`minimanc.world.history`; 0, the authors' environment, draws none):
+    faded boxes under the current ones in RGB, one plane per step in channels.
+    ``encoding`` is ``"rgb"`` or ``"channels"`` (:data:`ENCODINGS`); ``route`` draws the
+    ego's route ahead (channels only).
     """
 
     size: int = 64
