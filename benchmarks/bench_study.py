@@ -55,7 +55,7 @@ def main() -> None:
     names = args.models.split(",")
     rows = []
     for name in names:
-        cfg = models.ModelConfig(n_states=c.n_states, image_size=c.image_size)
+        cfg = models.ModelConfig(n_states=c.n_states)
         tc = replace(c.training, epochs=1, lr=1e-3)
         warm, t_warm = timed(train.fit, name, train_ds, cfg, replace(tc, max_steps_per_epoch=2),
                              engine="jax", progress=False)

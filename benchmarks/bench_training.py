@@ -96,7 +96,7 @@ def bench_steps(ds, cfg, batch: int, rounds: int, steps: int) -> None:
             state[e][1], state[e][2] = params, opt
     med = {e: statistics.median(state[e][4]) for e in state}
     med_cpu = {e: statistics.median(state[e][5]) for e in state}
-    print(f"MANC train step, batch {batch}x{cfg.image_size}x{cfg.image_size}x3 float32 "
+    print(f"MANC train step, batch {batch}x{'x'.join(map(str, cfg.bev_shape))} float32 "
           f"({rounds} rounds x {steps} steps, medians; threads: "
           f"{os.environ.get('OPENBLAS_NUM_THREADS', 'default')}; load average "
           f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs):")

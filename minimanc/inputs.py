@@ -102,6 +102,7 @@ __all__ = [
     "motion_at",
     "numeric_features",
     "numeric_size",
+    "raster_of",
     "select",
     "visible",
 ]
@@ -290,16 +291,19 @@ def _render_goal_bevs(ds: Any) -> np.ndarray:
     if given is not None:  # a dataset may carry its goal rasters
         return np.asarray(given)
     S, T = np.asarray(ds.ego).shape[:2]
-    H, W = np.asarray(ds.bev).shape[2:4]
-    cfg = _raster_config(ds, H)
+    cfg = raster_of(ds)
     goal_world = _goal_world(ds)
     return np.stack([rasterize_goal(ds.maps[s], goal_world[s], cfg) for s in range(S)])
 
 
-def _raster_config(ds: Any, size: int) -> Any:
+def raster_of(ds: Any) -> RasterConfig:
+    """The :class:`minimanc.world.RasterConfig` a dataset's ``bev`` was drawn with: its
+    ``raster`` (or ``raster_config``), else the default RGB raster of its ``(S, T, H, W, 3)``
+    images' rows and columns. Its ``input_shape`` is the shape of ``obs["bev"]``."""
     cfg = getattr(ds, "raster", None) or getattr(ds, "raster_config", None)
     if cfg is None:
-        cfg = RasterConfig(size=int(size))
+        H, W = np.shape(ds.bev)[2:4]
+        cfg = RasterConfig(size=int(H), cols=None if W == H else int(W))
     return cfg
 
 
@@ -348,7 +352,7 @@ def from_dataset(
     keys = visible(model, setting) if model is not None else KEYS[:4]
     obs: dict = {}
     if "bev" in keys or "goal_bev" in keys:
-        cfg = _raster_config(ds, np.shape(ds.bev)[2])
+        cfg = raster_of(ds)
     if "bev" in keys:
         obs["bev"] = to_input(ds.bev[s, t], cfg)
     if "goal" in keys:

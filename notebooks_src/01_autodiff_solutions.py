@@ -129,10 +129,11 @@ for shape, reps in [((3,), (2, 4)), ((2, 3), 2), ((2, 1, 3), (3, 1, 2)), ((4, 2)
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# `cumsum`: a sum over the outputs *after* $j$ — a cumulative sum run backwards.
-# `max`: compare `x` with the maximum kept as an axis of size one. `sort`: the
-# permutation that sorted `x` (`np.argsort`) says where each entry went;
-# `np.put_along_axis` sends each cotangent back.
+# Write each answer first for a 1-D `x` of three entries, by hand: which $g_i$ reach
+# $\bar x_j$? Then find NumPy operations that compute the same for every $j$ at once,
+# along `axis`, without a Python loop over entries. `sort` moved every entry somewhere:
+# the cotangent must go back the same way. Check each VJP against central differences
+# on random `x`, and `max` on a tie made by hand (the shares must add up to `g`).
 # </details>
 
 # %% solution id=ex01_2 title="VJPs of cumsum, max and sort" forbids="minimanc.autodiff.reductions._cumsum_vjp,minimanc.autodiff.reductions._chooser_vjp"  # noqa: E501
@@ -238,8 +239,11 @@ assert np.shape(got) == (1, 4) and np.allclose(got, [[3.0, 3.0, 3.0, 0.0]]), \
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Transpose only the last two axes (`np.swapaxes(..., -1, -2)`), and sum a
-# broadcast operand's cotangent back to its shape (chapter 1's `unbroadcast`).
+# Write the tutorial's two rules for one matrix of the stack, then ask what "transpose"
+# must mean for a stack, and what shape your result has when an operand was broadcast:
+# which axes of the cotangent belong to copies that were never stored? Check the shapes
+# first (`(5, 2, 3) @ (3, 4)` must give a `(3, 4)` cotangent for the weights), then one
+# entry of each against a central difference.
 # </details>
 
 # %% solution id=ex01_3 title="VJP of a batched matmul" forbids="minimanc.autodiff.numpy._matmul_vjp_x,minimanc.autodiff.numpy._matmul_vjp_y,minimanc.autodiff.numpy._einsum_vjp"  # noqa: E501
@@ -488,33 +492,40 @@ assert np.isclose(got5, 2 * 0.9999 ** 5000), \
 # %% [markdown]
 # ## Exercise 1.6 — the computation graph, with the cotangent on each edge
 # The tutorial's backward pass keeps one cotangent per node and forgets how it was
-# assembled. Keep the pieces instead: every edge `parent → child` (the child used the parent)
-# carries the cotangent $\bar g_\text{child}\,\partial\,\text{child}/\partial\,\text{parent}$,
-# and a node's cotangent $\bar g$ is the **sum over the edges that leave it**
-# ($\bar g = 1$ at the output).
+# assembled. Keep the pieces instead. Every edge `parent → child` is one **use** of the
+# parent by the child (`x * x` uses `x` twice: two edges). The value of an edge is the
+# derivative of the output with respect to that use alone: cut the edge, give the child
+# an independent copy of the parent (same value) on it, and differentiate the output with
+# respect to the copy. So the values on the edges that leave a node add up to the
+# derivative of the output with respect to the node.
 #
-# Write `edge_cotangents(end)`: return the list of triples
-# `(parent, child, cotangent)`, one per edge, visiting the nodes in the order of
-# `toposort(end, parents_of=lambda v: v.parents)` and, for each node, its
-# parents in tuple order (`x * x` has **two** edges from `x`). A child's
-# cotangent is complete when the walk reaches it (that is what the topological
-# order guarantees), so each edge's value is known at that moment.
+# Write `edge_cotangents(end)`: the list of triples `(parent, child, value)`, one per
+# edge, in any order. Work out how each value follows from quantities you can compute,
+# and in which order to walk the graph so that each is ready when it is needed. The tests
+# include a chain of 3000 products and a graph with $2^{40}$ paths from its input to its
+# output; each must take well under a second.
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
-# Compare your edges into `x` with the derivative of the grade cell: if their sum
-# is off, some edge forgot what flowed into its child.
+# On the edge `p → c`, the output depends on the copy only through `c`. One link of the
+# chain rule: which quantity of the child does the edge's value need, and where did the
+# tutorial meet it?
 # </details>
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# An edge carries the child's **total** cotangent (the sum over the edges that
-# left the child, 1 at the output) times the local derivative — not 1 times it.
+# That quantity of the child is known only once *every* edge leaving the child is
+# known. Which order of the nodes (exercise 1.4) guarantees it? Check on the grade cell's
+# $\sin(x^2) + x$ by hand: draw its five edges, and compare the sum over the edges
+# leaving `x` with a central difference.
 # </details>
 
 # %% solution id=ex01_6 title="Cotangent on each edge" forbids="minimanc.autodiff.graph.computation_graph"  # noqa: E501
 def edge_cotangents(end):
     ### BEGIN SOLUTION
+    # the value of p -> c is d end / d c times d c / d p, and d end / d c (the child's
+    # cotangent) is the sum over the edges leaving c: complete once every node that uses
+    # c was visited, which the topological order (each node before its parents) gives
     cot = {id(end): 1.0}
     edges = []
     for node in toposort(end, parents_of=lambda v: v.parents):
@@ -527,21 +538,28 @@ def edge_cotangents(end):
 
 # %% grade id=ex01_6_tests points=4
 x = Var(0.7)
-s_ = vsin(x * x)
+sq = x * x
+s_ = vsin(sq)
 y = s_ + x
 edges = edge_cotangents(y)
-assert len(edges) == 5, f"5 edges expected (x*x counts twice), got {len(edges)}"
-c = math.cos(0.49)
-assert edges[0][0] is s_ and edges[0][1] is y, \
-    "first edge: sin -> add (the output's edges come first, its parents in tuple order)"
-assert edges[1][0] is x and edges[1][1] is y, "second edge: x -> add"
-got6 = [ct for _, _, ct in edges]
-assert np.allclose(got6, [1.0, 1.0, c, 0.7 * c, 0.7 * c]), (
-    f"sin(x x) + x at x = 0.7: expected the cotangents [1, 1, 0.8823, 0.6176, 0.6176] in "
-    f"this order; got {np.round(got6, 4).tolist()}")
+assert len(edges) == 5, f"sin(x x) + x: 5 edges expected (x x counts twice); got {len(edges)}"
+
+
+def values(parent, child, edges=edges):
+    return sorted(round(float(ct), 4) for p, ch, ct in edges if p is parent and ch is child)
+
+
+assert values(s_, y) == [1.0] and values(x, y) == [1.0], (
+    f"sin(x x) + x at x = 0.7: expected 1.0 on each edge into the output; got "
+    f"{values(s_, y)} (sin -> add) and {values(x, y)} (x -> add)")
+assert values(sq, s_) == [0.8823], \
+    f"the same case: expected 0.8823 on the edge x x -> sin; got {values(sq, s_)}"
+assert values(x, sq) == [0.6176, 0.6176], \
+    f"the same case: expected 0.6176 on each of the two edges x -> x x; got {values(x, sq)}"
 x_bar = sum(ct for p, _, ct in edges if p is x)
 fd = (math.sin(0.7001 ** 2) + 0.7001 - math.sin(0.6999 ** 2) - 0.6999) / 0.0002
-assert abs(x_bar - fd) < 1e-6, f"the edges leaving x must add up to df/dx = {fd:.6f}"
+assert abs(x_bar - fd) < 1e-6, \
+    f"the same case: expected the edges leaving x to add up to {fd:.6f}; got {x_bar:.6f}"
 ### BEGIN HIDDEN TESTS
 a, b = Var(0.4), Var(-1.2)
 ab = a * b
@@ -549,15 +567,16 @@ e_b = vexp(b)
 sn = vsin(ab)
 prod = a * e_b
 h_out = sn + prod
-got = [(p, ch, ct) for p, ch, ct in edge_cotangents(h_out)]
-# the order of toposort, written out: add, multiply(a, e^b), exp, sin, multiply(a, b)
+got = edge_cotangents(h_out)
 want = [(sn, h_out, 1.0), (prod, h_out, 1.0), (a, prod, math.exp(-1.2)), (e_b, prod, 0.4),
         (b, e_b, 0.4 * math.exp(-1.2)), (ab, sn, math.cos(-0.48)),
         (a, ab, math.cos(-0.48) * -1.2), (b, ab, math.cos(-0.48) * 0.4)]
-assert len(got) == len(want), f"{len(want)} edges expected, got {len(got)}"
-for k, ((p, ch, ct), (wp, wch, wct)) in enumerate(zip(got, want)):
-    assert p is wp and ch is wch, f"edge {k}: wrong parent/child (toposort order, tuple order)"
-    assert abs(ct - wct) < 1e-12, f"edge {k}: cotangent {wct:.6f} expected, got {ct:.6f}"
+assert len(got) == len(want), f"sin(a b) + a e^b: {len(want)} edges expected, got {len(got)}"
+for wp, wch, wct in want:
+    found = [ct for p, ch, ct in got if p is wp and ch is wch]
+    assert len(found) == 1 and abs(found[0] - wct) < 1e-12, (
+        f"sin(a b) + a e^b at (0.4, -1.2): expected one edge {wp} -> {wch} carrying "
+        f"{wct:.6f}; got {found}")
 chain_x = Var(1.0)
 node = chain_x
 for _ in range(3000):
@@ -568,6 +587,27 @@ assert len(chain_edges) == 6000, \
 into_x = [ct for p, _, ct in chain_edges if p is chain_x]
 assert len(into_x) == 1 and abs(into_x[0] - 0.999 ** 3000) < 1e-12, \
     f"0.999^3000 x: expected one edge from x carrying {0.999 ** 3000:.6g}, got {into_x}"
+v0 = Var(0.3)                    # 40 levels v <- sin(v) + 0.5 v: 2^40 paths from v0 to the end
+levels, v = [], v0
+for _ in range(40):
+    sin_v = vsin(v)
+    levels.append((v, sin_v))
+    v = sin_v + v * 0.5
+ladder = edge_cotangents(v)
+assert len(ladder) == 200, f"40 levels of sin(v) + 0.5 v: expected 200 edges; got {len(ladder)}"
+rest = 1.0                       # d end / d (v after level k), from the last level back
+for k in range(39, -1, -1):
+    vk, sin_k = levels[k]
+    found = [ct for p, ch, ct in ladder if p is vk and ch is sin_k]
+    want_k = rest * math.cos(vk.value)
+    assert len(found) == 1 and math.isclose(found[0], want_k, rel_tol=1e-9), (
+        f"40 levels of sin(v) + 0.5 v from 0.3: at level {k} expected the edge v -> sin(v) "
+        f"to carry {want_k:.6g}; got {found}")
+    rest *= math.cos(vk.value) + 0.5
+x_ladder = sum(ct for p, _, ct in ladder if p is v0)
+assert math.isclose(x_ladder, rest, rel_tol=1e-9), (
+    f"the same ladder: expected the edges leaving its input to add up to {rest:.6g}; got "
+    f"{x_ladder:.6g}")
 lone = Var(2.0)
 got6 = edge_cotangents(lone)
 assert got6 == [], f"a single input: expected no edges, got {got6}"

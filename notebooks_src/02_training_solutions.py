@@ -34,29 +34,34 @@ xp = eng.xp
 
 # %% [markdown]
 # ## Exercise 2.1 — a dilated convolution, forward
-# The tutorial's convolution reads a *compact* window: kernel offset $(u, v)$
-# reads pixel $(s i + u,\ s j + v)$. A **dilated** (atrous) convolution with
-# dilation $d$ spreads the same $k_h \times k_w$ weights over a wider window,
-# reading pixel $(s i + d u,\ s j + d v)$:
-# $y[n,i,j,o] = b[o] + \sum_{u,v,c} x_\text{pad}[n,\ s i + d u,\ s j + d v,\ c]\, w[u,v,c,o]$.
-# It sees farther with no extra weights (WaveNet, DeepLab). Write
-# `conv2d_dilated(x, w, b, stride, padding, dilation)`; with `dilation=1` it is
-# the tutorial's convolution. You need the output size first: how many window
-# positions fit into the padded image when a window spans more than $k_h$ rows?
+# The tutorial's convolution reads a *compact* window: its $k_h \times k_w$ weights
+# read $k_h \times k_w$ neighbouring pixels, and the window moves by the stride $s$. A
+# **dilated** (atrous) convolution with dilation $d$ spreads the same weights over a
+# wider window: two neighbouring weights read pixels $d$ apart (with $d - 1$ pixels
+# skipped between them), and the window still moves by $s$; with $d = 1$ it is the
+# tutorial's convolution. It sees farther with no extra weights (WaveNet, DeepLab).
+# Write `conv2d_dilated(x, w, b, stride, padding, dilation)` (NHWC images, HWIO kernels,
+# zero padding as in the tutorial). Work out first which padded pixel the weight
+# $(u, v)$ of output $(i, j)$ reads, and then the output size: how many window positions
+# fit into the padded image when a window spans more than $k_h$ rows?
 # Two grade cells: the output shape (1 point), then the values (2 points).
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
-# Count the rows the window spans, from its first pixel to its last: that number
-# plays the role $k_h$ plays in the tutorial's output-size formula.
+# Draw one row of a 3-tap kernel with $d = 2$, $s = 1$ over the padded image, and find
+# where the first and the last tap sit for outputs 0 and 1. Count the rows the window
+# spans, from its first pixel to its last: that number plays the role $k_h$ plays in the
+# tutorial's output-size formula.
 # </details>
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
 # Loop over the kernel offsets $(u, v)$, not over the output pixels: for a fixed
-# offset, the pixels read by all outputs form one strided slice of
-# $x_\text{pad}$ (start $d u$, step $s$, $H_\text{out}$ rows), and `slice @ w[u, v]`
-# adds that offset's share to every output at once.
+# offset, the pixels read by all outputs form one strided slice of $x_\text{pad}$, whose
+# start and step your answer to hint 1 gives, and `slice @ w[u, v]` adds that offset's
+# share to every output at once. Check your map by hand before grading: with a 3×3
+# kernel, $d = 2$, $s = 1$ and no padding, output $(0, 0)$ reads rows and columns
+# 0, 2 and 4.
 # </details>
 
 # %% solution id=ex02_1 title="Dilated convolution, forward" forbids="minimanc.autodiff.nn.conv2d,minimanc.layers.conv,minimanc.autodiff.nn._conv_fwd,minimanc.autodiff.nn._conv_bwd"  # noqa: E501
@@ -186,10 +191,12 @@ for (kh, kw), s, p, d in [((3, 3), 1, 0, 2), ((3, 3), 1, 2, 2), ((2, 3), 2, 1, 3
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Put $s - 1$ zeros between neighbouring pixels of `z`, pad the result with
-# $k - 1$ zeros on each side, flip the kernel in both spatial axes and swap its
-# input and output channels; one `correlate` then gives the cotangent of the
-# *padded* image. Crop the padding. Check the size against the forward formula.
+# Make hint 1's sum a stride-1 correlation: where on the (padded) input grid do the
+# outputs of a stride-$s$ convolution sit, so what must `z` look like before `correlate`
+# reads it; how much room must it get so that the edge pixels see every tap; and in
+# which order, with which channels in and out, must the kernel be read? Check with
+# one-dimensional examples by hand (a 1-pixel `z`, a 2-tap kernel), then with the
+# adjoint identity of the grade cell on random `x`, `z`.
 # </details>
 
 # %%
@@ -283,9 +290,10 @@ for (kh, kw), s, p in [((1, 1), 1, 0), ((3, 3), 1, 1), ((2, 3), 3, 1), ((3, 2), 
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Loop over the $k^2$ offsets of the window, as for the convolution: for one
-# offset, the pixels read by all outputs form one strided slice, and the backward
-# pass *adds* each output's share into that slice.
+# Write the forward pass as a sum of simple reads of `x` (which reads do the tutorial's
+# convolution use?), then differentiate that sum term by term: what is the adjoint of a
+# read? Check: the entries of your cotangent of `x` sum to the sum of `g`, and a pixel
+# that sits in two windows receives from both.
 # </details>
 
 # %% solution id=ex02_3 title="Overlapping average pooling" forbids="minimanc.autodiff.reverse.backward"  # noqa: E501

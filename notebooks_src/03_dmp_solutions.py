@@ -248,8 +248,10 @@ for b, h in ((0.5, 0.5), (1.0, 0.25), (1.9, 0.5)):     # the bound against the s
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Build that matrix from the normalised basis and the factor $x\,(g - y_0)$, then
-# solve the least-squares problem (`np.linalg.lstsq`), one dimension at a time.
+# Write one entry of that matrix: what multiplies $w_i$ in $f(x_k)$? Once you have it,
+# the fit is an ordinary least-squares problem, one per dimension. Check before rolling
+# out: with the demonstration's own $f_{target}$, your residual must be no larger than the
+# tutorial's local fit gives on the same samples.
 # </details>
 
 # %% solution id=ex03_4 title="Forcing-term weights by global least squares"

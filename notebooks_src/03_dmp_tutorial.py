@@ -317,8 +317,8 @@ assert np.all(zeta_raw > 0)
 # both as arrays over time (`per_step=("goal", "alpha", "beta")`). Below, a 2-D
 # point follows a target that moves along a curve at 6 m/s; at t = 10 s the
 # "planner" switches from cautious gains to brisk ones. A goal moving at speed
-# c is followed at speed c with a lag of about c/β, so the brisk gains
-# (larger β) close up on the target.
+# c is followed at speed c with a lag that stays behind it; the brisk gains close up
+# on the target (how the lag depends on the gains is exercise 4.7's question).
 
 # %%
 T = 40

@@ -115,8 +115,10 @@ assert np.allclose(np.einsum("nji,njk->nik", L, L), np.eye(4)), \
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# $q\,(0, v)\,\bar q = L(q)\,R(\bar q)\,(0, v)$; take the lower-right 3×3 block. Or
-# expand the product by hand and simplify with $w^2 + x^2 + y^2 + z^2 = 1$.
+# Each of the two products is one of 4.1's matrices, but which one (left or right
+# multiplication) and of which quaternion? Work it out, then read off the block that maps
+# $v$ to $v'$. Check your matrix before grading: it must be orthogonal with determinant
+# +1, the same for $q$ and $-q$, and a yaw of 90° must turn $(1, 0, 0)$ into $(0, 1, 0)$.
 # </details>
 
 # %% solution id=ex04_2 title="The rotation matrix of a quaternion" forbids="minimanc.quaternion.to_matrix,minimanc.quaternion.rotate"  # noqa: E501
@@ -226,63 +228,90 @@ assert np.allclose(got[:40], qs[:40], atol=1e-9), "angles below pi: expected the
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 4.4 — angular velocities from logged orientations
+# ## Exercise 4.4 — angular velocities from a log with an irregular clock
 # Eq. 5 turns an angular velocity into the next orientation,
-# $q_{k+1} = \exp(\tfrac{\Delta t}{2}\,\eta_k) * q_k$ (world frame, τ = 1). A data set goes
-# the other way: it logs orientations every $\Delta t$, and the controls (a yaw rate)
-# must be recovered from them. Write `angular_velocities(qs, dt)`: for `qs` of shape
-# `(K + 1, 4)` return the `(K, 3)` constant world-frame angular velocities that take
-# each $q_k$ to $q_{k+1}$ in `dt`, **the short way round** (a turn of at most π per
-# step). The log may store any sample as $q$ or $-q$. `Q.orientation_error` is
-# switched off while this exercise is graded.
+# $q_{k+1} = \exp(\tfrac{\Delta t}{2}\,\eta_k) * q_k$ (world frame, τ = 1), and tutorial
+# section 3 takes the rotation from one orientation to the next. A data set goes the other
+# way: it logs orientations, and the controls (a yaw rate that changes all the time) must
+# be recovered from them. This log's clock is irregular: sample $k$ is taken at
+# `times[k]`, and the gaps differ. Write `angular_velocities(qs, times)`: for `qs` of
+# shape `(K + 1, 4)` and increasing `times` of shape `(K + 1,)`, return the world-frame
+# angular velocity **at each interior sample time** $t_1, \dots, t_{K-1}$, shape
+# `(K - 1, 3)`, with an error that falls as the **square** of the gaps (halve every gap:
+# a quarter of the error). Between two samples the orientation turns **the short way
+# round** (at most π), and the log may store any sample as $q$ or $-q$.
+# `Q.orientation_error` is switched off while this exercise is graded.
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
-# Solve eq. 5 for $\eta_k$: which quaternion is $\exp(\tfrac{\Delta t}{2}\eta_k)$? Then
-# remember that $r$ and $-r$ are the same rotation with different logarithms.
+# The constant angular velocity that takes $q_k$ to $q_{k+1}$ is the *average* rate over
+# that gap. At which instant of the gap is an average rate most accurate? You have one
+# such estimate on each side of $t_k$, at different distances from it.
 # </details>
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# Multiply eq. 5 on the right by the inverse of $q_k$ to isolate the exponential,
-# then undo the exponential with `Q.log` — after choosing which of the two signs
-# of the quaternion turns the short way (tutorial section 3).
+# Combine the two estimates around $t_k$ so that the result is exact whenever the rate
+# changes linearly in time. Check it on a yaw $\psi(t) = 0.3\,t^2$ sampled at
+# $t = 0, 0.1, 0.4$ (the grade cell's first case): the rate at $t = 0.1$ is $0.06$, and
+# the plain mean of the two estimates is not. Then halve the gaps of a curved 3-D path
+# and watch the error.
 # </details>
 
-# %% solution id=ex04_4 title="Angular velocities from logged orientations" forbids="minimanc.quaternion.orientation_error"  # noqa: E501
-def angular_velocities(qs, dt):
+# %% solution id=ex04_4 title="Angular velocities from an irregular log" forbids="minimanc.quaternion.orientation_error"  # noqa: E501
+def angular_velocities(qs, times):
     ### BEGIN SOLUTION
-    qs = np.asarray(qs, dtype=float)
+    qs, times = np.asarray(qs, dtype=float), np.asarray(times, dtype=float)
     r = Q.multiply(qs[1:], Q.conjugate(qs[:-1]))
-    r = np.where(r[..., :1] < 0, -r, r)
-    return 2.0 * Q.log(r) / dt
+    r = np.where(r[..., :1] < 0, -r, r)                  # the short way round
+    gaps = np.diff(times)[:, None]
+    mid = 2.0 * Q.log(r) / gaps                          # the rate at each gap's midpoint
+    before, after = gaps[:-1], gaps[1:]
+    # linear interpolation between the midpoints t_k - before / 2 and t_k + after / 2
+    return (after * mid[:-1] + before * mid[1:]) / (before + after)
     ### END SOLUTION
 
 # %% grade id=ex04_4_tests points=4
-got = np.asarray(angular_velocities(Q.from_yaw(np.deg2rad([170.0, -170.0])), 0.5))
-assert np.shape(got) == (1, 3), f"two orientations: expected shape (1, 3); got {np.shape(got)}"
-assert np.allclose(got, [[0.0, 0.0, 0.698132]]), (
-    f"yaw 170 deg, then -170 deg, 0.5 s apart: expected the short turn, +20 deg in 0.5 s = "
-    f"(0, 0, 0.698132) rad/s; got {np.round(got, 6).tolist()}")
-got = np.asarray(angular_velocities(np.stack([ID, -Q.from_yaw(0.1)]), 0.1))
-assert np.allclose(got, [[0.0, 0.0, 1.0]]), (
-    f"yaw 0, then yaw 0.1 logged as -q, 0.1 s apart: expected (0, 0, 1) rad/s; got "
-    f"{np.round(got, 6).tolist()}")
+got = np.asarray(angular_velocities(Q.from_yaw(0.3 * np.array([0.0, 0.1, 0.4]) ** 2),
+                                    [0.0, 0.1, 0.4]))
+assert np.shape(got) == (1, 3), f"three orientations: expected shape (1, 3); got {np.shape(got)}"
+assert np.allclose(got, [[0.0, 0.0, 0.06]], atol=1e-9), (
+    f"yaw 0.3 t^2 logged at t = 0, 0.1, 0.4: expected the rate at t = 0.1, (0, 0, 0.06) rad/s; "
+    f"got {np.round(got, 6).tolist()}")
+yaws = np.deg2rad([170.0, -170.0, -150.0])
+got = np.asarray(angular_velocities(np.array([1.0, -1.0, 1.0])[:, None] * Q.from_yaw(yaws),
+                                    [0.0, 0.5, 1.0]))
+assert np.allclose(got, [[0.0, 0.0, 0.698132]], atol=1e-6), (
+    f"yaw 170, -170, -150 deg at t = 0, 0.5, 1 s, the middle one logged as -q: expected the "
+    f"short turn, (0, 0, 0.698132) rad/s at t = 0.5 s; got {np.round(got, 6).tolist()}")
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(440)  # the tests' own draws, not the notebook's rng
-etas = test_rng.normal(size=(50, 3))
-etas *= (test_rng.uniform(0.0, 0.95 * np.pi, (50, 1)) / 0.5) / np.linalg.norm(etas, axis=-1,
-                                                                             keepdims=True)
-path = [random_unit(1, test_rng)[0]]
-for eta in etas:
-    path.append(Q.multiply(Q.exp(0.25 * eta), path[-1]))   # eq. 5 with dt = 0.5, written out
-logged = np.where(test_rng.random((51, 1)) < 0.5, -1.0, 1.0) * np.array(path)
-got = np.asarray(angular_velocities(logged, 0.5))
-assert got.shape == (50, 3), f"51 orientations: expected shape (50, 3); got {got.shape}"
-bad = int(np.argmax(np.abs(got - etas).max(axis=-1)))
-assert np.allclose(got, etas, atol=1e-9), (
-    f"a random 3-D path with random sign jumps, turns up to 171 deg per step: at step {bad} "
-    f"expected {np.round(etas[bad], 4)}; got {np.round(got[bad], 4)}")
+for _ in range(5):       # a rate linear in time about a fixed axis: exact on any clock
+    times = np.concatenate([[0.0], np.cumsum(test_rng.uniform(0.05, 0.3, 20))])
+    c1, c2 = test_rng.uniform(-1.5, 1.5), test_rng.uniform(-0.25, 0.25)   # turns below pi
+    axis = Q.normalize(np.concatenate([[0.0], test_rng.normal(size=3)]))[1:]
+    angle = c1 * times + c2 * times ** 2
+    logged = (np.where(test_rng.random((21, 1)) < 0.5, -1.0, 1.0)
+              * Q.multiply(Q.exp(angle[:, None] * axis), random_unit(1, test_rng)[0]))
+    want = (c1 + 2.0 * c2 * times[1:-1])[:, None] * 2.0 * axis
+    got = np.asarray(angular_velocities(logged, times))
+    assert got.shape == (19, 3), f"21 orientations: expected shape (19, 3); got {got.shape}"
+    bad = int(np.argmax(np.abs(got - want).max(axis=-1)))
+    assert np.allclose(got, want, atol=1e-9), (
+        f"a rate changing linearly about a fixed axis, irregular clock, random signs: at "
+        f"t = {times[bad + 1]:.3f} expected {np.round(want[bad], 6)}; got {np.round(got[bad], 6)}")
+w1, w2 = test_rng.normal(size=(2, 3))
+w1, w2 = w1 / np.linalg.norm(w1), w2 / np.linalg.norm(w2)
+for gap, tol in ((0.1, 4e-3), (0.05, 1e-3)):   # q(t) = exp(t/2 w1) * exp(t/2 w2): a turning axis
+    times = np.concatenate([[0.0], np.cumsum(gap * test_rng.uniform(0.5, 1.5, 40))])
+    A = Q.exp(0.5 * times[:, None] * w1)
+    logged = (np.where(test_rng.random((41, 1)) < 0.5, -1.0, 1.0)
+              * Q.multiply(A, Q.exp(0.5 * times[:, None] * w2)))
+    want = w1 + Q.rotate(A[1:-1], np.broadcast_to(w2, (39, 3)))
+    err = np.abs(np.asarray(angular_velocities(logged, times)) - want).max()
+    assert err < tol, (
+        f"a 3-D path whose rotation axis turns, irregular gaps around {gap} s: expected an "
+        f"error below {tol:.0e} rad/s (second order in the gaps); got {err:.2e}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -643,9 +672,10 @@ assert np.isclose(yaw[-1], 190.0, atol=0.1) and np.all(np.diff(yaw) >= 0)
 
 # %% [markdown]
 # ## Your figure
-# Left: the yaw rate recovered from a logged drive weaving across ±180° whose samples
-# were stored with random signs, by **your** `angular_velocities` (solid) over the
-# library's (dashed): a wrong sign choice shows as spikes of hundreds of °/s. Right: a
+# Left: the yaw rate recovered from a drive weaving across ±180°, logged on an irregular
+# clock with its samples stored with random signs, by **your** `angular_velocities`
+# (solid) over the true rate (dashed): a wrong sign choice shows as spikes of hundreds of
+# °/s, a rate placed at the wrong instant as a curve shifted along t. Right: a
 # goal turning at 30°/s. The plain DMP (dashed) trails it; goal − **your**
 # `steady_lag` must run on top of it once the start is forgotten, and **your**
 # `tracking_rollout` on the goal (dashed). A function that raises is named in the
@@ -656,26 +686,26 @@ def yaw_deg(qs):
     return np.rad2deg(np.unwrap(Q.to_yaw(np.asarray(qs))))
 
 
-t_log = np.arange(17) * dmp.DT
+t_log = np.concatenate([[0.0], np.cumsum(dmp.DT * (1.0 + 0.5 * np.sin(1.7 * np.arange(16))))])
 yaw_log = np.pi + 1.5 * np.sin(0.4 * t_log)              # weaving across +-180 deg
 flips = np.where(np.random.default_rng(4).random(17) < 0.5, -1.0, 1.0)
 logged_fig = flips[:, None] * Q.from_yaw(yaw_log)
-rate_lib = np.rad2deg(np.array([Q.orientation_error(b, a)[2] for a, b in
-                                zip(logged_fig[:-1], logged_fig[1:])]) / dmp.DT)
-print(f"library: yaw rate from {rate_lib.min():.1f} to {rate_lib.max():.1f} deg/s")
-assert np.allclose(rate_lib, np.rad2deg(np.diff(yaw_log)) / dmp.DT)
+rate_true = np.rad2deg(0.6 * np.cos(0.4 * t_log[1:-1]))  # d(yaw)/dt, written out
+print(f"log gaps from {np.diff(t_log).min():.2f} s to {np.diff(t_log).max():.2f} s")
 om_fig, n_fig, h_fig = np.array([0.0, 0.0, np.deg2rad(30.0)]), 24, dmp.DT / dmp.DEFAULT_SUBSTEPS
 t_fig = np.arange(n_fig + 1) * dmp.DT
 goal_yaw = yaw_deg(goal_path(ID, om_fig, t_fig))
 plain = yaw_deg(Q.quaternion_rollout(ID, np.zeros(3), goal_path(ID, om_fig, h_fig * np.arange(
     10 * n_fig)), 4.0, 1.0, h_fig, 10 * n_fig, substeps=1, per_step=("g_q",)).q[::10])
-print(f"plain DMP after {n_fig * dmp.DT:.0f} s: {plain[-1] - goal_yaw[-1]:.1f} deg from the goal")
-assert abs(plain[-1] - goal_yaw[-1] + 30.0) < 0.5   # it trails by 30 deg/s over beta = 1
+lag_fig = plain - goal_yaw
+settled = abs(lag_fig[-1] - lag_fig[-5]) < 0.1       # degrees, over the last 2 s
+print(f"plain DMP: behind the goal {bool(lag_fig[-1] < 0)}, lag settled {settled}")
+assert lag_fig[-1] < 0 and settled
 fig, axes = plt.subplots(1, 2, figsize=(12, 3.8))
-vx.plot_curve_attempts(t_log[1:], [
+vx.plot_curve_attempts(t_log[1:-1], [
     ("angular_velocities",
-     lambda: np.rad2deg(np.asarray(angular_velocities(logged_fig, dmp.DT))[:, 2]), rate_lib)],
-    ax=axes[0], title="yaw rate from a log with sign jumps (deg/s)")
+     lambda: np.rad2deg(np.asarray(angular_velocities(logged_fig, t_log))[:, 2]), rate_true)],
+    ax=axes[0], title="yaw rate from an irregular log with sign jumps (deg/s)")
 vx.plot_curve_attempts(t_fig, [
     ("goal − steady_lag", lambda: goal_yaw - np.rad2deg(np.asarray(steady_lag(om_fig, 4.0,
                                                                               1.0))[2]), plain),

@@ -169,36 +169,43 @@ for _ in range(6):
 ### END HIDDEN TESTS
 
 # %% [markdown]
-# ## Exercise 5.3 — the stationary distribution
-# For a column-stochastic `T` with positive entries, return the unique
-# distribution $\pi$ with $T\pi = \pi$, entries summing to one.
+# ## Exercise 5.3 — the stationary distribution where iterating fails
+# Tutorial section 4 finds π by iterating $q \leftarrow Tq$ from a start. That works for
+# a vAGN `T` (every entry positive), but a planner's automaton read off with a threshold,
+# or one whose states hold on for a long time, is not like that. Write `stationary(T)`
+# for any column-stochastic `T` whose states all reach each other (so π is unique),
+# **including** chains that alternate forever between groups of states and chains whose
+# states exchange probability only once in millions of steps: return π with $T\pi = \pi$,
+# entries summing to one, to a relative error of 1e-6, in well under a second for
+# $N \le 50$. The tests also try a few such chains of their own.
 #
 # `vagn.stationary_distribution` is switched off while this exercise is graded.
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
-# $T\pi = \pi$ says that π is an eigenvector of $T$. Of which eigenvalue? Why
-# does every column-stochastic matrix have that eigenvalue (look at
-# $\mathbf 1^\top T$), and why is its eigenvector unique here (every entry of a
-# vAGN `T` is positive: Perron–Frobenius)?
+# Run the tutorial's loop on `T = [[0, 1], [1, 0]]` from `[0.9, 0.1]`, and on
+# `[[1 - 1e-7, 2e-7], [1e-7, 1 - 2e-7]]` from `[0.5, 0.5]`: why does it stop
+# improving, or not get anywhere in 50 steps (how far does $q$ move per step)? π is
+# defined by equations, not by a limit: how many unknowns, how many independent
+# equations?
 # </details>
 #
 # <details><summary>Hint 2 (the method)</summary>
 #
-# An eigen-solver returns the eigenvalues in no particular order and each
-# eigenvector with unit length, an arbitrary sign and a complex dtype: select
-# the right one by its eigenvalue, not by its position, then scale it so that
-# its entries sum to one. If your result has huge entries of both signs, you
-# picked an eigenvector whose entries sum to zero — why must every other
-# eigenvector's entries sum to zero? (Iterating $q \leftarrow Tq$ also works.)
+# $T\pi = \pi$ alone does not pin π down (why is one of its equations redundant, and
+# what is still missing?). Make a square system with exactly one solution and solve it
+# directly. Check: your π of the second chain in hint 1 is $(2/3, 1/3)$, and of the
+# first $(1/2, 1/2)$ from any start.
 # </details>
 
-# %% solution id=ex05_3 title="Stationary distribution" forbids="minimanc.vagn.stationary_distribution"  # noqa: E501
+# %% solution id=ex05_3 title="Stationary distribution where iterating fails" forbids="minimanc.vagn.stationary_distribution"  # noqa: E501
 def stationary(T):
     ### BEGIN SOLUTION
-    vals, vecs = np.linalg.eig(np.asarray(T, float))
-    v = np.real(vecs[:, np.argmin(np.abs(vals - 1.0))])
-    return v / v.sum()
+    T = np.asarray(T, dtype=float)
+    N = len(T)
+    # N - 1 of the equations (T - I) pi = 0 (the N-th is their sum), and sum(pi) = 1
+    A = np.vstack([(T - np.eye(N))[:-1], np.ones((1, N))])
+    return np.linalg.solve(A, np.eye(N)[-1])
     ### END SOLUTION
 
 # %% grade id=ex05_3_tests points=2
@@ -206,24 +213,51 @@ a, b = 0.3, 0.1
 pi = stationary(np.array([[1 - a, b], [a, 1 - b]]))
 assert np.allclose(pi, [0.25, 0.75]), \
     f"T = [[0.7, 0.1], [0.3, 0.9]]: expected pi = [0.25, 0.75]; got {pi}"
-T3 = vagn.transition_matrix(rng.random(3), rng.normal(size=(3, 3, 3)))
-pi3 = stationary(T3)
-assert np.isclose(pi3.sum(), 1.0), f"a random 3-state T: expected sum(pi) = 1; got {pi3.sum()}"
-assert np.allclose(T3 @ pi3, pi3), (
-    f"a random 3-state T: expected T pi = pi; got T pi - pi = {T3 @ pi3 - pi3}")
+pi = stationary(np.array([[0.0, 0.3, 0.0], [1.0, 0.0, 1.0], [0.0, 0.7, 0.0]]))
+assert np.allclose(pi, [0.15, 0.5, 0.35], rtol=1e-6, atol=0), (
+    f"a chain alternating between state 1 and states 0, 2 (from 1: to 0 with 0.3, to 2 "
+    f"with 0.7): expected pi = [0.15, 0.5, 0.35]; got {pi}")
+pi = stationary(np.array([[1 - 1e-7, 3e-7], [1e-7, 1 - 3e-7]]))
+assert np.allclose(pi, [0.75, 0.25], rtol=1e-6, atol=0), (
+    f"T = [[1 - 1e-7, 3e-7], [1e-7, 1 - 3e-7]] (a switch once in millions of steps): "
+    f"expected pi = [0.75, 0.25]; got {pi}")
 ### BEGIN HIDDEN TESTS
 test_rng = np.random.default_rng(530)  # the tests' own draws, not the notebook's rng
+
+
+def check(T, want, case):
+    got = np.asarray(stationary(T.copy()), dtype=float)
+    assert got.shape == want.shape and np.allclose(got, want, rtol=1e-6, atol=1e-12), (
+        f"{case}: expected pi = {np.round(want, 8).tolist()}; got "
+        f"{np.round(got, 8).tolist() if got.shape == want.shape else got.shape}")
+
+
 T5 = vagn.transition_matrix(test_rng.random(2), test_rng.normal(size=(2, 5, 5)) * 2)
-pi5 = np.asarray(stationary(T5))
-assert np.allclose(T5 @ pi5, pi5) and np.isclose(pi5.sum(), 1.0), (
-    f"a random 5-state T: expected T pi = pi and sum(pi) = 1; got T pi - pi = "
-    f"{np.round(T5 @ pi5 - pi5, 4)}, sum {pi5.sum():.4f}")
-assert np.all(pi5 > 0), (
-    f"a random 5-state T (Perron–Frobenius): expected every entry of pi > 0; got {pi5}")
-pi_c = stationary(np.array([[0.5, 0.25, 0.0], [0.5, 0.5, 0.5], [0.0, 0.25, 0.5]]))
-assert np.allclose(pi_c, [0.25, 0.5, 0.25]), (
-    f"the 3-state chain [[.5, .25, 0], [.5, .5, .5], [0, .25, .5]]: expected pi = "
-    f"[0.25, 0.5, 0.25]; got {pi_c}")
+check(T5, np.linalg.matrix_power(T5, 4096)[:, 0], "a random 5-state vAGN T")
+for n in (3, 6, 11):     # a cycle 0 -> 1 -> ... -> n-1 -> 0 with holds
+    stay = test_rng.uniform(0.0, 0.99, n)
+    T = np.diag(stay) + np.roll(np.diag(1.0 - stay), 1, axis=0)
+    want = 1.0 / (1.0 - stay)                    # the time spent per visit, each state once
+    check(T, want / want.sum(), f"a {n}-cycle with holds {np.round(stay, 3).tolist()}")
+for na, nb in ((2, 3), (4, 4)):     # every step jumps between the groups: period 2
+    C = test_rng.dirichlet(np.ones(na), nb).T    # B -> A, columns sum to one
+    D = test_rng.dirichlet(np.ones(nb), na).T    # A -> B
+    T = np.block([[np.zeros((na, na)), C], [D, np.zeros((nb, nb))]])
+    piA = np.linalg.matrix_power(C @ D, 4096)[:, 0]
+    check(T, np.concatenate([piA, D @ piA]) / 2, f"{na} + {nb} states alternating (period 2)")
+for eps in (1e-6, 1e-8):     # two blocks of 4 states, joined by a tiny exchange
+    B1, B2 = (vagn.transition_matrix(test_rng.random(2), test_rng.normal(size=(2, 4, 4)))
+              for _ in range(2))
+    pi1, pi2 = (np.linalg.matrix_power(B, 4096)[:, 0] for B in (B1, B2))
+    out1, out2 = test_rng.uniform(1.0, 3.0, 2) * eps
+    T = np.zeros((8, 8))
+    T[:4, :4], T[4:, 4:] = B1, B2
+    T[:, 0] *= 1.0 - out1                        # state 0 leaks to state 4, state 4 to 0
+    T[4, 0] = out1
+    T[:, 4] *= 1.0 - out2
+    T[0, 4] = out2
+    P = np.linalg.matrix_power(T, 2 ** 40)[:, 0]  # 40 squarings: renormalise their drift
+    check(T, P / P.sum(), f"two 4-state blocks exchanging with probability ~{eps:.0e}")
 ### END HIDDEN TESTS
 
 # %% [markdown]
@@ -423,17 +457,21 @@ for trial in range(100):
 #    `(B, N)`, `y0` `(B,)`, `G` `(N,)`; return the speeds $y_0, \dots, y_T$,
 #    shape `(T + 1, B)`. Use `xp` operations only (`vagn.rollout(..., xp=xp)`
 #    is allowed), so that `engine("numpy")` can differentiate it.
-# 2. `fit_W_from_speeds(ps, target, q0, y0, G, W0, steps, lr)`: starting from
-#    `W0` (not modified), take `steps` **Adam** steps (`optim.adam_init`,
-#    `optim.adam_update`, chapter 2) on the mean squared error of the speeds
-#    $y_1, \dots, y_T$ against `target[1:]`, with the gradient from
-#    `engine("numpy")`. Return `(W, losses)`, the loss before each update.
-#    The speeds come from `speeds(ps, W, q0, y0, G, xp=...)`, by default your
+# 2. `fit_W_from_speeds(ps, readings, q0, y0, G, W0, steps, lr, kappa)`: the speeds
+#    are known only through the car's speedometer, and it smooths: it shows
+#    $z_0 = y_0$, then $z_t = z_{t-1} + \kappa\,(y_t - z_{t-1})$ with
+#    $0 < \kappa \le 1$ (`kappa = 1`: it shows $y_t$). Starting from `W0` (not
+#    modified), take `steps` **Adam** steps (`optim.adam_init`, `optim.adam_update`,
+#    chapter 2), with gradients from `engine("numpy")`, on a mean squared error over
+#    the steps $1, \dots, T$ that you design so that the automaton you learn explains
+#    the *speeds*, not the smoothing. Return `(W, losses)`, your loss before each
+#    update. The speeds come from `speeds(ps, W, q0, y0, G, xp=...)`, by default your
 #    `dmp_speeds` (the tests pass their own, so that 2 does not depend on 1).
 #
-# The two functions are graded separately, 2 points each. The hidden tests
-# also check what the paper claims: that the automaton learned from speeds
-# alone puts its probability in the teacher's states.
+# The two functions are graded separately, 2 points each. The hidden tests read
+# the teacher through a slow speedometer and check your automaton on held-out
+# scenes of their own: its **speeds** (not the readings) must match the teacher's,
+# and its most probable state must be the teacher's (the paper's claim).
 #
 # <details><summary>Hint 1 (the idea)</summary>
 #
@@ -444,8 +482,10 @@ for trial in range(100):
 # <details><summary>Hint 2 (the method)</summary>
 #
 # Keep the speeds in a Python list and `xp.stack` them at the end (no in-place
-# assignment under autodiff); $g_t$ is one number per sample. Adam's state starts
-# from `W0` and is threaded through the loop.
+# assignment under autodiff); $g_t$ is one number per sample. For 2: what would a
+# model that is right produce on the speedometer, and what does the tutorial's loss
+# compare instead? Check: on readings made with `kappa = 0.5`, a loss that ignores the
+# speedometer stops well above the visible test's bound; yours should fall below it.
 # </details>
 
 # %%
@@ -486,11 +526,20 @@ def dmp_speeds(ps, W, q0, y0, G, xp=np):
     ### END SOLUTION
 
 
-def fit_W_from_speeds(ps, target, q0, y0, G, W0, steps=300, lr=0.1, speeds=dmp_speeds):
+def fit_W_from_speeds(ps, readings, q0, y0, G, W0, steps=300, lr=0.1, kappa=1.0,
+                      speeds=dmp_speeds):
     ### BEGIN SOLUTION
     eng = engine("numpy")
-    mse = eng.value_and_grad(
-        lambda W: eng.xp.mean((speeds(ps, W, q0, y0, G, xp=eng.xp)[1:] - target[1:]) ** 2))
+
+    def speedometer(y):          # the readings a model with these speeds would give
+        z, shown = y[0], [y[0]]
+        for t in range(1, y.shape[0]):
+            z = z + kappa * (y[t] - z)
+            shown.append(z)
+        return eng.xp.stack(shown)
+
+    mse = eng.value_and_grad(lambda W: eng.xp.mean(
+        (speedometer(speeds(ps, W, q0, y0, G, xp=eng.xp))[1:] - readings[1:]) ** 2))
     W = np.array(W0, dtype=float)
     state, losses = optim.adam_init(W), []
     while len(losses) < steps:
@@ -551,6 +600,14 @@ def goal_speeds(ps, W, q0, y0, G, xp=np):
     return xp.concatenate([xp.expand_dims(y0, 0), xp.sum(qs[1:] * G, axis=-1)], axis=0)
 
 
+def speedometer_readings(y, kappa):
+    """What the speedometer shows for the speeds y, shape (T + 1, B)."""
+    shown = [y[0]]
+    for speed in y[1:]:
+        shown.append((1.0 - kappa) * shown[-1] + kappa * speed)
+    return np.array(shown)
+
+
 target_g = goal_speeds(ps_f, W_true, q0_f, y0_f, G_SPEED)
 W0_f = vagn.init_vagn(rng_f, 3, 3, scale=0.1, mean=0.5)
 W0_copy = W0_f.copy()
@@ -559,8 +616,14 @@ W_g, losses_g = fit_W_from_speeds(ps_f, target_g, q0_f, y0_f, G_SPEED, W0_f, ste
 assert len(losses_g) == 300, f"300 steps: expected 300 losses; got {len(losses_g)}"
 assert np.shape(W_g) == (3, 3, 3), f"expected W of shape (3, 3, 3); got {np.shape(W_g)}"
 assert losses_g[-1] < 1e-3 and losses_g[-1] < 0.05 * losses_g[0], (
-    f"the goal as the action, 300 Adam steps of lr 0.1: expected the loss below 1e-3 and 5 % "
-    f"of its start ({losses_g[0]:.4f}); got {losses_g[-1]:.2e}")
+    f"the goal as the action, kappa = 1, 300 Adam steps of lr 0.1: expected the loss below "
+    f"1e-3 and 5 % of its start ({losses_g[0]:.4f}); got {losses_g[-1]:.2e}")
+W_k, losses_k = fit_W_from_speeds(ps_f, speedometer_readings(target_g, 0.5), q0_f, y0_f,
+                                  G_SPEED, W0_f, steps=300, lr=0.1, kappa=0.5,
+                                  speeds=goal_speeds)
+assert losses_k[-1] < 1e-3, (
+    f"the goal as the action read through a speedometer with kappa = 0.5, 300 Adam steps of "
+    f"lr 0.1: expected the loss below 1e-3; got {losses_k[-1]:.2e}")
 ### BEGIN HIDDEN TESTS
 def reference_speeds(ps, W, q0, y0, G, xp=np):
     qs, y, v, out = vagn.rollout(q0, ps, W, xp=xp), y0, 0.0 * y0, [y0]
@@ -571,26 +634,27 @@ def reference_speeds(ps, W, q0, y0, G, xp=np):
     return xp.stack(out)
 
 
-target_f = reference_speeds(ps_f, W_true, q0_f, y0_f, G_SPEED)
-W_f, losses_f = fit_W_from_speeds(ps_f, target_f, q0_f, y0_f, G_SPEED, W0_f, steps=300, lr=0.1,
-                                  speeds=reference_speeds)
-assert losses_f[-1] < 1e-3 and losses_f[-1] < 0.05 * losses_f[0], (
-    f"the DMP's speeds, 300 Adam steps of lr 0.1: expected the loss below 1e-3 and 5 % of its "
-    f"start ({losses_f[0]:.4f}); got {losses_f[-1]:.2e}")
+readings_f = speedometer_readings(reference_speeds(ps_f, W_true, q0_f, y0_f, G_SPEED), 0.3)
+W_f, losses_f = fit_W_from_speeds(ps_f, readings_f.copy(), q0_f, y0_f, G_SPEED, W0_f,
+                                  steps=300, lr=0.1, kappa=0.3, speeds=reference_speeds)
+assert len(losses_f) == 300, f"300 steps: expected 300 losses; got {len(losses_f)}"
 assert np.array_equal(W0_f, W0_copy), (
     "expected W0 unchanged after fit_W_from_speeds; got W0 modified in place")
-final = np.mean((reference_speeds(ps_f, W_f, q0_f, y0_f, G_SPEED)[1:] - target_f[1:]) ** 2)
-assert final <= losses_f[-1] * 1.5 + 1e-6, (
-    f"the returned W must be the trained one: expected its loss at most about the last "
-    f"recorded {losses_f[-1]:.2e}; got {final:.2e}")
 test_rng = np.random.default_rng(561)  # held-out scenes, the tests' own draws
 ps_h = sample_predicates(test_rng, 16, 64)
-q0_h = np.tile(vagn.uniform_state(3), (64, 1))
+q0_h, y0_h = np.tile(vagn.uniform_state(3), (64, 1)), test_rng.uniform(0, 1, 64)
+W_f = np.asarray(W_f, dtype=float)
+err_h = np.mean((reference_speeds(ps_h, W_f, q0_h, y0_h, G_SPEED)
+                 - reference_speeds(ps_h, W_true, q0_h, y0_h, G_SPEED)) ** 2)
+assert err_h < 1e-3, (
+    f"the DMP's speeds read through a speedometer with kappa = 0.3, 300 Adam steps of lr 0.1: "
+    f"expected the learned automaton's held-out speeds within a mean squared error of 1e-3 "
+    f"of the teacher's; got {err_h:.2e}")
 same = np.mean(vagn.rollout(q0_h, ps_h, W_f)[1:].argmax(-1)
                == vagn.rollout(q0_h, ps_h, W_true)[1:].argmax(-1))
 assert same > 0.9, (
-    f"held-out scenes: expected the learned automaton's most probable state to be the "
-    f"teacher's in more than 90 % of the steps (the paper's claim); got {same:.2f}")
+    f"the same fit on held-out scenes: expected the learned automaton's most probable state "
+    f"to be the teacher's in more than 90 % of the steps; got {same:.2f}")
 ### END HIDDEN TESTS
 
 # %% [markdown]

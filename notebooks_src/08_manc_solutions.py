@@ -639,9 +639,10 @@ for aq, bq in ((1.0, 0.45), (0.5, 5.0), (3.0, 1.0), (12.0, 0.3), (20.0, 5.0), (0
 # the square of the number of q-states.
 #
 # 1. `param_counts_of(cfg)`: the dict `{"manc": n, "cnn": n}` of the two models'
-#    parameter counts (ints) for a `ModelConfig` whose `channels`, `image_size`,
-#    `n_predicates`, `n_states`, `hidden`, `k_targets` and `setting` may differ from
-#    the defaults (the pooling and the gains' input stay the defaults), worked out from
+#    parameter counts (ints) for a `ModelConfig` whose `channels`, `input_shape` (the
+#    BEV planes `(H, W, C)` it reads: `cfg.bev_shape`), `n_predicates`, `n_states`,
+#    `hidden`, `k_targets` and `setting` may differ from the defaults (the pooling and
+#    the gains' input stay the defaults), worked out from
 #    the architecture: the tutorial's section 3 (its table and the backbone: 3 × 3
 #    convolutions with biases, stride 2, padding 1) and section 2 (what each model
 #    sees: the CNN's numbers are the goal `[x, y, yaw]` in the paper setting, and also
@@ -669,14 +670,15 @@ for aq, bq in ((1.0, 0.45), (0.5, 5.0), (3.0, 1.0), (12.0, 0.3), (20.0, 5.0), (0
 # %% solution id=ex08_6 title="How many q-states can MANC afford?" forbids="minimanc.models.param_count,minimanc.models.param_counts,minimanc.models.init"  # noqa: E501
 def param_counts_of(cfg):
     ### BEGIN SOLUTION
-    conv, c_in, side = 0, 3, cfg.image_size
+    rows, cols, c_in = cfg.bev_shape
+    conv = 0
     for c in cfg.channels:
         conv += 9 * c_in * c + c
-        c_in, side = c, (side - 1) // 2 + 1
+        c_in, rows, cols = c, (rows - 1) // 2 + 1, (cols - 1) // 2 + 1
     M, N = cfg.n_predicates, cfg.n_states
     manc = conv + c_in * M + M + M * N * N + 4 * N + 4
     numbers = 3 + (2 * cfg.k_targets + 2 if cfg.setting == "parity" else 0)
-    cnn = conv + (side * side * c_in + numbers + 1) * cfg.hidden + (cfg.hidden + 1) * 2
+    cnn = conv + (rows * cols * c_in + numbers + 1) * cfg.hidden + (cfg.hidden + 1) * 2
     return {"manc": int(manc), "cnn": int(cnn)}
     ### END SOLUTION
 
@@ -696,17 +698,19 @@ got = param_counts_of(cfg)
 assert dict(got) == {"manc": 14916, "cnn": 145794}, (
     f"the default configuration: expected {{'manc': 14916, 'cnn': 145794}} (the tutorial's "
     f"section 3); got {got}")
-got = param_counts_of(models.ModelConfig(image_size=32))
+got = param_counts_of(models.ModelConfig(input_shape=(32, 32, 3)))
 assert dict(got) == {"manc": 14916, "cnn": 47490}, (
     f"32 x 32 images: expected {{'manc': 14916, 'cnn': 47490}}; got {got}")
 ### BEGIN HIDDEN TESTS
 # literal counts, computed once with models.param_counts
-for kw, manc8, cnn8 in ((dict(image_size=32, channels=(8, 16), n_states=3), 1616, 67314),
+for kw, manc8, cnn8 in ((dict(input_shape=(32, 32, 3), channels=(8, 16), n_states=3), 1616,
+                         67314),
                         (dict(setting="parity", k_targets=6, hidden=32), 14916, 80514),
-                        (dict(n_predicates=4, n_states=12, image_size=40), 15096, 65922),
-                        (dict(image_size=48, channels=(8, 16, 16, 24), hidden=48,
+                        (dict(n_predicates=4, n_states=12, input_shape=(40, 40, 3)), 15096, 65922),
+                        (dict(input_shape=(48, 48, 3), channels=(8, 16, 16, 24), hidden=48,
                               setting="parity"), 7708, 18906),
-                        (dict(image_size=33, channels=(12,), n_predicates=5), 609, 222674)):
+                        (dict(input_shape=(33, 33, 3), channels=(12,), n_predicates=5), 609,
+                         222674)):
     got = param_counts_of(models.ModelConfig(**kw))
     assert dict(got) == {"manc": manc8, "cnn": cnn8} and all(type(x) is int
                                                              for x in got.values()), (
@@ -718,16 +722,16 @@ got = max_states(cfg)
 assert got == 104, f"the default configuration, ratio 0.7: expected 104 q-states; got {got!r}"
 ### BEGIN HIDDEN TESTS
 # literal answers, computed once by stepping n_states with models.param_counts
-for kw, ratio, want in ((dict(), 0.5, 85), (dict(image_size=32, channels=(8, 16), n_states=3),
-                                            0.7, 75),
-                        (dict(image_size=32, channels=(8, 16)), 0.3, 48),
+for kw, ratio, want in ((dict(), 0.5, 85),
+                        (dict(input_shape=(32, 32, 3), channels=(8, 16), n_states=3), 0.7, 75),
+                        (dict(input_shape=(32, 32, 3), channels=(8, 16)), 0.3, 48),
                         (dict(setting="parity", k_targets=6, hidden=32), 0.7, 71),
-                        (dict(n_predicates=4, n_states=12, image_size=40), 0.3, 35),
-                        (dict(image_size=48, channels=(8, 16, 16, 24), hidden=48,
+                        (dict(n_predicates=4, n_states=12, input_shape=(40, 40, 3)), 0.3, 35),
+                        (dict(input_shape=(48, 48, 3), channels=(8, 16, 16, 24), hidden=48,
                               setting="parity"), 0.7, 26),
-                        (dict(image_size=48, channels=(8, 16, 16, 24), hidden=48,
+                        (dict(input_shape=(48, 48, 3), channels=(8, 16, 16, 24), hidden=48,
                               setting="parity"), 0.3, 0),
-                        (dict(image_size=33, channels=(12,), n_predicates=5), 0.3, 114)):
+                        (dict(input_shape=(33, 33, 3), channels=(12,), n_predicates=5), 0.3, 114)):
     got = max_states(models.ModelConfig(**kw), ratio)
     assert got == want, f"ModelConfig({kw}), ratio {ratio}: expected {want}; got {got!r}"
 ### END HIDDEN TESTS

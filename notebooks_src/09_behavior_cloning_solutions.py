@@ -34,7 +34,7 @@ from minimanc.viz.exercises import plot_track_error_attempts
 
 rng = np.random.default_rng(0)
 ds = world.generate(4, seed=0, raster=world.RasterConfig(size=32), workers=1)
-cfg = models.ModelConfig(image_size=32, n_states=4)
+cfg = models.ModelConfig(n_states=4)
 print(ds)
 
 # %% [markdown]

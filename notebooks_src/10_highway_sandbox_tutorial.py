@@ -176,7 +176,7 @@ print(f"replaying the logged controls through the adapter: ADE "
 # what it shows with an `assert` instead.
 
 # %% tags=["nbval-ignore-output"]
-mcfg = models.ModelConfig(image_size=64, setting="paper")
+mcfg = models.ModelConfig(setting="paper")   # the input shape is the data's
 tcfg = train.TrainConfig(epochs=6, batch_size=32, seed=0)
 fits = {name: train.fit(name, ds, mcfg, tcfg, engine="jax", progress=False)
         for name in ("manc", "cnn")}

@@ -21,7 +21,6 @@ from minimanc.world.datareader import load
 from minimanc.world.datawriter import save
 
 SIZE = 16
-TINY = dict(image_size=SIZE, channels=(4, 4, 4), hidden=8)
 TC = train.TrainConfig(epochs=1, batch_size=64)
 
 

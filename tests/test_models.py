@@ -11,20 +11,20 @@ from minimanc import cam, dmp, engine, inputs, models, quaternion, tree, vagn
 from minimanc.world.traffic import B_MAX
 
 B = 3
-CFG = models.ModelConfig(image_size=16, channels=(4, 8), n_predicates=5, n_states=4, hidden=8,
-                         k_targets=6)
+CFG = models.ModelConfig(input_shape=(16, 16, 3), channels=(4, 8), n_predicates=5, n_states=4,
+                         hidden=8, k_targets=6)
 
 
 def _obs(rng, cfg=CFG, lead=(B,)):
     straight = np.stack([4.0 * np.arange(1, cfg.k_targets + 1), np.zeros(cfg.k_targets)], -1)
-    s = cfg.image_size
+    shape = cfg.bev_shape
     return {
-        "bev": rng.random(lead + (s, s, 3)),
+        "bev": rng.random(lead + shape),
         "goal": rng.normal(size=lead + (3,)) * 20,
         "lane_target": straight + rng.normal(0, 0.5, lead + (cfg.k_targets, 2)),
         "motion": np.stack([rng.uniform(0, 12, lead), rng.normal(0, 0.1, lead)], -1),
         # a scene's raster: the same at every step of a window (lead (L, B))
-        "goal_bev": np.broadcast_to(rng.random(lead[-1:] + (s, s, 3)), lead + (s, s, 3)).copy(),
+        "goal_bev": np.broadcast_to(rng.random(lead[-1:] + shape), lead + shape).copy(),
     }
 
 
@@ -343,7 +343,7 @@ def test_bad_input_raises(eng_np):
     params = models.init("cnn", rng, CFG)
     with pytest.raises(ValueError, match="goal"):
         models.step("cnn", params, {"bev": np.zeros((1, 16, 16, 3))}, {}, CFG, eng_np)
-    with pytest.raises(ValueError, match="image_size"):
+    with pytest.raises(ValueError, match="input_shape"):
         models.step("cnn", params, {"bev": np.zeros((1, 8, 8, 3)), "goal": np.zeros((1, 3))}, {},
                     CFG, eng_np)
 

@@ -388,7 +388,7 @@ def test_the_replay_protocol_runs_on_imported_scenes(imported):
     human = metrics.evaluate(rollout.human(ds, agents="replay"), ds)
     assert human["ade"] == 0.0 and human["off_road_rate"] == 0.0
     assert human["collision_rate"] == 0.0 and human["route_progress"] == pytest.approx(1.0)
-    prior = rollout.fixed_gains(ds, cfg=models.ModelConfig(n_states=4, image_size=64),
+    prior = rollout.fixed_gains(ds, cfg=models.ModelConfig(n_states=4, input_shape=(64, 64, 3)),
                                 agents="replay")
     assert np.asarray(prior.ego).shape == ds.ego.shape and np.all(np.isfinite(prior.ego))
     assert np.isfinite(metrics.evaluate(prior, ds)["ade"])
@@ -419,7 +419,7 @@ def test_train_and_drive_on_imported_scenes(dataroot, tmp_path):
     root, _ = dataroot
     import_nuscenes(root, VERSION, tmp_path / "ns.npz", raster=world.RasterConfig(size=32))
     ds = world.load(tmp_path / "ns.npz")
-    cfg = models.ModelConfig(image_size=32, channels=(4, 8), n_predicates=4, n_states=3,
+    cfg = models.ModelConfig(input_shape=(32, 32, 3), channels=(4, 8), n_predicates=4, n_states=3,
                              hidden=8)
     tc = train.TrainConfig(epochs=1, batch_size=2, seq_len=4, dmp_seq_len=4, dtype="float64",
                            max_steps_per_epoch=2)

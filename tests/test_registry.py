@@ -19,7 +19,7 @@ def ds():
 
 
 def _toy_init(rng, cfg, n_num):
-    flat = cfg.feature_size ** 2 * cfg.channels[-1]
+    flat = zoo.flat_size(cfg)
     return {"out": layers.init_dense(rng, flat + n_num, 2)}
 
 
@@ -54,7 +54,7 @@ MANC_QP = models.ModelSpec("manc_qp", "MANC FC(q ⊕ p)", "vagn", registry.obser
 
 
 def test_a_new_model_is_one_entry_and_runs_through_the_public_api(ds):
-    cfg = models.ModelConfig(image_size=32, channels=(4, 8), setting="parity")
+    cfg = models.ModelConfig(input_shape=(32, 32, 3), channels=(4, 8), setting="parity")
     eng = engine("numpy")
     assert "toy_linear" not in models.names()
     with models.registered(TOY):
@@ -102,7 +102,7 @@ def test_a_manc_variant_registered_outside_the_package_trains_and_drives_closed_
     data = world.generate(n, seed=c.data_seed, raster=world.RasterConfig(size=c.image_size),
                           workers=1)
     train_ds, val_ds = data.subset(slice(0, c.n_train)), data.subset(slice(c.n_train + c.n_tune, n))
-    cfg = models.ModelConfig(image_size=c.image_size, n_states=4)
+    cfg = models.ModelConfig(input_shape=data.raster.input_shape, n_states=4)
     with models.registered(MANC_QP):
         assert models.vagn_models()[-1] == "manc_qp" and "manc_qp" in models.dmp_models()
         params = models.init("manc_qp", np.random.default_rng(0), cfg)
@@ -132,7 +132,7 @@ def test_a_head_sees_the_same_inputs_in_a_step_and_in_a_training_window(ds):
 
     spec = models.ModelSpec("manc_seen", "seen", "vagn", registry.observes_structured(),
                             zoo.manc_init, zoo.dmp_encode, head, window="dmp_seq_len", dmp=True)
-    cfg = models.ModelConfig(image_size=32, channels=(4, 8), n_states=3)
+    cfg = models.ModelConfig(input_shape=(32, 32, 3), channels=(4, 8), n_states=3)
     eng = engine("numpy")
     with models.registered(spec):
         params = models.init("manc_seen", np.random.default_rng(0), cfg)

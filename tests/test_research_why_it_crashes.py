@@ -195,7 +195,7 @@ def pds():
 
 @pytest.fixture(scope="module")
 def perception(pds):
-    return M.fit_perception(pds, epochs=3, lr=3e-3, cfg=models.ModelConfig(image_size=16))
+    return M.fit_perception(pds, epochs=3, lr=3e-3, cfg=models.ModelConfig(input_shape=(16, 16, 3)))
 
 
 def test_the_last_acceleration_is_the_difference_of_perceived_speeds():
@@ -301,7 +301,7 @@ def test_the_oracle_diagnostic_takes_the_named_features_from_the_world(pds, perc
 
 @pytest.fixture(scope="module")
 def route_perception(pds):
-    return M.fit_perception(pds, epochs=4, lr=3e-3, cfg=models.ModelConfig(image_size=16),
+    return M.fit_perception(pds, epochs=4, lr=3e-3, cfg=models.ModelConfig(input_shape=(16, 16, 3)),
                             hidden=16, route=True, batch=16)
 
 
@@ -334,7 +334,7 @@ def test_the_route_driver_gets_the_lane_targets_in_closed_loop(pds, route_percep
     traj = rollout.simulate(policy, pds, scenes=[0, 1], agents="reactive", progress=False)
     assert traj.ego.shape[0] == 2 and np.all(np.isfinite(traj.ego))
     with pytest.raises(ValueError, match="hidden must be"):
-        M.fit_perception(pds, epochs=1, cfg=models.ModelConfig(image_size=16), hidden=-1)
+        M.fit_perception(pds, epochs=1, cfg=models.ModelConfig(input_shape=(16, 16, 3)), hidden=-1)
 
 
 def test_dagger_for_the_driver_aggregates_what_it_read_where_it_drove(pds, perception):

@@ -135,7 +135,7 @@ def test_bad_input(ds):
 def test_model_policy_batching_and_state_carry(ds, name):
     from minimanc import engine, models, vagn
 
-    cfg = models.ModelConfig(image_size=32, n_states=4, setting="parity")
+    cfg = models.ModelConfig(input_shape=(32, 32, 3), n_states=4, setting="parity")
     params = models.init(name, np.random.default_rng(1), cfg)
     eng = engine("numpy")
     kw = dict(scenes=[0, 2, 4], steps=5, progress=False)
@@ -159,7 +159,7 @@ def test_fixed_gains_is_dmp_only_with_a_constant_head(ds):
     bias = the gains' logits): the same controls, step by step."""
     from minimanc import dmp, engine, models
 
-    cfg = models.ModelConfig(image_size=32, n_states=4)
+    cfg = models.ModelConfig(input_shape=(32, 32, 3), n_states=4)
     gains = (1.5, 0.4, 2.0, 1.0)
     prior = rollout.fixed_gains(ds, scenes=[0, 3], cfg=cfg, gains=gains)
     params = models.init("dmp_only", np.random.default_rng(0), cfg)
@@ -197,7 +197,7 @@ def test_a_policy_may_name_its_observation_keys(ds):
 
     from minimanc import models
 
-    rollout.simulate(LaneOnly(models.ModelConfig(image_size=32)), ds, scenes=[1], steps=2,
+    rollout.simulate(LaneOnly(models.ModelConfig(input_shape=(32, 32, 3))), ds, scenes=[1], steps=2,
                      progress=False)
     assert seen == [["lane_target", "motion"]] * 2
     from minimanc import inputs
@@ -309,7 +309,7 @@ def test_replay_is_drive_following_the_log_and_equals_the_step_loop(ds, name, se
     from minimanc import engine, models
 
     eng = engine("numpy")
-    cfg = models.ModelConfig(image_size=32, setting=setting, n_states=4, channels=(4, 8))
+    cfg = models.ModelConfig(input_shape=(32, 32, 3), setting=setting, n_states=4, channels=(4, 8))
     params = models.init(name, np.random.default_rng(1), cfg, dtype=dtype)
     want = _replay_loop(name, params, ds, 2, cfg, eng, q_mode)
     got = rollout.replay(name, params, ds, 2, cfg, eng, q_mode=q_mode)
@@ -356,7 +356,7 @@ def test_rollout_keeps_the_models_dtype_and_explain_needs_no_dtype_guess(ds, tmp
     directly."""
     from minimanc import checks, models, vagn
 
-    cfg = models.ModelConfig(image_size=32, n_states=5, channels=(4, 8))
+    cfg = models.ModelConfig(input_shape=(32, 32, 3), n_states=5, channels=(4, 8))
     params = models.init("manc", np.random.default_rng(2), cfg, dtype=np.float32)
     traj = rollout.closed_loop("manc", params, ds, cfg, "numpy", scenes=[0, 1], steps=5,
                                progress=False)
@@ -412,7 +412,7 @@ def test_agents_choose_the_protocol_of_every_closed_loop(ds):
     # the metrics score a reactive rollout on its own ados, not on the log's
     sub = ds.subset([0, 3])
     assert metrics.evaluate(rea, sub)["collision_rate"] <= 100.0
-    cfg = models.ModelConfig(image_size=32, n_states=3)
+    cfg = models.ModelConfig(input_shape=(32, 32, 3), n_states=3)
     params = models.init("manc", np.random.default_rng(0), cfg)
     a = rollout.closed_loop("manc", params, ds, cfg, engine("numpy"), steps=3,
                             agents="reactive", **kw)
@@ -424,7 +424,7 @@ def test_agents_choose_the_protocol_of_every_closed_loop(ds):
 def test_bad_agents_are_refused_by_name(ds):
     from minimanc import engine, models
 
-    cfg = models.ModelConfig(image_size=32)
+    cfg = models.ModelConfig(input_shape=(32, 32, 3))
     params = models.init("cnn", np.random.default_rng(0), cfg)
     calls = [lambda: rollout.simulate(Logged(ds), ds, progress=False, agents="ideal"),
              lambda: rollout.fixed_gains(ds, agents="ideal"),
@@ -470,7 +470,7 @@ def test_open_loop_is_replay_on_many_scenes(ds):
     from minimanc import engine, models
     from minimanc.models.forward import cast_tree
 
-    cfg = models.ModelConfig(image_size=32, n_states=3)
+    cfg = models.ModelConfig(input_shape=(32, 32, 3), n_states=3)
     params = models.init("manc", np.random.default_rng(2), cfg)
     params32 = cast_tree(params, np.float32)  # open_loop runs in float32, replay in params'
     many = rollout.open_loop("manc", params, ds, cfg, engine("numpy"), scenes=[1, 3, 4],
@@ -488,7 +488,7 @@ def test_the_training_result_is_accepted_where_its_parts_are(ds):
     ``(name, params, ds, cfg)``; a result given with its parts again is refused."""
     from minimanc import train
 
-    cfg = models.ModelConfig(image_size=32, n_states=3)
+    cfg = models.ModelConfig(input_shape=(32, 32, 3), n_states=3)
     params = models.init("manc", np.random.default_rng(4), cfg)
     fit = train.FitResult(name="manc", params=params, history=[], cfg=cfg,
                           train_cfg=train.TrainConfig(), steps=7)  # Adam steps, not the loop's

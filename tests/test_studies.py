@@ -232,7 +232,7 @@ def test_a_closed_loop_that_blows_up_scores_inf(tmp_path, monkeypatch):
 
     ds = world.generate(2, seed=5, raster=world.RasterConfig(size=32), workers=1)
     data = world.save(ds, tmp_path / "d.npz")
-    cfg = models.ModelConfig(image_size=32)
+    cfg = models.ModelConfig(input_shape=(32, 32, 3))
     params = models.init("cnn", np.random.default_rng(0), cfg)
     params["out"]["b"] = params["out"]["b"] * np.nan
     ck = train.save_checkpoint(tmp_path / "ck.npz", "cnn", params, cfg)

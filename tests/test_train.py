@@ -10,7 +10,8 @@ import pytest
 
 from minimanc import models, train, tree, world
 
-CFG = models.ModelConfig(image_size=32, channels=(4, 8), n_predicates=4, n_states=3, hidden=8)
+CFG = models.ModelConfig(input_shape=(32, 32, 3), channels=(4, 8), n_predicates=4, n_states=3,
+                         hidden=8)
 
 
 @pytest.fixture(scope="module")
@@ -245,9 +246,12 @@ def test_evaluate_runs_dmp_models_on_whole_scenes_with_their_own_speed(ds):
         assert val == pytest.approx(ref, rel=1e-6)
 
 
-def test_without_a_config_the_model_takes_the_data_s_image_size(ds):
+def test_without_a_config_the_model_takes_the_data_s_input_shape(ds):
     fit = train.fit("cnn", ds, None, _tc(), engine="numpy", progress=False)
-    assert fit.cfg.image_size == ds.bev.shape[2] == 32
+    assert fit.cfg.input_shape == ds.raster.input_shape == (32, 32, 3)
+    unset = train.fit("cnn", ds, models.ModelConfig(n_states=3), _tc(), engine="numpy",
+                      progress=False)
+    assert unset.cfg.input_shape == (32, 32, 3) and unset.cfg.n_states == 3
 
 
 def test_bad_config_raises(ds):
@@ -257,8 +261,8 @@ def test_bad_config_raises(ds):
         train.TrainConfig(subset=0.0)
     with pytest.raises(ValueError, match="q_init"):
         train.TrainConfig(q_init="zeros")
-    with pytest.raises(ValueError, match="image_size"):
-        train.fit("cnn", ds, models.ModelConfig(image_size=64), _tc(), engine="numpy",
+    with pytest.raises(ValueError, match=r"train_ds's BEV planes \(32, 32, 3\) .* \(64, 64, 3\)"):
+        train.fit("cnn", ds, models.ModelConfig(input_shape=(64, 64, 3)), _tc(), engine="numpy",
                   progress=False)
     with pytest.raises(ValueError, match="engine"):
         train.fit("cnn", ds, CFG, _tc(), engine="torch", progress=False)

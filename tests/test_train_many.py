@@ -11,7 +11,8 @@ import pytest
 
 from minimanc import models, train, tree, world
 
-CFG = models.ModelConfig(image_size=32, channels=(4, 8), n_predicates=4, n_states=3, hidden=8)
+CFG = models.ModelConfig(input_shape=(32, 32, 3), channels=(4, 8), n_predicates=4, n_states=3,
+                         hidden=8)
 RTOL, ATOL = 2e-4, 2e-6  # float32: XLA may sum a vmapped batch in another order
 
 
@@ -119,5 +120,6 @@ def test_bad_arguments(ds, tmp_path):
         train.fit_seeds("cnn", ds, CFG, _tc(), [0, 1], resume=True, progress=False)
     with pytest.raises(ValueError, match="train_cfg must be"):
         train.fit_seeds("cnn", ds, CFG, {"epochs": 1}, [0], progress=False)
-    with pytest.raises(ValueError, match="image_size"):
-        train.fit_seeds("cnn", ds, replace(CFG, image_size=64), _tc(), [0, 1], progress=False)
+    with pytest.raises(ValueError, match="input_shape"):
+        train.fit_seeds("cnn", ds, replace(CFG, input_shape=(64, 64, 3)), _tc(), [0, 1],
+                        progress=False)

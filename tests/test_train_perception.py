@@ -12,7 +12,8 @@ import pytest
 from minimanc import diagnose, engine, models, train, tree, world
 from minimanc.train.perception import init_perception_head, perception_term
 
-CFG = models.ModelConfig(image_size=32, channels=(4, 8), n_predicates=4, n_states=3, hidden=8)
+CFG = models.ModelConfig(input_shape=(32, 32, 3), channels=(4, 8), n_predicates=4, n_states=3,
+                         hidden=8)
 
 
 @pytest.fixture(scope="module")

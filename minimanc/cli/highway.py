@@ -102,10 +102,8 @@ def cmd_train(args: argparse.Namespace) -> int:
     if _highway() is None:
         return 2
     ds = load_data(args.data)
-    size = int(ds.bev.shape[2])
-    for name in args.models:
-        cfg = models.ModelConfig(image_size=size, setting=args.setting,
-                                 k_targets=int(ds.lane_target.shape[2]))
+    for name in args.models:  # the input shape is the data's (train.fit fills it in)
+        cfg = models.ModelConfig(setting=args.setting, k_targets=int(ds.lane_target.shape[2]))
         try:
             res = train.fit(name, ds, cfg, tc, engine=args.engine, checkpoint_dir=out / name,
                             resume=args.resume, progress=not args.quiet)
@@ -127,6 +125,15 @@ def _policy(path: str, engine: str, option: str = "--checkpoints") -> Any:
     return rollout.ModelPolicy(fit, engine=engine)
 
 
+def _raster(pol: Any, path: str) -> world.RasterConfig:
+    """The raster `highway collect` draws (RGB, ``--size``) that the policy's model reads."""
+    rows, cols, planes = pol.cfg.bev_shape
+    if planes != 3:
+        raise UsageError(f"{path}: the model reads {planes} BEV planes; the highway commands "
+                         f"draw the RGB raster (3 planes) of `minimanc highway collect`")
+    return world.RasterConfig(size=rows, cols=None if cols == rows else cols)
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
     """Closed-loop evaluation of checkpoints against the expert, per scenario."""
     _check_episode_args(args)
@@ -135,8 +142,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
     hw = _highway()
     if hw is None:
         return 2
-    policies = [(Path(p).parent.name or Path(p).stem, _policy(p, args.engine))
-                for p in args.checkpoints]
+    policies = []
+    for path in args.checkpoints:
+        pol = _policy(path, args.engine)
+        policies.append((Path(path).parent.name or Path(path).stem, pol, _raster(pol, path)))
     report: dict[str, dict] = {}
     header = (f"{'scenario':<13} {'driver':<16} {'collision %':>11} {'off-road %':>10} "
               f"{'ADE m':>7} {'speed m/s':>9} {'episodes/s':>10}")
@@ -145,8 +154,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         experts, tries = hw.expert_episodes(sc, args.episodes, seed=args.seed, steps=args.steps,
                                             record_bev=False)
         rows = {"expert": hw.expert_result(sc, experts).metrics}
-        for label, pol in policies:
-            cfg = world.RasterConfig(size=pol.cfg.image_size)
+        for label, pol, cfg in policies:
             rows[label] = hw.drive_episodes(pol, sc, experts, cfg=cfg).metrics
         report[sc] = {"expert_seeds_tried": tries, **rows}
         for label, m in rows.items():
@@ -170,7 +178,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         experts, _ = hw.expert_episodes(args.scenario, 1, seed=args.seed, steps=args.steps,
                                         record_bev=False)
         goal = experts[0].poses[args.steps - 1]
-        cfg = world.RasterConfig(size=pol.cfg.image_size)
+        cfg = _raster(pol, args.checkpoint)
         paths = hw.render_episode(args.scenario, experts[0].seed, args.out,
                                   hw.plain_policy(pol, goal, cfg), steps=args.steps, goal=goal,
                                   cfg=cfg)

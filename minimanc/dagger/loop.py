@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from minimanc import models, train
+from minimanc import inputs, models, train
 from minimanc.checks import check_int
 from minimanc.dagger.aggregate import Collected, collect, concat
 from minimanc.dagger.schedule import Budget, beta_schedule, check_beta, plan_budget
@@ -89,9 +89,9 @@ class DaggerResult:
 
 
 def default_config(pool: Dataset, **kw: Any) -> Any:
-    """The :class:`~minimanc.models.ModelConfig` that fits ``pool``: its BEV size and
-    lane-target points (``kw`` sets other fields)."""
-    return models.ModelConfig(image_size=int(np.asarray(pool.bev).shape[2]),
+    """The :class:`~minimanc.models.ModelConfig` that fits ``pool``: its BEV planes'
+    ``input_shape`` (its raster's) and lane-target points (``kw`` sets other fields)."""
+    return models.ModelConfig(input_shape=inputs.raster_of(pool).input_shape,
                               k_targets=int(np.asarray(pool.lane_target).shape[2]), **kw)
 
 

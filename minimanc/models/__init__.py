@@ -55,12 +55,14 @@ from minimanc.models.backbone import backbone
 from minimanc.models.config import (
     CONTROL_SCALE,
     DEFAULT_GAINS,
+    DEFAULT_INPUT_SHAPE,
     ModelConfig,
     gain_logits,
 )
 from minimanc.models.dmp_head import dmp_head, lane_point, lane_points
 from minimanc.models.explain import saliency
 from minimanc.models.forward import (
+    check_input_shape,
     init,
     initial_state,
     param_count,
@@ -85,9 +87,11 @@ __all__ = [
     "BUILTIN",
     "CONTROL_SCALE",
     "DEFAULT_GAINS",
+    "DEFAULT_INPUT_SHAPE",
     "ModelConfig",
     "ModelSpec",
     "backbone",
+    "check_input_shape",
     "check_name",
     "dmp_head",
     "dmp_models",

@@ -1,9 +1,10 @@
 """Chapter 8 — the CNN backbone every controller shares and the small layers its heads use.
 
 :func:`backbone`: 3×3 convolutions, stride 2, zero padding 1, then the activation
-(SiLU or ReLU), per layer; with the default channels ``(16, 32, 32)`` a 64×64 BEV
-becomes 8×8×32 features (NHWC); :func:`activate` is the configured activation. The heads'
-dense layers and flattening are :func:`minimanc.layers.dense` and :func:`minimanc.layers.flatten`.
+(SiLU or ReLU), per layer; with the default channels ``(16, 32, 32)`` a 64×64 BEV (of any
+number of planes: RGB or the binary channels) becomes 8×8×32 features (NHWC);
+:func:`activate` is the configured activation. The heads' dense layers and flattening are
+:func:`minimanc.layers.dense` and :func:`minimanc.layers.flatten`.
 """
 
 from __future__ import annotations
@@ -22,8 +23,9 @@ def backbone(params: dict, images: Any, cfg: Any, eng: Any) -> Any:
     ----------
     params : dict
         ``{"convs": [conv, ...]}`` from :func:`minimanc.models.init`.
-    images : array, shape (B, H, W, 3)
-        BEV rasters in [0, 1].
+    images : array, shape (B, H, W, C)
+        BEV planes in [0, 1] (:func:`minimanc.world.encodings.to_input`), ``(H, W, C) =
+        cfg.bev_shape``.
     cfg : ModelConfig
         Its ``activation`` is applied after each convolution.
     eng : Engine
@@ -32,7 +34,7 @@ def backbone(params: dict, images: Any, cfg: Any, eng: Any) -> Any:
     Returns
     -------
     array, shape (B, h, w, C)
-        ``h = w = cfg.feature_size``, ``C = cfg.channels[-1]``.
+        ``(h, w) = cfg.feature_shape``, ``C = cfg.channels[-1]``.
     """
     act = eng.nn.silu if cfg.activation == "silu" else eng.nn.relu
     h = images

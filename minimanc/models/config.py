@@ -11,9 +11,10 @@ import numpy as np
 from minimanc import dmp, inputs
 from minimanc.checks import check_int
 from minimanc.world.lanes import TARGET_SPACING
+from minimanc.world.raster import RasterConfig
 
-__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "TARGET_SPACING", "ModelConfig", "gain_box_corners",
-           "gain_logits", "lookahead_rule"]
+__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "DEFAULT_INPUT_SHAPE", "TARGET_SPACING", "ModelConfig",
+           "gain_box_corners", "gain_logits", "lookahead_rule"]
 
 # TARGET_SPACING (the metres of route between the lane-target points the heads see,
 # obs["lane_target"] at 4 · (1 … K) m) is the world's, re-exported for the heads.
@@ -24,6 +25,10 @@ CONTROL_SCALE: tuple[float, float] = (10.0, 0.5)
 DEFAULT_GAINS: tuple[float, float, float, float] = (1.0, 0.45, 2.5, 1.15)
 """Initial ``(α_y, β_y, α_q, β_q)`` of the DMP heads (the bias of the gains FC):
 β_y τ_y ≈ 1 keeps the speed, β_q τ_q ≈ 1 follows the pure-pursuit arc."""
+
+DEFAULT_INPUT_SHAPE: tuple[int, int, int] = RasterConfig().input_shape
+"""``(H, W, C)`` a model reads when :attr:`ModelConfig.input_shape` is unset and no data
+says otherwise: the default raster's (64 × 64 RGB)."""
 
 
 def gain_logits(gains: Any) -> np.ndarray:
@@ -97,7 +102,10 @@ class ModelConfig:
     """Hyper-parameters shared by all controllers.
 
     ``n_states`` q-states of vAGN (the paper studies 3–12), ``n_predicates``
-    visual predicates of eq. 7, ``image_size`` of the square BEV, ``setting``
+    visual predicates of eq. 7, ``input_shape`` ``(H, W, C)`` of the BEV planes the model
+    reads (the raster's :attr:`minimanc.world.RasterConfig.input_shape`; ``None``, the
+    default, takes it from the data: :func:`minimanc.train.fit` fills it in from the dataset,
+    and a model built without data reads :data:`DEFAULT_INPUT_SHAPE`), ``setting``
     ("paper"/"parity", see :mod:`minimanc.inputs`), ``channels`` of the 3×3
     stride-2 convolutions, ``activation`` ("silu"/"relu"), ``hidden`` units of
     the FC and LSTM layers (64 as in the paper), ``k_targets`` lane-target
@@ -119,7 +127,7 @@ class ModelConfig:
 
     n_states: int = 6
     n_predicates: int = 8
-    image_size: int = 64
+    input_shape: tuple[int, int, int] | None = None
     setting: str = "paper"
     channels: tuple[int, ...] = (16, 32, 32)
     activation: str = "silu"
@@ -138,8 +146,17 @@ class ModelConfig:
     dt: float = dmp.DT
 
     def __post_init__(self) -> None:
-        for name in ("n_states", "n_predicates", "image_size", "hidden", "k_targets"):
+        for name in ("n_states", "n_predicates", "hidden", "k_targets"):
             check_int(name, getattr(self, name), 1)
+        if self.input_shape is not None:
+            shape = self.input_shape
+            if not isinstance(shape, tuple | list) or len(shape) != 3 or any(
+                    isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1
+                    for n in shape):
+                raise ValueError(f"input_shape must be three positive integers (H, W, C), e.g. "
+                                 f"world.RasterConfig(...).input_shape, or None (the data's); "
+                                 f"got input_shape={shape!r}")
+            object.__setattr__(self, "input_shape", tuple(int(n) for n in shape))
         inputs.check_setting(self.setting)
         ch = tuple(self.channels)
         if not ch or any(isinstance(c, bool) or not isinstance(c, int | np.integer) or c < 1
@@ -194,17 +211,26 @@ class ModelConfig:
             f"use dt < {_largest_stable_dt(corners):.4g} s")
 
     @property
-    def feature_size(self) -> int:
-        """Spatial size of the backbone's output (64 → 8 with three stride-2 layers)."""
-        s = self.image_size
+    def bev_shape(self) -> tuple[int, int, int]:
+        """``(H, W, C)`` of ``obs["bev"]`` this model reads: :attr:`input_shape`, or
+        :data:`DEFAULT_INPUT_SHAPE` while it is unset."""
+        return self.input_shape or DEFAULT_INPUT_SHAPE
+
+    @property
+    def feature_shape(self) -> tuple[int, int]:
+        """``(h, w)`` of the backbone's output: each stride-2 layer maps ``s`` to
+        ``(s − 1) // 2 + 1`` (64 × 64 → 8 × 8 with three layers)."""
+        h, w, _ = self.bev_shape
         for _ in self.channels:
-            s = (s + 2 - 3) // 2 + 1
-        return s
+            h, w = (h - 1) // 2 + 1, (w - 1) // 2 + 1
+        return h, w
 
     def to_dict(self) -> dict:
-        """A JSON-able dict (for checkpoints)."""
+        """A JSON-able dict (for checkpoints; :class:`ModelConfig` ``(**d)`` reads it back)."""
         d = asdict(self)
         d["channels"] = list(d["channels"])
+        if d["input_shape"] is not None:
+            d["input_shape"] = list(d["input_shape"])
         return d
 
 

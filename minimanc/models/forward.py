@@ -28,6 +28,7 @@ from minimanc.tree import map as tree_map
 
 __all__ = [
     "cast_tree",
+    "check_input_shape",
     "check_obs",
     "check_per_scene",
     "encode",
@@ -69,7 +70,8 @@ def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
     rng : numpy.random.Generator
         Draws the backbone's convolutions first, then the spec's own layers.
     cfg : ModelConfig, optional
-        Defaults to ``ModelConfig()``.
+        Defaults to ``ModelConfig()``; the first convolution reads ``cfg.bev_shape[2]``
+        planes.
     dtype : dtype
         Of every leaf.
 
@@ -86,7 +88,7 @@ def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
     spec = get(name)
     cfg = cfg or ModelConfig()
     check_rng("rng", rng)
-    convs, c_in = [], 3
+    convs, c_in = [], cfg.bev_shape[2]
     for c in cfg.channels:
         convs.append(layers.init_conv(rng, 3, 3, c_in, c))
         c_in = c
@@ -180,6 +182,31 @@ def initial_state(name: str, batch: int, cfg: ModelConfig | None = None, xp: Any
     return {}
 
 
+def check_input_shape(cfg: ModelConfig, shape: Sequence[int], label: str) -> None:
+    """Check that data whose BEV planes are ``shape`` fit a model built for ``cfg``.
+
+    Parameters
+    ----------
+    cfg : ModelConfig
+        Its :attr:`~ModelConfig.bev_shape`.
+    shape : sequence of int
+        ``(H, W, C)`` of the data's planes (its raster's ``input_shape``).
+    label : str
+        The data's argument, for the message.
+
+    Raises
+    ------
+    ValueError
+        If they differ: one line naming both shapes and the two ways to agree.
+    """
+    if tuple(shape) != cfg.bev_shape:
+        raise ValueError(
+            f"{label}'s BEV planes {tuple(shape)} (its raster's input_shape) do not match the "
+            f"model's {cfg.bev_shape} (cfg.input_shape={cfg.input_shape}): use data drawn with "
+            f"the raster the model was built for, or a models.ModelConfig without input_shape "
+            f"(train.fit takes the data's)")
+
+
 def check_obs(name: str, obs: dict, cfg: ModelConfig, lead: int) -> None:
     """Check the keys and shapes of an observation.
 
@@ -195,8 +222,8 @@ def check_obs(name: str, obs: dict, cfg: ModelConfig, lead: int) -> None:
     Raises
     ------
     ValueError
-        For a missing key, a BEV not ``(..., image_size, image_size, 3)`` or a lane
-        target not ending in ``(k_targets, 2)``.
+        For a missing key, a BEV not ``(..., *cfg.bev_shape)`` or a lane target not ending
+        in ``(k_targets, 2)``.
     """
     keys = inputs.visible(get(name), cfg.setting)
     missing = [k for k in keys if k not in obs]
@@ -204,10 +231,10 @@ def check_obs(name: str, obs: dict, cfg: ModelConfig, lead: int) -> None:
         raise ValueError(f"obs lacks {missing} needed by model {name!r} in setting "
                          f"{cfg.setting!r}; got keys {sorted(obs)}")
     shape = tuple(obs["bev"].shape)
-    want = (cfg.image_size, cfg.image_size, 3)
-    if len(shape) != lead + 3 or shape[lead:] != want:
-        raise ValueError(f"obs['bev'] must have shape {('B',) * lead + want} for "
-                         f"image_size={cfg.image_size}, got {shape}")
+    if len(shape) != lead + 3:
+        raise ValueError(f"obs['bev'] must have shape {('B',) * lead + cfg.bev_shape}, got "
+                         f"{shape}")
+    check_input_shape(cfg, shape[lead:], "obs['bev']")
     if "lane_target" in keys:
         lt = tuple(obs["lane_target"].shape)
         if lt[lead:] != (cfg.k_targets, 2):
@@ -298,8 +325,8 @@ def step(name: str, params: dict, obs: dict, state: dict, cfg: ModelConfig | Non
     params : dict
         From :func:`init` or :func:`minimanc.train.fit`.
     obs : dict
-        Observations of :mod:`minimanc.inputs`, batched: ``bev`` ``(B, H, W, 3)`` and the
-        other keys the model sees.
+        Observations of :mod:`minimanc.inputs`, batched: ``bev`` ``(B, *cfg.bev_shape)`` and
+        the other keys the model sees.
     state : dict
         From :func:`initial_state` or the previous call.
     cfg : ModelConfig or None

@@ -82,9 +82,10 @@ def flat_size(cfg: ModelConfig) -> int:
     Returns
     -------
     int
-        ``feature_size² · channels[-1]``.
+        ``h · w · channels[-1]``, ``(h, w) = cfg.feature_shape``.
     """
-    return cfg.feature_size ** 2 * cfg.channels[-1]
+    h, w = cfg.feature_shape
+    return h * w * cfg.channels[-1]
 
 
 def control_scale(eng: Any) -> Any:

@@ -18,10 +18,9 @@ from minimanc.checks import check_int
 from minimanc.rollout.driver import Policy, SceneState, Simulator, drive
 from minimanc.world.geometry import DT, unicycle_step
 from minimanc.world.history import latest_history
-from minimanc.world.raster import RasterConfig
 
 __all__ = ["AGENTS", "BATCH_SIZE", "LogReplay", "Rollout", "check_agents", "check_dataset",
-           "k_targets_of", "raster_config", "run_batches", "scene_index"]
+           "k_targets_of", "run_batches", "scene_index"]
 
 BATCH_SIZE: int = 8
 """Default number of scenes driven together (see :func:`simulate`)."""
@@ -162,14 +161,6 @@ def scene_index(scenes: Any, S: int) -> np.ndarray:
     return idx.astype(np.int64)
 
 
-def raster_config(ds: Any) -> Any:
-    """The :class:`minimanc.world.RasterConfig` the dataset was drawn with."""
-    cfg = getattr(ds, "raster", None)
-    if cfg is None:
-        cfg = RasterConfig(size=int(np.asarray(ds.bev).shape[2]))
-    return cfg
-
-
 def k_targets_of(ds: Any) -> int | None:
     """The dataset's number of lane-target points (``None``: unknown)."""
     lt = getattr(ds, "lane_target", None)
@@ -199,7 +190,7 @@ class LogReplay:
         self.follow_log = bool(follow_log)
         self._ds = ds
         self.scenes = scene_index(scenes, S)
-        self.raster = raster_config(ds)
+        self.raster = inputs.raster_of(ds)
         self.k_targets = k_targets_of(ds)
         ego = np.asarray(ds.ego, dtype=np.float64)[self.scenes]
         self._start, self._goal = ego[:, 0], ego[:, -1]

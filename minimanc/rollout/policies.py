@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import models
+from minimanc import inputs, models
 from minimanc.checks import check_int
 from minimanc.engine import get_engine
 from minimanc.models.forward import cast_tree
@@ -252,9 +252,12 @@ def closed_loop(
     Raises
     ------
     ValueError
-        If ``setting`` differs from ``cfg.setting``, or for an unknown ``agents``.
+        If ``setting`` differs from ``cfg.setting``, for an unknown ``agents``, or if the
+        dataset's raster draws other planes than the model reads
+        (:func:`minimanc.models.check_input_shape`).
     """
     check_agents(agents)
+    models.check_input_shape(cfg, inputs.raster_of(ds).input_shape, "ds")
     if setting is not None and setting != cfg.setting:
         raise ValueError(
             f"setting={setting!r} differs from cfg.setting={cfg.setting!r}: a model is run in "

@@ -47,7 +47,7 @@ import numpy as np
 
 from minimanc import inputs
 from minimanc.rollout.driver import SceneState
-from minimanc.rollout.log import AGENTS, k_targets_of, raster_config
+from minimanc.rollout.log import AGENTS, k_targets_of
 from minimanc.world.driver import SceneRun
 from minimanc.world.generation import scene_stream
 from minimanc.world.geometry import DT
@@ -237,7 +237,7 @@ class ReactiveSim:
     def __init__(self, ds: Any, scenes: Any = None) -> None:
         S, self.T = _check_ds(ds)
         self.scenes = _scenes(scenes, S)
-        self.raster = raster_config(ds)
+        self.raster = inputs.raster_of(ds)
         self.k_targets = k_targets_of(ds)
         self._ds = ds
         self._records = [record_human(ds, int(i)) for i in self.scenes]

@@ -53,8 +53,7 @@ class References:
                     self._floor = bounds.floor_rollout(val, bounds.median_style())
                 traj = self._floor
             else:
-                cfg = models.ModelConfig(n_states=self.config.n_states,
-                                         image_size=self.config.image_size)
+                cfg = models.ModelConfig(n_states=self.config.n_states)
                 traj = rollout.fixed_gains(val, cfg=cfg, agents=agents)
             self._scores[key] = score(traj, val)
             self.timing["references"] = (self.timing.get("references", 0.0)

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from minimanc import metrics, models, rollout, train
+from minimanc import metrics, models, rollout, train, world
 from minimanc.engine import ENGINES
 from minimanc.metrics import modes
 from minimanc.rollout import check_agents
@@ -283,7 +283,8 @@ class Study:
         c = self.config
         out = {}
         for s in c.settings:
-            cfg = models.ModelConfig(n_states=c.n_states, image_size=c.image_size, setting=s)
+            cfg = models.ModelConfig(n_states=c.n_states, setting=s,
+                                     input_shape=world.RasterConfig(size=c.image_size).input_shape)
             out[s] = models.param_counts(cfg)
         return out
 

@@ -42,10 +42,9 @@ class Trainings:
         self._started: dict[str, tuple[Any, int]] = {}
 
     def model_config(self, run: Run) -> models.ModelConfig:
-        """The run's :class:`~minimanc.models.ModelConfig` (its q-states and setting, the
-        study's image size)."""
-        return models.ModelConfig(n_states=run.n_states, image_size=self.config.image_size,
-                                  setting=run.setting)
+        """The run's :class:`~minimanc.models.ModelConfig` (its q-states and setting; the
+        input shape is the data's, filled in by :func:`minimanc.train.fit`)."""
+        return models.ModelConfig(n_states=run.n_states, setting=run.setting)
 
     def train_config(self, run: Run) -> train.TrainConfig:
         """The run's :class:`~minimanc.train.TrainConfig` (:meth:`StudyConfig.train_config`)."""

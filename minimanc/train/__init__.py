@@ -91,6 +91,7 @@ from minimanc.train.config import (
 from minimanc.train.fit import (
     SweepResult,
     cast_floats,
+    config_for_data,
     fit,
     open_loop_loss,
     sweep_lr,
@@ -119,6 +120,7 @@ __all__ = [
     "bad_params",
     "batches",
     "cast_floats",
+    "config_for_data",
     "control_std",
     "dataset_shape",
     "open_loop_loss",

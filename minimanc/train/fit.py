@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from minimanc import models, optim
+from minimanc import inputs, models, optim
 from minimanc.engine import ENGINES, get_engine
 from minimanc.train.batches import (
     batches,
@@ -43,9 +43,9 @@ from minimanc.tree import cast_floats
 from minimanc.world.datawriter import remove_temp_files
 from minimanc.world.fileformat import describe_non_finite, first_non_finite
 
-__all__ = ["RunState", "SweepResult", "cast_floats", "check_fit_args", "diverged_loss", "end_epoch",
-           "as_engine", "epoch_plan", "fit", "open_loop_loss", "result_of", "start_run",
-           "step_batch", "sweep_lr", "with_perception"]
+__all__ = ["RunState", "SweepResult", "as_engine", "cast_floats", "check_fit_args",
+           "config_for_data", "diverged_loss", "end_epoch", "epoch_plan", "fit", "open_loop_loss",
+           "result_of", "start_run", "step_batch", "sweep_lr", "with_perception"]
 
 
 def as_engine(engine: Any) -> Any:
@@ -102,23 +102,50 @@ def check_fit_args(name: str, train_ds: Any, cfg: models.ModelConfig | None,
     (defaults filled in); a ``ValueError`` naming the argument otherwise."""
     name = models.check_name(name)
     dataset_shape(train_ds)
-    H = np.asarray(train_ds.bev[:1, :1]).shape[2]
-    cfg = cfg or models.ModelConfig(image_size=H)
+    cfg = cfg or models.ModelConfig()
     tc = train_cfg or TrainConfig()
     if not isinstance(cfg, models.ModelConfig):
         raise ValueError(f"cfg must be a models.ModelConfig, got cfg={cfg!r}")
     if not isinstance(tc, TrainConfig):
         raise ValueError(f"train_cfg must be a train.TrainConfig, got train_cfg={tc!r}")
-    if H != cfg.image_size:
-        raise ValueError(f"cfg.image_size={cfg.image_size} does not match the dataset's "
-                         f"{H} px BEV (its raster sets the size): pass "
-                         f"models.ModelConfig(image_size={H}, ...), or no cfg")
+    cfg = config_for_data(cfg, train_ds, "train_ds")
+    if val_ds is not None:
+        config_for_data(cfg, val_ds, "val_ds")
     for label, data in (("train_ds", train_ds), ("val_ds", val_ds)):
         found = first_non_finite(data) if data is not None else None
         if found is not None:
             raise ValueError(f"{label} holds a non-finite number: {describe_non_finite(found)}; "
                              "training needs finite data (check how it was made)")
     return name, cfg, tc
+
+
+def config_for_data(cfg: models.ModelConfig, ds: Any, label: str = "ds") -> models.ModelConfig:
+    """``cfg`` with the input shape of the dataset ``ds``, the one source of a model's input.
+
+    Parameters
+    ----------
+    cfg : ModelConfig
+        Its ``input_shape`` unset (``None``: filled in) or equal to the data's.
+    ds : dataset
+        Its raster (:func:`minimanc.inputs.raster_of`) gives ``(H, W, C)``.
+    label : str
+        The argument's name, for the message.
+
+    Returns
+    -------
+    ModelConfig
+
+    Raises
+    ------
+    ValueError
+        If ``cfg.input_shape`` is set and differs from the data's
+        (:func:`minimanc.models.check_input_shape`).
+    """
+    shape = inputs.raster_of(ds).input_shape
+    if cfg.input_shape is None:
+        return replace(cfg, input_shape=shape)
+    models.check_input_shape(cfg, shape, label)
+    return cfg
 
 
 def start_run(name: str, train_ds: Any, cfg: models.ModelConfig, tc: TrainConfig,

@@ -127,8 +127,9 @@ def standardised_targets(targets: PerceptionTargets, scenes: Any) -> np.ndarray:
 
 def init_perception_head(rng: np.random.Generator, cfg: models.ModelConfig, k: int) -> dict:
     """The read-out of the auxiliary loss: a dense layer from the flattened backbone features
-    (``feature_size² · channels[-1]``) to ``k`` targets (:func:`minimanc.layers.init_dense`)."""
-    return layers.init_dense(rng, cfg.feature_size ** 2 * cfg.channels[-1], k)
+    (:func:`minimanc.models.zoo.flat_size`) to ``k`` targets
+    (:func:`minimanc.layers.init_dense`)."""
+    return layers.init_dense(rng, models.zoo.flat_size(cfg), k)
 
 
 def perception_outputs(params: dict, bev: Any, cfg: models.ModelConfig, eng: Any) -> Any:

@@ -104,7 +104,7 @@ def train_step_fn(name: str, ds):
     """One training step of model ``name`` on today's raster (batch 64 in its window setup),
     as a function of no argument, and the frames a step reads."""
     eng = engine("jax")
-    cfg = models.ModelConfig(image_size=64)
+    cfg = train.config_for_data(models.ModelConfig(), ds)
     tc = train.TrainConfig(batch_size=64, dtype="float32")
     s, t = train.batches(name, ds, np.arange(len(ds)), tc, epoch=0)[0]
     batch = train.make_batch(name, ds, s, t, cfg, np.float32)

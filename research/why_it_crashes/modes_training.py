@@ -59,7 +59,7 @@ def one_run(variant: str, seed: int, lr: float) -> dict:
     """Train MANC under ``variant`` at ``seed``; its q-states against the human's modes."""
     c = PRESETS["paper"]
     train_ds, val_ds = data()
-    cfg = models.ModelConfig(n_states=c.n_states, image_size=c.image_size)
+    cfg = models.ModelConfig(n_states=c.n_states)
     tc = replace(c.training, lr=lr, seed=seed, **VARIANTS[variant])
     t0 = time.perf_counter()
     fit = train.fit("manc", train_ds, cfg, tc, engine="jax", progress=False)

@@ -36,7 +36,7 @@ import numpy as np
 from rounds import Round
 from tqdm import tqdm
 
-from minimanc import engine, inputs, models, optim, rollout
+from minimanc import engine, inputs, models, optim, rollout, train
 from minimanc.checks import check_int
 from minimanc.dagger.teachers import WorldTeacher
 from minimanc.diagnose import policies
@@ -92,9 +92,9 @@ class Perception:
         scaled to ``[0, 1]`` (as :func:`minimanc.inputs.from_dataset` gives them) and, with
         :attr:`route`, the lane targets ``(B, K_TARGETS, 2)``."""
         bev = np.asarray(bev, dtype=np.float32)
-        if bev.ndim != 4 or bev.shape[1:] != (self.cfg.image_size, self.cfg.image_size, 3):
-            raise ValueError(f"bev must have shape (B, {self.cfg.image_size}, "
-                             f"{self.cfg.image_size}, 3), got {bev.shape}")
+        if bev.ndim != 4 or bev.shape[1:] != self.cfg.bev_shape:
+            raise ValueError(f"bev must have shape (B, {', '.join(map(str, self.cfg.bev_shape))}),"
+                             f" got {bev.shape}")
         lane = None
         if self.route:
             if lane_target is None:
@@ -124,7 +124,7 @@ def fit_perception(train_ds: Any, targets: np.ndarray | None = None, epochs: int
     y = P.perceived(train_ds, PERCEIVE) if targets is None else np.asarray(targets, float)
     if y.ndim != 3 or y.shape[2] != len(PERCEIVE):
         raise ValueError(f"targets must have shape (S, T, {len(PERCEIVE)}), got {y.shape}")
-    cfg = cfg or models.ModelConfig(setting="paper")
+    cfg = train.config_for_data(cfg or models.ModelConfig(setting="paper"), train_ds, "train_ds")
     return fit_reader(train_ds, y, cfg, epochs, lr, seed, hidden, route, batch, progress)
 
 
