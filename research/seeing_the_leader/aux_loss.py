@@ -14,10 +14,10 @@ in the view (a regression of the flag, thresholded at ½) and the own speed (t �
 open-loop control loss on the validation scenes (:func:`minimanc.train.open_loop_loss`):
 whether the auxiliary loss costs behaviour cloning anything.
 
-The library's models read the 3-channel RGB raster only (their first convolution is drawn
-for 3 input channels and their observation check refuses another raster), so the CNN reads
-the course's RGB raster (40 m × ±25 m at 0.78 m/px, no history); the learner's channels
-raster waits for the models to read it.
+The CNN reads the course's RGB raster (40 m × ±25 m at 0.78 m/px, no history) or, with
+``--raster channels``, the learner's binary channels of the same view with the route and
+the vehicles at t, t−1, t−2 (the perception study's ``route`` variant; the model takes its
+input shape from the data). Both views are the same, so are the targets.
 
 Data: the seed-0 draw (scenes 0–63 train, 72–95 validate at the quick size; the preset's
 tuning scenes 64–71 unused), generated once into ``DATA_DIR/aux_loss``. Each run's result is
@@ -56,6 +56,11 @@ N_VAL = 24
 """The quick preset's validation scenes."""
 NEAR = 30.0
 """Leaders within this gap (m) are those the targets speak of."""
+RASTERS = {"rgb": world.RasterConfig(),
+           "channels": world.RasterConfig(encoding="channels", history=2, route=True)}
+"""The rasters the CNN may read (one view: 40 m × ±25 m at 0.78 m/px)."""
+RASTER_TEXT = {"rgb": "RGB raster", "channels": "binary channels (map, route, vehicles at t, "
+               "t−1, t−2: 12 planes)"}
 RIDGES = (1.0, 10.0, 100.0, 1e3, 1e4, 1e5)
 """The probe's ridge, chosen per quantity by 4-fold cross-validation over the training
 scenes (never the validation scenes)."""
@@ -66,11 +71,12 @@ def splits(n_train: int) -> tuple[range, range]:
     return range(0, n_train), range(n_train + GAP, n_train + GAP + N_VAL)
 
 
-def data(n_train: int) -> tuple:
+def data(n_train: int, raster: str) -> tuple:
     """The dataset and its targets (cached under :data:`WORK`)."""
     WORK.mkdir(parents=True, exist_ok=True)
     n = splits(n_train)[1].stop
-    ds = world.generate(n, seed=0, cache=str(WORK / "world"), workers=1)
+    ds = world.generate(n, seed=0, raster=RASTERS[raster], cache=str(WORK / "world"),
+                        workers=1)
     path = WORK / f"targets_{n}.npz"
     if not path.exists():
         tg = diagnose.perception_targets(ds, view=world.RasterConfig())
@@ -144,9 +150,10 @@ def _ridge(Z: np.ndarray, Y: np.ndarray, Zv: np.ndarray, ridge: float) -> np.nda
 
 
 def run(weight: float, seed: int, ds, tg: train.PerceptionTargets, n_train: int,
-        epochs: int) -> dict:
+        epochs: int, raster: str) -> dict:
     """One training and its probe (cached)."""
-    path = WORK / f"n{n_train}_e{epochs}_w{weight:g}_s{seed}.json"
+    tag = "" if raster == "rgb" else f"_{raster}"
+    path = WORK / f"n{n_train}_e{epochs}{tag}_w{weight:g}_s{seed}.json"
     if path.exists():
         return json.loads(path.read_text())
     scenes, val_scenes = splits(n_train)
@@ -158,7 +165,7 @@ def run(weight: float, seed: int, ds, tg: train.PerceptionTargets, n_train: int,
     fit = train.fit(MODEL, tr, models.ModelConfig(), tc, engine="jax", progress=False,
                     perception=sub if weight > 0 else None)
     seconds = time.perf_counter() - t0
-    out = {"weight": weight, "seed": seed, "n_train": n_train, "epochs": epochs,
+    out = {"weight": weight, "seed": seed, "n_train": n_train, "epochs": epochs, "raster": raster,
            "train_seconds": seconds, "steps": fit.steps,
            "val_control_loss": train.open_loop_loss(fit, val),
            **probe(features(fit, ds, scenes), features(fit, ds, val_scenes), tg, n_train)}
@@ -168,7 +175,7 @@ def run(weight: float, seed: int, ds, tg: train.PerceptionTargets, n_train: int,
     return out
 
 
-def report(rows: list[dict], n_train: int, epochs: int) -> str:
+def report(rows: list[dict], n_train: int, epochs: int, raster: str) -> str:
     tr, va = splits(n_train)
     weights = sorted({r["weight"] for r in rows})
     keys = [("gap_rmse", "gap m (≤ 30 m)", 2), ("dv_rmse", "dv m/s (≤ 30 m)", 2),
@@ -177,7 +184,7 @@ def report(rows: list[dict], n_train: int, epochs: int) -> str:
     lines = ["# The masked auxiliary perception loss and a CNN's features\n",
              f"`{MODEL}` trained by Algorithm 1 on scenes {tr.start}–{tr.stop - 1} of the "
              f"seed-0 draw, {epochs} epochs of batch 64, lr 3e-3 (the quick preset: 64 "
-             "scenes, 3 epochs), RGB raster 64×64 (40 m × ±25 m); λ = "
+             f"scenes, 3 epochs), {RASTER_TEXT[raster]} 64×64 (40 m × ±25 m); λ = "
              "`TrainConfig.perception_weight`. A ridge probe of the flattened backbone "
              "features (ridge chosen per quantity by 4-fold cross-validation over the "
              f"training scenes), fitted on the training states, scored on scenes {va.start}–"
@@ -208,25 +215,27 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--train-scenes", type=int, default=N_TRAIN)
     ap.add_argument("--epochs", type=int, default=EPOCHS)
+    ap.add_argument("--raster", choices=tuple(RASTERS), default="rgb")
     ap.add_argument("--out", default=None,
-                    help="default results/aux_loss.md (quick size), else results/aux_loss_"
-                         "n<scenes>_e<epochs>.md")
+                    help="default results/aux_loss.md (quick size, RGB), else results/"
+                         "aux_loss_n<scenes>_e<epochs>[_channels].md")
     args = ap.parse_args()
     if args.train_scenes < 8 or args.epochs < 1:
         raise SystemExit("--train-scenes must be >= 8 and --epochs >= 1")
     if any(not (math.isfinite(w) and w >= 0) for w in args.weights):
         raise SystemExit(f"--weights must be finite numbers >= 0, got {args.weights}")
     t_start = time.perf_counter()
-    n, e = args.train_scenes, args.epochs
-    out = args.out or str(HERE / "results" / ("aux_loss.md" if (n, e) == (N_TRAIN, EPOCHS)
-                                              else f"aux_loss_n{n}_e{e}.md"))
-    ds, tg = data(n)
+    n, e, r = args.train_scenes, args.epochs, args.raster
+    tag = "" if r == "rgb" else f"_{r}"
+    out = args.out or str(HERE / "results" / (
+        "aux_loss.md" if (n, e, r) == (N_TRAIN, EPOCHS, "rgb") else f"aux_loss_n{n}_e{e}{tag}.md"))
+    ds, tg = data(n, r)
     rows = []
     for seed in args.seeds:
         for w in args.weights:
-            rows.append(run(w, seed, ds, tg, n, e))
+            rows.append(run(w, seed, ds, tg, n, e, r))
             print(json.dumps(rows[-1]), flush=True)
-    provenance.publish(report(rows, n, e), out, time.perf_counter() - t_start)
+    provenance.publish(report(rows, n, e, r), out, time.perf_counter() - t_start)
 
 
 if __name__ == "__main__":
