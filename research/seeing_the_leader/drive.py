@@ -31,9 +31,13 @@ scenes: its poses are checked against the stored draw's).
 same MLP trained on and driven by the exact features: the pipeline's bound), ``raster`` and
 ``odometer`` (the modular learner), ``exact_odometer`` (the MLP trained on the exact features,
 driven on the perception with the odometer: what training on its own perception's errors is
-worth). Mean ± std over the MLP's training seeds; each run (row, protocol, seed) is cached as
-JSON under ``--work`` (a finished run is not repeated). ``--report`` writes
-``results/drive.md`` with the old perception's rows for comparison.
+worth); diagnostics ``odometer+G`` (:data:`ORACLES`, :class:`OraclePolicy`): the odometer
+driver with feature group ``G`` taken exact from the world's human in the reached state (what
+that group's errors cost), each also recording what the perception read against what it
+should have read in the states the closed loop reaches (``none``: no group exact). Mean ±
+std over the MLP's training seeds; each run (row, protocol, seed) is cached as JSON under
+``--work`` (a finished run is not repeated). ``--report`` writes ``results/drive.md`` with
+the old perception's rows for comparison.
 
 Run: ``SEEING_DATA=/path/to/data python research/seeing_the_leader/drive.py --seeds 3
 --work runs/drive``; then ``... drive.py --report --work runs/drive``.
@@ -82,7 +86,9 @@ LABEL = {"expert": "Expert (the world's human)",
          "exact_odometer": "MLP trained on exact features, driven on perception + odometer"}
 LABEL |= {k: f"Modular, odometer, `{k.split('+')[1]}` exact (diagnostic)" for k in ORACLES}
 SHOW = (("ade", "ADE m"), ("collision_rate", "coll. %"),
-        ("at_fault_collision_rate", "at fault %"), ("off_road_rate", "off road %"))
+        ("at_fault_collision_rate", "at fault %"), ("off_road_rate", "off road %"),
+        ("route_progress", "progress"))
+"""The columns (``progress``: the distance driven along the route over the human's)."""
 IV, IA = P.FEATURES.index("v"), P.FEATURES.index("a_prev")
 
 
@@ -394,7 +400,7 @@ def report(work: Path, n: int) -> str:
             c = old.get((speed, agents))
             if c is not None:  # its columns: ADE, along, cross, coll., at fault, off road
                 text.append(f"| old perception (`perceive_drive_odometer.md`), speed from "
-                            f"{speed} | 3 | {c[2]} | {c[5]} | {c[6]} | {c[7]} | |")
+                            f"{speed} | 3 | {c[2]} | {c[5]} | {c[6]} | {c[7]} | | |")
         text.append("")
     reads = [("logged validation states", check.get("logged"))] + [
         (f"states reached by `{k}`, seed {r['seed']}", r["reached"])
@@ -415,6 +421,17 @@ def report(work: Path, n: int) -> str:
                 "perception (RGB raster, 40 m, unmasked targets; gap RMSE 11 m) and the paper "
                 "preset's split (650 training scenes, validation scenes 690–889 of the same "
                 "draw), so they compare the pipelines, not scene by scene.\n")
+    text += ["## Runs\n",
+             "Each cached run (`--work`), with `SEEING_DATA` naming the study's data "
+             "directory; seconds of wall time including the MLP's training, on the shared "
+             "2-core machine.\n",
+             "| row | agents | seed | s | date | commit | command |",
+             "|---|---|---|---|---|---|---|"]
+    for (kind, agents), rs in sorted(runs.items()):
+        for r in sorted(rs, key=lambda r: r["seed"]):
+            pv = r["provenance"]
+            text.append(f"| {kind} | {agents} | {r['seed']} | {r['seconds']:.0f} | "
+                        f"{pv['date']} | {pv.get('commit', '?')} | `{pv['command']}` |")
     return "\n".join(text) + "\n"
 
 
