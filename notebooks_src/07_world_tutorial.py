@@ -283,6 +283,35 @@ plot_map(ds.maps[scene], ax, ego=ds.ego[scene], ado=ds.ado[scene],
 plt.show()
 
 # %% [markdown]
+# ### The same scene as a learner reads it: binary channels
+# The coloured raster is the devkit's picture for people. A network has to undo it:
+# the other vehicles' past is a fade blended into one image, and the ego's route
+# through a junction is not drawn at all. `RasterConfig(encoding="channels")` draws
+# the same frame as separate 0/1 planes — the map layers, lanes by direction, the
+# ego's **route ahead** (`route=True`) and the ego and the other vehicles at
+# t, t−1, t−2 (`history=2`), each in its own plane — as the field's closed-loop
+# raster drivers do; `world.encodings.to_rgb` paints them back for people.
+# `research/seeing_the_leader` measures what this does for reading the car ahead,
+# and chapter 12 why that matters.
+
+# %%
+learner = world.RasterConfig(encoding="channels", route=True, history=2)
+lds = world.generate(1, seed=0, raster=learner, progress=False, workers=1)
+planes = world.encodings.planes(lds.bev[0, 20], lds.raster)
+print("stored:", lds.bev.shape, lds.bev.dtype, "(8 planes to a byte); planes:", planes.shape)
+print("planes:", ", ".join(learner.channel_names))
+assert planes.shape == (64, 64, len(learner.channel_names)) and set(np.unique(planes)) <= {0, 1}
+fig, axs = plt.subplots(2, 7, figsize=(15, 4.6))
+axs[0, 0].imshow(world.encodings.to_rgb(lds.bev[0, 20], lds.raster))
+axs[0, 0].set_title("to_rgb (for people)", fontsize=8)
+for ax, k in zip(axs.flat[1:], range(planes.shape[-1])):
+    ax.imshow(planes[..., k], cmap="gray", vmin=0, vmax=1)
+    ax.set_title(learner.channel_names[k], fontsize=8)
+for ax in axs.flat:
+    ax.axis("off")
+plt.show()
+
+# %% [markdown]
 # ## 7. Statistics
 # Speeds, yaw rates and accelerations of the humans, and how often scenes
 # contain junctions, roundabouts and cut-ins.
