@@ -1,0 +1,273 @@
+"""Do the image models drive once they see the leader? The library's end-to-end models
+trained by Algorithm 1 on the learner's raster with the masked auxiliary perception loss,
+closed loop among reactive and replayed ados, against their bounds on the same scenes.
+
+**Forms.** ``rgb`` is the paper's form (the course's RGB raster, 40 m × ±25 m at 0.78 m/px,
+64 × 64, Algorithm 1 alone: λ = 0). ``channels`` is the learner's raster the perception study
+chose (``perception.py``'s ``route60``: binary channels for the map, the ego's route ahead
+and the vehicles at t, t−1, t−2; 60 m ahead, ±25 m, 0.78 m/px: 90 × 64 × 12) with
+λ = ``--weight`` (``TrainConfig.perception_weight``, the targets of
+:func:`minimanc.diagnose.perception_targets` for that view); ``channels0`` is the same raster
+with λ = 0 (what the raster alone is worth).
+
+**Protocol** (fixed before any closed-loop number was looked at). The seed-0 draw of the
+paper preset (``leader_data.py``): train on scenes 0–599, drive the validation scenes
+600–799 (never trained on; the scenes of ``drive.py``, whose expert and privileged learner
+are the bounds here). The paper preset's schedule (6 epochs of batch 64) and, per model, the
+learning rate the paper preset's tuning chose on the RGB raster (``results/paper``:
+:data:`LEARNING_RATES`); every other setting is the library's default. One run per
+(model, form, seed) and protocol, cached as JSON under ``--work`` (a finished run is not
+repeated; the trained parameters are checkpointed by :func:`minimanc.train.fit`, so an
+interrupted training resumes). The bound rows (expert, style floor, DMP at fixed gains) are
+runs of their own on the same scenes (``--bounds``); the privileged learner's rows are
+quoted from ``results/drive.md``.
+
+Run: ``SEEING_DATA=/path python research/seeing_the_leader/end_to_end.py --models cnn manc
+--forms channels rgb --seeds 0 --work runs/end_to_end``; ``--bounds`` adds the bound rows;
+``--report`` writes ``results/end_to_end.md`` from the cached runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import re
+import time
+from pathlib import Path
+
+import leader_data as L
+import numpy as np
+import perception as PC
+
+from minimanc import diagnose, metrics, rollout, train, world
+from minimanc.studies import provenance
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+DRIVE = RESULTS / "drive.md"
+"""The privileged learner's closed loop on the same scenes (``drive.py``)."""
+TRAIN = L.TRAIN_LARGE
+VALIDATE = L.VALIDATE
+N_SCENES = VALIDATE.stop
+MODELS = ("cnn", "cnn_lstm", "rvs_g", "manc")
+"""Table I's learned controllers."""
+LEARNING_RATES = {"cnn": 1e-3, "cnn_lstm": 3e-4, "rvs_g": 3e-4, "manc": 3e-4}
+"""The learning rate the paper preset's tuning chose per model (setting ``paper``)."""
+FORMS = ("channels", "channels0", "rgb")
+AGENTS = ("reactive", "replay")
+BOUNDS = ("expert", "floor", "fixed_gains")
+RASTERS = {"channels": PC.VARIANTS["route60"].config(), "rgb": world.RasterConfig()}
+"""The raster of each form."""
+
+
+def raster_of(form: str) -> world.RasterConfig:
+    return RASTERS["rgb" if form == "rgb" else "channels"]
+
+
+def draw(form: str, work: Path) -> world.Dataset:
+    """The seed-0 draw's first :data:`N_SCENES` scenes at the form's raster (the stored draw
+    for RGB; regenerated at the channels raster, cached, and checked against it)."""
+    ref = L.world()
+    if form == "rgb":
+        return ref.subset(list(range(N_SCENES)))
+    ds = world.generate(N_SCENES, seed=0, raster=raster_of(form), cache=work / "world",
+                        workers=1, progress=True)
+    if not np.allclose(np.asarray(ds.ego), np.asarray(ref.ego)[:N_SCENES], atol=1e-9):
+        raise SystemExit("the regenerated draw differs from the stored one")
+    return ds
+
+
+def targets(form: str, ds: world.Dataset, work: Path) -> train.PerceptionTargets:
+    """The auxiliary targets of the training scenes for the form's view (cached)."""
+    cfg = raster_of(form)
+    path = work / f"targets_{'rgb' if form == 'rgb' else 'channels'}.npz"
+    if not path.exists():
+        tg = diagnose.perception_targets(ds.subset(list(TRAIN)), view=cfg)
+        tmp = path.with_name(path.stem + ".tmp.npz")
+        np.savez(tmp, values=tg.values, mask=tg.mask)
+        os.replace(tmp, path)
+    with np.load(path) as f:
+        return train.PerceptionTargets(diagnose.TARGETS, f["values"], f["mask"],
+                                       tuple(n in diagnose.LOGITS for n in diagnose.TARGETS))
+
+
+def weight_of(form: str, weight: float) -> float:
+    return weight if form == "channels" else 0.0
+
+
+def run_path(work: Path, row: str, seed: int, agents: str) -> Path:
+    return work / "runs" / f"{row}_s{seed}_{agents}.json"
+
+
+def write_json(path: Path, out: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(out, indent=1))
+    os.replace(tmp, path)
+
+
+def fit_model(model: str, form: str, seed: int, weight: float, ds: world.Dataset,
+              work: Path) -> tuple[train.FitResult, float]:
+    """Algorithm 1 on the training scenes (checkpointed under ``work/checkpoints``)."""
+    lam = weight_of(form, weight)
+    tc = train.TrainConfig(epochs=6, batch_size=64, lr=LEARNING_RATES[model], seed=seed,
+                           perception_weight=lam)
+    tr = ds.subset(list(TRAIN))
+    t0 = time.perf_counter()
+    fit = train.fit(model, tr, None, tc, engine="jax", progress=False,
+                    checkpoint_dir=work / "checkpoints" / f"{model}_{form}_w{lam:g}_s{seed}",
+                    resume=True, perception=targets(form, ds, work) if lam > 0 else None)
+    return fit, time.perf_counter() - t0
+
+
+def drive(fit: train.FitResult, val: world.Dataset, agents: str) -> dict:
+    traj = rollout.closed_loop(fit, val, agents=agents, progress=False)
+    return metrics.evaluate(traj, val)
+
+
+def run_model(model: str, form: str, seed: int, weight: float, work: Path) -> None:
+    row = f"{model}_{form}"
+    todo = [a for a in AGENTS if not run_path(work, row, seed, a).exists()]
+    if not todo:
+        return
+    ds = draw(form, work)
+    fit, fit_s = fit_model(model, form, seed, weight, ds, work)
+    val = ds.subset(list(VALIDATE))
+    for agents in todo:
+        t0 = time.perf_counter()
+        m = drive(fit, val, agents)
+        out = {"row": row, "model": model, "form": form, "seed": seed, "agents": agents,
+               "weight": weight_of(form, weight), "lr": LEARNING_RATES[model],
+               "raster": raster_of(form).as_meta(), "input_shape": list(fit.cfg.input_shape),
+               "steps": fit.steps, "fit_seconds": fit_s,
+               "drive_seconds": time.perf_counter() - t0, "scenes": len(val), "metrics": m,
+               "provenance": provenance.provenance()}
+        write_json(run_path(work, row, seed, agents), out)
+        print(json.dumps({k: out[k] for k in ("row", "seed", "agents")} | {
+            "at_fault": m["at_fault_collision_rate"], "ade": m["ade"]}), flush=True)
+
+
+def run_bound(kind: str, work: Path) -> None:
+    ds = None
+    for agents in AGENTS if kind != "floor" else ("reactive",):
+        path = run_path(work, kind, 0, agents)
+        if path.exists():
+            continue
+        ds = ds or draw("rgb", work).subset(list(VALIDATE))
+        t0 = time.perf_counter()
+        if kind == "expert":
+            traj = diagnose.expert_rollout(ds, agents=agents)
+        elif kind == "floor":
+            traj = diagnose.floor_rollout(ds, diagnose.median_style(), agents=agents)
+        else:
+            traj = rollout.fixed_gains(ds, agents=agents)
+        out = {"row": kind, "seed": 0, "agents": agents, "scenes": len(ds),
+               "metrics": metrics.evaluate(traj, ds),
+               "drive_seconds": time.perf_counter() - t0, "provenance": provenance.provenance()}
+        write_json(path, out)
+
+
+# --------------------------------------------------------------------------- report
+
+KEYS = (("ade", "ADE m", 2), ("collision_rate", "coll. %", 2),
+        ("at_fault_collision_rate", "at fault %", 2), ("off_road_rate", "off road %", 2),
+        ("route_progress", "progress", 2), ("max_acceleration", "max \\|a\\| m/s²", 2))
+LABELS = {"expert": "Expert (the world's human)", "floor": "Style floor (median style)",
+          "fixed_gains": "DMP at fixed gains"}
+FORM_TEXT = {"channels": "channels, λ = {w:g}", "channels0": "channels, λ = 0",
+             "rgb": "RGB (paper's form), λ = 0"}
+
+
+def cell(vals: list[float], d: int) -> str:
+    x = np.asarray(vals, dtype=float)
+    if len(x) == 1:
+        return f"{x[0]:.{d}f}"
+    return f"{x.mean():.{d}f} ± {x.std(ddof=1):.{d}f}"
+
+
+def privileged_rows() -> dict[str, str]:
+    """The privileged learner's rows of ``results/drive.md``, per protocol."""
+    rows, agents = {}, None
+    for line in DRIVE.read_text().splitlines():
+        m = re.match(r"agents `(\w+)`", line)
+        if m:
+            agents = m.group(1)
+        if line.startswith("| Privileged MLP") and agents:
+            c = [s.strip() for s in line.strip("|").split("|")]
+            rows[agents] = f"| Privileged MLP, exact features (`drive.md`) | {c[1]} | {c[2]} | " \
+                           f"{c[3]} | {c[4]} | {c[5]} | {c[6]} | |"
+    return rows
+
+
+def report(work: Path) -> str:
+    runs = [json.loads(p.read_text()) for p in sorted((work / "runs").glob("*.json"))]
+    head = "| driver | seeds | " + " | ".join(k[1] for k in KEYS) + " |"
+    lines = ["# The end-to-end image models on the learner's raster, closed loop\n",
+             __doc__.split("\n\n")[1].replace("\n", " ") + "\n",
+             __doc__.split("\n\n")[2].replace("\n", " ") + "\n"]
+    priv = privileged_rows()
+    for agents in AGENTS:
+        lines += [f"## agents `{agents}`\n", head, "|---|---|" + "---|" * len(KEYS)]
+        for kind in BOUNDS:
+            rs = [r for r in runs if r["row"] == kind and r["agents"] == agents]
+            if rs:
+                lines.append(f"| {LABELS[kind]} | 1 | " + " | ".join(
+                    cell([r["metrics"][k] for r in rs], d) for k, _, d in KEYS) + " |")
+        if agents in priv:
+            lines.append(priv[agents])
+        for model in MODELS:
+            for form in FORMS:
+                rs = [r for r in runs if r.get("model") == model and r.get("form") == form
+                      and r["agents"] == agents]
+                if not rs:
+                    continue
+                label = f"{model}, {FORM_TEXT[form].format(w=rs[0]['weight'])}"
+                seeds = ", ".join(str(r["seed"]) for r in rs)
+                lines.append(f"| {label} | {len(rs)} ({seeds}) | " + " | ".join(
+                    cell([r["metrics"][k] for r in rs], d) for k, _, d in KEYS) + " |")
+        lines.append("")
+    lines += ["## Runs\n", "| row | agents | seed | steps | fit s | drive s | date | commit |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in runs:
+        p = r["provenance"]
+        lines.append(f"| {r['row']} | {r['agents']} | {r['seed']} | {r.get('steps', '')} | "
+                     f"{r.get('fit_seconds', 0):.0f} | {r['drive_seconds']:.0f} | "
+                     f"{p.get('date', '')} | {p.get('commit', '')} |")
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--models", nargs="+", choices=MODELS, default=["cnn", "manc"])
+    ap.add_argument("--forms", nargs="+", choices=FORMS, default=["channels"])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0])
+    ap.add_argument("--weight", type=float, default=1.0,
+                    help="λ of the channels form (default 1)")
+    ap.add_argument("--bounds", action="store_true", help="also run the bound rows")
+    ap.add_argument("--work", type=Path, default=L.DATA_DIR / "end_to_end",
+                    help="where the draws, checkpoints and runs are cached")
+    ap.add_argument("--report", action="store_true",
+                    help="write results/end_to_end.md from the cached runs")
+    args = ap.parse_args()
+    if not (math.isfinite(args.weight) and args.weight > 0):
+        raise SystemExit(f"--weight must be a finite number > 0, got {args.weight}")
+    if any(s < 0 for s in args.seeds):
+        raise SystemExit(f"--seeds must be >= 0, got {args.seeds}")
+    t_start = time.perf_counter()
+    if args.report:
+        provenance.publish(report(args.work), str(RESULTS / "end_to_end.md"),
+                           time.perf_counter() - t_start)
+        return
+    if args.bounds:
+        for kind in BOUNDS:
+            run_bound(kind, args.work)
+    for seed in args.seeds:
+        for model in args.models:
+            for form in args.forms:
+                run_model(model, form, seed, args.weight, args.work)
+
+
+if __name__ == "__main__":
+    main()
