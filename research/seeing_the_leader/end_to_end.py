@@ -8,7 +8,11 @@ chose (``perception.py``'s ``route60``: binary channels for the map, the ego's r
 and the vehicles at t, t−1, t−2; 60 m ahead, ±25 m, 0.78 m/px: 90 × 64 × 12) with
 λ = ``--weight`` (``TrainConfig.perception_weight``, the targets of
 :func:`minimanc.diagnose.perception_targets` for that view); ``channels0`` is the same raster
-with λ = 0 (what the raster alone is worth).
+with λ = 0 (what the raster alone is worth); ``dagger`` is ``channels0`` trained on-policy:
+DAgger (:func:`minimanc.dagger.dagger`) with the world's human among reactive ados as the
+teacher, :data:`ROUNDS` rounds after the demonstrations (β from ½ halving), the same 600
+scenes' worth of expert-labelled states as behaviour cloning (``channels0``), the same
+schedule per round (the auxiliary loss needs targets the collected states do not carry).
 
 **Protocol** (fixed before any closed-loop number was looked at). The seed-0 draw of the
 paper preset (``leader_data.py``): train on scenes 0–599, drive the validation scenes
@@ -41,7 +45,7 @@ import leader_data as L
 import numpy as np
 import perception as PC
 
-from minimanc import diagnose, metrics, rollout, train, world
+from minimanc import dagger, diagnose, metrics, rollout, train, world
 from minimanc.studies import provenance
 
 HERE = Path(__file__).resolve().parent
@@ -55,7 +59,9 @@ MODELS = ("cnn", "cnn_lstm", "rvs_g", "manc")
 """Table I's learned controllers."""
 LEARNING_RATES = {"cnn": 1e-3, "cnn_lstm": 3e-4, "rvs_g": 3e-4, "manc": 3e-4}
 """The learning rate the paper preset's tuning chose per model (setting ``paper``)."""
-FORMS = ("channels", "channels0", "rgb")
+FORMS = ("channels", "channels0", "dagger", "rgb")
+ROUNDS = 10
+"""DAgger rounds after the demonstrations (form ``dagger``)."""
 AGENTS = ("reactive", "replay")
 BOUNDS = ("expert", "floor", "fixed_gains")
 RASTERS = {"channels": PC.VARIANTS["route60"].config(), "rgb": world.RasterConfig()}
@@ -93,6 +99,12 @@ def targets(form: str, ds: world.Dataset, work: Path) -> train.PerceptionTargets
                                        tuple(n in diagnose.LOGITS for n in diagnose.TARGETS))
 
 
+def train_config(model: str, form: str, seed: int, weight: float) -> train.TrainConfig:
+    """The paper preset's schedule with the model's learning rate and the form's λ."""
+    return train.TrainConfig(epochs=6, batch_size=64, lr=LEARNING_RATES[model], seed=seed,
+                             perception_weight=weight_of(form, weight))
+
+
 def weight_of(form: str, weight: float) -> float:
     return weight if form == "channels" else 0.0
 
@@ -112,14 +124,27 @@ def fit_model(model: str, form: str, seed: int, weight: float, ds: world.Dataset
               work: Path) -> tuple[train.FitResult, float]:
     """Algorithm 1 on the training scenes (checkpointed under ``work/checkpoints``)."""
     lam = weight_of(form, weight)
-    tc = train.TrainConfig(epochs=6, batch_size=64, lr=LEARNING_RATES[model], seed=seed,
-                           perception_weight=lam)
+    tc = train_config(model, form, seed, weight)
     tr = ds.subset(list(TRAIN))
     t0 = time.perf_counter()
+    if form == "dagger":
+        return on_policy(model, tc, tr, work / "dagger" / f"{model}_s{seed}"), \
+            time.perf_counter() - t0
     fit = train.fit(model, tr, None, tc, engine="jax", progress=False,
                     checkpoint_dir=work / "checkpoints" / f"{model}_{form}_w{lam:g}_s{seed}",
                     resume=True, perception=targets(form, ds, work) if lam > 0 else None)
     return fit, time.perf_counter() - t0
+
+
+def on_policy(model: str, tc: train.TrainConfig, pool: world.Dataset, out: Path
+              ) -> train.FitResult:
+    """DAgger on ``pool`` (every round checkpointed under ``out``: a rerun resumes), its
+    last policy as a fit."""
+    teacher = dagger.WorldTeacher(pool, agents="reactive")
+    budget = dagger.plan_budget(len(pool) * pool.n_steps, pool.n_steps, ROUNDS)
+    dagger.dagger(model, teacher, budget, rounds=ROUNDS, beta=0.5, train_cfg=tc,
+                  engine="jax", out=out, seed=tc.seed, progress=False, evaluate=False)
+    return train.load_fit(dagger.round_dir(out, ROUNDS) / train.CHECKPOINT_NAME)
 
 
 def drive(fit: train.FitResult, val: world.Dataset, agents: str) -> dict:
@@ -177,6 +202,7 @@ KEYS = (("ade", "ADE m", 2), ("collision_rate", "coll. %", 2),
 LABELS = {"expert": "Expert (the world's human)", "floor": "Style floor (median style)",
           "fixed_gains": "DMP at fixed gains"}
 FORM_TEXT = {"channels": "channels, λ = {w:g}", "channels0": "channels, λ = 0",
+             "dagger": f"channels, λ = 0, DAgger {ROUNDS} rounds",
              "rgb": "RGB (paper's form), λ = 0"}
 
 
