@@ -8,11 +8,14 @@ chose (``perception.py``'s ``route60``: binary channels for the map, the ego's r
 and the vehicles at t, t−1, t−2; 60 m ahead, ±25 m, 0.78 m/px: 90 × 64 × 12) with
 λ = ``--weight`` (``TrainConfig.perception_weight``, the targets of
 :func:`minimanc.diagnose.perception_targets` for that view); ``channels0`` is the same raster
-with λ = 0 (what the raster alone is worth); ``dagger`` is ``channels0`` trained on-policy:
-DAgger (:func:`minimanc.dagger.dagger`) with the world's human among reactive ados as the
-teacher, :data:`ROUNDS` rounds after the demonstrations (β from ½ halving), the same 600
-scenes' worth of expert-labelled states as behaviour cloning (``channels0``), the same
-schedule per round (the auxiliary loss needs targets the collected states do not carry).
+with λ = 0 (what the raster alone is worth); ``speed`` is ``channels`` in the ``parity``
+setting (:mod:`minimanc.inputs`: the model also reads its own speed and yaw rate and the
+lane target as numbers, the odometer LBC, Roach and CILRS give their policies); ``dagger``
+is ``channels0`` trained on-policy: DAgger (:func:`minimanc.dagger.dagger`) with the world's
+human among reactive ados as the teacher, :data:`ROUNDS` rounds after the demonstrations
+(β from ½ halving), the same 600 scenes' worth of expert-labelled states as behaviour
+cloning (``channels0``), the same schedule per round (the auxiliary loss needs targets the
+collected states do not carry).
 
 **Protocol** (fixed before any closed-loop number was looked at). The seed-0 draw of the
 paper preset (``leader_data.py``): train on scenes 0–599, drive the validation scenes
@@ -45,7 +48,7 @@ import leader_data as L
 import numpy as np
 import perception as PC
 
-from minimanc import dagger, diagnose, metrics, rollout, train, world
+from minimanc import dagger, diagnose, metrics, models, rollout, train, world
 from minimanc.studies import provenance
 
 HERE = Path(__file__).resolve().parent
@@ -59,7 +62,7 @@ MODELS = ("cnn", "cnn_lstm", "rvs_g", "manc")
 """Table I's learned controllers."""
 LEARNING_RATES = {"cnn": 1e-3, "cnn_lstm": 3e-4, "rvs_g": 3e-4, "manc": 3e-4}
 """The learning rate the paper preset's tuning chose per model (setting ``paper``)."""
-FORMS = ("channels", "channels0", "dagger", "rgb")
+FORMS = ("channels", "channels0", "speed", "dagger", "rgb")
 ROUNDS = 10
 """DAgger rounds after the demonstrations (form ``dagger``)."""
 AGENTS = ("reactive", "replay")
@@ -106,7 +109,7 @@ def train_config(model: str, form: str, seed: int, weight: float) -> train.Train
 
 
 def weight_of(form: str, weight: float) -> float:
-    return weight if form == "channels" else 0.0
+    return weight if form in ("channels", "speed") else 0.0
 
 
 def run_path(work: Path, row: str, seed: int, agents: str) -> Path:
@@ -130,7 +133,8 @@ def fit_model(model: str, form: str, seed: int, weight: float, ds: world.Dataset
     if form == "dagger":
         return on_policy(model, tc, tr, work / "dagger" / f"{model}_s{seed}"), \
             time.perf_counter() - t0
-    fit = train.fit(model, tr, None, tc, engine="jax", progress=False,
+    cfg = models.ModelConfig(setting="parity") if form == "speed" else None
+    fit = train.fit(model, tr, cfg, tc, engine="jax", progress=False,
                     checkpoint_dir=work / "checkpoints" / f"{model}_{form}_w{lam:g}_s{seed}",
                     resume=True, perception=targets(form, ds, work) if lam > 0 else None)
     return fit, time.perf_counter() - t0
@@ -203,6 +207,7 @@ LABELS = {"expert": "Expert (the world's human)", "floor": "Style floor (median 
           "fixed_gains": "DMP at fixed gains"}
 FORM_TEXT = {"channels": "channels, λ = {w:g}", "channels0": "channels, λ = 0",
              "dagger": f"channels, λ = 0, DAgger {ROUNDS} rounds",
+             "speed": "channels, λ = {w:g}, own speed and lane target as numbers",
              "rgb": "RGB (paper's form), λ = 0"}
 
 
