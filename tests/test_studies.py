@@ -461,7 +461,7 @@ def test_the_raster_names_the_cache_the_data_file_and_the_text():
 
 
 def test_the_learners_raster_with_the_perception_loss_trains_and_drives_every_table_model(
-        tmp_path):
+        tmp_path, capsys):
     """The tiny preset on the binary channels with λ = 1: every Table I model trains with the
     auxiliary loss on the targets of the training scenes as the raster shows them, and
     drives its validation scenes closed loop."""
@@ -490,6 +490,12 @@ def test_the_learners_raster_with_the_perception_loss_trains_and_drives_every_ta
     assert targets.names == want.names and np.array_equal(targets.mask, want.mask)
     assert np.allclose(targets.values, want.values)
     assert study.param_counts()["paper"]["cnn"] > 0
+    # the targets are derived data: a broken file is computed again
+    path = study.files.perception_path()
+    path.write_bytes(path.read_bytes()[:100])
+    assert study.files.perception_targets() == path
+    assert "discarding the unreadable cache entry" in capsys.readouterr().err
+    assert np.array_equal(load_targets(path).values, targets.values)
     with pytest.raises(ValueError, match="perception_weight must be 0 with dagger"):
         studies.reproduce(c, tmp_path, engine="numpy", workers=0, agents=("replay",),
                           dagger=True)
