@@ -49,7 +49,7 @@ def main() -> None:
     print(f"preset {args.preset}: {sum(p['train'].values())} trainings, rollouts {p['rollouts']}")
     n_val = args.val or c.n_val
     train_ds, val_ds = world.generate_splits(c.n_train, c.n_val, seed=c.data_seed,
-                                             raster=world.RasterConfig(size=c.image_size),
+                                             raster=c.raster,
                                              cache=True, progress=False)
     val = val_ds.subset(slice(0, n_val))
     names = args.models.split(",")

@@ -44,7 +44,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from minimanc import inputs, metrics, models, rollout, studies, train, viz
+from minimanc import inputs, metrics, models, rollout, studies, train, viz, world
 from minimanc.metrics import modes
 from minimanc.studies import jobs
 
@@ -54,7 +54,7 @@ workdir = Path(tempfile.mkdtemp(prefix="minimanc09_"))
 # %% [markdown]
 # ## 1. A small study and its data
 # A `StudyConfig` fixes everything that matters: how many training, tuning and
-# validation scenes, the BEV size, epochs, batch size, the learning-rate
+# validation scenes, the BEV raster, epochs, batch size, the learning-rate
 # sweep, seeds, and the study grids (here sample efficiency only for CNN and
 # MANC). `Study` generates the data once
 # (`minimanc.world`, chapter 7) and caches data, checkpoints and rollouts under
@@ -62,7 +62,7 @@ workdir = Path(tempfile.mkdtemp(prefix="minimanc09_"))
 
 # %%
 config = studies.StudyConfig(
-    preset="lesson", n_train=32, n_tune=4, n_val=10, image_size=32,
+    preset="lesson", n_train=32, n_tune=4, n_val=10, raster=world.RasterConfig(size=32),
     training=train.TrainConfig(epochs=3, batch_size=32), lrs=(3e-3,), n_seeds=1,
     q_states=(3, 6), fractions=(0.5, 1.0),
     sample_models=("cnn", "manc"), explain_scenes=1,

@@ -99,8 +99,7 @@ def test_a_manc_variant_registered_outside_the_package_trains_and_drives_closed_
     on the tiny preset's data and drives its validation scenes among reactive ados."""
     c = studies.PRESETS["tiny"]
     n = c.n_train + c.n_tune + c.n_val
-    data = world.generate(n, seed=c.data_seed, raster=world.RasterConfig(size=c.image_size),
-                          workers=1)
+    data = world.generate(n, seed=c.data_seed, raster=c.raster, workers=1)
     train_ds, val_ds = data.subset(slice(0, c.n_train)), data.subset(slice(c.n_train + c.n_tune, n))
     cfg = models.ModelConfig(input_shape=data.raster.input_shape, n_states=4)
     with models.registered(MANC_QP):

@@ -421,3 +421,81 @@ def test_reproduce_with_dagger_adds_the_table_and_the_figures(tmp_path, capsys):
     assert cli.main(["reproduce", "--preset", "tiny", "--engine", "numpy", "--out", str(out),
                      "--workers", "0", "--no-progress", "--agents", "replay", "--dagger"]) == 0
     assert json.loads((out / "results.json").read_text())["dagger"] == dg
+
+
+# --------------------------------------------------------------------------- the raster
+
+
+CHANNELS = dict(size=32, encoding="channels", route=True, history=2)
+"""The learner's raster at the tiny preset's size."""
+
+
+def test_the_raster_names_the_cache_the_data_file_and_the_text():
+    from dataclasses import replace
+
+    from minimanc import world
+    from minimanc.studies.cache import StudyFiles
+
+    tiny = studies.PRESETS["tiny"]
+    assert tiny.raster == world.RasterConfig(size=32)
+    assert all(studies.PRESETS[p].raster == world.RasterConfig()
+               for p in ("quick", "full", "paper"))
+    learner = replace(tiny, raster=world.RasterConfig(**CHANNELS))
+    assert learner.fingerprint() != tiny.fingerprint()
+    assert replace(tiny, raster=world.RasterConfig(size=32)).fingerprint() == tiny.fingerprint()
+    paths = {c.raster: StudyFiles(c, "out", "numpy", print).data_path for c in (tiny, learner)}
+    assert paths[tiny.raster].name == "world-7x0-32px.npz"
+    assert paths[learner.raster].name.startswith("world-7x0-32x32-channels-")
+    assert studies.raster_text(tiny.raster) == "32×32 RGB raster (the paper's form)"
+    assert studies.raster_text(learner.raster) == \
+        "32×32 binary channels (route, vehicles at t, t−1, t−2)"
+    corridor = world.RasterConfig.from_extent(60.0, 25.0, 50 / 64, encoding="channels",
+                                              route=True, history=2)
+    assert studies.raster_text(corridor) == \
+        "90×64 binary channels (route, vehicles at t, t−1, t−2), 60 m ahead"
+    for bad in (32, {"size": 32}, None):
+        with pytest.raises(ValueError, match="raster must be a minimanc.world.RasterConfig"):
+            replace(tiny, raster=bad)
+    with pytest.raises(TypeError, match="image_size"):
+        studies.StudyConfig(image_size=32)
+
+
+def test_the_learners_raster_with_the_perception_loss_trains_and_drives_every_table_model(
+        tmp_path, capsys):
+    """The tiny preset on the binary channels with λ = 1: every Table I model trains with the
+    auxiliary loss on the targets of the training scenes as the raster shows them, and
+    drives its validation scenes closed loop."""
+    from dataclasses import replace
+
+    from minimanc import diagnose, train, world
+    from minimanc.studies.cache import load_targets
+
+    tiny = studies.PRESETS["tiny"]
+    raster = world.RasterConfig(**CHANNELS)
+    c = replace(tiny, raster=raster, settings=("paper",),
+                training=replace(tiny.training, perception_weight=1.0))
+    study = studies.Study(c, tmp_path, engine="numpy", workers=0, progress=False,
+                          agents=("replay",))
+    train_ds, _, val = study.datasets()
+    assert train_ds.raster == raster and val.raster == raster
+    table = study.table1()["replay"]["paper"]
+    for m in c.table_models:
+        run = study.runs(m)[0]
+        ck = train.load_checkpoint(study.checkpoint(run))
+        assert ck["cfg"].input_shape == (32, 32, 12), m
+        assert ck["train_cfg"].perception_weight == 1.0 and "perception" in ck["params"], m
+        assert np.isfinite(table[m]["ade"]["mean"]), m
+    targets = load_targets(study.files.perception_path())
+    want = diagnose.perception_targets(train_ds, view=raster)
+    assert targets.names == want.names and np.array_equal(targets.mask, want.mask)
+    assert np.allclose(targets.values, want.values)
+    assert study.param_counts()["paper"]["cnn"] > 0
+    # the targets are derived data: a broken file is computed again
+    path = study.files.perception_path()
+    path.write_bytes(path.read_bytes()[:100])
+    assert study.files.perception_targets() == path
+    assert "discarding the unreadable cache entry" in capsys.readouterr().err
+    assert np.array_equal(load_targets(path).values, targets.values)
+    with pytest.raises(ValueError, match="perception_weight must be 0 with dagger"):
+        studies.reproduce(c, tmp_path, engine="numpy", workers=0, agents=("replay",),
+                          dagger=True)

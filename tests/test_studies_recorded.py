@@ -56,7 +56,7 @@ def test_data_config_splits_the_recorded_file(recorded, tmp_path):
     assert splits == ["train"] * 5 + ["val"] * 5
     c = data_config(PRESETS["tiny"], recorded)
     # the last 5 % of train (at least one scene) tune; the val split validates; the file's BEV
-    assert (c.n_train, c.n_tune, c.n_val, c.image_size) == (4, 1, 5, 32)
+    assert (c.n_train, c.n_tune, c.n_val, c.raster) == (4, 1, 5, world.RasterConfig(size=32))
     assert c.data_source == "nuscenes" and is_recorded(c)
     assert c.data_hash == world.file_content_hash(recorded)
     assert (c.training, c.lrs, c.table_models) == (PRESETS["tiny"].training, PRESETS["tiny"].lrs,
@@ -102,6 +102,9 @@ def test_the_library_refuses_what_recorded_data_cannot_do(recorded, tmp_path):
     with pytest.raises(ValueError, match="dagger"):
         reproduce(c, tmp_path / "o", engine="numpy", workers=0, agents=("replay",),
                   dagger=True)
+    with pytest.raises(ValueError, match="perception loss .* is not available on recorded"):
+        Study(replace(c, training=replace(c.training, perception_weight=1.0)), tmp_path / "o",
+              engine="numpy", workers=0, agents=("replay",))
     study = Study(c, tmp_path / "o", engine="numpy", workers=0, agents=("replay",))
     assert study.references.bound_rows == ()
     with pytest.raises(ValueError, match="modes come from re-driving"):
@@ -124,9 +127,11 @@ def test_reproduce_data_on_an_imported_file(recorded, tmp_path, capsys, monkeypa
     printed = capsys.readouterr().out
     refusal = f"minimanc reproduce: {REACTIVE_REFUSAL}; running agents replay only\n"
     assert printed.count(refusal) == 1 and printed.index(refusal) == 0
-    assert "4 training, 1 tuning, 5 validation scenes, 32 px" in printed
+    assert "4 training, 1 tuning, 5 validation scenes, 32×32 RGB raster (the paper's form)" \
+        in printed
     md = (out / "table1.md").read_text()
-    assert "4 training, 1 tuning and 5 validation scenes (32×32 BEV)" in md
+    assert ("4 training, 1 tuning and 5 validation scenes, 32×32 RGB raster (the paper's "
+            "form), 1 epochs, learning rate") in md
     assert BOUNDS_OMITTED in md and MODES_OMITTED in md
     assert "recorded (nuscenes): the first 4 scenes of its training split train" in md
     assert "| Expert" not in md and "| Style floor" not in md
@@ -168,7 +173,8 @@ def test_reproduce_data_bad_input_is_one_line_exit_2(recorded, tmp_path, capsys)
     world.save(world.generate(3, seed=0, raster=world.RasterConfig(size=32)), gen)
     line = _one_line_error(capsys, [*base, str(gen)])
     assert line.startswith("minimanc reproduce: error: --data ") and \
-        "generated file of 3 scenes at 32 px does not fit preset 'tiny' (7 scenes" in line
+        "generated file of 3 scenes, 32×32 RGB raster (the paper's form), does not fit preset " \
+        "'tiny' (7 scenes" in line and "`minimanc data generate --scenes 7 --size 32`" in line
     ds = world.load(recorded)
     nosplit = ds.subset(slice(None))
     nosplit.meta["tags"] = [{k: v for k, v in t.items() if k != "split"} for t in ds.tags]
@@ -187,7 +193,7 @@ def test_reproduce_data_bad_input_is_one_line_exit_2(recorded, tmp_path, capsys)
 
 
 def test_a_generated_file_that_fits_the_preset_keeps_the_bounds(tmp_path):
-    small = StudyConfig(n_train=2, n_tune=1, n_val=1, image_size=32,
+    small = StudyConfig(n_train=2, n_tune=1, n_val=1, raster=world.RasterConfig(size=32),
                         training=TrainConfig(epochs=1))
     path = tmp_path / "gen.npz"
     world.save(world.generate(5, seed=3, raster=world.RasterConfig(size=32)), path)
@@ -198,3 +204,25 @@ def test_a_generated_file_that_fits_the_preset_keeps_the_bounds(tmp_path):
     train, tune, val = study.datasets()
     assert (len(train), len(tune), len(val)) == (2, 1, 1)  # the first 4 of the 5 scenes
     assert study.files.derived_path("-val-modes.npy").parent == tmp_path / "o" / "data"
+
+
+def test_a_generated_file_must_be_drawn_with_the_configurations_raster(tmp_path):
+    rgb = world.RasterConfig(size=32)
+    channels = world.RasterConfig(size=32, encoding="channels", route=True, history=2)
+    small = StudyConfig(n_train=2, n_tune=1, n_val=1, raster=rgb, training=TrainConfig(epochs=1))
+    path = tmp_path / "channels.npz"
+    world.save(world.generate(4, seed=3, raster=channels, workers=1), path)
+    with pytest.raises(ValueError) as err:
+        data_config(small, path)
+    assert ("a generated file of 4 scenes, 32×32 binary channels (route, vehicles at t, t−1, "
+            "t−2), does not fit preset 'custom' (4 scenes") in str(err.value)
+    assert "32×32 RGB raster (the paper's form)); generate it with `minimanc data generate " \
+        "--scenes 4 --size 32` or choose the preset" in str(err.value)
+    c = data_config(replace(small, raster=channels), path)
+    assert c.raster == channels and c.data_source == GENERATED
+    assert Study(c, tmp_path / "o", engine="numpy", workers=0).datasets()[0].raster == channels
+    world.save(world.generate(4, seed=3, raster=rgb, workers=1), tmp_path / "rgb.npz")
+    with pytest.raises(ValueError) as err:
+        data_config(replace(small, raster=channels), tmp_path / "rgb.npz")
+    assert ("generate it with `minimanc.world.generate_file(FILE, 4, raster=minimanc.world."
+            "RasterConfig(size=32, history=2, encoding='channels', route=True))`") in str(err.value)

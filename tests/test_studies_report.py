@@ -189,3 +189,31 @@ def test_table_markdown_contains_every_section():
                  "## Per scenario family — setting `paper`, agents `replay`",
                  "| MANC | free road | 7 | 1.00 ± 0.10 |"):
         assert text in md, text
+
+
+def test_table_markdown_says_which_raster_ran_and_the_perception_weight():
+    from dataclasses import asdict, replace
+
+    from minimanc import world
+
+    res = fake_results()
+    res["findings"] = studies.findings(res)
+    head = studies.table_markdown(res).split("\n## ")[0]
+    assert "24 validation scenes, 64×64 RGB raster (the paper's form), 3 epochs, " in head
+    assert "λ" not in head
+    quick = studies.PRESETS["quick"]
+    raster = world.RasterConfig.from_extent(60.0, 25.0, 50 / 64, encoding="channels",
+                                            route=True, history=2)
+    learner = replace(quick, raster=raster,
+                      training=replace(quick.training, perception_weight=1.0))
+    for config in (learner.__dict__, asdict(learner)):  # the study's object, results.json's dict
+        head = studies.table_markdown({**res, "config": {**config, "n_seeds": 3}}).split("\n## ")[0]
+        assert ("24 validation scenes, 90×64 binary channels (route, vehicles at t, t−1, t−2), "
+                "60 m ahead, 3 epochs with the auxiliary perception loss (λ = 1), learning "
+                "rate") in head
+    # a results file written before the study held a RasterConfig names its size only
+    old = {k: v for k, v in asdict(quick).items() if k != "raster"}
+    old["image_size"] = 64
+    del old["training"]["perception_weight"]
+    head = studies.table_markdown({**res, "config": old}).split("\n## ")[0]
+    assert "64×64 RGB raster (the paper's form), 3 epochs, learning rate" in head

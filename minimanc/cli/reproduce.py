@@ -12,7 +12,7 @@ from typing import Any
 from minimanc.checks import check_int
 from minimanc.cli.common import add_engine_option, check_option, check_out_dir
 from minimanc.errors import UsageError
-from minimanc.studies import PRESETS, reproduce, table_markdown
+from minimanc.studies import PRESETS, raster_text, reproduce, table_markdown
 from minimanc.studies.executors import EXECUTORS
 from minimanc.studies.recorded import REACTIVE_REFUSAL, data_config, is_recorded
 from minimanc.studies.reproduction import with_data_notes
@@ -62,7 +62,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     if config.data_file:
         print(f"data {config.data_file} ({config.data_source}): {config.n_train} training, "
               f"{config.n_tune} tuning, {config.n_val} validation scenes, "
-              f"{config.image_size} px")
+              f"{raster_text(config.raster)}")
     log = (lambda msg: print(msg, flush=True)) if args.verbose else None
     results = reproduce(config, out, engine=args.engine, workers=args.workers,
                         command=getattr(args, "command_line", None),

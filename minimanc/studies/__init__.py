@@ -74,6 +74,7 @@ from minimanc.studies.config import (
     Run,
     StudyConfig,
     presets_table,
+    raster_text,
 )
 from minimanc.studies.config import canonical_setting as canonical_setting
 from minimanc.studies.figures import pick_scenes as pick_scenes
@@ -95,4 +96,5 @@ __all__ = [
     "table_markdown",
     "reproduce",
     "presets_table",
+    "raster_text",
 ]

@@ -4,7 +4,10 @@ back, or drops what cannot be read.
 
 The layout (every file derived data, recomputed when missing or broken)::
 
-    out/data/world-<n>x<seed>-<size>px.npz          the generated scenes (or the given file)
+    out/data/world-<n>x<seed>-<raster>.npz          the generated scenes (or the given file;
+                                                    <raster>: :func:`raster_name`)
+    out/data/<data file>-perception-<n>.npz         the perception targets of its first n
+                                                    (training) scenes, with perception_weight > 0
     out/cache/<fingerprint>-<engine>/models/<run>/checkpoint.npz   (and diverged.json)
     out/cache/<fingerprint>-<engine>/rollouts/<run>-<split>[-reactive].npz / .json
     out/cache/jax/                                  JAX's persistent compilation cache
@@ -12,18 +15,58 @@ The layout (every file derived data, recomputed when missing or broken)::
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
 import sys
 import time
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from minimanc import train, world
-from minimanc.studies.config import Run, StudyConfig
+import numpy as np
+
+from minimanc import diagnose, train, world
+from minimanc.studies.config import Run, StudyConfig, raster_text
 from minimanc.studies.jobs import STUDY_METRICS
 from minimanc.studies.provenance import read_json_or_none
 
-__all__ = ["StudyFiles"]
+__all__ = ["StudyFiles", "load_targets", "raster_name", "save_targets"]
+
+
+def raster_name(raster: world.RasterConfig) -> str:
+    """The part of a generated data file's name that says how it is drawn: ``"<size>px"``
+    for the paper's form (the devkit's RGB raster, :class:`~minimanc.world.RasterConfig` at
+    its defaults but ``size``), else ``"<rows>x<cols>-<encoding>-<digest>"`` with the first 8
+    hex digits of the SHA-256 of :meth:`~minimanc.world.RasterConfig.as_meta`."""
+    if raster == world.RasterConfig(size=raster.size):
+        return f"{raster.size}px"
+    digest = hashlib.sha256(json.dumps(raster.as_meta(), sort_keys=True).encode()).hexdigest()
+    return f"{raster.size}x{raster.width}-{raster.encoding}-{digest[:8]}"
+
+
+def save_targets(targets: train.PerceptionTargets, path: str | Path) -> Path:
+    """Write ``targets`` (:class:`~minimanc.train.PerceptionTargets`) to the ``.npz`` file
+    ``path`` (written beside it, then renamed: a killed write leaves no partial file)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.stem + ".tmp.npz")
+    np.savez(tmp, names=np.asarray(targets.names), values=np.asarray(targets.values),
+             mask=np.asarray(targets.mask), logit=np.asarray(targets.logit, dtype=bool))
+    os.replace(tmp, path)
+    return path
+
+
+def load_targets(path: str | Path) -> train.PerceptionTargets:
+    """The :class:`~minimanc.train.PerceptionTargets` :func:`save_targets` wrote to ``path``;
+    ``ValueError`` (or ``OSError``) when the file is not such targets."""
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            return train.PerceptionTargets(tuple(str(n) for n in f["names"]), f["values"],
+                                           f["mask"], tuple(bool(b) for b in f["logit"]))
+    except (KeyError, EOFError, zipfile.BadZipFile) as exc:  # a key missing, a truncated file
+        raise ValueError(f"{path}: not the perception targets of a study ({exc})") from exc
 
 
 class StudyFiles:
@@ -57,7 +100,7 @@ class StudyFiles:
         if c.data_file:
             return Path(c.data_file)
         n = c.n_train + c.n_tune + c.n_val
-        return self.out / "data" / f"world-{n}x{c.data_seed}-{c.image_size}px.npz"
+        return self.out / "data" / f"world-{n}x{c.data_seed}-{raster_name(c.raster)}.npz"
 
     def derived_path(self, suffix: str) -> Path:
         """Where data derived from the dataset file is cached: next to a generated file,
@@ -92,15 +135,36 @@ class StudyFiles:
             except world.DatasetFileError as exc:  # older format, truncated, altered: remake
                 self.discard(self.data_path, str(exc))
         if ds is None:
-            self.log(f"data: generating {n} scenes ({c.image_size}x{c.image_size} BEV)")
-            ds = world.generate(n, seed=c.data_seed,
-                                raster=world.RasterConfig(size=c.image_size),
-                                progress=self.progress)
+            self.log(f"data: generating {n} scenes ({raster_text(c.raster)})")
+            ds = world.generate(n, seed=c.data_seed, raster=c.raster, progress=self.progress)
             world.save(ds, self.data_path)
         self.timing["data"] = time.perf_counter() - t0
         a, b = c.n_train, c.n_train + c.n_tune
         self._data = (ds.subset(slice(0, a)), ds.subset(slice(a, b)), ds.subset(slice(b, n)))
         return self._data
+
+    def perception_path(self) -> Path:
+        """Where the perception targets of the training split are cached (next to the data,
+        :meth:`derived_path`)."""
+        return self.derived_path(f"-perception-{self.config.n_train}.npz")
+
+    def perception_targets(self) -> Path:
+        """The file of the perception targets of the training split: every state of its
+        scenes as the study's raster shows it (:func:`minimanc.diagnose.perception_targets`
+        with ``view=config.raster``), computed once, then read from the cache."""
+        path = self.perception_path()
+        if path.exists():
+            try:
+                load_targets(path)
+                return path
+            except (OSError, ValueError) as exc:  # truncated or altered: compute it again
+                self.discard(path, str(exc))
+        train_ds = self.datasets()[0]
+        t0 = time.perf_counter()
+        save_targets(diagnose.perception_targets(train_ds, view=self.config.raster), path)
+        self.timing["perception"] = time.perf_counter() - t0
+        self.log(f"data: perception targets of {len(train_ds)} training scenes -> {path}")
+        return path
 
     def rows(self, split: str) -> tuple[int, int]:
         """The rows ``(lo, hi)`` of the split ``"tune"`` or ``"val"`` in the dataset file."""

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from minimanc import inputs, models, train
+from minimanc import inputs, models, train, world
 from minimanc.checks import check_int
 
 TABLE_MODELS: tuple[str, ...] = ("cnn", "cnn_lstm", "rvs_g", "manc")
@@ -26,14 +26,21 @@ class StudyConfig:
     """Sizes and budgets of a study. See :data:`PRESETS` for the named ones.
 
     Data: ``n_train`` / ``n_tune`` / ``n_val`` scenes of one generated set
-    (``data_seed``, BEV ``image_size``). Training (the same for every model):
+    (``data_seed``), drawn as ``raster``, a :class:`~minimanc.world.RasterConfig` (default:
+    the paper's form, the devkit's RGB raster at 64 x 64 px; :func:`raster_text` names it).
+    Training (the same for every model):
     ``training``, a :class:`~minimanc.train.TrainConfig` whose ``lr``, ``seed``
     and ``subset`` each :class:`Run` replaces (its learning rate from the sweep
     ``lrs``, one of the ``n_seeds`` training seeds, its data fraction):
     ``StudyConfig(training=TrainConfig(epochs=3))``, read as ``c.training.epochs``.
     Studies: ``n_states`` of MANC in Table I,
     ``q_states``, ``fractions``, ``settings``; ``explain_scenes`` scenes get
-    explainability figures. A given dataset file
+    explainability figures. The learner's form, from Python (no command-line switch):
+    ``StudyConfig(raster=world.RasterConfig(encoding="channels", route=True, history=2),
+    training=TrainConfig(perception_weight=1.0))``: binary planes, and with
+    ``perception_weight`` > 0 every run also learns the expert's perception of its training
+    scenes as seen in that raster (:func:`minimanc.diagnose.perception_targets`, the
+    auxiliary loss of :mod:`minimanc.train.perception`). A given dataset file
     (:func:`minimanc.studies.recorded.data_config`): ``data_file`` (its path),
     ``data_hash`` (its content hash) and ``data_source`` (``"world"``: generated,
     ``"nuscenes"``: recorded); all ``""`` when the study generates its data.
@@ -43,7 +50,7 @@ class StudyConfig:
     n_train: int = 650
     n_tune: int = 40
     n_val: int = 200
-    image_size: int = 64
+    raster: world.RasterConfig = field(default_factory=world.RasterConfig)
     data_seed: int = 0
     training: train.TrainConfig = field(default_factory=train.TrainConfig)
     lrs: tuple[float, ...] = (1e-3, 3e-3)
@@ -64,7 +71,10 @@ class StudyConfig:
         if not isinstance(self.training, train.TrainConfig):
             raise ValueError(f"training must be a minimanc.train.TrainConfig; got "
                              f"training={self.training!r}")
-        for name in ("n_train", "n_tune", "n_val", "image_size", "n_seeds", "n_states",
+        if not isinstance(self.raster, world.RasterConfig):
+            raise ValueError(f"raster must be a minimanc.world.RasterConfig; got "
+                             f"raster={self.raster!r}")
+        for name in ("n_train", "n_tune", "n_val", "n_seeds", "n_states",
                      "explain_scenes"):
             check_int(name, getattr(self, name), 0 if name == "explain_scenes" else 1)
         if bool(self.data_file) != bool(self.data_hash) or bool(self.data_file) != bool(
@@ -123,23 +133,23 @@ class StudyConfig:
 PRESETS: dict[str, StudyConfig] = {
     # the test suite: seconds, numbers meaningless
     "tiny": StudyConfig(
-        preset="tiny", n_train=4, n_tune=1, n_val=2, image_size=32,
+        preset="tiny", n_train=4, n_tune=1, n_val=2, raster=world.RasterConfig(size=32),
         training=train.TrainConfig(epochs=1, batch_size=16, max_steps_per_epoch=2, seq_len=4),
         lrs=(1e-3,), n_seeds=1, q_states=(3, 6), fractions=(0.5, 1.0), explain_scenes=1,
     ),
     # minutes on 2 cores (README): every study and the learning-rate sweep, one seed, small data
     "quick": StudyConfig(
-        preset="quick", n_train=64, n_tune=8, n_val=24, image_size=64,
+        preset="quick", n_train=64, n_tune=8, n_val=24, raster=world.RasterConfig(),
         training=train.TrainConfig(epochs=3, batch_size=64), lrs=(1e-3, 3e-3), n_seeds=1,
     ),
     # three seeds, more data and epochs than "quick"
     "full": StudyConfig(
-        preset="full", n_train=96, n_tune=16, n_val=48, image_size=64,
+        preset="full", n_train=96, n_tune=16, n_val=48, raster=world.RasterConfig(),
         training=train.TrainConfig(epochs=4, batch_size=64), lrs=(1e-3, 3e-3), n_seeds=3,
     ),
     # the paper's sizes: 650 training / 200 validation scenes, three seeds
     "paper": StudyConfig(
-        preset="paper", n_train=650, n_tune=40, n_val=200, image_size=64,
+        preset="paper", n_train=650, n_tune=40, n_val=200, raster=world.RasterConfig(),
         training=train.TrainConfig(epochs=6, batch_size=64), lrs=(3e-4, 1e-3, 3e-3), n_seeds=3,
     ),
 }
@@ -147,15 +157,49 @@ PRESETS: dict[str, StudyConfig] = {
 and ``paper`` (the paper's data sizes)."""
 
 
+def raster_text(raster: world.RasterConfig) -> str:
+    """``raster`` in a few words, as ``table1.md`` and ``docs/reproduce.md`` name it: rows ×
+    columns and the encoding (``"64×64 RGB raster (the paper's form)"``, ``"90×64 binary
+    channels (route, vehicles at t, t−1, t−2), 60 m ahead"``), then the extent where it is
+    not the devkit's (40 m ahead, 10 m behind, 25 m to each side)."""
+    if not isinstance(raster, world.RasterConfig):
+        raise ValueError(f"raster must be a minimanc.world.RasterConfig; got raster={raster!r}")
+    size = f"{raster.size}×{raster.width}"
+    if raster == world.RasterConfig(size=raster.size):
+        return f"{size} RGB raster (the paper's form)"
+    past = ["t", *(f"t−{j}" for j in range(1, raster.history + 1))]
+    if raster.encoding == "rgb":
+        text = f"{size} RGB raster" + (f" (history {', '.join(past)})" if raster.history else "")
+    else:
+        parts = ["route"] * raster.route + [f"vehicles at {', '.join(past)}"]
+        text = f"{size} binary channels ({', '.join(parts)})"
+    base = world.RasterConfig()
+    for name, words in (("metres_ahead", "ahead"), ("metres_behind", "behind"),
+                        ("metres_side", "to each side")):
+        if getattr(raster, name) != getattr(base, name):
+            text += f", {getattr(raster, name):g} m {words}"
+    return text
+
+
+def perception_text(weight: float) -> str:
+    """What a study's training adds to Algorithm 1, in words: the auxiliary perception loss
+    and its weight λ (``TrainConfig.perception_weight``) when ``weight`` > 0, else ``""``."""
+    return f"with the auxiliary perception loss (λ = {weight:g})" if weight > 0 else ""
+
+
 def presets_table() -> str:
     """:data:`PRESETS` as a Markdown table (``docs/reproduce.md`` shows it): per preset its
-    scenes, image size, epochs, learning rates, seeds and the q-states and data fractions of
-    the studies."""
-    lines = ["| preset | train / tune / validation scenes | BEV px | epochs | learning rates "
+    scenes, raster (:func:`raster_text`), epochs (and λ of the auxiliary perception loss
+    when it is on), learning rates, seeds and the q-states and data fractions of the
+    studies."""
+    lines = ["| preset | train / tune / validation scenes | BEV raster | epochs | learning rates "
              "| seeds | q-states | data fractions |", "|---|---|---|---|---|---|---|---|"]
     for name, c in PRESETS.items():
-        lines.append(f"| `{name}` | {c.n_train} / {c.n_tune} / {c.n_val} | {c.image_size} | "
-                     f"{c.training.epochs} | {', '.join(f'{x:g}' for x in c.lrs)} | "
+        epochs = " ".join(filter(None, (str(c.training.epochs),
+                                        perception_text(c.training.perception_weight))))
+        lines.append(f"| `{name}` | {c.n_train} / {c.n_tune} / {c.n_val} | "
+                     f"{raster_text(c.raster)} | {epochs} | "
+                     f"{', '.join(f'{x:g}' for x in c.lrs)} | "
                      f"{c.n_seeds} | {', '.join(str(n) for n in c.q_states)} | "
                      f"{', '.join(f'{f:g}' for f in c.fractions)} |")
     return "\n".join(lines)

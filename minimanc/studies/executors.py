@@ -35,6 +35,7 @@ from typing import Any
 from minimanc import train, world
 from minimanc.checks import check_int
 from minimanc.errors import UsageError
+from minimanc.studies.cache import load_targets
 from minimanc.studies.jobs import enable_jax_cache, evaluate_job, failed
 from minimanc.studies.provenance import write_json
 
@@ -271,7 +272,11 @@ def train_runs(ds: Any, job: dict) -> list[str]:
     ``job``: ``{"model", "cfg"`` (:class:`~minimanc.models.ModelConfig`), ``"train_cfgs"``
     (one :class:`~minimanc.train.TrainConfig` per run, differing in ``seed`` and ``lr``),
     ``"checkpoints"`` (one path per run), ``"engine", "jax_cache"}`` and optionally
-    ``"progress"``; for :func:`train_job` also ``"data", "lo", "hi"``.
+    ``"progress"`` and ``"perception"``, the file of the perception targets of ``ds``
+    (:func:`minimanc.studies.cache.save_targets`; with ``perception_weight`` > 0): then
+    each run trains on its own with the auxiliary loss (:func:`minimanc.train.fit`'s
+    ``perception``; :func:`~minimanc.train.fit_many` trains without it); for
+    :func:`train_job` also ``"data", "lo", "hi"``.
     """
     if job["engine"] == "jax" and job.get("jax_cache"):
         enable_jax_cache(job["jax_cache"])
@@ -288,13 +293,31 @@ def train_runs(ds: Any, job: dict) -> list[str]:
                 path.unlink(missing_ok=True)  # derived data: train it again
         todo.append(k)
     if todo:
-        out = train.fit_many(job["model"], ds, job["cfg"], [job["train_cfgs"][k] for k in todo],
-                             engine=job["engine"], checkpoint_dirs=[paths[k].parent for k in todo],
-                             resume=True, progress=job.get("progress", False), errors="return")
+        tcs, dirs = [job["train_cfgs"][k] for k in todo], [paths[k].parent for k in todo]
+        if job.get("perception"):
+            targets = load_targets(job["perception"])
+            out = [_fit_or_diverged(ds, job, tc, d, targets) for tc, d in zip(tcs, dirs)]
+        else:
+            out = train.fit_many(job["model"], ds, job["cfg"], tcs, engine=job["engine"],
+                                 checkpoint_dirs=dirs, resume=True,
+                                 progress=job.get("progress", False), errors="return")
         for k, res in zip(todo, out):
             if isinstance(res, train.TrainingDiverged):
                 write_json(paths[k].parent / "diverged.json", {"error": str(res)})
     return [str(p) for p in paths]
+
+
+def _fit_or_diverged(ds: Any, job: dict, tc: train.TrainConfig, directory: Path,
+                     targets: train.PerceptionTargets) -> Any:
+    """One run of ``job`` by :func:`minimanc.train.fit` with the perception ``targets``
+    (resuming its checkpoint in ``directory``): its result, or its
+    :class:`~minimanc.train.TrainingDiverged`."""
+    try:
+        return train.fit(job["model"], ds, job["cfg"], tc, engine=job["engine"],
+                         checkpoint_dir=directory, resume=True,
+                         progress=job.get("progress", False), perception=targets)
+    except train.TrainingDiverged as exc:
+        return exc
 
 
 def evaluate_trained(checkpoints: list[str], index: int, job: dict) -> dict:

@@ -9,8 +9,9 @@ the paper, the training split trains and the validation split is Table I's valid
 The learning rates are tuned on the last :data:`TUNE_SHARE` of the training split (at least
 one scene; the scenes in the split's order, that is ``scene.json``'s): scenes of the
 training distribution used for neither training nor evaluation, as the generated tuning
-split is. The BEV size is the file's. The preset gives everything else (epochs, learning
-rates, seeds, studies); its scene counts and data seed are replaced by the file's.
+split is. The raster is the file's, whatever its encoding. The preset gives everything else
+(epochs, learning rates, seeds, studies); its scene counts and data seed are replaced by the
+file's.
 
 Recorded data has logged boxes, not drivers: nothing can re-drive its scenes. So
 
@@ -25,11 +26,15 @@ Recorded data has logged boxes, not drivers: nothing can re-drive its scenes. So
   measured against) come from re-driving the scene too: no modes study and no q-versus-mode
   figures (:data:`MODES_OMITTED`);
 * behaviour cloning against DAgger (``--dagger``) asks the world's expert in states the
-  log never visited: refused too.
+  log never visited: refused too;
+* the auxiliary perception loss (``perception_weight`` > 0) reads the expert's perception
+  in every logged state, which comes from re-driving the scene: refused
+  (:data:`PERCEPTION_REFUSAL`).
 
 **Generated files.** A file of :func:`minimanc.world.generate` (no ``meta["source"]``) is
 used as the preset's data: it must hold at least the preset's ``n_train + n_tune + n_val``
-scenes (the first ones are used, in that order) at the preset's raster; its seed becomes
+scenes (the first ones are used, in that order) drawn with the preset's raster
+(``StudyConfig.raster``, compared by :meth:`~minimanc.world.RasterConfig.as_meta`); its seed becomes
 the study's ``data_seed``. Everything else, the bounds included, is as on generated data.
 
 In both cases the study's cache is named by the file's content hash
@@ -42,15 +47,16 @@ from __future__ import annotations
 import math
 import os
 from collections import Counter
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 from minimanc import world
-from minimanc.studies.config import StudyConfig
+from minimanc.studies.config import StudyConfig, raster_text
 from minimanc.world.nuscenes import SPLITS_OF_VERSION
 
-__all__ = ["BOUNDS_OMITTED", "GENERATED", "MODES_OMITTED", "REACTIVE_REFUSAL", "TUNE_SHARE",
-           "data_config", "data_notes", "is_recorded"]
+__all__ = ["BOUNDS_OMITTED", "GENERATED", "MODES_OMITTED", "PERCEPTION_REFUSAL",
+           "REACTIVE_REFUSAL", "TUNE_SHARE", "data_config", "data_notes", "how_to_generate",
+           "is_recorded"]
 
 TUNE_SHARE: float = 0.05
 """The share of the training split that tunes the learning rates (its last scenes)."""
@@ -75,6 +81,26 @@ MODES_OMITTED: str = (
     "re-driving each scene with the world's driver (minimanc.metrics.modes), which recorded data "
     "does not have.")
 """Why recorded data has no modes study (one line of ``table1.md``)."""
+
+
+PERCEPTION_REFUSAL: str = (
+    "the auxiliary perception loss (perception_weight > 0) is not available on recorded "
+    "data: its targets come from re-driving each scene with the world's driver "
+    "(minimanc.diagnose.perception_targets), which recorded data does not have")
+"""Why recorded data trains without the auxiliary perception loss (one line)."""
+
+
+def how_to_generate(raster: world.RasterConfig, n: int) -> str:
+    """How to make a generated file of ``n`` scenes drawn with ``raster``: the command
+    ``minimanc data generate`` for the paper's form (it draws the RGB raster at ``--size``),
+    else the Python call (:func:`minimanc.world.generate_file`) with the raster's fields
+    that are not the defaults."""
+    if raster == world.RasterConfig(size=raster.size):
+        return f"generate it with `minimanc data generate --scenes {n} --size {raster.size}`"
+    base = asdict(world.RasterConfig())
+    fields = ", ".join(f"{k}={v!r}" for k, v in asdict(raster).items() if v != base[k])
+    return (f"generate it with `minimanc.world.generate_file(FILE, {n}, "
+            f"raster=minimanc.world.RasterConfig({fields}))`")
 
 
 def is_recorded(config: StudyConfig) -> bool:
@@ -114,7 +140,7 @@ def _recorded_split(meta: dict, path: Path) -> tuple[int, int, str, str]:
 
 def data_config(config: StudyConfig, path: str | os.PathLike) -> StudyConfig:
     """``config`` (a preset) set up to train and evaluate on the dataset file ``path``
-    (see the module doc): its scene counts and BEV size from the file, ``data_file``,
+    (see the module doc): its scene counts and raster from the file, ``data_file``,
     ``data_hash`` (the file's content hash) and ``data_source`` (``meta["source"]``, or
     :data:`GENERATED`).
 
@@ -130,20 +156,20 @@ def data_config(config: StudyConfig, path: str | os.PathLike) -> StudyConfig:
     source = meta.get("source", GENERATED)
     if not isinstance(source, str) or not source or source == GENERATED:
         need = config.n_train + config.n_tune + config.n_val
-        want = world.RasterConfig(size=config.image_size).as_meta()
-        if n < need or meta["raster"] != want:
+        if n < need or meta["raster"] != config.raster.as_meta():
             raise ValueError(
-                f"{path}: a generated file of {n} scenes at {meta['raster'].get('size')} px "
-                f"does not fit preset {config.preset!r} ({need} scenes = {config.n_train} "
-                f"training + {config.n_tune} tuning + {config.n_val} validation, "
-                f"{config.image_size} px, default raster); generate it with `minimanc data "
-                f"generate -n {need} --size {config.image_size}` or choose the preset")
+                f"{path}: a generated file of {n} scenes, "
+                f"{raster_text(world.RasterConfig(**meta['raster']))}, does not fit preset "
+                f"{config.preset!r} ({need} scenes = {config.n_train} training + "
+                f"{config.n_tune} tuning + {config.n_val} validation, "
+                f"{raster_text(config.raster)}); {how_to_generate(config.raster, need)} "
+                "or choose the preset")
         return replace(config, data_seed=int(meta["seed"]), data_file=str(path),
                        data_hash=world.file_content_hash(path), data_source=GENERATED)
     n_tr, n_val, _, _ = _recorded_split(meta, path)
     n_tune = max(1, math.ceil(TUNE_SHARE * n_tr))
     return replace(config, n_train=n_tr - n_tune, n_tune=n_tune, n_val=n_val,
-                   image_size=int(meta["raster"]["size"]), data_seed=int(meta["seed"]),
+                   raster=world.RasterConfig(**meta["raster"]), data_seed=int(meta["seed"]),
                    data_file=str(path), data_hash=world.file_content_hash(path),
                    data_source=source)
 

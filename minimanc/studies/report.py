@@ -11,7 +11,9 @@ from typing import Any
 
 import numpy as np
 
+from minimanc import world
 from minimanc.diagnose.bounds import BOUND_ROWS
+from minimanc.studies.config import perception_text, raster_text
 from minimanc.studies.dagger_study import dagger_markdown
 from minimanc.studies.provenance import provenance_markdown
 from minimanc.viz.style import model_label
@@ -307,13 +309,25 @@ def _percent(agg: dict, metric: str) -> dict:
     return {metric: {**e, "mean": 100 * e["mean"], "std": 100 * e["std"]}}
 
 
-def _training(config: dict, key: str) -> Any:
+def _training(config: dict, key: str, default: Any = None) -> Any:
     """A training field of a results file's ``config`` (its ``training`` entry, or the flat
-    keys of a file written before the study held a TrainConfig)."""
+    keys of a file written before the study held a TrainConfig); ``default`` for a field
+    added after the file was written (``None``: the field must be there)."""
     t = config.get("training")
     if t is None:
-        return config[key]
-    return t[key] if isinstance(t, dict) else getattr(t, key)
+        return config[key] if default is None else config.get(key, default)
+    if not isinstance(t, dict):
+        return getattr(t, key)
+    return t[key] if default is None else t.get(key, default)
+
+
+def _raster(config: dict) -> world.RasterConfig:
+    """The raster of a results file's ``config`` (its ``raster`` entry, or the default RGB
+    raster at the ``image_size`` of a file written before the study held a RasterConfig)."""
+    r = config.get("raster")
+    if r is None:
+        return world.RasterConfig(size=int(config["image_size"]))
+    return r if isinstance(r, world.RasterConfig) else world.RasterConfig(**r)
 
 
 _RATIO_COLS = ("ade", "along_track", "cross_track")
@@ -375,12 +389,14 @@ def table_markdown(results: dict) -> str:
     c = results["config"]
     ns = int(c["n_seeds"])
     lab = model_label
+    perception = perception_text(float(_training(c, "perception_weight", 0.0)))
     lines = [
         "# Closed-loop results (Table I and the studies of section V)",
         "",
         f"Preset `{c['preset']}`: {c['n_train']} training, {c['n_tune']} tuning and "
-        f"{c['n_val']} validation scenes ({c['image_size']}×{c['image_size']} BEV), "
-        f"{_training(c, 'epochs')} epochs, learning rate from {list(c['lrs'])} by tuning-split "
+        f"{c['n_val']} validation scenes, {raster_text(_raster(c))}, "
+        f"{' '.join(filter(None, (str(_training(c, 'epochs')), 'epochs', perception)))}, "
+        f"learning rate from {list(c['lrs'])} by tuning-split "
         "ADE, "
         f"{'mean ± std over ' + str(ns) + ' seeds' if ns > 1 else 'one seed'}; "
         f"engine `{results['engine']}`. Lower is better everywhere except route progress "

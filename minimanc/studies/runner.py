@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from minimanc import metrics, models, rollout, train, world
+from minimanc import metrics, models, rollout, train
 from minimanc.engine import ENGINES
 from minimanc.metrics import modes
 from minimanc.rollout import check_agents
@@ -32,7 +32,12 @@ from minimanc.studies.evaluation import Evaluations, families_of
 from minimanc.studies.executors import usable_cpus
 from minimanc.studies.jobs import enable_jax_cache
 from minimanc.studies.provenance import read_json_or_none, write_json
-from minimanc.studies.recorded import MODES_OMITTED, REACTIVE_REFUSAL, is_recorded
+from minimanc.studies.recorded import (
+    MODES_OMITTED,
+    PERCEPTION_REFUSAL,
+    REACTIVE_REFUSAL,
+    is_recorded,
+)
 from minimanc.studies.references import References
 from minimanc.studies.report import findings
 from minimanc.studies.submission import Submitter
@@ -86,6 +91,8 @@ class Study:
         self.agents = tuple(check_agents(a) for a in agents)
         if is_recorded(config) and "reactive" in self.agents:
             raise ValueError(REACTIVE_REFUSAL)
+        if is_recorded(config) and config.training.perception_weight > 0:
+            raise ValueError(PERCEPTION_REFUSAL)
         self.config = config
         self.engine = engine
         self.progress = progress
@@ -284,7 +291,7 @@ class Study:
         out = {}
         for s in c.settings:
             cfg = models.ModelConfig(n_states=c.n_states, setting=s,
-                                     input_shape=world.RasterConfig(size=c.image_size).input_shape)
+                                     input_shape=c.raster.input_shape)
             out[s] = models.param_counts(cfg)
         return out
 

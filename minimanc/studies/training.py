@@ -59,8 +59,10 @@ class Trainings:
     def start(self, runs: Sequence[Run]) -> dict[str, tuple[Any, int]]:
         """Start training ``runs``: those of one configuration (model, setting, q-states,
         fraction) that are not trained yet train together (one job per configuration, or
-        per run without ``seeds_together``). Returns ``{run.key: (future, index)}``: the
-        job's ``result()[index]`` is the run's checkpoint path."""
+        per run without ``seeds_together``). With ``perception_weight`` > 0 the job names the
+        file of the training split's perception targets (:meth:`StudyFiles.perception_targets`,
+        computed here once). Returns ``{run.key: (future, index)}``: the job's
+        ``result()[index]`` is the run's checkpoint path."""
         files = self.files
         groups: dict[tuple, list[Run]] = {}
         for r in runs:
@@ -72,13 +74,17 @@ class Trainings:
             g = (r.model, r.setting, r.n_states, r.fraction)
             groups.setdefault(g if self.seeds_together else (r.key,), []).append(r)
         train_ds = files.datasets()[0] if groups else None
+        perception = ""
+        if groups and self.config.training.perception_weight > 0:
+            perception = str(files.perception_targets())
         for group in groups.values():
             first = group[0]
             job = {"model": first.model, "data": str(files.data_path), "lo": 0,
                    "hi": self.config.n_train, "cfg": self.model_config(first),
                    "train_cfgs": [self.train_config(r) for r in group],
                    "checkpoints": [str(files.checkpoint(r)) for r in group],
-                   "engine": self.engine, "jax_cache": str(files.jax_dir)}
+                   "engine": self.engine, "jax_cache": str(files.jax_dir),
+                   "perception": perception}
             keys = ", ".join(r.key for r in group)
             if self.submitter.pooled:
                 fut = self.submitter.submit(train_job, job)

@@ -51,7 +51,7 @@ METRICS = ("mi_bits", "shuffled_mi_bits", "shuffled_mi_p95", "excess_bits", "q_c
 def data() -> tuple:
     c = PRESETS["paper"]
     return world.generate_splits(c.n_train, c.n_val, seed=c.data_seed,
-                                 raster=world.RasterConfig(size=c.image_size), cache=True,
+                                 raster=c.raster, cache=True,
                                  progress=False)
 
 
