@@ -83,6 +83,10 @@ def _collect_raster(args: argparse.Namespace) -> world.RasterConfig:
     if args.extent is None:
         return world.RasterConfig(size=args.size, **fields)
     ahead, behind, side = args.extent
+    for label, metres in (("AHEAD", ahead), ("SIDE", side), ("AHEAD + BEHIND", ahead + behind)):
+        check_option(check_positive, f"--extent {label}", metres)
+    if not behind >= 0:
+        raise UsageError(f"--extent BEHIND must be >= 0, got --extent BEHIND={behind!r}")
     try:
         return world.RasterConfig.from_extent(ahead, side, (ahead + behind) / args.size,
                                               metres_behind=behind, **fields)
