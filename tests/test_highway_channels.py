@@ -4,10 +4,12 @@ checkpoint records (the route along the ego's lane, the past steps of the episod
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
 import pytest
+from PIL import Image
 
 hw = pytest.importorskip("minimanc.highway")
 
@@ -110,8 +112,6 @@ def test_cli_eval_and_render_drive_a_channels_checkpoint(channels_run, tmp_path,
     assert set(report) == {"expert_seeds_tried", "expert", "cnn"}
     assert np.isfinite(report["cnn"]["ade"]) and report["cnn"]["mean_speed"] > 0
     capsys.readouterr()
-    from PIL import Image
-
     out = tmp_path / "frames"
     assert main(["highway", "render", "--checkpoint", str(ck), "--scenario", "highway-fast",
                  "--steps", str(STEPS), "--engine", "numpy", "--out", str(out)]) == 0
@@ -164,3 +164,14 @@ def test_cli_refuses_an_edited_checkpoint_and_a_bad_view(channels_run, tmp_path,
         err = capsys.readouterr().err
         assert code == 2 and len(err.splitlines()) == 1 and expected in err, err
     assert not (tmp_path / "x.npz").exists() and not list((tmp_path / "f").iterdir())
+
+
+def test_episodes_without_their_bev_are_drawn_with_their_past():
+    """``to_dataset`` draws an episode recorded without its BEV as the episode drew it (its
+    past steps included), and refuses a route, which follows the lane of each step."""
+    cfg = world.RasterConfig(size=32, encoding="channels", history=2)
+    eps, _ = hw.expert_episodes("roundabout", 1, seed=0, steps=4, cfg=cfg)
+    bare = [dataclasses.replace(ep, bev=None) for ep in eps]
+    assert np.array_equal(hw.to_dataset(bare, cfg).bev, hw.to_dataset(eps, cfg).bev)
+    with pytest.raises(ValueError, match="^episodes drawn with a route must carry their BEV"):
+        hw.to_dataset(bare, dataclasses.replace(cfg, route=True))
