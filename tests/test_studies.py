@@ -235,7 +235,7 @@ def test_a_closed_loop_that_blows_up_scores_inf(tmp_path, monkeypatch):
     cfg = models.ModelConfig(input_shape=(32, 32, 3))
     params = models.init("cnn", np.random.default_rng(0), cfg)
     params["out"]["b"] = params["out"]["b"] * np.nan
-    ck = train.save_checkpoint(tmp_path / "ck.npz", "cnn", params, cfg)
+    ck = train.save_checkpoint(tmp_path / "ck.npz", "cnn", params, cfg, raster=ds.raster)
     job = {"data": str(data), "lo": 0, "hi": 2, "checkpoint": str(ck), "engine": "numpy",
            "rollout": str(tmp_path / "r.npz"), "metrics": str(tmp_path / "m.json")}
     res = jobs.evaluate_job(job)

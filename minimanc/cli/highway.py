@@ -4,15 +4,23 @@ eval, render.
 ::
 
     minimanc highway collect --scenarios roundabout intersection highway-fast \\
-        --episodes 20 --out highway.npz
+        --episodes 20 --out highway.npz [--raster channels --extent 60 40 16]
     minimanc highway train --data highway.npz --models manc cnn --epochs 8 --out runs/
     minimanc highway eval --checkpoints runs/manc/checkpoint.npz runs/cnn/checkpoint.npz \\
         --episodes 10 --out eval.json
     minimanc highway render --scenario roundabout --seed 100000 --out frames/ \\
         [--checkpoint runs/manc/checkpoint.npz]
 
-``eval`` also runs the transfer experiment: give it a checkpoint trained on
-the nuScenes-style world (``minimanc.train`` on ``minimanc.world`` data).
+``collect`` draws the course's RGB raster (``--raster rgb``, the default) or a
+learner's binary planes (``--raster channels``: the map's planes, the ego's route
+ahead, which here runs along the lane the ego is in, and the ego and the vehicles
+at ``t``, ``t − 1``, ``t − 2``), ``--size`` rows over the view ``--extent AHEAD
+BEHIND SIDE`` (metres; default the devkit's 40 10 25, square pixels). ``eval`` and
+``render`` draw what each checkpoint's model was trained on: the raster its
+checkpoint records (:attr:`minimanc.train.FitResult.raster`), with the past steps
+of the episode being driven. ``eval`` also runs the transfer experiment: give it a
+checkpoint trained on the nuScenes-style world (``minimanc.train`` on
+``minimanc.world`` data).
 This module imports without highway-env; each command imports
 :mod:`minimanc.highway` when it runs and, if highway-env is missing, prints
 the install command and exits with status 2. Bad arguments (a negative seed,
@@ -66,15 +74,34 @@ def _check_episode_args(args: argparse.Namespace) -> None:
     check_option(check_int, "--seed", args.seed, 0)
 
 
+def _collect_raster(args: argparse.Namespace) -> world.RasterConfig:
+    """The raster ``collect`` draws: ``--raster`` (channels: the learner's raster of chapter 7,
+    with the ego's route and the last two steps), ``--size`` rows, the view ``--extent``."""
+    check_option(check_int, "--size", args.size, 8)
+    fields = ({"encoding": "channels", "route": True, "history": 2}
+              if args.raster == "channels" else {})
+    if args.extent is None:
+        return world.RasterConfig(size=args.size, **fields)
+    ahead, behind, side = args.extent
+    for label, metres in (("AHEAD", ahead), ("SIDE", side), ("AHEAD + BEHIND", ahead + behind)):
+        check_option(check_positive, f"--extent {label}", metres)
+    if not behind >= 0:
+        raise UsageError(f"--extent BEHIND must be >= 0, got --extent BEHIND={behind!r}")
+    try:
+        return world.RasterConfig.from_extent(ahead, side, (ahead + behind) / args.size,
+                                              metres_behind=behind, **fields)
+    except ValueError as e:
+        raise UsageError(f"--extent {ahead:g} {behind:g} {side:g}: {e}") from None
+
+
 def cmd_collect(args: argparse.Namespace) -> int:
     """Expert demonstrations (IDM/MOBIL) in the chapter-7 dataset format."""
     _check_episode_args(args)
-    check_option(check_int, "--size", args.size, 8)
+    cfg = _collect_raster(args)
     check_out_file(args.out)
     hw = _highway()
     if hw is None:
         return 2
-    cfg = world.RasterConfig(size=args.size)
     ds = hw.collect_demonstrations(args.scenarios, n_episodes=args.episodes, seed=args.seed,
                                    steps=args.steps, cfg=cfg, progress=not args.quiet)
     path = world.save(ds, args.out)
@@ -117,21 +144,14 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def _policy(path: str, engine: str, option: str = "--checkpoints") -> Any:
+def _policy(path: str, engine: str, option: str = "--checkpoints"
+            ) -> tuple[Any, world.RasterConfig]:
+    """The checkpoint's model as a policy and the raster its training data was drawn with."""
     try:
         fit = train.load_fit(path)
     except ValueError as e:  # missing (ValueError) or unreadable (CheckpointError)
         raise UsageError(f"{option} {e}") from e
-    return rollout.ModelPolicy(fit, engine=engine)
-
-
-def _raster(pol: Any, path: str) -> world.RasterConfig:
-    """The raster `highway collect` draws (RGB, ``--size``) that the policy's model reads."""
-    rows, cols, planes = pol.cfg.bev_shape
-    if planes != 3:
-        raise UsageError(f"{path}: the model reads {planes} BEV planes; the highway commands "
-                         f"draw the RGB raster (3 planes) of `minimanc highway collect`")
-    return world.RasterConfig(size=rows, cols=None if cols == rows else cols)
+    return rollout.ModelPolicy(fit, engine=engine), fit.raster
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
@@ -144,8 +164,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         return 2
     policies = []
     for path in args.checkpoints:
-        pol = _policy(path, args.engine)
-        policies.append((Path(path).parent.name or Path(path).stem, pol, _raster(pol, path)))
+        pol, cfg = _policy(path, args.engine)
+        policies.append((Path(path).parent.name or Path(path).stem, pol, cfg))
     report: dict[str, dict] = {}
     header = (f"{'scenario':<13} {'driver':<16} {'collision %':>11} {'off-road %':>10} "
               f"{'ADE m':>7} {'speed m/s':>9} {'episodes/s':>10}")
@@ -174,11 +194,10 @@ def cmd_render(args: argparse.Namespace) -> int:
     if hw is None:
         return 2
     if args.checkpoint:
-        pol = _policy(args.checkpoint, args.engine, option="--checkpoint")
+        pol, cfg = _policy(args.checkpoint, args.engine, option="--checkpoint")
         experts, _ = hw.expert_episodes(args.scenario, 1, seed=args.seed, steps=args.steps,
                                         record_bev=False)
         goal = experts[0].poses[args.steps - 1]
-        cfg = _raster(pol, args.checkpoint)
         paths = hw.render_episode(args.scenario, experts[0].seed, args.out,
                                   hw.plain_policy(pol, goal, cfg), steps=args.steps, goal=goal,
                                   cfg=cfg)
@@ -199,7 +218,13 @@ def register(subparsers: Any) -> None:
     c.add_argument("--episodes", type=int, default=20, help="episodes per scenario")
     c.add_argument("--seed", type=int, default=0, help="first env seed")
     c.add_argument("--steps", type=int, default=24, help="actions of 0.5 s per episode")
-    c.add_argument("--size", type=int, default=64, help="BEV raster size (pixels)")
+    c.add_argument("--raster", choices=world.ENCODINGS, default="rgb",
+                   help="rgb: the course's image; channels: a learner's binary planes with "
+                        "the route and the last 2 steps (default rgb)")
+    c.add_argument("--size", type=int, default=64, help="BEV raster rows (pixels)")
+    c.add_argument("--extent", type=float, nargs=3, default=None,
+                   metavar=("AHEAD", "BEHIND", "SIDE"),
+                   help="the view in metres (default the devkit's 40 10 25: square)")
     c.add_argument("--out", default="highway.npz")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
     c.set_defaults(func=cmd_collect)

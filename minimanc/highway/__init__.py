@@ -22,7 +22,8 @@ anything:
   rendering turned heading-up.
 * **BEV observation** (:class:`BEVObservation`): a gymnasium observation
   wrapper returning the chapter-7 ego-centric raster (same size, colours,
-  ego pixel; :mod:`minimanc.world.raster`).
+  ego pixel; :mod:`minimanc.world.raster`), in either encoding: the RGB image or a
+  learner's binary channels, whose route runs along the lane the ego is in.
 * **Action adapter** (:func:`controls_to_action`, :class:`ActionAdapter`):
   the package's controls ``[speed, yaw rate]`` (the output of MANC's DMP
   step, paper eqs. 10–11, integrated once; DT = 0.5 s) become highway-env's ``ContinuousAction``
@@ -37,7 +38,9 @@ anything:
   what the action adapter realises (:attr:`Episode.controls`).
 * **Closed loop** (:func:`drive_episodes`): any chapter-9 policy
   (:class:`minimanc.rollout.ModelPolicy` for MANC and the baselines) drives
-  the ego, observations from :func:`minimanc.inputs.from_state`; metrics
+  the ego, observations from :func:`minimanc.inputs.from_state` drawn with the raster
+  the policy's model was trained on (:attr:`minimanc.train.FitResult.raster`) and, when
+  it draws past steps, those of the episode being driven; metrics
   (:attr:`ClosedLoopResult.metrics`): collision rate (highway-env's
   ``crashed``), off-road rate (:func:`minimanc.metrics.off_road`), ADE to the
   expert of the same seed (:func:`minimanc.metrics.ade`), mean speed and

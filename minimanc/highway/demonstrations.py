@@ -26,7 +26,8 @@ from minimanc.highway.env import (
 from minimanc.highway.episodes import Episode, check_steps, run_episode
 from minimanc.world.fileformat import append_scenes, empty_meta
 from minimanc.world.geometry import goal_in_ego_frame
-from minimanc.world.raster import RasterConfig, rasterize
+from minimanc.world.history import history_of
+from minimanc.world.raster import RasterConfig, rasterize, rasterize_batch
 from minimanc.world.scenes import Dataset
 
 EVAL_SEED = 100_000
@@ -85,8 +86,10 @@ def to_dataset(episodes: Sequence[Episode], cfg: RasterConfig | None = None,
     An episode of ``T`` actions gives one scene of ``T`` steps: ``ego`` the
     poses ``0 … T−1``, ``controls[t]`` (:attr:`Episode.controls`) from ``t`` to
     ``t + 1``, ``goal`` the last pose in each ego frame, the lane targets and
-    ados recorded at each step, ``bev`` the rasters (re-rendered with ``cfg``
-    if the episode has none), ``goal_bev`` the static raster at the goal, and
+    ados recorded at each step, ``bev`` the rasters (re-rendered with ``cfg``, its
+    past steps from the episode's, if the episode has none; a raster with a route needs
+    them recorded, since the route follows the lane the ego was in at each step),
+    ``goal_bev`` the static raster at the goal, and
     ``maps`` the episode maps (explicit recipes in ``meta["recipes"]``).
     ``meta["tags"]`` records the scenario, env id and seed, destination and
     expert speed per scene.
@@ -106,8 +109,13 @@ def to_dataset(episodes: Sequence[Episode], cfg: RasterConfig | None = None,
         ego = ep.poses[:T]
         bev = ep.bev[:T] if ep.bev is not None and ep.bev.shape[1:] == cfg.shape else None
         if bev is None:
-            bev = np.stack([rasterize(ep.map, ep.poses[t], ep.ado[t], ep.ado_valid[t], cfg)
-                            for t in range(T)])
+            if cfg.route:
+                raise ValueError("episodes drawn with a route must carry their BEV (the route "
+                                 "follows the ego's lane at each step): record them with "
+                                 "expert_episodes(..., cfg=cfg)")
+            past = history_of(ego, ep.ado[:T], ep.ado_valid[:T],
+                              cfg.history) if cfg.history else None
+            bev = rasterize_batch(ep.map, ego, ep.ado[:T], ep.ado_valid[:T], cfg, history=past)
         scenes.append({
             "bev": bev,
             "ego": ego.astype(np.float32),

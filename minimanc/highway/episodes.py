@@ -31,6 +31,7 @@ from minimanc.highway.mapping import RouteTracker, road_map
 from minimanc.highway.render import render_frame
 from minimanc.rollout import SceneState, check_controls, drive, observation
 from minimanc.world.geometry import DT, goal_in_ego_frame, wrap_angle
+from minimanc.world.history import History, latest_history
 from minimanc.world.lanes import K_TARGETS, Map
 from minimanc.world.maps import lane_targets
 from minimanc.world.raster import RasterConfig, rasterize
@@ -41,8 +42,9 @@ class Episode:
     """One episode of ``T`` actions: ``T + 1`` recorded states (world frame).
 
     ``poses (T+1, 3)``, ``speeds (T+1,)``, ``ado (T+1, A, 5)``, ``ado_valid
-    (T+1, A)``, ``lane_target (T+1, K, 2)`` (ego frame), ``bev (T+1, H, W, 3)``
-    uint8 (when recorded), ``commands (T, 2)`` the ``[speed, yaw rate]`` a
+    (T+1, A)``, ``lane_target (T+1, K, 2)`` (ego frame), ``bev (T+1, *cfg.shape)``
+    uint8 as the raster stores it (when recorded; the RGB image, or the channels
+    bit-packed), ``commands (T, 2)`` the ``[speed, yaw rate]`` a
     policy asked for (NaN for the expert), ``actions (T, 2)`` the
     ContinuousAction sent (NaN for the expert), ``crashed`` and ``on_road``
     ``(T+1,)`` highway-env's flags, the episode ``map`` (route from the start
@@ -97,8 +99,24 @@ PolicyFn = Callable[[dict], np.ndarray]
 """A plain policy: observation dict (see :func:`run_episode`) → controls ``[speed, yaw_rate]``."""
 
 
+def _past(runs: list[EpisodeRun], steps: int) -> History:
+    """The :class:`minimanc.world.history.History` of ``steps`` past steps of the runs'
+    current frames (driven in lock-step): the ego's poses and the ados' boxes each run
+    recorded, none before its first step (:func:`minimanc.world.history.latest_history`,
+    as the world's closed loop keeps them)."""
+    rec = [r.rec for r in runs]
+    return latest_history(np.stack([np.array(r["poses"]) for r in rec]),
+                          np.stack([np.array(r["ado"]) for r in rec]),
+                          np.stack([np.array(r["valid"]) for r in rec]), steps)
+
+
 class EpisodeRun:
-    """One env driven step by step (the expert or a policy), recording an :class:`Episode`."""
+    """One env driven step by step (the expert or a policy), recording an :class:`Episode`.
+
+    Its BEV (``record_bev``) is drawn with ``cfg`` from the ego's pose on the map whose
+    route runs from the ego's current lane (:class:`RouteTracker`), with the past steps
+    ``cfg.history`` asks for from what this run recorded.
+    """
 
     def __init__(self, scenario: str, seed: int, steps: int, expert: bool,
                  cfg: RasterConfig, max_ado: int, record_bev: bool, render: bool,
@@ -137,11 +155,18 @@ class EpisodeRun:
         rec["crashed"].append(bool(env.vehicle.crashed))
         rec["on_road"].append(bool(env.vehicle.on_road))
         if self.record_bev:
-            rec["bev"].append(rasterize(m_t, pose, ado, valid, self.cfg))
+            rec["bev"].append(self.bev(m_t, pose, ado, valid))
         if self.render:
             rec["frames"].append(render_frame(env))
         return {"pose": pose, "map": m_t, "ado": ado, "ado_valid": valid,
                 "speed": float(env.vehicle.speed)}
+
+    def bev(self, m_t: Map, pose: np.ndarray, ado: np.ndarray, valid: np.ndarray
+            ) -> np.ndarray:
+        """The raster of the last recorded state (``cfg``; with its past when
+        ``cfg.history > 0``), as stored."""
+        past = _past([self], self.cfg.history) if self.cfg.history else None
+        return rasterize(m_t, pose, ado, valid, self.cfg, history=past)
 
     def step(self, controls: np.ndarray | None) -> None:
         if controls is None:
@@ -182,7 +207,8 @@ class HighwaySim:
     (``steps`` the env's duration) recorded by an :class:`EpisodeRun`;
     ``goals (B, 3)`` the goal world poses (a row's ``None``: its start pose);
     ``raster`` the :class:`RasterConfig` of the policy's BEV (default ``cfg``,
-    the one the episode's BEV is recorded with), ``k_targets`` its lane-target
+    the one the episode's BEV is recorded with; its past steps, ``raster.history``, are
+    those each row recorded), ``k_targets`` its lane-target
     points. The ego's motion at the start is ``[speed, 0]``; controls go
     through :class:`ActionAdapter`. :meth:`finish` closes the envs and returns
     the :class:`Episode` of each row.
@@ -218,9 +244,10 @@ class HighwaySim:
 
     def observe(self) -> SceneState:
         obs = [r.obs for r in self.runs]
+        past = _past(self.runs, self.raster.history) if self.raster.history else None
         return SceneState([o["map"] for o in obs], np.stack([o["pose"] for o in obs]),
                           np.stack([o["ado"] for o in obs]),
-                          np.stack([o["ado_valid"] for o in obs]), self.goal)
+                          np.stack([o["ado_valid"] for o in obs]), self.goal, past)
 
     def step(self, controls: np.ndarray) -> None:
         for r, u in zip(self.runs, controls):
@@ -253,8 +280,8 @@ class FunctionPolicy:
                  ) -> tuple[np.ndarray, Any, dict]:
         run = self.sim.runs[0]
         o, rec = run.obs, run.rec
-        bev = rec["bev"][-1] if run.record_bev else rasterize(
-            o["map"], o["pose"], o["ado"], o["ado_valid"], run.cfg)
+        bev = rec["bev"][-1] if run.record_bev else run.bev(o["map"], o["pose"], o["ado"],
+                                                            o["ado_valid"])
         motion = rec["commands"][-1] if rec["commands"] else np.array([rec["speeds"][0], 0.0])
         full = {**o, "bev": bev, "t": t, "goal": goal_in_ego_frame(self.sim.goal[0], o["pose"]),
                 "lane_target": rec["targets"][-1], "motion": np.array(motion, dtype=np.float64)}
@@ -311,7 +338,7 @@ def run_episode(
     Otherwise ``policy(obs)`` is called every step with ``obs = {"bev",
     "goal", "lane_target", "motion", "pose", "speed", "map", "ado",
     "ado_valid", "t"}`` — the chapter-8 observation of one ego (unbatched:
-    ``bev`` uint8 (H, W, 3), ``goal`` the world pose ``goal`` (typically the
+    ``bev`` uint8 ``cfg.shape`` as stored, ``goal`` the world pose ``goal`` (typically the
     expert's final pose of the same seed; default the start pose) in the
     current ego frame, ``lane_target`` (K, 2), ``motion`` the previous
     command) — and its ``[speed, yaw rate]`` goes through

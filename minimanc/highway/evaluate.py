@@ -27,6 +27,7 @@ from minimanc.highway.env import DEFAULT_STEPS, MAX_ADO, POLICY_FREQUENCY, check
 from minimanc.highway.episodes import Episode, HighwaySim, PlainPolicy, PolicyFn, run_episode
 from minimanc.highway.render import save_gif, save_png
 from minimanc.rollout import drive
+from minimanc.world.encodings import to_rgb
 from minimanc.world.raster import RasterConfig
 
 
@@ -84,7 +85,10 @@ def drive_episodes(
     decisions (``T`` = the expert episode's recorded states minus one, as the
     chapter-9 closed loop makes ``T − 1`` decisions on a ``T``-step log) and
     at each step the observation comes from :func:`minimanc.inputs.from_state`
-    at the ego's own pose: the BEV of the map with the live traffic, the goal
+    at the ego's own pose: the BEV (drawn with ``cfg``, the raster the policy's model was
+    trained on, :attr:`minimanc.train.FitResult.raster`) of the map with the live traffic
+    and, when ``cfg.history > 0``, the ego's and the ados' boxes of the past steps of
+    this episode, the goal
     = the expert's pose at ``T − 1``, the lane target on the route from the
     current lane, and ``motion`` = the policy's previous control (at ``t = 0``
     the ego's speed and yaw rate 0). Controls go through
@@ -152,8 +156,9 @@ def render_episode(
     """Run an episode headless and write highway-env's frames and the BEV frames to ``out_dir``.
 
     Writes ``frame_000.png`` … (highway-env's view), ``episode.gif`` (its
-    frames at 2 fps = real time) and ``bev.gif`` (the policy's input, upscaled
-    ``bev_scale`` times). Returns the paths by name.
+    frames at 2 fps = real time) and ``bev.gif`` (the policy's input drawn with ``cfg``,
+    the channels painted in the devkit's colours by :func:`minimanc.world.to_rgb`,
+    upscaled ``bev_scale`` times). Returns the paths by name.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -162,5 +167,6 @@ def render_episode(
     for t, fr in enumerate(ep.frames):
         paths[f"frame_{t:03d}"] = save_png(fr, out / f"frame_{t:03d}.png")
     paths["episode"] = save_gif(ep.frames, out / "episode.gif", fps=POLICY_FREQUENCY)
-    paths["bev"] = save_gif(list(ep.bev), out / "bev.gif", fps=POLICY_FREQUENCY, scale=bev_scale)
+    paths["bev"] = save_gif(list(to_rgb(ep.bev, cfg or RasterConfig())), out / "bev.gif",
+                            fps=POLICY_FREQUENCY, scale=bev_scale)
     return paths

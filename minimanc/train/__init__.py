@@ -41,8 +41,11 @@ Algorithm 1 of the paper, for every controller of :mod:`minimanc.models`::
   :func:`os.replace` (atomic: a crash never leaves half a file; the
   temporary file is removed on failure, and those a killed run left,
   ``checkpoint.npz.*.tmp``, are removed when the next run starts).
-  ``resume=True`` continues from it. A checkpoint that cannot be read
-  (truncated, corrupt) raises :class:`CheckpointError` naming the file:
+  ``resume=True`` continues from it. It records the raster the training data
+  was drawn with (:attr:`FitResult.raster`, which a closed loop draws the model's
+  input with). A checkpoint that cannot be read (truncated, corrupt, or of
+  another :data:`~minimanc.train.checkpoint.CHECKPOINT_FORMAT`: written before
+  the raster was recorded) raises :class:`CheckpointError` naming the file:
   delete it, or train without ``resume``, to start again from epoch 0.
 * **Divergence.** A NaN or infinite loss, or parameters that are not
   finite or exceed :data:`PARAM_LIMIT` in magnitude (checked after every

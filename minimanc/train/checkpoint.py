@@ -1,6 +1,7 @@
-"""Chapter 8 — checkpoints: parameters, optimiser state and the run's configuration written
-atomically to one ``.npz`` (:func:`save_checkpoint`), read back (:func:`load_checkpoint`,
-:func:`load_fit`), and the check that refuses unusable parameters (:func:`bad_params`)."""
+"""Chapter 8 — checkpoints: parameters, optimiser state, the run's configuration and the
+raster of its training data written atomically to one ``.npz`` (:func:`save_checkpoint`),
+read back (:func:`load_checkpoint`, :func:`load_fit`), and the check that refuses unusable
+parameters (:func:`bad_params`)."""
 
 from __future__ import annotations
 
@@ -22,9 +23,15 @@ from minimanc.train.trained import CHECKPOINT_DEFAULTS, accepts_fit
 from minimanc.tree import from_flat_dict, to_flat_dict
 from minimanc.tree import map as tree_map
 from minimanc.world.datawriter import temp_prefix
+from minimanc.world.raster import RasterConfig
 
 __all__ = ["bad_params", "load_checkpoint", "load_fit", "restore_opt", "save_checkpoint",
            "to_numpy"]
+
+CHECKPOINT_FORMAT = 2
+"""The version of the checkpoint's metadata :func:`save_checkpoint` writes and
+:func:`load_checkpoint` reads (2: the raster of the training data is recorded); a file of
+another version is refused as unreadable."""
 
 
 def to_numpy(tree: Any) -> Any:
@@ -66,11 +73,12 @@ def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
 
 def _meta(name: str, cfg: models.ModelConfig, tc: TrainConfig, epoch: int,
           history: list[float], val_history: list[float], steps: int,
-          std: np.ndarray) -> np.ndarray:
+          std: np.ndarray, raster: RasterConfig) -> np.ndarray:
     meta = {
-        "format": 1,
+        "format": CHECKPOINT_FORMAT,
         "name": name,
         "cfg": cfg.to_dict(),
+        "raster": raster.as_meta(),
         "train_cfg": asdict(tc),
         "epoch": epoch,
         "history": history,
@@ -86,35 +94,45 @@ def save_checkpoint(path: str | Path, name: str | FitResult, params: dict,
                     cfg: models.ModelConfig, train_cfg: TrainConfig | None = None,
                     opt_state: Any = None, epoch: int = 0, history: Sequence[float] = (),
                     val_history: Sequence[float] = (), steps: int = 0,
-                    std: Any = None) -> Path:
+                    std: Any = None, raster: RasterConfig | None = None) -> Path:
     """Write parameters (and optionally the optimiser state) atomically to ``path`` (.npz).
 
     ``save_checkpoint(path, fit)`` writes a :class:`FitResult` (its configurations, loss
-    histories, steps, normalisation, and ``epoch = len(fit.history)``), which
-    :func:`load_fit` reads back; ``save_checkpoint(path, name, params, cfg, ...)`` writes
-    the parts.
+    histories, steps, normalisation, raster, and ``epoch = len(fit.history)``), which
+    :func:`load_fit` reads back; ``save_checkpoint(path, name, params, cfg, ...,
+    raster=...)`` writes the parts. ``raster`` is the :class:`minimanc.world.RasterConfig`
+    the training data was drawn with (:func:`minimanc.inputs.raster_of`): a closed loop
+    draws the model's input with it.
 
-    Refuses (``ValueError``) parameters that :func:`bad_params` rejects.
+    Refuses (``ValueError``) parameters that :func:`bad_params` rejects, a missing
+    ``raster`` and one whose planes are not those the model reads
+    (:func:`minimanc.models.check_input_shape`).
     """
     path = Path(path)
     bad = bad_params(params)
     if bad is not None:
         raise ValueError(f"params cannot be saved to {path}: {bad}")
+    if not isinstance(raster, RasterConfig):
+        raise ValueError(f"raster must be the world.RasterConfig the training data was drawn "
+                         f"with (inputs.raster_of(train_ds)), got raster={raster!r}")
+    models.check_input_shape(cfg, raster.input_shape, "raster")
     arrays = {f"params/{k}": v for k, v in to_flat_dict(to_numpy(params)).items()}
     if opt_state is not None:
         arrays.update({f"opt/{k}": v for k, v in to_flat_dict(to_numpy(opt_state)).items()})
     std = np.ones(2) if std is None else np.asarray(std, dtype=np.float64)
     arrays["meta"] = _meta(name, cfg, train_cfg or TrainConfig(), int(epoch), list(history),
-                           list(val_history), int(steps), std)
+                           list(val_history), int(steps), std, raster)
     _atomic_savez(path, arrays)
     return path
 
 
 def load_checkpoint(path: str | Path) -> dict:
     """Read a file written by :func:`save_checkpoint`: ``name, params, cfg, train_cfg, opt_state,
-    epoch, history, val_history, steps, control_std``.
+    epoch, history, val_history, steps, control_std, raster``.
 
-    A file that cannot be read raises :class:`CheckpointError` naming it.
+    A file that cannot be read raises :class:`CheckpointError` naming it: truncated or
+    corrupt, of another :data:`CHECKPOINT_FORMAT` (one written before the raster was
+    recorded), or whose raster's planes are not those its model reads.
     """
     path = Path(path)
     if not path.exists():
@@ -123,6 +141,9 @@ def load_checkpoint(path: str | Path) -> dict:
     try:
         with np.load(path, allow_pickle=False) as z:
             meta = json.loads(bytes(z["meta"]).decode())
+            if meta["format"] != CHECKPOINT_FORMAT:
+                raise ValueError(f"checkpoint format {meta['format']!r}, this version reads "
+                                 f"{CHECKPOINT_FORMAT}")
             p = {k[len("params/"):]: z[k] for k in z.files if k.startswith("params/")}
             o = {k[len("opt/"):]: z[k] for k in z.files if k.startswith("opt/")}
         cfg_d = dict(meta["cfg"])
@@ -138,11 +159,13 @@ def load_checkpoint(path: str | Path) -> dict:
             "val_history": list(meta["val_history"]),
             "steps": meta["steps"],
             "control_std": np.asarray(meta["control_std"]),
+            "raster": RasterConfig(**meta["raster"]),
         }
+        models.check_input_shape(out["cfg"], out["raster"].input_shape, "its raster")
     except (zipfile.BadZipFile, zlib.error, EOFError, OSError, KeyError, TypeError, ValueError,
             UnicodeDecodeError, AttributeError) as e:
-        raise CheckpointError(f"{path}: unreadable checkpoint (truncated or corrupt: "
-                              f"{type(e).__name__}: {e}); {restart}") from e
+        raise CheckpointError(f"{path}: unreadable checkpoint (truncated, corrupt or of "
+                              f"another version: {type(e).__name__}: {e}); {restart}") from e
     bad = bad_params(out["params"])
     if bad is not None:
         raise CheckpointError(f"{path}: checkpoint holds unusable parameters ({bad}); {restart}")
@@ -154,7 +177,7 @@ def load_fit(path: str | Path) -> FitResult:
     ck = load_checkpoint(path)
     return FitResult(name=ck["name"], params=ck["params"], history=ck["history"],
                      cfg=ck["cfg"], train_cfg=ck["train_cfg"], val_history=ck["val_history"],
-                     steps=ck["steps"], control_std=ck["control_std"])
+                     steps=ck["steps"], control_std=ck["control_std"], raster=ck["raster"])
 
 
 def restore_opt(template: Any, loaded: Any) -> Any:

@@ -11,6 +11,7 @@ import numpy as np
 
 from minimanc import models
 from minimanc.checks import check_int
+from minimanc.world.raster import RasterConfig
 
 __all__ = ["CHECKPOINT_NAME", "DTYPES", "PARAM_LIMIT", "CheckpointError", "FitResult",
            "TrainConfig", "TrainingDiverged"]
@@ -107,7 +108,9 @@ class FitResult:
     ``val_history`` (open-loop validation loss per epoch, if ``val_ds``),
     ``name``, ``cfg``, ``train_cfg``, ``steps`` (optimiser steps),
     ``seconds`` (wall time of this call), ``control_std`` (the
-    normalisation used).
+    normalisation used), ``raster`` (the :class:`minimanc.world.RasterConfig` the training
+    data was drawn with, which a closed loop draws the model's input with; ``None`` for a
+    result built by hand).
     """
 
     name: str
@@ -119,3 +122,4 @@ class FitResult:
     steps: int = 0
     seconds: float = 0.0
     control_std: np.ndarray = field(default_factory=lambda: np.ones(2))
+    raster: RasterConfig | None = None

@@ -75,8 +75,10 @@ class RunState:
     ``opt_state`` (NumPy or engine arrays), ``start_epoch`` (0, or the resumed
     checkpoint's), ``history`` / ``val_history`` / ``steps`` so far, ``ck_path`` (``None``
     without a ``checkpoint_dir``), ``saved_epoch`` (epoch of the checkpoint this run
-    wrote or resumed, else ``None``) and ``perception`` (the auxiliary loss's standardised
-    ``values``, ``mask`` and ``logit`` flags: :func:`with_perception`; ``None`` without).
+    wrote or resumed, else ``None``), ``perception`` (the auxiliary loss's standardised
+    ``values``, ``mask`` and ``logit`` flags: :func:`with_perception`; ``None`` without)
+    and ``raster`` (the training data's, :func:`minimanc.inputs.raster_of`, which the
+    checkpoint and the result record).
     """
 
     name: str
@@ -93,6 +95,7 @@ class RunState:
     ck_path: Path | None = None
     saved_epoch: int | None = None
     perception: dict | None = None
+    raster: Any = None
 
 
 def check_fit_args(name: str, train_ds: Any, cfg: models.ModelConfig | None,
@@ -153,8 +156,8 @@ def start_run(name: str, train_ds: Any, cfg: models.ModelConfig, tc: TrainConfig
               params: dict | None = None) -> RunState:
     """The :class:`RunState` of a run before its first epoch: the subset, the
     normalisation and fresh (or given) parameters cast to ``tc.dtype``, or, with
-    ``resume``, the state of the checkpoint in ``checkpoint_dir`` (whose model and
-    configuration must match, except ``epochs`` and ``lr``)."""
+    ``resume``, the state of the checkpoint in ``checkpoint_dir`` (whose model,
+    configuration and raster must match, except ``epochs`` and ``lr``)."""
     dtype = DTYPES[tc.dtype]
     S, _ = dataset_shape(train_ds)
     scenes = subset_scenes(S, tc.subset, tc.seed)
@@ -165,7 +168,8 @@ def start_run(name: str, train_ds: Any, cfg: models.ModelConfig, tc: TrainConfig
     if params is None:
         params = models.init(name, np.random.default_rng(tc.seed), cfg)
     params = cast_floats(params, dtype)
-    st = RunState(name, cfg, tc, scenes, std, params, optim.adam_init(params), ck_path=ck_path)
+    st = RunState(name, cfg, tc, scenes, std, params, optim.adam_init(params), ck_path=ck_path,
+                  raster=inputs.raster_of(train_ds))
     if resume:
         if ck_path is None:
             raise ValueError("resume=True needs a checkpoint_dir")
@@ -178,6 +182,9 @@ def start_run(name: str, train_ds: Any, cfg: models.ModelConfig, tc: TrainConfig
             if same != tc:
                 raise ValueError(f"checkpoint was trained with {ck['train_cfg']}; only epochs "
                                  f"and lr may change on resume, got {tc}")
+            if ck["raster"] != st.raster:
+                raise ValueError(f"checkpoint at {ck_path.name} was trained on data drawn with "
+                                 f"{ck['raster']}, not {st.raster}")
             st.params = cast_floats(ck["params"], dtype)
             if ck["opt_state"] is not None:
                 st.opt_state = restore_opt(optim.adam_init(st.params), ck["opt_state"])
@@ -216,7 +223,7 @@ def end_epoch(st: RunState, epoch: int, mean_loss: float, eng: Any, val_ds: Any 
                                              dtype=DTYPES[st.tc.dtype]))
     if st.ck_path is not None:
         save_checkpoint(st.ck_path, st.name, st.params, st.cfg, st.tc, st.opt_state, epoch + 1,
-             st.history, st.val_history, st.steps, st.std)
+             st.history, st.val_history, st.steps, st.std, st.raster)
         st.saved_epoch = epoch + 1
 
 
@@ -269,7 +276,8 @@ def result_of(st: RunState, seconds: float) -> FitResult:
     params = {k: v for k, v in to_numpy(st.params).items() if k != "perception"}
     return FitResult(name=st.name, params=params, history=list(st.history),
                      cfg=st.cfg, train_cfg=st.tc, val_history=list(st.val_history),
-                     steps=st.steps, seconds=seconds, control_std=np.asarray(st.std))
+                     steps=st.steps, seconds=seconds, control_std=np.asarray(st.std),
+                     raster=st.raster)
 
 
 def epoch_plan(st: RunState, train_ds: Any, epoch: int) -> list[tuple[np.ndarray, np.ndarray]]:

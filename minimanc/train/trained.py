@@ -36,9 +36,11 @@ CHECKPOINT_DEFAULTS: dict[str, Callable[[FitResult], Any]] = {
     "val_history": lambda fit: fit.val_history,
     "steps": lambda fit: fit.steps,
     "epoch": lambda fit: len(fit.history),
+    "raster": lambda fit: fit.raster,
 }
 """What a checkpoint records of a result besides its parts: its configuration, loss
-histories, optimiser steps, normalisation and ``epoch`` (the number of epochs trained)."""
+histories, optimiser steps, normalisation, ``epoch`` (the number of epochs trained) and the
+raster of its training data."""
 
 F = TypeVar("F", bound=Callable[..., Any])
 
