@@ -241,7 +241,8 @@ CHAPTERS: tuple[Chapter, ...] = (
     Chapter(12, "12_why_it_crashes", "why the driver crashes",
             ("minimanc.diagnose",), ("minimanc.viz.investigation",),
             "the median style and the track errors, the expert's perception, an ablation "
-            "table, faded history at another decay, a small input set",
+            "table, faded history at another decay, a small input set, a masked loss and its "
+            "gradient, the history planes, the view's reach",
             objectives=(
                 "read a learned driver's ADE and at-fault rate against the expert and the style "
                 "floor",
@@ -249,12 +250,14 @@ CHAPTERS: tuple[Chapter, ...] = (
                 "learner and an ablation of its inputs",
                 "classify a driver's collisions and draw the motion a single raster frame lacks "
                 "as faded history",
+                "draw a raster for learning and train a perception on targets that say "
+                "\"no leader\"",
             ),
             prerequisites=(
                 "Chapters 9 and 11 (the closed loop, its metrics, the world's expert); "
                 "chapter 7 for the world's human driver and the raster."
             ),
-            minutes=(45, 90)),
+            minutes=(60, 120)),
 )
 """Every chapter, in order."""
 

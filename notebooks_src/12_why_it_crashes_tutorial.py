@@ -30,11 +30,12 @@
 #   an ablation of its inputs
 # - classify a driver's collisions and draw the motion a single raster frame lacks as faded
 #   history
+# - draw a raster for learning and train a perception on targets that say "no leader"
 #
 # **Prerequisites.** Chapters 9 and 11 (the closed loop, its metrics, the world's expert);
 # chapter 7 for the world's human driver and the raster.
 #
-# **Time.** About 45 minutes for the tutorial and 90 for the exercises.
+# **Time.** About 60 minutes for the tutorial and 120 for the exercises.
 
 # %%
 from collections import Counter
