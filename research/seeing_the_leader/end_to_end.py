@@ -135,9 +135,25 @@ def fit_model(model: str, form: str, seed: int, weight: float, ds: world.Dataset
             time.perf_counter() - t0
     cfg = models.ModelConfig(setting="parity") if form == "speed" else None
     fit = train.fit(model, tr, cfg, tc, engine="jax", progress=False,
-                    checkpoint_dir=work / "checkpoints" / f"{model}_{form}_w{lam:g}_s{seed}",
+                    checkpoint_dir=checkpoint_dir(model, form, seed, lam, work),
                     resume=True, perception=targets(form, ds, work) if lam > 0 else None)
     return fit, time.perf_counter() - t0
+
+
+def checkpoint_dir(model: str, form: str, seed: int, lam: float, work: Path) -> Path:
+    """Where a behaviour-cloned run of ``form`` with λ = ``lam`` is checkpointed."""
+    return work / "checkpoints" / f"{model}_{form}_w{lam:g}_s{seed}"
+
+
+def checkpoint_of(model: str, form: str, seed: int, work: Path, weight: float = 1.0
+                  ) -> Path | None:
+    """The trained model's checkpoint (DAgger's last round for ``dagger``), if it exists."""
+    if form == "dagger":
+        path = dagger.round_dir(work / "dagger" / f"{model}_s{seed}", ROUNDS)
+    else:
+        path = checkpoint_dir(model, form, seed, weight_of(form, weight), work)
+    path = path / train.CHECKPOINT_NAME
+    return path if path.exists() else None
 
 
 def on_policy(model: str, tc: train.TrainConfig, pool: world.Dataset, out: Path
