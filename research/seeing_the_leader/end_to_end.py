@@ -15,7 +15,7 @@ is ``channels0`` trained on-policy: DAgger (:func:`minimanc.dagger.dagger`) with
 human among reactive ados as the teacher, :data:`ROUNDS` rounds after the demonstrations
 (β from ½ halving), the same 600 scenes' worth of expert-labelled states as behaviour
 cloning (``channels0``), the same schedule per round (the auxiliary loss needs targets the
-collected states do not carry).
+collected states do not carry); ``dagger_rgb`` the same on the RGB raster (against ``rgb``).
 
 **Protocol** (fixed before any closed-loop number was looked at). The seed-0 draw of the
 paper preset (``leader_data.py``): train on scenes 0–599, drive the validation scenes
@@ -62,7 +62,9 @@ MODELS = ("cnn", "cnn_lstm", "rvs_g", "manc")
 """Table I's learned controllers."""
 LEARNING_RATES = {"cnn": 1e-3, "cnn_lstm": 3e-4, "rvs_g": 3e-4, "manc": 3e-4}
 """The learning rate the paper preset's tuning chose per model (setting ``paper``)."""
-FORMS = ("channels", "channels0", "speed", "dagger", "rgb")
+FORMS = ("channels", "channels0", "speed", "dagger", "rgb", "dagger_rgb")
+ON_POLICY = ("dagger", "dagger_rgb")
+"""The forms trained by DAgger (on the channels raster and on the RGB raster)."""
 ROUNDS = 10
 """DAgger rounds after the demonstrations (form ``dagger``)."""
 AGENTS = ("reactive", "replay")
@@ -71,15 +73,20 @@ RASTERS = {"channels": PC.VARIANTS["route60"].config(), "rgb": world.RasterConfi
 """The raster of each form."""
 
 
+def raster_name(form: str) -> str:
+    """``"rgb"`` or ``"channels"``: the raster a form reads."""
+    return "rgb" if form in ("rgb", "dagger_rgb") else "channels"
+
+
 def raster_of(form: str) -> world.RasterConfig:
-    return RASTERS["rgb" if form == "rgb" else "channels"]
+    return RASTERS[raster_name(form)]
 
 
 def draw(form: str, work: Path) -> world.Dataset:
     """The seed-0 draw's first :data:`N_SCENES` scenes at the form's raster (the stored draw
     for RGB; regenerated at the channels raster, cached, and checked against it)."""
     ref = L.world()
-    if form == "rgb":
+    if raster_name(form) == "rgb":
         return ref.subset(list(range(N_SCENES)))
     ds = world.generate(N_SCENES, seed=0, raster=raster_of(form), cache=work / "world",
                         workers=1, progress=True)
@@ -91,7 +98,7 @@ def draw(form: str, work: Path) -> world.Dataset:
 def targets(form: str, ds: world.Dataset, work: Path) -> train.PerceptionTargets:
     """The auxiliary targets of the training scenes for the form's view (cached)."""
     cfg = raster_of(form)
-    path = work / f"targets_{'rgb' if form == 'rgb' else 'channels'}.npz"
+    path = work / f"targets_{raster_name(form)}.npz"
     if not path.exists():
         tg = diagnose.perception_targets(ds.subset(list(TRAIN)), view=cfg)
         tmp = path.with_name(path.stem + ".tmp.npz")
@@ -130,8 +137,8 @@ def fit_model(model: str, form: str, seed: int, weight: float, ds: world.Dataset
     tc = train_config(model, form, seed, weight)
     tr = ds.subset(list(TRAIN))
     t0 = time.perf_counter()
-    if form == "dagger":
-        return on_policy(model, tc, tr, work / "dagger" / f"{model}_s{seed}"), \
+    if form in ON_POLICY:
+        return on_policy(model, tc, tr, dagger_dir(model, form, seed, work)), \
             time.perf_counter() - t0
     cfg = models.ModelConfig(setting="parity") if form == "speed" else None
     fit = train.fit(model, tr, cfg, tc, engine="jax", progress=False,
@@ -145,11 +152,17 @@ def checkpoint_dir(model: str, form: str, seed: int, lam: float, work: Path) -> 
     return work / "checkpoints" / f"{model}_{form}_w{lam:g}_s{seed}"
 
 
+def dagger_dir(model: str, form: str, seed: int, work: Path) -> Path:
+    """Where DAgger's rounds of an on-policy form are checkpointed."""
+    tag = "" if form == "dagger" else "_rgb"
+    return work / "dagger" / f"{model}{tag}_s{seed}"
+
+
 def checkpoint_of(model: str, form: str, seed: int, work: Path, weight: float = 1.0
                   ) -> Path | None:
     """The trained model's checkpoint (DAgger's last round for ``dagger``), if it exists."""
-    if form == "dagger":
-        path = dagger.round_dir(work / "dagger" / f"{model}_s{seed}", ROUNDS)
+    if form in ON_POLICY:
+        path = dagger.round_dir(dagger_dir(model, form, seed, work), ROUNDS)
     else:
         path = checkpoint_dir(model, form, seed, weight_of(form, weight), work)
     path = path / train.CHECKPOINT_NAME
@@ -223,6 +236,7 @@ LABELS = {"expert": "Expert (the world's human)", "floor": "Style floor (median 
           "fixed_gains": "DMP at fixed gains"}
 FORM_TEXT = {"channels": "channels, λ = {w:g}", "channels0": "channels, λ = 0",
              "dagger": f"channels, λ = 0, DAgger {ROUNDS} rounds",
+             "dagger_rgb": f"RGB, λ = 0, DAgger {ROUNDS} rounds",
              "speed": "channels, λ = {w:g}, own speed and lane target as numbers",
              "rgb": "RGB (paper's form), λ = 0"}
 

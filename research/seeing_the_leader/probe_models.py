@@ -40,7 +40,7 @@ NEAR = 30.0
 
 def val_targets(form: str, ds: world.Dataset, work: Path) -> train.PerceptionTargets:
     """The targets of the validation scenes for the form's view (cached)."""
-    name = "rgb" if form == "rgb" else "channels"
+    name = E.raster_name(form)
     path = work / f"targets_val_{name}.npz"
     if not path.exists():
         tg = diagnose.perception_targets(ds.subset(list(E.VALIDATE)), view=E.raster_of(form))
