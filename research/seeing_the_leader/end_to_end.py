@@ -8,7 +8,7 @@ chose (``perception.py``'s ``route60``: binary channels for the map, the ego's r
 and the vehicles at t, t−1, t−2; 60 m ahead, ±25 m, 0.78 m/px: 90 × 64 × 12) with
 λ = ``--weight`` (``TrainConfig.perception_weight``, the targets of
 :func:`minimanc.diagnose.perception_targets` for that view); ``channels0`` is the same raster
-with λ = 0 (what the raster alone is worth); ``speed`` is ``channels`` in the ``parity``
+with λ = 0 (what the raster alone is worth); ``speed`` is ``channels0`` in the ``parity``
 setting (:mod:`minimanc.inputs`: the model also reads its own speed and yaw rate and the
 lane target as numbers, the odometer LBC, Roach and CILRS give their policies); ``dagger``
 is ``channels0`` trained on-policy: DAgger (:func:`minimanc.dagger.dagger`) with the world's
@@ -116,7 +116,7 @@ def train_config(model: str, form: str, seed: int, weight: float) -> train.Train
 
 
 def weight_of(form: str, weight: float) -> float:
-    return weight if form in ("channels", "speed") else 0.0
+    return weight if form == "channels" else 0.0
 
 
 def run_path(work: Path, row: str, seed: int, agents: str) -> Path:
@@ -237,7 +237,7 @@ LABELS = {"expert": "Expert (the world's human)", "floor": "Style floor (median 
 FORM_TEXT = {"channels": "channels, λ = {w:g}", "channels0": "channels, λ = 0",
              "dagger": f"channels, λ = 0, DAgger {ROUNDS} rounds",
              "dagger_rgb": f"RGB, λ = 0, DAgger {ROUNDS} rounds",
-             "speed": "channels, λ = {w:g}, own speed and lane target as numbers",
+             "speed": "channels, λ = 0, own speed and lane target as numbers",
              "rgb": "RGB (paper's form), λ = 0"}
 
 
