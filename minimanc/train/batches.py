@@ -116,7 +116,7 @@ def make_batch(name: str, ds: Any, s_idx: np.ndarray, t_idx: np.ndarray,
     return batch
 
 
-def unpack_batch(batch: dict, cfg: models.ModelConfig, xp: Any) -> dict:
+def unpack_batch(batch: dict, cfg: models.ModelConfig) -> dict:
     """``batch`` with each packed raster of :func:`make_batch` (a uint8 ``bev`` or
     ``goal_bev``) replaced by its float planes (:func:`minimanc.world.encodings.unpack`,
     ``cfg.bev_shape[2]`` of them) in the dtype of ``batch["controls"]``; other entries as
@@ -126,7 +126,7 @@ def unpack_batch(batch: dict, cfg: models.ModelConfig, xp: Any) -> dict:
     for key in ("bev", "goal_bev"):
         v = out.get(key)
         if v is not None and v.dtype == np.uint8:
-            out[key] = unpack(v, cfg.bev_shape[2], xp, dtype=batch["controls"].dtype)
+            out[key] = unpack(v, cfg.bev_shape[2], dtype=batch["controls"].dtype)
     return out
 
 

@@ -35,7 +35,7 @@ def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: 
     state.
     """
     xp = eng.xp
-    batch = unpack_batch(batch, cfg, xp)
+    batch = unpack_batch(batch, cfg)
     obs = {k: v for k, v in batch.items()
            if k not in ("controls", "q0", "driven", *BATCH_KEYS)}
     if motion_feedback and "driven" in batch:
