@@ -5,8 +5,9 @@ Three rasters side by side in one process (:data:`RASTERS`: the paper's RGB 64×
 learner's binary channels at 64×64×12, and the channels in the 60 m corridor, 90×64×12),
 each drawn for the same scenes (:func:`minimanc.world.generate`, ``--scenes`` of seed 0),
 every measurement repeated in interleaved rounds so that the shared machine's load hits
-all alike; medians of wall and CPU time (with one XLA thread, ``--threads 1``, CPU time is
-the work done whatever else runs). Printed with the load average.
+all alike; medians of wall and CPU time, the ratios of CPU time (with one XLA thread, the
+library's default, CPU time is the work done whatever else runs). Printed with the load
+average.
 
 1. **Training step** of each model of ``--models`` (batch 64 in its window setup,
    :func:`minimanc.train.batches`; float32; JAX), without and with the masked auxiliary
@@ -192,18 +193,19 @@ def main(args: argparse.Namespace) -> None:
                 tot = (p[0] + s[0], p[1] + s[1])
                 base.setdefault((name, weight), tot)
                 line = (f"  {r:26s} {name:9s} {weight:3.0f} {_ms(p)} {_ms(s)} {_ms(tot)}"
-                        f"  x{tot[0] / base[name, 0.0][0]:4.1f}")
+                        f"  x{tot[1] / base[name, 0.0][1]:4.1f}")
                 h = (r, name, weight, True)
                 if h in runs:
                     hp, hs = [x / steps for x in prep_t[h]], [x / steps for x in step_t[h]]
                     htot = (hp[0] + hs[0], hp[1] + hs[1])
                     same = all(np.array_equal(np.asarray(a), np.asarray(b)) for a, b in
                                zip(leaves(runs[k].params), leaves(runs[h].params)))
-                    line += (f"  {_ms(hp)} {_ms(htot)} x{htot[0] / tot[0]:4.2f} of now, "
+                    line += (f"  {_ms(hp)} {_ms(htot)} x{htot[1] / tot[1]:4.2f} of now, "
                              f"{'identical' if same else 'DIFFERENT'}")
                 print(line)
-    print("  (x: wall time of the step against the model's RGB step without λ; "
-          "'of now': the host-unpacked batch's total against today's)")
+    print("  (x: CPU time of batch + step against the model's RGB one without λ; 'of now': "
+          "the host-unpacked batch's CPU time against today's; with one XLA thread CPU time "
+          "is the work done, wall time also what the shared machine's load adds)")
     loop = {}
     for r, ds in data.items():
         for name in args.models:
