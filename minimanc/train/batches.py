@@ -100,8 +100,8 @@ def make_batch(name: str, ds: Any, s_idx: np.ndarray, t_idx: np.ndarray,
     the stored uint8 bytes (:func:`minimanc.inputs.from_dataset` with ``packed``), which
     :func:`unpack_batch` turns into the float planes inside the compiled step: unpacking
     there instead of on the host (``benchmarks/bench_raster_training.py``) spares the
-    host's unpacking, its float copies and a 32× larger transfer, and gives the model the
-    same numbers."""
+    host's unpacking, its float copies and a float32 transfer 24 times larger (12 planes in
+    2 bytes), and gives the model the same numbers."""
     L, b = s_idx.shape
     obs = inputs.from_dataset(ds, s_idx.reshape(-1), t_idx.reshape(-1), cfg.setting,
                                model=models.get(name), packed=True)
