@@ -329,6 +329,8 @@ def from_dataset(
     t_idx: Any,
     setting: str = "paper",
     model: Any = None,
+    *,
+    packed: bool = False,
 ) -> dict:
     """Observations of samples ``(scene_idx[b], t_idx[b])`` of a :mod:`minimanc.world` dataset.
 
@@ -337,6 +339,10 @@ def from_dataset(
     With ``model`` (a spec, see :func:`visible`) given, only the keys it sees in ``setting`` are
     returned (``goal_bev`` only for RvS-G: the dataset's own goal rasters, or
     rendered once per dataset); without it, every key except ``goal_bev``.
+    ``packed``: a ``"channels"`` raster's ``bev`` and ``goal_bev`` stay as stored, uint8
+    ``(B, H, W, ⌈C/8⌉)`` bytes, for a compiled training step to unpack
+    (:func:`minimanc.world.encodings.unpack`, equal to the float planes bit for bit); an RGB
+    raster's are floats either way.
     """
     check_setting(setting)
     S, T = np.asarray(ds.ego).shape[:2]
@@ -353,8 +359,10 @@ def from_dataset(
     obs: dict = {}
     if "bev" in keys or "goal_bev" in keys:
         cfg = raster_of(ds)
+        keep = packed and cfg.encoding == "channels"
+        as_input = (lambda b: np.asarray(b)) if keep else (lambda b: to_input(b, cfg))
     if "bev" in keys:
-        obs["bev"] = to_input(ds.bev[s, t], cfg)
+        obs["bev"] = as_input(ds.bev[s, t])
     if "goal" in keys:
         obs["goal"] = np.asarray(ds.goal[s, t], dtype=np.float32)
     if "lane_target" in keys:
@@ -362,7 +370,7 @@ def from_dataset(
     if "motion" in keys:
         obs["motion"] = motion_at(ds, s, t)
     if "goal_bev" in keys:
-        obs["goal_bev"] = to_input(_dataset_goal_bevs(ds)[s], cfg)
+        obs["goal_bev"] = as_input(_dataset_goal_bevs(ds)[s])
     return obs
 
 

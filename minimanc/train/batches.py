@@ -11,9 +11,10 @@ import numpy as np
 
 from minimanc import inputs, models
 from minimanc.train.config import TrainConfig
+from minimanc.world.encodings import unpack
 
 __all__ = ["batches", "control_std", "dataset_shape", "initial_q", "make_batch", "subset_scenes",
-           "window_len"]
+           "unpack_batch", "window_len"]
 
 
 def dataset_shape(ds: Any) -> tuple[int, int]:
@@ -93,11 +94,19 @@ def make_batch(name: str, ds: Any, s_idx: np.ndarray, t_idx: np.ndarray,
     """Observations ``(L, b, ...)`` and controls ``(L, b, 2)`` for index arrays ``(L, b)``;
     for a DMP model on a dataset with driven scenes (:func:`minimanc.inputs.driven_rows`)
     also ``driven (b,)`` bool, the windows whose ``motion`` is the applied control at
-    every step (:func:`minimanc.train.step.loss_fn`)."""
+    every step (:func:`minimanc.train.step.loss_fn`).
+
+    The numbers are in ``dtype``; a ``"channels"`` raster's ``bev`` (and ``goal_bev``) stay
+    the stored uint8 bytes (:func:`minimanc.inputs.from_dataset` with ``packed``), which
+    :func:`unpack_batch` turns into the float planes inside the compiled step: unpacking
+    there instead of on the host (``benchmarks/bench_raster_training.py``) spares the
+    host's unpacking, its float copies and a float32 transfer 24 times larger (12 planes in
+    2 bytes), and gives the model the same numbers."""
     L, b = s_idx.shape
     obs = inputs.from_dataset(ds, s_idx.reshape(-1), t_idx.reshape(-1), cfg.setting,
-                               model=models.get(name))
-    batch = {k: v.reshape((L, b) + v.shape[1:]).astype(dtype) for k, v in obs.items()}
+                               model=models.get(name), packed=True)
+    batch = {k: v.reshape((L, b) + v.shape[1:]) for k, v in obs.items()}
+    batch = {k: v if v.dtype == np.uint8 else v.astype(dtype) for k, v in batch.items()}
     y = np.asarray(ds.controls)[s_idx, t_idx]
     batch["controls"] = y.astype(dtype)
     if models.spec(name).dmp:
@@ -105,6 +114,20 @@ def make_batch(name: str, ds: Any, s_idx: np.ndarray, t_idx: np.ndarray,
         if rows.any():
             batch["driven"] = rows[s_idx[0]]
     return batch
+
+
+def unpack_batch(batch: dict, cfg: models.ModelConfig) -> dict:
+    """``batch`` with each packed raster of :func:`make_batch` (a uint8 ``bev`` or
+    ``goal_bev``) replaced by its float planes (:func:`minimanc.world.encodings.unpack`,
+    ``cfg.bev_shape[2]`` of them) in the dtype of ``batch["controls"]``; other entries as
+    they are. Called at the top of Algorithm 1's loss (:func:`minimanc.train.step.loss_fn`),
+    so inside the jitted step."""
+    out = dict(batch)
+    for key in ("bev", "goal_bev"):
+        v = out.get(key)
+        if v is not None and v.dtype == np.uint8:
+            out[key] = unpack(v, cfg.bev_shape[2], dtype=batch["controls"].dtype)
+    return out
 
 
 def initial_q(name: str, b: int, cfg: models.ModelConfig, tc: TrainConfig,

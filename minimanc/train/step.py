@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from minimanc import dmp, models, optim
+from minimanc.train.batches import unpack_batch
 from minimanc.train.config import DTYPES, TrainConfig
 from minimanc.train.perception import BATCH_KEYS, perception_term
 from minimanc.tree import leaves as tree_leaves
@@ -25,7 +26,8 @@ def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: 
     (+ ``perception_weight`` times the masked auxiliary perception loss,
     :func:`minimanc.train.perception.perception_term`).
 
-    ``batch`` holds observations ``(L, b, ...)``, ``controls (L, b, 2)`` and,
+    ``batch`` holds observations ``(L, b, ...)`` (a raster may be packed:
+    :func:`~minimanc.train.batches.unpack_batch`), ``controls (L, b, 2)`` and,
     for vAGN models, ``q0 (b, N)`` (q'). ``inv_std`` is ``1/σ`` per control;
     ``motion_feedback`` see :func:`minimanc.models.sequence`; it never applies to the windows
     that ``driven (b,)`` marks (:func:`~minimanc.train.batches.make_batch`): a state another
@@ -33,6 +35,7 @@ def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: 
     state.
     """
     xp = eng.xp
+    batch = unpack_batch(batch, cfg)
     obs = {k: v for k, v in batch.items()
            if k not in ("controls", "q0", "driven", *BATCH_KEYS)}
     if motion_feedback and "driven" in batch:

@@ -5,11 +5,16 @@ image, or the binary planes of the ``"channels"`` encoding packed 8 to a byte
 (:func:`minimanc.world.raster.pack`). Whatever reads a dataset's ``bev`` or a closed loop's
 raster goes through this module: :func:`planes` unpacks, :func:`to_input` gives the float
 planes a model reads (the one place that knows RGB is divided by 255 and channels are 0/1),
-:func:`to_rgb` paints channels in the devkit's colours (as l5kit's ``to_rgb`` and Roach's
-display image: the faded picture is for people, the planes for the learner).
+:func:`unpack` gives the same planes from the packed bytes, a JAX array's too (a training
+step unpacks its batch inside the compiled function: the batch crosses to it at an eighth
+of a byte per plane and pixel instead of four bytes), :func:`to_rgb` paints channels in the
+devkit's colours (as l5kit's ``to_rgb`` and Roach's display image: the faded picture is for
+people, the planes for the learner).
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 
@@ -26,7 +31,7 @@ from minimanc.world.raster import (
     RasterConfig,
 )
 
-__all__ = ["planes", "to_input", "to_rgb"]
+__all__ = ["planes", "to_input", "to_rgb", "unpack"]
 
 
 def _check_stored(bev: np.ndarray, cfg: RasterConfig) -> np.ndarray:
@@ -54,6 +59,34 @@ def to_input(bev: np.ndarray, cfg: RasterConfig) -> np.ndarray:
     if cfg.encoding == "rgb":
         return np.asarray(b, dtype=np.float32) / np.float32(255.0)
     return planes(b, cfg).astype(np.float32)
+
+
+def unpack(packed: Any, count: int, dtype: Any = np.float32) -> Any:
+    """The binary planes of packed bytes, for a NumPy or a JAX array (traced too): plane
+    ``8k + j`` is bit ``j`` of byte ``k`` (:func:`minimanc.world.raster.pack`'s little bit
+    order), so the result equals :func:`to_input` of a ``"channels"`` raster exactly, inside
+    a jitted function too.
+
+    Parameters
+    ----------
+    packed : array, uint8, shape (..., ceil(count / 8))
+        Stored channels rasters (a dataset's ``bev`` rows); the result is of its kind.
+    count : int
+        The planes to keep, ``len(cfg.channel_names)``.
+    dtype : dtype, optional (default: float32)
+        Of the planes.
+
+    Returns
+    -------
+    array, shape (..., count)
+        0 and 1 in ``dtype``.
+    """
+    b = packed if hasattr(packed, "dtype") else np.asarray(packed)
+    if b.dtype != np.uint8 or b.ndim < 1 or not 0 < count <= 8 * b.shape[-1]:
+        raise ValueError(f"packed must be uint8 (..., n) with 0 < count <= 8 n, got "
+                         f"{b.dtype} {tuple(b.shape)} and count={count!r}")
+    bits = (b[..., None] >> np.arange(8, dtype=np.uint8)) & np.uint8(1)
+    return bits.reshape(tuple(b.shape[:-1]) + (8 * b.shape[-1],))[..., :count].astype(dtype)
 
 
 def to_rgb(bev: np.ndarray, cfg: RasterConfig) -> np.ndarray:
