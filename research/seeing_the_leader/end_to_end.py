@@ -272,6 +272,15 @@ def at_fault_summary(runs: list[dict]) -> list[str]:
              "% of the 200 validation scenes with an at-fault collision, one number per "
              "training seed (seed order), mean in front.\n",
              "| model | form | reactive | replay |", "|---|---|---|---|"]
+    for kind in BOUNDS:
+        cells = [", ".join(f"{r['metrics']['at_fault_collision_rate']:.1f}" for r in runs
+                           if r["row"] == kind and r["agents"] == agents) for agents in AGENTS]
+        if any(cells):
+            lines.append(f"| {LABELS[kind]} | bound | {cells[0]} | {cells[1]} |")
+    priv = privileged_at_fault()
+    if priv:
+        lines.append(f"| Privileged MLP, exact features (`drive.md`) | bound | "
+                     f"{priv.get('reactive', '')} | {priv.get('replay', '')} |")
     for model in MODELS:
         for form in FORMS:
             cells = []
@@ -286,6 +295,12 @@ def at_fault_summary(runs: list[dict]) -> list[str]:
                 text = FORM_TEXT[form].format(w=1)
                 lines.append(f"| {model} | {text} | {cells[0]} | {cells[1]} |")
     return lines + [""]
+
+
+def privileged_at_fault() -> dict[str, str]:
+    """The privileged learner's at-fault cell (mean ± std) of ``results/drive.md``, per
+    protocol."""
+    return {a: row.split("|")[5].strip() for a, row in privileged_rows().items()}
 
 
 def report(work: Path) -> str:
