@@ -160,7 +160,7 @@ def report(rows: list[dict]) -> str:
     lines.append(f"\nValidation states with a leader in the view within 30 m: {n} (channels "
                  "view, 60 m ahead); the RGB view reaches 40 m, so its rows count other "
                  "states.\n")
-    return "\n".join(lines)
+    return "\n".join(lines) + "\n"
 
 
 def main() -> None:
