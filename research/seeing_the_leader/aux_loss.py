@@ -118,18 +118,18 @@ def probe(Z: np.ndarray, Zv: np.ndarray, tg: train.PerceptionTargets, n_train: i
     for name, rows, rows_v in (("gap", lead, near), ("dv", lead, near), ("v", None, late)):
         fit_rows = np.ones(len(y), bool) if rows is None else rows
         Y = y[fit_rows][:, [col[name]]]
-        ridge = _choose(Z[fit_rows], Y, scene[fit_rows])
+        ridge = choose_ridge(Z[fit_rows], Y, scene[fit_rows])
         r = diagnose.linear_probe(Z[fit_rows], Y, Zv[rows_v], yv[rows_v][:, [col[name]]], ridge)
         out[f"{name}_rmse"], out[f"{name}_r2"] = float(r["rmse"][0]), float(r["r2"][0])
         out[f"{name}_ridge"] = ridge
     flag = y[:, [col["has_leader"]]]
-    ridge = _choose(Z, flag, scene)
-    out["lead_accuracy"] = float(np.mean((_ridge(Z, flag, Zv, ridge)[:, 0] > 0.5) == lead_v))
+    ridge = choose_ridge(Z, flag, scene)
+    out["lead_accuracy"] = float(np.mean((ridge_predict(Z, flag, Zv, ridge)[:, 0] > 0.5) == lead_v))
     out["lead_ridge"] = ridge
     return out
 
 
-def _choose(Z: np.ndarray, Y: np.ndarray, scene: np.ndarray) -> float:
+def choose_ridge(Z: np.ndarray, Y: np.ndarray, scene: np.ndarray) -> float:
     """The ridge of :data:`RIDGES` with the least RMSE over 4 folds of whole scenes."""
     fold = scene % 4
     err = {r: np.mean([diagnose.linear_probe(Z[fold != k], Y[fold != k], Z[fold == k],
@@ -138,7 +138,7 @@ def _choose(Z: np.ndarray, Y: np.ndarray, scene: np.ndarray) -> float:
     return min(err, key=err.get)
 
 
-def _ridge(Z: np.ndarray, Y: np.ndarray, Zv: np.ndarray, ridge: float) -> np.ndarray:
+def ridge_predict(Z: np.ndarray, Y: np.ndarray, Zv: np.ndarray, ridge: float) -> np.ndarray:
     """The predictions on ``Zv`` of :func:`minimanc.diagnose.linear_probe`'s read-out (ridge
     ``ridge`` on the standardised features, an unpenalised intercept)."""
     mu, sd = Z.mean(0), Z.std(0) + 1e-8

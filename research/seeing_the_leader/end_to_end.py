@@ -96,12 +96,16 @@ def draw(form: str, work: Path) -> world.Dataset:
     return ds
 
 
-def targets(form: str, ds: world.Dataset, work: Path) -> train.PerceptionTargets:
-    """The auxiliary targets of the training scenes for the form's view (cached)."""
+def targets(form: str, ds: world.Dataset, work: Path, split: str = "train"
+            ) -> train.PerceptionTargets:
+    """The auxiliary targets of the training (``split="train"``) or validation (``"val"``)
+    scenes for the form's view (cached)."""
     cfg = raster_of(form)
-    path = work / f"targets_{raster_name(form)}.npz"
+    scenes = {"train": TRAIN, "val": VALIDATE}[split]
+    tag = "" if split == "train" else "val_"
+    path = work / f"targets_{tag}{raster_name(form)}.npz"
     if not path.exists():
-        tg = diagnose.perception_targets(ds.subset(list(TRAIN)), view=cfg)
+        tg = diagnose.perception_targets(ds.subset(list(scenes)), view=cfg)
         tmp = path.with_name(path.stem + ".tmp.npz")
         np.savez(tmp, values=tg.values, mask=tg.mask)
         os.replace(tmp, path)

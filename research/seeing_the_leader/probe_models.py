@@ -3,7 +3,7 @@ trained models of ``end_to_end.py``: their flattened backbone features and, for 
 predicates (the global average of the features through a dense layer and a sigmoid), which
 are all its gains read.
 
-The probe (:func:`minimanc.diagnose.linear_probe`; ridge from :data:`RIDGES` by 4-fold
+The probe (:func:`minimanc.diagnose.linear_probe`; ridge from ``aux_loss.RIDGES`` by 4-fold
 cross-validation over whole training scenes) is fitted on the states of every
 :data:`STRIDE`-th training scene (0–599) and scored on the validation scenes 600–799, against
 the targets of :func:`minimanc.diagnose.perception_targets` for the model's view: the gap
@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import time
 from pathlib import Path
 
+import aux_loss as A
 import end_to_end as E
 import leader_data as L
 import numpy as np
@@ -32,24 +32,9 @@ from minimanc import diagnose, engine, inputs, models, train, world
 from minimanc.models.forward import encode
 from minimanc.studies import provenance
 
-RIDGES = (1.0, 10.0, 100.0, 1e3, 1e4, 1e5)
 STRIDE = 3
 """Every third training scene is probed (200 scenes, 8,000 states)."""
 NEAR = 30.0
-
-
-def val_targets(form: str, ds: world.Dataset, work: Path) -> train.PerceptionTargets:
-    """The targets of the validation scenes for the form's view (cached)."""
-    name = E.raster_name(form)
-    path = work / f"targets_val_{name}.npz"
-    if not path.exists():
-        tg = diagnose.perception_targets(ds.subset(list(E.VALIDATE)), view=E.raster_of(form))
-        tmp = path.with_name(path.stem + ".tmp.npz")
-        np.savez(tmp, values=tg.values, mask=tg.mask)
-        os.replace(tmp, path)
-    with np.load(path) as f:
-        return train.PerceptionTargets(diagnose.TARGETS, f["values"], f["mask"],
-                                       tuple(n in diagnose.LOGITS for n in diagnose.TARGETS))
 
 
 def representations(fit: train.FitResult, ds: world.Dataset, scenes: list[int]
@@ -78,15 +63,6 @@ def representations(fit: train.FitResult, ds: world.Dataset, scenes: list[int]
     return out
 
 
-def choose_ridge(Z: np.ndarray, Y: np.ndarray, scene: np.ndarray) -> float:
-    """The ridge of :data:`RIDGES` with the least RMSE over 4 folds of whole scenes."""
-    fold = scene % 4
-    err = {r: np.mean([diagnose.linear_probe(Z[fold != k], Y[fold != k], Z[fold == k],
-                                             Y[fold == k], r)["rmse"][0] for k in range(4)])
-           for r in RIDGES}
-    return min(err, key=err.get)
-
-
 def probe(Z: np.ndarray, Zv: np.ndarray, y: np.ndarray, yv: np.ndarray, T: int) -> dict:
     """The probe's scores (see the module docstring); ``y``, ``yv`` the targets' values."""
     col = {n: k for k, n in enumerate(diagnose.TARGETS)}
@@ -99,7 +75,7 @@ def probe(Z: np.ndarray, Zv: np.ndarray, y: np.ndarray, yv: np.ndarray, T: int) 
                                ("v", np.ones(len(y), bool), late),
                                ("has_leader", np.ones(len(y), bool), np.ones(len(yv), bool))):
         Y = y[rows][:, [col[name]]]
-        ridge = choose_ridge(Z[rows], Y, scene[rows])
+        ridge = A.choose_ridge(Z[rows], Y, scene[rows])
         r = diagnose.linear_probe(Z[rows], Y, Zv[rows_v], yv[rows_v][:, [col[name]]], ridge)
         out[f"{name}_rmse"], out[f"{name}_r2"] = float(r["rmse"][0]), float(r["r2"][0])
         if name == "has_leader":  # the flag regressed: accuracy at ½ from the fitted read-out
@@ -109,15 +85,8 @@ def probe(Z: np.ndarray, Zv: np.ndarray, y: np.ndarray, yv: np.ndarray, T: int) 
 
 def lead_accuracy(Z: np.ndarray, Y: np.ndarray, Zv: np.ndarray, truth: np.ndarray,
                   ridge: float) -> float:
-    """The ridge read-out's (as :func:`minimanc.diagnose.linear_probe` fits it) accuracy on
-    ``Zv`` at the threshold ½."""
-    mu, sd = Z.mean(0), Z.std(0) + 1e-8
-    A = np.hstack([(Z - mu) / sd, np.ones((len(Z), 1))])
-    pen = np.full(A.shape[1], ridge)
-    pen[-1] = 0.0
-    W = np.linalg.solve(A.T @ A + np.diag(pen), A.T @ Y)
-    pred = np.hstack([(Zv - mu) / sd, np.ones((len(Zv), 1))]) @ W
-    return float(np.mean((pred[:, 0] > 0.5) == truth))
+    """The ridge read-out's accuracy on ``Zv`` at the threshold ½."""
+    return float(np.mean((A.ridge_predict(Z, Y, Zv, ridge)[:, 0] > 0.5) == truth))
 
 
 def run(model: str, form: str, seed: int, work: Path) -> list[dict]:
@@ -132,7 +101,7 @@ def run(model: str, form: str, seed: int, work: Path) -> list[dict]:
     ds = E.draw(form, work)
     train_scenes = list(E.TRAIN)[::STRIDE]
     tg = E.targets(form, ds, work)
-    tv = val_targets(form, ds, work)
+    tv = E.targets(form, ds, work, "val")
     T = tg.values.shape[1]
     y = tg.values[np.asarray(train_scenes) - E.TRAIN.start].reshape(-1, len(tg.names))
     yv = tv.values.reshape(-1, len(tv.names))
