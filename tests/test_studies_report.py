@@ -211,9 +211,3 @@ def test_table_markdown_says_which_raster_ran_and_the_perception_weight():
         assert ("24 validation scenes, 90×64 binary channels (route, vehicles at t, t−1, t−2), "
                 "60 m ahead, 3 epochs with the auxiliary perception loss (λ = 1), learning "
                 "rate") in head
-    # a results file written before the study held a RasterConfig names its size only
-    old = {k: v for k, v in asdict(quick).items() if k != "raster"}
-    old["image_size"] = 64
-    del old["training"]["perception_weight"]
-    head = studies.table_markdown({**res, "config": old}).split("\n## ")[0]
-    assert "64×64 RGB raster (the paper's form), 3 epochs, learning rate" in head

@@ -309,24 +309,18 @@ def _percent(agg: dict, metric: str) -> dict:
     return {metric: {**e, "mean": 100 * e["mean"], "std": 100 * e["std"]}}
 
 
-def _training(config: dict, key: str, default: Any = None) -> Any:
+def _training(config: dict, key: str) -> Any:
     """A training field of a results file's ``config`` (its ``training`` entry, or the flat
-    keys of a file written before the study held a TrainConfig); ``default`` for a field
-    added after the file was written (``None``: the field must be there)."""
+    keys of a file written before the study held a TrainConfig)."""
     t = config.get("training")
     if t is None:
-        return config[key] if default is None else config.get(key, default)
-    if not isinstance(t, dict):
-        return getattr(t, key)
-    return t[key] if default is None else t.get(key, default)
+        return config[key]
+    return t[key] if isinstance(t, dict) else getattr(t, key)
 
 
 def _raster(config: dict) -> world.RasterConfig:
-    """The raster of a results file's ``config`` (its ``raster`` entry, or the default RGB
-    raster at the ``image_size`` of a file written before the study held a RasterConfig)."""
-    r = config.get("raster")
-    if r is None:
-        return world.RasterConfig(size=int(config["image_size"]))
+    """The raster of a results file's ``config`` (a RasterConfig, or its fields)."""
+    r = config["raster"]
     return r if isinstance(r, world.RasterConfig) else world.RasterConfig(**r)
 
 
@@ -389,7 +383,7 @@ def table_markdown(results: dict) -> str:
     c = results["config"]
     ns = int(c["n_seeds"])
     lab = model_label
-    perception = perception_text(float(_training(c, "perception_weight", 0.0)))
+    perception = perception_text(float(_training(c, "perception_weight")))
     lines = [
         "# Closed-loop results (Table I and the studies of section V)",
         "",
