@@ -13,8 +13,8 @@ from minimanc.checks import check_int
 from minimanc.world.lanes import TARGET_SPACING
 from minimanc.world.raster import RasterConfig
 
-__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "DEFAULT_INPUT_SHAPE", "TARGET_SPACING", "ModelConfig",
-           "gain_box_corners", "gain_logits", "lookahead_rule"]
+__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "DEFAULT_INPUT_SHAPE", "PREDICATE_READOUTS",
+           "TARGET_SPACING", "ModelConfig", "gain_box_corners", "gain_logits", "lookahead_rule"]
 
 # TARGET_SPACING (the metres of route between the lane-target points the heads see,
 # obs["lane_target"] at 4 · (1 … K) m) is the world's, re-exported for the heads.
@@ -29,6 +29,10 @@ DEFAULT_GAINS: tuple[float, float, float, float] = (1.0, 0.45, 2.5, 1.15)
 DEFAULT_INPUT_SHAPE: tuple[int, int, int] = RasterConfig().input_shape
 """``(H, W, C)`` a model reads when :attr:`ModelConfig.input_shape` is unset and no data
 says otherwise: the default raster's (64 × 64 RGB)."""
+
+PREDICATE_READOUTS: tuple[str, ...] = ("gap", "flatten")
+"""What eq. 7's predicate layer reads of the features (:attr:`ModelConfig.predicate_readout`,
+:mod:`minimanc.models.readout`): their global average (the paper's form) or all of them."""
 
 
 def gain_logits(gains: Any) -> np.ndarray:
@@ -117,8 +121,13 @@ class ModelConfig:
     ``gains_scale`` (initial scale of the gains FC relative to Glorot),
     ``orientation`` ("yaw": the orientation DMP on the yaw angle, or
     "quaternion": eq. 2 with unit quaternions — equal results for yaw-only
-    driving), ``vagn_scale`` the std of vAGN's initial weights and ``dt`` the
-    step (s).
+    driving), ``vagn_scale`` the std of vAGN's initial weights, ``dt`` the
+    step (s) and ``predicate_readout``, what eq. 7's linear layer reads of the features ``f``
+    ``(B, h, w, C)`` (:mod:`minimanc.models.readout`): "gap", eq. 7 as the paper writes it,
+    ``p = σ(Linear(GAP(f)))`` (weights ``(C, M)``); or "flatten", ``p = σ(Linear(flatten(f)))``
+    (weights ``(h·w·C, M)``): each predicate a weighted sum over every position and channel,
+    still linear in ``f`` but keeping *where* a feature fires, its CAM the per-position
+    contribution ``Σ_c W(y, x, c) f_c(y, x)``.
 
     ``dt`` must keep the default DMP integrator (:data:`minimanc.dmp.DEFAULT_METHOD`,
     :data:`minimanc.dmp.DEFAULT_SUBSTEPS` sub-steps) stable at every corner of the gain
@@ -144,6 +153,7 @@ class ModelConfig:
     gains_scale: float = 3.0
     vagn_scale: float = 4.0
     dt: float = dmp.DT
+    predicate_readout: str = "gap"
 
     def __post_init__(self) -> None:
         for name in ("n_states", "n_predicates", "hidden", "k_targets"):
@@ -186,6 +196,9 @@ class ModelConfig:
         if self.predicate_activation not in ("sigmoid", "linear"):
             raise ValueError(f"predicate_activation must be 'sigmoid' or 'linear', got "
                              f"predicate_activation={self.predicate_activation!r}")
+        if self.predicate_readout not in PREDICATE_READOUTS:
+            raise ValueError(f"predicate_readout must be one of {PREDICATE_READOUTS}, got "
+                             f"predicate_readout={self.predicate_readout!r}")
         if not (isinstance(self.gains_scale, int | float) and self.gains_scale > 0.0):
             raise ValueError(f"gains_scale must be > 0, got gains_scale={self.gains_scale!r}")
         if not self.vagn_scale > 0.0:

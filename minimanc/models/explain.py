@@ -9,9 +9,11 @@ import numpy as np
 
 from minimanc import cam, checks, vagn
 from minimanc.engine import get_engine
+from minimanc.layers import flatten
 from minimanc.models.backbone import backbone
 from minimanc.models.config import ModelConfig
 from minimanc.models.forward import cast_tree
+from minimanc.models.readout import logit_maps
 
 __all__ = ["saliency"]
 
@@ -20,7 +22,8 @@ def saliency(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = Non
              engine: Any = None, upsample_to_input: bool = True) -> dict:
     """Per-q-state saliency of a vAGN model (paper Figs. 3–4), NumPy float64 arrays.
 
-    Runs eq. 7 on ``obs["bev"]`` and one vAGN step (eqs. 8–9) from ``q_prev``.
+    Runs eq. 7 on ``obs["bev"]`` (with ``cfg.predicate_readout``,
+    :mod:`minimanc.models.readout`) and one vAGN step (eqs. 8–9) from ``q_prev``.
     ``q_prev`` is checked as a distribution in its own precision (a float32 model's
     ``q``, say), then converted to float64 and renormalised.
 
@@ -41,10 +44,12 @@ def saliency(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = Non
     Returns
     -------
     dict
-        ``logits`` ``(B, M)`` = ``Linear(GAP(f))``; ``predicates`` ``(B, M)`` (through
-        ``cfg.predicate_activation``); ``q`` ``(B, N)``; ``cams`` ``(B, M, H, W)`` — the
-        class activation maps of the logits (:func:`minimanc.cam.class_activation_maps`;
-        ``mean_xy cams_i = logit_i − b_i``); ``jacobian`` ``(B, N, M)`` = ∂q/∂logits
+        ``logits`` ``(B, M)`` = ``Linear(GAP(f))`` (or ``Linear(flatten(f))``);
+        ``predicates`` ``(B, M)`` (through ``cfg.predicate_activation``); ``q`` ``(B, N)``;
+        ``cams`` ``(B, M, H, W)`` — the class activation maps of the logits
+        (:func:`minimanc.models.readout.logit_maps`; at feature resolution ``mean_xy cams_i =
+        logit_i − b_i`` for "gap", ``sum_xy cams_i = logit_i − b_i`` for "flatten");
+        ``jacobian`` ``(B, N, M)`` = ∂q/∂logits
         (chain rule through the sigmoid); ``saliency`` ``(B, N, H, W)`` = ``Σ_i J_ji
         cams_i`` (:func:`minimanc.cam.q_state_saliency`).
 
@@ -62,7 +67,8 @@ def saliency(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = Non
     bev = np.asarray(obs["bev"], dtype=np.float64)
     f = np.asarray(cast_tree(backbone(p64["backbone"], bev, cfg, eng), np.float64))
     w, b = p64["predicates"]["w"], p64["predicates"]["b"]
-    z = f.mean(axis=(1, 2)) @ w + b
+    pooled = f.mean(axis=(1, 2)) if cfg.predicate_readout == "gap" else flatten(f)
+    z = pooled @ w + b
     if cfg.predicate_activation == "sigmoid":
         p = 0.5 * (1.0 + np.tanh(0.5 * z))
         dp_dz = p * (1.0 - p)
@@ -74,7 +80,7 @@ def saliency(params: dict, obs: dict, q_prev: Any, cfg: ModelConfig | None = Non
     q_prev = q_in.astype(np.float64)
     q_prev = q_prev / q_prev.sum(axis=-1, keepdims=True)
     q = vagn.step(q_prev, p, W)
-    cams = cam.class_activation_maps(f, w)
+    cams = logit_maps(f, w, cfg.predicate_readout)
     J = cam.vagn_jacobian(q_prev, p, W) * dp_dz[..., None, :]
     S = cam.q_state_saliency(cams, J)
     if upsample_to_input:

@@ -4,8 +4,9 @@ a sequence of steps with one time loop (:func:`sequence`).
 
 Each model is a :class:`~minimanc.models.registry.ModelSpec`; this module runs the part they
 share — the backbone on ``obs["bev"]``, eq. 7's predicates ``σ(Linear(GAP(f)))`` when the model
-has them, the numeric inputs of :func:`minimanc.inputs.numeric_features` — and calls the spec's
-``encode`` and ``head``. Every function takes an engine ``eng`` and uses only ``eng.xp`` /
+has them (or ``σ(Linear(flatten(f)))``, :attr:`ModelConfig.predicate_readout`), the numeric
+inputs of :func:`minimanc.inputs.numeric_features` — and calls the spec's ``encode`` and
+``head``. Every function takes an engine ``eng`` and uses only ``eng.xp`` /
 ``eng.nn`` / ``eng.scan``, so the same code runs on both engines.
 """
 
@@ -18,10 +19,10 @@ import numpy as np
 
 from minimanc import inputs, layers, vagn
 from minimanc.checks import check_int, check_rng
-from minimanc.layers import dense
 from minimanc.models import registry
 from minimanc.models.backbone import backbone
 from minimanc.models.config import ModelConfig
+from minimanc.models.readout import predicate_logits
 from minimanc.models.registry import ModelSpec, get
 from minimanc.tree import leaves as tree_leaves
 from minimanc.tree import map as tree_map
@@ -270,8 +271,9 @@ def encode(spec: ModelSpec, params: dict, obs: dict, cfg: ModelConfig, eng: Any)
     Returns
     -------
     dict
-        ``features`` ``(B, h, w, C)``, ``predicates`` ``(B, M)`` (eq. 7, when the
-        parameters have a ``"predicates"`` layer) and what ``spec.encode`` adds.
+        ``features`` ``(B, h, w, C)``, ``predicates`` ``(B, M)`` (eq. 7 with
+        ``cfg.predicate_readout``, when the parameters have a ``"predicates"`` layer) and
+        what ``spec.encode`` adds.
     """
     xp = eng.xp
     dtype = params["backbone"]["convs"][0]["w"].dtype
@@ -279,8 +281,7 @@ def encode(spec: ModelSpec, params: dict, obs: dict, cfg: ModelConfig, eng: Any)
     f = backbone(params["backbone"], obs["bev"], cfg, eng)
     enc: dict = {"features": f}
     if "predicates" in params:
-        pooled = xp.mean(xp.mean(f, axis=1), axis=1)  # GAP of eq. 7
-        z = dense(params["predicates"], pooled, eng.xp)
+        z = predicate_logits(params["predicates"], f, cfg.predicate_readout, xp)
         enc["predicates"] = eng.nn.sigmoid(z) if cfg.predicate_activation == "sigmoid" else z
     num = inputs.numeric_features(obs, spec, cfg.setting, xp=xp)
     enc.update(spec.encode(params, obs, f, num, cfg, eng))

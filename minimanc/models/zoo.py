@@ -19,6 +19,10 @@ name          forward pass
 (The authors' RvS has a Gaussian action head; ours predicts the mean only and
 is trained with the same MSE as all others.)
 
+What eq. 7's linear layer reads is :attr:`ModelConfig.predicate_readout`: ``GAP(f)`` as the
+paper writes it ("gap", the default), or ``flatten(f)``, which keeps where a feature fires
+("flatten", :mod:`minimanc.models.readout`).
+
 MANC's pieces are public, each one equation, so that a variant is a new
 :class:`~minimanc.models.ModelSpec` of a few lines (the contract of ``init``, ``encode`` and
 ``head`` is the spec's docstring):
@@ -104,24 +108,34 @@ def control_scale(eng: Any) -> Any:
 
 
 def predicate_layer(rng: np.random.Generator, cfg: ModelConfig) -> dict:
-    """Eq. 7's predicate layer ``Linear(GAP(f))``, as ``params["predicates"]``.
+    """Eq. 7's predicate layer ``Linear(readout(f))``, as ``params["predicates"]``.
 
     A model whose parameters hold ``"predicates"`` gets ``enc["predicates"]`` ``(B, M)``
-    from the shared encoder (:func:`minimanc.models.forward.encode`; through
-    ``cfg.predicate_activation``).
+    from the shared encoder (:func:`minimanc.models.forward.encode`; the read-out of
+    ``cfg.predicate_readout``, :mod:`minimanc.models.readout`, then
+    ``cfg.predicate_activation``). "gap" reads ``GAP(f)`` (eq. 7 as the paper writes it);
+    "flatten" reads ``flatten(f)`` and starts as exactly the same function: the same draw,
+    each position's weights ``w / (h·w)``, so that the two read-outs differ only in what
+    training makes of them (and the later layers get the same draws).
 
     Parameters
     ----------
     rng : numpy.random.Generator
     cfg : ModelConfig
-        Its ``channels[-1]`` (C) and ``n_predicates`` (M).
+        Its ``channels[-1]`` (C), ``n_predicates`` (M), ``predicate_readout`` and, for
+        "flatten", ``feature_shape`` (h, w).
 
     Returns
     -------
     dict
-        ``w`` ``(C, M)``, ``b`` ``(M,)``.
+        ``w`` ``(C, M)`` ("gap") or ``(h·w·C, M)`` ("flatten", :func:`flat_size` rows),
+        ``b`` ``(M,)``.
     """
-    return layers.init_dense(rng, cfg.channels[-1], cfg.n_predicates)
+    layer = layers.init_dense(rng, cfg.channels[-1], cfg.n_predicates)
+    if cfg.predicate_readout == "flatten":
+        h, w = cfg.feature_shape
+        layer["w"] = np.tile(np.asarray(layer["w"]), (h * w, 1)) / (h * w)
+    return layer
 
 
 def vagn_layer(rng: np.random.Generator, cfg: ModelConfig) -> dict:
