@@ -35,6 +35,7 @@ MODULES: tuple[str, ...] = (
     "minimanc.viz.automaton",
     "minimanc.viz.saliency",
     "minimanc.models.dmp_head",
+    "minimanc.models.readout",
     "minimanc.chapters",
     "minimanc.diagnose",
 )
