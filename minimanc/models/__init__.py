@@ -9,7 +9,8 @@ listed in :mod:`minimanc.models.zoo`:
   the numbers the model sees (:mod:`minimanc.inputs`), the last two through an LSTM;
   they output ``o · CONTROL_SCALE`` (10 m/s, 0.5 rad/s) so that the last layer
   works with numbers of order one;
-* ``manc`` — predicates ``p = σ(Linear(GAP(f)))`` (eq. 7), the automaton
+* ``manc`` — predicates ``p = σ(Linear(GAP(f)))`` (eq. 7; or over ``flatten(f)``,
+  :attr:`ModelConfig.predicate_readout`, :mod:`minimanc.models.readout`), the automaton
   ``q = vAGN(p, q')`` (eqs. 8–9), gains ``FC(q)`` and one DMP step
   (eqs. 10–11, :func:`dmp_head`) → ``[speed, yaw rate]``;
 * ``vagn_only`` — eq. 7 and vAGN, then a direct head on ``q`` and the numbers;

@@ -100,8 +100,8 @@ class ModelSpec:
         ``init(rng, cfg, n_num) -> dict``: the parameters besides ``"backbone"``, drawn
         from ``rng`` after the backbone's; ``n_num`` is the length of the model's
         :func:`minimanc.inputs.numeric_features` in ``cfg.setting``. A ``"predicates"`` entry
-        (a dense layer ``C → M``, :func:`minimanc.models.zoo.predicate_layer`) makes the
-        shared encoder compute eq. 7's predicates for the head.
+        (a dense layer on eq. 7's read-out of ``f``, :func:`minimanc.models.zoo.predicate_layer`)
+        makes the shared encoder compute eq. 7's predicates for the head.
     encode : callable
         ``encode(params, obs, f, num, cfg, eng) -> dict``: the per-frame part (no
         recurrence), run on every frame at once. ``obs`` holds the keys the model observes

@@ -16,7 +16,11 @@ is ``channels0`` trained on-policy: DAgger (:func:`minimanc.dagger.dagger`) with
 human among reactive ados as the teacher, :data:`ROUNDS` rounds after the demonstrations
 (β from ½ halving), the same 600 scenes' worth of expert-labelled states as behaviour
 cloning (``channels0``), the same schedule per round (the auxiliary loss needs targets the
-collected states do not carry); ``dagger_rgb`` the same on the RGB raster (against ``rgb``).
+collected states do not carry); ``dagger_rgb`` the same on the RGB raster (against ``rgb``);
+``speed_dagger`` is ``speed`` trained on-policy like ``dagger`` (whether on-policy labels
+mend the copycat the own speed brings); ``dagger_flat`` is MANC's ``dagger`` with eq. 7
+over the flattened features (``ModelConfig.predicate_readout = "flatten"``: predicates that
+keep where a feature fires).
 
 **Protocol** (fixed before any closed-loop number was looked at). The seed-0 draw of the
 paper preset (``leader_data.py``): train on scenes 0–599, drive the validation scenes
@@ -43,7 +47,9 @@ import math
 import os
 import re
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import leader_data as L
 import numpy as np
@@ -63,11 +69,40 @@ MODELS = ("cnn", "cnn_lstm", "rvs_g", "manc")
 """Table I's learned controllers."""
 LEARNING_RATES = {"cnn": 1e-3, "cnn_lstm": 3e-4, "rvs_g": 3e-4, "manc": 3e-4}
 """The learning rate the paper preset's tuning chose per model (setting ``paper``)."""
-FORMS = ("channels", "channels0", "speed", "dagger", "rgb", "dagger_rgb")
-ON_POLICY = ("dagger", "dagger_rgb")
-"""The forms trained by DAgger (on the channels raster and on the RGB raster)."""
+@dataclass(frozen=True)
+class Form:
+    """How a model is trained: its raster, λ, setting, on-policy or not, and the fields of
+    :class:`~minimanc.models.ModelConfig` and :class:`~minimanc.train.TrainConfig` it sets
+    beyond the library's defaults."""
+
+    text: str
+    raster: str = "channels"
+    aux: bool = False
+    setting: str = "paper"
+    on_policy: bool = False
+    model: tuple[tuple[str, Any], ...] = ()
+    train: tuple[tuple[str, Any], ...] = ()
+    only: tuple[str, ...] = ()
+    """The models the form applies to (empty: every model)."""
+
+
+PARITY_TEXT = "own speed and lane target as numbers"
+FORMS: dict[str, Form] = {
+    "channels": Form("channels, λ = {w:g}", aux=True),
+    "channels0": Form("channels, λ = 0"),
+    "speed": Form(f"channels, λ = 0, {PARITY_TEXT}", setting="parity"),
+    "dagger": Form("channels, λ = 0, DAgger {rounds} rounds", on_policy=True),
+    "speed_dagger": Form(f"channels, λ = 0, {PARITY_TEXT}, DAgger {{rounds}} rounds",
+                         setting="parity", on_policy=True),
+    "dagger_flat": Form("channels, λ = 0, eq. 7 over flatten(f), DAgger {rounds} rounds",
+                        on_policy=True, model=(("predicate_readout", "flatten"),),
+                        only=("manc",)),
+    "rgb": Form("RGB (paper's form), λ = 0", raster="rgb"),
+    "dagger_rgb": Form("RGB, λ = 0, DAgger {rounds} rounds", raster="rgb", on_policy=True),
+}
+"""The forms, in the report's order."""
 ROUNDS = 10
-"""DAgger rounds after the demonstrations (form ``dagger``)."""
+"""DAgger rounds after the demonstrations (the on-policy forms)."""
 AGENTS = ("reactive", "replay")
 BOUNDS = ("expert", "floor", "fixed_gains")
 RASTERS = {"channels": PC.VARIANTS["route60"].config(), "rgb": world.RasterConfig()}
@@ -76,11 +111,25 @@ RASTERS = {"channels": PC.VARIANTS["route60"].config(), "rgb": world.RasterConfi
 
 def raster_name(form: str) -> str:
     """``"rgb"`` or ``"channels"``: the raster a form reads."""
-    return "rgb" if form in ("rgb", "dagger_rgb") else "channels"
+    return FORMS[form].raster
 
 
 def raster_of(form: str) -> world.RasterConfig:
     return RASTERS[raster_name(form)]
+
+
+def form_text(form: str, weight: float) -> str:
+    return FORMS[form].text.format(w=weight, rounds=ROUNDS)
+
+
+def model_config(form: str, pool: world.Dataset | None = None) -> models.ModelConfig | None:
+    """The form's model configuration (``None``: the library's default for behaviour
+    cloning; on-policy forms need ``pool`` for the input shape)."""
+    f = FORMS[form]
+    fields = dict(f.model) | ({"setting": f.setting} if f.setting != "paper" else {})
+    if f.on_policy:
+        return dagger.default_config(pool, **fields)
+    return models.ModelConfig(**fields) if fields else None
 
 
 def draw(form: str, work: Path) -> world.Dataset:
@@ -115,13 +164,15 @@ def targets(form: str, ds: world.Dataset, work: Path, split: str = "train"
 
 
 def train_config(model: str, form: str, seed: int, weight: float) -> train.TrainConfig:
-    """The paper preset's schedule with the model's learning rate and the form's λ."""
+    """The paper preset's schedule with the model's learning rate, the form's λ and its
+    other training fields."""
     return train.TrainConfig(epochs=6, batch_size=64, lr=LEARNING_RATES[model], seed=seed,
-                             perception_weight=weight_of(form, weight))
+                             perception_weight=weight_of(form, weight),
+                             **dict(FORMS[form].train))
 
 
 def weight_of(form: str, weight: float) -> float:
-    return weight if form == "channels" else 0.0
+    return weight if FORMS[form].aux else 0.0
 
 
 def run_path(work: Path, row: str, seed: int, agents: str) -> Path:
@@ -142,11 +193,10 @@ def fit_model(model: str, form: str, seed: int, weight: float, ds: world.Dataset
     tc = train_config(model, form, seed, weight)
     tr = ds.subset(list(TRAIN))
     t0 = time.perf_counter()
-    if form in ON_POLICY:
-        return on_policy(model, tc, tr, dagger_dir(model, form, seed, work)), \
-            time.perf_counter() - t0
-    cfg = models.ModelConfig(setting="parity") if form == "speed" else None
-    fit = train.fit(model, tr, cfg, tc, engine="jax", progress=False,
+    if FORMS[form].on_policy:
+        return on_policy(model, model_config(form, tr), tc, tr,
+                         dagger_dir(model, form, seed, work)), time.perf_counter() - t0
+    fit = train.fit(model, tr, model_config(form), tc, engine="jax", progress=False,
                     checkpoint_dir=checkpoint_dir(model, form, seed, lam, work),
                     resume=True, perception=targets(form, ds, work) if lam > 0 else None)
     return fit, time.perf_counter() - t0
@@ -159,14 +209,14 @@ def checkpoint_dir(model: str, form: str, seed: int, lam: float, work: Path) -> 
 
 def dagger_dir(model: str, form: str, seed: int, work: Path) -> Path:
     """Where DAgger's rounds of an on-policy form are checkpointed."""
-    tag = "" if form == "dagger" else "_rgb"
+    tag = {"dagger": "", "dagger_rgb": "_rgb"}.get(form, f"_{form}")
     return work / "dagger" / f"{model}{tag}_s{seed}"
 
 
 def checkpoint_of(model: str, form: str, seed: int, work: Path, weight: float = 1.0
                   ) -> Path | None:
     """The trained model's checkpoint (DAgger's last round for ``dagger``), if it exists."""
-    if form in ON_POLICY:
+    if FORMS[form].on_policy:
         path = dagger.round_dir(dagger_dir(model, form, seed, work), ROUNDS)
     else:
         path = checkpoint_dir(model, form, seed, weight_of(form, weight), work)
@@ -174,13 +224,13 @@ def checkpoint_of(model: str, form: str, seed: int, work: Path, weight: float = 
     return path if path.exists() else None
 
 
-def on_policy(model: str, tc: train.TrainConfig, pool: world.Dataset, out: Path
-              ) -> train.FitResult:
+def on_policy(model: str, cfg: models.ModelConfig, tc: train.TrainConfig,
+              pool: world.Dataset, out: Path) -> train.FitResult:
     """DAgger on ``pool`` (every round checkpointed under ``out``: a rerun resumes), its
     last policy as a fit."""
     teacher = dagger.WorldTeacher(pool, agents="reactive")
     budget = dagger.plan_budget(len(pool) * pool.n_steps, pool.n_steps, ROUNDS)
-    dagger.dagger(model, teacher, budget, rounds=ROUNDS, beta=0.5, train_cfg=tc,
+    dagger.dagger(model, teacher, budget, rounds=ROUNDS, beta=0.5, cfg=cfg, train_cfg=tc,
                   engine="jax", out=out, seed=tc.seed, progress=False, evaluate=False)
     return train.load_fit(dagger.round_dir(out, ROUNDS) / train.CHECKPOINT_NAME)
 
@@ -192,8 +242,11 @@ def drive(fit: train.FitResult, val: world.Dataset, agents: str) -> dict:
 
 def run_model(model: str, form: str, seed: int, weight: float, work: Path) -> None:
     spec = models.get(model)
-    if form == "speed" and inputs.visible(spec, "paper") == inputs.visible(spec, "parity"):
-        return  # the model reads the same in both settings: the speed form is channels0
+    if FORMS[form].only and model not in FORMS[form].only:
+        return
+    if FORMS[form].setting != "paper" and \
+            inputs.visible(spec, "paper") == inputs.visible(spec, FORMS[form].setting):
+        return  # the model reads the same in both settings: the form is its paper twin
     row = f"{model}_{form}"
     todo = [a for a in AGENTS if not run_path(work, row, seed, a).exists()]
     if not todo:
@@ -242,11 +295,6 @@ KEYS = (("ade", "ADE m", 2), ("collision_rate", "coll. %", 2),
         ("route_progress", "progress", 2), ("max_acceleration", "max \\|a\\| m/s²", 2))
 LABELS = {"expert": "Expert (the world's human)", "floor": "Style floor (median style)",
           "fixed_gains": "DMP at fixed gains"}
-FORM_TEXT = {"channels": "channels, λ = {w:g}", "channels0": "channels, λ = 0",
-             "dagger": f"channels, λ = 0, DAgger {ROUNDS} rounds",
-             "dagger_rgb": f"RGB, λ = 0, DAgger {ROUNDS} rounds",
-             "speed": "channels, λ = 0, own speed and lane target as numbers",
-             "rgb": "RGB (paper's form), λ = 0"}
 
 
 def cell(vals: list[float], d: int) -> str:
@@ -296,7 +344,7 @@ def at_fault_summary(runs: list[dict]) -> list[str]:
                 cells.append(f"{np.mean(x):.1f} [{', '.join(f'{v:.1f}' for v in x)}]"
                              if x else "")
             if any(cells):
-                text = FORM_TEXT[form].format(w=1)
+                text = form_text(form, 1)
                 lines.append(f"| {model} | {text} | {cells[0]} | {cells[1]} |")
     return lines + [""]
 
@@ -329,7 +377,7 @@ def report(work: Path) -> str:
                       and r["agents"] == agents]
                 if not rs:
                     continue
-                label = f"{model}, {FORM_TEXT[form].format(w=rs[0]['weight'])}"
+                label = f"{model}, {form_text(form, rs[0]['weight'])}"
                 seeds = ", ".join(str(r["seed"]) for r in rs)
                 lines.append(f"| {label} | {len(rs)} ({seeds}) | " + " | ".join(
                     cell([r["metrics"][k] for r in rs], d) for k, _, d in KEYS) + " |")
