@@ -17,6 +17,8 @@ human among reactive ados as the teacher, :data:`ROUNDS` rounds after the demons
 (β from ½ halving), the same 600 scenes' worth of expert-labelled states as behaviour
 cloning (``channels0``), the same schedule per round (the auxiliary loss needs targets the
 collected states do not carry); ``dagger_rgb`` the same on the RGB raster (against ``rgb``);
+``speed_drop`` is ``speed`` with the own speed and yaw rate replaced by zeros in 75 % of the
+training samples (``TrainConfig.motion_dropout``, PlanTF's guard against the copycat);
 ``speed_dagger`` is ``speed`` trained on-policy like ``dagger`` (whether on-policy labels
 mend the copycat the own speed brings); ``dagger_flat`` is MANC's ``dagger`` with eq. 7
 over the flattened features (``ModelConfig.predicate_readout = "flatten"``: predicates that
@@ -91,6 +93,8 @@ FORMS: dict[str, Form] = {
     "channels": Form("channels, λ = {w:g}", aux=True),
     "channels0": Form("channels, λ = 0"),
     "speed": Form(f"channels, λ = 0, {PARITY_TEXT}", setting="parity"),
+    "speed_drop": Form(f"channels, λ = 0, {PARITY_TEXT}, dropped w.p. 0.75",
+                       setting="parity", train=(("motion_dropout", 0.75),)),
     "dagger": Form("channels, λ = 0, DAgger {rounds} rounds", on_policy=True),
     "speed_dagger": Form(f"channels, λ = 0, {PARITY_TEXT}, DAgger {{rounds}} rounds",
                          setting="parity", on_policy=True),
