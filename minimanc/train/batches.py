@@ -164,8 +164,9 @@ def check_motion_dropout(name: str, cfg: models.ModelConfig, tc: TrainConfig) ->
     ------
     ValueError
         If ``tc.motion_dropout > 0`` and the model is a DMP model (its ``motion`` is the
-        DMP's initial state, eqs. 10–11, not a number for a dense layer) or does not see
-        ``motion`` in ``cfg.setting``.
+        DMP's initial state, eqs. 10–11, not a number for a dense layer), does not see
+        ``motion`` in ``cfg.setting`` or has ``cfg.speed_output`` "change" (its head adds
+        its output to the speed of ``motion``).
     """
     p = tc.motion_dropout
     if p == 0:
@@ -177,6 +178,10 @@ def check_motion_dropout(name: str, cfg: models.ModelConfig, tc: TrainConfig) ->
     if "motion" not in inputs.visible(spec, cfg.setting):
         raise ValueError(f"motion_dropout={p} needs a model that sees 'motion'; {name!r} does "
                          f"not in setting={cfg.setting!r} (use 'parity' or motion_dropout=0)")
+    if cfg.speed_output == "change":
+        raise ValueError(f"motion_dropout={p} would zero the speed that {name!r} with "
+                         f"speed_output='change' changes (set motion_dropout=0 or "
+                         f"speed_output='absolute')")
 
 
 def motion_dropout_rng(seed: int, step: int) -> np.random.Generator:
