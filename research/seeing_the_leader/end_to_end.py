@@ -20,7 +20,10 @@ collected states do not carry); ``dagger_rgb`` the same on the RGB raster (again
 ``speed_drop`` is ``speed`` with the own speed and yaw rate replaced by zeros in 75 % of the
 training samples (``TrainConfig.motion_dropout``, PlanTF's guard against the copycat);
 ``speed_dagger`` is ``speed`` trained on-policy like ``dagger`` (whether on-policy labels
-mend the copycat the own speed brings); ``dagger_flat`` is MANC's ``dagger`` with eq. 7
+mend the copycat the own speed brings); ``change_dagger`` is ``speed_dagger`` with the
+direct head's speed the change of its own (``ModelConfig.speed_output = "change"``:
+``max(v + o₀ s₀, 0)``, what the privileged learner predicts); ``dagger_flat`` is MANC's
+``dagger`` with eq. 7
 over the flattened features (``ModelConfig.predicate_readout = "flatten"``: predicates that
 keep where a feature fires).
 
@@ -101,6 +104,9 @@ FORMS: dict[str, Form] = {
     "dagger_flat": Form("channels, λ = 0, eq. 7 over flatten(f), DAgger {rounds} rounds",
                         on_policy=True, model=(("predicate_readout", "flatten"),),
                         only=("manc",)),
+    "change_dagger": Form(f"channels, λ = 0, {PARITY_TEXT}, speed as its change, DAgger "
+                          "{rounds} rounds", setting="parity", on_policy=True,
+                          model=(("speed_output", "change"),)),
     "rgb": Form("RGB (paper's form), λ = 0", raster="rgb"),
     "dagger_rgb": Form("RGB, λ = 0, DAgger {rounds} rounds", raster="rgb", on_policy=True),
 }
