@@ -23,9 +23,8 @@ training samples (``TrainConfig.motion_dropout``, PlanTF's guard against the cop
 mend the copycat the own speed brings); ``change_dagger`` is ``speed_dagger`` with the
 direct head's speed the change of its own (``ModelConfig.speed_output = "change"``:
 ``max(v + o₀ s₀, 0)``, what the privileged learner predicts); ``dagger_flat`` is MANC's
-``dagger`` with eq. 7
-over the flattened features (``ModelConfig.predicate_readout = "flatten"``: predicates that
-keep where a feature fires).
+``dagger`` with eq. 7 over the flattened features (``ModelConfig.predicate_readout =
+"flatten"``: predicates that keep where a feature fires).
 
 **Protocol** (fixed before any closed-loop number was looked at). The seed-0 draw of the
 paper preset (``leader_data.py``): train on scenes 0–599, drive the validation scenes
