@@ -1,7 +1,7 @@
 """What do the end-to-end models' representations hold of the leader? A ridge probe of the
 trained models of ``end_to_end.py``: their flattened backbone features and, for MANC, eq. 7's
-predicates (the global average of the features through a dense layer and a sigmoid), which
-are all its gains read.
+predicates (the global average of the features through a dense layer and a sigmoid; in the
+form ``dagger_flat`` the flattened features through it), which are all its gains read.
 
 The probe (:func:`minimanc.diagnose.linear_probe`; ridge from ``aux_loss.RIDGES`` by 4-fold
 cross-validation over whole training scenes) is fitted on the states of every
@@ -123,7 +123,7 @@ def report(rows: list[dict]) -> str:
              " | ".join(k[1] for k in keys) + " |", "|---|---|---|---|---|" + "---|" * len(keys)]
     for r in rows:
         cells = [f"{r[k] * (100 if k == 'lead_accuracy' else 1):.{d}f}" for k, _, d in keys]
-        lines.append(f"| {r['model']} | {E.FORM_TEXT[r['form']].format(w=1)} | {r['seed']} | "
+        lines.append(f"| {r['model']} | {E.form_text(r['form'], 1)} | {r['seed']} | "
                      f"{r['what']} | {r['dims']} | " + " | ".join(cells) + " |")
     n = rows[0]["n_near"] if rows else 0
     lines.append(f"\nValidation states with a leader in the view within 30 m: {n} (channels "
