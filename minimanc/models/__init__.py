@@ -8,8 +8,7 @@ listed in :mod:`minimanc.models.zoo`:
 * ``cnn``, ``cnn_lstm``, ``rvs_g`` — direct heads on the flattened features and
   the numbers the model sees (:mod:`minimanc.inputs`), the last two through an LSTM;
   they output ``o · CONTROL_SCALE`` (10 m/s, 0.5 rad/s) so that the last layer
-  works with numbers of order one (the speed, or with
-  :attr:`ModelConfig.speed_output` "change" its change from the own speed of ``motion``);
+  works with numbers of order one;
 * ``manc`` — predicates ``p = σ(Linear(GAP(f)))`` (eq. 7; or over ``flatten(f)``,
   :attr:`ModelConfig.predicate_readout`, :mod:`minimanc.models.readout`), the automaton
   ``q = vAGN(p, q')`` (eqs. 8–9), gains ``FC(q)`` and one DMP step

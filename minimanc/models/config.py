@@ -14,8 +14,7 @@ from minimanc.world.lanes import TARGET_SPACING
 from minimanc.world.raster import RasterConfig
 
 __all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "DEFAULT_INPUT_SHAPE", "PREDICATE_READOUTS",
-           "SPEED_OUTPUTS", "TARGET_SPACING", "ModelConfig", "gain_box_corners", "gain_logits",
-           "lookahead_rule"]
+           "TARGET_SPACING", "ModelConfig", "gain_box_corners", "gain_logits", "lookahead_rule"]
 
 # TARGET_SPACING (the metres of route between the lane-target points the heads see,
 # obs["lane_target"] at 4 · (1 … K) m) is the world's, re-exported for the heads.
@@ -34,10 +33,6 @@ says otherwise: the default raster's (64 × 64 RGB)."""
 PREDICATE_READOUTS: tuple[str, ...] = ("gap", "flatten")
 """What eq. 7's predicate layer reads of the features (:attr:`ModelConfig.predicate_readout`,
 :mod:`minimanc.models.readout`): their global average (the paper's form) or all of them."""
-
-SPEED_OUTPUTS: tuple[str, ...] = ("absolute", "change")
-"""What a direct head's speed output is (:attr:`ModelConfig.speed_output`,
-:mod:`minimanc.models.zoo`): the speed itself, or its change from the current ``motion``."""
 
 
 def gain_logits(gains: Any) -> np.ndarray:
@@ -134,18 +129,6 @@ class ModelConfig:
     still linear in ``f`` but keeping *where* a feature fires, its CAM the per-position
     contribution ``Σ_c W(y, x, c) f_c(y, x)``.
 
-    ``speed_output`` (:data:`SPEED_OUTPUTS`) is what the direct heads (``cnn``, ``cnn_lstm``,
-    ``rvs_g``, ``vagn_only``) output as speed, from their last layer's ``o = FC(2)``:
-    "absolute", ``speed = o₀ · s₀`` (``s`` = :data:`CONTROL_SCALE`); or "change", the
-    change of the ego's own current speed ``v`` (``motion[0]``, the odometer: the control
-    applied over the previous step), ``speed = max(v + o₀ · s₀, 0)``, as the privileged
-    learner predicts an acceleration, so that holding the pace is ``o₀ = 0`` rather than
-    an identity learned through a dense layer. The yaw rate stays ``o₁ · s₁``. "change"
-    needs a direct head that sees ``motion`` as a number in its ``setting`` ("parity"):
-    :func:`minimanc.models.init`, :func:`~minimanc.models.step` and
-    :func:`~minimanc.models.sequence` refuse it otherwise, and for the DMP models, whose
-    DMP already starts from ``motion`` (eq. 10).
-
     ``dt`` must keep the default DMP integrator (:data:`minimanc.dmp.DEFAULT_METHOD`,
     :data:`minimanc.dmp.DEFAULT_SUBSTEPS` sub-steps) stable at every corner of the gain
     box (:func:`gain_box_corners`); otherwise ValueError.
@@ -171,7 +154,6 @@ class ModelConfig:
     vagn_scale: float = 4.0
     dt: float = dmp.DT
     predicate_readout: str = "gap"
-    speed_output: str = "absolute"
 
     def __post_init__(self) -> None:
         for name in ("n_states", "n_predicates", "hidden", "k_targets"):
@@ -217,9 +199,6 @@ class ModelConfig:
         if self.predicate_readout not in PREDICATE_READOUTS:
             raise ValueError(f"predicate_readout must be one of {PREDICATE_READOUTS}, got "
                              f"predicate_readout={self.predicate_readout!r}")
-        if self.speed_output not in SPEED_OUTPUTS:
-            raise ValueError(f"speed_output must be one of {SPEED_OUTPUTS}, got "
-                             f"speed_output={self.speed_output!r}")
         if not (isinstance(self.gains_scale, int | float) and self.gains_scale > 0.0):
             raise ValueError(f"gains_scale must be > 0, got gains_scale={self.gains_scale!r}")
         if not self.vagn_scale > 0.0:

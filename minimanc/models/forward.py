@@ -32,7 +32,6 @@ __all__ = [
     "check_input_shape",
     "check_obs",
     "check_per_scene",
-    "check_speed_output",
     "encode",
     "init",
     "initial_state",
@@ -61,35 +60,6 @@ def cast_tree(tree: Any, dtype: Any) -> Any:
     return tree_map(lambda x: np.asarray(getattr(x, "_value", x), dtype=dtype), tree)
 
 
-def check_speed_output(spec: ModelSpec, cfg: ModelConfig) -> None:
-    """Check that ``cfg.speed_output`` fits the model.
-
-    Parameters
-    ----------
-    spec : ModelSpec
-    cfg : ModelConfig
-        Its :attr:`~ModelConfig.speed_output` and ``setting``.
-
-    Raises
-    ------
-    ValueError
-        For "change" on a DMP model (its DMP already starts from ``motion``, eq. 10: the
-        field would change nothing) or on a model that does not see ``motion`` as a number
-        in ``cfg.setting`` (:func:`minimanc.inputs.visible`; the "paper" setting of the
-        direct heads): the head has no speed to change.
-    """
-    if cfg.speed_output == "absolute":
-        return
-    if spec.dmp:
-        raise ValueError(f"speed_output={cfg.speed_output!r} is for the direct heads; model "
-                         f"{spec.name!r} ends in the DMP head, which already starts from its "
-                         f"motion: use speed_output='absolute'")
-    if "motion" not in inputs.visible(spec, cfg.setting):
-        raise ValueError(f"speed_output={cfg.speed_output!r} needs the own speed as a number, "
-                         f"but model {spec.name!r} does not see 'motion' in setting "
-                         f"{cfg.setting!r}: use setting='parity' or speed_output='absolute'")
-
-
 def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
          dtype: Any = np.float64) -> dict:
     """Initial parameters of model ``name``.
@@ -114,13 +84,11 @@ def init(name: str, rng: np.random.Generator, cfg: ModelConfig | None = None,
     Raises
     ------
     ValueError
-        If ``name`` is not registered, ``rng`` is not a Generator or ``cfg.speed_output``
-        does not fit the model (:func:`check_speed_output`).
+        If ``name`` is not registered or ``rng`` is not a Generator.
     """
     spec = get(name)
     cfg = cfg or ModelConfig()
     check_rng("rng", rng)
-    check_speed_output(spec, cfg)
     convs, c_in = [], cfg.bev_shape[2]
     for c in cfg.channels:
         convs.append(layers.init_conv(rng, 3, 3, c_in, c))
@@ -377,7 +345,6 @@ def step(name: str, params: dict, obs: dict, state: dict, cfg: ModelConfig | Non
     """
     spec = get(name)
     cfg = cfg or ModelConfig()
-    check_speed_output(spec, cfg)
     check_obs(name, obs, cfg, 1)
     enc = encode(spec, params, obs, cfg, eng)
     features = enc.pop("features")  # the head reads the features through encode only
@@ -407,10 +374,7 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
         DMP models: the DMP's initial velocities at step ``i > 0`` are the model's own
         controls of step ``i − 1`` instead of ``obs_seq["motion"][i]`` (the DMP
         integrates its own state, as in closed loop; only step 0 uses the logged motion);
-        an array chooses per window. A direct head with ``cfg.speed_output`` "change" is
-        not fed back: it changes ``obs_seq["motion"][i]``, the speed its numbers read at
-        that step (the numbers are encoded for every frame before the time loop), so that
-        training is teacher-forced like the one-step windows of ``cnn``.
+        an array chooses per window.
     return_aux : bool
         Also return the per-step ``aux`` of :func:`step` stacked along time
         (``features`` excluded).
@@ -425,7 +389,6 @@ def sequence(name: str, params: dict, obs_seq: dict, state: dict, cfg: ModelConf
     """
     spec = get(name)
     cfg = cfg or ModelConfig()
-    check_speed_output(spec, cfg)
     check_obs(name, obs_seq, cfg, 2)
     xp = eng.xp
     L, B = obs_seq["bev"].shape[:2]

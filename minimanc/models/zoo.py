@@ -16,10 +16,6 @@ name          forward pass
 ``dmp_only``  p (eq. 7) → gains = FC(p) → one DMP step → [speed, yaw rate]
 ============= =================================================================
 
-``FC(2) · s`` is ``[speed, yaw rate] = o · s``; with :attr:`ModelConfig.speed_output`
-"change" (parity) the speed is the change of the own speed ``v`` of ``motion``,
-``[max(v + o₀ s₀, 0), o₁ s₁]``.
-
 (The authors' RvS has a Gaussian action head; ours predicts the mean only and
 is trained with the same MSE as all others.)
 
@@ -187,31 +183,8 @@ def _with_num(parts: list, num: Any, xp: Any) -> Any:
         xp.concatenate(parts + ([] if num is None else [num]), axis=-1)
 
 
-def _direct(params: dict, h: Any, enc: dict, cfg: ModelConfig, eng: Any) -> Any:
-    """The direct heads' controls from their last hidden layer ``h`` (``o = FC(2)(h)``).
-
-    "absolute": ``o · s``. "change": ``[max(v + o₀ s₀, 0), o₁ s₁]`` with ``v`` the current
-    speed ``enc["motion"][:, 0]``. The clip at 0 is in the head because nothing downstream
-    bounds the speed (the rollout moves the unicycle by the controls as given) and a
-    "change" head integrates its own output: a negative speed, once applied, would come
-    back as the next ``motion`` and the car would keep reversing, which the human never
-    does. It costs a gradient only on rows whose ``v + o₀ s₀`` is negative: where the label
-    is 0 (a car standing) the clipped output is already right; where it is positive (a car
-    moving off) the row teaches nothing until the other rows have raised ``o₀`` there.
-    """
-    out = dense(params["out"], h, eng.xp) * control_scale(eng)
-    if cfg.speed_output == "absolute":
-        return out
-    xp = eng.xp
-    speed = xp.maximum(enc["motion"][:, 0] + out[:, 0], 0.0)
-    return xp.stack([speed, out[:, 1]], axis=-1)
-
-
-def _with_motion(enc: dict, obs: dict, cfg: ModelConfig, eng: Any) -> dict:
-    """``enc`` and, for a "change" head, ``motion`` ``(B, 2)``: the speed it changes."""
-    if cfg.speed_output == "absolute":
-        return enc
-    return {**enc, "motion": eng.xp.asarray(obs["motion"])}
+def _direct(params: dict, h: Any, eng: Any) -> Any:
+    return dense(params["out"], h, eng.xp) * control_scale(eng)
 
 
 def dmp_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig, eng: Any) -> dict:
@@ -297,11 +270,10 @@ def dmp_step(logits: Any, enc: dict, cfg: ModelConfig, eng: Any) -> tuple[Any, d
     return dmp_head(logits, enc["lane_target"], enc["motion"], cfg, xp=eng.xp)
 
 
-def _lstm(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any
-          ) -> tuple[Any, dict, dict]:
+def _lstm(params: dict, enc: dict, state: dict, eng: Any) -> tuple[Any, dict, dict]:
     h, c = layers.lstm_cell(params["lstm"], (state["h"], state["c"]), enc["pre"], xp=eng.xp,
                             nn=eng.nn)
-    return _direct(params, h, enc, cfg, eng), {"h": h, "c": c}, {}
+    return _direct(params, h, eng), {"h": h, "c": c}, {}
 
 
 # --------------------------------------------------------------------------- cnn
@@ -313,12 +285,12 @@ def _cnn_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
 
 
 def _cnn_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig, eng: Any) -> dict:
-    return _with_motion({"pre": _with_num([flatten(f, eng.xp)], num, eng.xp)}, obs, cfg, eng)
+    return {"pre": _with_num([flatten(f, eng.xp)], num, eng.xp)}
 
 
 def _cnn_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
     h = activate(dense(params["fc1"], enc["pre"], eng.xp), cfg, eng)
-    return _direct(params, h, enc, cfg, eng), dict(state), {}
+    return _direct(params, h, eng), dict(state), {}
 
 
 # --------------------------------------------------------------------------- cnn_lstm
@@ -334,12 +306,11 @@ def _cnn_lstm_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> di
 def _cnn_lstm_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig,
                      eng: Any) -> dict:
     x = _with_num([flatten(f, eng.xp)], num, eng.xp)
-    return _with_motion({"pre": activate(dense(params["fc1"], x, eng.xp), cfg, eng)}, obs, cfg,
-                        eng)
+    return {"pre": activate(dense(params["fc1"], x, eng.xp), cfg, eng)}
 
 
 def _lstm_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
-    return _lstm(params, enc, state, cfg, eng)
+    return _lstm(params, enc, state, eng)
 
 
 # --------------------------------------------------------------------------- rvs_g
@@ -356,8 +327,7 @@ def _rvs_g_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig,
     reps = f.shape[0] // fg.shape[0]  # sequence(): one goal raster per window, for its L steps
     if reps > 1:
         fg = eng.xp.concatenate([fg] * reps, axis=0)
-    return _with_motion({"pre": _with_num([flatten(f, eng.xp), fg], num, eng.xp)}, obs, cfg,
-                        eng)
+    return {"pre": _with_num([flatten(f, eng.xp), fg], num, eng.xp)}
 
 
 # --------------------------------------------------------------------------- manc
@@ -426,14 +396,14 @@ def _vagn_only_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> d
 
 def _vagn_only_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig,
                       eng: Any) -> dict:
-    return _with_motion({"num": num}, obs, cfg, eng)
+    return {"num": num}
 
 
 def _vagn_only_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
     q = vagn_step(params, enc, state, eng)
     x = _with_num([q], enc["num"], eng.xp)
     h = activate(dense(params["fc1"], x, eng.xp), cfg, eng)
-    return _direct(params, h, enc, cfg, eng), {"q": q}, {"q": q}
+    return _direct(params, h, eng), {"q": q}, {"q": q}
 
 
 # --------------------------------------------------------------------------- dmp_only

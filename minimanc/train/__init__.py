@@ -34,9 +34,7 @@ Algorithm 1 of the paper, for every controller of :mod:`minimanc.models`::
 * **Subsets.** ``subset`` ∈ (0, 1] keeps the first ``⌈subset·S⌉`` scenes of
   a seeded permutation: the 25 % subset is inside the 50 % one, etc.
 * **Determinism.** Initial parameters come from ``default_rng(seed)``; epoch
-  ``e`` shuffles with ``default_rng([seed, e])``; the coins of
-  ``TrainConfig.motion_dropout`` come from ``default_rng([seed, step, 43])``
-  (:func:`~minimanc.train.batches.motion_dropout_rng`). A resumed run therefore
+  ``e`` shuffles with ``default_rng([seed, e])``. A resumed run therefore
   repeats an uninterrupted one exactly.
 * **Checkpoints.** With ``checkpoint_dir``, ``checkpoint.npz`` is written
   after every epoch through a temporary file in the same directory and

@@ -1,7 +1,6 @@
 """Chapter 8 — the samples of Algorithm 1: training subsets, the loss normalisation, each
 model's window length (its :class:`~minimanc.models.ModelSpec` names the
-:class:`~minimanc.train.TrainConfig` field), the windows of an epoch and their observations,
-and the dropout of the ``motion`` input (``TrainConfig.motion_dropout``)."""
+:class:`~minimanc.train.TrainConfig` field), the windows of an epoch and their observations."""
 
 from __future__ import annotations
 
@@ -14,14 +13,8 @@ from minimanc import inputs, models
 from minimanc.train.config import TrainConfig
 from minimanc.world.encodings import unpack
 
-__all__ = ["MOTION_DROPOUT_STREAM", "batches", "check_motion_dropout", "control_std",
-           "dataset_shape", "drop_motion", "initial_q", "make_batch", "motion_dropout_rng",
-           "subset_scenes", "unpack_batch", "window_len"]
-
-MOTION_DROPOUT_STREAM = 43
-"""Third word of the seed of :func:`motion_dropout_rng`: the run's other streams have 0 there
-(the shuffle's ``[seed, epoch]``, the subset's ``[seed, 7]``; NumPy pads a short seed with
-zeros) or 1 (q's ``[seed, epoch, 1]``), so the streams never meet."""
+__all__ = ["batches", "control_std", "dataset_shape", "initial_q", "make_batch", "subset_scenes",
+           "unpack_batch", "window_len"]
 
 
 def dataset_shape(ds: Any) -> tuple[int, int]:
@@ -145,59 +138,3 @@ def initial_q(name: str, b: int, cfg: models.ModelConfig, tc: TrainConfig,
         return None
     st = models.initial_state(name, b, cfg, xp=np, rng=rng, mode=tc.q_init, dtype=dtype)
     return np.asarray(st["q"])
-
-
-def check_motion_dropout(name: str, cfg: models.ModelConfig, tc: TrainConfig) -> None:
-    """Refuse ``tc.motion_dropout > 0`` for a model that does not read ``motion`` as a number.
-
-    Parameters
-    ----------
-    name : str
-        The model.
-    cfg : ModelConfig
-        Its configuration (``cfg.setting`` decides what it sees,
-        :func:`minimanc.inputs.visible`).
-    tc : TrainConfig
-        The training configuration.
-
-    Raises
-    ------
-    ValueError
-        If ``tc.motion_dropout > 0`` and the model is a DMP model (its ``motion`` is the
-        DMP's initial state, eqs. 10–11, not a number for a dense layer), does not see
-        ``motion`` in ``cfg.setting`` or has ``cfg.speed_output`` "change" (its head adds
-        its output to the speed of ``motion``).
-    """
-    p = tc.motion_dropout
-    if p == 0:
-        return
-    spec = models.spec(name)
-    if spec.dmp:
-        raise ValueError(f"motion_dropout={p} is for models that read motion as a number; "
-                         f"{name!r} reads it as its DMP's initial state (set motion_dropout=0)")
-    if "motion" not in inputs.visible(spec, cfg.setting):
-        raise ValueError(f"motion_dropout={p} needs a model that sees 'motion'; {name!r} does "
-                         f"not in setting={cfg.setting!r} (use 'parity' or motion_dropout=0)")
-    if cfg.speed_output == "change":
-        raise ValueError(f"motion_dropout={p} would zero the speed that {name!r} with "
-                         f"speed_output='change' changes (set motion_dropout=0 or "
-                         f"speed_output='absolute')")
-
-
-def motion_dropout_rng(seed: int, step: int) -> np.random.Generator:
-    """The coins of ``TrainConfig.motion_dropout`` for optimiser step ``step`` of a run (0-based,
-    counted over its epochs: the batches of the epochs before plus the batch's index in
-    its epoch): ``default_rng([seed, step, MOTION_DROPOUT_STREAM])``. A function of the seed,
-    the epoch and the batch, so a resumed run draws what an uninterrupted one does."""
-    return np.random.default_rng([int(seed), int(step), MOTION_DROPOUT_STREAM])
-
-
-def drop_motion(motion: np.ndarray, p: float, rng: np.random.Generator) -> np.ndarray:
-    """``motion`` ``(L, b, 2)`` with each of its ``b`` windows replaced by zeros with
-    probability ``p`` (``TrainConfig.motion_dropout``): one coin per window from ``rng``,
-    the same for every step of it; the dtype is kept."""
-    motion = np.asarray(motion)
-    if motion.ndim != 3:
-        raise ValueError(f"motion must have shape (L, b, 2), got {motion.shape}")
-    dropped = rng.random(motion.shape[1]) < p
-    return np.where(dropped[None, :, None], np.zeros((), motion.dtype), motion)

@@ -55,20 +55,6 @@ class TrainConfig:
     of :mod:`minimanc.train.perception`, for every image model alike; > 0 needs the targets
     of :func:`minimanc.train.fit`'s ``perception``). Its default 0 is Algorithm 1 alone:
     the loss becomes a default only once the closed loop measures that it helps.
-
-    ``motion_dropout`` is the probability ``p`` with which a training window's ``motion``
-    input (own speed and yaw rate, which the direct heads read as numbers in the "parity"
-    setting, :func:`minimanc.inputs.numeric_features`) is replaced by zeros: the model is
-    trained on ``z · motion`` with ``z ~ Bernoulli(1 − p)``, one coin per window, shared by
-    every step of it (an LSTM that saw the speed at one step of its window would carry it
-    on; for one-step windows a coin per sample), drawn by
-    :func:`minimanc.train.batches.motion_dropout_rng`. Never in evaluation or the closed
-    loop, where the model reads its motion. It guards against the inertia of a cloned
-    policy that reads its own speed (it learns to copy it), after PlanTF's dropout of the
-    ego's state (Cheng et al. 2023). ``p > 0`` is refused
-    (:func:`minimanc.train.batches.check_motion_dropout`) for the DMP models, whose
-    ``motion`` is the DMP's initial state (eqs. 10–11), and where the model does not see
-    ``motion``. The default 0 is Algorithm 1 alone.
     """
 
     epochs: int = 6
@@ -87,7 +73,6 @@ class TrainConfig:
     max_steps_per_epoch: int | None = None
     grad_clip: float | None = 5.0
     perception_weight: float = 0.0
-    motion_dropout: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("epochs", "batch_size", "seq_len", "dmp_seq_len", "q_seq_len"):
@@ -113,11 +98,6 @@ class TrainConfig:
                                        and w >= 0):
             raise ValueError(f"perception_weight must be a finite number >= 0, got "
                              f"perception_weight={w!r}")
-        p = self.motion_dropout
-        if isinstance(p, bool) or not (isinstance(p, int | float) and math.isfinite(p)
-                                       and 0 <= p < 1):
-            raise ValueError(f"motion_dropout must be a finite number in [0, 1), got "
-                             f"motion_dropout={p!r}")
 
 
 @dataclass

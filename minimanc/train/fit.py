@@ -18,13 +18,10 @@ from minimanc import inputs, models, optim
 from minimanc.engine import ENGINES, get_engine
 from minimanc.train.batches import (
     batches,
-    check_motion_dropout,
     control_std,
     dataset_shape,
-    drop_motion,
     initial_q,
     make_batch,
-    motion_dropout_rng,
     subset_scenes,
 )
 from minimanc.train.checkpoint import (
@@ -105,8 +102,7 @@ def check_fit_args(name: str, train_ds: Any, cfg: models.ModelConfig | None,
                    train_cfg: TrainConfig | None, val_ds: Any = None
                    ) -> tuple[str, models.ModelConfig, TrainConfig]:
     """``(name, cfg, train_cfg)`` of :func:`fit` checked against each other and the data
-    (defaults filled in; ``motion_dropout`` by :func:`check_motion_dropout`); a
-    ``ValueError`` naming the argument otherwise."""
+    (defaults filled in); a ``ValueError`` naming the argument otherwise."""
     name = models.check_name(name)
     dataset_shape(train_ds)
     cfg = cfg or models.ModelConfig()
@@ -116,7 +112,6 @@ def check_fit_args(name: str, train_ds: Any, cfg: models.ModelConfig | None,
     if not isinstance(tc, TrainConfig):
         raise ValueError(f"train_cfg must be a train.TrainConfig, got train_cfg={tc!r}")
     cfg = config_for_data(cfg, train_ds, "train_ds")
-    check_motion_dropout(name, cfg, tc)
     if val_ds is not None:
         config_for_data(cfg, val_ds, "val_ds")
     for label, data in (("train_ds", train_ds), ("val_ds", val_ds)):
@@ -295,14 +290,9 @@ def epoch_plan(st: RunState, train_ds: Any, epoch: int) -> list[tuple[np.ndarray
 
 def step_batch(st: RunState, train_ds: Any, s_idx: np.ndarray, t_idx: np.ndarray,
                q_rng: np.random.Generator) -> dict:
-    """The batch of step ``st.steps`` (0-based over the run): observations and controls,
-    ``motion`` dropped with ``motion_dropout`` (:func:`drop_motion`, coins from
-    :func:`motion_dropout_rng`), and Algorithm 1's q' (vAGN)."""
+    """The batch of one step: observations and controls, and Algorithm 1's q' (vAGN)."""
     dtype = DTYPES[st.tc.dtype]
     batch = make_batch(st.name, train_ds, s_idx, t_idx, st.cfg, dtype)
-    if st.tc.motion_dropout > 0:
-        batch["motion"] = drop_motion(batch["motion"], st.tc.motion_dropout,
-                                      motion_dropout_rng(st.tc.seed, st.steps))
     if st.perception is not None:
         batch["perception"] = st.perception["values"][s_idx, t_idx].astype(dtype)
         batch["perception_mask"] = st.perception["mask"][s_idx, t_idx].astype(dtype)

@@ -13,7 +13,7 @@ flag regressed, thresholded at ½, scored on every state) and the own speed (t �
 
 Run: ``SEEING_DATA=/path python research/seeing_the_leader/probe_models.py --work
 runs/end_to_end`` (after ``end_to_end.py``; each probe is cached as JSON under
-``--work/probes``); writes ``results/probe_models.md``.
+``--work/probes``); writes ``results/probe_models.md`` from every cached probe.
 """
 
 from __future__ import annotations
@@ -114,6 +114,15 @@ def run(model: str, form: str, seed: int, work: Path) -> list[dict]:
     return rows
 
 
+def cached(work: Path) -> list[dict]:
+    """Every cached probe under ``work/probes``, in the order of :data:`end_to_end.MODELS`
+    and :data:`end_to_end.FORMS`, then seed."""
+    rows = [r for p in (work / "probes").glob("*.json") for r in json.loads(p.read_text())]
+    forms = list(E.ORDER)
+    return sorted(rows, key=lambda r: (E.MODELS.index(r["model"]), forms.index(r["form"]),
+                                       r["seed"], r["what"]))
+
+
 def report(rows: list[dict]) -> str:
     keys = (("gap_rmse", "gap m (≤ 30 m)", 2), ("dv_rmse", "dv m/s (≤ 30 m)", 2),
             ("lead_accuracy", "leader in view %", 1), ("v_rmse", "own speed m/s", 2))
@@ -140,9 +149,11 @@ def main() -> None:
     ap.add_argument("--work", type=Path, default=L.DATA_DIR / "end_to_end")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    rows = [r for seed in args.seeds for m in args.models for f in args.forms
-            for r in run(m, f, seed, args.work)]
-    provenance.publish(report(rows), str(E.RESULTS / "probe_models.md"),
+    for seed in args.seeds:
+        for m in args.models:
+            for f in args.forms:
+                run(m, f, seed, args.work)
+    provenance.publish(report(cached(args.work)), str(E.RESULTS / "probe_models.md"),
                        time.perf_counter() - t0)
 
 
