@@ -316,9 +316,9 @@ for v0, gx, a, b in test_rng.uniform((0.0, 4.0, 0.5, 0.05), (20.0, 40.0, 20.0, 5
 #
 # * **flat pooling** (`pool="flat"`): the predicate layer reads the whole last feature map,
 #   flattened per sample in its stored (row, column, channel) order, instead of its
-#   spatial mean, so the predicates keep *where* a feature fires. The library builds no
-#   such model: the cell below gives one, `params_flat`, whose predicate weights have
-#   another shape;
+#   spatial mean, so the predicates keep *where* a feature fires. The library builds it as
+#   `ModelConfig(predicate_readout="flatten")` (`research/seeing_the_leader` drives it); the
+#   cell below gives one, `params_flat`, whose predicate weights have another shape;
 # * **linear predicates** (`cfg.predicate_activation == "linear"`): eq. 7 literally, the
 #   predicates are the logits themselves (no squashing).
 #
