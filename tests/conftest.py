@@ -44,3 +44,15 @@ def close_figures():
     pyplot = sys.modules.get("matplotlib.pyplot")
     if pyplot is not None:
         pyplot.close("all")
+
+
+@pytest.fixture(scope="module")
+def eng_np():
+    """The NumPy autodiff engine (:func:`minimanc.engine.get_engine`)."""
+    return get_engine("numpy")
+
+
+@pytest.fixture(scope="module")
+def eng_jax():
+    """The JAX engine."""
+    return get_engine("jax")

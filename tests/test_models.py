@@ -28,16 +28,6 @@ def _obs(rng, cfg=CFG, lead=(B,)):
     }
 
 
-@pytest.fixture(scope="module")
-def eng_np():
-    return engine("numpy")
-
-
-@pytest.fixture(scope="module")
-def eng_jax():
-    return engine("jax")
-
-
 @pytest.mark.parametrize("setting", inputs.SETTINGS)
 @pytest.mark.parametrize("name", models.names())
 def test_shapes(name, setting, eng_np):

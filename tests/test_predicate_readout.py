@@ -38,16 +38,6 @@ def _trained_like(params: dict, seed: int) -> dict:
                                      "b": np.asarray(params["predicates"]["b"])}}
 
 
-@pytest.fixture(scope="module")
-def eng_np():
-    return engine("numpy")
-
-
-@pytest.fixture(scope="module")
-def eng_jax():
-    return engine("jax")
-
-
 @pytest.mark.parametrize("name", EQ7_MODELS)
 def test_parameter_shapes(name):
     h, w = CFG.feature_shape
