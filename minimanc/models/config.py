@@ -10,11 +10,12 @@ import numpy as np
 
 from minimanc import dmp, inputs
 from minimanc.checks import check_int
+from minimanc.models.readout import check_readout
 from minimanc.world.lanes import TARGET_SPACING
 from minimanc.world.raster import RasterConfig
 
-__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "DEFAULT_INPUT_SHAPE", "PREDICATE_READOUTS",
-           "TARGET_SPACING", "ModelConfig", "gain_box_corners", "gain_logits", "lookahead_rule"]
+__all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "DEFAULT_INPUT_SHAPE", "TARGET_SPACING", "ModelConfig",
+           "gain_box_corners", "gain_logits", "lookahead_rule"]
 
 # TARGET_SPACING (the metres of route between the lane-target points the heads see,
 # obs["lane_target"] at 4 · (1 … K) m) is the world's, re-exported for the heads.
@@ -29,10 +30,6 @@ DEFAULT_GAINS: tuple[float, float, float, float] = (1.0, 0.45, 2.5, 1.15)
 DEFAULT_INPUT_SHAPE: tuple[int, int, int] = RasterConfig().input_shape
 """``(H, W, C)`` a model reads when :attr:`ModelConfig.input_shape` is unset and no data
 says otherwise: the default raster's (64 × 64 RGB)."""
-
-PREDICATE_READOUTS: tuple[str, ...] = ("gap", "flatten")
-"""What eq. 7's predicate layer reads of the features (:attr:`ModelConfig.predicate_readout`,
-:mod:`minimanc.models.readout`): their global average (the paper's form) or all of them."""
 
 
 def gain_logits(gains: Any) -> np.ndarray:
@@ -196,9 +193,7 @@ class ModelConfig:
         if self.predicate_activation not in ("sigmoid", "linear"):
             raise ValueError(f"predicate_activation must be 'sigmoid' or 'linear', got "
                              f"predicate_activation={self.predicate_activation!r}")
-        if self.predicate_readout not in PREDICATE_READOUTS:
-            raise ValueError(f"predicate_readout must be one of {PREDICATE_READOUTS}, got "
-                             f"predicate_readout={self.predicate_readout!r}")
+        check_readout(self.predicate_readout)
         if not (isinstance(self.gains_scale, int | float) and self.gains_scale > 0.0):
             raise ValueError(f"gains_scale must be > 0, got gains_scale={self.gains_scale!r}")
         if not self.vagn_scale > 0.0:

@@ -26,13 +26,17 @@ from typing import Any
 import numpy as np
 
 from minimanc import cam, layers
-from minimanc.models.config import PREDICATE_READOUTS
 
-__all__ = ["check_readout", "logit_maps", "predicate_logits", "readout_input"]
+__all__ = ["PREDICATE_READOUTS", "check_readout", "logit_maps", "predicate_logits",
+           "readout_input"]
+
+PREDICATE_READOUTS: tuple[str, ...] = ("gap", "flatten")
+"""What eq. 7's predicate layer reads of the features (:attr:`ModelConfig.predicate_readout`):
+their global average (the paper's form) or all of them."""
 
 
 def check_readout(readout: str) -> str:
-    """``readout`` if it is one of :data:`~minimanc.models.config.PREDICATE_READOUTS`.
+    """``readout`` if it is one of :data:`PREDICATE_READOUTS`.
 
     Parameters
     ----------
