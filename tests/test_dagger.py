@@ -139,6 +139,7 @@ def test_budget_too_small_for_the_rounds(teacher):
     (dict(beta=[0.5, 0.5, 0.5]), "starting with 1.0"),
     (dict(rounds=0), "rounds must be an integer >= 1"),
     (dict(engine="torch"), "engine must be one of"),
+    (dict(round_cfg={"epochs": 1}), "round_cfg must be a minimanc.train.TrainConfig"),
 ])
 def test_dagger_refuses_bad_input(teacher, kw, match):
     args = dict(name="manc", teacher=teacher, budget=240, rounds=2, engine="numpy",
@@ -331,6 +332,38 @@ def test_resume_after_a_kill_during_training_reuses_the_collected_scenes(
     res = dagger.dagger("cnn", teacher, dagger.Budget.fixed(40, 2, 1, 1), rounds=1, **kw)
     assert [r.loaded for r in res.rounds] == [True, False]
     assert res.rounds[1].kept == res.rounds[1].scenes and res.rounds[1].samples == 3 * 40
+
+
+@pytest.mark.parametrize("warm", [False, True])
+def test_rounds_start_fresh_or_continue_from_the_previous_round(teacher, split, tmp_path,
+                                                               monkeypatch, warm):
+    pool, _ = split
+    round_cfg = dataclasses.replace(TC, lr=1e-4) if warm else None
+    seen = []
+    real_fit = train.fit
+
+    def recording_fit(name, data, cfg, tc, **k):
+        seen.append((tc, None if k.get("params") is None else _leaves(k["params"])))
+        return real_fit(name, data, cfg, tc, **k)
+
+    monkeypatch.setattr(train, "fit", recording_fit)
+    res = dagger.dagger("cnn", teacher, dagger.Budget.fixed(40, 2, 1, 2), rounds=2,
+                        cfg=cfg_of(pool), train_cfg=TC, engine="numpy", progress=False,
+                        evaluate=False, out=tmp_path, round_cfg=round_cfg)
+    assert [tc for tc, _ in seen] == [TC, round_cfg or TC, round_cfg or TC]
+    assert seen[0][1] is None
+    for i in (1, 2):
+        if not warm:
+            assert seen[i][1] is None
+            continue
+        previous = _leaves(res.params_per_round[i - 1])
+        assert all(np.array_equal(a, b) for a, b in zip(seen[i][1], previous))
+    # the round folders belong to one way of training: the other is refused there
+    other = None if warm else dataclasses.replace(TC, lr=1e-4)
+    with pytest.raises(ValueError, match="another configuration"):
+        dagger.dagger("cnn", teacher, dagger.Budget.fixed(40, 2, 1, 2), rounds=2,
+                      cfg=cfg_of(pool), train_cfg=TC, engine="numpy", progress=False,
+                      evaluate=False, out=tmp_path, round_cfg=other)
 
 
 def _leaves(tree):

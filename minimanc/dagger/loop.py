@@ -143,9 +143,9 @@ def _budget_for(teacher: Teacher, budget: int | Budget, rounds: int) -> Budget:
 
 
 def _train(name: str, data: Dataset, cfg: Any, tc: Any, engine: Any, where: Path | None,
-           progress: bool) -> Any:
+           progress: bool, params: dict | None = None) -> Any:
     return train.fit(name, data, cfg, tc, engine=engine, checkpoint_dir=where,
-                     resume=where is not None, progress=progress)
+                     resume=where is not None, progress=progress, params=params)
 
 
 FINGERPRINT_FILE = "fingerprint.json"
@@ -180,7 +180,8 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
            beta: float | Sequence[float] = 0.5, cfg: Any = None, train_cfg: Any = None,
            engine: Any = "jax", out: str | os.PathLike | None = None, seed: int = 0,
            progress: bool = True, evaluate: bool = True,
-           on_round: Callable[[RoundResult], None] | None = None) -> DaggerResult:
+           on_round: Callable[[RoundResult], None] | None = None,
+           round_cfg: Any = None) -> DaggerResult:
     """DAgger for model ``name`` (any of :func:`minimanc.models.names`) with ``teacher``.
 
     ``budget`` the expert-labelled samples (an int for :func:`plan_budget` over
@@ -189,7 +190,11 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
     weights itself (``β_0`` must be 1); ``cfg`` / ``train_cfg`` the model's
     :class:`~minimanc.models.ModelConfig` (default: the pool's image size) and
     :class:`~minimanc.train.TrainConfig`, used for every round (each trains from the
-    same initialisation on the aggregate); ``engine`` "jax" or "numpy"; ``out`` the
+    same initialisation on the aggregate, as Ross et al. train a new policy per round);
+    ``round_cfg`` a :class:`~minimanc.train.TrainConfig` for rounds ``≥ 1`` that instead
+    continue from the previous round's parameters (a fresh Adam state) on the aggregate:
+    with one epoch per round the rounds together take about as many gradient steps as
+    behaviour cloning on the pool; ``engine`` "jax" or "numpy"; ``out`` the
     checkpoint folder (see the module docstring); ``seed`` the scene order and the
     mixture's coins (round ``i`` draws from ``default_rng([seed, i])``);
     ``evaluate`` runs :meth:`Teacher.evaluate` after each round; ``on_round`` is
@@ -208,11 +213,16 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
     pool = teacher.pool
     cfg = cfg or default_config(pool)
     tc = train_cfg or train.TrainConfig()
+    if round_cfg is not None and not isinstance(round_cfg, train.TrainConfig):
+        raise ValueError(f"round_cfg must be a minimanc.train.TrainConfig or None; got "
+                         f"round_cfg={round_cfg!r}")
     seed = check_int("seed", seed, 0)
     order = scene_order(len(pool), seed)
     # "motion": the aggregate records the applied controls (inputs.driven_controls)
     fp = {**_fingerprint(name, teacher, plan, betas[:1], cfg, tc, seed, eng_name),
           "motion": "driven"}
+    if round_cfg is not None:
+        fp["round_cfg"] = asdict(round_cfg)
     results: list[RoundResult] = []
     per_round: list[dict] = []
     parts: list[Dataset] = []
@@ -248,7 +258,9 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
             if loaded is not None:
                 r, params = loaded
             else:
-                fit = _train(name, data, cfg, tc, engine, where, progress)
+                warm = i > 0 and round_cfg is not None
+                fit = _train(name, data, cfg, round_cfg if warm else tc, engine, where,
+                             progress, params if warm else None)
                 params = fit.params
                 if col is None:  # data collected by a killed run: its stats are in its tags
                     kept = [] if new is None else [t["dagger"]["pool_scene"] for t in new.tags]

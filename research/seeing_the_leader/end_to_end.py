@@ -51,7 +51,7 @@ import math
 import os
 import re
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -88,6 +88,9 @@ class Form:
     train: tuple[tuple[str, Any], ...] = ()
     only: tuple[str, ...] = ()
     """The models the form applies to (empty: every model)."""
+    warm: int = 0
+    """Epochs of each DAgger round after the first, continuing from the previous round's
+    parameters (``dagger``'s ``round_cfg``); 0: every round trains from the start."""
 
 
 PARITY_TEXT = "own speed and lane target as numbers"
@@ -101,6 +104,12 @@ FORMS: dict[str, Form] = {
     "dagger_flat": Form("channels, λ = 0, eq. 7 over flatten(f), DAgger {rounds} rounds",
                         on_policy=True, model=(("predicate_readout", "flatten"),),
                         only=("manc",)),
+    "speed_dagger_warm": Form(f"channels, λ = 0, {PARITY_TEXT}, DAgger {{rounds}} rounds, "
+                              "each continuing 1 epoch", setting="parity", on_policy=True,
+                              warm=1),
+    "dagger_flat_warm": Form("channels, λ = 0, eq. 7 over flatten(f), DAgger {rounds} rounds, "
+                             "each continuing 1 epoch", on_policy=True,
+                             model=(("predicate_readout", "flatten"),), only=("manc",), warm=1),
     "rgb": Form("RGB (paper's form), λ = 0", raster="rgb"),
     "dagger_rgb": Form("RGB, λ = 0, DAgger {rounds} rounds", raster="rgb", on_policy=True),
 }
@@ -210,8 +219,9 @@ def fit_model(model: str, form: str, seed: int, weight: float, ds: world.Dataset
     tr = ds.subset(list(TRAIN))
     t0 = time.perf_counter()
     if FORMS[form].on_policy:
+        warm = replace(tc, epochs=FORMS[form].warm) if FORMS[form].warm else None
         return on_policy(model, model_config(form, tr), tc, tr,
-                         dagger_dir(model, form, seed, work)), time.perf_counter() - t0
+                         dagger_dir(model, form, seed, work), warm), time.perf_counter() - t0
     fit = train.fit(model, tr, model_config(form), tc, engine="jax", progress=False,
                     checkpoint_dir=checkpoint_dir(model, form, seed, lam, work),
                     resume=True, perception=targets(form, ds, work) if lam > 0 else None)
@@ -241,13 +251,16 @@ def checkpoint_of(model: str, form: str, seed: int, work: Path, weight: float = 
 
 
 def on_policy(model: str, cfg: models.ModelConfig, tc: train.TrainConfig,
-              pool: world.Dataset, out: Path) -> train.FitResult:
-    """DAgger on ``pool`` (every round checkpointed under ``out``: a rerun resumes), its
-    last policy as a fit."""
+              pool: world.Dataset, out: Path, warm: train.TrainConfig | None = None
+              ) -> train.FitResult:
+    """DAgger on ``pool`` (every round checkpointed under ``out``: a rerun resumes; rounds
+    after the first continue from the previous one with ``warm`` if given), its last
+    policy as a fit."""
     teacher = dagger.WorldTeacher(pool, agents="reactive")
     budget = dagger.plan_budget(len(pool) * pool.n_steps, pool.n_steps, ROUNDS)
     dagger.dagger(model, teacher, budget, rounds=ROUNDS, beta=0.5, cfg=cfg, train_cfg=tc,
-                  engine="jax", out=out, seed=tc.seed, progress=False, evaluate=False)
+                  engine="jax", out=out, seed=tc.seed, progress=False, evaluate=False,
+                  round_cfg=warm)
     return train.load_fit(dagger.round_dir(out, ROUNDS) / train.CHECKPOINT_NAME)
 
 
