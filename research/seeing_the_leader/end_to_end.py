@@ -56,6 +56,7 @@ from pathlib import Path
 from typing import Any
 
 import leader_data as L
+import manc_qp  # noqa: F401  (registers "manc_qp")
 import numpy as np
 import perception as PC
 
@@ -69,10 +70,11 @@ DRIVE = RESULTS / "drive.md"
 TRAIN = L.TRAIN_LARGE
 VALIDATE = L.VALIDATE
 N_SCENES = VALIDATE.stop
-MODELS = ("cnn", "cnn_lstm", "rvs_g", "manc")
-"""Table I's learned controllers."""
-LEARNING_RATES = {"cnn": 1e-3, "cnn_lstm": 3e-4, "rvs_g": 3e-4, "manc": 3e-4}
-"""The learning rate the paper preset's tuning chose per model (setting ``paper``)."""
+MODELS = ("cnn", "cnn_lstm", "rvs_g", "manc", "manc_qp")
+"""Table I's learned controllers, and MANC whose gains read q ⊕ p (:mod:`manc_qp`)."""
+LEARNING_RATES = {"cnn": 1e-3, "cnn_lstm": 3e-4, "rvs_g": 3e-4, "manc": 3e-4, "manc_qp": 3e-4}
+"""The learning rate the paper preset's tuning chose per model (setting ``paper``; MANC's for
+``manc_qp``)."""
 @dataclass(frozen=True)
 class Form:
     """How a model is trained: its raster, λ, setting, on-policy or not, and the fields of
@@ -109,7 +111,8 @@ FORMS: dict[str, Form] = {
                               warm=1),
     "dagger_flat_warm": Form("channels, λ = 0, eq. 7 over flatten(f), DAgger {rounds} rounds, "
                              "each continuing 1 epoch", on_policy=True,
-                             model=(("predicate_readout", "flatten"),), only=("manc",), warm=1),
+                             model=(("predicate_readout", "flatten"),), only=("manc", "manc_qp"),
+                             warm=1),
     "rgb": Form("RGB (paper's form), λ = 0", raster="rgb"),
     "dagger_rgb": Form("RGB, λ = 0, DAgger {rounds} rounds", raster="rgb", on_policy=True),
 }
