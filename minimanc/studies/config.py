@@ -13,6 +13,7 @@ import numpy as np
 
 from minimanc import inputs, models, train, world
 from minimanc.checks import check_int
+from minimanc.models.readout import check_readout
 
 TABLE_MODELS: tuple[str, ...] = ("cnn", "cnn_lstm", "rvs_g", "manc")
 """The learned comparison cases of Table I, in the paper's order."""
@@ -44,6 +45,18 @@ class StudyConfig:
     (:func:`minimanc.studies.recorded.data_config`): ``data_file`` (its path),
     ``data_hash`` (its content hash) and ``data_source`` (``"world"``: generated,
     ``"nuscenes"``: recorded); all ``""`` when the study generates its data.
+
+    On-policy training: ``dagger_rounds`` ≥ 1 trains every run except the learning-rate
+    sweep's by DAgger (:func:`minimanc.dagger.dagger`) with the world's expert
+    (:class:`minimanc.dagger.WorldTeacher`, reactive ados) on the run's training scenes,
+    ``dagger_rounds`` rounds after the demonstrations (β_i = 0.5^i), at the labelled states
+    behaviour cloning would use; round 0 trains ``training.epochs``, every later round
+    continues from the previous one for ``round_epochs`` epochs (so the rounds together
+    take about behaviour cloning's gradient steps). ``0`` (default): behaviour cloning
+    (Algorithm 1). The sweeps stay behaviour cloning; the auxiliary perception loss cannot
+    be used on-policy (the collected states have no perception targets).
+    ``predicate_readout``: what eq. 7's predicate layer of every run reads
+    (:attr:`minimanc.models.ModelConfig.predicate_readout`; default ``"gap"``, the paper's).
     """
 
     preset: str = "custom"
@@ -66,6 +79,9 @@ class StudyConfig:
     data_file: str = ""
     data_hash: str = ""
     data_source: str = ""
+    dagger_rounds: int = 0
+    round_epochs: int = 1
+    predicate_readout: str = "gap"
 
     def __post_init__(self) -> None:
         if not isinstance(self.training, train.TrainConfig):
@@ -99,6 +115,31 @@ class StudyConfig:
                 if mdl not in models.names():
                     raise ValueError(f"{group} must hold names from {models.names()}; "
                                      f"got {mdl!r}")
+        check_readout(self.predicate_readout)
+        self._check_on_policy()
+
+    def _check_on_policy(self) -> None:
+        """``dagger_rounds`` and ``round_epochs`` valid, and usable with the rest."""
+        rounds = check_int("dagger_rounds", self.dagger_rounds, 0)
+        check_int("round_epochs", self.round_epochs, 1)
+        if rounds == 0:
+            return
+        if self.training.perception_weight > 0:
+            raise ValueError("on-policy training (dagger_rounds > 0) cannot use the auxiliary "
+                             "perception loss: the states DAgger collects have no perception "
+                             f"targets; got dagger_rounds={rounds} with training."
+                             f"perception_weight={self.training.perception_weight!r}")
+        fractions = (1.0, *self.fractions) if self.sample_models else (1.0,)
+        fewest = len(train.subset_scenes(self.n_train, min(fractions), 0))
+        if fewest < rounds + 1:
+            raise ValueError(f"dagger_rounds={rounds} needs at least {rounds + 1} training "
+                             f"scenes in every run; the smallest (n_train={self.n_train} at "
+                             f"data fraction {min(fractions):g}) has {fewest}")
+
+    @property
+    def on_policy(self) -> bool:
+        """Whether the study's runs (but the sweeps') train by DAgger (``dagger_rounds`` > 0)."""
+        return self.dagger_rounds > 0
 
     def train_config(self, model: str, lr: float, seed: int, fraction: float
                      ) -> train.TrainConfig:
@@ -111,7 +152,9 @@ class StudyConfig:
         """Hash of everything that changes data or training (not ``n_seeds`` or the figures).
 
         A given data file enters by its content hash and source (not its path); without
-        one the hash is that of the configuration before the option. Holds every field of
+        one the hash is that of the configuration before the option, and so is it with
+        behaviour cloning (``dagger_rounds`` 0: neither it nor ``round_epochs`` enters) and
+        the paper's read-out (``predicate_readout`` ``"gap"``). Holds every field of
         :attr:`training` and the library's defaults of :class:`minimanc.models.ModelConfig`,
         so that a cache written by a version that trained differently is never reused.
         """
@@ -121,6 +164,11 @@ class StudyConfig:
         for k in ("data_hash", "data_source"):
             if not d[k]:
                 d.pop(k)
+        if not self.on_policy:
+            d.pop("dagger_rounds")
+            d.pop("round_epochs")
+        if self.predicate_readout == "gap":
+            d.pop("predicate_readout")
         d["model_defaults"] = models.ModelConfig().to_dict()
         d["default_gains"] = list(models.DEFAULT_GAINS)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
@@ -187,16 +235,31 @@ def perception_text(weight: float) -> str:
     return f"with the auxiliary perception loss (λ = {weight:g})" if weight > 0 else ""
 
 
+def dagger_text(rounds: int, round_epochs: int) -> str:
+    """How a study's runs were trained when not by behaviour cloning alone, in words:
+    DAgger's ``rounds`` and the ``round_epochs`` of each round after the first
+    (:attr:`StudyConfig.dagger_rounds`) when ``rounds`` > 0, else ``""``."""
+    if rounds <= 0:
+        return ""
+    def count(n: int, word: str) -> str:
+        return f"{n} {word}{'s' if n != 1 else ''}"
+
+    return (f"trained on-policy: DAgger with the world's expert, {count(rounds, 'round')}, "
+            f"each after the first continuing {count(round_epochs, 'epoch')} (the "
+            "learning-rate sweep by behaviour cloning)")
+
+
 def presets_table() -> str:
     """:data:`PRESETS` as a Markdown table (``docs/reproduce.md`` shows it): per preset its
     scenes, raster (:func:`raster_text`), epochs (and λ of the auxiliary perception loss
-    when it is on), learning rates, seeds and the q-states and data fractions of the
-    studies."""
+    when it is on, DAgger's rounds when the runs train on-policy: :func:`dagger_text`),
+    learning rates, seeds and the q-states and data fractions of the studies."""
     lines = ["| preset | train / tune / validation scenes | BEV raster | epochs | learning rates "
              "| seeds | q-states | data fractions |", "|---|---|---|---|---|---|---|---|"]
     for name, c in PRESETS.items():
         epochs = " ".join(filter(None, (str(c.training.epochs),
                                         perception_text(c.training.perception_weight))))
+        epochs = "; ".join(filter(None, (epochs, dagger_text(c.dagger_rounds, c.round_epochs))))
         lines.append(f"| `{name}` | {c.n_train} / {c.n_tune} / {c.n_val} | "
                      f"{raster_text(c.raster)} | {epochs} | "
                      f"{', '.join(f'{x:g}' for x in c.lrs)} | "
@@ -208,7 +271,9 @@ def presets_table() -> str:
 @dataclass(frozen=True)
 class Run:
     """One trained model: ``model``, information ``setting``, ``n_states``, data
-    ``fraction``, training ``seed`` and learning rate ``lr``."""
+    ``fraction``, training ``seed`` and learning rate ``lr``; ``on_policy``: trained by
+    DAgger (:attr:`StudyConfig.dagger_rounds`) rather than behaviour cloning, a run of its
+    own (its :attr:`key` ends in ``-dagger``) beside the sweep's run of the same numbers."""
 
     model: str
     setting: str
@@ -216,11 +281,12 @@ class Run:
     fraction: float
     seed: int
     lr: float
+    on_policy: bool = False
 
     @property
     def key(self) -> str:
         return (f"{self.model}-{self.setting}-q{self.n_states}-f{round(100 * self.fraction)}"
-                f"-lr{self.lr:g}-s{self.seed}")
+                f"-lr{self.lr:g}-s{self.seed}" + ("-dagger" if self.on_policy else ""))
 
 
 def canonical_setting(model: str, setting: str) -> str:
@@ -235,8 +301,10 @@ def plan(c: StudyConfig, agents: int = 2) -> dict:
     """What a study of ``c`` computes: ``{"train": Counter((model, fraction) → number of
     trainings), "rollouts": {"tune": n, "val": n}}`` (closed-loop evaluations). A sweep run
     at seed 0 and full data that wins its sweep is the Table I run of seed 0: it is
-    counted once. Table I's runs are driven once more per protocol of the ados beyond the
-    first (``agents`` protocols in all)."""
+    counted once (not when the runs train on-policy, :attr:`StudyConfig.on_policy`: the
+    sweeps are behaviour cloning, so that run trains again by DAgger). Table I's runs are
+    driven once more per protocol of the ados beyond the first (``agents`` protocols in
+    all)."""
     pairs = [(m, s) for s in c.settings for m in c.table_models]
     pairs += [(m, "paper") for m in c.ablation_models + c.sample_models]
     sweep = {(m, canonical_setting(m, s), c.n_states, 1.0, 0, lr)
@@ -258,7 +326,7 @@ def plan(c: StudyConfig, agents: int = 2) -> dict:
         add(m, "paper", c.n_states, 1.0)
     tuned = {(r[0], r[1]) for r in sweep}
     shared = {r for r in main if r[4] == 0 and r[3] == 1.0 and r[2] == c.n_states
-              and (r[0], r[1]) in tuned}
+              and (r[0], r[1]) in tuned and not c.on_policy}
     trains = Counter((r[0], r[3]) for r in (main - shared) | sweep)
     table = {(m, canonical_setting(m, s), sd) for s in c.settings for m in c.table_models
              for sd in c.seeds}

@@ -25,23 +25,26 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import shutil
 import threading
 import warnings
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from minimanc import train, world
+from minimanc import dagger, train, world
 from minimanc.checks import check_int
 from minimanc.errors import UsageError
 from minimanc.studies.cache import load_targets
 from minimanc.studies.jobs import enable_jax_cache, evaluate_job, failed
 from minimanc.studies.provenance import write_json
+from minimanc.world.datawriter import temp_prefix
 
 __all__ = ["EXECUTORS", "RAY_MISSING", "Done", "LocalExecutor", "RayExecutor", "RayFuture",
            "check_ray", "evaluate_trained", "executor", "is_future", "load_scenes", "train_job",
-           "train_runs", "usable_cpus"]
+           "train_on_policy", "train_runs", "usable_cpus"]
 
 EXECUTORS = ("local", "ray")
 """The executors :func:`executor` builds."""
@@ -275,26 +278,33 @@ def train_runs(ds: Any, job: dict) -> list[str]:
     ``"progress"`` and ``"perception"``, the file of the perception targets of ``ds``
     (:func:`minimanc.studies.cache.save_targets`; with ``perception_weight`` > 0): then
     each run trains on its own with the auxiliary loss (:func:`minimanc.train.fit`'s
-    ``perception``; :func:`~minimanc.train.fit_many` trains without it); for
-    :func:`train_job` also ``"data", "lo", "hi"``.
+    ``perception``; :func:`~minimanc.train.fit_many` trains without it); or
+    ``"dagger_rounds"`` (≥ 1), ``"round_epochs"`` and ``"beta"``: each run trains on its
+    own on-policy (:func:`train_on_policy`; its checkpoint, written last, marks it done);
+    for :func:`train_job` also ``"data", "lo", "hi"``.
     """
     if job["engine"] == "jax" and job.get("jax_cache"):
         enable_jax_cache(job["jax_cache"])
     paths = [Path(p) for p in job["checkpoints"]]
+    on_policy = job.get("dagger_rounds", 0) > 0
     todo = []
     for k, (path, tc) in enumerate(zip(paths, job["train_cfgs"])):
         if (path.parent / "diverged.json").exists():
             continue
         if path.exists():
             try:
-                if train.load_checkpoint(path)["epoch"] >= tc.epochs:
+                epoch = train.load_checkpoint(path)["epoch"]
+                if on_policy or epoch >= tc.epochs:  # on-policy: written when done
                     continue
             except train.CheckpointError:
                 path.unlink(missing_ok=True)  # derived data: train it again
         todo.append(k)
     if todo:
         tcs, dirs = [job["train_cfgs"][k] for k in todo], [paths[k].parent for k in todo]
-        if job.get("perception"):
+        if on_policy:
+            out = [_result_or_diverged(train_on_policy, ds, job, tc, paths[k])
+                   for k, tc in zip(todo, tcs)]
+        elif job.get("perception"):
             targets = load_targets(job["perception"])
             out = [_fit_or_diverged(ds, job, tc, d, targets) for tc, d in zip(tcs, dirs)]
         else:
@@ -305,6 +315,64 @@ def train_runs(ds: Any, job: dict) -> list[str]:
             if isinstance(res, train.TrainingDiverged):
                 write_json(paths[k].parent / "diverged.json", {"error": str(res)})
     return [str(p) for p in paths]
+
+
+def train_on_policy(ds: Any, job: dict, tc: train.TrainConfig, checkpoint: Path) -> Path:
+    """Train one run of ``job`` on-policy: DAgger (:func:`minimanc.dagger.dagger`) with the
+    world's expert among reactive ados (:class:`minimanc.dagger.WorldTeacher`), the last
+    round's checkpoint copied to ``checkpoint`` (atomically: the file marks the run done).
+
+    Parameters
+    ----------
+    ds : minimanc.world.Dataset
+        The study's training split. The pool is the scenes :func:`minimanc.train.fit`
+        would train on (``tc.subset`` of them, :func:`minimanc.train.subset_scenes`).
+    job : dict
+        ``"model"``, ``"cfg"`` (the :class:`~minimanc.models.ModelConfig`), ``"engine"``,
+        ``"dagger_rounds"`` (rounds after the demonstrations), ``"round_epochs"`` (the
+        epochs of each later round, continuing from the previous one), ``"beta"`` (``p``
+        of ``β_i = p^i``) and optionally ``"progress"``.
+    tc : minimanc.train.TrainConfig
+        The run's: round 0 trains with it on its demonstrations (every scene it is given:
+        ``subset`` 1), its ``seed`` is also DAgger's (scene order, mixture coins).
+    checkpoint : Path
+        The run's checkpoint; DAgger's rounds live in ``<its folder>/dagger/round_<i>``,
+        so a killed run resumes after its last finished round.
+
+    Returns
+    -------
+    Path
+        ``checkpoint``.
+
+    Raises
+    ------
+    minimanc.train.TrainingDiverged
+        When a round's training diverges.
+    """
+    rounds = check_int("dagger_rounds", job["dagger_rounds"], 1)
+    pool = ds.subset(train.subset_scenes(len(ds), tc.subset, tc.seed))
+    tc = replace(tc, subset=1.0)
+    cfg = train.config_for_data(job["cfg"], pool, "pool")
+    teacher = dagger.WorldTeacher(pool, agents="reactive")
+    budget = dagger.plan_budget(len(pool) * pool.n_steps, pool.n_steps, rounds)
+    out = Path(checkpoint).parent / "dagger"
+    dagger.dagger(job["model"], teacher, budget, rounds=rounds,
+                  beta=job["beta"], cfg=cfg, train_cfg=tc, engine=job["engine"], out=out,
+                  seed=tc.seed, progress=job.get("progress", False), evaluate=False,
+                  round_cfg=replace(tc, epochs=check_int("round_epochs", job["round_epochs"],
+                                                         1)))
+    tmp = Path(checkpoint).with_name(temp_prefix(checkpoint) + "tmp")
+    shutil.copyfile(dagger.round_dir(out, rounds) / train.CHECKPOINT_NAME, tmp)
+    os.replace(tmp, checkpoint)
+    return Path(checkpoint)
+
+
+def _result_or_diverged(fn: Callable, *args: Any) -> Any:
+    """``fn(*args)``, or the :class:`~minimanc.train.TrainingDiverged` it raised."""
+    try:
+        return fn(*args)
+    except train.TrainingDiverged as exc:
+        return exc
 
 
 def _fit_or_diverged(ds: Any, job: dict, tc: train.TrainConfig, directory: Path,

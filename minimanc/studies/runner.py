@@ -157,11 +157,13 @@ class Study:
 
     def runs(self, model: str, setting: str = "paper", n_states: int | None = None,
              fraction: float = 1.0) -> list[Run]:
-        """One :class:`Run` per seed, at ``model``'s tuned learning rate."""
+        """One :class:`Run` per seed, at ``model``'s tuned learning rate (on-policy when the
+        study trains so, :attr:`StudyConfig.on_policy`)."""
         setting = canonical_setting(model, setting)
         n = self.config.n_states if n_states is None else int(n_states)
         lr = self.sweeps.lr(model, setting)
-        return [Run(model, setting, n, float(fraction), s, lr) for s in self.config.seeds]
+        return [Run(model, setting, n, float(fraction), s, lr, self.config.on_policy)
+                for s in self.config.seeds]
 
     def table1(self) -> dict:
         """``{agents: {setting: {model: aggregate}}}`` (Table I under each protocol), with
@@ -291,7 +293,8 @@ class Study:
         out = {}
         for s in c.settings:
             cfg = models.ModelConfig(n_states=c.n_states, setting=s,
-                                     input_shape=c.raster.input_shape)
+                                     input_shape=c.raster.input_shape,
+                                     predicate_readout=c.predicate_readout)
             out[s] = models.param_counts(cfg)
         return out
 
@@ -382,4 +385,5 @@ class Study:
     def explain_run(self) -> Run:
         """The run whose rollouts the explainability figures show: MANC, paper, seed 0."""
         c = self.config
-        return Run("manc", "paper", c.n_states, 1.0, 0, self.sweeps.lr("manc", "paper"))
+        return Run("manc", "paper", c.n_states, 1.0, 0, self.sweeps.lr("manc", "paper"),
+                   c.on_policy)

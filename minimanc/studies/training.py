@@ -2,7 +2,9 @@
 :class:`~minimanc.studies.config.Run` once (or reuses its checkpoint in the
 :class:`~minimanc.studies.cache.StudyFiles`), inline or as a job of the
 :class:`~minimanc.studies.submission.Submitter`; optionally the seeds (and a sweep's
-learning rates) of one configuration train together (:func:`minimanc.train.fit_many`)."""
+learning rates) of one configuration train together (:func:`minimanc.train.fit_many`).
+An on-policy run (:attr:`~minimanc.studies.config.Run.on_policy`) trains on its own by
+DAgger (:func:`minimanc.studies.executors.train_on_policy`)."""
 
 from __future__ import annotations
 
@@ -15,9 +17,19 @@ from minimanc import models, train
 from minimanc.studies.cache import StudyFiles
 from minimanc.studies.config import Run
 from minimanc.studies.executors import Done, train_job, train_runs
+from minimanc.studies.recorded import is_recorded
 from minimanc.studies.submission import Submitter
 
-__all__ = ["Trainings"]
+__all__ = ["DAGGER_BETA", "DAGGER_REFUSAL", "Trainings"]
+
+DAGGER_BETA: float = 0.5
+"""``p`` of DAgger's mixing schedule ``β_i = p^i`` (:func:`minimanc.dagger.beta_schedule`)
+for a study's on-policy runs."""
+
+DAGGER_REFUSAL: str = (
+    "on-policy training (dagger_rounds > 0) is not available on recorded data: DAgger asks "
+    "the world's driver in the states the policy visits, and a recorded scene has none")
+"""Why a study on recorded data trains by behaviour cloning only (one line)."""
 
 
 class Trainings:
@@ -25,11 +37,14 @@ class Trainings:
     jobs run), ``engine``; ``seeds_together`` trains the runs of one configuration in one
     vmapped step (:func:`minimanc.train.fit_many`); ``log`` gets one line per event,
     ``timing`` the seconds of inline trainings (``"train"``); ``bar``, when set, a tqdm bar
-    advanced by each finished training."""
+    advanced by each finished training. A study on recorded data with
+    ``dagger_rounds`` > 0 is refused (:data:`DAGGER_REFUSAL`)."""
 
     def __init__(self, files: StudyFiles, submitter: Submitter, engine: str,
                  seeds_together: bool, log: Callable[[str], None], progress: bool = True,
                  timing: dict[str, float] | None = None) -> None:
+        if files.config.on_policy and is_recorded(files.config):
+            raise ValueError(DAGGER_REFUSAL)
         self.files = files
         self.config = files.config
         self.submitter = submitter
@@ -42,9 +57,11 @@ class Trainings:
         self._started: dict[str, tuple[Any, int]] = {}
 
     def model_config(self, run: Run) -> models.ModelConfig:
-        """The run's :class:`~minimanc.models.ModelConfig` (its q-states and setting; the
-        input shape is the data's, filled in by :func:`minimanc.train.fit`)."""
-        return models.ModelConfig(n_states=run.n_states, setting=run.setting)
+        """The run's :class:`~minimanc.models.ModelConfig` (its q-states and setting, the
+        study's ``predicate_readout``; the input shape is the data's, filled in by
+        :func:`minimanc.train.fit`)."""
+        return models.ModelConfig(n_states=run.n_states, setting=run.setting,
+                                  predicate_readout=self.config.predicate_readout)
 
     def train_config(self, run: Run) -> train.TrainConfig:
         """The run's :class:`~minimanc.train.TrainConfig` (:meth:`StudyConfig.train_config`)."""
@@ -59,20 +76,23 @@ class Trainings:
     def start(self, runs: Sequence[Run]) -> dict[str, tuple[Any, int]]:
         """Start training ``runs``: those of one configuration (model, setting, q-states,
         fraction) that are not trained yet train together (one job per configuration, or
-        per run without ``seeds_together``). With ``perception_weight`` > 0 the job names the
-        file of the training split's perception targets (:meth:`StudyFiles.perception_targets`,
-        computed here once). Returns ``{run.key: (future, index)}``: the job's
-        ``result()[index]`` is the run's checkpoint path."""
+        per run without ``seeds_together``; an on-policy run always alone, its job holding
+        DAgger's ``dagger_rounds``, ``round_epochs`` and ``beta``). With
+        ``perception_weight`` > 0 the job names the file of the training split's perception
+        targets (:meth:`StudyFiles.perception_targets`, computed here once). Returns
+        ``{run.key: (future, index)}``: the job's ``result()[index]`` is the run's
+        checkpoint path."""
         files = self.files
         groups: dict[tuple, list[Run]] = {}
         for r in runs:
             if r.key in self._started:
                 continue
-            if files.complete(r):
+            if self.complete(r):
                 self._started[r.key] = (Done([str(files.checkpoint(r))]), 0)
                 continue
             g = (r.model, r.setting, r.n_states, r.fraction)
-            groups.setdefault(g if self.seeds_together else (r.key,), []).append(r)
+            alone = r.on_policy or not self.seeds_together
+            groups.setdefault((r.key,) if alone else g, []).append(r)
         train_ds = files.datasets()[0] if groups else None
         perception = ""
         if groups and self.config.training.perception_weight > 0:
@@ -85,6 +105,9 @@ class Trainings:
                    "checkpoints": [str(files.checkpoint(r)) for r in group],
                    "engine": self.engine, "jax_cache": str(files.jax_dir),
                    "perception": perception}
+            if first.on_policy:
+                job.update(dagger_rounds=self.config.dagger_rounds,
+                           round_epochs=self.config.round_epochs, beta=DAGGER_BETA)
             keys = ", ".join(r.key for r in group)
             if self.submitter.pooled:
                 fut = self.submitter.submit(train_job, job)
@@ -103,6 +126,25 @@ class Trainings:
             n_runs = len(group)
             fut.add_done_callback(lambda _, n=n_runs: self._tick(n))
         return {r.key: self._started[r.key] for r in runs}
+
+    def complete(self, run: Run) -> bool:
+        """Whether ``run`` is trained (or diverged): :meth:`StudyFiles.complete`, or for an
+        on-policy run its checkpoint, which is written once DAgger's last round is done (a
+        broken one is discarded: trained again, its finished rounds reused)."""
+        files = self.files
+        if not run.on_policy:
+            return files.complete(run)
+        path = files.checkpoint(run)
+        if files.diverged(run):
+            return True
+        if not path.exists():
+            return False
+        try:
+            train.load_checkpoint(path)
+        except train.CheckpointError as exc:
+            files.discard(path, str(exc))
+            return False
+        return True
 
     def _tick(self, n: int) -> None:
         """``n`` trainings finished: advance their progress bar."""
