@@ -70,9 +70,11 @@ DRIVE = RESULTS / "drive.md"
 TRAIN = L.TRAIN_LARGE
 VALIDATE = L.VALIDATE
 N_SCENES = VALIDATE.stop
-MODELS = ("cnn", "cnn_lstm", "rvs_g", "manc", "manc_qp")
-"""Table I's learned controllers, and MANC whose gains read q ⊕ p (:mod:`manc_qp`)."""
-LEARNING_RATES = {"cnn": 1e-3, "cnn_lstm": 3e-4, "rvs_g": 3e-4, "manc": 3e-4, "manc_qp": 3e-4}
+MODELS = ("cnn", "cnn_lstm", "rvs_g", "manc", "manc_qp", "dmp_only")
+"""Table I's learned controllers, MANC whose gains read q ⊕ p (:mod:`manc_qp`) and the
+self-ablation without vAGN (``dmp_only``: the CNN's features straight to the gains)."""
+LEARNING_RATES = {"cnn": 1e-3, "cnn_lstm": 3e-4, "rvs_g": 3e-4, "manc": 3e-4, "manc_qp": 3e-4,
+                  "dmp_only": 1e-3}
 """The learning rate the paper preset's tuning chose per model (setting ``paper``; MANC's for
 ``manc_qp``)."""
 @dataclass(frozen=True)
@@ -106,6 +108,8 @@ FORMS: dict[str, Form] = {
     "dagger_flat": Form("channels, λ = 0, eq. 7 over flatten(f), DAgger {rounds} rounds",
                         on_policy=True, model=(("predicate_readout", "flatten"),),
                         only=("manc",)),
+    "dagger_warm": Form("channels, λ = 0, DAgger {rounds} rounds, each continuing 1 epoch",
+                        on_policy=True, warm=1),
     "speed_dagger_warm": Form(f"channels, λ = 0, {PARITY_TEXT}, DAgger {{rounds}} rounds, "
                               "each continuing 1 epoch", setting="parity", on_policy=True,
                               warm=1),
