@@ -13,6 +13,7 @@ from minimanc.checks import check_int
 from minimanc.cli.common import add_engine_option, check_option, check_out_dir
 from minimanc.errors import UsageError
 from minimanc.studies import PRESETS, raster_text, reproduce, table_markdown
+from minimanc.studies.config import FORMS, form_of, with_form
 from minimanc.studies.executors import EXECUTORS
 from minimanc.studies.recorded import REACTIVE_REFUSAL, data_config, is_recorded
 from minimanc.studies.reproduction import with_data_notes
@@ -28,6 +29,10 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     matplotlib.use("Agg")
     preset = args.preset or ("quick" if args.quick else "full")
     config = PRESETS[preset]
+    named = preset
+    if args.form is not None and args.form != form_of(config):
+        config = with_form(config, args.form)
+        named = f"{preset}-{args.form}"
     if args.seeds is not None:
         config = replace(config, n_seeds=check_option(check_int, "--seeds", args.seeds, 1))
     training = {field: check_option(check_int, option, value, 1) for field, value, option in (
@@ -40,13 +45,16 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     if args.ray_address is not None and args.executor != "ray":
         raise UsageError(f"--ray-address is for --executor ray; got --executor {args.executor}")
     agents = ("replay", "reactive") if args.agents == "both" else (args.agents,)
-    default_out = Path("minimanc_results") / preset
+    default_out = Path("minimanc_results") / named
     if args.data is not None:
         try:
             config = data_config(config, args.data)
         except (DatasetFileError, OSError, ValueError) as e:  # not readable, not fitting
             raise UsageError(f"--data {e}") from e
-        default_out = Path("minimanc_results") / f"{preset}-{Path(args.data).stem}"
+        default_out = Path("minimanc_results") / f"{named}-{Path(args.data).stem}"
+        if is_recorded(config) and config.dagger_rounds > 0:
+            raise UsageError(f"--form {args.form or form_of(config)} trains on-policy with the "
+                             "world's expert; recorded data (--data) has none: use --form paper")
         if is_recorded(config):
             if args.dagger:
                 raise UsageError("--dagger needs the world's expert in states the log never "
@@ -57,7 +65,8 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     out = check_out_dir(Path(args.out) if args.out else default_out)
     progress = not args.no_progress
     t0 = time.perf_counter()
-    print(f"minimanc reproduce: preset {preset}, engine {args.engine}, {config.n_seeds} "
+    print(f"minimanc reproduce: preset {preset}, form {form_of(config) or 'custom'}, "
+          f"engine {args.engine}, {config.n_seeds} "
           f"seed(s), agents {' and '.join(agents)}, output {out}")
     if config.data_file:
         print(f"data {config.data_file} ({config.data_source}): {config.n_train} training, "
@@ -98,6 +107,11 @@ def register(subparsers: Any) -> None:
                    help="small data, few epochs, one seed (about 4 to 5 minutes on 2 cores)")
     p.add_argument("--preset", choices=sorted(PRESETS), default=None,
                    help="a named configuration (overrides --quick)")
+    p.add_argument("--form", choices=sorted(FORMS), default=None,
+                   help="how the models learn: paper (RGB raster, behaviour cloning, eq. 7 "
+                        "over pooled features) or learner (binary channels with the route and "
+                        "the vehicles' history, DAgger with the world's expert, eq. 7 over "
+                        "flattened features); default: the preset's")
     add_engine_option(p)
     p.add_argument("--data", default=None, metavar="FILE",
                    help="train and evaluate on this dataset file instead of generating data: "

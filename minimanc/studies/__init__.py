@@ -69,12 +69,14 @@ The package, one job per module:
 
 from minimanc.studies.config import (
     ABLATION_MODELS,
+    FORMS,
     PRESETS,
     TABLE_MODELS,
     Run,
     StudyConfig,
     presets_table,
     raster_text,
+    with_form,
 )
 from minimanc.studies.config import canonical_setting as canonical_setting
 from minimanc.studies.figures import pick_scenes as pick_scenes
@@ -89,6 +91,8 @@ __all__ = [
     "TABLE_MODELS",
     "ABLATION_MODELS",
     "PRESETS",
+    "FORMS",
+    "with_form",
     "StudyConfig",
     "Run",
     "Study",

@@ -8,6 +8,7 @@ import hashlib
 import json
 from collections import Counter
 from dataclasses import asdict, dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -203,6 +204,46 @@ PRESETS: dict[str, StudyConfig] = {
 }
 """Named configurations: ``tiny`` (tests), ``quick`` (``--quick``), ``full`` (the default)
 and ``paper`` (the paper's data sizes)."""
+
+
+LEARNER_RASTER = world.RasterConfig(size=90, cols=64, metres_ahead=60.0, encoding="channels",
+                                    route=True, history=2)
+"""The learner's raster (chapter 7): binary planes of the map, the ego's route ahead and the
+other vehicles at t, t−1, t−2, 60 m ahead at the devkit's 0.78 m per pixel (90 × 64 px)."""
+
+FORMS: dict[str, dict[str, Any]] = {
+    "paper": {"raster": world.RasterConfig(), "dagger_rounds": 0, "round_epochs": 1,
+              "predicate_readout": "gap"},
+    "learner": {"raster": LEARNER_RASTER, "dagger_rounds": 10, "round_epochs": 1,
+                "predicate_readout": "flatten"},
+}
+"""How a study's models learn, by name (:func:`with_form`): ``"paper"``, the paper's form
+(the devkit's RGB raster, behaviour cloning by Algorithm 1, eq. 7 over the pooled features);
+``"learner"``, the learner's form (:data:`LEARNER_RASTER`, DAgger with the world's expert for
+10 rounds, each after the first continuing one epoch, eq. 7 over the flattened features)."""
+
+
+def with_form(config: StudyConfig, form: str) -> StudyConfig:
+    """``config`` with the raster, on-policy training and predicate read-out of ``form``
+    (one of :data:`FORMS`); its sizes, budgets and studies unchanged."""
+    if form not in FORMS:
+        raise ValueError(f"form must be one of {sorted(FORMS)}; got form={form!r}")
+    return replace(config, **FORMS[form])
+
+
+def form_of(config: StudyConfig) -> str | None:
+    """The name of the form of :data:`FORMS` that ``config`` is in, or ``None``."""
+    for name, fields in FORMS.items():
+        if all(getattr(config, k) == v for k, v in fields.items()):
+            return name
+    return None
+
+
+def readout_text(readout: str) -> str:
+    """What eq. 7's predicate layer reads, in words, when it is not the paper's pooled
+    features (``""`` for ``"gap"``)."""
+    check_readout(readout)
+    return "" if readout == "gap" else "eq. 7 over the flattened features"
 
 
 def raster_text(raster: world.RasterConfig) -> str:

@@ -13,7 +13,7 @@ import numpy as np
 
 from minimanc import world
 from minimanc.diagnose.bounds import BOUND_ROWS
-from minimanc.studies.config import dagger_text, perception_text, raster_text
+from minimanc.studies.config import dagger_text, perception_text, raster_text, readout_text
 from minimanc.studies.dagger_study import dagger_markdown
 from minimanc.studies.provenance import provenance_markdown
 from minimanc.viz.style import model_label
@@ -385,13 +385,14 @@ def table_markdown(results: dict) -> str:
     lab = model_label
     perception = perception_text(float(_training(c, "perception_weight")))
     on_policy = dagger_text(int(c.get("dagger_rounds", 0)), int(c.get("round_epochs", 1)))
+    readout = readout_text(c.get("predicate_readout", "gap"))
     lines = [
         "# Closed-loop results (Table I and the studies of section V)",
         "",
         f"Preset `{c['preset']}`: {c['n_train']} training, {c['n_tune']} tuning and "
         f"{c['n_val']} validation scenes, {raster_text(_raster(c))}, "
         f"{' '.join(filter(None, (str(_training(c, 'epochs')), 'epochs', perception)))}, "
-        + (f"{on_policy}, " if on_policy else "") +
+        + (f"{on_policy}, " if on_policy else "") + (f"{readout}, " if readout else "") +
         f"learning rate from {list(c['lrs'])} by tuning-split "
         "ADE, "
         f"{'mean ± std over ' + str(ns) + ' seeds' if ns > 1 else 'one seed'}; "

@@ -1,0 +1,93 @@
+"""The study's named forms (paper, learner): what they set, how table1.md and the command say
+which ran."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from minimanc import cli, world
+from minimanc.studies import PRESETS
+from minimanc.studies.config import (
+    FORMS,
+    LEARNER_RASTER,
+    StudyConfig,
+    form_of,
+    readout_text,
+    with_form,
+)
+
+
+def test_the_presets_are_in_the_papers_form_and_the_learner_form_changes_only_how_they_learn():
+    for name in ("quick", "full", "paper"):
+        assert form_of(PRESETS[name]) == "paper"
+        learner = with_form(PRESETS[name], "learner")
+        assert form_of(learner) == "learner"
+        assert learner.raster == LEARNER_RASTER and learner.raster.encoding == "channels"
+        assert learner.dagger_rounds == 10 and learner.predicate_readout == "flatten"
+        assert replace(learner, raster=PRESETS[name].raster, dagger_rounds=0,
+                       predicate_readout="gap") == PRESETS[name]
+        assert with_form(learner, "paper") == PRESETS[name]
+    assert form_of(PRESETS["tiny"]) is None  # its 32 px raster is neither
+
+
+def test_a_form_not_named_is_refused():
+    with pytest.raises(ValueError, match="form must be one of \\['learner', 'paper'\\]"):
+        with_form(StudyConfig(), "rgb")
+
+
+def test_the_learner_raster_reaches_60_m_ahead_at_the_devkits_scale():
+    paper = world.RasterConfig()
+    assert LEARNER_RASTER.metres_ahead == 60.0
+    assert LEARNER_RASTER.input_shape == (90, 64, 12)
+    # the same metres per pixel as the devkit's raster, along and across
+    along = (LEARNER_RASTER.metres_ahead + LEARNER_RASTER.metres_behind) / LEARNER_RASTER.size
+    assert along == pytest.approx((paper.metres_ahead + paper.metres_behind) / paper.size,
+                                  rel=0.02)
+
+
+def test_readout_text_names_only_the_flattened_readout():
+    assert readout_text("gap") == ""
+    assert "flattened" in readout_text("flatten")
+    with pytest.raises(ValueError):
+        readout_text("max")
+
+
+def _seen_config(monkeypatch, tmp_path, argv):
+    from minimanc.cli import reproduce as cmd
+
+    seen = {}
+
+    def fake(config, out, **kwargs):
+        seen["config"], seen["out"] = config, out
+        raise SystemExit(0)
+
+    monkeypatch.setattr(cmd, "reproduce", fake)
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit):
+        cli.main(["reproduce", "--quick", *argv])
+    return seen
+
+
+def test_reproduce_form_sets_the_form_and_its_own_output_folder(monkeypatch, tmp_path):
+    seen = _seen_config(monkeypatch, tmp_path, ["--form", "learner"])
+    assert seen["config"] == with_form(PRESETS["quick"], "learner")
+    assert seen["out"].name == "quick-learner"
+    seen = _seen_config(monkeypatch, tmp_path, ["--form", "paper"])  # the preset's own form
+    assert seen["config"] == PRESETS["quick"] and seen["out"].name == "quick"
+    seen = _seen_config(monkeypatch, tmp_path, [])
+    assert seen["config"] == PRESETS["quick"] and seen["out"].name == "quick"
+
+
+def test_reproduce_refuses_the_learner_form_on_recorded_data(monkeypatch, tmp_path, capsys):
+    from minimanc.cli import reproduce as cmd
+
+    monkeypatch.setattr(cmd, "data_config", lambda config, path: config)
+    monkeypatch.setattr(cmd, "is_recorded", lambda config: True)
+    monkeypatch.setattr(cmd, "reproduce", lambda *a, **k: pytest.fail("ran"))
+    code = cli.main(["reproduce", "--quick", "--form", "learner", "--data", "x.npz",
+                     "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "use --form paper" in err[0], err
+    assert set(FORMS) == {"paper", "learner"}
