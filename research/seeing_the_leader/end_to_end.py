@@ -113,6 +113,9 @@ FORMS: dict[str, Form] = {
     "speed_dagger_warm": Form(f"channels, λ = 0, {PARITY_TEXT}, DAgger {{rounds}} rounds, "
                               "each continuing 1 epoch", setting="parity", on_policy=True,
                               warm=1),
+    "speed_dagger_warm2": Form(f"channels, λ = 0, {PARITY_TEXT}, DAgger {{rounds}} rounds, "
+                               "each continuing 2 epochs", setting="parity", on_policy=True,
+                               warm=2),
     "dagger_flat_warm": Form("channels, λ = 0, eq. 7 over flatten(f), DAgger {rounds} rounds, "
                              "each continuing 1 epoch", on_policy=True,
                              model=(("predicate_readout", "flatten"),), only=("manc", "manc_qp"),
