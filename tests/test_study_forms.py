@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from minimanc import cli, world
@@ -91,3 +92,36 @@ def test_reproduce_refuses_the_learner_form_on_recorded_data(monkeypatch, tmp_pa
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "use --form paper" in err[0], err
     assert set(FORMS) == {"paper", "learner"}
+
+
+def test_the_explainability_figures_draw_the_learner_raster_with_its_past(tmp_path):
+    """Fig. 3–4 and the GIF on a channels raster with history: the BEV panel is the raster
+    the policy saw (its own poses and their past), painted for people."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from minimanc import models, rollout, train
+    from minimanc.viz import explain
+    from minimanc.world.history import history_of
+
+    raster = world.RasterConfig(size=24, cols=16, metres_ahead=30.0, encoding="channels",
+                                route=True, history=2)
+    ds = world.generate(2, seed=0, raster=raster)
+    cfg = models.ModelConfig(input_shape=raster.input_shape, channels=(4, 4, 4), hidden=8,
+                             predicate_readout="flatten")
+    fit = train.fit("manc", ds, cfg, train.TrainConfig(epochs=1, batch_size=8,
+                                                      max_steps_per_epoch=1), progress=False)
+    traj = rollout.closed_loop(fit, ds, progress=False)
+    human = rollout.human(ds)
+    t = 4
+    fig = explain.plot_explain_trace(traj, human, ds, 0, bev_steps=[t])
+    shown = [im.get_array() for ax in fig.axes for im in ax.images]
+    past = history_of(traj.ego[0], ds.ado[0], ds.ado_valid[0], 2, frames=[t])
+    want = world.to_rgb(world.rasterize(ds.maps[0], traj.ego[0, t], ds.ado[0, t],
+                                        ds.ado_valid[0, t], raster, history=past), raster)
+    assert any(np.array_equal(np.asarray(a), want) for a in shown)
+    assert want.shape == (24, 16, 3)
+    fig = explain.plot_saliency_steps(fit.params, fit.cfg, traj, ds, 0, [1, t])
+    assert len(fig.axes) == 2 * (cfg.n_states + 1)
+    gif = explain.save_rollout_gif(traj, human, ds, 0, tmp_path / "r.gif")
+    assert gif.exists() and gif.stat().st_size > 0

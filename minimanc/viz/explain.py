@@ -25,6 +25,7 @@ from minimanc.viz.saliency import plot_q_saliency
 from minimanc.viz.style import model_colour, model_label, pyplot
 from minimanc.viz.world import plot_map
 from minimanc.world.geometry import EGO_LENGTH, EGO_WIDTH, box_corners, to_ego_frame
+from minimanc.world.history import history_of
 
 __all__ = [
     "check_scene_index",
@@ -168,10 +169,21 @@ def plot_q_modes(q: Any, modes: Any, title: str = "", dt: float = 0.5) -> Any:
 
 
 
+def _past(traj: Any, ds: Any, scene: int, t: int) -> Any:
+    """The past boxes of step ``t`` that ``ds.raster`` draws (the rollout's own poses and the
+    log's ados; :func:`minimanc.world.history.history_of` of one frame), or ``None``."""
+    steps = ds.raster.history
+    if not steps:
+        return None
+    return history_of(traj.ego[scene], ds.ado[scene], ds.ado_valid[scene], steps, frames=[t])
+
+
 def _bev_at(traj: Any, ds: Any, scene: int, t: int) -> np.ndarray:
-    """The BEV the policy saw at step ``t`` (re-rasterised from its own pose)."""
-    return world.rasterize(ds.maps[scene], traj.ego[scene, t], ds.ado[scene, t],
-                           ds.ado_valid[scene, t], ds.raster)
+    """The BEV the policy saw at step ``t`` (re-rasterised from its own pose, with its past),
+    as an RGB picture (:func:`minimanc.world.to_rgb`: the channels painted)."""
+    bev = world.rasterize(ds.maps[scene], traj.ego[scene, t], ds.ado[scene, t],
+                          ds.ado_valid[scene, t], ds.raster, history=_past(traj, ds, scene, t))
+    return world.to_rgb(bev, ds.raster)
 
 
 def plot_explain_trace(traj: Any, human: Any, ds: Any, scene: int,
@@ -257,7 +269,8 @@ def saliency_maps(params: dict, cfg: Any, traj: Any, ds: Any, scene: int,
                   else traj.controls[s:s + 1, t - 1].astype(np.float32))
         obs = inputs.from_state([ds.maps[s]], traj.ego[s:s + 1, t], ds.ado[s:s + 1, t],
                                 ds.ado_valid[s:s + 1, t], ds.ego[s:s + 1, -1], ds.raster,
-                                cfg.setting, motion=motion, model=models.get("manc"))
+                                cfg.setting, motion=motion, model=models.get("manc"),
+                                history=_past(traj, ds, s, t))
         q_prev = (vagn.uniform_state(n_states)[None] if t == 0
                   else traj.aux["q"][s:s + 1, t - 1])
         ex = models.saliency(params, obs, q_prev, cfg)
@@ -280,7 +293,8 @@ def plot_saliency_steps(params: dict, cfg: Any, traj: Any, ds: Any, scene: int,
     fig, axes = plt.subplots(len(maps_), N + 1, figsize=(1.9 * (N + 1), 2.1 * len(maps_)),
                              squeeze=False)
     for row, m in zip(axes, maps_):
-        plot_q_saliency(m["bev"], m["saliency"], m["q"], axes=row)
+        image = m["bev"] if ds.raster.encoding == "rgb" else _bev_at(traj, ds, scene, m["step"])
+        plot_q_saliency(image, m["saliency"], m["q"], axes=row)
         row[0].set_title(f"BEV, step {m['step']}", fontsize=9)
         for ax in row[1:]:
             ax.title.set_fontsize(8)
