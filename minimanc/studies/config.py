@@ -214,13 +214,13 @@ other vehicles at t, t−1, t−2, 60 m ahead at the devkit's 0.78 m per pixel (
 FORMS: dict[str, dict[str, Any]] = {
     "paper": {"raster": world.RasterConfig(), "dagger_rounds": 0, "round_epochs": 1,
               "predicate_readout": "gap"},
-    "learner": {"raster": LEARNER_RASTER, "dagger_rounds": 10, "round_epochs": 1,
+    "learner": {"raster": LEARNER_RASTER, "dagger_rounds": 10, "round_epochs": 2,
                 "predicate_readout": "flatten"},
 }
 """How a study's models learn, by name (:func:`with_form`): ``"paper"``, the paper's form
 (the devkit's RGB raster, behaviour cloning by Algorithm 1, eq. 7 over the pooled features);
 ``"learner"``, the learner's form (:data:`LEARNER_RASTER`, DAgger with the world's expert for
-10 rounds, each after the first continuing one epoch, eq. 7 over the flattened features)."""
+10 rounds, each after the first continuing two epochs, eq. 7 over the flattened features)."""
 
 
 def with_form(config: StudyConfig, form: str) -> StudyConfig:

@@ -414,7 +414,8 @@ def main() -> None:
 
 
 def _protocol() -> str:
-    return ("Train on scenes 0–299 (`scale`: 0–599) of the seed-0 draw, "
+    return ("Train on scenes 0–299 (`scale`: 0–599; `xl`: 0–599 and 850–1649 of the "
+            "2,000-scene draw of the same seed, 6000 steps) of the seed-0 draw, "
             f"{STEPS} Adam steps of batch {BATCH}, choose on scenes 300–399, report scenes "
             "600–799. Gap and closing speed (dv) for leaders within 30 m (`road`: scenes "
             "without a junction or roundabout); leader in view: accuracy of the presence "
