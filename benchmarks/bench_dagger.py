@@ -49,12 +49,12 @@ def run_way(way: str, pool: world.Dataset, args: argparse.Namespace) -> tuple[fl
     """One training of ``way`` ("bc", "scratch", "warm"): wall s, CPU s, gradient steps."""
     tc = train.TrainConfig(epochs=args.epochs, batch_size=64, lr=1e-3)
     cfg = dagger.default_config(pool)
-    teacher = dagger.WorldTeacher(pool, agents="reactive")
-    budget = dagger.plan_budget(len(pool) * pool.n_steps, pool.n_steps, args.rounds)
     w0, c0 = time.perf_counter(), time.process_time()
     if way == "bc":
         steps = train.fit(args.model, pool, cfg, tc, progress=False).steps
     else:
+        teacher = dagger.WorldTeacher(pool, agents="reactive")
+        budget = dagger.plan_budget(len(pool) * pool.n_steps, pool.n_steps, args.rounds)
         with tempfile.TemporaryDirectory() as out:
             res = dagger.dagger(args.model, teacher, budget, rounds=args.rounds, beta=0.5,
                                 cfg=cfg, train_cfg=tc, out=out, progress=False,

@@ -147,7 +147,7 @@ def test_an_on_policy_table_run_is_daggers_last_round(tmp_path):
     assert fp["cfg"]["predicate_readout"] == "gap"
     # done: asked again, nothing trains
     again = study_of(c, tmp_path)
-    assert again.trainings.complete(run) and again.fit(run) == ck
+    assert again.files.complete(run) and again.fit(run) == ck
 
 
 def test_a_run_on_part_of_the_data_drives_the_scenes_fit_would_train_on(tmp_path, monkeypatch):
@@ -190,7 +190,7 @@ def test_a_killed_on_policy_run_resumes_after_its_last_finished_round(tmp_path, 
     monkeypatch.setattr(loop, "collect", killed_in_round_2)
     with pytest.raises(Killed):
         study.fit(run)
-    assert not study.checkpoint(run).exists() and not study.trainings.complete(run)
+    assert not study.checkpoint(run).exists() and not study.files.complete(run)
     finished = {i: (dagger.round_dir(out, i) / dagger.ROUND_FILE).stat().st_mtime_ns
                 for i in (0, 1)}
     assert not (dagger.round_dir(out, 2) / dagger.ROUND_FILE).exists()
@@ -228,7 +228,7 @@ def test_a_diverged_on_policy_run_is_recorded_and_scored_inf(tmp_path, monkeypat
     study.fit(run)
     assert study.files.diverged(run) and not study.checkpoint(run).exists()
     assert "loss is nan" in (study.checkpoint(run).parent / "diverged.json").read_text()
-    assert study.trainings.complete(run)
+    assert study.files.complete(run)
     assert study.result(run)["ade"] == float("inf")
 
 

@@ -183,14 +183,17 @@ class StudyFiles:
         return (self.checkpoint(run).parent / "diverged.json").exists()
 
     def complete(self, run: Run) -> bool:
-        """Whether ``run``'s checkpoint holds every epoch (or the run diverged)."""
+        """Whether ``run``'s checkpoint holds every epoch (or the run diverged). An on-policy
+        run's checkpoint is written once DAgger's last round is done
+        (:func:`minimanc.studies.executors.train_on_policy`): readable means complete."""
         path = self.checkpoint(run)
         if self.diverged(run):
             return True  # scored as inf; delete diverged.json to train it again
         if not path.exists():
             return False
         try:
-            return train.load_checkpoint(path)["epoch"] >= self.config.training.epochs
+            epoch = train.load_checkpoint(path)["epoch"]
+            return run.on_policy or epoch >= self.config.training.epochs
         except train.CheckpointError as exc:
             # the cache is derived data: drop the broken entry and train the run again
             self.discard(path, str(exc))

@@ -87,7 +87,7 @@ class Trainings:
         for r in runs:
             if r.key in self._started:
                 continue
-            if self.complete(r):
+            if files.complete(r):
                 self._started[r.key] = (Done([str(files.checkpoint(r))]), 0)
                 continue
             g = (r.model, r.setting, r.n_states, r.fraction)
@@ -126,25 +126,6 @@ class Trainings:
             n_runs = len(group)
             fut.add_done_callback(lambda _, n=n_runs: self._tick(n))
         return {r.key: self._started[r.key] for r in runs}
-
-    def complete(self, run: Run) -> bool:
-        """Whether ``run`` is trained (or diverged): :meth:`StudyFiles.complete`, or for an
-        on-policy run its checkpoint, which is written once DAgger's last round is done (a
-        broken one is discarded: trained again, its finished rounds reused)."""
-        files = self.files
-        if not run.on_policy:
-            return files.complete(run)
-        path = files.checkpoint(run)
-        if files.diverged(run):
-            return True
-        if not path.exists():
-            return False
-        try:
-            train.load_checkpoint(path)
-        except train.CheckpointError as exc:
-            files.discard(path, str(exc))
-            return False
-        return True
 
     def _tick(self, n: int) -> None:
         """``n`` trainings finished: advance their progress bar."""
