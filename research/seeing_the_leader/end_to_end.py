@@ -30,7 +30,7 @@ and ``change_dagger``, ``speed_dagger`` with the direct head's speed the change 
 paper preset (``leader_data.py``): train on scenes 0–599, drive the validation scenes
 600–799 (never trained on; the scenes of ``drive.py``, whose expert and privileged learner
 are the bounds here). The paper preset's schedule (6 epochs of batch 64) and, per model, the
-learning rate the paper preset's tuning chose on the RGB raster (``results/paper``:
+learning rate the paper preset's tuning chose on the RGB raster (``results/paper-paper``:
 :data:`LEARNING_RATES`); every other setting is the library's default. One run per
 (model, form, seed) and protocol, cached as JSON under ``--work`` (a finished run is not
 repeated; the trained parameters are checkpointed by :func:`minimanc.train.fit`, so an
@@ -56,7 +56,7 @@ from pathlib import Path
 from typing import Any
 
 import leader_data as L
-import manc_qp  # noqa: F401  (registers "manc_qp")
+import manc_qp  # noqa: F401  (registers "manc_qp", "manc_qm", "manc_qpm")
 import numpy as np
 import perception as PC
 
@@ -70,13 +70,14 @@ DRIVE = RESULTS / "drive.md"
 TRAIN = L.TRAIN_LARGE
 VALIDATE = L.VALIDATE
 N_SCENES = VALIDATE.stop
-MODELS = ("cnn", "cnn_lstm", "rvs_g", "manc", "manc_qp", "dmp_only")
-"""Table I's learned controllers, MANC whose gains read q ⊕ p (:mod:`manc_qp`) and the
+MODELS = ("cnn", "cnn_lstm", "rvs_g", "manc", "manc_qp", "manc_qm", "manc_qpm", "dmp_only")
+"""Table I's learned controllers, MANC whose gains read q ⊕ p, q ⊕ m (the odometer) or
+q ⊕ p ⊕ m (:mod:`manc_qp`) and the
 self-ablation without vAGN (``dmp_only``: the CNN's features straight to the gains)."""
 LEARNING_RATES = {"cnn": 1e-3, "cnn_lstm": 3e-4, "rvs_g": 3e-4, "manc": 3e-4, "manc_qp": 3e-4,
-                  "dmp_only": 1e-3}
-"""The learning rate the paper preset's tuning chose per model (setting ``paper``; MANC's for
-``manc_qp``)."""
+                  "manc_qm": 3e-4, "manc_qpm": 3e-4, "dmp_only": 1e-3}
+"""The learning rate the paper preset's tuning chose per model (setting ``paper``; MANC's for its
+variants of :mod:`manc_qp`)."""
 @dataclass(frozen=True)
 class Form:
     """How a model is trained: its raster, λ, setting, on-policy or not, and the fields of
@@ -98,6 +99,8 @@ class Form:
 
 
 PARITY_TEXT = "own speed and lane target as numbers"
+MANCS = ("manc", "manc_qp", "manc_qm", "manc_qpm")
+"""MANC and its variants of :mod:`manc_qp` (the forms of eq. 7 over flattened features)."""
 FORMS: dict[str, Form] = {
     "channels": Form("channels, λ = {w:g}", aux=True),
     "channels0": Form("channels, λ = 0"),
@@ -118,8 +121,28 @@ FORMS: dict[str, Form] = {
                                warm=2),
     "dagger_flat_warm": Form("channels, λ = 0, eq. 7 over flatten(f), DAgger {rounds} rounds, "
                              "each continuing 1 epoch", on_policy=True,
-                             model=(("predicate_readout", "flatten"),), only=("manc", "manc_qp"),
-                             warm=1),
+                             model=(("predicate_readout", "flatten"),), only=MANCS, warm=1),
+    "dagger_flat_warm2": Form("channels, λ = 0, eq. 7 over flatten(f), DAgger {rounds} rounds, "
+                              "each continuing 2 epochs", on_policy=True,
+                              model=(("predicate_readout", "flatten"),), only=MANCS, warm=2),
+    "dagger_flat_warm2_p64": Form("channels, λ = 0, 64 predicates of eq. 7 over flatten(f), "
+                                  "DAgger {rounds} rounds, each continuing 2 epochs",
+                                  on_policy=True, only=MANCS, warm=2,
+                                  model=(("predicate_readout", "flatten"), ("n_predicates", 64))),
+    "dagger_flat_warm2_goal10": Form("channels, λ = 0, eq. 7 over flatten(f), the DMP's goal 10 m "
+                                     "ahead, DAgger {rounds} rounds, each continuing 2 epochs",
+                                     on_policy=True, only=MANCS, warm=2,
+                                     model=(("predicate_readout", "flatten"),
+                                            ("position_lookahead", 10.0),
+                                            ("position_lookahead_time", 0.0))),
+    "dagger_flat_warm2_p64_goal10": Form("channels, λ = 0, 64 predicates of eq. 7 over "
+                                         "flatten(f), the DMP's goal 10 m ahead, DAgger {rounds} "
+                                         "rounds, each continuing 2 epochs",
+                                         on_policy=True, only=MANCS, warm=2,
+                                         model=(("predicate_readout", "flatten"),
+                                                ("n_predicates", 64),
+                                                ("position_lookahead", 10.0),
+                                                ("position_lookahead_time", 0.0))),
     "rgb": Form("RGB (paper's form), λ = 0", raster="rgb"),
     "dagger_rgb": Form("RGB, λ = 0, DAgger {rounds} rounds", raster="rgb", on_policy=True),
 }
