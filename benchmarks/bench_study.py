@@ -1,14 +1,21 @@
-"""Chapter 9 benchmark: what ``minimanc reproduce --preset paper`` costs, from measured pieces.
+"""Chapter 9 benchmark: what ``minimanc reproduce --preset P`` costs, from measured pieces.
 
-Counts the trainings and closed-loop rollouts of a preset (:func:`plan`), times one
-training epoch of every model at the preset's data size and one closed loop on its
-validation scenes, one at a time, and extrapolates the study's wall time: the serial sum,
-and that sum shared by one worker per CPU (the study's pool; an ideal bound, since
-workers that share the cores slow each other down). With
-``--seeds-together`` it also times :func:`minimanc.train.fit_seeds` (the preset's seeds
-of one configuration trained as one vmapped step).
+Counts the trainings and closed-loop rollouts of a preset in a form (:func:`plan`,
+:func:`with_form`), times one training epoch of every model at the preset's data size and
+raster and one closed loop on its validation scenes, one at a time, and extrapolates the
+study's wall time: the serial sum, and that sum shared by one worker per CPU (the study's
+pool; an ideal bound, since workers that share the cores slow each other down).
 
-    python benchmarks/bench_study.py [--preset paper] [--models cnn,manc] [--val 200]
+A run trained on-policy (:attr:`StudyConfig.dagger_rounds` > 0) is costed by DAgger's
+schedule (:func:`minimanc.dagger.plan_budget` over the run's scenes): round 0 trains the
+preset's epochs on its demonstrations, every later round ``round_epochs`` epochs on the
+aggregate so far (the epochs counted in units of the measured epoch over the preset's
+training scenes), and every scene a round drives costs one scene of the measured closed
+loop. With ``--seeds-together`` it also times :func:`minimanc.train.fit_seeds` (the
+preset's seeds of one configuration trained as one vmapped step).
+
+    python benchmarks/bench_study.py [--preset paper] [--form learner|paper]
+                                     [--models cnn,manc] [--val 200] [--threads 1]
 
 Prints figures and ratios; never asserts timings. The machine is shared: repeat, or
 compare ratios measured in the same run.
@@ -18,14 +25,13 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from dataclasses import replace
+from pathlib import Path
 
-import numpy as np
-
-from minimanc import models, rollout, train, world
-from minimanc.studies.config import PRESETS, plan
-from minimanc.studies.executors import usable_cpus
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from threads import set_threads  # noqa: E402  (before NumPy and JAX are imported)
 
 
 def timed(f, *a, **k):
@@ -34,71 +40,109 @@ def timed(f, *a, **k):
     return out, time.perf_counter() - t0
 
 
-def main() -> None:
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--preset", default="paper", choices=sorted(PRESETS))
+    ap.add_argument("--preset", default="paper")
+    ap.add_argument("--form", default=None, help="learner or paper (default: the preset's)")
     ap.add_argument("--models", default="cnn,cnn_lstm,rvs_g,manc,vagn_only,dmp_only")
     ap.add_argument("--val", type=int, default=None, help="validation scenes driven "
                     "(default: the preset's n_val)")
     ap.add_argument("--seeds-together", action="store_true",
                     help="also time fit_seeds on the preset's seeds")
     ap.add_argument("--no-rollout", action="store_true")
-    args = ap.parse_args()
-    c = PRESETS[args.preset]
-    p = plan(c)
-    print(f"preset {args.preset}: {sum(p['train'].values())} trainings, rollouts {p['rollouts']}")
-    n_val = args.val or c.n_val
-    train_ds, val_ds = world.generate_splits(c.n_train, c.n_val, seed=c.data_seed,
-                                             raster=c.raster,
-                                             cache=True, progress=False)
-    val = val_ds.subset(slice(0, n_val))
-    names = args.models.split(",")
-    rows = []
+    ap.add_argument("--threads", type=int, default=None,
+                    help="BLAS and XLA threads (default: the library's, one XLA thread)")
+    return ap.parse_args(argv)
+
+
+def dagger_epochs(n_scenes: int, steps: int, rounds: int, epochs: int,
+                  round_epochs: int) -> tuple[float, int]:
+    """DAgger's training on ``n_scenes`` scenes in epochs over those scenes, and the scenes
+    its rounds drive: round 0 ``epochs`` on the demonstrations, every later round
+    ``round_epochs`` on the aggregate so far."""
+    from minimanc import dagger
+
+    b = dagger.plan_budget(n_scenes * steps, steps, rounds)
+    seen = epochs * b.initial
+    aggregate = b.initial
+    for n in b.per_round:
+        aggregate += n
+        seen += round_epochs * aggregate
+    return seen / n_scenes, sum(b.per_round)
+
+
+def measure(names, c, train_ds, val, args) -> dict:
+    """One epoch (after a two-step warm-up that compiles) and one closed loop per model."""
+    from minimanc import rollout, train
+
+    by = {}
     for name in names:
-        cfg = models.ModelConfig(n_states=c.n_states)
+        cfg = c.model_config(c.n_states, "paper")
         tc = replace(c.training, epochs=1, lr=1e-3)
-        warm, t_warm = timed(train.fit, name, train_ds, cfg, replace(tc, max_steps_per_epoch=2),
-                             engine="jax", progress=False)
+        _, t_warm = timed(train.fit, name, train_ds, cfg, replace(tc, max_steps_per_epoch=2),
+                          engine="jax", progress=False)
         res, t_epoch = timed(train.fit, name, train_ds, cfg, tc, engine="jax", progress=False)
         line = {"model": name, "steps": res.steps, "compile_s": t_warm, "epoch_s": t_epoch}
         if args.seeds_together:
-            _, t_seeds = timed(train.fit_seeds, name, train_ds, cfg, tc, c.seeds,
-                               engine="jax", progress=False)
-            line["seeds_s"] = t_seeds
+            _, line["seeds_s"] = timed(train.fit_seeds, name, train_ds, cfg, tc, c.seeds,
+                                       engine="jax", progress=False)
         if not args.no_rollout:
-            _, t_roll = timed(rollout.closed_loop, name, res.params, val, cfg, "jax",
+            _, t_roll = timed(rollout.closed_loop, name, res.params, val, res.cfg, "jax",
                               progress=False)
-            line["rollout_s"] = t_roll * c.n_val / n_val
-        rows.append(line)
-        print("  ".join(f"{k}={v:.1f}" if isinstance(v, float) else f"{k}={v}"
+            line["scene_s"] = t_roll / len(val)
+        by[name] = line
+        print("  ".join(f"{k}={v:.2f}" if isinstance(v, float) else f"{k}={v}"
                         for k, v in line.items()), flush=True)
-    by = {r["model"]: r for r in rows}
+    return by
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = parse_args(argv)
+    set_threads(args.threads)
+    import numpy as np
+
+    from minimanc import world
+    from minimanc.studies.config import PRESETS, form_of, plan, with_form
+    from minimanc.studies.executors import usable_cpus
+
+    c = PRESETS[args.preset]
+    if args.form is not None:
+        c = with_form(c, args.form)
+    p = plan(c)
+    print(f"preset {args.preset}, form {form_of(c)}: {sum(p['train'].values())} trainings "
+          f"({sum(p['sweep'].values())} of the sweep), rollouts {p['rollouts']}")
+    train_ds, val_ds = world.generate_splits(c.n_train, c.n_val, seed=c.data_seed,
+                                             raster=c.raster, cache=True, progress=False)
+    val = val_ds.subset(slice(0, args.val or c.n_val))
+    by = measure(args.models.split(","), c, train_ds, val, args)
+    scene_s = float(np.mean([r["scene_s"] for r in by.values() if "scene_s" in r] or [math.nan]))
     print("\n| component | count | s each | total s |\n|---|---|---|---|")
-    total_train = total_seeds = 0.0
+    total = 0.0
     for (m, f), n in sorted(p["train"].items()):
         if m not in by:
             continue
-        epochs = c.training.epochs
-        each = epochs * by[m]["epoch_s"] * f
-        total_train += n * each
-        print(f"| train {m} f={f:g} ({epochs} epochs) | {n} | {each:.0f} | {n * each:.0f} |")
-        if "seeds_s" in by[m]:
-            total_seeds += n / len(c.seeds) * epochs * by[m]["seeds_s"] * f
-    n_roll = sum(p["rollouts"].values())
+        swept = p["sweep"].get((m, f), 0)
+        for kind, k in (("behaviour cloning", swept if c.on_policy else n),
+                        ("DAgger", n - swept if c.on_policy else 0)):
+            if k == 0:
+                continue
+            scenes = max(1, round(f * c.n_train))
+            if kind == "DAgger":
+                epochs, driven = dagger_epochs(scenes, train_ds.n_steps, c.dagger_rounds,
+                                               c.training.epochs, c.round_epochs)
+                each = epochs * f * by[m]["epoch_s"] + driven * scene_s
+            else:
+                each = c.training.epochs * f * by[m]["epoch_s"]
+            total += k * each
+            print(f"| {kind} {m} f={f:g} | {k} | {each:.0f} | {k * each:.0f} |")
+    for split, n_scenes in (("val", c.n_val), ("tune", c.n_tune)):
+        n = p["rollouts"][split]
+        total += n * n_scenes * scene_s
+        print(f"| rollout {split} ({n_scenes} scenes) | {n} | {n_scenes * scene_s:.0f} | "
+              f"{n * n_scenes * scene_s:.0f} |")
     n_cpu = usable_cpus()
-    roll_each = float(np.mean([r["rollout_s"] for r in rows if "rollout_s" in r] or [math.nan]))
-    tune_each = roll_each * c.n_tune / c.n_val
-    roll_total = p["rollouts"]["val"] * roll_each + p["rollouts"]["tune"] * tune_each
-    print(f"| rollout val ({c.n_val} scenes) | {p['rollouts']['val']} | {roll_each:.0f} | "
-          f"{p['rollouts']['val'] * roll_each:.0f} |")
-    print(f"| rollout tune ({c.n_tune} scenes) | {p['rollouts']['tune']} | {tune_each:.0f} | "
-          f"{p['rollouts']['tune'] * tune_each:.0f} |")
-    print(f"\ntraining {total_train / 60:.0f} min, rollouts {roll_total / 60:.0f} min "
-          f"(serial sum {(total_train + roll_total) / 60:.0f} min; {n_roll} rollouts); on "
-          f"{n_cpu} workers at best {(total_train + roll_total) / 60 / n_cpu:.0f} min")
-    if total_seeds:
-        print(f"seeds trained together: training {total_seeds / 60:.0f} min "
-              f"({total_train / total_seeds:.2f}x)")
+    print(f"\nserial sum {total / 60:.0f} min; on {n_cpu} workers at best "
+          f"{total / 60 / n_cpu:.0f} min (the models measured: {', '.join(by)})")
 
 
 if __name__ == "__main__":

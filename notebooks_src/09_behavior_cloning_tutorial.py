@@ -504,7 +504,13 @@ assert (workdir / "table1.md").exists() and (workdir / "results.json").exists()
 # minimanc reproduce                    # the "full" preset: three seeds, larger data
 # minimanc reproduce --engine numpy     # the same with our own autodiff engine
 # minimanc reproduce --agents replay    # only the paper's protocol (default: both)
+# minimanc reproduce --form paper       # the paper's recipe: RGB raster, behaviour cloning
 # ```
+#
+# The presets train in the *learner's form*: chapter 7's raster made for learning (binary
+# planes with the route and the vehicles at t, t−1, t−2, 60 m ahead) and chapter 11's
+# on-policy training (DAgger with the world's expert); `--form paper` runs this notebook's
+# recipe at the preset's size.
 #
 # Each writes, under `minimanc_results/<preset>/` (or `--out DIR`),
 # `table1.md` (Table I in both settings and both protocols, per scenario family, the

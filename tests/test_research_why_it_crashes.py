@@ -480,7 +480,7 @@ def test_the_report_quotes_this_folder_s_results_and_reproduce_s_outputs():
     """(``tests/test_provenance.py`` checks every quote against its file.)"""
     quoted = {q.path for q in provenance.quotes(REPORT.read_text(encoding="utf-8"))}
     # this folder's results and reproduce's outputs, two levels up
-    assert "results/privileged.md" in quoted and "../../results/paper/table1.md" in quoted
+    assert "results/privileged.md" in quoted and "../../results/paper-paper/table1.md" in quoted
     assert all((HERE / q).is_file() for q in quoted)
 
 

@@ -438,7 +438,7 @@ def test_the_raster_names_the_cache_the_data_file_and_the_text():
 
     tiny = studies.PRESETS["tiny"]
     assert tiny.raster == world.RasterConfig(size=32)
-    assert all(studies.PRESETS[p].raster == world.RasterConfig()
+    assert all(studies.PRESETS[p].raster == studies.config.LEARNER_RASTER
                for p in ("quick", "full", "paper"))
     learner = replace(tiny, raster=world.RasterConfig(**CHANNELS))
     assert learner.fingerprint() != tiny.fingerprint()

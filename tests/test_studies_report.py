@@ -33,7 +33,8 @@ def fake_results(manc_ade=1.0, q_ades=(3.0, 2.0, 1.5, 1.0), reactive_manc_ade=No
     table = {"replay": tables(manc_ade),
              "reactive": tables(manc_ade if reactive_manc_ade is None else reactive_manc_ade)}
     return {
-        "config": {**studies.PRESETS["quick"].__dict__, "lrs": [1e-3, 3e-3], "n_seeds": 3},
+        "config": {**studies.with_form(studies.PRESETS["quick"], "paper").__dict__,
+                   "lrs": [1e-3, 3e-3], "n_seeds": 3},
         "engine": "jax",
         "close_gap_m": metrics.CLOSE_GAP,
         "table1": table,
@@ -201,7 +202,7 @@ def test_table_markdown_says_which_raster_ran_and_the_perception_weight():
     head = studies.table_markdown(res).split("\n## ")[0]
     assert "24 validation scenes, 64×64 RGB raster (the paper's form), 3 epochs, " in head
     assert "λ" not in head
-    quick = studies.PRESETS["quick"]
+    quick = studies.with_form(studies.PRESETS["quick"], "paper")
     raster = world.RasterConfig.from_extent(60.0, 25.0, 50 / 64, encoding="channels",
                                             route=True, history=2)
     learner = replace(quick, raster=raster,

@@ -8,29 +8,32 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from minimanc import cli, world
+from minimanc import cli, models, world
 from minimanc.studies import PRESETS
 from minimanc.studies.config import (
     FORMS,
+    LEARNER_MODEL,
     LEARNER_RASTER,
     StudyConfig,
     form_of,
-    readout_text,
+    model_text,
     with_form,
 )
 
 
-def test_the_presets_are_in_the_papers_form_and_the_learner_form_changes_only_how_they_learn():
+def test_the_presets_are_in_the_learner_form_and_the_papers_form_changes_only_how_they_learn():
     for name in ("quick", "full", "paper"):
-        assert form_of(PRESETS[name]) == "paper"
-        learner = with_form(PRESETS[name], "learner")
-        assert form_of(learner) == "learner"
+        assert form_of(PRESETS[name]) == "learner"
+        learner = PRESETS[name]
         assert learner.raster == LEARNER_RASTER and learner.raster.encoding == "channels"
-        assert learner.dagger_rounds == 10 and learner.predicate_readout == "flatten"
+        assert learner.dagger_rounds == 10 and learner.model == LEARNER_MODEL
         assert learner.round_epochs == 2
-        assert replace(learner, raster=PRESETS[name].raster, dagger_rounds=0, round_epochs=1,
-                       predicate_readout="gap") == PRESETS[name]
-        assert with_form(learner, "paper") == PRESETS[name]
+        paper = with_form(learner, "paper")
+        assert form_of(paper) == "paper" and not paper.on_policy
+        assert paper.raster == world.RasterConfig() and paper.model == models.ModelConfig()
+        assert replace(paper, raster=LEARNER_RASTER, dagger_rounds=10, round_epochs=2,
+                       model=LEARNER_MODEL) == learner
+        assert with_form(paper, "learner") == learner
     assert form_of(PRESETS["tiny"]) is None  # its 32 px raster is neither
 
 
@@ -49,11 +52,14 @@ def test_the_learner_raster_reaches_60_m_ahead_at_the_devkits_scale():
                                   rel=0.02)
 
 
-def test_readout_text_names_only_the_flattened_readout():
-    assert readout_text("gap") == ""
-    assert "flattened" in readout_text("flatten")
-    with pytest.raises(ValueError):
-        readout_text("max")
+def test_model_text_names_what_departs_from_the_librarys_models():
+    assert model_text(models.ModelConfig()) == ""
+    assert model_text(LEARNER_MODEL) == ("eq. 7 over the flattened features, 64 predicates, "
+                                         "MANC's gains over q ⊕ p, the DMP's goal 10 m ahead")
+    assert model_text(models.ModelConfig(position_lookahead=6.0, hidden=32)) == \
+        "the DMP's goal 6 m + 2 s × speed ahead, hidden = 32"
+    with pytest.raises(ValueError, match="model must be a minimanc.models.ModelConfig"):
+        model_text("flatten")
 
 
 def _seen_config(monkeypatch, tmp_path, argv):
@@ -73,10 +79,10 @@ def _seen_config(monkeypatch, tmp_path, argv):
 
 
 def test_reproduce_form_sets_the_form_and_its_own_output_folder(monkeypatch, tmp_path):
-    seen = _seen_config(monkeypatch, tmp_path, ["--form", "learner"])
-    assert seen["config"] == with_form(PRESETS["quick"], "learner")
-    assert seen["out"].name == "quick-learner"
-    seen = _seen_config(monkeypatch, tmp_path, ["--form", "paper"])  # the preset's own form
+    seen = _seen_config(monkeypatch, tmp_path, ["--form", "paper"])
+    assert seen["config"] == with_form(PRESETS["quick"], "paper")
+    assert seen["out"].name == "quick-paper"
+    seen = _seen_config(monkeypatch, tmp_path, ["--form", "learner"])  # the preset's own form
     assert seen["config"] == PRESETS["quick"] and seen["out"].name == "quick"
     seen = _seen_config(monkeypatch, tmp_path, [])
     assert seen["config"] == PRESETS["quick"] and seen["out"].name == "quick"
@@ -88,10 +94,9 @@ def test_reproduce_refuses_the_learner_form_on_recorded_data(monkeypatch, tmp_pa
     monkeypatch.setattr(cmd, "data_config", lambda config, path: config)
     monkeypatch.setattr(cmd, "is_recorded", lambda config: True)
     monkeypatch.setattr(cmd, "reproduce", lambda *a, **k: pytest.fail("ran"))
-    code = cli.main(["reproduce", "--quick", "--form", "learner", "--data", "x.npz",
-                     "--out", str(tmp_path / "o")])
+    code = cli.main(["reproduce", "--quick", "--data", "x.npz", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and "use --form paper" in err[0], err
+    assert code == 2 and len(err) == 1 and "add --form paper" in err[0], err
     assert set(FORMS) == {"paper", "learner"}
 
 

@@ -19,7 +19,8 @@ from minimanc.studies.config import plan
 from minimanc.tree import to_flat_dict
 
 TINY = studies.PRESETS["tiny"]
-NEW_FIELDS = ("dagger_rounds", "round_epochs", "predicate_readout")
+NEW_FIELDS = ("dagger_rounds", "round_epochs", "model")
+FLAT = models.ModelConfig(predicate_readout="flatten")
 
 
 def small(**kw) -> studies.StudyConfig:
@@ -47,7 +48,10 @@ def same_params(a: dict, b: dict) -> bool:
     ({"dagger_rounds": True}, "dagger_rounds must be an integer"),
     ({"round_epochs": 0}, "round_epochs must be an integer >= 1"),
     ({"round_epochs": "1"}, "round_epochs must be an integer"),
-    ({"predicate_readout": "max"}, "predicate_readout must be one of"),
+    ({"model": {"predicate_readout": "flatten"}}, "model must be a minimanc.models.ModelConfig"),
+    ({"model": models.ModelConfig(n_states=3)}, "model.n_states is each run's"),
+    ({"model": models.ModelConfig(setting="parity")}, "model.setting is each run's"),
+    ({"model": models.ModelConfig(input_shape=(32, 32, 3))}, "model.input_shape is each run's"),
     # tiny: 4 training scenes, 2 of them at the data fraction 0.5; 2 rounds need 3
     ({"dagger_rounds": 2}, r"needs at least 3 training scenes .* fraction 0.5\) has 2"),
     ({"dagger_rounds": 1, "training": replace(TINY.training, perception_weight=1.0)},
@@ -60,21 +64,40 @@ def test_bad_on_policy_settings_are_one_clear_error(kw, match):
 
 def test_good_on_policy_settings_are_kept():
     assert not TINY.on_policy and (TINY.dagger_rounds, TINY.round_epochs) == (0, 1)
-    c = replace(TINY, dagger_rounds=1, round_epochs=3, predicate_readout="flatten")
+    c = replace(TINY, dagger_rounds=1, round_epochs=3, model=FLAT)
     assert c.on_policy and (c.dagger_rounds, c.round_epochs) == (1, 3)
     assert replace(small(), dagger_rounds=3).on_policy  # every run has all 4 scenes
     # the perception loss is only refused on-policy
     assert replace(TINY, training=replace(TINY.training, perception_weight=1.0)).fingerprint()
 
 
-def test_the_runs_read_the_studys_predicate_readout(tmp_path):
-    study = study_of(replace(small(), predicate_readout="flatten"), tmp_path)
-    run = studies.Run("cnn", "paper", TINY.n_states, 1.0, 0, 1e-3)
-    assert study.model_config(run).predicate_readout == "flatten"
-    assert study_of(small(), tmp_path / "gap").model_config(run).predicate_readout == "gap"
+def test_the_runs_read_the_studys_model(tmp_path):
+    learner = studies.config.LEARNER_MODEL
+    study = study_of(replace(small(), model=learner), tmp_path)
+    run = studies.Run("manc", "parity", 3, 1.0, 0, 1e-3)
+    assert study.model_config(run) == replace(learner, n_states=3, setting="parity")
+    assert study_of(small(), tmp_path / "gap").model_config(run) == models.ModelConfig(
+        n_states=3, setting="parity")
+    study = study_of(replace(small(), model=FLAT), tmp_path / "flat")
     # Fig. 5b counts the parameters of the runs: eq. 7's layer reads h·w·C features, not C
     flat = study.param_counts()["paper"]["manc"]
     assert flat > study_of(small(), tmp_path / "gap").param_counts()["paper"]["manc"]
+
+
+def test_the_fixed_gains_row_drives_the_studys_dmp_head(tmp_path, monkeypatch):
+    from minimanc import rollout
+
+    seen = {}
+
+    def fake(val, cfg, agents):
+        seen["cfg"] = cfg
+        raise RuntimeError("driven")
+
+    monkeypatch.setattr(rollout, "fixed_gains", fake)
+    study = study_of(replace(small(), model=studies.config.LEARNER_MODEL), tmp_path)
+    with pytest.raises(RuntimeError, match="driven"):
+        study.references.score("dmp_prior", "replay")
+    assert seen["cfg"] == replace(studies.config.LEARNER_MODEL, n_states=TINY.n_states)
 
 
 def test_recorded_data_trains_by_behaviour_cloning_only(tmp_path):
@@ -88,7 +111,9 @@ def test_recorded_data_trains_by_behaviour_cloning_only(tmp_path):
 def test_fingerprints_are_those_of_behaviour_cloning_without_dagger():
     """Without DAgger and with the paper's read-out, a cache keeps the name it had before
     these fields existed (the hash of the configuration without them)."""
-    for c in (*studies.PRESETS.values(), studies.StudyConfig()):
+    paper_form = [studies.with_form(p, "paper") if study_config.form_of(p) else p
+                  for p in studies.PRESETS.values()]
+    for c in (*paper_form, studies.StudyConfig()):
         d = asdict(c)
         for k in ("preset", "n_seeds", "explain_scenes", "data_file", "data_hash",
                   "data_source", *NEW_FIELDS):
@@ -103,19 +128,25 @@ def test_fingerprints_are_those_of_behaviour_cloning_without_dagger():
     on = replace(base, dagger_rounds=2)
     names = {c.fingerprint() for c in (base, on, replace(on, dagger_rounds=3),
                                        replace(on, round_epochs=2),
-                                       replace(base, predicate_readout="flatten"))}
+                                       replace(base, model=FLAT))}
     assert len(names) == 5
 
 
 def test_the_presets_table_names_dagger_only_where_a_preset_trains_on_policy(monkeypatch):
     table = studies.presets_table()
-    assert "on-policy" not in table and "| `tiny` | 4 / 1 / 2 |" in table
+    rows = {name: next(line for line in table.splitlines() if f"`{name}`" in line)
+            for name in studies.PRESETS}
+    assert "on-policy" not in rows["tiny"] and "| `tiny` | 4 / 1 / 2 |" in table
+    for name in ("quick", "full", "paper"):
+        assert "trained on-policy: DAgger with the world's expert, 10 rounds" in rows[name]
+    # the sweep is named only where a preset has one
+    assert "(the learning-rate sweep by behaviour cloning)" not in rows["quick"]
+    assert "(the learning-rate sweep by behaviour cloning)" in rows["paper"]
     monkeypatch.setitem(study_config.PRESETS, "tiny", replace(TINY, dagger_rounds=1))
     row = next(line for line in studies.presets_table().splitlines() if "`tiny`" in line)
     assert ("| 1; trained on-policy: DAgger with the world's expert, 1 round, each after the "
-            "first continuing 1 epoch (the learning-rate sweep by behaviour cloning) |") in row
-    assert studies.presets_table().replace(row, "") == table.replace(
-        next(line for line in table.splitlines() if "`tiny`" in line), "")
+            "first continuing 1 epoch |") in row
+    assert studies.presets_table().replace(row, "") == table.replace(rows["tiny"], "")
 
 
 # --------------------------------------------------------------------------- training
@@ -144,7 +175,7 @@ def test_an_on_policy_table_run_is_daggers_last_round(tmp_path):
     assert (fp["sim"], fp["agents"], fp["pool"], fp["seed"]) == ("world", "reactive",
                                                                  c.n_train, run.seed)
     assert fp["betas"] == [1.0, 0.5, 0.25] and fp["round_cfg"]["epochs"] == 2
-    assert fp["cfg"]["predicate_readout"] == "gap"
+    assert (fp["cfg"]["predicate_readout"], fp["cfg"]["gains_input"]) == ("gap", "q")
     # done: asked again, nothing trains
     again = study_of(c, tmp_path)
     assert again.files.complete(run) and again.fit(run) == ck

@@ -33,6 +33,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     if args.form is not None and args.form != form_of(config):
         config = with_form(config, args.form)
         named = f"{preset}-{args.form}"
+    form = form_of(config) or "custom"
     if args.seeds is not None:
         config = replace(config, n_seeds=check_option(check_int, "--seeds", args.seeds, 1))
     training = {field: check_option(check_int, option, value, 1) for field, value, option in (
@@ -53,8 +54,8 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
             raise UsageError(f"--data {e}") from e
         default_out = Path("minimanc_results") / f"{named}-{Path(args.data).stem}"
         if is_recorded(config) and config.dagger_rounds > 0:
-            raise UsageError(f"--form {args.form or form_of(config)} trains on-policy with the "
-                             "world's expert; recorded data (--data) has none: use --form paper")
+            raise UsageError(f"form {form} trains on-policy with the world's "
+                             "expert, which recorded data (--data) has not: add --form paper")
         if is_recorded(config):
             if args.dagger:
                 raise UsageError("--dagger needs the world's expert in states the log never "
@@ -65,7 +66,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     out = check_out_dir(Path(args.out) if args.out else default_out)
     progress = not args.no_progress
     t0 = time.perf_counter()
-    print(f"minimanc reproduce: preset {preset}, form {form_of(config) or 'custom'}, "
+    print(f"minimanc reproduce: preset {preset}, form {form}, "
           f"engine {args.engine}, {config.n_seeds} "
           f"seed(s), agents {' and '.join(agents)}, output {out}")
     if config.data_file:
@@ -104,7 +105,7 @@ def register(subparsers: Any) -> None:
                     "Cached under --out: a re-run is fast, an interrupted run resumes.",
     )
     p.add_argument("--quick", action="store_true",
-                   help="small data, few epochs, one seed (about 4 to 5 minutes on 2 cores)")
+                   help="small data, few epochs, one seed (minutes on 2 cores)")
     p.add_argument("--preset", choices=sorted(PRESETS), default=None,
                    help="a named configuration (overrides --quick)")
     p.add_argument("--form", choices=sorted(FORMS), default=None,

@@ -57,6 +57,7 @@ from minimanc.models.config import (
     CONTROL_SCALE,
     DEFAULT_GAINS,
     DEFAULT_INPUT_SHAPE,
+    GAINS_INPUTS,
     ModelConfig,
     gain_logits,
 )
@@ -89,6 +90,7 @@ __all__ = [
     "CONTROL_SCALE",
     "DEFAULT_GAINS",
     "DEFAULT_INPUT_SHAPE",
+    "GAINS_INPUTS",
     "ModelConfig",
     "ModelSpec",
     "backbone",

@@ -23,6 +23,9 @@ __all__ = ["CONTROL_SCALE", "DEFAULT_GAINS", "DEFAULT_INPUT_SHAPE", "TARGET_SPAC
 CONTROL_SCALE: tuple[float, float] = (10.0, 0.5)
 """Output scale of the direct heads: ``controls = o · (10 m/s, 0.5 rad/s)``."""
 
+GAINS_INPUTS: tuple[str, ...] = ("q", "q_p")
+"""What MANC's gains FC (eq. 11) reads (:attr:`ModelConfig.gains_input`): q, or q ⊕ p."""
+
 DEFAULT_GAINS: tuple[float, float, float, float] = (1.0, 0.45, 2.5, 1.15)
 """Initial ``(α_y, β_y, α_q, β_q)`` of the DMP heads (the bias of the gains FC):
 β_y τ_y ≈ 1 keeps the speed, β_q τ_q ≈ 1 follows the pure-pursuit arc."""
@@ -124,7 +127,9 @@ class ModelConfig:
     ``p = σ(Linear(GAP(f)))`` (weights ``(C, M)``); or "flatten", ``p = σ(Linear(flatten(f)))``
     (weights ``(h·w·C, M)``): each predicate a weighted sum over every position and channel,
     still linear in ``f`` but keeping *where* a feature fires, its CAM the per-position
-    contribution ``Σ_c W(y, x, c) f_c(y, x)``.
+    contribution ``Σ_c W(y, x, c) f_c(y, x)``. ``gains_input``, what MANC's gains FC of eq. 11
+    reads (:data:`GAINS_INPUTS`): "q", the automaton's state as the paper writes it,
+    ``FC(q)``; or "q_p", ``FC(q ⊕ p)``, the predicates of eq. 7 beside it.
 
     ``dt`` must keep the default DMP integrator (:data:`minimanc.dmp.DEFAULT_METHOD`,
     :data:`minimanc.dmp.DEFAULT_SUBSTEPS` sub-steps) stable at every corner of the gain
@@ -151,6 +156,7 @@ class ModelConfig:
     vagn_scale: float = 4.0
     dt: float = dmp.DT
     predicate_readout: str = "gap"
+    gains_input: str = "q"
 
     def __post_init__(self) -> None:
         for name in ("n_states", "n_predicates", "hidden", "k_targets"):
@@ -194,6 +200,9 @@ class ModelConfig:
             raise ValueError(f"predicate_activation must be 'sigmoid' or 'linear', got "
                              f"predicate_activation={self.predicate_activation!r}")
         check_readout(self.predicate_readout)
+        if self.gains_input not in GAINS_INPUTS:
+            raise ValueError(f"gains_input must be one of {GAINS_INPUTS}, got "
+                             f"gains_input={self.gains_input!r}")
         if not (isinstance(self.gains_scale, int | float) and self.gains_scale > 0.0):
             raise ValueError(f"gains_scale must be > 0, got gains_scale={self.gains_scale!r}")
         if not self.vagn_scale > 0.0:

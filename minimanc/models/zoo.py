@@ -335,7 +335,7 @@ def _rvs_g_encode(params: dict, obs: dict, f: Any, num: Any, cfg: ModelConfig,
 
 def manc_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
     """MANC's ``init``: eq. 7's :func:`predicate_layer`, the :func:`vagn_layer` and the
-    :func:`gains_layer` of eq. 11 on q.
+    :func:`gains_layer` of eq. 11 on q (or on q ⊕ p: :attr:`ModelConfig.gains_input`).
 
     Parameters
     ----------
@@ -349,15 +349,16 @@ def manc_init(rng: np.random.Generator, cfg: ModelConfig, n_num: int) -> dict:
     dict
         ``{"predicates", "vagn", "gains"}``.
     """
-    N = cfg.n_states
+    width = cfg.n_states + (cfg.n_predicates if cfg.gains_input == "q_p" else 0)
     return {"predicates": predicate_layer(rng, cfg),
             "vagn": vagn_layer(rng, cfg),
-            "gains": gains_layer(rng, N, cfg)}
+            "gains": gains_layer(rng, width, cfg)}
 
 
 def manc_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) -> tuple:
-    """MANC's ``head``: q = vAGN(p, q') (:func:`vagn_step`), gains = FC(q) (:func:`gains_fc`),
-    one DMP step (:func:`dmp_step`) → ``[speed, yaw rate]``.
+    """MANC's ``head``: q = vAGN(p, q') (:func:`vagn_step`), gains = FC(q) (:func:`gains_fc`;
+    FC(q ⊕ p) with ``cfg.gains_input`` "q_p"), one DMP step (:func:`dmp_step`) →
+    ``[speed, yaw rate]``.
 
     Parameters
     ----------
@@ -379,7 +380,8 @@ def manc_head(params: dict, enc: dict, state: dict, cfg: ModelConfig, eng: Any) 
         ``q``, ``alpha``, ``beta``.
     """
     q = vagn_step(params, enc, state, eng)
-    controls, aux = dmp_step(gains_fc(params, q, eng), enc, cfg, eng)  # FC(q) of eq. 11
+    x = eng.xp.concatenate([q, enc["predicates"]], axis=-1) if cfg.gains_input == "q_p" else q
+    controls, aux = dmp_step(gains_fc(params, x, eng), enc, cfg, eng)  # FC(q) of eq. 11
     return controls, {"q": q}, {"q": q, **aux}
 
 

@@ -7,14 +7,13 @@ from __future__ import annotations
 import hashlib
 import json
 from collections import Counter
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
 
 from minimanc import inputs, models, train, world
 from minimanc.checks import check_int
-from minimanc.models.readout import check_readout
 
 TABLE_MODELS: tuple[str, ...] = ("cnn", "cnn_lstm", "rvs_g", "manc")
 """The learned comparison cases of Table I, in the paper's order."""
@@ -29,7 +28,8 @@ class StudyConfig:
 
     Data: ``n_train`` / ``n_tune`` / ``n_val`` scenes of one generated set
     (``data_seed``), drawn as ``raster``, a :class:`~minimanc.world.RasterConfig` (default:
-    the paper's form, the devkit's RGB raster at 64 x 64 px; :func:`raster_text` names it).
+    the devkit's RGB raster at 64 x 64 px; :func:`raster_text` names it; the presets draw
+    :data:`LEARNER_RASTER`).
     Training (the same for every model):
     ``training``, a :class:`~minimanc.train.TrainConfig` whose ``lr``, ``seed``
     and ``subset`` each :class:`Run` replaces (its learning rate from the sweep
@@ -37,12 +37,11 @@ class StudyConfig:
     ``StudyConfig(training=TrainConfig(epochs=3))``, read as ``c.training.epochs``.
     Studies: ``n_states`` of MANC in Table I,
     ``q_states``, ``fractions``, ``settings``; ``explain_scenes`` scenes get
-    explainability figures. The learner's form, from Python (no command-line switch):
-    ``StudyConfig(raster=world.RasterConfig(encoding="channels", route=True, history=2),
-    training=TrainConfig(perception_weight=1.0))``: binary planes, and with
-    ``perception_weight`` > 0 every run also learns the expert's perception of its training
-    scenes as seen in that raster (:func:`minimanc.diagnose.perception_targets`, the
-    auxiliary loss of :mod:`minimanc.train.perception`). A given dataset file
+    explainability figures. How the models learn is named by a form of :data:`FORMS`
+    (:func:`with_form`). With ``training.perception_weight`` > 0 (behaviour cloning only)
+    every run also learns the expert's perception of its training scenes as seen in its
+    raster (:func:`minimanc.diagnose.perception_targets`, the auxiliary loss of
+    :mod:`minimanc.train.perception`). A given dataset file
     (:func:`minimanc.studies.recorded.data_config`): ``data_file`` (its path),
     ``data_hash`` (its content hash) and ``data_source`` (``"world"``: generated,
     ``"nuscenes"``: recorded); all ``""`` when the study generates its data.
@@ -56,8 +55,10 @@ class StudyConfig:
     take about behaviour cloning's gradient steps). ``0`` (default): behaviour cloning
     (Algorithm 1). The sweeps stay behaviour cloning; the auxiliary perception loss cannot
     be used on-policy (the collected states have no perception targets).
-    ``predicate_readout``: what eq. 7's predicate layer of every run reads
-    (:attr:`minimanc.models.ModelConfig.predicate_readout`; default ``"gap"``, the paper's).
+    ``model``: the :class:`~minimanc.models.ModelConfig` every run starts from (default:
+    the library's, the paper's models), read as ``c.model.predicate_readout``; each run
+    sets its own ``n_states`` and ``setting`` and the data its ``input_shape``
+    (:meth:`model_config`), so those three stay at their defaults here.
     """
 
     preset: str = "custom"
@@ -82,7 +83,7 @@ class StudyConfig:
     data_source: str = ""
     dagger_rounds: int = 0
     round_epochs: int = 1
-    predicate_readout: str = "gap"
+    model: models.ModelConfig = field(default_factory=models.ModelConfig)
 
     def __post_init__(self) -> None:
         if not isinstance(self.training, train.TrainConfig):
@@ -116,8 +117,28 @@ class StudyConfig:
                 if mdl not in models.names():
                     raise ValueError(f"{group} must hold names from {models.names()}; "
                                      f"got {mdl!r}")
-        check_readout(self.predicate_readout)
+        self._check_model()
         self._check_on_policy()
+
+    def _check_model(self) -> None:
+        """``model`` a ModelConfig whose per-run fields are left to the runs."""
+        if not isinstance(self.model, models.ModelConfig):
+            raise ValueError(f"model must be a minimanc.models.ModelConfig; got "
+                             f"model={self.model!r}")
+        base = models.ModelConfig()
+        for name, where in (("n_states", "StudyConfig.n_states and q_states"),
+                            ("setting", "StudyConfig.settings"),
+                            ("input_shape", "the data")):
+            if getattr(self.model, name) != getattr(base, name):
+                raise ValueError(f"model.{name} is each run's (set by {where}); leave it at "
+                                 f"its default, got model.{name}="
+                                 f"{getattr(self.model, name)!r}")
+
+    def model_config(self, n_states: int, setting: str) -> models.ModelConfig:
+        """The :class:`~minimanc.models.ModelConfig` of a run with ``n_states`` q-states in
+        ``setting``: :attr:`model` with those two (the input shape is the data's, filled in
+        by :func:`minimanc.train.fit`)."""
+        return replace(self.model, n_states=n_states, setting=setting)
 
     def _check_on_policy(self) -> None:
         """``dagger_rounds`` and ``round_epochs`` valid, and usable with the rest."""
@@ -155,7 +176,7 @@ class StudyConfig:
         A given data file enters by its content hash and source (not its path); without
         one the hash is that of the configuration before the option, and so is it with
         behaviour cloning (``dagger_rounds`` 0: neither it nor ``round_epochs`` enters) and
-        the paper's read-out (``predicate_readout`` ``"gap"``). Holds every field of
+        the library's models (:attr:`model` the default). Holds every field of
         :attr:`training` and the library's defaults of :class:`minimanc.models.ModelConfig`,
         so that a cache written by a version that trained differently is never reused.
         """
@@ -168,8 +189,8 @@ class StudyConfig:
         if not self.on_policy:
             d.pop("dagger_rounds")
             d.pop("round_epochs")
-        if self.predicate_readout == "gap":
-            d.pop("predicate_readout")
+        if self.model == models.ModelConfig():
+            d.pop("model")
         d["model_defaults"] = models.ModelConfig().to_dict()
         d["default_gains"] = list(models.DEFAULT_GAINS)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
@@ -179,6 +200,32 @@ class StudyConfig:
         return tuple(range(self.n_seeds))
 
 
+LEARNER_RASTER = world.RasterConfig(size=90, cols=64, metres_ahead=60.0, encoding="channels",
+                                    route=True, history=2)
+"""The learner's raster (chapter 7): binary planes of the map, the ego's route ahead and the
+other vehicles at t, t−1, t−2, 60 m ahead at the devkit's 0.78 m per pixel (90 × 64 px)."""
+
+LEARNER_MODEL = models.ModelConfig(predicate_readout="flatten", n_predicates=64,
+                                   gains_input="q_p", position_lookahead=10.0,
+                                   position_lookahead_time=0.0)
+"""The learner's models (chapter 8): eq. 7 over the flattened features, 64 predicates, MANC's
+gains over q ⊕ p (eq. 11 with the predicates beside the automaton's state) and the DMP's
+position goal at a fixed 10 m along the lane target (its speed then ``≈ β_y · 10 m``, linear
+in the gain, where the paper's speed-scaled goal makes it steep near ``β_y τ_y = 1``)."""
+
+FORMS: dict[str, dict[str, Any]] = {
+    "paper": {"raster": world.RasterConfig(), "dagger_rounds": 0, "round_epochs": 1,
+              "model": models.ModelConfig()},
+    "learner": {"raster": LEARNER_RASTER, "dagger_rounds": 10, "round_epochs": 2,
+                "model": LEARNER_MODEL},
+}
+"""How a study's models learn, by name (:func:`with_form`): ``"paper"``, the paper's form
+(the devkit's RGB raster, behaviour cloning by Algorithm 1, the library's models: eq. 7 over
+the pooled features, eq. 11's ``FC(q)``); ``"learner"``, the learner's form
+(:data:`LEARNER_RASTER`, DAgger with the world's expert for 10 rounds, each after the first
+continuing two epochs, :data:`LEARNER_MODEL`)."""
+
+
 PRESETS: dict[str, StudyConfig] = {
     # the test suite: seconds, numbers meaningless
     "tiny": StudyConfig(
@@ -186,41 +233,28 @@ PRESETS: dict[str, StudyConfig] = {
         training=train.TrainConfig(epochs=1, batch_size=16, max_steps_per_epoch=2, seq_len=4),
         lrs=(1e-3,), n_seeds=1, q_states=(3, 6), fractions=(0.5, 1.0), explain_scenes=1,
     ),
-    # minutes on 2 cores (README): every study and the learning-rate sweep, one seed, small data
+    # minutes on 2 cores (README): every study, one seed, one learning rate, small data
     "quick": StudyConfig(
-        preset="quick", n_train=64, n_tune=8, n_val=24, raster=world.RasterConfig(),
-        training=train.TrainConfig(epochs=3, batch_size=64), lrs=(1e-3, 3e-3), n_seeds=1,
+        preset="quick", n_train=32, n_tune=8, n_val=24,
+        training=train.TrainConfig(epochs=3, batch_size=64), lrs=(1e-3,), n_seeds=1,
+        q_states=(3, 6, 12), fractions=(0.5, 1.0), **FORMS["learner"],
     ),
-    # three seeds, more data and epochs than "quick"
+    # three seeds, more data and epochs than "quick", and the learning-rate sweep
     "full": StudyConfig(
-        preset="full", n_train=96, n_tune=16, n_val=48, raster=world.RasterConfig(),
+        preset="full", n_train=96, n_tune=16, n_val=48,
         training=train.TrainConfig(epochs=4, batch_size=64), lrs=(1e-3, 3e-3), n_seeds=3,
+        **FORMS["learner"],
     ),
     # the paper's sizes: 650 training / 200 validation scenes, three seeds
     "paper": StudyConfig(
-        preset="paper", n_train=650, n_tune=40, n_val=200, raster=world.RasterConfig(),
+        preset="paper", n_train=650, n_tune=40, n_val=200,
         training=train.TrainConfig(epochs=6, batch_size=64), lrs=(3e-4, 1e-3, 3e-3), n_seeds=3,
+        **FORMS["learner"],
     ),
 }
-"""Named configurations: ``tiny`` (tests), ``quick`` (``--quick``), ``full`` (the default)
-and ``paper`` (the paper's data sizes)."""
-
-
-LEARNER_RASTER = world.RasterConfig(size=90, cols=64, metres_ahead=60.0, encoding="channels",
-                                    route=True, history=2)
-"""The learner's raster (chapter 7): binary planes of the map, the ego's route ahead and the
-other vehicles at t, t−1, t−2, 60 m ahead at the devkit's 0.78 m per pixel (90 × 64 px)."""
-
-FORMS: dict[str, dict[str, Any]] = {
-    "paper": {"raster": world.RasterConfig(), "dagger_rounds": 0, "round_epochs": 1,
-              "predicate_readout": "gap"},
-    "learner": {"raster": LEARNER_RASTER, "dagger_rounds": 10, "round_epochs": 2,
-                "predicate_readout": "flatten"},
-}
-"""How a study's models learn, by name (:func:`with_form`): ``"paper"``, the paper's form
-(the devkit's RGB raster, behaviour cloning by Algorithm 1, eq. 7 over the pooled features);
-``"learner"``, the learner's form (:data:`LEARNER_RASTER`, DAgger with the world's expert for
-10 rounds, each after the first continuing two epochs, eq. 7 over the flattened features)."""
+"""Named configurations, every one but ``tiny`` in the learner's form (:data:`FORMS`;
+:func:`with_form` gives the paper's): ``tiny`` (tests), ``quick`` (``--quick``), ``full``
+(the default) and ``paper`` (the paper's data sizes)."""
 
 
 def with_form(config: StudyConfig, form: str) -> StudyConfig:
@@ -233,17 +267,37 @@ def with_form(config: StudyConfig, form: str) -> StudyConfig:
 
 def form_of(config: StudyConfig) -> str | None:
     """The name of the form of :data:`FORMS` that ``config`` is in, or ``None``."""
-    for name, fields in FORMS.items():
-        if all(getattr(config, k) == v for k, v in fields.items()):
+    for name, settings in FORMS.items():
+        if all(getattr(config, k) == v for k, v in settings.items()):
             return name
     return None
 
 
-def readout_text(readout: str) -> str:
-    """What eq. 7's predicate layer reads, in words, when it is not the paper's pooled
-    features (``""`` for ``"gap"``)."""
-    check_readout(readout)
-    return "" if readout == "gap" else "eq. 7 over the flattened features"
+def model_text(model: models.ModelConfig) -> str:
+    """How a study's :attr:`StudyConfig.model` departs from the library's models, in words
+    (``""`` for the default): ``"eq. 7 over the flattened features, 64 predicates, MANC's
+    gains over q ⊕ p, the DMP's goal 10 m ahead"``, then any other field as
+    ``name = value``."""
+    if not isinstance(model, models.ModelConfig):
+        raise ValueError(f"model must be a minimanc.models.ModelConfig; got model={model!r}")
+    base = models.ModelConfig()
+    words = []
+    changed = [f.name for f in fields(model) if getattr(model, f.name) != getattr(base, f.name)]
+    if "predicate_readout" in changed:
+        read = "flattened" if model.predicate_readout == "flatten" else "pooled"
+        words.append(f"eq. 7 over the {read} features")
+    if "n_predicates" in changed:
+        words.append(f"{model.n_predicates} predicates")
+    if "gains_input" in changed:
+        words.append("MANC's gains over " + " ⊕ ".join(model.gains_input.split("_")))
+    if {"position_lookahead", "position_lookahead_time"} & set(changed):
+        per_speed = (f" + {model.position_lookahead_time:g} s × speed"
+                     if model.position_lookahead_time else "")
+        words.append(f"the DMP's goal {model.position_lookahead:g} m{per_speed} ahead")
+    told = {"predicate_readout", "n_predicates", "gains_input", "position_lookahead",
+            "position_lookahead_time"}
+    words += [f"{k} = {getattr(model, k)!r}" for k in changed if k not in told]
+    return ", ".join(words)
 
 
 def raster_text(raster: world.RasterConfig) -> str:
@@ -276,18 +330,21 @@ def perception_text(weight: float) -> str:
     return f"with the auxiliary perception loss (λ = {weight:g})" if weight > 0 else ""
 
 
-def dagger_text(rounds: int, round_epochs: int) -> str:
+def dagger_text(rounds: int, round_epochs: int, swept: bool = True) -> str:
     """How a study's runs were trained when not by behaviour cloning alone, in words:
     DAgger's ``rounds`` and the ``round_epochs`` of each round after the first
-    (:attr:`StudyConfig.dagger_rounds`) when ``rounds`` > 0, else ``""``."""
+    (:attr:`StudyConfig.dagger_rounds`) when ``rounds`` > 0, else ``""``; ``swept``: the
+    study has a learning-rate sweep (more than one of :attr:`StudyConfig.lrs`), which
+    trains by behaviour cloning."""
     if rounds <= 0:
         return ""
+
     def count(n: int, word: str) -> str:
         return f"{n} {word}{'s' if n != 1 else ''}"
 
     return (f"trained on-policy: DAgger with the world's expert, {count(rounds, 'round')}, "
-            f"each after the first continuing {count(round_epochs, 'epoch')} (the "
-            "learning-rate sweep by behaviour cloning)")
+            f"each after the first continuing {count(round_epochs, 'epoch')}"
+            + (" (the learning-rate sweep by behaviour cloning)" if swept else ""))
 
 
 def presets_table() -> str:
@@ -300,7 +357,8 @@ def presets_table() -> str:
     for name, c in PRESETS.items():
         epochs = " ".join(filter(None, (str(c.training.epochs),
                                         perception_text(c.training.perception_weight))))
-        epochs = "; ".join(filter(None, (epochs, dagger_text(c.dagger_rounds, c.round_epochs))))
+        epochs = "; ".join(filter(None, (epochs, dagger_text(c.dagger_rounds, c.round_epochs,
+                                                             len(c.lrs) > 1))))
         lines.append(f"| `{name}` | {c.n_train} / {c.n_tune} / {c.n_val} | "
                      f"{raster_text(c.raster)} | {epochs} | "
                      f"{', '.join(f'{x:g}' for x in c.lrs)} | "
@@ -340,7 +398,9 @@ def canonical_setting(model: str, setting: str) -> str:
 
 def plan(c: StudyConfig, agents: int = 2) -> dict:
     """What a study of ``c`` computes: ``{"train": Counter((model, fraction) → number of
-    trainings), "rollouts": {"tune": n, "val": n}}`` (closed-loop evaluations). A sweep run
+    trainings), "sweep": the same for the learning-rate sweep's trainings alone (behaviour
+    cloning; counted in ``"train"`` too), "rollouts": {"tune": n, "val": n}}`` (closed-loop
+    evaluations). A sweep run
     at seed 0 and full data that wins its sweep is the Table I run of seed 0: it is
     counted once (not when the runs train on-policy, :attr:`StudyConfig.on_policy`: the
     sweeps are behaviour cloning, so that run trains again by DAgger). Table I's runs are
@@ -371,6 +431,6 @@ def plan(c: StudyConfig, agents: int = 2) -> dict:
     trains = Counter((r[0], r[3]) for r in (main - shared) | sweep)
     table = {(m, canonical_setting(m, s), sd) for s in c.settings for m in c.table_models
              for sd in c.seeds}
-    return {"train": trains, "rollouts": {"tune": len(sweep),
-                                          "val": len(main) + (agents - 1) * len(table)}}
+    return {"train": trains, "sweep": Counter((r[0], r[3]) for r in sweep),
+            "rollouts": {"tune": len(sweep), "val": len(main) + (agents - 1) * len(table)}}
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from minimanc import metrics, models, rollout
+from minimanc import metrics, rollout
 from minimanc.diagnose import bounds
 from minimanc.studies.cache import StudyFiles
 from minimanc.studies.jobs import score
@@ -53,7 +53,7 @@ class References:
                     self._floor = bounds.floor_rollout(val, bounds.median_style())
                 traj = self._floor
             else:
-                cfg = models.ModelConfig(n_states=self.config.n_states)
+                cfg = self.config.model_config(self.config.n_states, "paper")
                 traj = rollout.fixed_gains(val, cfg=cfg, agents=agents)
             self._scores[key] = score(traj, val)
             self.timing["references"] = (self.timing.get("references", 0.0)

@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from minimanc import world
+from minimanc import models, world
 from minimanc.diagnose.bounds import BOUND_ROWS
-from minimanc.studies.config import dagger_text, perception_text, raster_text, readout_text
+from minimanc.studies.config import dagger_text, model_text, perception_text, raster_text
 from minimanc.studies.dagger_study import dagger_markdown
 from minimanc.studies.provenance import provenance_markdown
 from minimanc.viz.style import model_label
@@ -324,6 +324,16 @@ def _raster(config: dict) -> world.RasterConfig:
     return r if isinstance(r, world.RasterConfig) else world.RasterConfig(**r)
 
 
+def _model(config: dict) -> models.ModelConfig:
+    """The models of a results file's ``config`` (a ModelConfig, its fields, or none: the
+    library's, as before the field)."""
+    m = config.get("model")
+    if m is None:
+        return models.ModelConfig()
+    return m if isinstance(m, models.ModelConfig) else models.ModelConfig(**{
+        k: tuple(v) if isinstance(v, list) else v for k, v in m.items()})
+
+
 _RATIO_COLS = ("ade", "along_track", "cross_track")
 
 
@@ -384,8 +394,9 @@ def table_markdown(results: dict) -> str:
     ns = int(c["n_seeds"])
     lab = model_label
     perception = perception_text(float(_training(c, "perception_weight")))
-    on_policy = dagger_text(int(c.get("dagger_rounds", 0)), int(c.get("round_epochs", 1)))
-    readout = readout_text(c.get("predicate_readout", "gap"))
+    on_policy = dagger_text(int(c.get("dagger_rounds", 0)), int(c.get("round_epochs", 1)),
+                            len(c["lrs"]) > 1)
+    readout = model_text(_model(c))
     lines = [
         "# Closed-loop results (Table I and the studies of section V)",
         "",
@@ -393,8 +404,8 @@ def table_markdown(results: dict) -> str:
         f"{c['n_val']} validation scenes, {raster_text(_raster(c))}, "
         f"{' '.join(filter(None, (str(_training(c, 'epochs')), 'epochs', perception)))}, "
         + (f"{on_policy}, " if on_policy else "") + (f"{readout}, " if readout else "") +
-        f"learning rate from {list(c['lrs'])} by tuning-split "
-        "ADE, "
+        (f"learning rate from {list(c['lrs'])} by tuning-split ADE, " if len(c["lrs"]) > 1
+         else f"learning rate {c['lrs'][0]:g}, ") +
         f"{'mean ± std over ' + str(ns) + ' seeds' if ns > 1 else 'one seed'}; "
         f"engine `{results['engine']}`. Lower is better everywhere except route progress "
         "(1 = as far along the route as the human). Close encounter: an ado "

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -292,9 +292,7 @@ class Study:
         c = self.config
         out = {}
         for s in c.settings:
-            cfg = models.ModelConfig(n_states=c.n_states, setting=s,
-                                     input_shape=c.raster.input_shape,
-                                     predicate_readout=c.predicate_readout)
+            cfg = replace(c.model_config(c.n_states, s), input_shape=c.raster.input_shape)
             out[s] = models.param_counts(cfg)
         return out
 

@@ -57,11 +57,10 @@ class Trainings:
         self._started: dict[str, tuple[Any, int]] = {}
 
     def model_config(self, run: Run) -> models.ModelConfig:
-        """The run's :class:`~minimanc.models.ModelConfig` (its q-states and setting, the
-        study's ``predicate_readout``; the input shape is the data's, filled in by
-        :func:`minimanc.train.fit`)."""
-        return models.ModelConfig(n_states=run.n_states, setting=run.setting,
-                                  predicate_readout=self.config.predicate_readout)
+        """The run's :class:`~minimanc.models.ModelConfig`: the study's
+        (:meth:`~minimanc.studies.config.StudyConfig.model_config`) with its q-states and
+        setting."""
+        return self.config.model_config(run.n_states, run.setting)
 
     def train_config(self, run: Run) -> train.TrainConfig:
         """The run's :class:`~minimanc.train.TrainConfig` (:meth:`StudyConfig.train_config`)."""

@@ -14,7 +14,7 @@ Measured in one process, one XLA thread, float32, JAX:
    (:func:`minimanc.inputs.from_state`) plus the backbone's forward pass on 8 frames.
 3. **The paper preset**: :func:`minimanc.studies.config.plan` counts its trainings and
    closed-loop rollouts; the time they take at the measured step costs, scaled so that
-   today's raster gives the 83 min measured (``results/paper/table1.md``), is the budget
+   today's raster gives the 83 min measured (``results/paper-paper/table1.md``), is the budget
    the new raster would need.
 
 Run: ``python research/seeing_the_leader/cost.py`` (writes ``results/cost.md``);
@@ -40,9 +40,9 @@ from minimanc.world.history import latest_history
 RESULTS = Path(__file__).resolve().parent / "results"
 PAPER_MINUTES = 83.3
 """Wall time of ``minimanc reproduce --preset paper`` with the 64 × 64 RGB raster
-(``results/paper/table1.md``)."""
+(``results/paper-paper/table1.md``)."""
 PAPER_FIXED_S = 44.4 + 15.4 + 63.6 + 70.1
-"""Of which data, figures, the modes study and the reference rows (``results/paper/
+"""Of which data, figures, the modes study and the reference rows (``results/paper-paper/
 results.json``, ``timing_s``): not training nor the learned models' closed loop."""
 RASTERS = {
     "today: RGB 64×64 (40 m × ±25 m, 0.78 m/px)": RasterConfig(),
