@@ -396,14 +396,14 @@ def table_markdown(results: dict) -> str:
     perception = perception_text(float(_training(c, "perception_weight")))
     on_policy = dagger_text(int(c.get("dagger_rounds", 0)), int(c.get("round_epochs", 1)),
                             len(c["lrs"]) > 1)
-    readout = model_text(_model(c))
+    model_words = model_text(_model(c))
     lines = [
         "# Closed-loop results (Table I and the studies of section V)",
         "",
         f"Preset `{c['preset']}`: {c['n_train']} training, {c['n_tune']} tuning and "
         f"{c['n_val']} validation scenes, {raster_text(_raster(c))}, "
         f"{' '.join(filter(None, (str(_training(c, 'epochs')), 'epochs', perception)))}, "
-        + (f"{on_policy}, " if on_policy else "") + (f"{readout}, " if readout else "") +
+        + (f"{on_policy}, " if on_policy else "") + (f"{model_words}, " if model_words else "") +
         (f"learning rate from {list(c['lrs'])} by tuning-split ADE, " if len(c["lrs"]) > 1
          else f"learning rate {c['lrs'][0]:g}, ") +
         f"{'mean ± std over ' + str(ns) + ' seeds' if ns > 1 else 'one seed'}; "

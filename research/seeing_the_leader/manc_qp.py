@@ -2,6 +2,9 @@
 as :mod:`minimanc.models.zoo` shows (``import manc_qp`` registers the three):
 
 * ``"manc_qp"``: ``FC(q ⊕ p)``, the form through which the privileged runs drove (issue 27);
+  the library's MANC has it since as ``ModelConfig(gains_input="q_p")`` (the same draws and
+  step: ``hero.py`` loads these runs that way and checks it); the name stays for the runs
+  cached under it;
 * ``"manc_qm"``: ``FC(q ⊕ m)``, eq. 11 with the odometer beside q (``m`` = the current
   ``motion`` / :data:`minimanc.inputs.MOTION_SCALE`, the own speed and yaw rate the DMP
   already starts from);
