@@ -8,7 +8,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from minimanc import metrics, rollout
+from minimanc import metrics, models, rollout
 from minimanc.diagnose import bounds
 from minimanc.studies.cache import StudyFiles
 from minimanc.studies.jobs import score
@@ -37,9 +37,12 @@ class References:
     def score(self, name: str, agents: str) -> dict:
         """The scores (:func:`minimanc.studies.jobs.score`) of a driver without learning on
         the validation split under ``agents``: ``"human"`` (the log, or the human's logged
-        controls among reactive ados), ``"dmp_prior"`` (MANC's DMP head at its initial
-        constant gains, :func:`minimanc.rollout.fixed_gains`: what the structure alone does,
-        the bar the learned gains must clear) or a bound of :attr:`bound_rows`."""
+        controls among reactive ados), ``"dmp_prior"`` (MANC's DMP head as the library builds
+        it, the paper's goal rule, at its initial constant gains,
+        :func:`minimanc.rollout.fixed_gains`: what the structure alone does, the bar the
+        learned gains must clear; the same bar whatever the study's ``model``, under whose
+        goal rule the default gains may mean another pace) or a bound of
+        :attr:`bound_rows`."""
         key = f"{name}-val-{agents}"
         if key not in self._scores:
             _, _, val = self.files.datasets()
@@ -53,7 +56,7 @@ class References:
                     self._floor = bounds.floor_rollout(val, bounds.median_style())
                 traj = self._floor
             else:
-                cfg = self.config.model_config(self.config.n_states, "paper")
+                cfg = models.ModelConfig(n_states=self.config.n_states)
                 traj = rollout.fixed_gains(val, cfg=cfg, agents=agents)
             self._scores[key] = score(traj, val)
             self.timing["references"] = (self.timing.get("references", 0.0)
