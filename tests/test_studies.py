@@ -70,13 +70,16 @@ def test_reproduce_tiny_writes_everything(tmp_path, capsys):
     assert res["agents"] == ["replay", "reactive"] and set(res["table1"]) == set(res["agents"])
     for agents, t1 in res["table1"].items():
         assert set(t1) == {"paper", "parity"}
-        assert set(t1["paper"]) == {"human", "dmp_prior", "expert", "style_floor", "cnn",
-                                    "cnn_lstm", "rvs_g", "manc"}
+        assert set(t1["paper"]) == {"human", "dmp_prior", "expert", "style_floor",
+                                    "privileged", "cnn", "cnn_lstm", "rvs_g", "manc"}
         # the bounds: the world's driver asked closed loop is the log; the median-style
         # driver is not, and collides no more than the human
         assert t1["paper"]["expert"]["ade"]["mean"] < 1e-3
         assert t1["paper"]["expert"]["at_fault_collision_rate"]["mean"] == 0.0
         assert t1["paper"]["style_floor"]["ade"]["mean"] > 0.0
+        # the privileged learner: one run per training seed, trained on the training split
+        priv = t1["paper"]["privileged"]
+        assert priv["ade"]["n"] == res["config"]["n_seeds"] and priv["ade"]["mean"] > 0.0
         # the human's log touches nothing it is at fault for
         assert t1["paper"]["human"]["contacts_at_fault"]["mean"] == 0.0
         human = t1["paper"]["human"]

@@ -1,5 +1,5 @@
-"""Chapter 12 — the bounds every closed-loop number is read against: the expert and the style
-floor (rows of Table I).
+"""Chapter 12 — the bounds every closed-loop number is read against: the expert, the style
+floor and the privileged learner (rows of Table I).
 
 **Expert.** The world's human (:class:`minimanc.dagger.expert.HumanExpert`) asked in every
 state the closed loop reaches (:class:`minimanc.diagnose.policies.ExpertPolicy`), driving
@@ -16,9 +16,14 @@ the logged human is what a style-blind driver that sees road and traffic perfect
 makes: the floor of the along-track error. Re-driving with each scene's own style
 reproduces the log (:func:`floor_rollout` with ``style=None``; checked by the tests).
 
-Both return a :class:`minimanc.rollout.Rollout`, as :func:`minimanc.rollout.simulate` does,
-and take the ados' protocol as ``agents=``; the expert's also counts the states it could not
-be asked in (:class:`ExpertRollout`).
+**Privileged learner.** The same behaviour cloning on the numbers the expert perceives
+instead of the raster (:mod:`minimanc.diagnose.privileged`): :func:`privileged_learner`
+trains it on a study's training scenes and :func:`privileged_rollout` drives it. What a
+learner that sees perfectly reaches; every image model is read against it.
+
+Each returns a :class:`minimanc.rollout.Rollout`, as :func:`minimanc.rollout.simulate` does,
+and take the ados' protocol as ``agents=``; the expert's and the privileged learner's also
+count the states the expert could not be asked in (:class:`ExpertRollout`).
 """
 
 from __future__ import annotations
@@ -31,14 +36,15 @@ import numpy as np
 from minimanc import rollout
 from minimanc.checks import check_int
 from minimanc.dagger.teachers import WorldTeacher
-from minimanc.diagnose.policies import ExpertPolicy
+from minimanc.diagnose.policies import ExpertPolicy, PrivilegedPolicy
+from minimanc.diagnose.privileged import Privileged, demonstrations, fit_privileged
 from minimanc.world.driver import HumanStyle, random_style, simulate_scene
 from minimanc.world.generation import draw_scene
 
 __all__ = ["BOUND_ROWS", "ExpertRollout", "check_generated", "expert_rollout", "floor_rollout",
-           "median_style"]
+           "median_style", "privileged_learner", "privileged_rollout"]
 
-BOUND_ROWS: tuple[str, ...] = ("expert", "style_floor")
+BOUND_ROWS: tuple[str, ...] = ("expert", "style_floor", "privileged")
 """The bound rows of Table I."""
 
 
@@ -96,6 +102,31 @@ def expert_rollout(ds: Any, scenes: Any = None, *, agents: str = "replay",
     policy = ExpertPolicy(WorldTeacher(ds, agents=agents))
     traj = rollout.simulate(policy, ds, scenes=scenes, agents=agents, progress=progress,
                             desc=f"expert ({agents})")
+    return ExpertRollout(traj.name, traj.setting, traj.ego, traj.controls, traj.aux,
+                         traj.scenes, traj.ado, traj.ado_valid, traj.agents,
+                         refused=policy.refused)
+
+
+def privileged_learner(train_ds: Any, seed: int = 0) -> Privileged:
+    """Table I's "Privileged" learner: the MLP of :mod:`minimanc.diagnose.privileged` trained by
+    behaviour cloning (Algorithm 1, :func:`~minimanc.diagnose.privileged.fit_privileged`) on
+    the numbers the expert perceives in every state of ``train_ds`` (a dataset that
+    regenerates), with training seed ``seed``. The bound of a learner that sees perfectly."""
+    check_generated(train_ds, "the privileged learner's demonstrations")
+    X, Y = demonstrations(train_ds)
+    return fit_privileged(X, Y, seed=check_int("seed", seed, 0))
+
+
+def privileged_rollout(model: Privileged, ds: Any, *, agents: str = "replay",
+                       progress: bool = False) -> ExpertRollout:
+    """The privileged learner ``model`` (:func:`privileged_learner`) in the closed loop on
+    ``ds``, under ``agents``, reading the expert's perception of the state it reached
+    (:class:`~minimanc.diagnose.policies.PrivilegedPolicy`); ``refused`` counts the states
+    that perception could not be formed in."""
+    check_generated(ds, "the privileged learner")
+    policy = PrivilegedPolicy(model, WorldTeacher(ds, agents=agents))
+    traj = rollout.simulate(policy, ds, agents=agents, progress=progress,
+                            desc=f"privileged ({agents})")
     return ExpertRollout(traj.name, traj.setting, traj.ego, traj.controls, traj.aux,
                          traj.scenes, traj.ado, traj.ado_valid, traj.agents,
                          refused=policy.refused)

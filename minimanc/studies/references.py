@@ -1,6 +1,7 @@
 """Chapter 9 — the rows of Table I that no training makes: :class:`References` drives the
 logged human, MANC's DMP head at constant gains (the "DMP prior") and the bounds
-(:data:`minimanc.diagnose.bounds.BOUND_ROWS`: the expert, the style floor) on a study's
+(:data:`minimanc.diagnose.bounds.BOUND_ROWS`: the expert, the style floor, the privileged
+learner, one per training seed) on a study's
 validation split, and keeps their scores in memory."""
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ class References:
         self.timing = {} if timing is None else timing
         self._scores: dict[str, dict] = {}
         self._floor: Any = None
+        self._privileged: dict[int, Any] = {}
 
     @property
     def bound_rows(self) -> tuple[str, ...]:
@@ -34,7 +36,7 @@ class References:
         recorded data (:mod:`minimanc.studies.recorded`)."""
         return () if is_recorded(self.config) else bounds.BOUND_ROWS
 
-    def score(self, name: str, agents: str) -> dict:
+    def score(self, name: str, agents: str, seed: int = 0) -> dict:
         """The scores (:func:`minimanc.studies.jobs.score`) of a driver without learning on
         the validation split under ``agents``: ``"human"`` (the log, or the human's logged
         controls among reactive ados), ``"dmp_prior"`` (MANC's DMP head as the library builds
@@ -42,8 +44,8 @@ class References:
         :func:`minimanc.rollout.fixed_gains`: what the structure alone does, the bar the
         learned gains must clear; the same bar whatever the study's ``model``, under whose
         goal rule the default gains may mean another pace) or a bound of
-        :attr:`bound_rows`."""
-        key = f"{name}-val-{agents}"
+        :attr:`bound_rows` (``"privileged"``: the learner of training seed ``seed``)."""
+        key = f"{name}-val-{agents}" + (f"-s{seed}" if name == "privileged" else "")
         if key not in self._scores:
             _, _, val = self.files.datasets()
             t0 = time.perf_counter()
@@ -51,6 +53,8 @@ class References:
                 traj = rollout.human(val, agents=agents)
             elif name == "expert":
                 traj = bounds.expert_rollout(val, agents=agents)
+            elif name == "privileged":
+                traj = bounds.privileged_rollout(self.privileged(seed), val, agents=agents)
             elif name == "style_floor":  # one drive, ados reacting, scored under either protocol
                 if self._floor is None:
                     self._floor = bounds.floor_rollout(val, bounds.median_style())
@@ -64,5 +68,17 @@ class References:
         return self._scores[key]
 
     def aggregate(self, name: str, agents: str) -> dict:
-        """:meth:`score` as a Table I row (:func:`minimanc.metrics.aggregate` of one run)."""
+        """:meth:`score` as a Table I row (:func:`minimanc.metrics.aggregate` of one run; of
+        one per training seed for ``"privileged"``)."""
+        if name == "privileged":
+            return metrics.aggregate([self.score(name, agents, seed)
+                                      for seed in self.config.seeds])
         return metrics.aggregate([self.score(name, agents)])
+
+    def privileged(self, seed: int) -> Any:
+        """The privileged learner of training seed ``seed``
+        (:func:`minimanc.diagnose.bounds.privileged_learner` on the training split; kept)."""
+        if seed not in self._privileged:
+            train_ds, _, _ = self.files.datasets()
+            self._privileged[seed] = bounds.privileged_learner(train_ds, seed)
+        return self._privileged[seed]

@@ -43,7 +43,7 @@ def _fmt(x: float) -> str:
 REFERENCE_ROWS: tuple[str, ...] = ("human", "dmp_prior", *BOUND_ROWS)
 """Table I's rows that are not learned models: the logged human, the DMP head at fixed
 gains (:func:`minimanc.rollout.fixed_gains`) and the bounds (:mod:`minimanc.diagnose.bounds`:
-the expert, the style floor)."""
+the expert, the style floor, the privileged learner)."""
 
 MODE_MIN_EXCESS: float = 0.05
 """The explainability claim holds for a model when the mutual information between its most
@@ -352,7 +352,7 @@ def floor_ratios(table: dict, agents: str, setting: str, label: Any = str) -> li
            "(expert: " + f"{_mean(expert, 'at_fault_collision_rate'):.2f}) |",
            "|---|---|---|---|---|"]
     for m, agg in table.items():
-        if m in REFERENCE_ROWS and m != "dmp_prior":
+        if m in REFERENCE_ROWS and m not in ("dmp_prior", "privileged"):
             continue
         ratios = [_mean(agg, k) / max(_mean(floor, k), 1e-9) for k in _RATIO_COLS]
         out.append(f"| {label(m)} | " + " | ".join(f"{r:.2f}" for r in ratios)

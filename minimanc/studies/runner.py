@@ -168,8 +168,8 @@ class Study:
     def table1(self) -> dict:
         """``{agents: {setting: {model: aggregate}}}`` (Table I under each protocol), with
         the rows ``"human"``, ``"dmp_prior"`` (the DMP head at fixed gains) and the bounds
-        (:attr:`References.bound_rows`: the expert, the style floor; none on recorded data)
-        first."""
+        (:attr:`References.bound_rows`: the expert, the style floor, the privileged learner
+        over the training seeds; none on recorded data) first."""
         c = self.config
         for a in self.agents:
             for s in c.settings:
@@ -190,7 +190,8 @@ class Study:
         c = self.config
         out: dict = {}
         for a in self.agents:
-            fixed = {m: families_of([self.references.score(m, a)])
+            fixed = {m: families_of([self.references.score(m, a, sd) for sd in (
+                         c.seeds if m == "privileged" else (0,))])
                      for m in ("human", "dmp_prior", *self.references.bound_rows)}
             out[a] = {s: {**fixed, **{m: self.evaluations.aggregate_families(self.runs(m, s), a)
                                       for m in c.table_models}} for s in c.settings}

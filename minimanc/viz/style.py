@@ -35,13 +35,15 @@ __all__ = [
 
 REFERENCE_LABELS: dict[str, str] = {"human": "Human", "dmp_prior": "DMP at fixed gains",
                                     "expert": "Expert (the world's driver)",
-                                    "style_floor": "Style floor (median-style driver)"}
+                                    "style_floor": "Style floor (median-style driver)",
+                                    "privileged": "Privileged learner (the expert's numbers)"}
 """Display names of the rows that are not learned models: the logged human (Table I) and the
 no-learning reference (:func:`minimanc.rollout.fixed_gains`). A model's own display name is
 the ``label`` of its :class:`~minimanc.models.ModelSpec`."""
 
 REFERENCE_COLOURS: dict[str, str] = {"human": "#444444", "dmp_prior": "#a0a0a0",
-                                     "expert": "#222222", "style_floor": "#777777"}
+                                     "expert": "#222222", "style_floor": "#777777",
+                                     "privileged": "#555555"}
 """Colours of the rows that are not learned models (a model's is its spec's ``colour``)."""
 
 
