@@ -34,6 +34,8 @@ from minimanc.diagnose.bounds import (
     expert_rollout,
     floor_rollout,
     median_style,
+    privileged_learner,
+    privileged_rollout,
 )
 from minimanc.diagnose.collisions import collision_taxonomy
 from minimanc.diagnose.perception_targets import (
@@ -100,5 +102,7 @@ __all__ = [
     "perceived",
     "perception_targets",
     "predict",
+    "privileged_learner",
+    "privileged_rollout",
     "standardise",
 ]
