@@ -110,8 +110,26 @@ def expert_rollout(ds: Any, scenes: Any = None, *, agents: str = "replay",
 def privileged_learner(train_ds: Any, seed: int = 0) -> Privileged:
     """Table I's "Privileged" learner: the MLP of :mod:`minimanc.diagnose.privileged` trained by
     behaviour cloning (Algorithm 1, :func:`~minimanc.diagnose.privileged.fit_privileged`) on
-    the numbers the expert perceives in every state of ``train_ds`` (a dataset that
-    regenerates), with training seed ``seed``. The bound of a learner that sees perfectly."""
+    the numbers the expert perceives. The bound of a learner that sees perfectly.
+
+    Parameters
+    ----------
+    train_ds : minimanc.world.Dataset
+        The training scenes, a dataset that regenerates (its every state is a demonstration,
+        :func:`~minimanc.diagnose.privileged.demonstrations`).
+    seed : int, optional (default: 0)
+        The training seed.
+
+    Returns
+    -------
+    minimanc.diagnose.privileged.Privileged
+        The trained learner.
+
+    Raises
+    ------
+    ValueError
+        (One line) for a recorded dataset, or a seed that is not an integer ≥ 0.
+    """
     check_generated(train_ds, "the privileged learner's demonstrations")
     X, Y = demonstrations(train_ds)
     return fit_privileged(X, Y, seed=check_int("seed", seed, 0))
@@ -119,10 +137,26 @@ def privileged_learner(train_ds: Any, seed: int = 0) -> Privileged:
 
 def privileged_rollout(model: Privileged, ds: Any, *, agents: str = "replay",
                        progress: bool = False) -> ExpertRollout:
-    """The privileged learner ``model`` (:func:`privileged_learner`) in the closed loop on
-    ``ds``, under ``agents``, reading the expert's perception of the state it reached
-    (:class:`~minimanc.diagnose.policies.PrivilegedPolicy`); ``refused`` counts the states
-    that perception could not be formed in."""
+    """The privileged learner in the closed loop, Table I's "Privileged" row.
+
+    Parameters
+    ----------
+    model : minimanc.diagnose.privileged.Privileged
+        The learner (:func:`privileged_learner`); it reads the expert's perception of the
+        state it reached (:class:`~minimanc.diagnose.policies.PrivilegedPolicy`).
+    ds : minimanc.world.Dataset
+        The scenes to drive, a dataset that regenerates.
+    agents : str, optional (default: "replay")
+        The ados' protocol (:data:`minimanc.rollout.AGENTS`).
+    progress : bool, optional (default: False)
+        A progress bar.
+
+    Returns
+    -------
+    ExpertRollout
+        The rollout and ``refused``, the states the perception could not be formed in
+        (driven with the last applied controls).
+    """
     check_generated(ds, "the privileged learner")
     policy = PrivilegedPolicy(model, WorldTeacher(ds, agents=agents))
     traj = rollout.simulate(policy, ds, agents=agents, progress=progress,
