@@ -99,9 +99,15 @@ def expert_rollout(ds: Any, scenes: Any = None, *, agents: str = "replay",
         The rollout and the number of ``refused`` states.
     """
     check_generated(ds, "the expert")
-    policy = ExpertPolicy(WorldTeacher(ds, agents=agents))
+    return _drive(ExpertPolicy(WorldTeacher(ds, agents=agents)), ds, scenes, agents, progress,
+                  "expert")
+
+
+def _drive(policy: Any, ds: Any, scenes: Any, agents: str, progress: bool,
+           who: str) -> ExpertRollout:
+    """``policy`` (one that asks the expert, with a ``refused`` count) driven on ``ds``."""
     traj = rollout.simulate(policy, ds, scenes=scenes, agents=agents, progress=progress,
-                            desc=f"expert ({agents})")
+                            desc=f"{who} ({agents})")
     return ExpertRollout(traj.name, traj.setting, traj.ego, traj.controls, traj.aux,
                          traj.scenes, traj.ado, traj.ado_valid, traj.agents,
                          refused=policy.refused)
@@ -158,12 +164,8 @@ def privileged_rollout(model: Privileged, ds: Any, *, agents: str = "replay",
         (driven with the last applied controls).
     """
     check_generated(ds, "the privileged learner")
-    policy = PrivilegedPolicy(model, WorldTeacher(ds, agents=agents))
-    traj = rollout.simulate(policy, ds, agents=agents, progress=progress,
-                            desc=f"privileged ({agents})")
-    return ExpertRollout(traj.name, traj.setting, traj.ego, traj.controls, traj.aux,
-                         traj.scenes, traj.ado, traj.ado_valid, traj.agents,
-                         refused=policy.refused)
+    return _drive(PrivilegedPolicy(model, WorldTeacher(ds, agents=agents)), ds, None, agents,
+                  progress, "privileged")
 
 
 def median_style(n: int = 20000, seed: int = 0) -> HumanStyle:
