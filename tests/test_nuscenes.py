@@ -409,6 +409,8 @@ def test_simulators_of_generated_scenes_refuse_recorded_ones(imported):
         bounds.floor_rollout(ds, bounds.median_style(50))
     with pytest.raises(ValueError, match=r"expert re-drives .* recorded \(nuscenes\)"):
         bounds.expert_rollout(ds, agents="replay")
+    with pytest.raises(ValueError, match=r"demonstrations re-drives .* recorded \(nuscenes\)"):
+        bounds.privileged_learner(ds)
 
 
 def test_train_and_drive_on_imported_scenes(dataroot, tmp_path):
