@@ -103,6 +103,24 @@ def test_the_fixed_gains_row_is_the_librarys_dmp_head_whatever_the_studys_model(
     assert seen["cfg"] == models.ModelConfig(n_states=TINY.n_states)
 
 
+def test_the_privileged_bound_is_capped_where_the_studys_training_is(tmp_path, monkeypatch):
+    from minimanc.diagnose import bounds
+
+    seen = {}
+
+    def fake(train_ds, seed, steps):
+        seen[seed] = steps
+        raise RuntimeError("trained")
+
+    monkeypatch.setattr(bounds, "privileged_learner", fake)
+    for seed, c in ((0, small()),
+                    (1, replace(small(), training=replace(TINY.training,
+                                                          max_steps_per_epoch=None)))):
+        with pytest.raises(RuntimeError, match="trained"):
+            study_of(c, tmp_path / str(seed)).references.privileged(seed)
+    assert seen == {0: TINY.training.epochs * TINY.training.max_steps_per_epoch, 1: None}
+
+
 def test_recorded_data_trains_by_behaviour_cloning_only(tmp_path):
     recorded = replace(TINY, data_file=str(tmp_path / "scenes.npz"), data_hash="0" * 12,
                        data_source="nuscenes")

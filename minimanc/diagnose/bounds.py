@@ -113,7 +113,7 @@ def _drive(policy: Any, ds: Any, scenes: Any, agents: str, progress: bool,
                          refused=policy.refused)
 
 
-def privileged_learner(train_ds: Any, seed: int = 0) -> Privileged:
+def privileged_learner(train_ds: Any, seed: int = 0, steps: int | None = None) -> Privileged:
     """Table I's "Privileged" learner: the MLP of :mod:`minimanc.diagnose.privileged` trained by
     behaviour cloning (Algorithm 1, :func:`~minimanc.diagnose.privileged.fit_privileged`) on
     the numbers the expert perceives. The bound of a learner that sees perfectly.
@@ -125,6 +125,8 @@ def privileged_learner(train_ds: Any, seed: int = 0) -> Privileged:
         :func:`~minimanc.diagnose.privileged.demonstrations`).
     seed : int, optional (default: 0)
         The training seed.
+    steps : int, optional
+        Gradient steps (default: :func:`~minimanc.diagnose.privileged.fit_privileged`'s).
 
     Returns
     -------
@@ -134,11 +136,13 @@ def privileged_learner(train_ds: Any, seed: int = 0) -> Privileged:
     Raises
     ------
     ValueError
-        (One line) for a recorded dataset, or a seed that is not an integer ≥ 0.
+        (One line) for a recorded dataset, a seed that is not an integer ≥ 0 or steps
+        that are not an integer ≥ 1.
     """
     check_generated(train_ds, "the privileged learner's demonstrations")
     X, Y = demonstrations(train_ds)
-    return fit_privileged(X, Y, seed=check_int("seed", seed, 0))
+    more = {} if steps is None else {"steps": check_int("steps", steps, 1)}
+    return fit_privileged(X, Y, seed=check_int("seed", seed, 0), **more)
 
 
 def privileged_rollout(model: Privileged, ds: Any, *, agents: str = "replay",

@@ -77,8 +77,13 @@ class References:
 
     def privileged(self, seed: int) -> Any:
         """The privileged learner of training seed ``seed``
-        (:func:`minimanc.diagnose.bounds.privileged_learner` on the training split; kept)."""
+        (:func:`minimanc.diagnose.bounds.privileged_learner` on the training split; kept). A
+        study that caps its training (``training.max_steps_per_epoch``) caps it too, at
+        ``epochs × max_steps_per_epoch`` steps."""
         if seed not in self._privileged:
             train_ds, _, _ = self.files.datasets()
-            self._privileged[seed] = bounds.privileged_learner(train_ds, seed)
+            tc = self.config.training
+            steps = None if tc.max_steps_per_epoch is None else \
+                tc.epochs * tc.max_steps_per_epoch
+            self._privileged[seed] = bounds.privileged_learner(train_ds, seed, steps)
         return self._privileged[seed]
