@@ -67,13 +67,15 @@ class References:
                                           + time.perf_counter() - t0)
         return self._scores[key]
 
+    def runs(self, name: str, agents: str) -> list[dict]:
+        """The scores of row ``name`` under ``agents``, one per run: one per training seed for
+        ``"privileged"`` (a learner), one for the others."""
+        seeds = self.config.seeds if name == "privileged" else (0,)
+        return [self.score(name, agents, seed) for seed in seeds]
+
     def aggregate(self, name: str, agents: str) -> dict:
-        """:meth:`score` as a Table I row (:func:`minimanc.metrics.aggregate` of one run; of
-        one per training seed for ``"privileged"``)."""
-        if name == "privileged":
-            return metrics.aggregate([self.score(name, agents, seed)
-                                      for seed in self.config.seeds])
-        return metrics.aggregate([self.score(name, agents)])
+        """:meth:`runs` as a Table I row (:func:`minimanc.metrics.aggregate`)."""
+        return metrics.aggregate(self.runs(name, agents))
 
     def privileged(self, seed: int) -> Any:
         """The privileged learner of training seed ``seed``

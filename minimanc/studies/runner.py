@@ -190,8 +190,7 @@ class Study:
         c = self.config
         out: dict = {}
         for a in self.agents:
-            fixed = {m: families_of([self.references.score(m, a, sd) for sd in (
-                         c.seeds if m == "privileged" else (0,))])
+            fixed = {m: families_of(self.references.runs(m, a))
                      for m in ("human", "dmp_prior", *self.references.bound_rows)}
             out[a] = {s: {**fixed, **{m: self.evaluations.aggregate_families(self.runs(m, s), a)
                                       for m in c.table_models}} for s in c.settings}

@@ -1,10 +1,9 @@
 """MANC whose gains read more than the automaton's state, registered for the image models here
 as :mod:`minimanc.models.zoo` shows (``import manc_qp`` registers the three):
 
-* ``"manc_qp"``: ``FC(q ⊕ p)``, the form through which the privileged runs drove (issue 27);
-  the library's MANC has it since as ``ModelConfig(gains_input="q_p")`` (the same draws and
-  step: ``hero.py`` loads these runs that way and checks it); the name stays for the runs
-  cached under it;
+* ``"manc_qp"``: ``FC(q ⊕ p)``, the form through which the privileged runs drove (issue 27):
+  the library's MANC with ``ModelConfig(gains_input="q_p")``, registered under this name
+  for the runs cached under it (``hero.py`` loads them as the library's MANC);
 * ``"manc_qm"``: ``FC(q ⊕ m)``, eq. 11 with the odometer beside q (``m`` = the current
   ``motion`` / :data:`minimanc.inputs.MOTION_SCALE`, the own speed and yaw rate the DMP
   already starts from);
@@ -13,6 +12,7 @@ as :mod:`minimanc.models.zoo` shows (``import manc_qp`` registers the three):
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -20,8 +20,8 @@ import numpy as np
 from minimanc import inputs, models
 from minimanc.models import zoo
 
-READS = {"manc_qp": ("p",), "manc_qm": ("m",), "manc_qpm": ("p", "m")}
-"""What each model's gains read beside q."""
+READS = {"manc_qm": ("m",), "manc_qpm": ("p", "m")}
+"""What each model's gains read beside q (``manc_qp`` is the library's MANC, :func:`make_qp`)."""
 
 
 def width(name: str, cfg: models.ModelConfig) -> int:
@@ -57,6 +57,21 @@ def make(name: str) -> models.ModelSpec:
                             zoo.dmp_encode, head, window="dmp_seq_len", dmp=True)
 
 
-for _name in READS:
-    if _name not in models.names():
-        models.register_model(make(_name))
+def make_qp() -> models.ModelSpec:
+    """``manc_qp``: the library's MANC (:func:`minimanc.models.zoo.manc_init`, ``manc_head``)
+    with its gains over q ⊕ p whatever the configuration says."""
+    def init(rng: Any, cfg: models.ModelConfig, n_num: int) -> dict:
+        return zoo.manc_init(rng, replace(cfg, gains_input="q_p"), n_num)
+
+    def head(params: dict, enc: dict, state: Any, cfg: models.ModelConfig, eng: Any
+             ) -> tuple[Any, dict, dict]:
+        return zoo.manc_head(params, enc, state, replace(cfg, gains_input="q_p"), eng)
+
+    return models.ModelSpec("manc_qp", "MANC FC(q ⊕ p)", "vagn",
+                            models.registry.observes_structured(), init, zoo.dmp_encode, head,
+                            window="dmp_seq_len", dmp=True)
+
+
+for _spec in (make_qp(), *(make(n) for n in READS)):
+    if _spec.name not in models.names():
+        models.register_model(_spec)
