@@ -3,7 +3,8 @@
 #
 # Modules built in this chapter: `minimanc.diagnose` and `minimanc.viz.investigation` (its
 # figures); the exercises use `minimanc.diagnose.bounds`, `minimanc.diagnose.privileged`,
-# `minimanc.diagnose.perception_targets` and `minimanc.world.history`.
+# `minimanc.diagnose.perception_targets`, `minimanc.diagnose.probe` and
+# `minimanc.world.history`.
 # Read the tutorial `tutorials/12_why_it_crashes.ipynb` first. Replace each
 # `raise NotImplementedError(...)` with your code and run the grade cell below it;
 # `minimanc grade exercises/12_why_it_crashes.ipynb` scores the notebook.
@@ -20,6 +21,8 @@
 # 7. **The history planes, from the poses**: the learner's raster's past boxes.
 # 8. **How far ahead must the raster reach?** A view designed from the data, and a written
 #    answer.
+# 9. **A probe with more features than states**: the ridge probe solved in the states'
+#    dimension, derived; what the raster's pixels hold linearly, and a written answer.
 
 # %%
 import dataclasses
@@ -1010,6 +1013,180 @@ else:
 # (`route60_scale`): a longer picture holds more pixels the network must learn to ignore,
 # and the far leaders it adds are the rare states, few in a small dataset, so the extra
 # reach pays only once there are enough examples of them.
+# ### END SOLUTION
+
+# %% [markdown]
+# ## Exercise 12.9 — a probe with more features than states
+# Tutorial section 7(c) asks what a backbone's features hold with a linear probe
+# (`diagnose.linear_probe`): features standardised on the training states (each one minus
+# its mean, divided by its standard deviation plus `1e-8`), a ridge regression
+# `y ≈ a w + b` on the standardised features `a` with the penalty `ridge · |w|²` on the
+# weights and none on the intercept `b`, scored by `R² = 1 − Σ(y − ŷ)² / Σ(y − ȳ)²` on the
+# held-out states (`ȳ` their mean). It solves a system with one equation per feature. A
+# flattened backbone or a raster has tens of thousands of features and a few hundred
+# states: derive a solution that solves a system with one equation per **state** instead.
+#
+# Write `probe_r2(Z, y, Z_val, y_val, ridge)` for features `Z (N, D)` and `Z_val (M, D)`,
+# quantities `y (N, K)` and `y_val (M, K)` and `ridge > 0`. Return the `K` validation
+# `R²` as an array of shape `(K,)`, equal (to 1e-6) to those of the model above, without
+# forming any `D × D` matrix. Raise `ValueError` naming `ridge` unless `ridge > 0`.
+#
+# `diagnose.linear_probe` is switched off while this exercise is graded. The cell after the
+# grade cells runs your probe on the raw planes of the learner's raster: 49 152 features
+# per state, where a `D × D` system of float64 needs 19 GB.
+#
+# <details><summary>Hint 1 (the idea)</summary>
+#
+# Set the derivative of the loss with respect to the intercept to zero: what is `b` when
+# the standardised features have mean zero on the training states? Then write the
+# weights' normal equations and multiply them from the left by the matrix of standardised
+# features: which `N × N` matrix appears?
+# </details>
+#
+# <details><summary>Hint 2 (the method)</summary>
+#
+# Solve for `N` coefficients, one per training state, and build the weights (or the
+# predictions) from them. Check your function against the `(D + 1)`-equation solution on
+# a small random case before you trust it on a large one.
+# </details>
+
+# %% solution id=ex12_9 title="A probe with more features than states" forbids="minimanc.diagnose.probe.linear_probe"  # noqa: E501
+def probe_r2(Z, y, Z_val, y_val, ridge):
+    ### BEGIN SOLUTION
+    if not ridge > 0:
+        raise ValueError(f"ridge must be > 0 (A Aᵀ is singular otherwise), got ridge={ridge!r}")
+    Z, Z_val = np.asarray(Z, dtype=float), np.asarray(Z_val, dtype=float)
+    y, y_val = np.asarray(y, dtype=float), np.asarray(y_val, dtype=float)
+    mu, sd = Z.mean(axis=0), Z.std(axis=0) + 1e-8
+    A, A_val = (Z - mu) / sd, (Z_val - mu) / sd
+    b = y.mean(axis=0)                                # the intercept: the columns of A sum to 0
+    coef = np.linalg.solve(A @ A.T + ridge * np.eye(len(A)), y - b)   # (N, K)
+    pred = (A_val @ A.T) @ coef + b                   # w = Aᵀ coef, never formed as D × D
+    res = ((y_val - pred) ** 2).sum(axis=0)
+    tot = ((y_val - y_val.mean(axis=0)) ** 2).sum(axis=0)
+    return 1.0 - res / tot
+    ### END SOLUTION
+
+# %% grade id=ex12_9_tests points=3
+rng9 = np.random.default_rng(129)
+Z9, Zv9 = rng9.normal(size=(12, 5)), rng9.normal(size=(9, 5))
+y9 = Z9 @ np.array([[1.0], [0.0], [-2.0], [0.5], [0.0]]) + rng9.normal(0, 0.1, (12, 1))
+yv9 = Zv9 @ np.array([[1.0], [0.0], [-2.0], [0.5], [0.0]]) + rng9.normal(0, 0.1, (9, 1))
+mu9, sd9 = Z9.mean(0), Z9.std(0) + 1e-8                # the model, with one equation per feature
+A9 = np.hstack([(Z9 - mu9) / sd9, np.ones((12, 1))])
+w9 = np.linalg.solve(A9.T @ A9 + np.diag([0.5] * 5 + [0.0]), A9.T @ y9)
+p9 = np.hstack([(Zv9 - mu9) / sd9, np.ones((9, 1))]) @ w9
+want9 = 1 - ((yv9 - p9) ** 2).sum(0) / ((yv9 - yv9.mean(0)) ** 2).sum(0)
+got9 = np.asarray(probe_r2(Z9, y9, Zv9, yv9, 0.5), dtype=float)
+assert got9.shape == (1,), f"one quantity: expected R² of shape (1,), got {got9.shape}"
+assert np.allclose(got9, want9, atol=1e-6), (
+    f"12 training states, 5 features, ridge 0.5: expected R² {want9[0]:.6f}, got {got9[0]:.6f}")
+try:
+    probe_r2(Z9, y9, Zv9, yv9, 0.0)
+except ValueError as err:
+    assert "ridge" in str(err), f"ridge=0: the ValueError must name 'ridge', got {err}"
+else:
+    raise AssertionError("ridge=0: expected a ValueError")
+### BEGIN HIDDEN TESTS
+test_rng = np.random.default_rng(1290)  # the tests' own draws, not the notebook's
+
+
+def probe_ref(Z, y, Zv, yv, lam):  # the tests' own (D + 1)-equation solution
+    mu, sd = Z.mean(0), Z.std(0) + 1e-8
+    A = np.hstack([(Z - mu) / sd, np.ones((len(Z), 1))])
+    w = np.linalg.solve(A.T @ A + np.diag([lam] * Z.shape[1] + [0.0]), A.T @ y)
+    p = np.hstack([(Zv - mu) / sd, np.ones((len(Zv), 1))]) @ w
+    return 1 - ((yv - p) ** 2).sum(0) / ((yv - yv.mean(0)) ** 2).sum(0)
+
+
+for N, M, D, K, lam in ((30, 20, 4, 1, 1.0), (25, 40, 300, 3, 10.0), (50, 30, 2000, 2, 1e3),
+                        (8, 8, 8, 1, 1e-3)):
+    Z_h, Zv_h = test_rng.normal(size=(N, D)), test_rng.normal(size=(M, D))
+    Z_h[:, 0] = 3.0                                   # a feature that never changes
+    Zv_h[:, 0] = 3.0
+    W_h = test_rng.normal(size=(D, K)) / np.sqrt(D)
+    y_h = Z_h @ W_h + 5.0 + test_rng.normal(0, 0.3, (N, K))
+    yv_h = Zv_h @ W_h + 5.0 + test_rng.normal(0, 0.3, (M, K))
+    want = probe_ref(Z_h, y_h, Zv_h, yv_h, lam)       # before the call
+    got = np.asarray(probe_r2(Z_h, y_h, Zv_h, yv_h, lam), dtype=float)
+    case = f"{N} states, {D} features, {K} quantities, ridge {lam}"
+    assert got.shape == (K,) and np.allclose(got, want, atol=1e-6), (
+        f"{case}: expected R² {np.round(want, 6).tolist()}, got {np.round(got, 6).tolist()}")
+for lam in (-1.0, 0.0):
+    try:
+        probe_r2(Z9, y9, Zv9, yv9, lam)
+    except ValueError as err:
+        assert "ridge" in str(err), f"ridge={lam}: the ValueError must name 'ridge', got {err}"
+    else:
+        raise AssertionError(f"ridge={lam}: expected a ValueError")
+### END HIDDEN TESTS
+
+# %% [markdown]
+# Your probe on the raw planes of the learner's raster (tutorial section 7: `route=True`,
+# `history=2`) of the training scenes, scored on the validation scenes: the own speed
+# (every state) and the leader's gap (the states with a leader in the view), read from all
+# twelve planes and from the eight without the past (`ego_t-1`, `ego_t-2`,
+# `vehicles_t-1`, `vehicles_t-2`). A few seconds per probe.
+
+# %% tags=["nbval-ignore-output"]
+VIEW9 = world.RasterConfig(encoding="channels", route=True, history=2)
+learn9 = world.generate(28, seed=1, raster=VIEW9, workers=1)
+l_train9, l_val9 = learn9.split(22)
+tg9, tgv9 = (diagnose.perception_targets(d, view=VIEW9) for d in (l_train9, l_val9))
+col9 = {name: k for k, name in enumerate(tg9.names)}
+y_all9, yv_all9 = (t.values.reshape(-1, len(t.names)) for t in (tg9, tgv9))
+lead9, leadv9 = y_all9[:, col9["has_leader"]] > 0, yv_all9[:, col9["has_leader"]] > 0
+planes9, planesv9 = (np.stack([world.encodings.to_input(d.bev[s], VIEW9) for s in range(len(d))])
+                     .reshape(len(d) * d.n_steps, -1, len(VIEW9.channel_names))
+                     for d in (l_train9, l_val9))
+kept9 = {"all 12 planes": list(range(len(VIEW9.channel_names))),
+         "without the past": [k for k, n in enumerate(VIEW9.channel_names) if "t-" not in n]}
+r2_9 = {}
+try:
+    for label, ch in kept9.items():
+        Zs = planes9[..., ch].reshape(len(planes9), -1)
+        Zvs = planesv9[..., ch].reshape(len(planesv9), -1)
+        v9, vv9 = y_all9[:, [col9["v"]]], yv_all9[:, [col9["v"]]]
+        g9, gv9 = y_all9[lead9][:, [col9["gap"]]], yv_all9[leadv9][:, [col9["gap"]]]
+        r2_9[label] = (probe_r2(Zs, v9, Zvs, vv9, 100.0)[0],
+                       probe_r2(Zs[lead9], g9, Zvs[leadv9], gv9, 100.0)[0])
+except NotImplementedError:
+    print("write probe_r2 (exercise 12.9) to fill this table")
+for label, (r2_v, r2_gap) in r2_9.items():
+    print(f"{label}: own speed R² {r2_v:.2f}, gap R² {r2_gap:.2f} "
+          f"({Zs.shape[0]} training states)")
+if r2_9:
+    assert r2_9["all 12 planes"][0] > 0.5 > r2_9["without the past"][0] + 0.3
+    assert r2_9["all 12 planes"][1] < 0.6
+
+# %% [markdown]
+# **Written question (graded by hand, 2 points).** Why does the dual form need `ridge > 0`
+# when there are more features than states (what is the rank of `A Aᵀ`)? Read the table:
+# why can a *linear* read-out of the pixels give the own speed once the past planes are
+# there, and not without them? Why does the gap stay poorly read from the same pixels even
+# though the leader's box is drawn in them, and what does that say about what the auxiliary
+# loss of tutorial section 7(c) asks of the backbone?
+
+# %% [markdown] answer id=ex12_9_w title="What the pixels hold linearly" points=2
+# ### BEGIN SOLUTION
+# The standardised features are centred on the training states, so the rows of `A` sum to
+# zero and `A Aᵀ` (N × N) has rank at most `N − 1` (and at most `D`): without a penalty the
+# `N`-equation system is singular; `ridge · I` makes it positive definite. (The same
+# centring is why the intercept is the mean of `y`: its normal equation reads
+# `N b = Σ y − (Σ a) w` with `Σ a = 0`.)
+#
+# The ego's box at t is drawn in the same pixels in every state; its box at t−2 lies behind
+# it by the distance driven in 2Δt, so *which* rows of the `ego_t-2` plane are lit is a
+# function of the speed, and a weighted sum over those rows (a weight per row ≈ the speed
+# that lights it) reads the speed almost linearly: the probe's `R²` is high with the past
+# planes and near or below zero without them, where nothing in a single frame tells the
+# speed. The gap is not such a sum: it is the distance to the *nearest* box ahead *in the
+# ego's lane* — a minimum over the lit pixels after a selection by lane — so where a second
+# car is drawn, or a car in the next lane, the same pixels add the wrong evidence; a linear
+# read-out of the raw pixels cannot express "the first car ahead in my lane". A backbone
+# must compute that from the pixels, which is what the auxiliary loss asks: it trains the
+# convolutions to make features from which the gap *is* linear, the very thing the probe of
+# section 7(c) measures on the features instead of the pixels.
 # ### END SOLUTION
 
 # %% [markdown]
