@@ -18,7 +18,11 @@ human among reactive ados as the teacher, :data:`ROUNDS` rounds after the demons
 cloning (``channels0``), the same schedule per round (the auxiliary loss needs targets the
 collected states do not carry); ``dagger_rgb`` the same on the RGB raster (against ``rgb``);
 ``speed_dagger`` is ``speed`` trained on-policy like ``dagger`` (whether on-policy labels
-mend the copycat the own speed brings); ``dagger_flat`` is MANC's
+mend the copycat the own speed brings); ``speed_dagger_seq40`` is ``speed_dagger`` with the
+LSTM models trained on windows of a whole 40-step scene (``TrainConfig.seq_len = 40``) instead
+of 8 steps from a zero state, while the closed loop carries their state through the scene;
+``speed_dagger_lr1e-3`` is ``speed_dagger`` at the learning rate the CNN trains with;
+``dagger_flat`` is MANC's
 ``dagger`` with eq. 7 over the flattened features (``ModelConfig.predicate_readout =
 "flatten"``: predicates that keep where a feature fires); the ``_warm`` forms continue each
 DAgger round from the previous one (one epoch, ``_warm2`` two); ``_p64`` has 64 predicates
@@ -111,6 +115,13 @@ FORMS: dict[str, Form] = {
     "dagger": Form("channels, λ = 0, DAgger {rounds} rounds", on_policy=True),
     "speed_dagger": Form(f"channels, λ = 0, {PARITY_TEXT}, DAgger {{rounds}} rounds",
                          setting="parity", on_policy=True),
+    "speed_dagger_seq40": Form(f"channels, λ = 0, {PARITY_TEXT}, DAgger {{rounds}} rounds, the "
+                               "LSTM trained on whole 40-step scenes", setting="parity",
+                               on_policy=True, train=(("seq_len", 40),),
+                               only=("cnn_lstm", "rvs_g")),
+    "speed_dagger_lr1e-3": Form(f"channels, λ = 0, {PARITY_TEXT}, DAgger {{rounds}} rounds, "
+                                "learning rate 0.001", setting="parity", on_policy=True,
+                                train=(("lr", 1e-3),), only=("cnn_lstm", "rvs_g")),
     "dagger_flat": Form("channels, λ = 0, eq. 7 over flatten(f), DAgger {rounds} rounds",
                         on_policy=True, model=(("predicate_readout", "flatten"),),
                         only=("manc",)),
@@ -227,9 +238,9 @@ def targets(form: str, ds: world.Dataset, work: Path, split: str = "train"
 def train_config(model: str, form: str, seed: int, weight: float) -> train.TrainConfig:
     """The paper preset's schedule with the model's learning rate, the form's λ and its
     other training fields."""
-    return train.TrainConfig(epochs=6, batch_size=64, lr=LEARNING_RATES[model], seed=seed,
-                             perception_weight=weight_of(form, weight),
-                             **dict(FORMS[form].train))
+    fields = {"lr": LEARNING_RATES[model]} | dict(FORMS[form].train)
+    return train.TrainConfig(epochs=6, batch_size=64, seed=seed,
+                             perception_weight=weight_of(form, weight), **fields)
 
 
 def weight_of(form: str, weight: float) -> float:
@@ -323,7 +334,7 @@ def run_model(model: str, form: str, seed: int, weight: float, work: Path) -> No
         t0 = time.perf_counter()
         m = drive(fit, val, agents)
         out = {"row": row, "model": model, "form": form, "seed": seed, "agents": agents,
-               "weight": weight_of(form, weight), "lr": LEARNING_RATES[model],
+               "weight": weight_of(form, weight), "lr": fit.train_cfg.lr,
                "raster": raster_of(form).as_meta(), "input_shape": list(fit.cfg.input_shape),
                "steps": fit.steps, "fit_seconds": fit_s,
                "drive_seconds": time.perf_counter() - t0, "scenes": len(val), "metrics": m,
