@@ -38,7 +38,8 @@ paper preset (``leader_data.py``): train on scenes 0–599, drive the validation
 600–799 (never trained on; the scenes of ``drive.py``, whose expert and privileged learner
 are the bounds here). The paper preset's schedule (6 epochs of batch 64) and, per model, the
 learning rate the paper preset's tuning chose on the RGB raster (``results/paper-paper``:
-:data:`LEARNING_RATES`); every other setting is the library's default. One run per
+:data:`LEARNING_RATES`; ``speed_dagger_lr1e-3`` sets its own); every other setting is the
+library's default. One run per
 (model, form, seed) and protocol, cached as JSON under ``--work`` (a finished run is not
 repeated; the trained parameters are checkpointed by :func:`minimanc.train.fit`, so an
 interrupted training resumes). The bound rows (expert, style floor, DMP at fixed gains) are
@@ -236,8 +237,8 @@ def targets(form: str, ds: world.Dataset, work: Path, split: str = "train"
 
 
 def train_config(model: str, form: str, seed: int, weight: float) -> train.TrainConfig:
-    """The paper preset's schedule with the model's learning rate, the form's λ and its
-    other training fields."""
+    """The paper preset's schedule with the model's learning rate (unless the form sets its
+    own), the form's λ and its other training fields."""
     fields = {"lr": LEARNING_RATES[model]} | dict(FORMS[form].train)
     return train.TrainConfig(epochs=6, batch_size=64, seed=seed,
                              perception_weight=weight_of(form, weight), **fields)
