@@ -1154,7 +1154,7 @@ except NotImplementedError:
     print("write probe_r2 (exercise 12.9) to fill this table")
 for label, (r2_v, r2_gap) in r2_9.items():
     print(f"{label}: own speed R² {r2_v:.2f}, gap R² {r2_gap:.2f} "
-          f"({Zs.shape[0]} training states)")
+          f"({len(planes9)} training states)")
 if r2_9:
     assert r2_9["all 12 planes"][0] > 0.5 > r2_9["without the past"][0] + 0.3
     assert r2_9["all 12 planes"][1] < 0.6
