@@ -143,7 +143,8 @@ def assert_same_results(got: object, want: object, where: str = "results") -> No
         for i, (g, w) in enumerate(zip(got, want)):
             assert_same_results(g, w, f"{where}[{i}]")
     elif isinstance(want, float):
-        assert np.isclose(got, want, rtol=1e-12, atol=1e-12, equal_nan=True), f"{where}: {got!r} != {want!r}"
+        assert np.isclose(got, want, rtol=1e-12, atol=1e-12, equal_nan=True), \
+            f"{where}: {got!r} != {want!r}"
     else:
         assert got == want, f"{where}: {got!r} != {want!r}"
 
