@@ -471,7 +471,7 @@ def test_the_learners_raster_with_the_perception_loss_trains_and_drives_every_ta
     from dataclasses import replace
 
     from minimanc import diagnose, train, world
-    from minimanc.studies.cache import load_targets
+    from minimanc.train import load_targets
 
     tiny = studies.PRESETS["tiny"]
     raster = world.RasterConfig(**CHANNELS)

@@ -54,8 +54,6 @@ def same_params(a: dict, b: dict) -> bool:
     ({"model": models.ModelConfig(input_shape=(32, 32, 3))}, "model.input_shape is each run's"),
     # tiny: 4 training scenes, 2 of them at the data fraction 0.5; 2 rounds need 3
     ({"dagger_rounds": 2}, r"needs at least 3 training scenes .* fraction 0.5\) has 2"),
-    ({"dagger_rounds": 1, "training": replace(TINY.training, perception_weight=1.0)},
-     "cannot use the auxiliary perception loss"),
 ])
 def test_bad_on_policy_settings_are_one_clear_error(kw, match):
     with pytest.raises(ValueError, match=match):
@@ -67,8 +65,10 @@ def test_good_on_policy_settings_are_kept():
     c = replace(TINY, dagger_rounds=1, round_epochs=3, model=FLAT)
     assert c.on_policy and (c.dagger_rounds, c.round_epochs) == (1, 3)
     assert replace(small(), dagger_rounds=3).on_policy  # every run has all 4 scenes
-    # the perception loss is only refused on-policy
+    # the perception loss, by behaviour cloning and on-policy
     assert replace(TINY, training=replace(TINY.training, perception_weight=1.0)).fingerprint()
+    assert replace(TINY, dagger_rounds=1,
+                   training=replace(TINY.training, perception_weight=1.0)).on_policy
 
 
 def test_the_runs_read_the_studys_model(tmp_path):

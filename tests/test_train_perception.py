@@ -266,6 +266,9 @@ def test_a_view_keeps_the_leaders_it_shows(ds, targets):
     near = diagnose.perception_targets(ds, view=view)
     seen = near.values[..., near.names.index("has_leader")] > 0
     assert (seen <= lead).all() and seen.sum() < lead.sum()
+    # asked state by state (the expert's situation names its leader), the same leaders as the
+    # logged traffic's own perception in every logged state
+    np.testing.assert_array_equal(seen, diagnose.in_view(box, view))
     gap = targets.values[..., targets.names.index("gap")]
     assert np.all(gap[seen] < 30.0)  # its rear within 12 m ahead: a short gap along the path
     np.testing.assert_array_equal(near.mask[..., near.names.index("gap")], seen)

@@ -48,16 +48,24 @@ as ``controls``; as for every dataset, a model's ``motion`` input at ``t`` is th
 
 **Checkpoints.** With ``out``, round ``i`` lives in ``out/round_<i:03d>/``: the
 configuration it belongs to (``fingerprint.json``, written first), the collected
-scenes (``data.npz``), the training checkpoint (``checkpoint.npz``, resumable inside
-the round) and, written last, ``round.json``; every file is written atomically
+scenes (``data.npz``; with perception targets what the expert perceived in them,
+``perception.npz``, saved before it), the training checkpoint (``checkpoint.npz``,
+resumable inside the round) and, written last, ``round.json``; every file is written atomically
 (temporary file, then rename). A rerun loads every complete round and resumes an
 unfinished one from its data and checkpoint; a folder of another configuration is a
 ``ValueError``, never mixed in.
+
+**The auxiliary perception loss on-policy.** A :class:`WorldTeacher` given ``perceive``
+(:func:`minimanc.diagnose.state_targets`) records what the human perceives in every state
+it labels, and :func:`dagger` with ``perception`` (the targets of the pool's demonstrations,
+:func:`minimanc.diagnose.perception_targets`) trains every round with the auxiliary loss of
+:mod:`minimanc.train.perception` on the aggregate: demonstrations and collected states alike.
 """
 
 from minimanc.dagger.aggregate import Collected, MixturePolicy, collect, concat
 from minimanc.dagger.loop import (
     FINGERPRINT_FILE,
+    PERCEPTION_FILE,
     ROUND_FILE,
     DaggerResult,
     RoundResult,
@@ -74,6 +82,7 @@ from minimanc.dagger.teachers import AGENTS, SIMS, HighwayTeacher, Teacher, Worl
 __all__ = [
     "AGENTS",
     "FINGERPRINT_FILE",
+    "PERCEPTION_FILE",
     "ROUND_FILE",
     "SIMS",
     "Budget",

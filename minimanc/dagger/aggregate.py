@@ -69,6 +69,8 @@ class MixturePolicy:
     still when the policy is not asked, ``beta = 1``); :func:`collect` does not keep it.
     With ``perturb`` (:class:`~minimanc.dagger.perturb.Perturbation`) its offsets, drawn
     from ``rng`` after the coins, are added to the applied controls (never to the labels).
+    A teacher with ``perceive`` (:class:`~minimanc.dagger.teachers.WorldTeacher`) is asked
+    through ``label_and_perceive``, and what it perceives is recorded too (``perceived``).
     """
 
     def __init__(self, policy: Any, teacher: Teacher, sim: Any, beta: float,
@@ -94,6 +96,7 @@ class MixturePolicy:
         self.labels: list[np.ndarray] = []
         self.applied: list[np.ndarray] = []
         self.refused: list[list[str | None]] = []
+        self.perceived: list[tuple[np.ndarray, np.ndarray]] = []
         self.expert_steps = 0
         self._prev: np.ndarray | None = None
 
@@ -103,7 +106,11 @@ class MixturePolicy:
     def record(self, t: int) -> np.ndarray:
         """Record the current state and its labels (also used after the last step)."""
         self.states.append(self.sim.observe())
-        labels, why = self.teacher.label(self.sim, t, self._prev)
+        if getattr(self.teacher, "perceive", None) is not None:
+            labels, why, seen = self.teacher.label_and_perceive(self.sim, t, self._prev)
+            self.perceived.append(seen)
+        else:
+            labels, why = self.teacher.label(self.sim, t, self._prev)
         self.labels.append(labels)
         self.refused.append(why)
         return labels
@@ -135,7 +142,9 @@ class Collected:
     was refused), ``scenes`` the pool scenes driven, ``kept`` the rows aggregated,
     ``labelled`` the samples the expert was asked for (all rows, kept or not),
     ``expert_share`` the fraction of the decisions the expert's control was applied,
-    ``refusals`` one message per refused row."""
+    ``refusals`` one message per refused row, ``perceived`` (with a teacher that perceives)
+    what the expert perceived in every state of ``data``: ``(values (S, T, K), mask
+    (S, T, K))``, its rows those of ``data``."""
 
     data: Dataset | None
     scenes: np.ndarray
@@ -143,6 +152,7 @@ class Collected:
     labelled: int
     expert_share: float
     refusals: list[str] = field(default_factory=list)
+    perceived: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def _rows_to_scenes(pool: Dataset, scenes: np.ndarray, states: list[SceneState],
@@ -206,7 +216,8 @@ def collect(policy: Any, teacher: Teacher, scenes: Any, beta: float, seed: Any =
     sees in those states (:func:`minimanc.inputs.driven_controls`). ``perturb`` adds a
     :class:`~minimanc.dagger.perturb.Perturbation` to the applied controls: with
     ``policy=None, beta=1`` these are perturbed demonstrations (one stream of offsets per
-    batch, from the same generator as the coins).
+    batch, from the same generator as the coins). With a teacher that perceives
+    (``perceive``), :attr:`Collected.perceived` holds what it perceived in the kept states.
     """
     beta = check_beta(beta)
     pool = teacher.pool
@@ -224,6 +235,7 @@ def collect(policy: Any, teacher: Teacher, scenes: Any, beta: float, seed: Any =
     rng = np.random.default_rng(seed)
     extra = {} if perturb is None else {"perturb": asdict(perturb)}
     built, metas, kept, refusals, steps, expert = [], [], [], [], 0, 0
+    seen_values, seen_mask = [], []
     try:
         for group in groups:
             sim = teacher.simulator(group)
@@ -251,10 +263,15 @@ def collect(policy: Any, teacher: Teacher, scenes: Any, beta: float, seed: Any =
                 built += sc
                 metas.append(meta)
                 kept += [int(group[r]) for r in rows]
+                if mixer.perceived:  # (T, B, K) → the kept rows' (B', T, K)
+                    seen_values.append(np.stack([v[rows] for v, _ in mixer.perceived], axis=1))
+                    seen_mask.append(np.stack([m[rows] for _, m in mixer.perceived], axis=1))
     finally:
         if bar is not None:
             bar.close()
-    data = None
+    data, perceived = None, None
+    if seen_values:
+        perceived = (np.concatenate(seen_values), np.concatenate(seen_mask))
     if built:
         meta = metas[0]
         for m in metas[1:]:
@@ -263,7 +280,7 @@ def collect(policy: Any, teacher: Teacher, scenes: Any, beta: float, seed: Any =
         data = Dataset.build(built, meta, maps=[pool.maps[s] for s in kept],
                              what="dagger scenes")
     return Collected(data, idx, np.asarray(kept, dtype=np.int64), int(idx.size * T),
-                     expert / max(steps, 1), refusals)
+                     expert / max(steps, 1), refusals, perceived)
 
 
 def _take(st: SceneState, rows: np.ndarray) -> SceneState:

@@ -64,15 +64,17 @@ class DriverStep:
 @dataclass
 class Situation:
     """What the human perceives in one asked state: its run's ``step``, the ``ego``
-    vehicle put at the asked ``pose`` and speed on its ``path``, and ``perceived``, the
+    vehicle put at the asked ``pose`` and speed on its ``path``, ``perceived``, the
     binding constraints of :meth:`minimanc.world.traffic.Traffic.perceive` for the ego
-    (``gap`` and ``v_lead`` of its leader, ``stop`` distance, ``a_curve``)."""
+    (``gap`` and ``v_lead`` of its leader, ``stop`` distance, ``a_curve``), and
+    ``leader``, the vehicle it names as the leader (a copy; ``None`` without one)."""
 
     step: DriverStep
     ego: Vehicle
     path: Path
     pose: np.ndarray
     perceived: dict[str, float]
+    leader: Vehicle | None = None
 
 
 class HumanExpert:
@@ -151,8 +153,10 @@ class HumanExpert:
         world.going = set(base.going)
         world.update_stamps(int(t))
         per = world.perceive()
+        who = int(per["who"][0])
         return Situation(step, ego, path, p,
-                         {k: float(per[k][0]) for k in ("gap", "v_lead", "stop", "a_curve")})
+                         {k: float(per[k][0]) for k in ("gap", "v_lead", "stop", "a_curve")},
+                         world.vehicles[who] if who >= 0 else None)
 
     def __call__(self, scene: int, t: int, pose: Any, speed: float,
                  traffic: Traffic | None = None) -> np.ndarray:

@@ -9,7 +9,7 @@ import json
 import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -27,8 +27,8 @@ from minimanc.world.datareader import load
 from minimanc.world.datawriter import save
 from minimanc.world.scenes import Dataset
 
-__all__ = ["FINGERPRINT_FILE", "ROUND_FILE", "DaggerResult", "RoundResult", "behaviour_cloning",
-           "dagger", "default_config", "round_dir", "scene_order"]
+__all__ = ["FINGERPRINT_FILE", "PERCEPTION_FILE", "ROUND_FILE", "DaggerResult", "RoundResult",
+           "behaviour_cloning", "dagger", "default_config", "round_dir", "scene_order"]
 
 ROUND_FILE = "round.json"
 """The file that marks a round as complete (written last, atomically)."""
@@ -143,9 +143,33 @@ def _budget_for(teacher: Teacher, budget: int | Budget, rounds: int) -> Budget:
 
 
 def _train(name: str, data: Dataset, cfg: Any, tc: Any, engine: Any, where: Path | None,
-           progress: bool, params: dict | None = None) -> Any:
+           progress: bool, params: dict | None = None,
+           perception: train.PerceptionTargets | None = None) -> Any:
     return train.fit(name, data, cfg, tc, engine=engine, checkpoint_dir=where,
-                     resume=where is not None, progress=progress, params=params)
+                     resume=where is not None, progress=progress, params=params,
+                     perception=perception)
+
+
+PERCEPTION_FILE = "perception.npz"
+"""What the expert perceived in a round's collected states (beside its ``data.npz``)."""
+
+
+def _check_perception(perception: Any, teacher: Teacher) -> train.PerceptionTargets | None:
+    """``perception`` (the targets of every pool scene) usable with ``teacher``, or None."""
+    if perception is None:
+        return None
+    if not isinstance(perception, train.PerceptionTargets):
+        raise ValueError(f"perception must be minimanc.train.PerceptionTargets or None, got "
+                         f"{type(perception).__name__}")
+    if getattr(teacher, "perceive", None) is None:
+        raise ValueError("perception targets need a teacher that perceives the states DAgger "
+                         "visits: WorldTeacher(pool, perceive=...), e.g. "
+                         "minimanc.diagnose.state_targets")
+    pool = teacher.pool
+    if np.shape(perception.values)[:2] != (len(pool), pool.n_steps):
+        raise ValueError(f"perception covers (S, T) = {np.shape(perception.values)[:2]}; the "
+                         f"pool has {(len(pool), pool.n_steps)}")
+    return perception
 
 
 FINGERPRINT_FILE = "fingerprint.json"
@@ -181,7 +205,7 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
            engine: Any = "jax", out: str | os.PathLike | None = None, seed: int = 0,
            progress: bool = True, evaluate: bool = True,
            on_round: Callable[[RoundResult], None] | None = None,
-           round_cfg: Any = None) -> DaggerResult:
+           round_cfg: Any = None, perception: Any = None) -> DaggerResult:
     """DAgger for model ``name`` (any of :func:`minimanc.models.names`) with ``teacher``.
 
     ``budget`` the expert-labelled samples (an int for :func:`plan_budget` over
@@ -198,7 +222,12 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
     checkpoint folder (see the module docstring); ``seed`` the scene order and the
     mixture's coins (round ``i`` draws from ``default_rng([seed, i])``);
     ``evaluate`` runs :meth:`Teacher.evaluate` after each round; ``on_round`` is
-    called with each finished round.
+    called with each finished round; ``perception`` the
+    :class:`~minimanc.train.PerceptionTargets` of every pool scene, for a ``train_cfg``
+    with ``perception_weight`` > 0: round 0 trains with those of its demonstrations, every
+    later round also with what the teacher (its ``perceive``) perceived in the states it
+    collected (saved as ``perception.npz`` beside the round's data); the auxiliary loss's
+    read-out starts afresh in each round.
     """
     name, eng_name = _check_common(name, teacher, engine)
     rounds = check_int("rounds", rounds, 1)
@@ -217,15 +246,19 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
         raise ValueError(f"round_cfg must be a minimanc.train.TrainConfig or None; got "
                          f"round_cfg={round_cfg!r}")
     seed = check_int("seed", seed, 0)
+    perception = _check_perception(perception, teacher)
     order = scene_order(len(pool), seed)
     # "motion": the aggregate records the applied controls (inputs.driven_controls)
     fp = {**_fingerprint(name, teacher, plan, betas[:1], cfg, tc, seed, eng_name),
           "motion": "driven"}
     if round_cfg is not None:
         fp["round_cfg"] = asdict(round_cfg)
+    if perception is not None:
+        fp["perception"] = list(perception.names)
     results: list[RoundResult] = []
     per_round: list[dict] = []
     parts: list[Dataset] = []
+    seen: list[train.PerceptionTargets] = []
     params = None
     bar = None
     if progress:
@@ -239,28 +272,41 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
             fp_i = {**fp, "betas": betas[:i + 1],
                     "round_plan": [plan.initial, *plan.per_round[:i]]}
             loaded = _load_round(where, fp_i) if where is not None else None
+            new_seen = None
             if i == 0:
                 new = pool.subset(np.sort(scenes))
                 col = Collected(new, scenes, np.sort(scenes), int(len(scenes) * plan.steps), 1.0)
+                if perception is not None:
+                    new_seen = perception.subset(np.sort(scenes))
             elif loaded is not None or (where is not None and (where / "data.npz").exists()):
                 new = load(where / "data.npz") if (where / "data.npz").exists() else None
+                if new is not None and perception is not None:
+                    new_seen = train.load_targets(where / PERCEPTION_FILE)
                 col = None
             else:
                 policy = ModelPolicy(name, params, cfg, engine)
                 col = collect(policy, teacher, scenes, betas[i], seed=[seed, i],
                               progress=progress, tags={"round": i})
                 new = col.data
+                if new is not None and perception is not None:
+                    new_seen = replace(perception, values=col.perceived[0],
+                                       mask=col.perceived[1])
                 if where is not None and new is not None:
+                    if new_seen is not None:  # before the data: data.npz marks both saved
+                        train.save_targets(new_seen, where / PERCEPTION_FILE)
                     save(new, where / "data.npz")
             if new is not None:
                 parts.append(new)
+                if new_seen is not None:
+                    seen.append(new_seen)
             data = concat(parts)
             if loaded is not None:
                 r, params = loaded
             else:
                 warm = i > 0 and round_cfg is not None
                 fit = _train(name, data, cfg, round_cfg if warm else tc, engine, where,
-                             progress, params if warm else None)
+                             progress, params if warm else None,
+                             train.concat_targets(seen) if seen else None)
                 params = fit.params
                 if col is None:  # data collected by a killed run: its stats are in its tags
                     kept = [] if new is None else [t["dagger"]["pool_scene"] for t in new.tags]

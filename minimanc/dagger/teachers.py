@@ -5,13 +5,13 @@ and :class:`HighwayTeacher` (highway-env's IDM/MOBIL), over the :class:`Teacher`
 from __future__ import annotations
 
 import copy
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
 import numpy as np
 
 from minimanc import metrics, rollout
-from minimanc.dagger.expert import HumanExpert
+from minimanc.dagger.expert import HumanExpert, Situation
 from minimanc.rollout import AGENTS, BATCH_SIZE, LogReplay, Simulator
 from minimanc.rollout.reactive import ReactiveSim
 from minimanc.world.geometry import DT, wrap_angle
@@ -45,7 +45,8 @@ class Teacher(Protocol):
     the expert's controls ``(B, 2)`` in the simulator's current state (``prev (B, 2)``
     the controls applied at ``t − 1``, ``None`` at ``t = 0``) and, per row, ``None`` or
     why that state cannot be labelled (that row is then NaN); ``evaluate(policy)``
-    closed-loop metrics of a policy (``{}`` without validation scenes).
+    closed-loop metrics of a policy (``{}`` without validation scenes). A teacher whose
+    ``perceive`` is not ``None`` also has ``label_and_perceive`` (:class:`WorldTeacher`).
     """
 
     name: str
@@ -70,18 +71,27 @@ class WorldTeacher:
     ``val`` an optional validation dataset for :meth:`evaluate`, ``agents`` the
     protocol of the ados while the policy drives and is evaluated: ``"reactive"``
     (:class:`~minimanc.rollout.reactive.ReactiveSim`, default) or ``"replay"``
-    (:class:`~minimanc.rollout.LogReplay`, the paper's).
+    (:class:`~minimanc.rollout.LogReplay`, the paper's). ``perceive`` (optional) maps the
+    expert's :class:`~minimanc.dagger.expert.Situation` in a labelled state to the numbers
+    it perceives there and where each counts, ``(values (K,), mask (K,))`` (e.g.
+    :func:`minimanc.diagnose.state_targets`): :meth:`label_and_perceive` then also returns
+    them, and DAgger collects them as the targets of the auxiliary perception loss.
     """
 
     name = "world"
 
     def __init__(self, pool: Dataset, val: Dataset | None = None,
-                 agents: str = "reactive") -> None:
+                 agents: str = "reactive",
+                 perceive: Callable[[Situation], tuple[np.ndarray, np.ndarray]] | None = None
+                 ) -> None:
         if agents not in AGENTS:
             raise ValueError(f"agents must be one of {AGENTS}, got agents={agents!r}")
         if not isinstance(pool, Dataset):
             raise ValueError(f"pool must be a minimanc.world.Dataset, got {type(pool)!r}")
-        self.pool, self.val, self.agents = pool, val, agents
+        if perceive is not None and not callable(perceive):
+            raise ValueError(f"perceive must be a function of a Situation or None, got "
+                             f"{perceive!r}")
+        self.pool, self.val, self.agents, self.perceive = pool, val, agents, perceive
         self.expert = HumanExpert(pool)
 
     def groups(self, scenes: np.ndarray) -> list[np.ndarray]:
@@ -111,17 +121,38 @@ class WorldTeacher:
 
     def label(self, sim: Any, t: int, prev: np.ndarray | None
               ) -> tuple[np.ndarray, list[str | None]]:
+        out, why, _ = self.label_and_perceive(sim, t, prev)
+        return out, why
+
+    def label_and_perceive(self, sim: Any, t: int, prev: np.ndarray | None
+                           ) -> tuple[np.ndarray, list[str | None],
+                                      tuple[np.ndarray, np.ndarray] | None]:
+        """:meth:`label`, and with ``perceive`` what the expert perceives in each state:
+        ``(values (B, K), mask (B, K))`` (NaN and ``False`` in a row that cannot be
+        labelled); ``None`` without ``perceive``."""
         poses, speeds, traffics = self.states(sim, prev)
         scenes = np.asarray(sim.scenes)
         out = np.full((len(scenes), 2), np.nan)
         why: list[str | None] = [None] * len(scenes)
+        rows: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(scenes)
         for b, s in enumerate(scenes):
             try:
-                out[b] = self.expert(int(s), int(t), poses[b], max(speeds[b], 0.0),
-                                     traffics[b])
+                sit = self.expert.situation(int(s), int(t), poses[b], max(speeds[b], 0.0),
+                                            traffics[b])
+                out[b] = self.expert.controls(sit)
             except ValueError as e:  # the driver cannot be asked in this state
                 why[b] = str(e)
-        return out, why
+                continue
+            if self.perceive is not None:
+                rows[b] = self.perceive(sit)
+        if self.perceive is None:
+            return out, why, None
+        k = next((len(r[0]) for r in rows if r is not None), 0)
+        values = np.stack([np.full(k, np.nan) if r is None else np.asarray(r[0], np.float64)
+                           for r in rows]).reshape(len(scenes), k)
+        mask = np.stack([np.zeros(k, bool) if r is None else np.asarray(r[1], bool)
+                         for r in rows]).reshape(len(scenes), k)
+        return out, why, (values, mask)
 
     def evaluate(self, policy: Any, progress: bool = False) -> dict[str, float]:
         if self.val is None:

@@ -41,8 +41,10 @@ from minimanc.diagnose.collisions import collision_taxonomy
 from minimanc.diagnose.perception_targets import (
     LOGITS,
     TARGETS,
+    in_view,
     leader_boxes,
     perception_targets,
+    state_targets,
 )
 from minimanc.diagnose.policies import (
     ExpertPolicy,
@@ -94,6 +96,7 @@ __all__ = [
     "features",
     "fit_privileged",
     "floor_rollout",
+    "in_view",
     "kept",
     "leader_boxes",
     "linear_probe",
@@ -105,4 +108,5 @@ __all__ = [
     "privileged_learner",
     "privileged_rollout",
     "standardise",
+    "state_targets",
 ]

@@ -13,9 +13,14 @@ network must not be taught to predict).
 
 With ``view`` (the :class:`~minimanc.world.RasterConfig` the model sees) a leader counts only
 when its box reaches into the raster — its rear less than ``metres_ahead`` ahead and its
-centre less than ``metres_side`` to the side, in the ego frame: the human finds leaders up to
-``25 + 3.5 v`` m ahead along its path, beyond what a raster shows, and a leader the raster
-does not show cannot be read from it.
+centre less than ``metres_side`` to the side, in the ego frame (:func:`in_view`): the human
+finds leaders up to ``25 + 3.5 v`` m ahead along its path, beyond what a raster shows, and a
+leader the raster does not show cannot be read from it.
+
+:func:`state_targets` gives the same numbers in any state the expert is asked in
+(:class:`~minimanc.dagger.expert.Situation`): DAgger's teacher records them in the states the
+learner visits (:class:`minimanc.dagger.WorldTeacher`'s ``perceive``), so that the auxiliary
+loss also trains on-policy.
 """
 
 from __future__ import annotations
@@ -25,12 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from minimanc.dagger.expert import HumanExpert
+from minimanc.dagger.expert import HumanExpert, Situation
 from minimanc.diagnose.privileged import FEATURES, features
 from minimanc.train.perception import PerceptionTargets
-from minimanc.world.geometry import DT, to_ego_frame
+from minimanc.world.geometry import to_ego_frame
 
-__all__ = ["LOGITS", "TARGETS", "leader_boxes", "perception_targets"]
+__all__ = ["LOGITS", "TARGETS", "in_view", "leader_boxes", "perception_targets",
+           "state_targets"]
 
 TARGETS: tuple[str, ...] = tuple(f for f in FEATURES if f != "a_prev")
 """The targets, in order: the expert's features (:data:`minimanc.diagnose.privileged.FEATURES`)
@@ -103,27 +109,63 @@ def perception_targets(ds: Any, view: Any = None, expert: HumanExpert | None = N
         If ``view`` has no ``metres_ahead`` and ``metres_side``, or ``ds`` does not
         regenerate (:class:`~minimanc.dagger.expert.HumanExpert`).
     """
-    if view is not None and not all(hasattr(view, a) for a in ("metres_ahead", "metres_side")):
-        raise ValueError(f"view must be a minimanc.world.RasterConfig or None, got {view!r}")
+    check_view(view)
     expert = HumanExpert(ds) if expert is None else expert
     pose = np.asarray(ds.ego, dtype=np.float64)
     S, T = pose.shape[:2]
-    X = np.zeros((S, T, len(FEATURES)))
+    values = np.zeros((S, T, len(TARGETS)))
+    mask = np.ones(values.shape, dtype=bool)
     for s in range(S):
-        steps = expert.steps(s)
-        for t, step in enumerate(steps):
-            a_prev = (step.speed - steps[t - 1].speed) / DT if t else 0.0
-            X[s, t] = features(expert.situation(s, t, pose[s, t], step.speed), a_prev)
-    values = X[..., [FEATURES.index(n) for n in TARGETS]]
-    if view is not None:
-        box = leader_boxes(ds, expert)
-        x, y, yaw, length, width = np.moveaxis(box, -1, 0)
-        rear = x - 0.5 * (np.abs(np.cos(yaw)) * length + np.abs(np.sin(yaw)) * width)
-        with np.errstate(invalid="ignore"):
-            seen = (rear < view.metres_ahead) & (np.abs(y) < view.metres_side)
-        lead = TARGETS.index("has_leader")
-        values[..., lead] = values[..., lead] * seen
+        for t, step in enumerate(expert.steps(s)):
+            values[s, t], mask[s, t] = state_targets(
+                expert.situation(s, t, pose[s, t], step.speed), view)
+    return PerceptionTargets(TARGETS, values, mask, tuple(n in LOGITS for n in TARGETS))
+
+
+def check_view(view: Any) -> None:
+    """``ValueError`` unless ``view`` is ``None`` or has ``metres_ahead`` and ``metres_side``
+    (a :class:`~minimanc.world.RasterConfig`)."""
+    if view is not None and not all(hasattr(view, a) for a in ("metres_ahead", "metres_side")):
+        raise ValueError(f"view must be a minimanc.world.RasterConfig or None, got {view!r}")
+
+
+def in_view(box: Any, view: Any) -> np.ndarray:
+    """Whether leader boxes ``[x, y, yaw, length, width]`` in the ego frame (``(..., 5)``,
+    NaN for none) reach into the raster ``view``: the box's rear less than
+    ``view.metres_ahead`` ahead and its centre less than ``view.metres_side`` to the side.
+    ``False`` where there is no box."""
+    x, y, yaw, length, width = np.moveaxis(np.asarray(box, dtype=np.float64), -1, 0)
+    rear = x - 0.5 * (np.abs(np.cos(yaw)) * length + np.abs(np.sin(yaw)) * width)
+    with np.errstate(invalid="ignore"):
+        return (rear < view.metres_ahead) & (np.abs(y) < view.metres_side)
+
+
+def state_targets(sit: Situation, view: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """The targets :data:`TARGETS` in one asked state and where each counts.
+
+    Parameters
+    ----------
+    sit : minimanc.dagger.expert.Situation
+        What the expert perceives there (:meth:`HumanExpert.situation`).
+    view : minimanc.world.RasterConfig, optional
+        The raster the model reads: a leader outside it (:func:`in_view`) is no leader.
+
+    Returns
+    -------
+    values : numpy.ndarray, shape (len(TARGETS),), float64
+        :func:`minimanc.diagnose.privileged.features` but the last acceleration.
+    mask : numpy.ndarray of bool, shape (len(TARGETS),)
+        ``False`` for the targets of :data:`MASKED_BY` whose flag is 0.
+    """
+    check_view(view)
+    values = features(sit)[[FEATURES.index(n) for n in TARGETS]]
+    lead = TARGETS.index("has_leader")
+    if view is not None and values[lead] > 0:
+        veh, pose = sit.leader, sit.pose
+        x, y = to_ego_frame(np.asarray(veh.xy, dtype=np.float64), pose)
+        box = np.array([x, y, veh.yaw - pose[2], veh.length, veh.width])
+        values[lead] = float(in_view(box, view))
     mask = np.ones(values.shape, dtype=bool)
     for name, flag in MASKED_BY.items():
-        mask[..., TARGETS.index(name)] = values[..., TARGETS.index(flag)] > 0
-    return PerceptionTargets(TARGETS, values, mask, tuple(n in LOGITS for n in TARGETS))
+        mask[TARGETS.index(name)] = values[TARGETS.index(flag)] > 0
+    return values, mask

@@ -17,22 +17,18 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import sys
 import time
-import zipfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from minimanc import diagnose, train, world
 from minimanc.studies.config import Run, StudyConfig, raster_text
 from minimanc.studies.jobs import STUDY_METRICS
 from minimanc.studies.provenance import read_json_or_none
 
-__all__ = ["StudyFiles", "load_targets", "raster_name", "save_targets"]
+__all__ = ["StudyFiles", "raster_name"]
 
 
 def raster_name(raster: world.RasterConfig) -> str:
@@ -44,29 +40,6 @@ def raster_name(raster: world.RasterConfig) -> str:
         return f"{raster.size}px"
     digest = hashlib.sha256(json.dumps(raster.as_meta(), sort_keys=True).encode()).hexdigest()
     return f"{raster.size}x{raster.width}-{raster.encoding}-{digest[:8]}"
-
-
-def save_targets(targets: train.PerceptionTargets, path: str | Path) -> Path:
-    """Write ``targets`` (:class:`~minimanc.train.PerceptionTargets`) to the ``.npz`` file
-    ``path`` (written beside it, then renamed: a killed write leaves no partial file)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.stem + ".tmp.npz")
-    np.savez(tmp, names=np.asarray(targets.names), values=np.asarray(targets.values),
-             mask=np.asarray(targets.mask), logit=np.asarray(targets.logit, dtype=bool))
-    os.replace(tmp, path)
-    return path
-
-
-def load_targets(path: str | Path) -> train.PerceptionTargets:
-    """The :class:`~minimanc.train.PerceptionTargets` :func:`save_targets` wrote to ``path``;
-    ``ValueError`` (or ``OSError``) when the file is not such targets."""
-    try:
-        with np.load(path, allow_pickle=False) as f:
-            return train.PerceptionTargets(tuple(str(n) for n in f["names"]), f["values"],
-                                           f["mask"], tuple(bool(b) for b in f["logit"]))
-    except (KeyError, EOFError, zipfile.BadZipFile) as exc:  # a key missing, a truncated file
-        raise ValueError(f"{path}: not the perception targets of a study ({exc})") from exc
 
 
 class StudyFiles:
@@ -155,13 +128,13 @@ class StudyFiles:
         path = self.perception_path()
         if path.exists():
             try:
-                load_targets(path)
+                train.load_targets(path)
                 return path
             except (OSError, ValueError) as exc:  # truncated or altered: compute it again
                 self.discard(path, str(exc))
         train_ds = self.datasets()[0]
         t0 = time.perf_counter()
-        save_targets(diagnose.perception_targets(train_ds, view=self.config.raster), path)
+        train.save_targets(diagnose.perception_targets(train_ds, view=self.config.raster), path)
         self.timing["perception"] = time.perf_counter() - t0
         self.log(f"data: perception targets of {len(train_ds)} training scenes -> {path}")
         return path

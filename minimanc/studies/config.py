@@ -38,9 +38,9 @@ class StudyConfig:
     Studies: ``n_states`` of MANC in Table I,
     ``q_states``, ``fractions``, ``settings``; ``explain_scenes`` scenes get
     explainability figures. How the models learn is named by a form of :data:`FORMS`
-    (:func:`with_form`). With ``training.perception_weight`` > 0 (behaviour cloning only)
-    every run also learns the expert's perception of its training scenes as seen in its
-    raster (:func:`minimanc.diagnose.perception_targets`, the auxiliary loss of
+    (:func:`with_form`). With ``training.perception_weight`` > 0 every run also learns
+    the expert's perception of its training scenes as seen in its raster
+    (:func:`minimanc.diagnose.perception_targets`, the auxiliary loss of
     :mod:`minimanc.train.perception`). A given dataset file
     (:func:`minimanc.studies.recorded.data_config`): ``data_file`` (its path),
     ``data_hash`` (its content hash) and ``data_source`` (``"world"``: generated,
@@ -53,8 +53,9 @@ class StudyConfig:
     behaviour cloning would use; round 0 trains ``training.epochs``, every later round
     continues from the previous one for ``round_epochs`` epochs (so the rounds together
     take about behaviour cloning's gradient steps). ``0`` (default): behaviour cloning
-    (Algorithm 1). The sweeps stay behaviour cloning; the auxiliary perception loss cannot
-    be used on-policy (the collected states have no perception targets).
+    (Algorithm 1). The sweeps stay behaviour cloning. On-policy, the auxiliary perception
+    loss also learns what the expert perceives in the states DAgger collects
+    (:func:`minimanc.diagnose.state_targets`).
     ``model``: the :class:`~minimanc.models.ModelConfig` every run starts from (default:
     the library's, the paper's models), read as ``c.model.predicate_readout``; each run
     sets its own ``n_states`` and ``setting`` and the data its ``input_shape``
@@ -146,11 +147,6 @@ class StudyConfig:
         check_int("round_epochs", self.round_epochs, 1)
         if rounds == 0:
             return
-        if self.training.perception_weight > 0:
-            raise ValueError("on-policy training (dagger_rounds > 0) cannot use the auxiliary "
-                             "perception loss: the states DAgger collects have no perception "
-                             f"targets; got dagger_rounds={rounds} with training."
-                             f"perception_weight={self.training.perception_weight!r}")
         fractions = (1.0, *self.fractions) if self.sample_models else (1.0,)
         fewest = len(train.subset_scenes(self.n_train, min(fractions), 0))
         if fewest < rounds + 1:

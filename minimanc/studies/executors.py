@@ -31,13 +31,13 @@ import warnings
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
-from minimanc import dagger, train, world
+from minimanc import dagger, diagnose, train, world
 from minimanc.checks import check_int
 from minimanc.errors import UsageError
-from minimanc.studies.cache import load_targets
 from minimanc.studies.jobs import enable_jax_cache, evaluate_job, failed
 from minimanc.studies.provenance import write_json
 from minimanc.world.datawriter import temp_prefix
@@ -276,11 +276,12 @@ def train_runs(ds: Any, job: dict) -> list[str]:
     (one :class:`~minimanc.train.TrainConfig` per run, differing in ``seed`` and ``lr``),
     ``"checkpoints"`` (one path per run), ``"engine", "jax_cache"}`` and optionally
     ``"progress"`` and ``"perception"``, the file of the perception targets of ``ds``
-    (:func:`minimanc.studies.cache.save_targets`; with ``perception_weight`` > 0): then
+    (:func:`minimanc.train.save_targets`; with ``perception_weight`` > 0): then
     each run trains on its own with the auxiliary loss (:func:`minimanc.train.fit`'s
-    ``perception``; :func:`~minimanc.train.fit_many` trains without it); or
+    ``perception``; :func:`~minimanc.train.fit_many` trains without it); and/or
     ``"dagger_rounds"`` (≥ 1), ``"round_epochs"`` and ``"beta"``: each run trains on its
-    own on-policy (:func:`train_on_policy`; its checkpoint, written last, marks it done);
+    own on-policy (:func:`train_on_policy`, with the auxiliary loss if the job names
+    targets; its checkpoint, written last, marks it done);
     for :func:`train_job` also ``"data", "lo", "hi"``.
     """
     if job["engine"] == "jax" and job.get("jax_cache"):
@@ -305,7 +306,7 @@ def train_runs(ds: Any, job: dict) -> list[str]:
             out = [_result_or_diverged(train_on_policy, ds, job, tc, paths[k])
                    for k, tc in zip(todo, tcs)]
         elif job.get("perception"):
-            targets = load_targets(job["perception"])
+            targets = train.load_targets(job["perception"])
             out = [_fit_or_diverged(ds, job, tc, d, targets) for tc, d in zip(tcs, dirs)]
         else:
             out = train.fit_many(job["model"], ds, job["cfg"], tcs, engine=job["engine"],
@@ -331,7 +332,10 @@ def train_on_policy(ds: Any, job: dict, tc: train.TrainConfig, checkpoint: Path)
         ``"model"``, ``"cfg"`` (the :class:`~minimanc.models.ModelConfig`), ``"engine"``,
         ``"dagger_rounds"`` (rounds after the demonstrations), ``"round_epochs"`` (the
         epochs of each later round, continuing from the previous one), ``"beta"`` (``p``
-        of ``β_i = p^i``) and optionally ``"progress"``.
+        of ``β_i = p^i``) and optionally ``"progress"`` and ``"perception"`` (the file of the
+        perception targets of ``ds``: every round then trains with the auxiliary loss, on
+        the demonstrations' targets and on what the expert perceives in the collected
+        states, :func:`minimanc.diagnose.state_targets` for the data's raster).
     tc : minimanc.train.TrainConfig
         The run's: round 0 trains with it on its demonstrations (every scene it is given:
         ``subset`` 1), its ``seed`` is also DAgger's (scene order, mixture coins).
@@ -350,17 +354,24 @@ def train_on_policy(ds: Any, job: dict, tc: train.TrainConfig, checkpoint: Path)
         When a round's training diverges.
     """
     rounds = check_int("dagger_rounds", job["dagger_rounds"], 1)
-    pool = ds.subset(train.subset_scenes(len(ds), tc.subset, tc.seed))
+    scenes = train.subset_scenes(len(ds), tc.subset, tc.seed)
+    pool = ds.subset(scenes)
     tc = replace(tc, subset=1.0)
     cfg = train.config_for_data(job["cfg"], pool, "pool")
-    teacher = dagger.WorldTeacher(pool, agents="reactive")
+    targets = None
+    perceive = None
+    if job.get("perception"):
+        targets = train.load_targets(job["perception"]).subset(scenes)
+        perceive = partial(diagnose.state_targets, view=pool.raster)
+    teacher = dagger.WorldTeacher(pool, agents="reactive", perceive=perceive)
     budget = dagger.plan_budget(len(pool) * pool.n_steps, pool.n_steps, rounds)
     out = Path(checkpoint).parent / "dagger"
     dagger.dagger(job["model"], teacher, budget, rounds=rounds,
                   beta=job["beta"], cfg=cfg, train_cfg=tc, engine=job["engine"], out=out,
                   seed=tc.seed, progress=job.get("progress", False), evaluate=False,
                   round_cfg=replace(tc, epochs=check_int("round_epochs", job["round_epochs"],
-                                                         1)))
+                                                         1)),
+                  perception=targets)
     tmp = Path(checkpoint).with_name(temp_prefix(checkpoint) + "tmp")
     shutil.copyfile(dagger.round_dir(out, rounds) / train.CHECKPOINT_NAME, tmp)
     os.replace(tmp, checkpoint)

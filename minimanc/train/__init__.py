@@ -102,8 +102,11 @@ from minimanc.train.fit import (
 from minimanc.train.many import fit_many, fit_seeds
 from minimanc.train.perception import (
     PerceptionTargets,
+    concat_targets,
+    load_targets,
     masked_perception_loss,
     perception_outputs,
+    save_targets,
     standardised_targets,
 )
 from minimanc.train.step import loss_fn, make_step
@@ -127,18 +130,21 @@ __all__ = [
     "control_std",
     "dataset_shape",
     "open_loop_loss",
+    "concat_targets",
     "fit",
     "fit_many",
     "fit_seeds",
     "initial_q",
     "load_fit",
     "load_checkpoint",
+    "load_targets",
     "loss_fn",
     "make_batch",
     "make_step",
     "masked_perception_loss",
     "perception_outputs",
     "save_checkpoint",
+    "save_targets",
     "standardised_targets",
     "subset_scenes",
     "sweep_lr",

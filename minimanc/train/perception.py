@@ -29,15 +29,20 @@ controller :func:`~minimanc.train.fit` returns.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import os
+import zipfile
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from minimanc import layers, models
 
-__all__ = ["PerceptionTargets", "init_perception_head", "masked_perception_loss",
-           "perception_outputs", "perception_term", "standardised_targets"]
+__all__ = ["PerceptionTargets", "concat_targets", "init_perception_head", "load_targets",
+           "masked_perception_loss", "perception_outputs", "perception_term", "save_targets",
+           "standardised_targets"]
 
 BATCH_KEYS = ("perception", "perception_mask", "perception_logit")
 """The batch entries of the auxiliary loss (not observations): standardised targets
@@ -87,6 +92,55 @@ class PerceptionTargets:
         flags = values[..., np.asarray(self.logit, dtype=bool)]
         if not np.all((flags == 0.0) | (flags == 1.0)):
             raise ValueError("a presence target (logit=True) must be 0 or 1")
+
+    def subset(self, scenes: Any) -> PerceptionTargets:
+        """The targets of the scenes ``scenes`` (indices or a slice), in that order: those
+        of :meth:`minimanc.world.Dataset.subset` with the same argument."""
+        idx = scenes if isinstance(scenes, slice) else np.asarray(scenes, dtype=np.int64)
+        return replace(self, values=np.asarray(self.values)[idx],
+                       mask=np.asarray(self.mask)[idx])
+
+
+def concat_targets(parts: Sequence[PerceptionTargets]) -> PerceptionTargets:
+    """The targets of ``parts`` one scene block after the other (the targets of
+    :func:`minimanc.dagger.concat` of their datasets); ``ValueError`` unless they all have
+    the same names, presence flags and steps."""
+    if len(parts) == 0:
+        raise ValueError("parts must hold at least one PerceptionTargets, got 0")
+    first = parts[0]
+    for k, p in enumerate(parts[1:], start=1):
+        if (p.names, p.logit) != (first.names, first.logit) or \
+                np.shape(p.values)[1] != np.shape(first.values)[1]:
+            raise ValueError(f"parts[{k}] has names {p.names}, flags {p.logit} and "
+                             f"{np.shape(p.values)[1]} steps; parts[0] has {first.names}, "
+                             f"{first.logit} and {np.shape(first.values)[1]}")
+    if len(parts) == 1:
+        return first
+    return replace(first, values=np.concatenate([np.asarray(p.values) for p in parts]),
+                   mask=np.concatenate([np.asarray(p.mask) for p in parts]))
+
+
+def save_targets(targets: PerceptionTargets, path: str | Path) -> Path:
+    """Write ``targets`` to the ``.npz`` file ``path`` (written beside it, then renamed: a
+    killed write leaves no partial file)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.stem + ".tmp.npz")
+    np.savez(tmp, names=np.asarray(targets.names), values=np.asarray(targets.values),
+             mask=np.asarray(targets.mask), logit=np.asarray(targets.logit, dtype=bool))
+    os.replace(tmp, path)
+    return path
+
+
+def load_targets(path: str | Path) -> PerceptionTargets:
+    """The :class:`PerceptionTargets` :func:`save_targets` wrote to ``path``; ``ValueError``
+    (or ``OSError``) when the file is not such targets."""
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            return PerceptionTargets(tuple(str(n) for n in f["names"]), f["values"],
+                                     f["mask"], tuple(bool(b) for b in f["logit"]))
+    except (KeyError, EOFError, zipfile.BadZipFile) as exc:  # a key missing, a truncated file
+        raise ValueError(f"{path}: not perception targets ({exc})") from exc
 
 
 def standardised_targets(targets: PerceptionTargets, scenes: Any) -> np.ndarray:

@@ -15,8 +15,8 @@ same in both settings, its DMP starting from the current motion); ``dagger``
 is ``channels0`` trained on-policy: DAgger (:func:`minimanc.dagger.dagger`) with the world's
 human among reactive ados as the teacher, :data:`ROUNDS` rounds after the demonstrations
 (β from ½ halving), the same 600 scenes' worth of expert-labelled states as behaviour
-cloning (``channels0``), the same schedule per round (the auxiliary loss needs targets the
-collected states do not carry); ``dagger_rgb`` the same on the RGB raster (against ``rgb``);
+cloning (``channels0``), the same schedule per round; ``dagger_rgb`` the same on the RGB
+raster (against ``rgb``);
 ``speed_dagger`` is ``speed`` trained on-policy like ``dagger`` (whether on-policy labels
 mend the copycat the own speed brings); ``speed_dagger_seq40`` is ``speed_dagger`` with the
 LSTM models trained on windows of a whole 40-step scene (``TrainConfig.seq_len = 40``) instead
@@ -25,7 +25,10 @@ of 8 steps from a zero state, while the closed loop carries their state through 
 ``dagger_flat`` is MANC's
 ``dagger`` with eq. 7 over the flattened features (``ModelConfig.predicate_readout =
 "flatten"``: predicates that keep where a feature fires); the ``_warm`` forms continue each
-DAgger round from the previous one (one epoch, ``_warm2`` two); ``_p64`` has 64 predicates
+DAgger round from the previous one (one epoch, ``_warm2`` two); ``speed_dagger_warm2_aux``
+is ``speed_dagger_warm2`` with the auxiliary loss at λ = ``--weight`` on the demonstrations
+and on every state DAgger collects (what the human perceives there, recorded by the teacher:
+:func:`minimanc.diagnose.state_targets`); ``_p64`` has 64 predicates
 and ``_goal10`` the DMP's goal at a fixed 10 m ahead (``ModelConfig.position_lookahead = 10``,
 ``position_lookahead_time = 0``). Two retired forms
 (:data:`RETIRED`) stay in the tables: ``speed_drop``, ``speed`` with the own speed and yaw
@@ -60,6 +63,7 @@ import os
 import re
 import time
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -134,6 +138,10 @@ FORMS: dict[str, Form] = {
     "speed_dagger_warm2": Form(f"channels, λ = 0, {PARITY_TEXT}, DAgger {{rounds}} rounds, "
                                "each continuing 2 epochs", setting="parity", on_policy=True,
                                warm=2),
+    "speed_dagger_warm2_aux": Form(f"channels, λ = {{w:g}} on every collected state too, "
+                                   f"{PARITY_TEXT}, DAgger {{rounds}} rounds, each continuing "
+                                   "2 epochs", aux=True, setting="parity", on_policy=True,
+                                   warm=2),
     "dagger_flat_warm": Form("channels, λ = 0, eq. 7 over flatten(f), DAgger {rounds} rounds, "
                              "each continuing 1 epoch", on_policy=True,
                              model=(("predicate_readout", "flatten"),), only=MANCS, warm=1),
@@ -269,7 +277,8 @@ def fit_model(model: str, form: str, seed: int, weight: float, ds: world.Dataset
     if FORMS[form].on_policy:
         warm = replace(tc, epochs=FORMS[form].warm) if FORMS[form].warm else None
         return on_policy(model, model_config(form, tr), tc, tr,
-                         dagger_dir(model, form, seed, work), warm), time.perf_counter() - t0
+                         dagger_dir(model, form, seed, work), warm,
+                         targets(form, ds, work) if lam > 0 else None), time.perf_counter() - t0
     fit = train.fit(model, tr, model_config(form), tc, engine="jax", progress=False,
                     checkpoint_dir=checkpoint_dir(model, form, seed, lam, work),
                     resume=True, perception=targets(form, ds, work) if lam > 0 else None)
@@ -299,16 +308,19 @@ def checkpoint_of(model: str, form: str, seed: int, work: Path, weight: float = 
 
 
 def on_policy(model: str, cfg: models.ModelConfig, tc: train.TrainConfig,
-              pool: world.Dataset, out: Path, warm: train.TrainConfig | None = None
-              ) -> train.FitResult:
+              pool: world.Dataset, out: Path, warm: train.TrainConfig | None = None,
+              perception: train.PerceptionTargets | None = None) -> train.FitResult:
     """DAgger on ``pool`` (every round checkpointed under ``out``: a rerun resumes; rounds
-    after the first continue from the previous one with ``warm`` if given), its last
-    policy as a fit."""
-    teacher = dagger.WorldTeacher(pool, agents="reactive")
+    after the first continue from the previous one with ``warm`` if given; with
+    ``perception``, the targets of the pool's scenes, the auxiliary loss also on what the
+    teacher perceives in the collected states), its last policy as a fit."""
+    perceive = None if perception is None else partial(diagnose.state_targets,
+                                                       view=pool.raster)
+    teacher = dagger.WorldTeacher(pool, agents="reactive", perceive=perceive)
     budget = dagger.plan_budget(len(pool) * pool.n_steps, pool.n_steps, ROUNDS)
     dagger.dagger(model, teacher, budget, rounds=ROUNDS, beta=0.5, cfg=cfg, train_cfg=tc,
                   engine="jax", out=out, seed=tc.seed, progress=False, evaluate=False,
-                  round_cfg=warm)
+                  round_cfg=warm, perception=perception)
     return train.load_fit(dagger.round_dir(out, ROUNDS) / train.CHECKPOINT_NAME)
 
 
