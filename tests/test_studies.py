@@ -467,7 +467,7 @@ def test_the_learners_raster_with_the_perception_loss_trains_and_drives_every_ta
         tmp_path, capsys):
     """The tiny preset on the binary channels with λ = 1: every Table I model trains with the
     auxiliary loss on the targets of the training scenes as the raster shows them, and
-    drives its validation scenes closed loop."""
+    drives its validation scenes closed loop; behaviour cloning against DAgger learns it too."""
     from dataclasses import replace
 
     from minimanc import diagnose, train, world
@@ -499,6 +499,13 @@ def test_the_learners_raster_with_the_perception_loss_trains_and_drives_every_ta
     assert study.files.perception_targets() == path
     assert "discarding the unreadable cache entry" in capsys.readouterr().err
     assert np.array_equal(load_targets(path).values, targets.values)
-    with pytest.raises(ValueError, match="perception_weight must be 0 with dagger"):
-        studies.reproduce(c, tmp_path, engine="numpy", workers=0, agents=("replay",),
-                          dagger=True)
+    # behaviour cloning against DAgger with the loss: both learn it, DAgger also on the
+    # states it collects
+    res = studies.dagger_study.run_dagger(study, models=("cnn",), rounds=1)
+    assert np.isfinite(res["models"]["cnn"]["dagger"]["ade"]["mean"])
+    base = study.files.dir / "dagger" / "cnn-s0"
+    for where in (base / "bc" / "bc", base / "dagger" / "round_000",
+                  base / "dagger" / "round_001"):
+        assert "perception" in train.load_checkpoint(where / "checkpoint.npz")["params"]
+    collected = load_targets(base / "dagger" / "round_001" / "perception.npz")
+    assert collected.names == want.names and collected.values.shape[1] == train_ds.n_steps

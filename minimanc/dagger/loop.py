@@ -338,11 +338,13 @@ def dagger(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
 def behaviour_cloning(name: str, teacher: Teacher, budget: int | Budget, rounds: int = 3,
                       cfg: Any = None, train_cfg: Any = None, engine: Any = "jax",
                       out: str | os.PathLike | None = None, seed: int = 0,
-                      progress: bool = True, evaluate: bool = True) -> RoundResult:
+                      progress: bool = True, evaluate: bool = True,
+                      perception: Any = None) -> RoundResult:
     """Behaviour cloning with DAgger's budget: trained on the first :attr:`Budget.scenes`
     demonstrations of the pool's scene order (the scenes :func:`dagger` drives with the
     same ``budget``, ``rounds`` and ``seed``), so both use :attr:`Budget.used` labelled
-    samples. Checkpointed in ``out/bc`` and loaded from there on a rerun."""
+    samples; with ``perception`` (as :func:`dagger`'s) the auxiliary loss on their
+    targets. Checkpointed in ``out/bc`` and loaded from there on a rerun."""
     name, eng_name = _check_common(name, teacher, engine)
     rounds = check_int("rounds", rounds, 1)
     plan = _budget_for(teacher, budget, rounds)
@@ -350,15 +352,19 @@ def behaviour_cloning(name: str, teacher: Teacher, budget: int | Budget, rounds:
     cfg = cfg or default_config(pool)
     tc = train_cfg or train.TrainConfig()
     seed = check_int("seed", seed, 0)
+    perception = _check_perception(perception, teacher)
     scenes = scene_order(len(pool), seed)[:plan.scenes]
     fp = {**_fingerprint(name, teacher, plan, [1.0], cfg, tc, seed, eng_name), "bc": plan.scenes}
+    if perception is not None:
+        fp["perception"] = list(perception.names)
     where = None if out is None else Path(out) / "bc"
     loaded = _load_round(where, fp) if where is not None else None
     if loaded is not None:
         return loaded[0]
     t0 = time.perf_counter()
     data = pool.subset(np.sort(scenes))
-    fit = _train(name, data, cfg, tc, engine, where, progress)
+    fit = _train(name, data, cfg, tc, engine, where, progress, None,
+                 None if perception is None else perception.subset(np.sort(scenes)))
     m = teacher.evaluate(ModelPolicy(name, fit.params, cfg, engine), progress) if evaluate else {}
     r = RoundResult(0, 1.0, [int(s) for s in scenes], sorted(int(s) for s in scenes), plan.used,
                     plan.used, 1.0, {k: float(v) for k, v in m.items()},

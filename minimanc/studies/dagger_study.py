@@ -5,19 +5,22 @@ The pool is the study's training split, the evaluation its validation split, the
 the world's human driver (:class:`minimanc.dagger.WorldTeacher`) under the study's first
 protocol for the ados. Per model and seed: DAgger with ``rounds`` rounds after the
 demonstrations (β_i = ``beta``^i) and behaviour cloning on the same number of labels,
-each with the model's tuned learning rate and the study's training configuration. Rounds
-are checkpointed under the study's cache, so a rerun resumes.
+each with the model's tuned learning rate and the study's training configuration (with
+``perception_weight`` > 0 both learn the auxiliary loss: behaviour cloning on the
+demonstrations' targets, DAgger also on what the teacher perceives in the states it
+collects). Rounds are checkpointed under the study's cache, so a rerun resumes.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from minimanc import dagger, metrics
+from minimanc import dagger, diagnose, metrics, train
 from minimanc.checks import check_int
 from minimanc.viz.dagger import plot_study_rounds
 from minimanc.viz.style import METRIC_LABELS, pyplot
@@ -55,7 +58,11 @@ def run_dagger(study: Any, models: Sequence[str] = ("manc", "cnn"), rounds: int 
     rounds = check_int("rounds", rounds, 1)
     train_ds, _, val = study.datasets()
     agents = study.agents[0]
-    teacher = dagger.WorldTeacher(train_ds, val, agents=agents)
+    targets, perceive = None, None
+    if study.config.training.perception_weight > 0:
+        targets = train.load_targets(study.files.perception_targets())
+        perceive = partial(diagnose.state_targets, view=train_ds.raster)
+    teacher = dagger.WorldTeacher(train_ds, val, agents=agents, perceive=perceive)
     T = int(np.asarray(train_ds.ego).shape[1])
     budget = dagger.plan_budget(len(train_ds) * T, T, rounds)
     out: dict = {"agents": agents, "rounds": rounds, "beta": float(beta),
@@ -68,7 +75,7 @@ def run_dagger(study: Any, models: Sequence[str] = ("manc", "cnn"), rounds: int 
             tc = study.config.train_config(model, lr, seed, 1.0)
             base = study.files.dir / "dagger" / f"{model}-s{seed}"
             common = dict(cfg=cfg, train_cfg=tc, engine=study.engine, seed=seed,
-                          progress=study.progress)
+                          progress=study.progress, perception=targets)
             bc = dagger.behaviour_cloning(model, teacher, budget, rounds, out=base / "bc",
                                           **common)
             res = dagger.dagger(model, teacher, budget, rounds, beta, out=base / "dagger",

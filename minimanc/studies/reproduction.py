@@ -49,16 +49,11 @@ def reproduce(config: StudyConfig, out: str | Path, engine: str = "jax", workers
     On a given dataset file (``config`` from :func:`minimanc.studies.recorded.data_config`)
     ``table1.md`` says so after its introduction; on recorded data ``agents`` must be
     ``("replay",)``, ``dagger`` is refused and Table I has no bound rows (why:
-    :mod:`minimanc.studies.recorded`); ``dagger`` is refused with ``perception_weight`` > 0
-    too."""
+    :mod:`minimanc.studies.recorded`)."""
     if dagger and is_recorded(config):
         raise ValueError("dagger needs the world's expert in states the log never visited; "
                          "recorded data has none (behaviour cloning against DAgger runs on "
                          "generated data only)")
-    if dagger and config.training.perception_weight > 0:
-        raise ValueError("dagger trains without the auxiliary perception loss (its targets are "
-                         "those of the logged states, not of the states DAgger visits): "
-                         "perception_weight must be 0 with dagger")
     started = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
