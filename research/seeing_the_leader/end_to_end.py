@@ -28,7 +28,9 @@ of 8 steps from a zero state, while the closed loop carries their state through 
 DAgger round from the previous one (one epoch, ``_warm2`` two); ``speed_dagger_warm2_aux``
 is ``speed_dagger_warm2`` with the auxiliary loss at λ = ``--weight`` on the demonstrations
 and on every state DAgger collects (what the human perceives there, recorded by the teacher:
-:func:`minimanc.diagnose.state_targets`); ``_p64`` has 64 predicates
+:func:`minimanc.diagnose.state_targets`), ``_deep`` the same with the perception study's
+four convolutions of 32, 64, 64 and 64 channels (``perception.py``'s ``route60``) instead of
+the course's three of 16, 32 and 32; ``_p64`` has 64 predicates
 and ``_goal10`` the DMP's goal at a fixed 10 m ahead (``ModelConfig.position_lookahead = 10``,
 ``position_lookahead_time = 0``). Two retired forms
 (:data:`RETIRED`) stay in the tables: ``speed_drop``, ``speed`` with the own speed and yaw
@@ -142,6 +144,12 @@ FORMS: dict[str, Form] = {
                                    f"{PARITY_TEXT}, DAgger {{rounds}} rounds, each continuing "
                                    "2 epochs", aux=True, setting="parity", on_policy=True,
                                    warm=2),
+    "speed_dagger_warm2_aux_deep": Form(f"channels, λ = {{w:g}} on every collected state too, "
+                                        f"{PARITY_TEXT}, the perception study's 4-layer "
+                                        "backbone (32, 64, 64, 64), DAgger {rounds} rounds, "
+                                        "each continuing 2 epochs", aux=True, setting="parity",
+                                        on_policy=True, warm=2,
+                                        model=(("channels", (32, 64, 64, 64)),)),
     "dagger_flat_warm": Form("channels, λ = 0, eq. 7 over flatten(f), DAgger {rounds} rounds, "
                              "each continuing 1 epoch", on_policy=True,
                              model=(("predicate_readout", "flatten"),), only=MANCS, warm=1),
@@ -301,6 +309,8 @@ def checkpoint_of(model: str, form: str, seed: int, work: Path, weight: float = 
     """The trained model's checkpoint (DAgger's last round for ``dagger``), if it exists."""
     if FORMS[form].on_policy:
         path = dagger.round_dir(dagger_dir(model, form, seed, work), ROUNDS)
+        if not (path / dagger.ROUND_FILE).exists():  # the last round is still training
+            return None
     else:
         path = checkpoint_dir(model, form, seed, weight_of(form, weight), work)
     path = path / train.CHECKPOINT_NAME
