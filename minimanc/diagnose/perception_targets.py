@@ -130,10 +130,22 @@ def check_view(view: Any) -> None:
 
 
 def in_view(box: Any, view: Any) -> np.ndarray:
-    """Whether leader boxes ``[x, y, yaw, length, width]`` in the ego frame (``(..., 5)``,
-    NaN for none) reach into the raster ``view``: the box's rear less than
+    """Whether leader boxes reach into the raster ``view``: the box's rear less than
     ``view.metres_ahead`` ahead and its centre less than ``view.metres_side`` to the side.
-    ``False`` where there is no box."""
+
+    Parameters
+    ----------
+    box : array_like, shape (..., 5)
+        ``[x, y, yaw, length, width]`` in the ego frame (m, m, rad, m, m); NaN for none
+        (:func:`leader_boxes`).
+    view : minimanc.world.RasterConfig
+        The raster the model reads.
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (...)
+        ``False`` where there is no box.
+    """
     x, y, yaw, length, width = np.moveaxis(np.asarray(box, dtype=np.float64), -1, 0)
     rear = x - 0.5 * (np.abs(np.cos(yaw)) * length + np.abs(np.sin(yaw)) * width)
     with np.errstate(invalid="ignore"):
