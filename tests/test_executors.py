@@ -1,6 +1,6 @@
 """Tests for minimanc.studies.executors: the local and Ray executors behind one interface,
-the clear error without Ray, and the ``tiny`` study on a local Ray giving the local
-executor's ``results.json`` (and resuming from its cache)."""
+the clear error without Ray, and a small study (:data:`SMALL`) on a local Ray giving the
+local executor's ``results.json`` (and resuming from its cache)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import shutil
 import sys
 import time
 import types
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,12 @@ except ImportError:
     HAVE_RAY = False
 needs_ray = pytest.mark.skipif(not HAVE_RAY, reason="ray is not installed: "
                                "pip install 'minimanc[ray]' (CI installs it)")
+
+
+SMALL = replace(PRESETS["tiny"], table_models=("cnn", "manc"), ablation_models=(),
+                sample_models=(), settings=("paper",))
+"""The ``tiny`` preset with Table I of CNN and MANC in one setting and its q-states study:
+three trainings and their rollouts, enough to queue jobs on jobs in every executor."""
 
 
 def add(a, b):
@@ -115,9 +122,10 @@ def test_ray_futures_chain_and_a_lost_worker_is_retried(tmp_path):
         ex.shutdown()
 
 
-def run_tiny(out: Path, executor: str, log: list | None = None, workers: int = 2) -> dict:
-    """The ``tiny`` study under ``out``; its results.json content without the wall times."""
-    study = Study(PRESETS["tiny"], out, workers=workers, progress=False,
+def run_small(out: Path, executor: str, log: list | None = None, workers: int = 2) -> dict:
+    """The :data:`SMALL` study under ``out``; its results.json content without the wall
+    times."""
+    study = Study(SMALL, out, workers=workers, progress=False,
                   executor=executor, log=None if log is None else log.append)
     try:
         res = study.run()
@@ -166,21 +174,21 @@ def test_same_results_tells_a_training_apart_from_a_rounding():
 
 @pytest.fixture(scope="module")
 def pool_run(tmp_path_factory) -> tuple[dict, Path, list]:
-    """The tiny study on the local executor's two worker processes, run once for the tests
+    """The small study on the local executor's two worker processes, run once for the tests
     that compare other executors with it: ``(results text, its directory, its log)``."""
     out = tmp_path_factory.mktemp("pool")
     log: list[str] = []
-    return run_tiny(out, "local", log, workers=2), out, log
+    return run_small(out, "local", log, workers=2), out, log
 
 
-def test_tiny_study_in_worker_processes_equals_inline(tmp_path, pool_run):
+def test_small_study_in_worker_processes_equals_inline(tmp_path, pool_run):
     """Trainings and evaluations as jobs of two worker processes (queued as soon as their
     inputs are known) give the inline run's results.json (:func:`assert_same_results`)."""
     pooled, pool_dir, log = pool_run
     shutil.copytree(pool_dir / "data", tmp_path / "inline" / "data")  # same scenes
-    assert_same_results(run_tiny(tmp_path / "inline", "local", workers=0), pooled)
+    assert_same_results(run_small(tmp_path / "inline", "local", workers=0), pooled)
     assert sum(line.startswith("train:") and line.endswith("submitted") for line in log) == \
-        sum(plan(PRESETS["tiny"])["train"].values())
+        sum(plan(SMALL)["train"].values())
 
 
 def test_local_executor_waits_for_futures_without_blocking(tmp_path):
@@ -211,13 +219,13 @@ def test_local_executor_waits_for_futures_without_blocking(tmp_path):
 
 
 @needs_ray
-def test_tiny_study_on_ray_equals_local(tmp_path, pool_run):
+def test_small_study_on_ray_equals_local(tmp_path, pool_run):
     """Same results.json (:func:`assert_same_results`) on a local Ray (2 CPUs) as on the
     local executor;
     a rerun after lost results recomputes only those and gives the same file again."""
     local, pool_dir, _ = pool_run
     shutil.copytree(pool_dir / "data", tmp_path / "ray" / "data")  # same scenes
-    on_ray = run_tiny(tmp_path / "ray", "ray")
+    on_ray = run_small(tmp_path / "ray", "ray")
     assert_same_results(on_ray, local)
     # lose one run's checkpoint and its validation metrics: the rerun trains and evaluates
     # that run only, from the cache of everything else
@@ -227,6 +235,6 @@ def test_tiny_study_on_ray_equals_local(tmp_path, pool_run):
     for f in (cache / "rollouts").glob(f"{lost.name}-*"):
         f.unlink()
     log: list[str] = []
-    assert_same_results(run_tiny(tmp_path / "ray", "ray", log), local)
+    assert_same_results(run_small(tmp_path / "ray", "ray", log), local)
     trained = [line for line in log if line.startswith("train:")]
     assert trained == [f"train: {lost.name} submitted"]
