@@ -10,6 +10,8 @@ engine is ``engine=`` everywhere, a name of :data:`minimanc.engine.ENGINES` or a
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -35,6 +37,23 @@ __all__ = ["FixedGainsPolicy", "ModelPolicy", "closed_loop", "fixed_gains", "ope
            "replay"]
 
 
+def policy_step(name: str, cfg: models.ModelConfig, eng: Any) -> Callable:
+    """One control step of model ``name``, ``(params, obs, state) → (u, state, aux)``, its
+    aux outputs those of :data:`~minimanc.rollout.driver.AUX_KEYS`."""
+    def step(p: dict, obs: dict, state: dict) -> tuple[Any, dict, dict]:
+        u, new_state, aux = models.step(name, p, obs, state, cfg, eng)
+        return u, new_state, {k: v for k, v in aux.items() if k in AUX_KEYS}
+
+    return step
+
+
+@lru_cache(maxsize=32)
+def jitted_policy_step(name: str, cfg: models.ModelConfig, eng: Any) -> Callable:
+    """:func:`policy_step` jitted, one function per ``(name, cfg, eng)``: the drivers of
+    one model (every DAgger round, every evaluation) share its compilations."""
+    return eng.jit(policy_step(name, cfg, eng))  # jit is the identity on the NumPy engine
+
+
 class ModelPolicy:
     """A :mod:`minimanc.models` controller as a :class:`Policy`.
 
@@ -42,7 +61,8 @@ class ModelPolicy:
     :func:`minimanc.train.fit`, or ``ModelPolicy(name, params, cfg, engine)`` with its
     parts: ``cfg`` is the model's :class:`~minimanc.models.ModelConfig` (its ``setting``
     decides what the model sees); ``engine`` a name of :data:`minimanc.engine.ENGINES` or
-    an engine (``"jax"`` jits the step once per batch size, unless ``jit=False``). The
+    an engine (``"jax"`` jits the step once per model configuration and batch size, shared by
+    every policy of that configuration, unless ``jit=False``). The
     recurrent state starts as :func:`minimanc.models.initial_state` with ``q_init``
     ("uniform", Algorithm 1's ``UniformInit``, or "random" with ``seed``: one generator per
     scene, so that a row does not depend on its batch), or as ``initial`` (the state of one
@@ -68,12 +88,7 @@ class ModelPolicy:
         self.initial = initial
         self.params = cast_tree(params, dtype)
 
-        def _fn(p: dict, obs: dict, state: dict) -> tuple[Any, dict, dict]:
-            u, new_state, aux = models.step(name, p, obs, state, cfg, eng)
-            aux = {k: v for k, v in aux.items() if k in AUX_KEYS}
-            return u, new_state, aux
-
-        self._step = eng.jit(_fn) if jit else _fn  # jit is the identity on the NumPy engine
+        self._step = jitted_policy_step(name, cfg, eng) if jit else policy_step(name, cfg, eng)
 
     def initial_state(self, scenes: np.ndarray) -> dict:
         if self.initial is not None:

@@ -4,6 +4,7 @@ gradient, global-norm clip, Adam), jitted once per model and configuration."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -15,8 +16,8 @@ from minimanc.train.perception import BATCH_KEYS, perception_term
 from minimanc.tree import leaves as tree_leaves
 from minimanc.tree import map as tree_map
 
-__all__ = ["global_norm", "hyper_args", "like", "loss_fn", "make_step", "scale_tree",
-           "train_step_fn"]
+__all__ = ["global_norm", "hyper_args", "jitted_step", "like", "loss_fn", "make_step",
+           "scale_tree", "train_step_fn"]
 
 
 def loss_fn(name: str, params: dict, batch: dict, cfg: models.ModelConfig, eng: Any,
@@ -125,5 +126,13 @@ def make_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any,
     data fractions) share one compilation through JAX's persistent cache.
     """
     hyper = hyper_args(tc, inv_std)
-    step = eng.jit(train_step_fn(name, cfg, tc, eng))
+    step = jitted_step(name, cfg, tc, eng)
     return lambda params, opt_state, batch: step(params, opt_state, batch, hyper)
+
+
+@lru_cache(maxsize=32)
+def jitted_step(name: str, cfg: models.ModelConfig, tc: TrainConfig, eng: Any) -> Callable:
+    """:func:`train_step_fn` jitted, one function per ``(name, cfg, tc, eng)``: fits with
+    the same configurations (DAgger's rounds, a model trained again) reuse its compilations
+    instead of compiling an equal step anew."""
+    return eng.jit(train_step_fn(name, cfg, tc, eng))
