@@ -534,3 +534,25 @@ def test_drive_on_route_drives_a_bare_head_along_the_route_and_refuses_bad_contr
     assert np.all(np.diff(s) > 0) and np.abs(lat).max() < 1.0   # it follows the route
     with pytest.raises(ValueError, match="shape \\(1, 2\\)"):
         rollout.drive_on_route(lambda lane, mot: np.zeros(3), m, start, motion, 2)
+
+
+def test_the_drivers_of_one_model_share_one_jitted_step(ds):
+    """``rollout.policies.jitted_policy_step`` gives one jitted step per (model, ModelConfig,
+    engine): a second driver of that model (the next DAgger round, another evaluation)
+    reuses its compilations; another configuration has its own; the reused step drives to
+    the same numbers."""
+    from minimanc import engine, models
+    from minimanc.rollout.policies import jitted_policy_step
+
+    eng = engine("jax")
+    cfg = models.ModelConfig(input_shape=(32, 32, 3), channels=(4, 8), n_states=3)
+    step = jitted_policy_step("manc", cfg, eng)
+    assert jitted_policy_step("manc", models.ModelConfig(**cfg.to_dict()), eng) is step
+    assert jitted_policy_step("manc", models.ModelConfig(**{**cfg.to_dict(), "n_states": 4}),
+                              eng) is not step
+    assert jitted_policy_step("cnn", cfg, eng) is not step
+    params = models.init("manc", np.random.default_rng(1), cfg)
+    kw = dict(scenes=[0, 1], steps=4, progress=False)
+    first = rollout.closed_loop("manc", params, ds, cfg, eng, **kw)
+    again = rollout.closed_loop("manc", params, ds, cfg, eng, **kw)
+    assert np.array_equal(first.ego, again.ego)

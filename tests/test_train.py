@@ -289,3 +289,22 @@ def test_the_training_result_is_accepted_where_its_parts_are(ds, tmp_path):
         train.accepts_fit()(lambda name, params: None)
     with pytest.raises(TypeError, match="lacks \\['std'\\]"):
         train.accepts_fit({"std": lambda f: f.control_std})(lambda name, params, cfg: None)
+
+
+def test_fits_of_one_configuration_share_one_jitted_step(ds):
+    """``train.jitted_step`` gives one jitted function per (model, ModelConfig, TrainConfig,
+    engine), so a model trained again with them (each DAgger round) reuses its compilations;
+    another configuration gets its own, and the reused step trains to the same numbers."""
+    from minimanc import engine
+
+    eng = engine("jax")
+    tc = _tc(dtype="float32")
+    step = train.jitted_step("cnn", CFG, tc, eng)
+    assert train.jitted_step("cnn", models.ModelConfig(**CFG.to_dict()), _tc(dtype="float32"),
+                             eng) is step
+    assert train.jitted_step("cnn", CFG, _tc(dtype="float32", perception_weight=1.0),
+                             eng) is not step
+    assert train.jitted_step("manc", CFG, tc, eng) is not step
+    first = train.fit("cnn", ds, CFG, tc, engine="jax", progress=False)
+    again = train.fit("cnn", ds, CFG, tc, engine="jax", progress=False)
+    assert again.history == first.history

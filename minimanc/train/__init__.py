@@ -109,7 +109,7 @@ from minimanc.train.perception import (
     save_targets,
     standardised_targets,
 )
-from minimanc.train.step import loss_fn, make_step
+from minimanc.train.step import jitted_step, loss_fn, make_step
 from minimanc.train.trained import accepts_fit
 
 __all__ = [
@@ -135,6 +135,7 @@ __all__ = [
     "fit_many",
     "fit_seeds",
     "initial_q",
+    "jitted_step",
     "load_fit",
     "load_checkpoint",
     "load_targets",
