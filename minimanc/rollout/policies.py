@@ -33,8 +33,8 @@ from minimanc.rollout.protocols import simulate
 from minimanc.train import FitResult, accepts_fit
 from minimanc.tree import leaves
 
-__all__ = ["FixedGainsPolicy", "ModelPolicy", "closed_loop", "fixed_gains", "open_loop",
-           "replay"]
+__all__ = ["FixedGainsPolicy", "ModelPolicy", "closed_loop", "fixed_gains",
+           "jitted_policy_step", "open_loop", "policy_step", "replay"]
 
 
 def policy_step(name: str, cfg: models.ModelConfig, eng: Any) -> Callable:
