@@ -7,6 +7,10 @@ perceives in each state it labels, :func:`minimanc.diagnose.state_targets`), and
 the perception study's four-layer backbone (``speed_dagger_warm2_aux_deep``: 32, 64, 64 and
 64 channels where the course's CNN has 16, 32 and 32), whose own read-out reads the gap to
 2.66 m when trained on perception alone (``results/perception.md``, ``route60_scale``).
+MANC in the library's learner form (``manc_qp`` in ``dagger_flat_warm2_p64_goal10``: eq. 7
+over the flattened features, 64 predicates, gains over q ⊕ p, the DMP's goal 10 m ahead)
+against the same with the auxiliary loss and the four-layer backbone
+(``dagger_flat_warm2_p64_goal10_aux_deep``).
 
 Protocol (``end_to_end.py``'s, fixed before any number of the new form was seen): train on
 scenes 0–599 of the seed-0 draw, drive the validation scenes 600–799 among reactive and
@@ -18,9 +22,9 @@ quoted from the committed ``results/end_to_end.md`` and ``results/probe_models.m
 runs are not repeated here).
 
 Run: ``SEEING_DATA=/path python research/seeing_the_leader/aux_dagger.py --seeds 0 1 2
---forms speed_dagger_warm2_aux --work runs/end_to_end`` (every run and probe cached as JSON
-under ``--work``; a finished one is not repeated); writes ``results/aux_dagger.md`` from
-what is cached.
+--forms speed_dagger_warm2_aux --work runs/end_to_end`` (each form names its model; every run
+and probe cached as JSON under ``--work``; a finished one is not repeated); writes
+``results/aux_dagger.md`` from what is cached.
 """
 
 from __future__ import annotations
@@ -37,9 +41,11 @@ import probe_models as P
 
 from minimanc.studies import provenance
 
-MODEL = "cnn"
-BASE = "speed_dagger_warm2"
-AUX_FORMS = ("speed_dagger_warm2_aux", "speed_dagger_warm2_aux_deep")
+AUX_FORMS = {"speed_dagger_warm2_aux": ("cnn", "speed_dagger_warm2"),
+             "speed_dagger_warm2_aux_deep": ("cnn", "speed_dagger_warm2"),
+             "dagger_flat_warm2_p64_goal10_aux_deep": ("manc_qp", "dagger_flat_warm2_p64_goal10")}
+"""Each form with the auxiliary loss on DAgger's states: its model and the form it is measured
+against (λ = 0)."""
 WEIGHT = 1.0
 OUT = E.RESULTS / "aux_dagger.md"
 METRICS = (("at_fault_collision_rate", "at fault %", 1), ("collision_rate", "coll. %", 1),
@@ -71,11 +77,11 @@ def quoted(path: Path, starts: tuple[str, ...]) -> list[str]:
     return out
 
 
-def runs(work: Path, form: str, seeds: list[int]) -> list[dict]:
+def runs(work: Path, model: str, form: str, seeds: list[int]) -> list[dict]:
     rows = []
     for seed in seeds:
         for agents in E.AGENTS:
-            path = E.run_path(work, f"{MODEL}_{form}", seed, agents)
+            path = E.run_path(work, f"{model}_{form}", seed, agents)
             if path.exists():
                 rows.append(json.loads(path.read_text()))
     return rows
@@ -105,34 +111,47 @@ def probe_table(rows: list[dict]) -> list[str]:
 
 
 def report(work: Path, seeds: list[int]) -> str:
-    base = E.form_text(BASE, WEIGHT)
     lines = ["# The auxiliary perception loss on DAgger's states\n",
              __doc__.split("\n\n")[0].replace("\n", " ") + "\n",
              __doc__.split("\n\n")[1].replace("\n", " ") + "\n"]
-    for form in AUX_FORMS:
-        driven = runs(work, form, seeds)
+    for model in dict.fromkeys(m for m, _ in AUX_FORMS.values()):
+        lines += model_report(work, model, seeds)
+    return "\n".join(lines) + "\n"
+
+
+def model_report(work: Path, model: str, seeds: list[int]) -> list[str]:
+    """The sections of ``model``'s forms: closed loop and probe, then the quoted λ = 0 form
+    and the bounds."""
+    lines: list[str] = []
+    forms = [f for f, (m, _) in AUX_FORMS.items() if m == model]
+    for form in forms:
+        driven = runs(work, model, form, seeds)
         if not driven:
             continue
         text = E.form_text(form, WEIGHT)
         done = sorted({r["seed"] for r in driven})  # trained: their probes can be run
-        probes = [r for s in done for r in P.run(MODEL, form, s, work)
+        probes = [r for s in done for r in P.run(model, form, s, work)
                   if r["what"] == "features"]
-        lines += [f"## {MODEL}, {text}: closed loop on the validation scenes\n",
+        lines += [f"## {model}, {text}: closed loop on the validation scenes\n",
                   *drive_table(driven), "",
-                  f"## {MODEL}, {text}: a probe of its features\n", *probe_table(probes), ""]
-    lines += [f"## Quoted: {MODEL}, {base}, and the bounds (`end_to_end.md`)",
-              *quoted(E.RESULTS / "end_to_end.md",
-                      (f"| {MODEL}, {base} |", f"| {MODEL} | {base} |", "| Expert",
-                       "| Style floor", "| DMP at fixed", "| Privileged")),
-              "", f"## Quoted: the probe of {MODEL}, {base} (`probe_models.md`)",
-              *quoted(E.RESULTS / "probe_models.md", (f"| {MODEL} | {base} |",)), ""]
-    return "\n".join(lines) + "\n"
+                  f"## {model}, {text}: a probe of its features\n", *probe_table(probes), ""]
+    if not lines:
+        return lines
+    base = AUX_FORMS[forms[0]][1]
+    text = E.form_text(base, WEIGHT)
+    return lines + [f"## Quoted: {model}, {text}, and the bounds (`end_to_end.md`)",
+                    *quoted(E.RESULTS / "end_to_end.md",
+                            (f"| {model}, {text} |", f"| {model} | {text} |", "| Expert",
+                             "| Style floor", "| DMP at fixed", "| Privileged")),
+                    "", f"## Quoted: the probe of {model}, {text} (`probe_models.md`)",
+                    *quoted(E.RESULTS / "probe_models.md", (f"| {model} | {text} |",)), ""]
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[0])
-    ap.add_argument("--forms", nargs="+", choices=AUX_FORMS, default=[AUX_FORMS[0]])
+    ap.add_argument("--forms", nargs="+", choices=list(AUX_FORMS),
+                    default=[next(iter(AUX_FORMS))])
     ap.add_argument("--work", type=Path, default=L.DATA_DIR / "end_to_end")
     ap.add_argument("--report", action="store_true", help="only write results/aux_dagger.md")
     args = ap.parse_args()
@@ -142,8 +161,9 @@ def main() -> None:
     if not args.report:
         for seed in args.seeds:
             for form in args.forms:
-                E.run_model(MODEL, form, seed, WEIGHT, args.work)
-                P.run(MODEL, form, seed, args.work)
+                model = AUX_FORMS[form][0]
+                E.run_model(model, form, seed, WEIGHT, args.work)
+                P.run(model, form, seed, args.work)
     provenance.publish(report(args.work, args.seeds), str(OUT), time.perf_counter() - t0)
     print(np.round(time.perf_counter() - t0), "s")
 

@@ -32,11 +32,13 @@ and on every state DAgger collects (what the human perceives there, recorded by 
 four convolutions of 32, 64, 64 and 64 channels (``perception.py``'s ``route60``) instead of
 the course's three of 16, 32 and 32; ``_p64`` has 64 predicates
 and ``_goal10`` the DMP's goal at a fixed 10 m ahead (``ModelConfig.position_lookahead = 10``,
-``position_lookahead_time = 0``). Two retired forms
-(:data:`RETIRED`) stay in the tables: ``speed_drop``, ``speed`` with the own speed and yaw
-rate replaced by zeros in 75 % of the training samples (PlanTF's guard against the copycat),
-and ``change_dagger``, ``speed_dagger`` with the direct head's speed the change of its own
-(``max(v + o₀ s₀, 0)``, what the privileged learner predicts).
+``position_lookahead_time = 0``); ``dagger_flat_warm2_p64_goal10_aux_deep`` is MANC's form of
+the library's learner (``dagger_flat_warm2_p64_goal10``) with the auxiliary loss on every
+collected state and the four-layer backbone, as ``speed_dagger_warm2_aux_deep`` for the CNN.
+Two retired forms (:data:`RETIRED`) stay in the tables: ``speed_drop``, ``speed`` with the
+own speed and yaw rate replaced by zeros in 75 % of the training samples (PlanTF's guard
+against the copycat), and ``change_dagger``, ``speed_dagger`` with the direct head's speed the
+change of its own (``max(v + o₀ s₀, 0)``, what the privileged learner predicts).
 
 **Protocol** (fixed before any closed-loop number was looked at). The seed-0 draw of the
 paper preset (``leader_data.py``): train on scenes 0–599, drive the validation scenes
@@ -174,6 +176,14 @@ FORMS: dict[str, Form] = {
                                                 ("n_predicates", 64),
                                                 ("position_lookahead", 10.0),
                                                 ("position_lookahead_time", 0.0))),
+    "dagger_flat_warm2_p64_goal10_aux_deep": Form(
+        "channels, λ = {w:g} on every collected state too, 64 predicates of eq. 7 over "
+        "flatten(f), the DMP's goal 10 m ahead, the perception study's 4-layer backbone "
+        "(32, 64, 64, 64), DAgger {rounds} rounds, each continuing 2 epochs", aux=True,
+        on_policy=True, only=MANCS, warm=2,
+        model=(("predicate_readout", "flatten"), ("n_predicates", 64),
+               ("position_lookahead", 10.0), ("position_lookahead_time", 0.0),
+               ("channels", (32, 64, 64, 64)))),
     "rgb": Form("RGB (paper's form), λ = 0", raster="rgb"),
     "dagger_rgb": Form("RGB, λ = 0, DAgger {rounds} rounds", raster="rgb", on_policy=True),
 }
