@@ -21,6 +21,7 @@ from minimanc.studies import PRESETS, executors
 from minimanc.studies.config import plan
 from minimanc.studies.report import json_safe
 from minimanc.studies.runner import Study
+from minimanc.studies.submission import THREAD_ENV
 
 try:
     import ray  # noqa: F401
@@ -106,8 +107,19 @@ def test_ray_address_from_argument_or_environment(monkeypatch):
     assert calls[2]["runtime_env"] == {"env_vars": {"OMP_NUM_THREADS": "1"}}
 
 
+@pytest.fixture(scope="module")
+def local_ray():
+    """One local Ray of 2 CPUs for the module's Ray tests, with the thread variables a study
+    gives its workers: an executor that finds Ray running uses it and leaves it running, so
+    Ray starts once (about 25 s on 2 cores) instead of once per executor."""
+    env = {k: os.environ[k] for k in THREAD_ENV if k in os.environ}
+    ex = executors.executor("ray", 2, env=env)
+    yield
+    ex.shutdown()
+
+
 @needs_ray
-def test_ray_futures_chain_and_a_lost_worker_is_retried(tmp_path):
+def test_ray_futures_chain_and_a_lost_worker_is_retried(tmp_path, local_ray):
     import ray.cloudpickle
 
     # the workers cannot import this test module: ship its functions by value
@@ -219,7 +231,7 @@ def test_local_executor_waits_for_futures_without_blocking(tmp_path):
 
 
 @needs_ray
-def test_small_study_on_ray_equals_local(tmp_path, pool_run):
+def test_small_study_on_ray_equals_local(tmp_path, pool_run, local_ray):
     """Same results.json (:func:`assert_same_results`) on a local Ray (2 CPUs) as on the
     local executor;
     a rerun after lost results recomputes only those and gives the same file again."""
