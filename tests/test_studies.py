@@ -401,9 +401,16 @@ def test_a_run_trains_with_the_studys_train_config(tmp_path):
         (6, 2, 2e-3, 1, 0.5, 1)
 
 
-def test_reproduce_with_dagger_adds_the_table_and_the_figures(tmp_path, capsys):
+def test_reproduce_with_dagger_adds_the_table_and_the_figures(tmp_path, capsys, monkeypatch):
+    from dataclasses import replace
+
     from minimanc import cli
 
+    # the tiny preset's Table I of CNN and MANC in one setting (the models DAgger compares),
+    # without its other studies: what --dagger adds, at a third of the trainings
+    small = replace(studies.PRESETS["tiny"], table_models=("cnn", "manc"), ablation_models=(),
+                    sample_models=(), settings=("paper",))
+    monkeypatch.setitem(studies.PRESETS, "tiny", small)
     out = tmp_path / "run"
     code = cli.main(["reproduce", "--preset", "tiny", "--engine", "numpy", "--out", str(out),
                      "--workers", "0", "--no-progress", "--agents", "replay", "--dagger"])
@@ -420,6 +427,10 @@ def test_reproduce_with_dagger_adds_the_table_and_the_figures(tmp_path, capsys):
     assert "## BC against DAgger at equal labels (agents `replay`)" in table
     assert f"{dg['labelled']} expert-labelled samples for both methods" in table
     assert (out / "figures" / "dagger_ade.png").exists()
+    # the studies of no models have no figure (and the others theirs)
+    figs = {p.name for p in (out / "figures").iterdir()}
+    assert "ablation.png" not in figs and "sample_efficiency.png" not in figs
+    assert {"q_states.png", "param_counts.png", "table1_replay.png"} <= figs
     # a rerun loads every round from the checkpoints: the same numbers
     assert cli.main(["reproduce", "--preset", "tiny", "--engine", "numpy", "--out", str(out),
                      "--workers", "0", "--no-progress", "--agents", "replay", "--dagger"]) == 0

@@ -32,7 +32,8 @@ from minimanc.viz.style import save_figure
 
 
 def write_figures(study: Study, results: dict, figdir: Path) -> list[Path]:
-    """Every PNG (and the GIF) of a finished study; returns the paths."""
+    """Every PNG (and the GIF) of a finished study; returns the paths. A study of no models
+    (``StudyConfig.sample_models`` or ``ablation_models`` empty) has no figure."""
     paths = []
     for agents, t1 in results["table1"].items():
         paths.append(save_figure(plot_table1(t1), figdir / f"table1_{agents}.png"))
@@ -41,14 +42,16 @@ def write_figures(study: Study, results: dict, figdir: Path) -> list[Path]:
         title = f"Per scenario family ({agents} agents, setting {setting}); lower is better"
         paths.append(save_figure(plot_families(by_setting[setting], title=title),
                                 figdir / f"families_{agents}.png"))
+    if results["sample_efficiency"]["models"]:
+        paths.append(save_figure(plot_sample_efficiency(results["sample_efficiency"]),
+                                 figdir / "sample_efficiency.png"))
     paths += [
-        save_figure(plot_sample_efficiency(results["sample_efficiency"]),
-                   figdir / "sample_efficiency.png"),
         save_figure(plot_param_counts(results["param_counts"]["paper"]),
                    figdir / "param_counts.png"),
         save_figure(plot_q_states(results["q_states"]), figdir / "q_states.png"),
-        save_figure(plot_ablation(results["ablation"]), figdir / "ablation.png"),
     ]
+    if results["ablation"]["models"]:
+        paths.append(save_figure(plot_ablation(results["ablation"]), figdir / "ablation.png"))
     paths += write_speeds(study, figdir)
     paths += write_explanations(study, figdir)
     return paths
