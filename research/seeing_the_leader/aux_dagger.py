@@ -24,13 +24,14 @@ runs are not repeated here).
 Run: ``SEEING_DATA=/path python research/seeing_the_leader/aux_dagger.py --seeds 0 1 2
 --forms speed_dagger_warm2_aux --work runs/end_to_end`` (each form names its model; every run
 and probe cached as JSON under ``--work``; a finished one is not repeated); writes
-``results/aux_dagger.md`` from what is cached.
+``results/aux_dagger.md`` from every cached run, whichever ``--seeds`` trained.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import time
 from pathlib import Path
 
@@ -77,13 +78,13 @@ def quoted(path: Path, starts: tuple[str, ...]) -> list[str]:
     return out
 
 
-def runs(work: Path, model: str, form: str, seeds: list[int]) -> list[dict]:
+def runs(work: Path, model: str, form: str) -> list[dict]:
+    """Every cached closed-loop run of ``model`` in ``form``, whichever seeds have one."""
     rows = []
-    for seed in seeds:
-        for agents in E.AGENTS:
-            path = E.run_path(work, f"{model}_{form}", seed, agents)
-            if path.exists():
-                rows.append(json.loads(path.read_text()))
+    for agents in E.AGENTS:
+        name = re.compile(rf"{re.escape(f'{model}_{form}')}_s\d+_{agents}\.json")
+        paths = (work / "runs").glob(f"{model}_{form}_s*_{agents}.json")
+        rows += [json.loads(p.read_text()) for p in sorted(paths) if name.fullmatch(p.name)]
     return rows
 
 
@@ -110,22 +111,22 @@ def probe_table(rows: list[dict]) -> list[str]:
     return lines
 
 
-def report(work: Path, seeds: list[int]) -> str:
+def report(work: Path) -> str:
     lines = ["# The auxiliary perception loss on DAgger's states\n",
              __doc__.split("\n\n")[0].replace("\n", " ") + "\n",
              __doc__.split("\n\n")[1].replace("\n", " ") + "\n"]
     for model in dict.fromkeys(m for m, _ in AUX_FORMS.values()):
-        lines += model_report(work, model, seeds)
+        lines += model_report(work, model)
     return "\n".join(lines) + "\n"
 
 
-def model_report(work: Path, model: str, seeds: list[int]) -> list[str]:
+def model_report(work: Path, model: str) -> list[str]:
     """The sections of ``model``'s forms: closed loop and probe, then the quoted λ = 0 form
     and the bounds."""
     lines: list[str] = []
     forms = [f for f, (m, _) in AUX_FORMS.items() if m == model]
     for form in forms:
-        driven = runs(work, model, form, seeds)
+        driven = runs(work, model, form)
         if not driven:
             continue
         text = E.form_text(form, WEIGHT)
@@ -153,7 +154,8 @@ def main() -> None:
     ap.add_argument("--forms", nargs="+", choices=list(AUX_FORMS),
                     default=[next(iter(AUX_FORMS))])
     ap.add_argument("--work", type=Path, default=L.DATA_DIR / "end_to_end")
-    ap.add_argument("--report", action="store_true", help="only write results/aux_dagger.md")
+    ap.add_argument("--report", action="store_true",
+                    help="only write results/aux_dagger.md (from every cached run)")
     args = ap.parse_args()
     if any(s < 0 for s in args.seeds):
         raise SystemExit(f"--seeds must be >= 0, got {args.seeds}")
@@ -164,7 +166,7 @@ def main() -> None:
                 model = AUX_FORMS[form][0]
                 E.run_model(model, form, seed, WEIGHT, args.work)
                 P.run(model, form, seed, args.work)
-    provenance.publish(report(args.work, args.seeds), str(OUT), time.perf_counter() - t0)
+    provenance.publish(report(args.work), str(OUT), time.perf_counter() - t0)
     print(np.round(time.perf_counter() - t0), "s")
 
 
