@@ -6,9 +6,10 @@ every collected state (``speed_dagger_warm2_aux``: the teacher records what the 
 perceives in each state it labels, :func:`minimanc.diagnose.state_targets`), and that with
 the perception study's four-layer backbone (``speed_dagger_warm2_aux_deep``: 32, 64, 64 and
 64 channels where the course's CNN has 16, 32 and 32), whose own read-out reads the gap to
-2.66 m when trained on perception alone (``results/perception.md``, ``route60_scale``).
-MANC in the library's learner form (``manc_qp`` in ``dagger_flat_warm2_p64_goal10``: eq. 7
-over the flattened features, 64 predicates, gains over q ⊕ p, the DMP's goal 10 m ahead)
+2.66 m when trained on perception alone (``results/perception.md``, ``route60_scale``); the
+CNN-LSTM and RvS-G in that form too, against their DAgger form in ``end_to_end.md``. MANC
+in the library's learner form (``manc_qp`` in ``dagger_flat_warm2_p64_goal10``: eq. 7 over
+the flattened features, 64 predicates, gains over q ⊕ p, the DMP's goal 10 m ahead)
 against the same with the auxiliary loss and the four-layer backbone
 (``dagger_flat_warm2_p64_goal10_aux_deep``).
 
@@ -22,8 +23,8 @@ quoted from the committed ``results/end_to_end.md`` and ``results/probe_models.m
 runs are not repeated here).
 
 Run: ``SEEING_DATA=/path python research/seeing_the_leader/aux_dagger.py --seeds 0 1 2
---forms speed_dagger_warm2_aux --work runs/end_to_end`` (each form names its model; every run
-and probe cached as JSON under ``--work``; a finished one is not repeated); writes
+--forms speed_dagger_warm2_aux --work runs/end_to_end`` (each form's models, or ``--models``;
+every run and probe cached as JSON under ``--work``; a finished one is not repeated); writes
 ``results/aux_dagger.md`` from every cached run, whichever ``--seeds`` trained.
 """
 
@@ -42,11 +43,14 @@ import probe_models as P
 
 from minimanc.studies import provenance
 
-AUX_FORMS = {"speed_dagger_warm2_aux": ("cnn", "speed_dagger_warm2"),
-             "speed_dagger_warm2_aux_deep": ("cnn", "speed_dagger_warm2"),
-             "dagger_flat_warm2_p64_goal10_aux_deep": ("manc_qp", "dagger_flat_warm2_p64_goal10")}
-"""Each form with the auxiliary loss on DAgger's states: its model and the form it is measured
-against (λ = 0)."""
+AUX_RUNS = {("cnn", "speed_dagger_warm2_aux"): "speed_dagger_warm2",
+            ("cnn", "speed_dagger_warm2_aux_deep"): "speed_dagger_warm2",
+            ("cnn_lstm", "speed_dagger_warm2_aux_deep"): "speed_dagger",
+            ("rvs_g", "speed_dagger_warm2_aux_deep"): "speed_dagger",
+            ("manc_qp", "dagger_flat_warm2_p64_goal10_aux_deep"): "dagger_flat_warm2_p64_goal10"}
+"""Each model in a form with the auxiliary loss on DAgger's states, and the form it is measured
+against (λ = 0; for CNN-LSTM and RvS-G the form ``end_to_end.md`` has, whose rounds train from
+the start)."""
 WEIGHT = 1.0
 OUT = E.RESULTS / "aux_dagger.md"
 METRICS = (("at_fault_collision_rate", "at fault %", 1), ("collision_rate", "coll. %", 1),
@@ -115,7 +119,7 @@ def report(work: Path) -> str:
     lines = ["# The auxiliary perception loss on DAgger's states\n",
              __doc__.split("\n\n")[0].replace("\n", " ") + "\n",
              __doc__.split("\n\n")[1].replace("\n", " ") + "\n"]
-    for model in dict.fromkeys(m for m, _ in AUX_FORMS.values()):
+    for model in dict.fromkeys(m for m, _ in AUX_RUNS):
         lines += model_report(work, model)
     return "\n".join(lines) + "\n"
 
@@ -124,7 +128,7 @@ def model_report(work: Path, model: str) -> list[str]:
     """The sections of ``model``'s forms: closed loop and probe, then the quoted λ = 0 form
     and the bounds."""
     lines: list[str] = []
-    forms = [f for f, (m, _) in AUX_FORMS.items() if m == model]
+    forms = [f for m, f in AUX_RUNS if m == model]
     for form in forms:
         driven = runs(work, model, form)
         if not driven:
@@ -138,7 +142,7 @@ def model_report(work: Path, model: str) -> list[str]:
                   f"## {model}, {text}: a probe of its features\n", *probe_table(probes), ""]
     if not lines:
         return lines
-    base = AUX_FORMS[forms[0]][1]
+    base = AUX_RUNS[model, forms[0]]
     text = E.form_text(base, WEIGHT)
     return lines + [f"## Quoted: {model}, {text}, and the bounds (`end_to_end.md`)",
                     *quoted(E.RESULTS / "end_to_end.md",
@@ -151,8 +155,10 @@ def model_report(work: Path, model: str) -> list[str]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[0])
-    ap.add_argument("--forms", nargs="+", choices=list(AUX_FORMS),
-                    default=[next(iter(AUX_FORMS))])
+    ap.add_argument("--forms", nargs="+", choices=sorted({f for _, f in AUX_RUNS}),
+                    default=[next(iter(AUX_RUNS))[1]])
+    ap.add_argument("--models", nargs="+", choices=sorted({m for m, _ in AUX_RUNS}),
+                    help="of the forms' models, only these (default: all)")
     ap.add_argument("--work", type=Path, default=L.DATA_DIR / "end_to_end")
     ap.add_argument("--report", action="store_true",
                     help="only write results/aux_dagger.md (from every cached run)")
@@ -162,8 +168,9 @@ def main() -> None:
     t0 = time.perf_counter()
     if not args.report:
         for seed in args.seeds:
-            for form in args.forms:
-                model = AUX_FORMS[form][0]
+            for model, form in AUX_RUNS:
+                if form not in args.forms or args.models and model not in args.models:
+                    continue
                 E.run_model(model, form, seed, WEIGHT, args.work)
                 P.run(model, form, seed, args.work)
     provenance.publish(report(args.work), str(OUT), time.perf_counter() - t0)
