@@ -9,8 +9,16 @@ reproducible and never the luck of the draw.
 import os
 import sys
 
-import pytest
-from hypothesis import HealthCheck, settings
+# One BLAS thread per process, as the library gives XLA (minimanc.engine): the suite runs a
+# process per core (pytest -n 2, each notebook's kernel under its worker), and BLAS threads
+# on top of them oversubscribe the cores, where the NumPy autodiff's small matrix products
+# run several times slower. Set before NumPy loads, and inherited by the workers and kernels;
+# a value the caller set is kept.
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import pytest  # noqa: E402
+from hypothesis import HealthCheck, settings  # noqa: E402
 
 # Health checks about how hard examples are to *generate* (not about the code under
 # test) differ between hypothesis releases: the oldest release we support rejects
