@@ -5,6 +5,7 @@ findings and the table: tests/test_studies_report.py)."""
 from __future__ import annotations
 
 import json
+from dataclasses import fields, replace
 
 import numpy as np
 import pytest
@@ -16,8 +17,6 @@ from minimanc.studies import jobs, report
 def test_study_config_validation_and_fingerprint():
     base = studies.PRESETS["tiny"]
     assert base.fingerprint() == studies.StudyConfig(**{**base.__dict__}).fingerprint()
-    from dataclasses import replace
-
     assert replace(base, n_seeds=3).fingerprint() == base.fingerprint()
     assert replace(base, training=replace(base.training, epochs=2)).fingerprint() != \
         base.fingerprint()
@@ -352,8 +351,6 @@ def _changed(field, value):
 
 
 def test_study_config_holds_a_train_config_and_every_training_field_changes_the_fingerprint():
-    from dataclasses import fields, replace
-
     from minimanc import train
 
     base = studies.PRESETS["tiny"]
@@ -390,8 +387,6 @@ def test_presets_keep_their_training_values():
 
 
 def test_a_run_trains_with_the_studys_train_config(tmp_path):
-    from dataclasses import replace
-
     tiny = studies.PRESETS["tiny"]
     c = replace(tiny, training=replace(tiny.training, dmp_seq_len=6, q_seq_len=2))
     study = studies.Study(c, tmp_path, engine="numpy", workers=0, progress=False)
@@ -402,8 +397,6 @@ def test_a_run_trains_with_the_studys_train_config(tmp_path):
 
 
 def test_reproduce_with_dagger_adds_the_table_and_the_figures(tmp_path, capsys, monkeypatch):
-    from dataclasses import replace
-
     from minimanc import cli
 
     # the tiny preset's Table I of CNN and MANC in one setting (the models DAgger compares),
@@ -445,8 +438,6 @@ CHANNELS = dict(size=32, encoding="channels", route=True, history=2)
 
 
 def test_the_raster_names_the_cache_the_data_file_and_the_text():
-    from dataclasses import replace
-
     from minimanc import world
     from minimanc.studies.cache import StudyFiles
 
@@ -479,8 +470,6 @@ def test_the_learners_raster_with_the_perception_loss_trains_and_drives_every_ta
     """The tiny preset on the binary channels with λ = 1: every Table I model trains with the
     auxiliary loss on the targets of the training scenes as the raster shows them, and
     drives its validation scenes closed loop; behaviour cloning against DAgger learns it too."""
-    from dataclasses import replace
-
     from minimanc import diagnose, train, world
     from minimanc.train import load_targets
 
