@@ -10,8 +10,11 @@ from dataclasses import fields, replace
 import numpy as np
 import pytest
 
-from minimanc import metrics, studies, viz
+from minimanc import cli, diagnose, metrics, models, rollout, studies, train, viz, world
 from minimanc.studies import jobs, report
+from minimanc.studies.cache import StudyFiles
+from minimanc.studies.evaluation import families_of
+from minimanc.train import load_targets
 
 
 def test_study_config_validation_and_fingerprint():
@@ -39,8 +42,6 @@ def test_canonical_setting_shares_manc_runs():
 
 
 def test_cli_registers_reproduce():
-    from minimanc import cli
-
     parser = cli.build_parser()
     args = parser.parse_args(["reproduce", "--quick", "--engine", "numpy", "--out", "x",
                               "--seeds", "2"])
@@ -48,8 +49,6 @@ def test_cli_registers_reproduce():
 
 
 def test_reproduce_tiny_writes_everything(tmp_path, capsys):
-    from minimanc import cli
-
     out = tmp_path / "run"
     code = cli.main(["reproduce", "--preset", "tiny", "--engine", "numpy", "--out", str(out),
                      "--workers", "0", "--no-progress"])
@@ -152,8 +151,6 @@ def test_study_agents_choose_the_protocols_and_their_files(tmp_path):
 
 
 def test_cli_agents_option():
-    from minimanc import cli
-
     parser = cli.build_parser()
     assert parser.parse_args(["reproduce"]).agents == "both"
     assert parser.parse_args(["reproduce", "--agents", "reactive"]).agents == "reactive"
@@ -191,8 +188,6 @@ def test_scene_families_follow_the_tags():
 
 
 def test_score_splits_the_error_and_scores_each_family_on_its_scenes():
-    from minimanc import rollout, world
-
     ds = world.generate(6, seed=11, raster=world.RasterConfig(size=32), workers=1)
     traj = rollout.fixed_gains(ds)
     res = jobs.score(traj, ds)
@@ -227,8 +222,6 @@ def test_run_files_are_distinct_per_lr_seed_and_split(tmp_path):
 
 
 def test_a_closed_loop_that_blows_up_scores_inf(tmp_path, monkeypatch):
-    from minimanc import models, train, world
-
     # train.save_checkpoint/load refuse non-finite parameters; let them through to the closed loop
     monkeypatch.setattr(train.checkpoint, "bad_params", lambda *a, **k: None)
 
@@ -248,8 +241,6 @@ def test_a_closed_loop_that_blows_up_scores_inf(tmp_path, monkeypatch):
     # every metric of the study is there (aggregate keeps only the keys of every seed)
     assert set(agg) == set(jobs.STUDY_METRICS)
     assert set(res["families"]) == set(jobs.SCENE_FAMILIES)
-    from minimanc.studies.evaluation import families_of
-
     assert set(families_of([res])["free"]) == set(jobs.STUDY_METRICS)
 
 
@@ -262,8 +253,6 @@ def _tiny_run(study):
 
 
 def test_a_broken_checkpoint_in_the_cache_is_retrained(tmp_path, capsys):
-    from minimanc import train
-
     tiny = studies.PRESETS["tiny"]
     study = studies.Study(tiny, tmp_path, engine="numpy", workers=0, progress=False)
     run = _tiny_run(study)
@@ -314,8 +303,6 @@ def test_a_broken_metrics_file_is_recomputed(tmp_path, capsys):
     (["--workers", "-1"], "--workers must be an integer >= 0, got --workers=-1"),
 ])
 def test_reproduce_bad_arguments_are_one_line_exit_2(tmp_path, capsys, args, expected):
-    from minimanc import cli
-
     code = cli.main(["reproduce", "--preset", "tiny", "--out", str(tmp_path / "r"), *args])
     err = capsys.readouterr().err
     assert code == 2 and err.strip() == f"minimanc reproduce: error: {expected}", err
@@ -323,8 +310,6 @@ def test_reproduce_bad_arguments_are_one_line_exit_2(tmp_path, capsys, args, exp
 
 
 def test_reproduce_unwritable_out_is_one_line_exit_2(tmp_path, capsys):
-    from minimanc import cli
-
     blocker = tmp_path / "file"
     blocker.write_text("x")
     code = cli.main(["reproduce", "--preset", "tiny", "--out", str(blocker / "sub")])
@@ -351,8 +336,6 @@ def _changed(field, value):
 
 
 def test_study_config_holds_a_train_config_and_every_training_field_changes_the_fingerprint():
-    from minimanc import train
-
     base = studies.PRESETS["tiny"]
     assert isinstance(base.training, train.TrainConfig)
     seen = set()
@@ -374,8 +357,6 @@ def test_study_config_holds_a_train_config_and_every_training_field_changes_the_
 
 
 def test_presets_keep_their_training_values():
-    from minimanc import train
-
     want = {
         "tiny": train.TrainConfig(epochs=1, batch_size=16, max_steps_per_epoch=2, seq_len=4),
         "quick": train.TrainConfig(epochs=3, batch_size=64),
@@ -397,8 +378,6 @@ def test_a_run_trains_with_the_studys_train_config(tmp_path):
 
 
 def test_reproduce_with_dagger_adds_the_table_and_the_figures(tmp_path, capsys, monkeypatch):
-    from minimanc import cli
-
     # the tiny preset's Table I of CNN and MANC in one setting (the models DAgger compares),
     # without its other studies: what --dagger adds, at a third of the trainings
     small = replace(studies.PRESETS["tiny"], table_models=("cnn", "manc"), ablation_models=(),
@@ -438,9 +417,6 @@ CHANNELS = dict(size=32, encoding="channels", route=True, history=2)
 
 
 def test_the_raster_names_the_cache_the_data_file_and_the_text():
-    from minimanc import world
-    from minimanc.studies.cache import StudyFiles
-
     tiny = studies.PRESETS["tiny"]
     assert tiny.raster == world.RasterConfig(size=32)
     assert all(studies.PRESETS[p].raster == studies.config.LEARNER_RASTER
@@ -470,9 +446,6 @@ def test_the_learners_raster_with_the_perception_loss_trains_and_drives_every_ta
     """The tiny preset on the binary channels with λ = 1: every Table I model trains with the
     auxiliary loss on the targets of the training scenes as the raster shows them, and
     drives its validation scenes closed loop; behaviour cloning against DAgger learns it too."""
-    from minimanc import diagnose, train, world
-    from minimanc.train import load_targets
-
     tiny = studies.PRESETS["tiny"]
     raster = world.RasterConfig(**CHANNELS)
     c = replace(tiny, raster=raster, settings=("paper",),

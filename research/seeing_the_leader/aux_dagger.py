@@ -169,7 +169,7 @@ def main() -> None:
     if not args.report:
         for seed in args.seeds:
             for model, form in AUX_RUNS:
-                if form not in args.forms or args.models and model not in args.models:
+                if form not in args.forms or (args.models and model not in args.models):
                     continue
                 E.run_model(model, form, seed, WEIGHT, args.work)
                 P.run(model, form, seed, args.work)
