@@ -49,7 +49,8 @@ from minimanc.metrics import modes
 from minimanc.studies import jobs
 
 np.set_printoptions(precision=2, suppress=True)
-workdir = Path(tempfile.mkdtemp(prefix="minimanc09_"))
+scratch = tempfile.TemporaryDirectory(prefix="minimanc09_")  # removed when the kernel stops
+workdir = Path(scratch.name)
 
 # %% [markdown]
 # ## 1. A small study and its data

@@ -45,7 +45,8 @@ from minimanc import metrics, models, rollout, train, world
 
 np.set_printoptions(precision=3, suppress=True)
 rng = np.random.default_rng(0)
-workdir = Path(tempfile.mkdtemp(prefix="minimanc_ch10_"))
+scratch = tempfile.TemporaryDirectory(prefix="minimanc_ch10_")  # removed when the kernel stops
+workdir = Path(scratch.name)
 
 # %% [markdown]
 # ## 1. The scene as the controller sees it

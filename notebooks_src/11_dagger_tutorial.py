@@ -43,7 +43,8 @@ import numpy as np
 from minimanc import dagger, inputs, rollout, train, world
 
 np.set_printoptions(precision=2, suppress=True)
-workdir = Path(tempfile.mkdtemp(prefix="minimanc11_"))
+scratch = tempfile.TemporaryDirectory(prefix="minimanc11_")  # removed when the kernel stops
+workdir = Path(scratch.name)
 
 # %% [markdown]
 # ## 1. Data and the teacher
