@@ -193,6 +193,7 @@ def pool_run(tmp_path_factory) -> tuple[dict, Path, list]:
     return run_small(out, "local", log, workers=2), out, log
 
 
+@pytest.mark.whole_run
 def test_small_study_in_worker_processes_equals_inline(tmp_path, pool_run):
     """Trainings and evaluations as jobs of two worker processes (queued as soon as their
     inputs are known) give the inline run's results.json (:func:`assert_same_results`)."""
@@ -230,6 +231,7 @@ def test_local_executor_waits_for_futures_without_blocking(tmp_path):
         ex.shutdown()
 
 
+@pytest.mark.whole_run
 @needs_ray
 def test_small_study_on_ray_equals_local(tmp_path, pool_run, local_ray):
     """Same results.json (:func:`assert_same_results`) on a local Ray (2 CPUs) as on the

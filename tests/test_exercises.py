@@ -181,6 +181,7 @@ def test_no_machine_paths_or_memory_addresses_in_outputs(folder):
     assert not problems, problems
 
 
+@pytest.mark.whole_run
 def test_every_grade_cell_fails_on_its_stub():
     """Run each exercise notebook: every grade cell must fail on the generated stubs."""
     checked = 0
@@ -194,6 +195,7 @@ def test_every_grade_cell_fails_on_its_stub():
     assert checked > 0
 
 
+@pytest.mark.whole_run
 @pytest.mark.parametrize("path", notebooks("solutions"), ids=lambda p: p.stem)
 def test_every_solution_scores_full_marks_when_graded(path):
     """The reference solutions pass their own tests under the grader, with the

@@ -48,6 +48,7 @@ def test_cli_registers_reproduce():
     assert args.quick and args.engine == "numpy" and args.seeds == 2 and args.out == "x"
 
 
+@pytest.mark.whole_run
 def test_reproduce_tiny_writes_everything(tmp_path, capsys):
     out = tmp_path / "run"
     code = cli.main(["reproduce", "--preset", "tiny", "--engine", "numpy", "--out", str(out),
@@ -377,6 +378,7 @@ def test_a_run_trains_with_the_studys_train_config(tmp_path):
         (6, 2, 2e-3, 1, 0.5, 1)
 
 
+@pytest.mark.whole_run
 def test_reproduce_with_dagger_adds_the_table_and_the_figures(tmp_path, capsys, monkeypatch):
     # the tiny preset's Table I of CNN and MANC in one setting (the models DAgger compares),
     # without its other studies: what --dagger adds, at a third of the trainings

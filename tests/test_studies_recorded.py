@@ -119,6 +119,7 @@ def test_the_library_refuses_what_recorded_data_cannot_do(recorded, tmp_path):
         Study(c2, tmp_path / "o2", engine="numpy", workers=0, agents=("replay",)).datasets()
 
 
+@pytest.mark.whole_run
 def test_reproduce_data_on_an_imported_file(recorded, tmp_path, capsys, monkeypatch):
     """The issue's end to end run: import, then ``reproduce --preset tiny --data FILE``."""
     monkeypatch.setitem(PRESETS, "tiny", SMALL)
