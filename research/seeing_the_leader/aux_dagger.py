@@ -144,12 +144,14 @@ def model_report(work: Path, model: str) -> list[str]:
         return lines
     base = AUX_RUNS[model, forms[0]]
     text = E.form_text(base, WEIGHT)
+    probe = quoted(E.RESULTS / "probe_models.md", (f"| {model} | {text} |",))
     return lines + [f"## Quoted: {model}, {text}, and the bounds (`end_to_end.md`)",
                     *quoted(E.RESULTS / "end_to_end.md",
                             (f"| {model}, {text} |", f"| {model} | {text} |", "| Expert",
                              "| Style floor", "| DMP at fixed", "| Privileged")),
                     "", f"## Quoted: the probe of {model}, {text} (`probe_models.md`)",
-                    *quoted(E.RESULTS / "probe_models.md", (f"| {model} | {text} |",)), ""]
+                    *(probe or ["", "Not measured: `probe_models.md` has no row of this form."]),
+                    ""]
 
 
 def main() -> None:
