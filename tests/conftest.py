@@ -19,10 +19,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 # XLA compiles the suite's many small programs without its backend optimisations (LLVM at
 # -O0 instead of XLA's default level 3): compiling, not running, is most of a JAX test's time
-# here, and this cuts the CPU time of the JAX-heavy test files by about a fifth. Set before
-# JAX starts, and inherited by the workers and kernels; a level the caller set is kept
-# (.ci/run's second stage sets the default level, so the library is also tested as a user
-# runs it). Results move only by float rounding, which no test compares exactly.
+# here. Set before JAX starts, and inherited by the workers and kernels, so every process of
+# a run computes with the same compiled code; a level the caller set is kept (.ci/run's
+# second stage sets the default level, so the library is also tested as a user runs it).
 _LEVEL = "--xla_backend_optimization_level"
 if _LEVEL not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {_LEVEL}=0".strip()
