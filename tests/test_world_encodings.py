@@ -227,6 +227,7 @@ def test_pack_and_planes_round_trip(c, seed):
     bits = np.random.default_rng(seed).integers(0, 2, (2, 3, 4, c)).astype(np.uint8)
     packed = raster.pack(bits)
     assert packed.shape == (2, 3, 4, -(-c // 8)) and packed.dtype == np.uint8
+    np.testing.assert_array_equal(packed, np.packbits(bits, axis=-1, bitorder="little"))
     np.testing.assert_array_equal(
         np.unpackbits(packed, axis=-1, count=c, bitorder="little"), bits)
 

@@ -101,9 +101,13 @@ def channel_names(draw_crossings: bool = True, draw_walkways: bool = True,
 
 
 def pack(img: np.ndarray) -> np.ndarray:
-    """Binary planes ``(..., C)`` (0/1) packed 8 to a byte along the last axis: uint8
-    ``(..., ceil(C / 8))`` (plane ``k`` is bit ``k % 8`` of byte ``k // 8``)."""
-    return np.packbits(np.asarray(img, dtype=np.uint8), axis=-1, bitorder="little")
+    """Binary planes ``(..., C)`` packed 8 to a byte along the last axis, plane ``k`` in bit
+    ``k % 8`` of byte ``k // 8``: ``np.packbits(img, axis=-1, bitorder="little")``, by plane."""
+    bits = np.asarray(img) != 0
+    out = np.zeros((*bits.shape[:-1], -(-bits.shape[-1] // 8)), dtype=np.uint8)
+    for k in range(bits.shape[-1]):
+        out[..., k // 8] |= bits[..., k].view(np.uint8) << np.uint8(k % 8)
+    return out
 
 
 @dataclass(frozen=True)
@@ -417,8 +421,7 @@ def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
     """Render S frames at once (checked inputs): see :func:`rasterize_batch`. Every step
     computes which pixels a layer covers; the RGB encoding paints them in the layer's
     colour (later layers over earlier ones), the channels encoding sets the layer's plane."""
-    S = poses.shape[0]
-    H, W = cfg.size, cfg.width
+    S, H, W = poses.shape[0], cfg.size, cfg.width
     rgb = cfg.encoding == "rgb"
     plane = {name: k for k, name in enumerate(cfg.channel_names)}
     X, Y = _pixel_centres(cfg)
@@ -455,20 +458,18 @@ def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
         # lanes: dense centreline samples scattered into the image, by relative yaw
         if cfg.draw_lanes:
             samples = m.lane_samples(float(cfg.resolution / 2.0))
-            # query square around the centre of the view
             mid = (cfg.metres_ahead - cfg.metres_behind) / 2.0
             reach = max(cfg.metres_ahead + cfg.metres_behind, 2 * cfg.metres_side) / 2.0 + 1.0
             fs, rows, cols, qs = [], [], [], []
             for i in idx_list:
                 centre = poses[i, :2] + mid * np.array([cos[i], sin[i]])
-                lp, lh = samples.near(centre, reach)
+                lp, lh = samples.near(centre, reach)  # a square around the view
                 dx, dy = lp[:, 0] - poses[i, 0], lp[:, 1] - poses[i, 1]
                 ex = cos[i] * dx + sin[i] * dy
                 ey = -sin[i] * dx + cos[i] * dy
                 rows.append(np.floor((cfg.metres_ahead - ex) / cfg.res_row))
                 cols.append(np.floor((cfg.metres_side - ey) / cfg.res_col))
-                # colour look-up by relative yaw (0.18 degree bins, within 1 unit of
-                # hue_colours)
+                # colour look-up by relative yaw (0.18° bins, within 1 unit of hue_colours)
                 qs.append(np.floor(np.mod(poses[i, 2] - lh, 2 * np.pi)
                                    * (_N_HUE / (2 * np.pi))))
                 fs.append(np.full(len(lp), i))
@@ -501,8 +502,7 @@ def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
             else:
                 img[ff, rr, cc, plane[f"vehicles_t-{j + 1}"]] = 1
             fe = np.nonzero(history.ego_valid[:, j])[0]
-            boxes = np.concatenate([history.ego[fe, j], np.broadcast_to(ego_box,
-                                                                        (len(fe), 2))], axis=1)
+            boxes = np.hstack([history.ego[fe, j], np.tile(ego_box, (len(fe), 1))])
             ff, rr, cc = _box_pixels(poses, fe, boxes, cfg)
             if rgb:
                 img[ff, rr, cc] = np.round(np.array(EGO) * shade[j]).astype(np.uint8)
