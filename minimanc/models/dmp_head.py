@@ -149,11 +149,32 @@ def dmp_head(logits: Any, lane_target: Any, motion: Any, cfg: ModelConfig,
 
 def head_ops(logits: Any, lane_target: Any, motion: Any, cfg: ModelConfig,
              xp: Any = np) -> tuple[Any, dict]:
-    """:func:`dmp_head` operation by operation, on any engine (JAX differentiates this):
-    the same parameters and returns.
+    """:func:`dmp_head` operation by operation, on any engine (JAX differentiates this).
 
     It is also the reference the VJP of :data:`~minimanc.models.head_vjp.fused_head`
     is tested against.
+
+    Parameters
+    ----------
+    logits : array, shape (B, 4)
+        ``(z_αy, z_βy, z_αq, z_βq)``; the β logits are ignored when
+        ``cfg.critically_damped``.
+    lane_target : array, shape (B, K, 2)
+        The moving lane target, ego frame (m); ``K = cfg.k_targets``.
+    motion : array, shape (B, 2)
+        The current ``[speed, yaw rate]``: the DMPs' initial velocities.
+    cfg : ModelConfig
+        Look-ahead rules, ``orientation`` and ``dt``.
+    xp : module
+        The engine's array namespace.
+
+    Returns
+    -------
+    controls : array, shape (B, 2)
+        ``[speed (m/s), yaw rate (rad/s)]`` over the step.
+    aux : dict
+        ``alpha``, ``beta`` ``(B, 2)`` = (position, orientation) gains, the
+        position goal ``g`` ``(B, 2)`` and the yaw goal ``psi_g`` ``(B,)``.
     """
     lt = xp.asarray(lane_target)
     mot = xp.asarray(motion)
