@@ -101,8 +101,8 @@ def channel_names(draw_crossings: bool = True, draw_walkways: bool = True,
 
 
 def pack(img: np.ndarray) -> np.ndarray:
-    """Binary planes ``(..., C)`` packed 8 to a byte along the last axis, plane ``k`` in bit
-    ``k % 8`` of byte ``k // 8``: ``np.packbits(img, axis=-1, bitorder="little")``, by plane."""
+    """Binary planes ``(..., C)`` packed in uint8 ``(..., ceil(C / 8))``, plane ``k`` in bit
+    ``k % 8`` of byte ``k // 8``: ``np.packbits(img, axis=-1, bitorder="little")``."""
     bits = np.asarray(img) != 0
     out = np.zeros((*bits.shape[:-1], -(-bits.shape[-1] // 8)), dtype=np.uint8)
     for k in range(bits.shape[-1]):
