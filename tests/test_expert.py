@@ -50,6 +50,15 @@ def test_asking_does_not_change_the_expert(ds, expert):
     np.testing.assert_array_equal(a, b)
 
 
+def test_experts_of_one_process_share_the_human_runs(ds, expert):
+    """An expert of a subset asks about the same scenes: it reuses the runs (the same
+    objects) and gives the same answers."""
+    other = HumanExpert(ds.subset(np.array([5, 2])))
+    assert other.steps(1) is expert.steps(2)
+    pose = ds.ego[2, 10] + [0.5, 0.3, 0.05]
+    np.testing.assert_array_equal(other(1, 10, pose, 3.0), expert(2, 10, pose, 3.0))
+
+
 def test_the_ados_of_a_reactive_simulation_step(ds, expert):
     """Driven by the human's controls, the reactive simulation's ados at every step give the
     logged controls too; the live simulation is not changed by asking."""

@@ -10,7 +10,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from minimanc import checks, metrics
-from minimanc.world.geometry import EGO_LENGTH, EGO_WIDTH, box_corners, unicycle_step
+from minimanc.world.geometry import (
+    EGO_LENGTH,
+    EGO_WIDTH,
+    box_corners,
+    boxes_overlap,
+    unicycle_step,
+)
 
 DT = 0.5
 
@@ -68,6 +74,26 @@ def test_box_gap_matches_dense_boundary_sampling(x1, y1, h1, l1, w1, x2, y2, h2,
     # sampling can only overestimate, by at most one sampling step
     assert gap <= brute + 1e-9
     assert brute - gap <= (max(l1, w1, l2, w2) / 150) * 2 + 1e-9
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.0, 1.0))
+def test_ado_gaps_and_overlaps_measure_the_valid_boxes_alone(seed, share):
+    """Measured only where an ado exists (the circumscribed circles first for the overlaps),
+    they equal the test of every ego and ado box broadcast, masked afterwards."""
+    rng = np.random.default_rng(seed)
+    S, T, A = 2, 5, 6
+    ego = np.concatenate([rng.uniform(-6, 6, (S, T, 2)), rng.uniform(-np.pi, np.pi, (S, T, 1))],
+                         axis=-1)
+    ado = np.concatenate([rng.uniform(-9, 9, (S, T, A, 2)),
+                          rng.uniform(-np.pi, np.pi, (S, T, A, 1)),
+                          rng.uniform(0.5, 6, (S, T, A, 2))], axis=-1)
+    valid = rng.random((S, T, A)) < share
+    boxes = metrics.ego_boxes(ego)[:, :, None, :]
+    np.testing.assert_array_equal(metrics.ado_gaps(ego, ado, valid),
+                                  np.where(valid, metrics.box_gap(boxes, ado), np.inf))
+    np.testing.assert_array_equal(metrics.ado_overlaps(ego, ado, valid),
+                                  boxes_overlap(boxes, ado) & valid)
 
 
 # --------------------------------------------------------------------------- close encounters

@@ -32,20 +32,21 @@ from __future__ import annotations
 
 import copy
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from minimanc.checks import check_int
-from minimanc.rollout.reactive import record_human, scene_key, start_scene
+from minimanc.rollout.reactive import SceneKey, record_human, scene_key, start_scene
 from minimanc.world.driver import HumanDriver, project_on_path
 from minimanc.world.geometry import wrap_angle
-from minimanc.world.lanes import LANE_WIDTH
+from minimanc.world.lanes import LANE_WIDTH, Map
 from minimanc.world.maps import project_to_route
 from minimanc.world.traffic import Path, Traffic, Vehicle
 
-__all__ = ["MAX_OFFSET", "DriverStep", "HumanExpert", "Situation"]
+__all__ = ["MAX_OFFSET", "RUNS_KEPT", "DriverStep", "HumanExpert", "Situation", "human_run"]
 
 MAX_OFFSET: float = 2.0 * LANE_WIDTH
 """Largest lateral distance (m) from the route at which the driver can still be asked."""
@@ -77,6 +78,35 @@ class Situation:
     leader: Vehicle | None = None
 
 
+RUNS_KEPT = 256
+"""How many scenes' runs (:func:`human_run`) a process keeps for every expert it makes (each
+of a study's on-policy runs asks about the same scenes); a scene's run is about 0.3 MB."""
+_RUNS: OrderedDict = OrderedDict()
+
+
+def human_run(key: SceneKey, m: Map) -> list[DriverStep]:
+    """The human's run of the scene ``key`` (its map ``m``), one :class:`DriverStep` per step
+    ``0 … key.steps − 1``: re-simulated on first use, then kept (:data:`RUNS_KEPT`, least
+    recently used first out). Its steps are read, never changed: :meth:`HumanExpert.situation`
+    and :meth:`HumanExpert.controls` work on copies."""
+    hit = _RUNS.pop(key, None)
+    if hit is None:
+        run = start_scene(key, m)
+        memo_base = {id(run.m): run.m, id(run.traffic.bank): run.traffic.bank}
+        hit = []
+        for t in range(key.steps):
+            run.traffic.update_stamps(t)  # what SceneRun.perceive does first (idempotent)
+            memo = dict(memo_base)
+            driver = copy.deepcopy(run.driver, memo)
+            traffic = copy.deepcopy(run.traffic, memo)
+            hit.append(DriverStep(driver, traffic, float(run.ego.v)))
+            run.human_step()
+        if len(_RUNS) >= RUNS_KEPT:
+            _RUNS.popitem(last=False)
+    _RUNS[key] = hit
+    return hit
+
+
 class HumanExpert:
     """The world's human driver as an expert that can be asked in any state of ``ds``.
 
@@ -101,16 +131,7 @@ class HumanExpert:
         hit = self._runs.pop(scene, None)
         if hit is None:
             record_human(self.ds, scene)  # refuses a dataset that does not regenerate
-            run = start_scene(scene_key(self.ds, scene), self.ds.maps[scene])
-            memo_base = {id(run.m): run.m, id(run.traffic.bank): run.traffic.bank}
-            hit = []
-            for t in range(self._T):
-                run.traffic.update_stamps(t)  # what SceneRun.perceive does first (idempotent)
-                memo = dict(memo_base)
-                driver = copy.deepcopy(run.driver, memo)
-                traffic = copy.deepcopy(run.traffic, memo)
-                hit.append(DriverStep(driver, traffic, float(run.ego.v)))
-                run.human_step()
+            hit = human_run(scene_key(self.ds, scene), self.ds.maps[scene])
             if len(self._runs) >= self._cache_size:
                 self._runs.pop(next(iter(self._runs)))
         self._runs[scene] = hit

@@ -59,6 +59,7 @@ import numpy as np
 from minimanc.checks import check_dt
 from minimanc.metrics.boxes import (
     ado_gaps,
+    ado_overlaps,
     check_ados,
     check_maps,
     check_poses,
@@ -173,10 +174,8 @@ def collisions(ego: Any, ado: Any, ado_valid: Any) -> np.ndarray:
     ValueError
         If ``ego``, ``ado`` or ``ado_valid`` has another shape, or ``ego`` is not finite.
     """
-    e = check_poses(ego)
-    a, v = check_ados(ado, ado_valid, e)
-    hit = boxes_overlap(ego_boxes(e)[:, :, None, :], a) & v
-    return hit.reshape(e.shape[0], -1).any(axis=1).astype(np.float64)
+    hit = ado_overlaps(ego, ado, ado_valid)
+    return hit.reshape(hit.shape[0], -1).any(axis=1).astype(np.float64)
 
 
 # --------------------------------------------------------------------------- who is at fault
@@ -306,7 +305,7 @@ def collision_events(ego: Any, ado: Any, ado_valid: Any, maps: Sequence[Any] | N
     dt = check_dt(dt)
     if maps is not None:
         check_maps(maps, e.shape[0])
-    hit = boxes_overlap(ego_boxes(e)[:, :, None, :], a) & v  # (S, T, A)
+    hit = ado_overlaps(e, a, v)  # (S, T, A)
     S, T, A = hit.shape
     first = np.where(hit.any(axis=1), hit.argmax(axis=1), -1)  # (S, A)
     v_ego, _ = _speeds(e[..., :2], np.ones((S, T), bool), dt)

@@ -160,7 +160,7 @@ class Map:
                 pts.append(p)
                 hds.append(h)
             c = LaneSamples.build(np.concatenate(pts), np.concatenate(hds), self.bounds)
-            _lru_put(_SAMPLE_CACHE, (self.key, spacing), c, 16)
+            _lru_put(_SAMPLE_CACHE, (self.key, spacing), c, CACHED_MAPS)
         return c
 
     def is_drivable(self, points: np.ndarray) -> np.ndarray:
@@ -180,6 +180,10 @@ class Map:
 
 # --------------------------------------------------------------------------- caches
 
+CACHED_MAPS = 64
+"""How many maps' class grids and lane samples a process keeps (least recently used first
+out): a closed loop and its scoring visit the same validation maps again and again, and a
+grid at 0.25 m is about 2 MB."""
 _GRID_CACHE: OrderedDict = OrderedDict()
 _SAMPLE_CACHE: OrderedDict = OrderedDict()
 
@@ -202,7 +206,7 @@ def offset_polyline(points: np.ndarray, heads: np.ndarray, d: float) -> np.ndarr
 
 
 def class_grid(m: Map, res: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """World-aligned class grid of the map at ``res`` m/cell (cached, LRU of 8).
+    """World-aligned class grid of the map at ``res`` m/cell (cached: the last :data:`CACHED_MAPS`).
 
     Returns ``(grid (H, W) uint8, origin (2,), res)``; cell ``[iy, ix]`` covers
     ``origin + res * ([ix, iy] + [0, 1))``. Drawn with Pillow in the nuScenes
@@ -270,5 +274,5 @@ def class_grid(m: Map, res: float) -> tuple[np.ndarray, np.ndarray, float]:
         draw.polygon(px(poly), fill=CLASS_CROSSING)
     grid = np.asarray(img, dtype=np.uint8).copy()
     out = (grid, origin, float(res))
-    _lru_put(_GRID_CACHE, key, out, 8)
+    _lru_put(_GRID_CACHE, key, out, CACHED_MAPS)
     return out

@@ -404,15 +404,20 @@ def _route_pixels(m: Map, poses: np.ndarray, frames: list[int], cfg: RasterConfi
     reach = float(np.hypot(max(cfg.metres_ahead, cfg.metres_behind), cfg.metres_side)) + 1.0
     ds = np.arange(0.0, reach, cfg.resolution / 2.0)
     sq = s0[:, None] + ds[None, :]
-    keep = sq <= m.route_s[-1]
-    pts, _ = m.route_pose(np.minimum(sq, m.route_s[-1]))
+    keep, sq = sq <= m.route_s[-1], np.minimum(sq, m.route_s[-1])  # points, no headings
+    px, py = (np.interp(sq, m.route_s, m.route_points[:, k]) for k in (0, 1))
     c, s = np.cos(P[:, 2])[:, None], np.sin(P[:, 2])[:, None]
-    dx, dy = pts[..., 0] - P[:, 0, None], pts[..., 1] - P[:, 1, None]
+    dx, dy = px - P[:, 0, None], py - P[:, 1, None]
     ex, ey = c * dx + s * dy, -s * dx + c * dy
     row = np.floor((cfg.metres_ahead - ex) / cfg.res_row).astype(np.intp)
     col = np.floor((cfg.metres_side - ey) / cfg.res_col).astype(np.intp)
     f = np.broadcast_to(np.asarray(frames)[:, None], sq.shape)
     return f[keep], row[keep], col[keep]
+
+
+def _paint(img: np.ndarray, pixels: tuple[np.ndarray, ...], colour, k: int | None) -> None:
+    """Paint ``pixels = (frame, row, col)`` in ``colour`` (RGB, ``k`` None) or set plane ``k``."""
+    img[pixels if k is None else (*pixels, k)] = colour if k is None else 1
 
 
 def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
@@ -434,6 +439,7 @@ def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
     groups: dict[int, tuple[Map, list[int]]] = {}
     for i, m in enumerate(maps):
         groups.setdefault(id(m), (m, []))[1].append(i)
+    fs, rows, cols, qs, route = [], [], [], [], []  # every map's lanes and route, drawn below
     for m, idx_list in groups.values():
         idx = np.array(idx_list)
         # static map: pixel centres -> world -> class grid (edge cells of the grid are
@@ -460,7 +466,6 @@ def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
             samples = m.lane_samples(float(cfg.resolution / 2.0))
             mid = (cfg.metres_ahead - cfg.metres_behind) / 2.0
             reach = max(cfg.metres_ahead + cfg.metres_behind, 2 * cfg.metres_side) / 2.0 + 1.0
-            fs, rows, cols, qs = [], [], [], []
             for i in idx_list:
                 centre = poses[i, :2] + mid * np.array([cos[i], sin[i]])
                 lp, lh = samples.near(centre, reach)  # a square around the view
@@ -473,48 +478,41 @@ def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
                 qs.append(np.floor(np.mod(poses[i, 2] - lh, 2 * np.pi)
                                    * (_N_HUE / (2 * np.pi))))
                 fs.append(np.full(len(lp), i))
-            f = np.concatenate(fs)
-            row = np.concatenate(rows).astype(np.intp)
-            col = np.concatenate(cols).astype(np.intp)
-            q = np.minimum(np.concatenate(qs).astype(np.intp), _N_HUE - 1)
-            if rgb:
-                colours = _HUE_LUT[q]
-            else:  # same direction: the lane's heading within 90 degrees of the ego's
-                which = np.where((q < _N_HUE // 4) | (q >= 3 * _N_HUE // 4),
-                                 plane["lane_same"], plane["lane_opposite"])
-            for ok, ff, rr, cc in _stamps(f, row, col, cfg.lane_width_m, cfg):
-                if rgb:
-                    img[ff, rr, cc] = colours[ok]
-                else:
-                    img[ff, rr, cc, which[ok]] = 1
         if cfg.route:
-            f, row, col = _route_pixels(m, poses, idx_list, cfg)
-            for _, ff, rr, cc in _stamps(f, row, col, ROUTE_WIDTH, cfg):
-                img[ff, rr, cc, plane["route"]] = 1
+            route.append(_route_pixels(m, poses, idx_list, cfg))
+    if cfg.draw_lanes:  # the lanes of every frame at once (a frame's own order kept)
+        f = np.concatenate(fs)
+        row = np.concatenate(rows).astype(np.intp)
+        col = np.concatenate(cols).astype(np.intp)
+        q = np.minimum(np.concatenate(qs).astype(np.intp), _N_HUE - 1)
+        if rgb:
+            colours = _HUE_LUT[q]
+        else:  # same direction: the lane's heading within 90 degrees of the ego's
+            which = np.where((q < _N_HUE // 4) | (q >= 3 * _N_HUE // 4),
+                             plane["lane_same"], plane["lane_opposite"])
+        for ok, ff, rr, cc in _stamps(f, row, col, cfg.lane_width_m, cfg):
+            if rgb:
+                img[ff, rr, cc] = colours[ok]
+            else:
+                img[ff, rr, cc, which[ok]] = 1
+    if cfg.route:
+        f, row, col = (np.concatenate(part) for part in zip(*route))
+        for _, ff, rr, cc in _stamps(f, row, col, ROUTE_WIDTH, cfg):
+            img[ff, rr, cc, plane["route"]] = 1
     if history is not None:  # past boxes, oldest first, under the current ones
         shade = fade(history.steps)
         ego_box = np.array([cfg.ego_length, cfg.ego_width])
         for j in range(history.steps - 1, -1, -1):
             fb, kb = np.nonzero(history.ado_valid[:, j])
-            ff, rr, cc = _box_pixels(poses, fb, history.ado[fb, j, kb], cfg)
-            if rgb:
-                img[ff, rr, cc] = np.round(np.array(VEHICLE) * shade[j]).astype(np.uint8)
-            else:
-                img[ff, rr, cc, plane[f"vehicles_t-{j + 1}"]] = 1
+            _paint(img, _box_pixels(poses, fb, history.ado[fb, j, kb], cfg),
+                   np.round(np.array(VEHICLE) * shade[j]), plane.get(f"vehicles_t-{j + 1}"))
             fe = np.nonzero(history.ego_valid[:, j])[0]
             boxes = np.hstack([history.ego[fe, j], np.tile(ego_box, (len(fe), 1))])
-            ff, rr, cc = _box_pixels(poses, fe, boxes, cfg)
-            if rgb:
-                img[ff, rr, cc] = np.round(np.array(EGO) * shade[j]).astype(np.uint8)
-            else:
-                img[ff, rr, cc, plane[f"ego_t-{j + 1}"]] = 1
+            _paint(img, _box_pixels(poses, fe, boxes, cfg),
+                   np.round(np.array(EGO) * shade[j]), plane.get(f"ego_t-{j + 1}"))
     if ado is not None:
         fb, kb = np.nonzero(valid)
-        ff, rr, cc = _box_pixels(poses, fb, ado[fb, kb], cfg)
-        if rgb:
-            img[ff, rr, cc] = np.array(VEHICLE, dtype=np.uint8)
-        else:
-            img[ff, rr, cc, plane["vehicles"]] = 1
+        _paint(img, _box_pixels(poses, fb, ado[fb, kb], cfg), VEHICLE, plane.get("vehicles"))
     if draw_ego:
         if rgb:
             img[:, _ego_mask(cfg)] = EGO
