@@ -210,16 +210,15 @@ position goal at a fixed 10 m along the lane target (its speed then ``≈ β_y �
 in the gain, where the paper's speed-scaled goal makes it steep near ``β_y τ_y = 1``)."""
 
 FORMS: dict[str, dict[str, Any]] = {
-    "paper": {"raster": world.RasterConfig(), "dagger_rounds": 0, "round_epochs": 1,
-              "model": models.ModelConfig()},
-    "learner": {"raster": LEARNER_RASTER, "dagger_rounds": 10, "round_epochs": 2,
-                "model": LEARNER_MODEL},
+    "paper": {"raster": world.RasterConfig(), "dagger_rounds": 0, "model": models.ModelConfig()},
+    "learner": {"raster": LEARNER_RASTER, "dagger_rounds": 10, "model": LEARNER_MODEL},
 }
 """How a study's models learn, by name (:func:`with_form`): ``"paper"``, the paper's form
 (the devkit's RGB raster, behaviour cloning by Algorithm 1, the library's models: eq. 7 over
 the pooled features, eq. 11's ``FC(q)``); ``"learner"``, the learner's form
-(:data:`LEARNER_RASTER`, DAgger with the world's expert for 10 rounds, each after the first
-continuing two epochs, :data:`LEARNER_MODEL`)."""
+(:data:`LEARNER_RASTER`, DAgger with the world's expert for 10 rounds, :data:`LEARNER_MODEL`).
+How long each round after the first trains (``round_epochs``) is a budget, as ``epochs``
+is: each preset sets it."""
 
 
 PRESETS: dict[str, StudyConfig] = {
@@ -229,23 +228,24 @@ PRESETS: dict[str, StudyConfig] = {
         training=train.TrainConfig(epochs=1, batch_size=16, max_steps_per_epoch=2, seq_len=4),
         lrs=(1e-3,), n_seeds=1, q_states=(3, 6), fractions=(0.5, 1.0), explain_scenes=1,
     ),
-    # minutes on 2 cores (README): every study, one seed, one learning rate, small data
+    # minutes on 2 cores (README): every study, one seed, one learning rate, small data; each
+    # DAgger round after the first continues one epoch (most of the run's time is training)
     "quick": StudyConfig(
         preset="quick", n_train=32, n_tune=8, n_val=24,
         training=train.TrainConfig(epochs=3, batch_size=64), lrs=(1e-3,), n_seeds=1,
-        q_states=(3, 6, 12), fractions=(0.5, 1.0), **FORMS["learner"],
+        q_states=(3, 6, 12), fractions=(0.5, 1.0), round_epochs=1, **FORMS["learner"],
     ),
     # three seeds, more data and epochs than "quick", and the learning-rate sweep
     "full": StudyConfig(
         preset="full", n_train=96, n_tune=16, n_val=48,
         training=train.TrainConfig(epochs=4, batch_size=64), lrs=(1e-3, 3e-3), n_seeds=3,
-        **FORMS["learner"],
+        round_epochs=2, **FORMS["learner"],
     ),
     # the paper's sizes: 650 training / 200 validation scenes, three seeds
     "paper": StudyConfig(
         preset="paper", n_train=650, n_tune=40, n_val=200,
         training=train.TrainConfig(epochs=6, batch_size=64), lrs=(3e-4, 1e-3, 3e-3), n_seeds=3,
-        **FORMS["learner"],
+        round_epochs=2, **FORMS["learner"],
     ),
 }
 """Named configurations, every one but ``tiny`` in the learner's form (:data:`FORMS`;
