@@ -285,6 +285,35 @@ def test_a_broken_data_file_in_the_cache_is_regenerated(tmp_path, capsys):
     assert study.files.data_path.read_bytes() == raw
 
 
+def test_the_reference_rows_are_driven_once_and_read_back(tmp_path, capsys, monkeypatch):
+    """A study that resumes reads the rows without training from its cache; a broken file
+    is driven again."""
+    from minimanc import rollout
+
+    tiny = studies.PRESETS["tiny"]
+    study = studies.Study(tiny, tmp_path, engine="numpy", workers=0, progress=False)
+
+    def same(a, b):  # compared as JSON text, where NaN equals NaN
+        return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+
+    first = study.references.score("human", "replay")
+    path = study.files.reference_path("human-val-replay")
+    assert same(json.loads(path.read_text()), first)
+
+    def no_drive(*args, **kwargs):
+        raise AssertionError("driven again")
+
+    monkeypatch.setattr(rollout, "human", no_drive)
+    again = studies.Study(tiny, tmp_path, engine="numpy", workers=0, progress=False)
+    assert same(again.references.score("human", "replay"), first)
+    monkeypatch.undo()
+    path.write_text("[1, 2")  # cut short
+    third = studies.Study(tiny, tmp_path, engine="numpy", workers=0, progress=False)
+    assert same(third.references.score("human", "replay"), first)
+    assert "discarding the unreadable cache entry" in capsys.readouterr().err
+    assert same(json.loads(path.read_text()), first)
+
+
 def test_a_broken_metrics_file_is_recomputed(tmp_path, capsys):
     tiny = studies.PRESETS["tiny"]
     study = studies.Study(tiny, tmp_path, engine="numpy", workers=0, progress=False)

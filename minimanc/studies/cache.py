@@ -179,6 +179,25 @@ class StudyFiles:
         return (base / f"{run.key}-{split}{tail}.npz",
                 base / f"{run.key}-{split}{tail}.json")
 
+    def reference_path(self, key: str) -> Path:
+        """The scores of the reference driver ``key`` (a Table I row without training, on the
+        validation split: :class:`~minimanc.studies.references.References`)."""
+        return self.dir / "references" / f"{key}.json"
+
+    def cached_reference(self, key: str) -> dict | None:
+        """The scores :meth:`reference_path` holds, or ``None`` (none yet, or scored by an
+        older version; a file that is not a JSON object is discarded)."""
+        path = self.reference_path(key)
+        if not path.exists():
+            return None
+        cached = read_json_or_none(path)
+        if not isinstance(cached, dict):
+            self.discard(path, "not a JSON object")
+            return None
+        if not ("families" in cached and all(k in cached for k in STUDY_METRICS)):
+            return None
+        return cached
+
     def cached_scores(self, run: Run, split: str, agents: str) -> dict | None:
         """The metrics of ``run`` on ``split`` under ``agents`` when the cache holds them and
         its rollout (``None`` otherwise; a metrics file that is not a JSON object is

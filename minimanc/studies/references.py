@@ -2,7 +2,8 @@
 logged human, MANC's DMP head at constant gains (the "DMP prior") and the bounds
 (:data:`minimanc.diagnose.bounds.BOUND_ROWS`: the expert, the style floor, the privileged
 learner, one per training seed) on a study's
-validation split, and keeps their scores in memory."""
+validation split, and keeps their scores in the study's cache (a run that resumes does not
+drive them again)."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from minimanc import metrics, models, rollout
 from minimanc.diagnose import bounds
 from minimanc.studies.cache import StudyFiles
 from minimanc.studies.jobs import score
+from minimanc.studies.provenance import write_json
 from minimanc.studies.recorded import is_recorded
 
 __all__ = ["References"]
@@ -47,25 +49,32 @@ class References:
         :attr:`bound_rows` (``"privileged"``: the learner of training seed ``seed``)."""
         key = f"{name}-val-{agents}" + (f"-s{seed}" if name == "privileged" else "")
         if key not in self._scores:
-            _, _, val = self.files.datasets()
-            t0 = time.perf_counter()
-            if name == "human":
-                traj = rollout.human(val, agents=agents)
-            elif name == "expert":
-                traj = bounds.expert_rollout(val, agents=agents)
-            elif name == "privileged":
-                traj = bounds.privileged_rollout(self.privileged(seed), val, agents=agents)
-            elif name == "style_floor":  # one drive, ados reacting, scored under either protocol
-                if self._floor is None:
-                    self._floor = bounds.floor_rollout(val, bounds.median_style())
-                traj = self._floor
-            else:
-                cfg = models.ModelConfig(n_states=self.config.n_states)
-                traj = rollout.fixed_gains(val, cfg=cfg, agents=agents)
-            self._scores[key] = score(traj, val)
-            self.timing["references"] = (self.timing.get("references", 0.0)
-                                          + time.perf_counter() - t0)
+            self._scores[key] = self.files.cached_reference(key) or self._drive(name, agents,
+                                                                                seed, key)
         return self._scores[key]
+
+    def _drive(self, name: str, agents: str, seed: int, key: str) -> dict:
+        """:meth:`score` of a row the cache does not hold: driven, scored and saved."""
+        _, _, val = self.files.datasets()
+        t0 = time.perf_counter()
+        if name == "human":
+            traj = rollout.human(val, agents=agents)
+        elif name == "expert":
+            traj = bounds.expert_rollout(val, agents=agents)
+        elif name == "privileged":
+            traj = bounds.privileged_rollout(self.privileged(seed), val, agents=agents)
+        elif name == "style_floor":  # one drive, ados reacting, scored under either protocol
+            if self._floor is None:
+                self._floor = bounds.floor_rollout(val, bounds.median_style())
+            traj = self._floor
+        else:
+            cfg = models.ModelConfig(n_states=self.config.n_states)
+            traj = rollout.fixed_gains(val, cfg=cfg, agents=agents)
+        res = score(traj, val)
+        write_json(self.files.reference_path(key), res)
+        self.timing["references"] = (self.timing.get("references", 0.0)
+                                      + time.perf_counter() - t0)
+        return res
 
     def runs(self, name: str, agents: str) -> list[dict]:
         """The scores of row ``name`` under ``agents``, one per run: one per training seed for
