@@ -111,8 +111,9 @@ class HumanExpert:
     """The world's human driver as an expert that can be asked in any state of ``ds``.
 
     ``ds`` a dataset made by :func:`minimanc.world.generate` (or a subset/split of one).
-    The human's run of a scene is re-simulated on first use and kept (``cache`` scenes,
-    least recently used first out). See the module docstring.
+    The human's run of a scene is re-simulated on first use (:func:`human_run`, which every
+    expert of the process shares) and kept at hand (``cache`` scenes, least recently used
+    first out). See the module docstring.
     """
 
     def __init__(self, ds: Any, cache: int = 64) -> None:

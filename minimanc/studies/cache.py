@@ -185,29 +185,24 @@ class StudyFiles:
         return self.dir / "references" / f"{key}.json"
 
     def cached_reference(self, key: str) -> dict | None:
-        """The scores :meth:`reference_path` holds, or ``None`` (none yet, or scored by an
-        older version; a file that is not a JSON object is discarded)."""
+        """The scores :meth:`reference_path` holds, or ``None`` (:meth:`read_scores`)."""
         path = self.reference_path(key)
-        if not path.exists():
-            return None
-        cached = read_json_or_none(path)
-        if not isinstance(cached, dict):
-            self.discard(path, "not a JSON object")
-            return None
-        if not ("families" in cached and all(k in cached for k in STUDY_METRICS)):
-            return None
-        return cached
+        return self.read_scores(path) if path.exists() else None
 
     def cached_scores(self, run: Run, split: str, agents: str) -> dict | None:
         """The metrics of ``run`` on ``split`` under ``agents`` when the cache holds them and
-        its rollout (``None`` otherwise; a metrics file that is not a JSON object is
-        discarded, one scored by an older version is ignored)."""
+        its rollout (``None`` otherwise, :meth:`read_scores`)."""
         roll_path, met_path = self.rollout_paths(run, split, agents)
         if not (met_path.exists() and roll_path.exists()):
             return None
-        cached = read_json_or_none(met_path)
+        return self.read_scores(met_path)
+
+    def read_scores(self, path: Path) -> dict | None:
+        """The scores in the file ``path``, or ``None``: a file that is not a JSON object is
+        discarded, one scored by an older version (without every metric) is ignored."""
+        cached = read_json_or_none(path)
         if not isinstance(cached, dict):
-            self.discard(met_path, "not a JSON object")
+            self.discard(path, "not a JSON object")
             return None
         if not ("families" in cached and all(k in cached for k in STUDY_METRICS)):
             return None  # scored by an older version: evaluate again

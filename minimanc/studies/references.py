@@ -49,8 +49,8 @@ class References:
         :attr:`bound_rows` (``"privileged"``: the learner of training seed ``seed``)."""
         key = f"{name}-val-{agents}" + (f"-s{seed}" if name == "privileged" else "")
         if key not in self._scores:
-            self._scores[key] = self.files.cached_reference(key) or self._drive(name, agents,
-                                                                                seed, key)
+            cached = self.files.cached_reference(key)
+            self._scores[key] = self._drive(name, agents, seed, key) if cached is None else cached
         return self._scores[key]
 
     def _drive(self, name: str, agents: str, seed: int, key: str) -> dict:
