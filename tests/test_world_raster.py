@@ -136,6 +136,21 @@ def test_rasterize_batch_matches_single_frames():
         world.rasterize_batch(m, np.zeros((2, 2)))
 
 
+@pytest.mark.parametrize("cfg", [world.RasterConfig(),
+                                 world.RasterConfig(encoding="channels", route=True)])
+def test_a_batch_of_several_maps_draws_each_frame_as_alone(cfg):
+    """Frames of different maps in one batch (the closed loop's) are drawn as each is alone;
+    no frame is an empty batch of the raster's shape."""
+    rng = np.random.default_rng(5)
+    maps = [world.random_map(rng, kind) for kind in ("roundabout", "intersection", "curved")]
+    poses = np.array([[*m.route_pose(m.start_s + 10.0 * i)[0], m.route_pose(m.start_s)[1]]
+                      for i, m in enumerate(maps)])
+    batch = world.rasterize_batch(maps, poses, cfg=cfg)
+    for m, pose, img in zip(maps, poses, batch):
+        np.testing.assert_array_equal(img, world.rasterize(m, pose, cfg=cfg))
+    assert world.rasterize_batch([], np.zeros((0, 3)), cfg=cfg).shape == (0, *cfg.shape)
+
+
 @settings(max_examples=40, deadline=None)
 @given(rel=st.floats(-10, 10))
 def test_hue_matches_colorsys(rel):

@@ -480,7 +480,7 @@ def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
                 fs.append(np.full(len(lp), i))
         if cfg.route:
             route.append(_route_pixels(m, poses, idx_list, cfg))
-    if cfg.draw_lanes:  # the lanes of every frame at once (a frame's own order kept)
+    if fs:  # the lanes of every frame at once (a frame's own order kept)
         f = np.concatenate(fs)
         row = np.concatenate(rows).astype(np.intp)
         col = np.concatenate(cols).astype(np.intp)
@@ -495,7 +495,7 @@ def _render(maps: list[Map], poses: np.ndarray, ado: np.ndarray | None,
                 img[ff, rr, cc] = colours[ok]
             else:
                 img[ff, rr, cc, which[ok]] = 1
-    if cfg.route:
+    if route:
         f, row, col = (np.concatenate(part) for part in zip(*route))
         for _, ff, rr, cc in _stamps(f, row, col, ROUTE_WIDTH, cfg):
             img[ff, rr, cc, plane["route"]] = 1
