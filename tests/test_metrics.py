@@ -78,9 +78,10 @@ def test_box_gap_matches_dense_boundary_sampling(x1, y1, h1, l1, w1, x2, y2, h2,
 
 @settings(max_examples=30, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.floats(0.0, 1.0))
-def test_ado_gaps_and_overlaps_measure_the_valid_boxes_alone(seed, share):
-    """Measured only where an ado exists (the circumscribed circles first for the overlaps),
-    they equal the test of every ego and ado box broadcast, masked afterwards."""
+def test_gaps_and_collisions_measure_the_valid_boxes_alone(seed, share):
+    """Measured only where an ado exists (the overlaps only where the circumscribed circles
+    meet), the gaps and the collisions are those of every ego and ado box broadcast, masked
+    afterwards."""
     rng = np.random.default_rng(seed)
     S, T, A = 2, 5, 6
     ego = np.concatenate([rng.uniform(-6, 6, (S, T, 2)), rng.uniform(-np.pi, np.pi, (S, T, 1))],
@@ -92,8 +93,11 @@ def test_ado_gaps_and_overlaps_measure_the_valid_boxes_alone(seed, share):
     boxes = metrics.ego_boxes(ego)[:, :, None, :]
     np.testing.assert_array_equal(metrics.ado_gaps(ego, ado, valid),
                                   np.where(valid, metrics.box_gap(boxes, ado), np.inf))
-    np.testing.assert_array_equal(metrics.ado_overlaps(ego, ado, valid),
-                                  boxes_overlap(boxes, ado) & valid)
+    hit = boxes_overlap(boxes, ado) & valid
+    np.testing.assert_array_equal(metrics.collisions(ego, ado, valid),
+                                  hit.reshape(S, -1).any(axis=1).astype(float))
+    events = metrics.collision_events(ego, ado, valid)
+    assert [(e.scene, e.ado) for e in events] == list(zip(*np.nonzero(hit.any(axis=1))))
 
 
 # --------------------------------------------------------------------------- close encounters

@@ -26,7 +26,7 @@ Each module states the exact definitions of the metrics it computes:
 Everything public is re-exported here (``from minimanc import metrics; metrics.ade(...)``).
 """
 
-from minimanc.metrics.boxes import ado_gaps, ado_overlaps, box_gap, ego_boxes
+from minimanc.metrics.boxes import ado_gaps, box_gap, ego_boxes
 from minimanc.metrics.safety import (
     AT_FAULT,
     CLOSE_GAP,
@@ -72,7 +72,6 @@ __all__ = [
     "ego_boxes",
     "box_gap",
     "ado_gaps",
-    "ado_overlaps",
     "close_encounters",
     "max_acceleration",
     "ade",

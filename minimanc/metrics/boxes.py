@@ -27,7 +27,6 @@ __all__ = [
     "ego_boxes",
     "box_gap",
     "ado_gaps",
-    "ado_overlaps",
 ]
 
 
@@ -179,40 +178,3 @@ def ado_gaps(ego: Any, ado: Any, ado_valid: Any) -> np.ndarray:
     gaps[si, ti, ki] = box_gap(ego_boxes(e[si, ti]), a[si, ti, ki])
     return gaps
 
-
-def ado_overlaps(ego: Any, ado: Any, ado_valid: Any) -> np.ndarray:
-    """Whether the ego box overlaps each valid ado box, ``(S, T, A)`` (False where invalid).
-
-    The ego's box is :func:`ego_boxes` of its pose; the test is the separating-axis test,
-    :func:`minimanc.world.geometry.boxes_overlap`, made only where the two boxes' circumscribed
-    circles meet (elsewhere they cannot overlap).
-
-    Parameters
-    ----------
-    ego : array, shape (S, T, 3)
-        Ego poses ``[x, y, yaw]`` (m, m, rad), finite.
-    ado : array, shape (S, T, A, 5)
-        Ado boxes ``[x, y, yaw, length, width]`` on the same clock.
-    ado_valid : array of bool, shape (S, T, A)
-        Which ado boxes exist.
-
-    Returns
-    -------
-    ndarray of bool, shape (S, T, A)
-        True where the ego box and a valid ado box overlap.
-
-    Raises
-    ------
-    ValueError
-        If ``ego``, ``ado`` or ``ado_valid`` has another shape or ``ego`` is not finite
-        (:func:`check_poses`, :func:`check_ados`).
-    """
-    e = check_poses(ego)
-    a, v = check_ados(ado, ado_valid, e)
-    si, ti, ki = np.nonzero(v)
-    ab, ep = a[si, ti, ki], e[si, ti]
-    reach = (np.hypot(ab[:, 3], ab[:, 4]) + np.hypot(EGO_LENGTH, EGO_WIDTH)) / 2 + 1e-6
-    near = np.hypot(ab[:, 0] - ep[:, 0], ab[:, 1] - ep[:, 1]) <= reach
-    hit = np.zeros(v.shape, dtype=bool)
-    hit[si[near], ti[near], ki[near]] = boxes_overlap(ego_boxes(ep[near]), ab[near])
-    return hit

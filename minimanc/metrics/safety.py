@@ -59,7 +59,6 @@ import numpy as np
 from minimanc.checks import check_dt
 from minimanc.metrics.boxes import (
     ado_gaps,
-    ado_overlaps,
     check_ados,
     check_maps,
     check_poses,
@@ -174,8 +173,21 @@ def collisions(ego: Any, ado: Any, ado_valid: Any) -> np.ndarray:
     ValueError
         If ``ego``, ``ado`` or ``ado_valid`` has another shape, or ``ego`` is not finite.
     """
-    hit = ado_overlaps(ego, ado, ado_valid)
-    return hit.reshape(hit.shape[0], -1).any(axis=1).astype(np.float64)
+    e = check_poses(ego)
+    a, v = check_ados(ado, ado_valid, e)
+    return _overlaps(e, a, v).reshape(e.shape[0], -1).any(axis=1).astype(np.float64)
+
+
+def _overlaps(e: np.ndarray, a: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``(S, T, A)``: the ego box at the poses ``e`` overlaps the valid ado box (checked
+    inputs); the separating-axis test is made only where the circumscribed circles meet."""
+    si, ti, ki = np.nonzero(v)
+    ab, ep = a[si, ti, ki], e[si, ti]
+    reach = (np.hypot(ab[:, 3], ab[:, 4]) + np.hypot(EGO_LENGTH, EGO_WIDTH)) / 2 + 1e-6
+    near = np.hypot(ab[:, 0] - ep[:, 0], ab[:, 1] - ep[:, 1]) <= reach
+    hit = np.zeros(v.shape, dtype=bool)
+    hit[si[near], ti[near], ki[near]] = boxes_overlap(ego_boxes(ep[near]), ab[near])
+    return hit
 
 
 # --------------------------------------------------------------------------- who is at fault
@@ -305,7 +317,7 @@ def collision_events(ego: Any, ado: Any, ado_valid: Any, maps: Sequence[Any] | N
     dt = check_dt(dt)
     if maps is not None:
         check_maps(maps, e.shape[0])
-    hit = ado_overlaps(e, a, v)  # (S, T, A)
+    hit = _overlaps(e, a, v)  # (S, T, A)
     S, T, A = hit.shape
     first = np.where(hit.any(axis=1), hit.argmax(axis=1), -1)  # (S, A)
     v_ego, _ = _speeds(e[..., :2], np.ones((S, T), bool), dt)
