@@ -78,9 +78,10 @@ class Situation:
     leader: Vehicle | None = None
 
 
-RUNS_KEPT = 256
-"""How many scenes' runs (:func:`human_run`) a process keeps for every expert it makes (each
-of a study's on-policy runs asks about the same scenes); a scene's run is about 0.3 MB."""
+RUNS_KEPT = 700
+"""How many scenes' runs (:func:`human_run`) a process keeps for every expert it makes: each
+of a study's on-policy runs asks about the same training scenes, 650 at the paper's size. A
+scene's run (its driver and traffic at each step) takes about 1.3 MB."""
 _RUNS: OrderedDict = OrderedDict()
 
 
