@@ -268,3 +268,21 @@ def test_a_write_keeps_the_temp_file_of_a_live_writer(tmp_path):
         first.abort()
     assert datawriter.temp_files(target) == []
 
+
+
+@pytest.mark.skipif(os.name != "posix", reason="file modes are POSIX's")
+def test_written_files_have_the_mode_of_any_file_the_user_writes(ds, tmp_path):
+    """The atomic writers (the dataset, a checkpoint, the studies' JSON and Markdown) give the
+    file the umask's mode, not the private mode of a temporary file."""
+    from minimanc import models, train
+    from minimanc.studies.provenance import write_text
+
+    old = os.umask(0o027)
+    try:
+        paths = [world.save(ds.subset(slice(0, 1)), tmp_path / "w.npz"),
+                 write_text(tmp_path / "table1.md", "# results\n"),
+                 train.save_checkpoint(tmp_path / "checkpoint.npz", "cnn", {"w": np.ones(2)},
+                                       models.ModelConfig(), raster=ds.raster)]
+    finally:
+        os.umask(old)
+    assert {oct(Path(p).stat().st_mode & 0o777) for p in paths} == {oct(0o640)}

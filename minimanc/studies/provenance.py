@@ -27,11 +27,12 @@ import re
 import shlex
 import subprocess
 import sys
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from minimanc.world.datawriter import temp_file
 
 __all__ = [
     "PACKAGES",
@@ -165,7 +166,7 @@ def write_text(path: str | Path, text: str) -> Path:
     :func:`os.replace`; nothing half-written is left behind on failure)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    fd, tmp = temp_file(path)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)

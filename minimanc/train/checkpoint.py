@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import zipfile
 import zlib
 from collections.abc import Sequence
@@ -22,7 +21,7 @@ from minimanc.train.config import PARAM_LIMIT, CheckpointError, FitResult, Train
 from minimanc.train.trained import CHECKPOINT_DEFAULTS, accepts_fit
 from minimanc.tree import from_flat_dict, to_flat_dict
 from minimanc.tree import map as tree_map
-from minimanc.world.datawriter import temp_prefix
+from minimanc.world.datawriter import temp_file
 from minimanc.world.raster import RasterConfig
 
 __all__ = ["bad_params", "load_checkpoint", "load_fit", "restore_opt", "save_checkpoint",
@@ -59,7 +58,7 @@ def bad_params(params: Any, limit: float = PARAM_LIMIT) -> str | None:
 
 def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=temp_prefix(path), suffix=".tmp", dir=path.parent)
+    fd, tmp = temp_file(path)
     try:
         with os.fdopen(fd, "wb") as fh:
             np.savez(fh, **arrays)

@@ -59,6 +59,18 @@ def temp_prefix(path: str | os.PathLike) -> str:
     return f"{Path(path).name}.pid{os.getpid()}."
 
 
+def temp_file(path: str | os.PathLike) -> tuple[int, str]:
+    """A new temporary file beside ``path`` (named by :func:`temp_prefix`), open for writing:
+    ``(descriptor, name)``. Its mode is that of a file :func:`open` creates (``0o666`` less
+    the umask), not :func:`tempfile.mkstemp`'s private ``0o600``, so the file it is renamed to
+    can be read as any other the user writes."""
+    fd, tmp = tempfile.mkstemp(prefix=temp_prefix(path), suffix=".tmp", dir=Path(path).parent)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
+    return fd, tmp
+
+
 def _writer_alive(tmp: Path, target: Path) -> bool:
     """Whether the process named in ``tmp`` (a :func:`temp_prefix` name) is running."""
     rest = tmp.name[len(target.name) + 1:]
@@ -108,8 +120,7 @@ class DatasetWriter:
         _check_target(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         remove_temp_files(self.path)
-        fd, tmp = tempfile.mkstemp(prefix=temp_prefix(self.path), suffix=".tmp",
-                                   dir=self.path.parent)
+        fd, tmp = temp_file(self.path)
         self._tmp = Path(tmp)
         self._fh = os.fdopen(fd, "wb")
         self._zip = zipfile.ZipFile(self._fh, "w", compression=zipfile.ZIP_DEFLATED,
