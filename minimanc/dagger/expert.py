@@ -113,8 +113,9 @@ class HumanExpert:
 
     ``ds`` a dataset made by :func:`minimanc.world.generate` (or a subset/split of one).
     The human's run of a scene is re-simulated on first use (:func:`human_run`, which every
-    expert of the process shares) and kept at hand (``cache`` scenes, least recently used
-    first out). See the module docstring.
+    expert of the process shares); this expert keeps the runs it has checked against its
+    dataset's log at hand (``cache`` scenes, least recently used first out), so that the log
+    is compared once per scene, not at every question. See the module docstring.
     """
 
     def __init__(self, ds: Any, cache: int = 64) -> None:

@@ -415,7 +415,8 @@ def _route_pixels(m: Map, poses: np.ndarray, frames: list[int], cfg: RasterConfi
     return f[keep], row[keep], col[keep]
 
 
-def _paint(img: np.ndarray, pixels: tuple[np.ndarray, ...], colour, k: int | None) -> None:
+def _paint(img: np.ndarray, pixels: tuple[np.ndarray, ...],
+           colour: np.ndarray | tuple[int, int, int], k: int | None) -> None:
     """Paint ``pixels = (frame, row, col)`` in ``colour`` (RGB, ``k`` None) or set plane ``k``."""
     img[pixels if k is None else (*pixels, k)] = colour if k is None else 1
 
