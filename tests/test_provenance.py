@@ -52,7 +52,8 @@ Version 3.11 is fine here.
 
 
 @pytest.mark.parametrize("readme", ["README.md", "research/why_it_crashes/REPORT.md",
-                                    "research/dagger_study/REPORT.md"])
+                                    "research/dagger_study/REPORT.md",
+                                    "research/seeing_the_leader/README.md"])
 def test_the_committed_reports_quote_their_results_files_exactly(readme):
     problems = provenance.check_readme(ROOT / readme)
     assert problems == [], "\n".join(problems)
